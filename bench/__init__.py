@@ -1,0 +1,1 @@
+"""exo-bench: the command line, the method registry, scenes, reports and benchmarks."""

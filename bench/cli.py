@@ -1,0 +1,125 @@
+"""``exo-bench``: the command line. Errors print one line on stderr and exit with code 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, no usage dump
+        raise _UsageError(f"{self.prog}: {message}")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from models.mechanism import as_states
+
+    p = Path(path)
+    if not p.exists():
+        raise ValueError(f"states {path!r}: no such file")
+    try:
+        data = json.loads(p.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"states {path!r}: invalid JSON: {e}") from None
+    except OSError as e:
+        raise ValueError(f"states {path!r}: cannot read: {e.strerror}") from None
+    if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
+        got = sorted(data) if isinstance(data, dict) else type(data).__name__
+        raise ValueError(f"states {path!r}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
+    return as_states(mech, data["q"], data["qd"], data["qdd"], source=f"states {path!r}")
+
+
+def cmd_presets(args) -> int:
+    from models.presets import preset_descriptions
+
+    for name, desc in preset_descriptions().items():
+        print(f"{name:10s} {desc}")
+    return 0
+
+
+def cmd_inverse(args) -> int:
+    from bench.methods import get_method
+    from models.mechanism import load_mechanism
+
+    fn = get_method(args.method)  # an unknown method fails before any file is read
+    mech = load_mechanism(args.mechanism)
+    q, qd, qdd = _load_states(args.states, mech)
+    tau = np.asarray(fn(mech, q, qd, qdd))
+    json.dump({"method": args.method, "tau": tau.tolist()}, sys.stdout)
+    sys.stdout.write("\n")
+    return 0
+
+
+def cmd_urdf(args) -> int:
+    from models.mechanism import load_mechanism
+    from models.urdf import to_urdf
+
+    text = to_urdf(load_mechanism(args.mechanism))
+    if args.output:
+        from bench.reporting import atomic_write
+        atomic_write(args.output, text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+def cmd_run(args) -> int:
+    from bench.main_job import run
+
+    return run(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from bench.methods import method_names
+
+    p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
+                "three implementations, cross-checked, timed and visualised.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    s = sub.add_parser("presets", help="list the preset mechanisms")
+    s.set_defaults(func=cmd_presets)
+
+    s = sub.add_parser("inverse", help="inverse dynamics: generalised forces for given states")
+    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
+    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
+                   "one row per sample, coordinates in block order [phi..., psi..., l...]")
+    s.add_argument("--method", default="pinocchio", help=f"one of: {', '.join(method_names())}")
+    s.set_defaults(func=cmd_inverse)
+
+    s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
+    s.add_argument("mechanism")
+    s.add_argument("-o", "--output")
+    s.set_defaults(func=cmd_urdf)
+
+    s = sub.add_parser("run", help="the main job: run every scene and write the reports")
+    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.set_defaults(func=cmd_run)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        return int(args.func(args) or 0)
+    except _UsageError as e:
+        print(str(e), file=sys.stderr)
+        return 2
+    except (ValueError, OSError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        print(f"exo-bench: error: {msg}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("exo-bench: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,35 @@
+"""The registry of inverse-dynamics methods, all with one signature and one coordinate order.
+
+Each entry is ``f(mechanism, q, qd, qdd) -> tau`` with batch-first ``(samples, dof)`` arrays in
+the block order ``[phi..., psi..., l...]`` and tau in ``[M_phi..., M_psi..., F...]``: the
+generalised forces of the paper's absolute coordinates. Modules are imported lazily, so a
+scene that does not use a method never imports (or derives) it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Callable
+
+import numpy as np
+
+from models.mechanism import Mechanism
+
+#: method name -> (module, function, one-line description)
+METHODS: dict[str, tuple[str, str, str]] = {
+    "pinocchio": ("models.pinocchio_backend", "inverse_dynamics", "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint"),
+}
+
+InverseDynamics = Callable[[Mechanism, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+def method_names() -> list[str]:
+    return list(METHODS)
+
+
+def get_method(name: str) -> InverseDynamics:
+    """The inverse-dynamics function of a method; a clear ValueError for an unknown name."""
+    if name not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {name!r}")
+    module, func, _ = METHODS[name]
+    return getattr(importlib.import_module(module), func)

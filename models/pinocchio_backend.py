@@ -1,0 +1,169 @@
+"""Pinocchio backend: inverse dynamics, mass matrix and point positions in the paper's coordinates.
+
+The model is built once per mechanism from :func:`models.urdf.to_urdf` with mimic
+joints (``buildModelFromXML(xml, mimic=True)``), and kept apart from the scratch
+``Data``, as Pinocchio itself does.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import pinocchio as pin
+
+from models.mechanism import Mechanism, as_states
+from models.urdf import link_prefix, to_urdf
+
+
+@dataclass(frozen=True, eq=False)
+class PinocchioModel:
+    """A mechanism's Pinocchio model, with the constant map ``G`` to joint coordinates.
+
+    **Coordinates.** Pinocchio's joint coordinates are relative: link k's joints take
+    ``phi_k - phi_parent``, ``psi_k`` and ``l_k`` (the 3D "undo" joint and the middle-mass
+    joint are mimics, so they are not coordinates). The paper's coordinates are absolute
+    angles. The map between the two is linear and constant,
+    ``q_joint = G q_paper``, so also ``qd_joint = G qd_paper`` and ``qdd_joint = G qdd_paper``.
+    Virtual work is the same in both sets, ``tau_joint . dq_joint = tau_paper . dq_paper`` for
+    every ``dq_paper``, hence **``tau_paper = G^T tau_joint``** exactly, and the mass matrix
+    transforms as ``M_paper = G^T M_joint G``. ``G`` is square and unit lower triangular up to
+    ordering, so it is invertible.
+
+    ``tau_joint`` holds the physical joint moments (each the sum over its subtree),
+    ``tau_paper`` the generalised forces of the absolute angles (eq. 4 has ``M1 - M2`` on
+    ``phi_1``).
+    """
+
+    mechanism: Mechanism
+    model: pin.Model
+    G: np.ndarray              # (nv, dof)
+    joint_names: tuple[str, ...]  # name of the joint of each row of G
+    frames: np.ndarray         # (n, 3) frame ids of the start, middle, end bodies (-1: no middle body)
+
+    def create_data(self) -> pin.Data:
+        return self.model.createData()
+
+
+@lru_cache(maxsize=64)
+def build_model(mech: Mechanism) -> PinocchioModel:
+    """Build (once per mechanism) the Pinocchio model from the generated URDF."""
+    model = pin.buildModelFromXML(to_urdf(mech), mimic=True)
+    model.gravity.linear = np.array([0.0, -mech.g, 0.0] if mech.dim == 2 else [0.0, 0.0, -mech.g])
+    n = mech.nlinks
+    G = np.zeros((model.nv, mech.dof))
+    names = [""] * model.nv
+    col = {"phi": 0, "psi": n, "l": (2 if mech.dim == 3 else 1) * n}
+    frames = -np.ones((n, 3), dtype=int)
+    for i in range(n):
+        k = link_prefix(mech, i)
+        p = mech.parent[i]
+        rows = [("phi", i)] + ([("psi", i)] if mech.dim == 3 else []) + [("len", i)]
+        for kind, _ in rows:
+            jid = model.getJointId(f"{k}_{kind}")
+            v = model.idx_vs[jid]
+            names[v] = f"{k}_{kind}"
+            if kind == "phi":
+                G[v, col["phi"] + i] = 1.0          # phi_k ...
+                if p >= 0:
+                    G[v, col["phi"] + p] = -1.0     # ... minus phi_parent: a relative angle
+            elif kind == "psi":
+                G[v, col["psi"] + i] = 1.0          # psi_k is already absolute (the undo joint levels)
+            else:
+                G[v, col["l"] + i] = 1.0            # l_k
+        frames[i, 0] = model.getFrameId(f"{k}_frame", pin.FrameType.BODY)
+        frames[i, 2] = model.getFrameId(f"{k}_end", pin.FrameType.BODY)
+        if mech.masses[i][1] > 0:
+            frames[i, 1] = model.getFrameId(f"{k}_mid", pin.FrameType.BODY)
+    return PinocchioModel(mech, model, G, tuple(names), frames)
+
+
+def _joint_states(pm: PinocchioModel, q, qd, qdd):
+    G = pm.G
+    return (q @ G.T, None if qd is None else qd @ G.T, None if qdd is None else qdd @ G.T)
+
+
+def joint_torques(mech: Mechanism, q, qd, qdd) -> np.ndarray:
+    """RNEA in Pinocchio's joint coordinates: the physical joint moments and rod forces, ``(S, nv)``.
+
+    Rows follow :attr:`PinocchioModel.joint_names`.
+    """
+    q, qd, qdd = as_states(mech, q, qd, qdd)
+    pm = build_model(mech)
+    data = pm.create_data()
+    qj, vj, aj = _joint_states(pm, q, qd, qdd)
+    return np.stack([pin.rnea(pm.model, data, qj[s], vj[s], aj[s]) for s in range(q.shape[0])])
+
+
+def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
+    """Generalised forces ``[M_phi..., M_psi..., F...]`` in the paper's coordinates, ``(S, dof)``.
+
+    One ``pin.rnea`` call per sample, then ``tau_paper = G^T tau_joint``.
+    """
+    return joint_torques(mech, q, qd, qdd) @ build_model(mech).G
+
+
+@lru_cache(maxsize=16)
+def _pool(mech: Mechanism, threads: int) -> pin.ModelPool:
+    return pin.ModelPool(build_model(mech).model, threads)
+
+
+def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None = None) -> np.ndarray:
+    """The same as :func:`inverse_dynamics`, batched through ``pin.rneaInParallel``."""
+    q, qd, qdd = as_states(mech, q, qd, qdd)
+    threads = threads or os.cpu_count() or 1
+    pm = build_model(mech)
+    qj, vj, aj = _joint_states(pm, q, qd, qdd)
+    f = lambda x: np.asfortranarray(x.T)
+    tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
+    pin.rneaInParallel(threads, _pool(mech, threads), f(qj), f(vj), f(aj), tau)
+    return tau.T @ pm.G
+
+
+def mass_matrix(mech: Mechanism, q) -> np.ndarray:
+    """Mass matrix in the paper's coordinates, ``G^T M_joint G`` from CRBA, ``(S, dof, dof)``."""
+    q, _, _ = as_states(mech, q)
+    pm = build_model(mech)
+    qj = q @ pm.G.T
+    out = np.empty((q.shape[0], mech.dof, mech.dof))
+    for s in range(q.shape[0]):
+        # A fresh Data per call: on models with a revolute mimic joint (every 3D model with
+        # more than one link), pin 4.1's CRBA depends on what earlier calls left in Data.
+        M = pin.crba(pm.model, pm.create_data(), qj[s])
+        M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
+        out[s] = pm.G.T @ M @ pm.G
+    return out
+
+
+def bias_forces(mech: Mechanism, q, qd) -> np.ndarray:
+    """Coriolis, centrifugal and gravity forces ``h(q, qd)`` in the paper's coordinates, ``(S, dof)``."""
+    q, qd, _ = as_states(mech, q, qd)
+    pm = build_model(mech)
+    data = pm.create_data()
+    qj, vj, _ = _joint_states(pm, q, qd, None)
+    return np.stack([pin.nonLinearEffects(pm.model, data, qj[s], vj[s]) for s in range(q.shape[0])]) @ pm.G
+
+
+def point_mass_positions(mech: Mechanism, q) -> np.ndarray:
+    """World positions of every point mass from Pinocchio's frames, ``(S, n, 3, dim)``.
+
+    A middle mass of zero has no body; its point is interpolated at fraction ``n`` so that
+    the stick figure is still complete.
+    """
+    q, _, _ = as_states(mech, q)
+    pm = build_model(mech)
+    data = pm.create_data()
+    qj = q @ pm.G.T
+    n = mech.nlinks
+    out = np.empty((q.shape[0], n, 3, mech.dim))
+    for s in range(q.shape[0]):
+        pin.framesForwardKinematics(pm.model, data, qj[s])
+        for i in range(n):
+            start = data.oMf[int(pm.frames[i, 0])].translation
+            end = data.oMf[int(pm.frames[i, 2])].translation
+            mid = (data.oMf[int(pm.frames[i, 1])].translation if pm.frames[i, 1] >= 0
+                   else start + mech.n[i] * (end - start))
+            out[s, i] = np.stack([start, mid, end])[:, :mech.dim]
+    return out

@@ -1,0 +1,118 @@
+"""The paper's models as presets, and generators for chains and random trees.
+
+Masses and fractions come from section 7 of the paper (the five-link
+exoskeleton): link masses ``m1 = m4 = 2.91 kg``, ``m2 = m3 = 8.93 kg``,
+``m5 = 28.93 kg``, split 1/4 at each joint end and 1/2 on the rod, with middle
+fractions ``n11 = n41 = 0.595``, ``n21 = n31 = 0.545``, ``n51 = 0.5``. The smaller
+figures (1, 2a, 2b, 5) print no numbers; they reuse the leg links of Fig. 6
+(shin, thigh), which is our assumption.
+
+Topology of Fig. 6 (the figure itself is lost, this is our reading of the
+text): 1 stance shin from the support point up, 2 stance thigh up to the hip;
+the hip is a branch point carrying 3 the swing thigh and 4 the swing shin,
+both reversed (``sign = -1``: they hang down while their angles are measured
+like the stance leg's), and 5 the trunk up from the hip.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from models.mechanism import Mechanism
+
+G = 9.81
+
+
+def split_mass(m: float) -> tuple[float, float, float]:
+    """The paper's split: 1/4 at each joint end, 1/2 on the rod."""
+    return (m / 4, m / 2, m / 4)
+
+
+SHIN = (split_mass(2.91), 0.595)
+THIGH = (split_mass(8.93), 0.545)
+TRUNK = (split_mass(28.93), 0.500)
+
+
+def _mech(name, dim, parent, sign, parts, names) -> Mechanism:
+    return Mechanism(dim=dim, g=G, parent=tuple(parent), sign=tuple(sign),
+                     masses=tuple(p[0] for p in parts), n=tuple(p[1] for p in parts),
+                     names=tuple(names), name=name)
+
+
+def fig1(dim: int = 2) -> Mechanism:
+    """Fig. 1: one link hinged at the support point."""
+    return _mech(f"fig1-{dim}d", dim, [-1], [1], [SHIN], ["shin"])
+
+
+def fig2a(dim: int = 2) -> Mechanism:
+    """Fig. 2a: two links in series (eq. 4, upper signs)."""
+    return _mech(f"fig2a-{dim}d", dim, [-1, 0], [1, 1], [SHIN, THIGH], ["shin", "thigh"])
+
+
+def fig2b(dim: int = 2) -> Mechanism:
+    """Fig. 2b: two links with a branch point at B, the second reversed (eq. 4, lower signs)."""
+    return _mech(f"fig2b-{dim}d", dim, [-1, 0], [1, -1], [SHIN, THIGH], ["shin", "thigh"])
+
+
+def fig5(dim: int = 2) -> Mechanism:
+    """Fig. 5: four links, branch point between links 2 and 3 (eq. 20: ``a11 + a12 - a13 - a14``)."""
+    return _mech(f"fig5-{dim}d", dim, [-1, 0, 1, 2], [1, 1, -1, -1],
+                 [SHIN, THIGH, THIGH, SHIN],
+                 ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin"])
+
+
+def exo5(dim: int = 3) -> Mechanism:
+    """Fig. 6: the five-link exoskeleton as a tree (stance leg, swing leg from the hip, trunk)."""
+    return _mech(f"exo5-{dim}d", dim, [-1, 0, 1, 2, 1], [1, 1, -1, -1, 1],
+                 [SHIN, THIGH, THIGH, SHIN, TRUNK],
+                 ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk"])
+
+
+def chain(nlinks: int, dim: int = 2, seed: int | None = None) -> Mechanism:
+    """An n-link serial chain (Fig. 2a style). With a seed, masses and fractions are random."""
+    if nlinks < 1:
+        raise ValueError(f"chain: field 'nlinks': expected >= 1, got {nlinks}")
+    if seed is None:
+        parts = [(SHIN, THIGH)[i % 2] for i in range(nlinks)]
+        return _mech(f"chain{nlinks}-{dim}d", dim, range(-1, nlinks - 1), [1] * nlinks, parts,
+                     [f"link{i + 1}" for i in range(nlinks)])
+    rng = np.random.default_rng(seed)
+    masses, fr = _random_masses(rng, nlinks)
+    return Mechanism(dim=dim, g=G, parent=tuple(range(-1, nlinks - 1)), sign=(1,) * nlinks,
+                     masses=masses, n=fr, name=f"chain{nlinks}-{dim}d-seed{seed}")
+
+
+def _random_masses(rng: np.random.Generator, nlinks: int):
+    masses = tuple(tuple(float(x) for x in rng.uniform(0.2, 3.0, 3)) for _ in range(nlinks))
+    fr = tuple(float(x) for x in rng.uniform(0.1, 0.9, nlinks))
+    return masses, fr
+
+
+def random_tree(nlinks: int, dim: int, seed: int) -> Mechanism:
+    """A seeded random tree: each link hangs from a random earlier link or from the
+    support point (so a tree may have several roots), random signs, masses in [0.2, 3] kg and fractions in [0.1, 0.9]."""
+    if nlinks < 1:
+        raise ValueError(f"random_tree: field 'nlinks': expected >= 1, got {nlinks}")
+    rng = np.random.default_rng(seed)
+    parent = [-1] + [int(rng.integers(-1, i)) for i in range(1, nlinks)]
+    sign = [1] + [int(rng.choice([-1, 1])) for _ in range(1, nlinks)]
+    masses, fr = _random_masses(rng, nlinks)
+    return Mechanism(dim=dim, g=G, parent=tuple(parent), sign=tuple(sign), masses=masses, n=fr,
+                     name=f"tree{nlinks}-{dim}d-seed{seed}")
+
+
+PRESETS: dict[str, Callable[[], Mechanism]] = {}
+for _fn in (fig1, fig2a, fig2b, fig5, exo5):
+    for _dim in (2, 3):
+        PRESETS[f"{_fn.__name__}-{_dim}d"] = (lambda f=_fn, d=_dim: f(d))
+
+
+def preset_descriptions() -> dict[str, str]:
+    out = {}
+    for key, make in PRESETS.items():
+        m = make()
+        base = globals()[key.split("-")[0]].__doc__.strip().splitlines()[0]
+        out[key] = f"{m.dim}D, {m.nlinks} link(s): {base}"
+    return out

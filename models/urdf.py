@@ -1,0 +1,92 @@
+"""URDF generation for any mechanism.
+
+Every link ``k`` (1-based) of the mechanism becomes this kinematic chain:
+
+* 3D, non-root only: ``Lk_undo``, a revolute *mimic* of the parent's ``psi`` joint
+  (same axis, multiplier -1) that levels the frame again, so that the next joint
+  measures an *absolute* azimuth as the paper does;
+* ``Lk_phi``: revolute about z (value ``phi_k - phi_parent``);
+* 3D only: ``Lk_psi``: revolute about -y (value ``psi_k``, the elevation of eq. 7);
+* ``Lk_len``: prismatic along ``sign_k * x`` (value ``l_k``), ending at ``Lk_end``;
+* ``Lk_mid``: prismatic *mimic* of ``Lk_len`` with multiplier ``n_k``: the sliding
+  middle mass (omitted when ``m_k1 = 0``).
+
+Point masses are inertial-only links with zero rotational inertia: ``m_k0`` on
+``Lk_frame`` (the start of the rod), ``m_k1`` on ``Lk_mid``, ``m_k2`` on ``Lk_end``.
+A zero mass adds no inertial element (and no body for the middle mass). A 2D
+model has only z-revolute and in-plane prismatic joints; Pinocchio's gravity is
+set to ``-y`` for it by the backend.
+
+Pinocchio (via urdfdom) visits sibling joints in the order of their names, and a
+mimic joint must come after the joint it mimics; ``len`` sorts before ``mid``.
+"""
+
+from __future__ import annotations
+
+import re
+from xml.sax.saxutils import quoteattr
+
+from models.mechanism import Mechanism
+
+_LIMIT = '<limit effort="1e6" velocity="1e6" lower="-1e3" upper="1e3"/>'
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_]", "_", name)
+
+
+def link_prefix(mech: Mechanism, i: int) -> str:
+    """Prefix of every URDF element of link i (0-based): ``L<k>`` with k 1-based, zero-padded."""
+    width = len(str(mech.nlinks))
+    return f"L{i + 1:0{width}d}"
+
+
+def _inertial(mass: float) -> str:
+    if mass == 0.0:
+        return ""
+    return (f'<inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="{mass!r}"/>'
+            '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>')
+
+
+def _link(name: str, mass: float = 0.0, comment: str = "") -> str:
+    c = f"<!-- {comment} -->" if comment else ""
+    return f'  <link name="{name}">{c}{_inertial(mass)}</link>'
+
+
+def _joint(name: str, kind: str, parent: str, child: str, axis: str, mimic: tuple[str, float] | None = None) -> str:
+    m = f'<mimic joint="{mimic[0]}" multiplier="{mimic[1]!r}" offset="0"/>' if mimic else ""
+    return (f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="{axis}"/>{_LIMIT}{m}</joint>')
+
+
+def to_urdf(mech: Mechanism) -> str:
+    """The URDF text of a mechanism (planar joints for 2D, spatial for 3D)."""
+    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(_safe(mech.name))}>",
+             '  <link name="support"/>']
+    for i in range(mech.nlinks):
+        k = link_prefix(mech, i)
+        p = mech.parent[i]
+        m0, m1, m2 = mech.masses[i]
+        lines.append(f"  <!-- link {i + 1}: {mech.names[i]}, parent {p + 1 if p >= 0 else 'support'}, "
+                     f"sign {mech.sign[i]:+d}, n = {mech.n[i]!r} -->")
+        base = f"{link_prefix(mech, p)}_end" if p >= 0 else "support"
+        if mech.dim == 3:
+            if p >= 0:
+                pk = link_prefix(mech, p)
+                lines.append(_joint(f"{k}_undo", "revolute", base, f"{k}_level", "0 -1 0", (f"{pk}_psi", -1.0)))
+                lines.append(_link(f"{k}_level"))
+                base = f"{k}_level"
+            lines.append(_joint(f"{k}_phi", "revolute", base, f"{k}_yaw", "0 0 1"))
+            lines.append(_link(f"{k}_yaw"))
+            lines.append(_joint(f"{k}_psi", "revolute", f"{k}_yaw", f"{k}_frame", "0 -1 0"))
+        else:
+            lines.append(_joint(f"{k}_phi", "revolute", base, f"{k}_frame", "0 0 1"))
+        axis = f"{mech.sign[i]} 0 0"
+        lines.append(_link(f"{k}_frame", m0, "start mass m0"))
+        lines.append(_joint(f"{k}_len", "prismatic", f"{k}_frame", f"{k}_end", axis))
+        lines.append(_link(f"{k}_end", m2, "end mass m2"))
+        if m1 > 0.0:
+            lines.append(_joint(f"{k}_mid", "prismatic", f"{k}_frame", f"{k}_mid", axis, (f"{k}_len", mech.n[i])))
+            lines.append(_link(f"{k}_mid", m1, "sliding middle mass m1"))
+    lines.append("</robot>")
+    return "\n".join(lines) + "\n"

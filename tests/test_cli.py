@@ -1,0 +1,83 @@
+"""The command line: inverse dynamics for presets and user files; one-line errors with exit code 2."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from models import pinocchio_backend as pb
+from models.motion import gait, random_states
+from models.presets import exo5, random_tree
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "bench.cli", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=120)
+
+
+def _states_file(path, q, qd, qdd):
+    path.write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
+    return path
+
+
+def test_inverse_exo5_3d_prints_the_backends_tau(tmp_path):
+    m = exo5(3)
+    mo = gait(m, np.linspace(0, 1.1, 7))
+    r = _cli("inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "pinocchio")
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["method"] == "pinocchio"
+    assert np.array_equal(np.array(out["tau"]), pb.inverse_dynamics(m, mo.q, mo.qd, mo.qdd))
+
+
+def test_inverse_accepts_a_users_own_mechanism_file(tmp_path):
+    m = random_tree(4, 3, 5)
+    (tmp_path / "mine.json").write_text(m.to_json())
+    q, qd, qdd = random_states(m, 3, 1)
+    r = _cli("inverse", tmp_path / "mine.json", _states_file(tmp_path / "s.json", q, qd, qdd))
+    assert r.returncode == 0, r.stderr
+    assert np.allclose(json.loads(r.stdout)["tau"], pb.inverse_dynamics(m, q, qd, qdd), rtol=0, atol=0)
+
+
+def test_presets_lists_every_paper_model():
+    r = _cli("presets")
+    assert r.returncode == 0
+    for key in ("fig1-2d", "fig2a-3d", "fig2b-2d", "fig5-3d", "exo5-3d"):
+        assert key in r.stdout
+
+
+def _bad_cases(tmp_path):
+    m = exo5(3)
+    q, qd, qdd = random_states(m, 2, 0)
+    good = _states_file(tmp_path / "good.json", q, qd, qdd)
+    (tmp_path / "broken.json").write_text("{oops")
+    bad_mech = m.to_dict()
+    bad_mech["links"][2]["n"] = 1.5
+    (tmp_path / "badmech.json").write_text(json.dumps(bad_mech))
+    short = _states_file(tmp_path / "short.json", q[:, :10], qd, qdd)
+    return {
+        "unknown method": (["inverse", "exo5-3d", good, "--method", "newton"], "newton"),
+        "missing mechanism file": (["inverse", tmp_path / "none.json", good], "no such file"),
+        "missing states file": (["inverse", "exo5-3d", tmp_path / "none.json"], "no such file"),
+        "invalid JSON states": (["inverse", "exo5-3d", tmp_path / "broken.json"], "invalid JSON"),
+        "invalid JSON mechanism": (["inverse", tmp_path / "broken.json", good], "invalid JSON"),
+        "invalid mechanism": (["inverse", tmp_path / "badmech.json", good], "link 3 ('swing_thigh'): field 'n'"),
+        "wrong state shape": (["inverse", "exo5-3d", short], "(samples, 15)"),
+        "unknown command": (["frobnicate"], "invalid choice"),
+        "missing argument": (["inverse", "exo5-3d"], "required"),
+    }
+
+
+@pytest.mark.parametrize("case", ["unknown method", "missing mechanism file", "missing states file",
+                                  "invalid JSON states", "invalid JSON mechanism", "invalid mechanism",
+                                  "wrong state shape", "unknown command", "missing argument"])
+def test_bad_input_gives_one_line_and_exit_code_2(case, tmp_path):
+    args, needle = _bad_cases(tmp_path)[case]
+    r = _cli(*args)
+    assert r.returncode == 2
+    assert r.stdout == ""
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert "Traceback" not in r.stderr and needle in lines[0], lines[0]
