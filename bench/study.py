@@ -1,0 +1,82 @@
+"""Running several inverse-dynamics methods along one motion, and comparing them.
+
+A :class:`Study` is the plain result that scenes, plots, recordings and reports share: the
+mechanism, the motion, and per method either its tau or the reason it was skipped or failed.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.methods import get_method
+from models.mechanism import Mechanism, force_names
+from models.motion import Motion
+
+
+@dataclass
+class MethodResult:
+    method: str
+    tau: np.ndarray | None = None                 # (S, dof) generalised forces, paper's coordinates
+    seconds_per_sample: float | None = None
+    skipped: str | None = None                    # why the method was not run (over budget, ...)
+    error: str | None = None                      # one line: why it failed
+
+    @property
+    def ok(self) -> bool:
+        return self.tau is not None
+
+
+@dataclass
+class Study:
+    name: str
+    mechanism: Mechanism
+    motion: Motion
+    motion_label: str
+    results: dict[str, MethodResult] = field(default_factory=dict)
+    reference: str = "pinocchio"
+
+    @property
+    def force_names(self) -> list[str]:
+        return force_names(self.mechanism)
+
+    def ok_methods(self) -> list[str]:
+        return [m for m, r in self.results.items() if r.ok]
+
+    def difference(self, method: str) -> np.ndarray:
+        """``tau_method - tau_reference``, ``(S, dof)``."""
+        return self.results[method].tau - self.results[self.reference].tau
+
+    def agreement(self) -> dict[str, float]:
+        """Largest ``|tau_method - tau_reference|`` relative to the largest ``|tau_reference|``."""
+        ref = self.results.get(self.reference)
+        if ref is None or not ref.ok:
+            return {}
+        scale = max(float(np.abs(ref.tau).max()), 1e-300)
+        return {m: float(np.abs(self.difference(m)).max()) / scale for m in self.ok_methods()}
+
+
+def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
+                reference: str = "pinocchio") -> Study:
+    """Run each method along the motion; a method that raises is recorded with its error and
+    does not stop the others."""
+    study = Study(name, mech, motion, motion_label, reference=reference)
+    S = motion.q.shape[0]
+    for m in methods:
+        try:
+            fn = get_method(m)
+            t0 = time.perf_counter()
+            tau = np.asarray(fn(mech, motion.q, motion.qd, motion.qdd), dtype=float)
+            dt = (time.perf_counter() - t0) / S
+            study.results[m] = MethodResult(m, tau, dt)
+        except Exception as e:  # noqa: BLE001 - one failing method must not lose the others
+            skip = getattr(e, "skip_reason", None)
+            if skip:
+                study.results[m] = MethodResult(m, skipped=str(skip))
+            else:
+                last = traceback.format_exception_only(type(e), e)[-1].strip()
+                study.results[m] = MethodResult(m, error=last)
+    return study
