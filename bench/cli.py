@@ -72,7 +72,7 @@ def cmd_urdf(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from bench.main_job import run
+    from bench.runner import run
 
     return run(args)
 
@@ -100,6 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_urdf)
 
     s = sub.add_parser("run", help="the main job: run every scene and write the reports")
+    s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
     s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
     s.set_defaults(func=cmd_run)
     return p
