@@ -46,6 +46,15 @@ class PinocchioModel:
     def create_data(self) -> pin.Data:
         return self.model.createData()
 
+    @property
+    def data(self) -> pin.Data:
+        """Scratch data for serial RNEA/kinematics calls, created once per model."""
+        d = self.__dict__.get("_data")
+        if d is None:
+            d = self.model.createData()
+            object.__setattr__(self, "_data", d)
+        return d
+
 
 @lru_cache(maxsize=64)
 def build_model(mech: Mechanism) -> PinocchioModel:
@@ -92,9 +101,9 @@ def joint_torques(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """
     q, qd, qdd = as_states(mech, q, qd, qdd)
     pm = build_model(mech)
-    data = pm.create_data()
+    data, model = pm.data, pm.model
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
-    return np.stack([pin.rnea(pm.model, data, qj[s], vj[s], aj[s]) for s in range(q.shape[0])])
+    return np.stack([pin.rnea(model, data, qj[s], vj[s], aj[s]) for s in range(q.shape[0])])
 
 
 def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:

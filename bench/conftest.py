@@ -1,0 +1,35 @@
+"""pytest-benchmark configuration: the sweep profile and a record of skipped rows with reasons."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bench import sweep as _sweep
+
+_SKIPS: list[dict] = []
+
+
+def pytest_addoption(parser):
+    parser.addoption("--sweep", default=None, help="benchmark profile: quick (default) or full")
+    parser.addoption("--skips-json", default=None, help="write skipped benchmark rows and reasons to this file")
+
+
+@pytest.fixture(scope="session")
+def sweep(request) -> _sweep.Sweep:
+    return _sweep.current(request.config.getoption("--sweep"))
+
+
+def pytest_runtest_logreport(report):
+    if report.skipped and report.when in ("setup", "call"):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        _SKIPS.append({"nodeid": report.nodeid, "reason": reason.removeprefix("Skipped: "),
+                       "params": getattr(report, "user_properties", [])})
+
+
+def pytest_sessionfinish(session, exitstatus):
+    path = session.config.getoption("--skips-json")
+    if path:
+        from bench.reporting import atomic_write
+        atomic_write(path, json.dumps(_SKIPS, indent=1))
