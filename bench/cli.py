@@ -77,6 +77,12 @@ def cmd_run(args) -> int:
     return run(args)
 
 
+def cmd_bench(args) -> int:
+    from bench.bench_reports import run
+
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from bench.methods import method_names
 
@@ -103,6 +109,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
     s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
     s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
+    s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
+    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.set_defaults(func=cmd_bench)
     return p
 
 

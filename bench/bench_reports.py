@@ -1,0 +1,313 @@
+"""``exo-bench bench``: run the benchmark suite and generate its reports with pandas.
+
+Reports (each says what produced it, on what machine and when):
+
+* ``reports/paper_table.md``: the paper's Mathematica timings beside ours, our extra rows, ratios,
+  and a verdict on the claim that the gap grows with n and with 3D;
+* ``reports/error_vs_runtime.md`` and ``.png``: seconds per sample against error, per method and n;
+* ``reports/scaling.md`` and ``.png``: cost against n with fitted growth exponents, and the n where
+  RNEA overtakes the matrix method.
+
+The raw pytest-benchmark JSON is kept beside them (``reports/benchmarks-<sweep>.json``).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench.reporting import REPO, REPORTS, atomic_write, provenance
+from bench.runner import publish, staging_dir
+
+# The paper's table (section 7), seconds in Mathematica to compose the equations.
+PAPER_TABLE = [
+    # dim, n, topology, Lagrange II, matrix method, recurrence
+    (2, 1, "chain", 0.59, 0.46, None),
+    (2, 2, "chain", 5.3, 0.55, 0.59),
+    (2, 3, "chain", 37.0, 0.79, 0.86),
+    (3, 2, "chain", 113.69, 1.30, None),
+]
+
+GOAL_US_PER_SAMPLE = 0.5
+GOAL_ERR = 1e-12
+GOAL_COMPOSE_3D5_S = 0.050
+GOAL_RATIO_3D2 = 100.0
+
+
+def load(json_path: Path, skips_path: Path | None = None) -> tuple[pd.DataFrame, list[dict], dict]:
+    data = json.loads(Path(json_path).read_text())
+    rows = []
+    for b in data.get("benchmarks", []):
+        info = dict(b.get("extra_info", {}))
+        st = b["stats"]
+        info.update(group=b["group"], name=b["name"], median=st["median"], min=st["min"], mean=st["mean"],
+                    rounds=st["rounds"])
+        rows.append(info)
+    skips = json.loads(Path(skips_path).read_text()) if skips_path and Path(skips_path).exists() else []
+    return pd.DataFrame(rows), skips, data.get("machine_info", {})
+
+
+def _inverse(df: pd.DataFrame) -> pd.DataFrame:
+    if df.empty or "batched" not in df:
+        return pd.DataFrame()
+    inv = df[df["group"].str.startswith("inverse")].copy()
+    inv["us_per_sample"] = inv["median"] / inv["samples"] * 1e6
+    return inv
+
+
+def _skips_md(skips: list[dict], prefix: str) -> list[str]:
+    rel = [s for s in skips if prefix in s["nodeid"]]
+    if not rel:
+        return []
+    out = ["", "Skipped rows (with the reason recorded by the benchmark):", ""]
+    out += [f"- `{s['nodeid'].split('::')[-1]}`: {s['reason']}" for s in rel]
+    return out
+
+
+# ----------------------------------------------------------------------------- error vs runtime
+def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str:
+    inv = _inverse(df)
+    lines = ["# Error against run time", "", provenance(command), ""]
+    if inv.empty:
+        return "\n".join(lines + ["No numeric inverse-dynamics rows in this run."]) + "\n"
+    bat = inv[inv["batched"]].sort_values(["dim", "method", "n"])
+    lines += ["Batched inverse dynamics along a smooth random motion (chains, and the paper's five-link model "
+              "`exo5`): median seconds per sample against the largest error over a subsample, relative to the "
+              "largest |tau| of the 50-digit reference (the reference used is named in each row). An error of "
+              "0 means the float64 result equals the correctly rounded 50-digit one.", "",
+              "| dim | method | model | samples | us/sample | max abs error | max rel error | NaN/Inf | reference |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for _, r in bat.iterrows():
+        lines.append(f"| {r['dim']}D | {r['method']} | {r['mechanism']} | {r['samples']} | {r['us_per_sample']:.3g} | "
+                     f"{r['max_abs_err']:.1e} | {r['max_rel_err']:.1e} | {r['nonfinite']} | {r['reference']} |")
+    lines += _skips_md(skips, "test_inverse_batched")
+    _plot_error_vs_runtime(bat, png)
+    lines += ["", f"![error against run time]({png.name})"]
+    return "\n".join(lines) + "\n"
+
+
+def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    markers = dict(zip(sorted(bat["method"].unique()), "osD^v<>p*"))
+    floor = 1e-17
+    for ax, dim in zip(axes, (2, 3)):
+        sub = bat[bat["dim"] == dim]
+        for method, g in sub.groupby("method"):
+            ax.scatter(g["us_per_sample"] * 1e-6, np.maximum(g["max_rel_err"], floor), marker=markers[method],
+                       label=method, s=40)
+            for _, r in g.iterrows():
+                ax.annotate(f"n={r['n']}" + (" exo5" if r["mechanism"].startswith("exo5") else ""),
+                            (r["us_per_sample"] * 1e-6, max(r["max_rel_err"], floor)), fontsize=6,
+                            xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log"); ax.set_yscale("log")
+        ax.set_xlabel("seconds per sample (batched, median)")
+        ax.set_title(f"{dim}D")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(f"max relative error vs 50-digit reference (floored at {floor:g})")
+    axes[1].legend(fontsize=8)
+    fig.suptitle("Inverse dynamics: error against run time")
+    fig.tight_layout()
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write(png, buf.getvalue())
+
+
+# ----------------------------------------------------------------------------- scaling
+def fit_exponent(n: np.ndarray, t: np.ndarray) -> float:
+    """Least-squares slope of log t against log n (the growth exponent p in t ~ n^p)."""
+    mask = n >= 2
+    if mask.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(n[mask]), np.log(t[mask]), 1)[0])
+
+
+def crossover(a: pd.Series, b: pd.Series) -> str:
+    """The smallest n from which ``b`` (indexed by n) is faster than ``a`` and stays faster."""
+    common = sorted(set(a.index) & set(b.index))
+    if not common:
+        return "no common n"
+    faster = [b[n] < a[n] for n in common]
+    for k, n in enumerate(common):
+        if all(faster[k:]):
+            return f"n = {n}" if k > 0 else f"already at n = {n} (smallest measured)"
+    return f"not within n <= {common[-1]}"
+
+
+def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str:
+    inv = _inverse(df)
+    lines = ["# Scaling with the number of links", "", provenance(command), ""]
+    if inv.empty:
+        return "\n".join(lines + ["No numeric inverse-dynamics rows in this run."]) + "\n"
+    chains = inv[inv["mechanism"].str.startswith("chain")]
+    lines += ["Median cost of inverse dynamics on serial chains of n links, per sample, batched (one call for "
+              "all samples) and per call (one sample per call, including the validation at the edge). "
+              "Exponent p fits cost ~ n^p over n >= 2.", ""]
+    for batched, label in ((True, "batched"), (False, "per call")):
+        sub = chains[chains["batched"] == batched]
+        if sub.empty:
+            continue
+        lines += [f"## {label}", "", "| dim | method | " + " | ".join(f"n={n}" for n in sorted(sub["n"].unique()))
+                  + " | exponent p |", "|---|---|" + "---|" * (len(sub["n"].unique()) + 1)]
+        for (dim, method), g in sub.groupby(["dim", "method"]):
+            g = g.set_index("n")["us_per_sample"].sort_index()
+            cells = [f"{g[n]:.3g}" if n in g.index else "skipped" for n in sorted(sub["n"].unique())]
+            p = fit_exponent(g.index.to_numpy(float), g.to_numpy(float))
+            lines.append(f"| {dim}D | {method} | " + " | ".join(cells) + f" | {p:.2f} |")
+        lines.append("")
+        lines.append("Microseconds per sample. Where RNEA overtakes the matrix method:")
+        lines.append("")
+        for dim in sorted(sub["dim"].unique()):
+            d = sub[sub["dim"] == dim]
+            mm = d[d["method"] == "matrix"].set_index("n")["us_per_sample"]
+            for rnea in ("pinocchio", "pinocchio-parallel"):
+                r = d[d["method"] == rnea].set_index("n")["us_per_sample"]
+                if len(mm) and len(r):
+                    lines.append(f"- {dim}D, {label}: `{rnea}` is faster than `matrix` from {crossover(mm, r)}")
+        lines.append("")
+    lines += _skips_md(skips, "test_inverse")
+    _plot_scaling(chains, png)
+    lines += ["", f"![scaling]({png.name})"]
+    return "\n".join(lines) + "\n"
+
+
+def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    for ax, dim in zip(axes, (2, 3)):
+        for (method, batched), g in chains[chains["dim"] == dim].groupby(["method", "batched"]):
+            g = g.sort_values("n")
+            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o", ls="-" if batched else ":",
+                    label=f"{method} ({'batched' if batched else 'per call'})")
+        ax.set_xscale("log"); ax.set_yscale("log")
+        ax.set_xlabel("number of links n")
+        ax.set_title(f"{dim}D serial chains")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("seconds per sample (median)")
+    axes[1].legend(fontsize=7)
+    fig.suptitle("Inverse dynamics: cost against n")
+    fig.tight_layout()
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write(png, buf.getvalue())
+
+
+# ----------------------------------------------------------------------------- paper table
+def paper_table(df: pd.DataFrame, skips: list[dict], command: str) -> str:
+    lines = ["# The paper's timing table, reproduced", "", provenance(command), "",
+             "Seconds to *compose* the equations of motion (symbolic). The paper used Mathematica; we use sympy. "
+             "Every row of one model produces the same equations, and the benchmark checks it before timing "
+             "counts (`bench/test_compose.py`).", ""]
+    comp = df[df["group"].str.startswith("compose")] if not df.empty else df
+    if comp.empty:
+        lines.append("No composition rows in this run.")
+        return "\n".join(lines + _skips_md(skips, "test_compose")) + "\n"
+    piv = comp.pivot_table(index=["dim", "topology", "n"], columns="method", values="median", aggfunc="min")
+    lines += ["## Side by side with the paper", "",
+              "| model | paper: Lagrange II | paper: matrix | paper: recurrence | ours: lagrange | ours: matrix | "
+              "ours: recurrence | paper ratio Lagrange/matrix | our ratio lagrange/matrix |", "|---|---|---|---|---|---|---|---|---|"]
+    f = lambda x: "-" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.3g}"
+    for dim, n, topo, pl, pm, pr in PAPER_TABLE:
+        key = (dim, topo, n)
+        ours = piv.loc[key] if key in piv.index else pd.Series(dtype=float)
+        ol, om, orr = (ours.get(k) for k in ("lagrange", "matrix", "recurrence"))
+        lines.append(f"| {dim}D, {n} link(s) | {pl} | {pm} | {f(pr)} | {f(ol)} | {f(om)} | {f(orr)} | "
+                     f"{pl / pm:.3g} | {f(ol / om if ol and om else None)} |")
+    lines += ["", "## Every row we measured", "", "| model | " + " | ".join(piv.columns) + " | fastest peer / matrix |",
+              "|---|" + "---|" * (len(piv.columns) + 1)]
+    peers = [c for c in piv.columns if c in ("lagrange", "sympy-lagrangesmethod", "sympy-kanesmethod")]
+    for (dim, topo, n), row in piv.iterrows():
+        ratio = min((row[p] for p in peers if not np.isnan(row[p])), default=np.nan) / row.get("matrix", np.nan)
+        lines.append(f"| {dim}D {topo} n={n} | " + " | ".join(f(row[c]) for c in piv.columns) + f" | {f(ratio)} |")
+    lines += _skips_md(skips, "test_compose")
+    lines += ["", "## Verdict on the paper's claim", ""] + _verdict(piv, peers)
+    return "\n".join(lines) + "\n"
+
+
+def _verdict(piv: pd.DataFrame, peers: list[str]) -> list[str]:
+    out = []
+    if "matrix" not in piv.columns or not peers:
+        return ["Not enough rows to judge."]
+    for dim in sorted({k[0] for k in piv.index}):
+        sub = piv.xs((dim, "chain"), level=("dim", "topology"), drop_level=True) if (dim, "chain") in \
+            {(k[0], k[1]) for k in piv.index} else None
+        if sub is None or "lagrange" not in sub:
+            continue
+        r = (sub["lagrange"] / sub["matrix"]).dropna()
+        grows = bool(len(r) > 1 and np.all(np.diff(r.to_numpy()) > 0))
+        out.append(f"- {dim}D chains: lagrange/matrix ratio by n: " + ", ".join(f"n={n}: {v:.3g}" for n, v in r.items())
+                   + (" - grows with n, as the paper claims." if grows else " - does not grow monotonically."))
+    if "sympy-lagrangesmethod" in piv.columns and (3, "chain", 2) in piv.index:
+        ratio = piv.loc[(3, "chain", 2), "sympy-lagrangesmethod"] / piv.loc[(3, "chain", 2), "matrix"]
+        out.append(f"- Goal: matrix at least {GOAL_RATIO_3D2:g}x faster than LagrangesMethod at 3D n=2: {ratio:.3g}x "
+                   + ("(met)." if ratio >= GOAL_RATIO_3D2 else f"(missed by a factor {GOAL_RATIO_3D2 / ratio:.3g})."))
+    if (3, "chain", 5) in piv.index:
+        t = piv.loc[(3, "chain", 5), "matrix"]
+        out.append(f"- Goal: composing 3D n=5 by the matrix method in at most {GOAL_COMPOSE_3D5_S * 1e3:g} ms: "
+                   f"{t * 1e3:.3g} ms " + ("(met)." if t <= GOAL_COMPOSE_3D5_S else
+                                            f"(missed by {(t - GOAL_COMPOSE_3D5_S) * 1e3:.3g} ms)."))
+    return out or ["Not enough rows to judge."]
+
+
+def goals(df: pd.DataFrame) -> list[str]:
+    """The numeric goals for the five-link 3D model, met or missed by how much."""
+    inv = _inverse(df)
+    if inv.empty:
+        return []
+    exo = inv[(inv["mechanism"] == "exo5-3d") & inv["batched"]].set_index("method")
+    out = ["## Goals for the five-link 3D model (batched)", ""]
+    if "matrix" not in exo.index:
+        return out + ["- `matrix` has no row in this run."]
+    m = exo.loc["matrix"]
+    us, err = m["us_per_sample"], m["max_rel_err"]
+    out.append(f"- at most {GOAL_US_PER_SAMPLE} us/sample: {us:.3g} us " +
+               ("(met)" if us <= GOAL_US_PER_SAMPLE else f"(missed by {us - GOAL_US_PER_SAMPLE:.3g} us, x{us / GOAL_US_PER_SAMPLE:.2g})"))
+    if "pinocchio-parallel" in exo.index:
+        rp = exo.loc["pinocchio-parallel", "us_per_sample"]
+        out.append(f"- no slower than rneaInParallel ({rp:.3g} us/sample in the same run): " +
+                   ("met" if us <= rp else f"missed, x{us / rp:.2g}"))
+    out.append(f"- error at most {GOAL_ERR:g} against the reference: {err:.1e} " + ("(met)" if err <= GOAL_ERR else "(missed)"))
+    return out
+
+
+def run(args) -> int:
+    full = bool(getattr(args, "full", False))
+    sweep = "full" if full else "quick"
+    out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
+    command = "exo-bench bench" + (" --full" if full else "")
+    with staging_dir(out) as st:
+        bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
+        cmd = [sys.executable, "-m", "pytest", str(REPO / "bench"), "-q", "-p", "no:cacheprovider",
+               "--benchmark-enable", f"--benchmark-json={bjson}", f"--skips-json={sjson}", f"--sweep={sweep}",
+               "--benchmark-columns=min,median,rounds"]
+        print("running:", " ".join(cmd[2:]), flush=True)
+        r = subprocess.run(cmd, cwd=REPO)
+        if r.returncode not in (0,) or not bjson.exists():
+            raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
+        df, skips, _ = load(bjson, sjson)
+        files = []
+        text = paper_table(df, skips, command)
+        atomic_write(st / "paper_table.md", text); files.append(st / "paper_table.md")
+        atomic_write(st / "error_vs_runtime.md", error_vs_runtime(df, skips, command, st / "error_vs_runtime.png")
+                     + "\n" + "\n".join(goals(df)) + "\n")
+        files += [st / "error_vs_runtime.md", st / "error_vs_runtime.png"]
+        atomic_write(st / "scaling.md", scaling(df, skips, command, st / "scaling.png"))
+        files += [st / "scaling.md", st / "scaling.png", bjson]
+        for p in publish(files, out):
+            print(f"wrote {p}")
+    return 0
