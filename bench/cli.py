@@ -108,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="the main job: run every scene and write the reports")
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
     s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")

@@ -213,18 +213,42 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
     console.print(table)
 
 
+#: Suite-wide reports the main job writes after the scenes: (label, module, function).
+SUITE_JOBS = (
+    ("errata (exo-bench errata)", "matrix_method.errata", "run"),
+    ("benchmarks (exo-bench bench)", "bench.bench_reports", "run"),
+    ("stability (exo-bench stability)", "bench.stability", "run"),
+)
+
+
+def _suite_jobs() -> list[tuple[str, object]]:
+    import importlib
+    import importlib.util
+
+    jobs = []
+    for label, module, func in SUITE_JOBS:
+        if importlib.util.find_spec(module) is not None:
+            jobs.append((label, getattr(importlib.import_module(module), func)))
+    return jobs
+
+
 def run(args) -> int:
+    import argparse as _argparse
+
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
+    full = bool(getattr(args, "full", False))
     names = list(args.scenes) or shipped_scene_names()
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
+    jobs = _suite_jobs() if not args.scenes else []  # naming scenes runs just those scenes
     outcomes: list[SceneOutcome] = []
     written: list[Path] = []
+    job_errors: list[str] = []
     with staging_dir(out) as staging, Progress(TextColumn("{task.description}"), BarColumn(),
                                                TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
                                                transient=False) as progress:
-        task = progress.add_task("scenes", total=len(scenes))
+        task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
             try:
@@ -234,13 +258,22 @@ def run(args) -> int:
                 o = SceneOutcome(sc, error=_one_line(e))
             outcomes.append(o)
             progress.advance(task)
-        command = "exo-bench run" + ("" if not args.scenes else " " + " ".join(args.scenes))
+        command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
         atomic_write(staging / "summary.md", summary_markdown(outcomes, command))
         written += publish([staging / "summary.md"], out)
+        for label, fn in jobs:
+            progress.update(task, description=label)
+            try:
+                fn(_argparse.Namespace(full=full, reports=str(out)))
+            except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
+                job_errors.append(f"{label} failed: {_one_line(e)}")
+            progress.advance(task)
     print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
     for o in failed:
         print(f"scene {o.scene.name} failed: {o.error}")
-    return 1 if failed else 0
+    for line in job_errors:
+        print(line)
+    return 1 if failed or job_errors else 0
