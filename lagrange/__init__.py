@@ -1,0 +1,14 @@
+"""Lagrange's equations of the second kind for the rod models, derived with sympy.
+
+The suite's independent symbolic check of the matrix method: :func:`derive` builds T and Pi from
+the point masses' geometry and differentiates them; :mod:`lagrange.numeric` evaluates the result
+with numpy, :mod:`lagrange.reference` at 50 significant digits with mpmath, and
+:mod:`lagrange.peer` builds the same equations with ``sympy.physics.mechanics`` as a peer.
+"""
+
+from lagrange.budget import BudgetExceeded
+from lagrange.derivation import (Derivation, FormViolation, canonical_form, clear_cache, derive,
+                                 extract_matrices, rebuild_equations)
+
+__all__ = ["BudgetExceeded", "Derivation", "FormViolation", "canonical_form", "clear_cache", "derive",
+           "extract_matrices", "rebuild_equations"]

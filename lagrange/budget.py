@@ -1,0 +1,137 @@
+"""Time budgets for the symbolic work: a skip with a reason instead of a hang.
+
+Every entry point of :mod:`lagrange` takes ``budget`` (seconds) and runs its work inside
+:func:`time_budget`. Two mechanisms stop the work:
+
+* **SIGALRM** (``signal.setitimer``), armed only in the main thread, interrupts any pure-Python
+  sympy call (expansion, ``lambdify``, ``cse``) when the budget runs out;
+* **cooperative checks**: the derivation's own loops call :meth:`Deadline.check` per point mass,
+  per coordinate and per equation. Outside the main thread (where a signal cannot be armed) these
+  checks are the only stop, so a single long sympy call there (a large ``lambdify``) can
+  overrun the budget until it returns; the check right after it then raises.
+
+Either way the caller gets :class:`BudgetExceeded`, whose ``skip_reason`` names the work, the
+model size (``n``, ``dim``) and the budget, so :func:`bench.study.run_methods` records a skip.
+Nested budgets (``inverse_dynamics`` calling ``derive``) share the tighter end.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+
+class BudgetExceeded(Exception):
+    """The symbolic work did not finish within its time budget.
+
+    ``skip_reason`` is one line naming the work, ``n``, ``dim`` and the budget.
+    """
+
+    def __init__(self, what: str, nlinks: int, dim: int, budget: float, elapsed: float | None = None,
+                 note: str = ""):
+        self.what, self.nlinks, self.dim, self.budget, self.elapsed = what, nlinks, dim, budget, elapsed
+        took = f" (stopped after {elapsed:.2f} s)" if elapsed is not None else ""
+        self.skip_reason = (f"{what} for n={nlinks} links, dim={dim} exceeded the time budget of "
+                            f"{budget:g} s{took}{note}")
+        super().__init__(self.skip_reason)
+
+
+class _Alarm(BaseException):
+    """Raised by the SIGALRM handler; a BaseException so that no ``except Exception`` in sympy
+    swallows it on its way out."""
+
+
+@dataclass
+class Deadline:
+    """The end of a budget, checked cooperatively with :meth:`check`."""
+
+    what: str
+    nlinks: int
+    dim: int
+    budget: float
+    start: float = field(default_factory=time.perf_counter)
+    end: float = 0.0
+    interrupts: bool = False   # True when SIGALRM is armed for this deadline
+
+    def __post_init__(self) -> None:
+        self.end = self.start + self.budget
+
+    @property
+    def remaining(self) -> float:
+        return self.end - time.perf_counter()
+
+    def exceeded(self, note: str = "") -> BudgetExceeded:
+        return BudgetExceeded(self.what, self.nlinks, self.dim, self.budget,
+                              time.perf_counter() - self.start, note)
+
+    def check(self) -> None:
+        if time.perf_counter() > self.end:
+            raise self.exceeded()
+
+
+_active = threading.local()
+
+
+def current_deadline() -> Deadline | None:
+    """The innermost active deadline of this thread, if any."""
+    stack = getattr(_active, "stack", None)
+    return stack[-1] if stack else None
+
+
+@contextmanager
+def time_budget(budget: float, what: str, nlinks: int, dim: int):
+    """Run the body within ``budget`` seconds or raise :class:`BudgetExceeded`.
+
+    Yields the :class:`Deadline` to check cooperatively. Inside an enclosing budget the tighter
+    of the two ends applies, and the exception names the enclosing work when that one runs out.
+    """
+    if not budget > 0:
+        raise ValueError(f"{what}: field 'budget': expected a positive number of seconds, got {budget!r}")
+    outer = current_deadline()
+    dl = Deadline(what, nlinks, dim, float(budget))
+    if outer is not None and outer.end < dl.end:
+        # The enclosing budget ends first: it is the one that is exceeded.
+        dl = Deadline(outer.what, outer.nlinks, outer.dim, outer.budget, start=outer.start)
+    main = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    old_handler = None
+    old_remaining = 0.0
+    if main:
+        old_remaining = signal.getitimer(signal.ITIMER_REAL)[0]
+        armed_at = time.perf_counter()
+        prev = signal.getsignal(signal.SIGALRM)
+
+        def handler(signum, frame):
+            if not dl.interrupts:
+                return
+            now = time.perf_counter()
+            if now >= dl.end - 1e-3:
+                raise _Alarm()
+            if 0 < old_remaining <= now - armed_at + 1e-3 and callable(prev):
+                prev(signum, frame)  # an enclosing, foreign timer ran out: hand it over
+                return
+            signal.setitimer(signal.ITIMER_REAL, max(dl.end - now, 1e-4))  # early: wait on
+
+        old_handler = signal.signal(signal.SIGALRM, handler)
+        dl.interrupts = True
+        first = dl.remaining if old_remaining <= 0 else min(dl.remaining, old_remaining)
+        signal.setitimer(signal.ITIMER_REAL, max(first, 1e-4))
+    stack = getattr(_active, "stack", None)
+    if stack is None:
+        stack = _active.stack = []
+    stack.append(dl)
+    try:
+        yield dl
+    except _Alarm:
+        raise dl.exceeded() from None
+    finally:
+        dl.interrupts = False
+        stack.pop()
+        if main:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, old_handler)
+            if old_remaining > 0:  # re-arm the enclosing timer with what is left of it
+                left = old_remaining - (time.perf_counter() - armed_at)
+                signal.setitimer(signal.ITIMER_REAL, max(left, 1e-4))

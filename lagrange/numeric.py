@@ -1,0 +1,101 @@
+"""Numeric evaluation of the Lagrange II equations: lambdified to numpy with common-subexpression
+elimination, batched over samples.
+
+Every function takes states as batch-first ``(samples, dof)`` arrays in block order (validated by
+:func:`models.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
+(derivation plus ``lambdify``) the first time a mechanism is seen; the compiled functions are
+cached per mechanism. Over budget, :class:`lagrange.BudgetExceeded` carries a ``skip_reason``.
+The default budget is 120 s, or the environment variable ``EXO_BENCH_LAGRANGE_BUDGET``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import sympy as sp
+
+from lagrange.budget import time_budget
+from lagrange.derivation import derive
+from models.mechanism import Mechanism, as_states
+
+DEFAULT_BUDGET = float(os.environ.get("EXO_BENCH_LAGRANGE_BUDGET", "120"))
+
+
+@dataclass(frozen=True)
+class _Compiled:
+    fn: Callable
+    seconds: float   # wall time of the lambdify call
+
+
+_CACHE: dict[tuple[Mechanism, str], _Compiled] = {}
+
+
+def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> np.ndarray:
+    """Call a lambdified function on columns and stack its outputs into ``(samples, width)``."""
+    out = np.empty((samples, width))
+    for k, col in enumerate(fn(*args)):
+        out[:, k] = col  # broadcasts constant entries
+    return out
+
+
+def _compile(mech: Mechanism, what: str, budget: float, build) -> _Compiled:
+    key = (mech, what)
+    if key not in _CACHE:
+        with time_budget(budget, f"Lagrange II {what} (derivation and lambdify)", mech.nlinks, mech.dim):
+            d = derive(mech, symbolic_parameters=False, budget=budget)
+            args, exprs = build(d)
+            t0 = time.perf_counter()
+            fn = sp.lambdify(args, exprs, modules="numpy", cse=True)
+            _CACHE[key] = _Compiled(fn, time.perf_counter() - t0)
+    return _CACHE[key]
+
+
+def compile_equations(mech: Mechanism, budget: float = DEFAULT_BUDGET) -> _Compiled:
+    """The lambdified equations ``tau(q..., qd..., qdd...)`` of a mechanism (cached); call once
+    outside a timed loop to separate the symbolic cost from the evaluation."""
+    return _compile(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),
+                                                           list(d.equations)))
+
+
+def inverse_dynamics(mech: Mechanism, q, qd, qdd, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+    """Generalised forces ``[M_phi..., M_psi..., F...]`` from Lagrange II, ``(samples, dof)``."""
+    q, qd, qdd = as_states(mech, q, qd, qdd)
+    c = compile_equations(mech, budget)
+    return _columns(c.fn, [*q.T, *qd.T, *qdd.T], q.shape[0], mech.dof)
+
+
+def _mass_matrix_build(d):
+    M = d.mass_matrix
+    return list(d.symbols.q), [M[a, b] for a in range(M.rows) for b in range(M.cols)]
+
+
+def mass_matrix(mech: Mechanism, q, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+    """The mass matrix ``d tau / d qdd`` (row block k: ``[A_k, B_k, Lambda_k]``), ``(samples, dof, dof)``."""
+    q, _, _ = as_states(mech, q)
+    c = _compile(mech, "mass matrix", budget, _mass_matrix_build)
+    return _columns(c.fn, list(q.T), q.shape[0], mech.dof ** 2).reshape(-1, mech.dof, mech.dof)
+
+
+def _bias_build(d):
+    S = d.symbols
+    zero = {x: 0 for x in S.qdd}
+    return list(S.q + S.qd), [e.xreplace(zero) for e in d.equations]
+
+
+def bias_forces(mech: Mechanism, q, qd, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+    """Velocity and gravity terms ``tau(q, qd, 0)`` (the ``D, E, G, H, K, P`` part), ``(samples, dof)``."""
+    q, qd, _ = as_states(mech, q, qd)
+    c = _compile(mech, "bias forces", budget, _bias_build)
+    return _columns(c.fn, [*q.T, *qd.T], q.shape[0], mech.dof)
+
+
+def clear_cache() -> None:
+    _CACHE.clear()
+
+
+__all__ = ["DEFAULT_BUDGET", "bias_forces", "clear_cache", "compile_equations", "inverse_dynamics",
+           "mass_matrix"]
