@@ -18,6 +18,7 @@ from models.mechanism import Mechanism
 #: method name -> (module, function, one-line description)
 METHODS: dict[str, tuple[str, str, str]] = {
     "pinocchio": ("models.pinocchio_backend", "inverse_dynamics", "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint"),
+    "lagrange": ("lagrange.numeric", "inverse_dynamics", "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse"),
 }
 
 InverseDynamics = Callable[[Mechanism, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
