@@ -39,9 +39,10 @@ class BudgetExceeded(Exception):
         super().__init__(self.skip_reason)
 
 
-class _Alarm(BaseException):
-    """Raised by the SIGALRM handler; a BaseException so that no ``except Exception`` in sympy
-    swallows it on its way out."""
+class BudgetAlarm(BaseException):
+    """Raised by the SIGALRM handler and turned into :class:`BudgetExceeded` where the budget was
+    opened; a BaseException so that no ``except Exception`` in sympy swallows it on its way out.
+    Catch it only to clean up and re-raise."""
 
 
 @dataclass
@@ -108,7 +109,7 @@ def time_budget(budget: float, what: str, nlinks: int, dim: int):
                 return
             now = time.perf_counter()
             if now >= dl.end - 1e-3:
-                raise _Alarm()
+                raise BudgetAlarm()
             if 0 < old_remaining <= now - armed_at + 1e-3 and callable(prev):
                 prev(signum, frame)  # an enclosing, foreign timer ran out: hand it over
                 return
@@ -124,7 +125,7 @@ def time_budget(budget: float, what: str, nlinks: int, dim: int):
     stack.append(dl)
     try:
         yield dl
-    except _Alarm:
+    except BudgetAlarm:
         raise dl.exceeded() from None
     finally:
         dl.interrupts = False

@@ -44,7 +44,7 @@ import sympy as sp
 from sympy import QQ
 from sympy.polys.rings import ring
 
-from lagrange.budget import BudgetExceeded, Deadline, time_budget
+from lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
 from models.mechanism import Mechanism
 from models.symbols import Symbols, symbols_for
 
@@ -99,6 +99,12 @@ class Derivation:
     engine: str
     seconds: dict[str, float] = field(default_factory=dict)
     ring_form: "_RingForm | None" = field(default=None, repr=False)   # internal: the ring elements
+    values: dict = field(default_factory=dict, repr=False)   # the substituted parameter values ({} if symbolic)
+
+    @property
+    def g(self) -> sp.Expr:
+        """The gravity factor in front of ``P``: the symbol ``g``, or its substituted value."""
+        return self.values.get(self.symbols.g, self.symbols.g)
 
     @property
     def dim(self) -> int:
@@ -315,10 +321,11 @@ def _derive_symbolic(st: Structure, engine: str, dl: Deadline) -> Derivation:
     return out
 
 
-def _from_ring(st: Structure, form: _RingForm, symbolic: bool, engine: str, seconds: dict) -> Derivation:
+def _from_ring(st: Structure, form: _RingForm, symbolic: bool, engine: str, seconds: dict,
+               values: dict | None = None) -> Derivation:
     """The sympy expressions of a ring form."""
     return Derivation(st, form.ring.S, tuple(e.as_expr() for e in form.equations), _matrices_expr(form.matrices),
-                      form.T.as_expr(), form.Pi.as_expr(), symbolic, engine, seconds, form)
+                      form.T.as_expr(), form.Pi.as_expr(), symbolic, engine, seconds, form, values or {})
 
 
 # ------------------------------------------------------------------ matrix form
@@ -439,16 +446,19 @@ def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = No
     return _matrices_expr(_extract_ring(rg, eqs, deadline))
 
 
-def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols) -> tuple[sp.Expr, ...]:
-    """The equations written back from the matrix form (the inverse of :func:`extract_matrices`)."""
+def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols, g: sp.Expr | None = None
+                      ) -> tuple[sp.Expr, ...]:
+    """The equations written back from the matrix form (the inverse of :func:`extract_matrices`);
+    ``g`` defaults to the symbol (pass :attr:`Derivation.g` for substituted parameters)."""
     S = symbols
+    g = S.g if g is None else g
     dim = 3 if S.psi else 2
     n = len(S.phi)
     out = []
     for blk in BLOCKS[dim]:
         M = matrices[blk]
         for i in range(n):
-            e = S.g * M["P"][i, 0]
+            e = g * M["P"][i, 0]
             for j in range(n):
                 e += M["A"][i, j] * S.ddphi[j] + M["Lambda"][i, j] * S.ddl[j]
                 e += M["D"][i, j] * S.dphi[j] ** 2 + 2 * M["H"][i, j] * S.dphi[j] * S.dl[j]
@@ -506,7 +516,7 @@ def _substitute(sym: Derivation, mech: Mechanism) -> Derivation:
                      {blk: {name: [[sub(x) for x in row] for row in rows] for name, rows in m.items()}
                       for blk, m in f.matrices.items()}, sub(f.T), sub(f.Pi))
     seconds = dict(sym.seconds)
-    out = _from_ring(sym.structure, form, False, sym.engine, seconds)
+    out = _from_ring(sym.structure, form, False, sym.engine, seconds, vals)
     seconds["substitute"] = time.perf_counter() - t0
     return out
 
@@ -536,7 +546,7 @@ def derive(mech: Mechanism, symbolic_parameters: bool = False, budget: float = 6
             t0 = time.perf_counter()
             try:
                 sym = _derive_symbolic(st, engine, dl)
-            except BudgetExceeded:
+            except (BudgetExceeded, BudgetAlarm):  # a cooperative check or the SIGALRM interrupt
                 if cache:
                     _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - t0)
                 raise

@@ -5,7 +5,9 @@ Every function takes states as batch-first ``(samples, dof)`` arrays in block or
 :func:`models.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
 (derivation plus ``lambdify``) the first time a mechanism is seen; the compiled functions are
 cached per mechanism. Over budget, :class:`lagrange.BudgetExceeded` carries a ``skip_reason``.
-The default budget is 120 s, or the environment variable ``EXO_BENCH_LAGRANGE_BUDGET``.
+``budget=None`` means :func:`default_budget`: the environment variable ``EXO_BENCH_LAGRANGE_BUDGET``
+(seconds) when set, else 120 s; it is read at call time, so a benchmark run through the method
+registry (which passes no budget) can set it.
 """
 
 from __future__ import annotations
@@ -18,11 +20,26 @@ from typing import Callable
 import numpy as np
 import sympy as sp
 
-from lagrange.budget import time_budget
+from lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
 from lagrange.derivation import derive
 from models.mechanism import Mechanism, as_states
 
-DEFAULT_BUDGET = float(os.environ.get("EXO_BENCH_LAGRANGE_BUDGET", "120"))
+DEFAULT_BUDGET = 120.0
+BUDGET_ENV = "EXO_BENCH_LAGRANGE_BUDGET"
+
+
+def default_budget() -> float:
+    """Seconds allowed for the symbolic work: ``$EXO_BENCH_LAGRANGE_BUDGET`` or 120."""
+    text = os.environ.get(BUDGET_ENV)
+    if text is None:
+        return DEFAULT_BUDGET
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise ValueError(f"environment variable {BUDGET_ENV}: expected a positive number of seconds, got {text!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -32,6 +49,7 @@ class _Compiled:
 
 
 _CACHE: dict[tuple[Mechanism, str], _Compiled] = {}
+_FAILED: dict[tuple[Mechanism, str], float] = {}   # seconds an unfinished compilation ran
 
 
 def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> np.ndarray:
@@ -45,23 +63,30 @@ def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> 
 def _compile(mech: Mechanism, what: str, budget: float, build) -> _Compiled:
     key = (mech, what)
     if key not in _CACHE:
-        with time_budget(budget, f"Lagrange II {what} (derivation and lambdify)", mech.nlinks, mech.dim):
-            d = derive(mech, symbolic_parameters=False, budget=budget)
-            args, exprs = build(d)
-            t0 = time.perf_counter()
-            fn = sp.lambdify(args, exprs, modules="numpy", cse=True)
+        budget = default_budget() if budget is None else budget
+        with time_budget(budget, f"Lagrange II {what} (derivation and lambdify)", mech.nlinks, mech.dim) as dl:
+            if dl.remaining <= _FAILED.get(key, 0.0):
+                raise dl.exceeded(note=f"; an earlier attempt ran {_FAILED[key]:.2f} s without finishing")
+            try:
+                d = derive(mech, symbolic_parameters=False, budget=budget)
+                args, exprs = build(d)
+                t0 = time.perf_counter()
+                fn = sp.lambdify(args, exprs, modules="numpy", cse=True)
+            except (BudgetExceeded, BudgetAlarm):
+                _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - dl.start)
+                raise
             _CACHE[key] = _Compiled(fn, time.perf_counter() - t0)
     return _CACHE[key]
 
 
-def compile_equations(mech: Mechanism, budget: float = DEFAULT_BUDGET) -> _Compiled:
+def compile_equations(mech: Mechanism, budget: float | None = None) -> _Compiled:
     """The lambdified equations ``tau(q..., qd..., qdd...)`` of a mechanism (cached); call once
     outside a timed loop to separate the symbolic cost from the evaluation."""
     return _compile(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),
                                                            list(d.equations)))
 
 
-def inverse_dynamics(mech: Mechanism, q, qd, qdd, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+def inverse_dynamics(mech: Mechanism, q, qd, qdd, budget: float | None = None) -> np.ndarray:
     """Generalised forces ``[M_phi..., M_psi..., F...]`` from Lagrange II, ``(samples, dof)``."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
     c = compile_equations(mech, budget)
@@ -73,7 +98,7 @@ def _mass_matrix_build(d):
     return list(d.symbols.q), [M[a, b] for a in range(M.rows) for b in range(M.cols)]
 
 
-def mass_matrix(mech: Mechanism, q, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+def mass_matrix(mech: Mechanism, q, budget: float | None = None) -> np.ndarray:
     """The mass matrix ``d tau / d qdd`` (row block k: ``[A_k, B_k, Lambda_k]``), ``(samples, dof, dof)``."""
     q, _, _ = as_states(mech, q)
     c = _compile(mech, "mass matrix", budget, _mass_matrix_build)
@@ -86,7 +111,7 @@ def _bias_build(d):
     return list(S.q + S.qd), [e.xreplace(zero) for e in d.equations]
 
 
-def bias_forces(mech: Mechanism, q, qd, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+def bias_forces(mech: Mechanism, q, qd, budget: float | None = None) -> np.ndarray:
     """Velocity and gravity terms ``tau(q, qd, 0)`` (the ``D, E, G, H, K, P`` part), ``(samples, dof)``."""
     q, qd, _ = as_states(mech, q, qd)
     c = _compile(mech, "bias forces", budget, _bias_build)
@@ -95,7 +120,8 @@ def bias_forces(mech: Mechanism, q, qd, budget: float = DEFAULT_BUDGET) -> np.nd
 
 def clear_cache() -> None:
     _CACHE.clear()
+    _FAILED.clear()
 
 
-__all__ = ["DEFAULT_BUDGET", "bias_forces", "clear_cache", "compile_equations", "inverse_dynamics",
+__all__ = ["DEFAULT_BUDGET", "default_budget", "bias_forces", "clear_cache", "compile_equations", "inverse_dynamics",
            "mass_matrix"]

@@ -25,7 +25,7 @@ import sympy as sp
 
 from lagrange.budget import time_budget
 from lagrange.derivation import derive
-from lagrange.numeric import DEFAULT_BUDGET
+from lagrange.numeric import default_budget
 from models.mechanism import Mechanism, as_states
 
 
@@ -38,9 +38,10 @@ class _Compiled:
 _CACHE: dict[Mechanism, _Compiled] = {}
 
 
-def compile_reference(mech: Mechanism, budget: float = DEFAULT_BUDGET) -> _Compiled:
+def compile_reference(mech: Mechanism, budget: float | None = None) -> _Compiled:
     """The equations lambdified to mpmath (cached per mechanism; precision is set at call time)."""
     if mech not in _CACHE:
+        budget = default_budget() if budget is None else budget
         with time_budget(budget, "Lagrange II mpmath reference (derivation and lambdify)", mech.nlinks, mech.dim):
             d = derive(mech, symbolic_parameters=False, budget=budget)
             S = d.symbols
@@ -51,7 +52,7 @@ def compile_reference(mech: Mechanism, budget: float = DEFAULT_BUDGET) -> _Compi
 
 
 def inverse_dynamics_mpf(mech: Mechanism, q, qd, qdd, dps: int = 50,
-                         budget: float = DEFAULT_BUDGET) -> np.ndarray:
+                         budget: float | None = None) -> np.ndarray:
     """Generalised forces at ``dps`` significant digits, an object array of ``mpmath.mpf``,
     ``(samples, dof)``. Inputs are float64 arrays, converted to mpf exactly."""
     if not isinstance(dps, (int, np.integer)) or isinstance(dps, bool) or dps < 15:
@@ -67,7 +68,7 @@ def inverse_dynamics_mpf(mech: Mechanism, q, qd, qdd, dps: int = 50,
     return out
 
 
-def inverse_dynamics(mech: Mechanism, q, qd, qdd, dps: int = 50, budget: float = DEFAULT_BUDGET) -> np.ndarray:
+def inverse_dynamics(mech: Mechanism, q, qd, qdd, dps: int = 50, budget: float | None = None) -> np.ndarray:
     """Generalised forces computed at ``dps`` significant digits and rounded to float64, ``(samples, dof)``."""
     tau = inverse_dynamics_mpf(mech, q, qd, qdd, dps=dps, budget=budget)
     return np.vectorize(float, otypes=[float])(tau).reshape(tau.shape)

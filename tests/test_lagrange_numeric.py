@@ -1,0 +1,75 @@
+"""Numeric Lagrange II against the Pinocchio backend on seeded random trees, power balance along
+smooth motions, and the command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from lagrange import numeric as ln
+from models import pinocchio_backend as pb
+from models.kinematics import energy_rate
+from models.motion import gait, random_states, smooth_random_motion
+from models.presets import exo5, random_tree
+
+# 50 seeded random trees: n = 1..4 links, 2D and 3D, random parents and signs.
+TREES = [(1 + seed % 4, dim, seed) for dim in (2, 3) for seed in range(100, 125)]
+
+
+@pytest.mark.parametrize("n,dim,seed", TREES)
+def test_inverse_dynamics_agrees_with_pinocchio_on_random_trees(n, dim, seed, rel):
+    m = random_tree(n, dim, seed)
+    q, qd, qdd = random_states(m, 30, seed)
+    assert rel(ln.inverse_dynamics(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+
+
+@pytest.mark.parametrize("n,dim,seed", TREES[1::8])
+def test_mass_matrix_and_bias_agree_with_pinocchio(n, dim, seed, rel):
+    m = random_tree(n, dim, seed)
+    q, qd, _ = random_states(m, 10, seed + 1)
+    assert rel(ln.mass_matrix(m, q), pb.mass_matrix(m, q)) < 1e-10
+    assert rel(ln.bias_forces(m, q, qd), pb.bias_forces(m, q, qd)) < 1e-10
+
+
+@pytest.mark.parametrize("n,dim,seed", [(3, 2, 50), (4, 3, 51)])
+def test_power_balance_along_smooth_random_motion(n, dim, seed):
+    """d(T + Pi)/dt = tau . qd with T and Pi summed over the point masses (models.kinematics)."""
+    m = random_tree(n, dim, seed)
+    f = lambda t: smooth_random_motion(m, t, seed=seed)
+    t = np.linspace(0.0, 3.0, 40)
+    mo = f(t)
+    power = (ln.inverse_dynamics(m, mo.q, mo.qd, mo.qdd) * mo.qd).sum(1)
+    rate = energy_rate(m, f, t)
+    assert np.abs(power - rate).max() < 1e-8 * np.abs(rate).max()
+
+
+def test_zero_middle_masses_agree_with_pinocchio(rel):
+    m = random_tree(4, 3, 52)
+    m = m.replace(masses=tuple((a, 0.0 if i % 2 else b, c) for i, (a, b, c) in enumerate(m.masses)))
+    q, qd, qdd = random_states(m, 20, 3)
+    assert rel(ln.inverse_dynamics(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+
+
+def test_cli_lagrange_agrees_with_pinocchio_on_the_exo5_gait(tmp_path, capsys):
+    m = exo5(3)
+    mo = gait(m, np.linspace(0.0, 1.1, 23))
+    states = tmp_path / "states.json"
+    states.write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))
+    out = {}
+    for method in ("lagrange", "pinocchio"):
+        assert main(["inverse", "exo5-3d", str(states), "--method", method]) == 0
+        out[method] = np.array(json.loads(capsys.readouterr().out)["tau"])
+    assert out["lagrange"].shape == (23, 15)
+    assert np.abs(out["lagrange"] - out["pinocchio"]).max() < 1e-10 * np.abs(out["pinocchio"]).max()
+
+
+def test_one_sample_and_bad_states():
+    m = random_tree(2, 2, 53)
+    q, qd, qdd = random_states(m, 1, 0)
+    assert ln.inverse_dynamics(m, q[0], qd[0], qdd[0]).shape == (1, 4)
+    with pytest.raises(ValueError, match=r"field 'qd'.*expected shape \(samples, 4\)"):
+        ln.inverse_dynamics(m, q, qd[:, :3], qdd)
+    q[0, 3] = -0.1
+    with pytest.raises(ValueError, match="l2"):
+        ln.inverse_dynamics(m, q, qd, qdd)
