@@ -1,0 +1,561 @@
+"""Figures of a :class:`bench.study.Study`: the paper's Figs. 7-9 and the differences between methods.
+
+* :func:`moments_figure` - the control moments in the joints (Fig. 7),
+* :func:`forces_figure` - the longitudinal forces along the rods (Fig. 8),
+* :func:`kinogram_figure` - stick-figure frames of the motion (Fig. 9),
+* :func:`differences_figure` - every method minus the reference,
+* :func:`overview_figure` - one picture of a scene (kinogram, moments, forces, differences).
+
+**Which moments.** A study's ``tau`` are the generalised forces of the paper's *absolute*
+angles (eq. 4 has ``M1 - M2`` on ``phi_1``). The physical moments in the joints (what Fig. 7
+shows) are ``tau_joint = G^-T tau`` with ``G`` the constant map ``q_joint = G q`` of
+:func:`models.pinocchio_backend.build_model`: each joint turns link k relative to its parent
+(azimuth ``phi_k - phi_parent``; in 3D also the elevation ``psi_k``; the prismatic joint
+``l_k``). The rod forces ``F_k`` are the same in both sets, because the column of ``G`` of
+``l_k`` is a unit vector (``l_k`` maps to itself), so ``F_k = tau_joint[len_k] = tau[l_k]``.
+Every figure says in its title which of the two it shows.
+
+Figures are built with matplotlib's object API (no pyplot, no global backend switch) and are
+saved atomically by :func:`save_figure`.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from bench.reporting import atomic_write
+from bench.study import Study
+from models.kinematics import point_mass_positions
+from models.mechanism import Mechanism
+
+#: Panels of Figs. 7 and 8 span at most this factor between their largest and smallest maximum.
+SCALE_RATIO = 10.0
+#: A curve whose max |value| is below this fraction of the largest one is reported as zero.
+ZERO_FRACTION = 1e-9
+
+_COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
+           "#bcbd22", "#7f7f7f")
+_STYLES = ("--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 3)))
+_JOINT = re.compile(r"L(\d+)_(phi|psi|len)$")
+_SYMBOL = {"phi": "Mφ", "psi": "Mψ", "len": "F"}
+
+
+def link_color(i: int) -> str:
+    """The colour of link ``i`` (0-based) in every figure and recording."""
+    return _COLORS[i % len(_COLORS)]
+
+
+# ----------------------------------------------------------------------------- joint quantities
+@dataclass(frozen=True, eq=False)
+class JointBasis:
+    """Pinocchio's joint coordinates of a mechanism and the map to them.
+
+    ``tau_joint = tau @ G_inv`` (row vectors) converts generalised forces of the paper's absolute
+    angles into the physical joint moments and rod forces, rows named by ``names``.
+    """
+
+    names: tuple[str, ...]       # Pinocchio joint names, e.g. "L1_phi", "L1_psi", "L1_len"
+    labels: tuple[str, ...]      # "Mψ1 stance_shin", "F1 stance_shin", ...
+    link: tuple[int, ...]        # 0-based link of each joint
+    kind: tuple[str, ...]        # "phi", "psi" or "len"
+    G_inv: np.ndarray            # (dof, dof)
+    moment_rows: tuple[int, ...]  # joint rows that are moments (revolute joints)
+    force_rows: tuple[int, ...]   # joint rows that are rod forces (prismatic joints), link order
+
+
+@lru_cache(maxsize=64)
+def joint_basis(mech: Mechanism) -> JointBasis:
+    """The joint coordinates of ``mech`` (built once per mechanism)."""
+    from models.pinocchio_backend import build_model
+
+    pm = build_model(mech)
+    G = np.asarray(pm.G, dtype=float)
+    if G.shape != (mech.dof, mech.dof):
+        raise ValueError(f"{mech.name}: joint map G: expected shape ({mech.dof}, {mech.dof}), got {G.shape}")
+    links, kinds, labels = [], [], []
+    for name in pm.joint_names:
+        m = _JOINT.match(name)
+        if m is None:
+            raise ValueError(f"{mech.name}: joint name {name!r}: expected L<k>_phi, L<k>_psi or L<k>_len")
+        i, kind = int(m.group(1)) - 1, m.group(2)
+        links.append(i)
+        kinds.append(kind)
+        labels.append(f"{_SYMBOL[kind]}{i + 1} {mech.names[i]}")
+    moment_rows = tuple(r for r, k in enumerate(kinds) if k != "len")
+    force_rows = tuple(sorted((r for r, k in enumerate(kinds) if k == "len"), key=lambda r: links[r]))
+    return JointBasis(tuple(pm.joint_names), tuple(labels), tuple(links), tuple(kinds), np.linalg.inv(G),
+                      moment_rows, force_rows)
+
+
+def joint_quantities(mech: Mechanism, tau: np.ndarray) -> np.ndarray:
+    """``tau_joint = G^-T tau``: the joint moments and rod forces, ``(S, dof)`` in the rows of
+    :attr:`JointBasis.names`, from generalised forces ``(S, dof)`` of the absolute angles."""
+    return np.asarray(tau, dtype=float) @ joint_basis(mech).G_inv
+
+
+def moments_and_forces(mech: Mechanism, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joint moments ``(S, revolute joints)`` (N·m) and rod forces ``(S, n)`` (N) of ``tau``."""
+    jb = joint_basis(mech)
+    tj = joint_quantities(mech, tau)
+    return tj[:, list(jb.moment_rows)], tj[:, list(jb.force_rows)]
+
+
+def moment_labels(mech: Mechanism) -> list[str]:
+    jb = joint_basis(mech)
+    return [jb.labels[r] for r in jb.moment_rows]
+
+
+def force_labels(mech: Mechanism) -> list[str]:
+    jb = joint_basis(mech)
+    return [jb.labels[r] for r in jb.force_rows]
+
+
+def generalised_moment_labels(mech: Mechanism) -> list[str]:
+    """Labels of the paper's generalised moments (the angle rows of ``tau``), e.g. ``Mφ1 (abs.) stance_shin``."""
+    n = mech.nlinks
+    kinds = ["Mφ", "Mψ"] if mech.dim == 3 else ["Mφ"]
+    return [f"{k}{i + 1} (abs.) {mech.names[i]}" for k in kinds for i in range(n)]
+
+
+def generalised_moments(mech: Mechanism, tau: np.ndarray) -> np.ndarray:
+    """The angle rows ``[M_phi..., M_psi...]`` of the paper's generalised forces, ``(S, (dim-1) n)``."""
+    return np.asarray(tau, dtype=float)[:, : (mech.dim - 1) * mech.nlinks]
+
+
+# ----------------------------------------------------------------------------- grouping by scale
+@dataclass(frozen=True)
+class ScaleGroups:
+    """Curves grouped by the scale of their absolute maxima, as in the paper's Figs. 7 and 8."""
+
+    groups: tuple[tuple[int, ...], ...]  # curve indices per panel, largest scale first, each by decreasing max
+    zero: tuple[int, ...]                 # curves that are zero (max below ZERO_FRACTION of the largest)
+    maxima: np.ndarray                    # max |value| of every curve
+
+
+def group_by_scale(maxima, ratio: float = SCALE_RATIO, zero_fraction: float = ZERO_FRACTION) -> ScaleGroups:
+    """Group curves so that each panel spans at most a factor ``ratio`` of maxima.
+
+    Curves are sorted by ``max |value|``; a group wider than ``ratio`` is split at the largest
+    ratio between consecutive maxima, recursively (natural breaks on a log scale). So curves of
+    similar size share a panel and every boundary between panels is at least as wide as any gap
+    inside its two neighbours. Curves below ``zero_fraction`` of the largest maximum are zero.
+    """
+    m = np.asarray(maxima, dtype=float)
+    if m.ndim != 1 or not np.all(np.isfinite(m)) or np.any(m < 0):
+        raise ValueError(f"group_by_scale: field 'maxima': expected finite values >= 0, got {m!r}")
+    if not ratio > 1:
+        raise ValueError(f"group_by_scale: field 'ratio': expected > 1, got {ratio!r}")
+    top = float(m.max()) if m.size else 0.0
+    order = [int(i) for i in np.argsort(-m, kind="stable")]
+    live = [i for i in order if top > 0 and m[i] >= zero_fraction * top]
+    zero = tuple(i for i in order if i not in live)
+
+    def split(idx: list[int]) -> list[list[int]]:
+        if len(idx) <= 1 or m[idx[0]] <= ratio * m[idx[-1]]:
+            return [idx]
+        gaps = [m[idx[k]] / m[idx[k + 1]] for k in range(len(idx) - 1)]
+        cut = int(np.argmax(gaps)) + 1
+        return split(idx[:cut]) + split(idx[cut:])
+
+    groups = tuple(tuple(g) for g in split(live)) if live else ()
+    return ScaleGroups(groups, zero, m)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def scale_caption(groups: ScaleGroups, g: int, unit: str, sym: str = "·") -> str:
+    """``max |M| 49.1–126 N·m``: the range of the maxima of panel ``g``."""
+    idx = groups.groups[g]
+    hi, lo = groups.maxima[idx[0]], groups.maxima[idx[-1]]
+    return f"max |{sym}| {_fmt(hi)} {unit}" if len(idx) == 1 else f"max |{sym}| {_fmt(lo)}–{_fmt(hi)} {unit}"
+
+
+# ----------------------------------------------------------------------------- captions
+def _methods_line(study: Study) -> str:
+    ok = study.ok_methods()
+    ref = study.reference if study.reference in ok else (ok[0] if ok else None)
+    parts = []
+    for m in ok:
+        parts.append(f"{m} (solid)" if m == ref else f"{m} ({_style_name(ok, ref, m)})")
+    line = "methods: " + (", ".join(parts) if parts else "none succeeded")
+    return line
+
+
+def _not_run_line(study: Study) -> str:
+    bad = [f"{m}: skipped ({r.skipped})" if r.skipped else f"{m}: failed ({r.error})"
+           for m, r in study.results.items() if not r.ok]
+    return "; ".join(bad)
+
+
+def _reference(study: Study) -> str | None:
+    ok = study.ok_methods()
+    if study.reference in ok:
+        return study.reference
+    return ok[0] if ok else None
+
+
+def _style_of(ok: list[str], ref: str | None, m: str):
+    others = [x for x in ok if x != ref]
+    return "-" if m == ref else _STYLES[others.index(m) % len(_STYLES)]
+
+
+def _style_name(ok, ref, m) -> str:
+    st = _style_of(ok, ref, m)
+    return {"--": "dashed", ":": "dotted", "-.": "dash-dot"}.get(st, "patterned") if isinstance(st, str) else "patterned"
+
+
+def _check_ok(study: Study) -> None:
+    if not study.ok_methods():
+        why = _not_run_line(study) or "no methods were run"
+        raise ValueError(f"study {study.name!r}: no method produced tau ({why}); nothing to plot")
+
+
+def _header(study: Study, what: str) -> str:
+    mech = study.mechanism
+    return f"{study.name} ({mech.dim}D, {mech.nlinks} links) — {study.motion_label}\n{what}"
+
+
+# ----------------------------------------------------------------------------- Figs. 7 and 8
+def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figure:
+    _check_ok(study)
+    mech = study.mechanism
+    ok = study.ok_methods()
+    ref = _reference(study)
+    if kind == "moments":
+        data = {m: moments_and_forces(mech, study.results[m].tau)[0] for m in ok}
+        labels, unit, sym = moment_labels(mech), "N·m", "M"
+        what = ("Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
+                "about each joint's own angle (" + ("relative azimuth φ_k − φ_parent, elevation ψ_k"
+                                                    if mech.dim == 3 else "relative angle φ_k − φ_parent")
+                + "), not the generalised forces of the absolute angles")
+    else:
+        data = {m: moments_and_forces(mech, study.results[m].tau)[1] for m in ok}
+        labels, unit, sym = force_labels(mech), "N", "F"
+        what = ("Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
+                "(the same in joint and in absolute coordinates: l_k maps to itself)")
+    t = study.motion.t
+    maxima = np.max([np.abs(v).max(axis=0) for v in data.values()], axis=0)
+    groups = group_by_scale(maxima, ratio)
+    rows = max(len(groups.groups), 1)
+    notes = [_methods_line(study) + f"; panels grouped by the scale of max |{sym}| (each spans at most {ratio:g}×)"]
+    if groups.zero:
+        notes.append(f"zero throughout (max |{sym}| < {ZERO_FRACTION:g} of the largest): "
+                     + ", ".join(labels[j] for j in groups.zero))
+    if _not_run_line(study):
+        notes.append("not shown: " + _not_run_line(study))
+    fig = Figure(figsize=(11.5, 1.6 + 2.35 * rows + 0.2 * len(notes)), layout="constrained")
+    axes, note_ax = _panels(fig, rows, len(notes))
+    curve_color = curve_colors(mech, kind)
+    for g, ax in enumerate(axes):
+        idx = groups.groups[g] if groups.groups else ()
+        for j in idx:
+            for m in ok:
+                ax.plot(t, data[m][:, j], color=curve_color[j], ls=_style_of(ok, ref, m),
+                        lw=1.8 if m == ref else 1.2, label=labels[j] if m == ref else None, gid=f"{m}:{labels[j]}")
+        ax.set_ylabel(f"{sym} ({unit})")
+        ax.set_title(scale_caption(groups, g, unit, sym) if groups.groups else "all zero", loc="left", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.axhline(0.0, color="k", lw=0.6, alpha=0.5)
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False)
+        ax.set_xlim(t[0], t[-1])
+    axes[-1].set_xlabel("time t (s)")
+    if len(ok) > 1:
+        handles = [Line2D([], [], color="0.3", ls=_style_of(ok, ref, m)) for m in ok]
+        axes[0].add_artist(axes[0].legend(handles, ok, loc="upper right", fontsize=7, title="method",
+                                          title_fontsize=7, framealpha=0.8))
+        axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False)
+    fig.suptitle(_header(study, what), fontsize=10)
+    _write_notes(note_ax, notes)
+    fig._exo_groups = groups  # for tests and callers: which curve went to which panel
+    fig._exo_labels = labels
+    return fig
+
+
+def _panels(fig: Figure, rows: int, note_lines: int):
+    """``rows`` stacked plots sharing the time axis, and a text strip below them for notes."""
+    gs = fig.add_gridspec(rows + 1, 1, height_ratios=[1.0] * rows + [0.06 + 0.07 * note_lines])
+    axes = [fig.add_subplot(gs[0, 0])]
+    for r in range(1, rows):
+        axes.append(fig.add_subplot(gs[r, 0], sharex=axes[0]))
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    note_ax = fig.add_subplot(gs[rows, 0])
+    note_ax.set_axis_off()
+    return axes, note_ax
+
+
+def _write_notes(ax, lines: list[str]) -> None:
+    ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=8, color="0.2")
+
+
+def curve_colors(mech: Mechanism, kind: str) -> list[str]:
+    """Colour of each curve of ``kind`` ("moments" or "forces"): a link's colour for its azimuth
+    joint and rod force, the palette entry half-way round for its elevation joint (3D)."""
+    jb = joint_basis(mech)
+    rows = jb.moment_rows if kind == "moments" else jb.force_rows
+    return [link_color(jb.link[r] + (len(_COLORS) // 2 if jb.kind[r] == "psi" else 0)) for r in rows]
+
+
+def moments_figure(study: Study, ratio: float = SCALE_RATIO) -> Figure:
+    """The joint moments along the motion (the paper's Fig. 7), panels grouped by scale."""
+    return _curves_figure(study, "moments", ratio)
+
+
+def forces_figure(study: Study, ratio: float = SCALE_RATIO) -> Figure:
+    """The longitudinal rod forces along the motion (the paper's Fig. 8), panels grouped by scale."""
+    return _curves_figure(study, "forces", ratio)
+
+
+# ----------------------------------------------------------------------------- differences
+def differences_figure(study: Study) -> Figure | None:
+    """Largest ``|method - reference|`` over the joints at each instant, joint moments and rod forces
+    separately (log scale). ``None`` when fewer than two methods succeeded."""
+    ok = study.ok_methods()
+    ref = _reference(study)
+    others = [m for m in ok if m != ref]
+    if ref is None or not others:
+        return None
+    mech, t = study.mechanism, study.motion.t
+    notes = [f"reference: {ref}; " + _methods_line(study)] + (["not shown: " + _not_run_line(study)]
+                                                                  if _not_run_line(study) else [])
+    fig = Figure(figsize=(11.5, 5.6 + 0.2 * len(notes)), layout="constrained")
+    axes, note_ax = _panels(fig, 2, len(notes))
+    for ax, part, unit in ((axes[0], 0, "N·m"), (axes[1], 1, "N")):
+        for k, m in enumerate(others):
+            d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
+            dmax = float(d.max())
+            if dmax == 0.0:
+                ax.plot([], [], color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}: identical (0)")
+                continue
+            ax.semilogy(t, np.where(d > 0, d, np.nan), color=_COLORS[k % len(_COLORS)], lw=1.2,
+                        label=f"{m} − {ref} (max {dmax:.2g} {unit})")
+        name = "joint moments ΔM" if part == 0 else "rod forces ΔF"
+        ax.set_ylabel(f"max |Δ| ({unit})")
+        ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    axes[-1].set_xlabel("time t (s)")
+    axes[-1].set_xlim(t[0], t[-1])
+    fig.suptitle(_header(study, f"Differences between methods, method − {ref}, in joint moments τ_joint = G⁻ᵀ τ "
+                                "and rod forces"), fontsize=10)
+    _write_notes(note_ax, notes)
+    return fig
+
+
+# ----------------------------------------------------------------------------- kinogram (Fig. 9)
+#: Marker area (pt^2) of the heaviest point mass in a kinogram.
+KINOGRAM_MAX_AREA = 160.0
+
+
+@dataclass(frozen=True)
+class KinogramRow:
+    """One projection of a kinogram: which world axes are drawn and what shift separates frames."""
+
+    name: str
+    axes: tuple[int, int]   # indices into the position vector: (horizontal, vertical)
+    labels: tuple[str, str]
+    shift: float            # horizontal offset between consecutive frames (m)
+
+
+def kinogram_frames(study: Study, frames: int) -> np.ndarray:
+    """Sample indices of the kinogram's frames, evenly spread over the motion."""
+    S = study.motion.t.shape[0]
+    if frames < 1:
+        raise ValueError(f"kinogram: field 'frames': expected >= 1, got {frames}")
+    return np.unique(np.linspace(0, S - 1, min(frames, S)).round().astype(int))
+
+
+def kinogram_rows(study: Study, positions: np.ndarray) -> list[KinogramRow]:
+    """The projections drawn: x-y for a planar model; sagittal x-z and frontal y-z for 3D.
+
+    ``positions`` are the frames' point masses ``(F, n, 3, dim)``. Frame k is drawn shifted by
+    ``k * shift``; the shift is the smallest that keeps every frame clear of the next one
+    (``max_k (right edge of k - left edge of k+1)``) plus a margin of a fifth of the figure's height.
+    """
+    mech = study.mechanism
+    if mech.dim == 2:
+        specs = [("plane of the model (x–y)", (0, 1), ("x (m), frames shifted along x", "y (m), up"))]
+    else:
+        specs = [("sagittal projection (x–z)", (0, 2), ("x (m), walking direction, frames shifted", "z (m), up")),
+                 ("frontal projection (y–z)", (1, 2), ("y (m), lateral, frames shifted", "z (m), up"))]
+    rows = []
+    for name, ax, labels in specs:
+        h = positions[..., ax[0]].reshape(positions.shape[0], -1)     # (F, points)
+        height = float(np.ptp(positions[..., ax[1]])) or 1.0
+        lo, hi = h.min(axis=1), h.max(axis=1)
+        need = float(np.max(hi[:-1] - lo[1:])) if len(h) > 1 else float(hi[0] - lo[0])
+        rows.append(KinogramRow(name, ax, labels, max(need, 0.0) + 0.2 * height))
+    return rows
+
+
+def kinogram_figure(study: Study, frames: int = 11) -> Figure:
+    """Stick-figure frames of the motion side by side (the paper's Fig. 9).
+
+    Rods are lines from the start to the end point of each link; point masses are dots whose
+    area is proportional to their mass (the heaviest gets :data:`KINOGRAM_MAX_AREA` pt^2);
+    the support point O is a triangle. 3D models are drawn in the sagittal projection (x-z)
+    and, below it, the frontal one (y-z)."""
+    mech = study.mechanism
+    idx = kinogram_frames(study, frames)
+    P = point_mass_positions(mech, study.motion.q[idx])          # (F, n, 3, dim)
+    rows = kinogram_rows(study, P)
+    masses = mech.mass_array                                      # (n, 3)
+    area = masses / masses.max() * KINOGRAM_MAX_AREA
+    t = study.motion.t[idx]
+    widths = [float(P[..., r.axes[0]].max() - P[..., r.axes[0]].min()) + (len(idx) - 1) * r.shift for r in rows]
+    heights = [float(np.ptp(P[..., r.axes[1]])) + 0.35 for r in rows]
+    inch = min(15.0 / max(widths), 2.4)      # figure inches per metre, the same for every row
+    fig = Figure(figsize=(max(widths) * inch + 1.2, sum(heights) * inch + 1.0 + 0.55 * len(rows)),
+                 layout="constrained")
+    axes = fig.subplots(len(rows), 1, squeeze=False)[:, 0]
+    for ax, row in zip(axes, rows):
+        hx, vx = row.axes
+        offsets, sizes, colors = [], [], []
+        for k in range(len(idx)):
+            dx = k * row.shift
+            for i in range(mech.nlinks):
+                a, b = P[k, i, 0], P[k, i, 2]
+                ax.plot([a[hx] + dx, b[hx] + dx], [a[vx], b[vx]], color=link_color(i), lw=2.2,
+                        solid_capstyle="round", zorder=2)
+                for beta in range(3):
+                    offsets.append((P[k, i, beta, hx] + dx, P[k, i, beta, vx]))
+                    sizes.append(area[i, beta])
+                    colors.append(link_color(i))
+            ax.plot([dx], [0.0], marker="^", color="k", ms=7, zorder=4, ls="none")
+            ax.text(dx, P[..., vx].min() - 0.06, f"{t[k]:.2f} s", ha="center", va="top", fontsize=7.5)
+        offsets = np.array(offsets)
+        ax.scatter(offsets[:, 0], offsets[:, 1], s=sizes, c=colors, edgecolors="k", linewidths=0.5,
+                   zorder=3, gid=f"masses:{row.name}")
+        lo = P[..., hx].min() - 0.1
+        hi = P[..., hx].max() + (len(idx) - 1) * row.shift + 0.1
+        ax.axhline(0.0, color="0.5", lw=0.8, zorder=1)
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(P[..., vx].min() - 0.25, P[..., vx].max() + 0.1)
+        ax.set_aspect("equal")
+        ax.set_xlabel(row.labels[0] + f" by {row.shift:.2f} m", fontsize=8.5)
+        ax.set_ylabel(row.labels[1], fontsize=8.5)
+        ax.set_title(row.name, loc="left", fontsize=9)
+        ax.tick_params(labelsize=7.5)
+    handles = [Line2D([], [], color=link_color(i), lw=2.2, label=f"link {i + 1}: {mech.names[i]}")
+               for i in range(mech.nlinks)]
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(mech.nlinks, 6), frameon=False)
+    proj = "sagittal projection (x–z) and frontal projection (y–z) of the 3D motion" if mech.dim == 3 \
+        else "the model's plane"
+    fig.suptitle(_header(study, f"Kinogram (paper's Fig. 9): {len(idx)} frames over {t[-1] - t[0]:.2f} s, {proj}; "
+                                f"dot area ∝ point mass (largest {masses.max():.3g} kg), ▲ support point O"),
+                 fontsize=10)
+    fig._exo_frames = idx
+    fig._exo_rows = rows
+    return fig
+
+
+# ----------------------------------------------------------------------------- overview picture
+def overview_figure(study: Study, frame: float = 0.3) -> Figure:
+    """One picture of a scene laid out like its rerun recording: the model in 3D at one instant
+    (rods, point masses sized by mass, trails of the last 0.2 s) on the left; joint moments,
+    rod forces and the differences between methods on the right."""
+    _check_ok(study)
+    from bench.recording import trail_points  # the same trails as the recording
+
+    mech, t = study.mechanism, study.motion.t
+    ok, ref = study.ok_methods(), _reference(study)
+    fig = Figure(figsize=(15, 8), layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.25)
+    gs = fig.add_gridspec(3, 2, width_ratios=[1.0, 1.45])
+    ax3 = fig.add_subplot(gs[:, 0], projection="3d")
+    s = int(round(frame * (len(t) - 1)))
+    P = point_mass_positions(mech, study.motion.q)
+    P3 = P if mech.dim == 3 else np.stack([P[..., 0], np.zeros_like(P[..., 0]), P[..., 1]], axis=-1)
+    masses = mech.mass_array
+    for i in range(mech.nlinks):
+        a, b = P3[s, i, 0], P3[s, i, 2]
+        ax3.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color=link_color(i), lw=3, label=f"{i + 1} {mech.names[i]}")
+        ax3.scatter(P3[s, i, :, 0], P3[s, i, :, 1], P3[s, i, :, 2], s=masses[i] / masses.max() * 220,
+                    color=link_color(i), edgecolors="k", depthshade=False)
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    back = max(int(round(0.2 / dt)), 1)
+    for name, (link, beta) in trail_points(mech).items():
+        w = P3[max(s - back, 0): s + 1, link, beta]
+        ax3.plot(w[:, 0], w[:, 1], w[:, 2], color="k", lw=1.2, ls="--")
+        ax3.text(*w[-1], f" {name}", fontsize=8)
+    ax3.scatter([0], [0], [0], marker="^", color="k", s=60)
+    span = float(np.ptp(P3[..., 2])) or 1.0
+    c = P3[s].reshape(-1, 3).mean(axis=0)
+    ax3.set_xlim(c[0] - span / 2, c[0] + span / 2)
+    ax3.set_ylim(c[1] - span / 2, c[1] + span / 2)
+    ax3.set_zlim(min(0.0, P3[..., 2].min()), P3[..., 2].max())
+    ax3.set_box_aspect((1, 1, 1))
+    ax3.set_xlabel("x (m)")
+    ax3.set_ylabel("y (m)")
+    ax3.set_zlabel("z (m), up", labelpad=4)
+    ax3.view_init(elev=12, azim=-60)
+    ax3.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, 0.93))
+    ax3.set_title(f"3D view at t = {t[s]:.2f} s (dashed: trails of the last 0.2 s)", fontsize=9)
+    M = moments_and_forces(mech, study.results[ref].tau)
+    for r, (vals, labels, unit, title) in enumerate(((M[0], moment_labels(mech), "N·m", "joint moments τ_joint = G⁻ᵀ τ"),
+                                                     (M[1], force_labels(mech), "N", "rod forces F"))):
+        ax = fig.add_subplot(gs[r, 1])
+        inv = curve_colors(mech, "moments" if r == 0 else "forces")
+        for j in range(vals.shape[1]):
+            ax.plot(t, vals[:, j], color=inv[j], lw=1.3, label=labels[j])
+        ax.set_ylabel(f"({unit})")
+        ax.set_title(f"{title} ({ref})", loc="left", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6.5, ncols=2 if vals.shape[1] > 6 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5),
+                  frameon=False)
+        ax.set_xlim(t[0], t[-1])
+    ax = fig.add_subplot(gs[2, 1])
+    others = [m for m in ok if m != ref]
+    for k, m in enumerate(others):
+        tj = joint_quantities(mech, study.results[m].tau - study.results[ref].tau)
+        d = np.abs(tj).max(axis=1)
+        ax.semilogy(t, np.where(d > 0, d, np.nan), color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}")
+    ax.set_title("differences: largest |method − reference| over all joints (N·m or N)"
+                 if others else "differences: only one method ran", loc="left", fontsize=9)
+    if others:
+        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_xlabel("time t (s)")
+    ax.set_xlim(t[0], t[-1])
+    fig.suptitle(_header(study, "Overview in the layout of the rerun recording; " + _methods_line(study)), fontsize=10)
+    return fig
+
+
+# ----------------------------------------------------------------------------- saving
+def save_figure(fig: Figure, path: str | Path, dpi: int = 130) -> Path:
+    """Render the figure to PNG in memory and write it atomically (no half-written file)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return atomic_write(path, buf.getvalue())
+
+
+def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, frames: int = 11) -> list[Path]:
+    """Write ``<prefix>-moments.png``, ``-forces.png``, ``-kinogram.png`` and, with two or more
+    methods, ``-differences.png``; return the paths written."""
+    out = Path(out_dir)
+    prefix = prefix or study.name
+    paths = [save_figure(moments_figure(study), out / f"{prefix}-moments.png"),
+             save_figure(forces_figure(study), out / f"{prefix}-forces.png"),
+             save_figure(kinogram_figure(study, frames), out / f"{prefix}-kinogram.png")]
+    diff = differences_figure(study)
+    if diff is not None:
+        paths.append(save_figure(diff, out / f"{prefix}-differences.png"))
+    return paths
+
+
+__all__ = [
+    "JointBasis", "KinogramRow", "ScaleGroups", "curve_colors", "differences_figure", "force_labels", "forces_figure",
+    "generalised_moment_labels", "generalised_moments", "group_by_scale", "joint_basis", "joint_quantities",
+    "kinogram_figure", "kinogram_frames", "kinogram_rows", "link_color", "moment_labels", "moments_and_forces",
+    "moments_figure", "overview_figure", "save_figure", "write_plots",
+]
