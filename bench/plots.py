@@ -244,8 +244,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
         what = ("Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
                 "(the same in joint and in absolute coordinates: l_k maps to itself)")
     t = study.motion.t
-    maxima = np.max([np.abs(v).max(axis=0) for v in data.values()], axis=0)
-    groups = group_by_scale(maxima, ratio)
+    groups = group_by_scale(np.abs(data[ref]).max(axis=0), ratio)  # the reference's scales; others overlay
     rows = max(len(groups.groups), 1)
     notes = [_methods_line(study) + f"; panels grouped by the scale of max |{sym}| (each spans at most {ratio:g}×)"]
     if groups.zero:
@@ -426,7 +425,7 @@ def kinogram_figure(study: Study, frames: int = 11) -> Figure:
             for i in range(mech.nlinks):
                 a, b = P[k, i, 0], P[k, i, 2]
                 ax.plot([a[hx] + dx, b[hx] + dx], [a[vx], b[vx]], color=link_color(i), lw=2.2,
-                        solid_capstyle="round", zorder=2)
+                        solid_capstyle="round", zorder=2, gid=f"rod:{k}:{i}")
                 for beta in range(3):
                     offsets.append((P[k, i, beta, hx] + dx, P[k, i, beta, vx]))
                     sizes.append(area[i, beta])

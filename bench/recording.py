@@ -115,8 +115,7 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
     frame itself. Before ``seconds`` have passed the trail starts at the first sample."""
     S = t.shape[0]
     dt = float(np.median(np.diff(t))) if S > 1 else 1.0
-    step = max(int(round(seconds / dt / max(points - 1, 1))), 1)
-    back = step * np.arange(points - 1, -1, -1)
+    back = np.round(np.linspace(seconds / dt, 0.0, points)).astype(int)   # samples back, within dt/2 of exact
     return np.clip(np.arange(S)[:, None] - back[None, :], 0, S - 1)
 
 
@@ -132,8 +131,8 @@ def _groups(study: Study, part: int) -> tuple:
     if not ok:
         return None, {}
     data = {m: moments_and_forces(study.mechanism, study.results[m].tau)[part] for m in ok}
-    maxima = np.max([np.abs(v).max(axis=0) for v in data.values()], axis=0)
-    return group_by_scale(maxima, SCALE_RATIO), data
+    # Groups follow the reference method's scales; the other methods' curves share its groups.
+    return group_by_scale(np.abs(data[reference_method(study)]).max(axis=0), SCALE_RATIO), data
 
 
 def _group_entity(groups, g: int) -> str:

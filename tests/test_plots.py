@@ -1,0 +1,285 @@
+"""The figures: the physics of the joint moments they show, and their content (not their pixels)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+from matplotlib.collections import PathCollection
+from matplotlib.figure import Figure
+
+from bench import plots
+from bench.plots import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
+                         kinogram_figure, moments_and_forces, moments_figure, save_figure, write_plots)
+from bench.study import MethodResult, Study, run_methods
+from models.kinematics import point_mass_positions
+from models.mechanism import split
+from models.motion import GaitParams, gait, planar_gait, random_states
+from models.pinocchio_backend import build_model, inverse_dynamics, joint_torques
+from models.presets import exo5, fig2b, fig5, random_tree
+
+
+def _study(mech, motion_fn, samples=120, noisy=False) -> Study:
+    t = np.linspace(0.0, GaitParams().T, samples, endpoint=False)
+    study = run_methods(mech.name, mech, motion_fn(mech, t), "test gait", ["pinocchio"])
+    if noisy:
+        ref = study.results["pinocchio"].tau
+        study.results["noisy"] = MethodResult("noisy", ref + 1e-6 * np.random.default_rng(3).standard_normal(ref.shape))
+        study.results["broken"] = MethodResult("broken", error="RuntimeError: boom")
+    return study
+
+
+@pytest.fixture(scope="module")
+def exo():
+    return _study(exo5(3), gait, noisy=True)
+
+
+@pytest.fixture(scope="module")
+def planar():
+    return _study(fig5(2), planar_gait)
+
+
+# ----------------------------------------------------------------------------- the moments shown
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("dim", [2, 3])
+def test_joint_moments_from_the_paper_tau_equal_rnea_in_joint_coordinates(seed, dim):
+    """G^-T applied to the generalised forces of the absolute angles gives Pinocchio's joint torques
+    computed directly in its joint coordinates, on random trees with reversed links."""
+    mech = random_tree(5, dim, seed)
+    q, qd, qdd = random_states(mech, 20, seed)
+    tau = inverse_dynamics(mech, q, qd, qdd)
+    tj = joint_torques(mech, q, qd, qdd)
+    scale = np.abs(tj).max()
+    assert np.abs(joint_quantities(mech, tau) - tj).max() <= 1e-11 * scale
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("dim", [2, 3])
+def test_joint_and_absolute_coordinates_deliver_the_same_power(seed, dim):
+    """Virtual work is coordinate-free: tau_joint . qd_joint = tau . qd (qd_joint = G qd)."""
+    mech = random_tree(6, dim, seed + 10)
+    q, qd, qdd = random_states(mech, 15, seed)
+    tau = inverse_dynamics(mech, q, qd, qdd)
+    G = build_model(mech).G
+    p_abs = np.einsum("sd,sd->s", tau, qd)
+    p_joint = np.einsum("sd,sd->s", joint_quantities(mech, tau), qd @ G.T)
+    np.testing.assert_allclose(p_joint, p_abs, rtol=1e-10, atol=1e-10 * np.abs(p_abs).max())
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rod_forces_are_the_same_in_joint_and_absolute_coordinates(dim):
+    """l_k maps to itself (its column of G is a unit vector), so F_k = tau[l_k] exactly."""
+    mech = random_tree(7, dim, 4)
+    q, qd, qdd = random_states(mech, 10, 1)
+    tau = inverse_dynamics(mech, q, qd, qdd)
+    _, _, l_block = split(mech, tau)
+    np.testing.assert_array_equal(moments_and_forces(mech, tau)[1], l_block)
+    jb = joint_basis(mech)
+    assert [jb.labels[r] for r in jb.force_rows] == [f"F{k + 1} {mech.names[k]}" for k in range(mech.nlinks)]
+
+
+def test_moment_rows_are_every_revolute_joint_once():
+    mech = exo5(3)
+    jb = joint_basis(mech)
+    names = [jb.names[r] for r in jb.moment_rows]
+    assert sorted(names) == sorted(f"L{k}_{a}" for k in range(1, 6) for a in ("phi", "psi"))
+
+
+# ----------------------------------------------------------------------------- grouping by scale
+@pytest.mark.parametrize("seed", range(20))
+def test_grouping_by_scale_keeps_each_panel_within_the_ratio_and_cuts_at_the_widest_gaps(seed):
+    rng = np.random.default_rng(seed)
+    maxima = 10 ** rng.uniform(-2, 3, rng.integers(1, 16))
+    if seed % 3 == 0:
+        maxima[0] = 0.0                                    # a curve that is zero throughout
+    g = group_by_scale(maxima, ratio=10.0)
+    flat = [i for grp in g.groups for i in grp]
+    assert sorted(flat + list(g.zero)) == list(range(len(maxima)))        # every curve exactly once
+    assert all(maxima[i] == 0.0 for i in g.zero) and all(maxima[i] > 0 for i in flat)
+    assert all(maxima[a] >= maxima[b] for a, b in zip(flat, flat[1:]))    # largest scale first
+    for grp in g.groups:
+        assert maxima[grp[0]] <= 10.0 * maxima[grp[-1]]                  # a panel spans at most 10x
+    for a, b in zip(g.groups, g.groups[1:]):
+        cut = maxima[a[-1]] / maxima[b[0]]
+        inner = [maxima[x] / maxima[y] for grp in (a, b) for x, y in zip(grp, grp[1:])]
+        assert all(cut >= r for r in inner)                               # boundaries at the widest gaps
+
+
+def test_grouping_keeps_curves_of_similar_size_together():
+    g = group_by_scale([470.0, 428.0, 51.0, 49.0, 1.3, 0.0])
+    assert g.groups[0][:2] == (0, 1) and {2, 3} <= set(sum(g.groups, ())) and g.zero == (5,)
+    assert any({2, 3} <= set(grp) for grp in g.groups)
+
+
+def test_grouping_rejects_bad_input_with_a_clear_message():
+    with pytest.raises(ValueError, match="maxima"):
+        group_by_scale([1.0, np.nan])
+    with pytest.raises(ValueError, match="ratio"):
+        group_by_scale([1.0], ratio=1.0)
+
+
+# ----------------------------------------------------------------------------- Figs. 7 and 8
+def _lines_by_panel(fig: Figure):
+    out = []
+    for ax in fig.axes:
+        lines = [ln for ln in ax.get_lines() if ln.get_gid()]
+        if lines:
+            out.append((ax, lines))
+    return out
+
+
+@pytest.mark.parametrize("kind", ["moments", "forces"])
+@pytest.mark.parametrize("which", ["exo", "planar"])
+def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
+    study = request.getfixturevalue(which)
+    fig = (moments_figure if kind == "moments" else forces_figure)(study)
+    mech = study.mechanism
+    values = moments_and_forces(mech, study.results["pinocchio"].tau)[0 if kind == "moments" else 1]
+    labels = plots.moment_labels(mech) if kind == "moments" else plots.force_labels(mech)
+    panels = _lines_by_panel(fig)
+    assert len(panels) == len(fig._exo_groups.groups)
+    seen = []
+    for (ax, lines), grp in zip(panels, fig._exo_groups.groups):
+        ref_lines = [ln for ln in lines if ln.get_gid().startswith("pinocchio:")]
+        assert sorted(ln.get_gid().split(":", 1)[1] for ln in ref_lines) == sorted(labels[j] for j in grp)
+        maxima = [np.abs(ln.get_ydata()).max() for ln in ref_lines]
+        assert max(maxima) <= 10.0 * min(maxima)
+        for ln in ref_lines:                                               # the curve is the study's array
+            j = labels.index(ln.get_gid().split(":", 1)[1])
+            np.testing.assert_array_equal(ln.get_ydata(), values[:, j])
+            seen.append(j)
+        lo, hi = min(maxima), max(maxima)
+        assert f"{hi:.3g}" in ax.get_title(loc="left") and f"{lo:.3g}" in ax.get_title(loc="left")
+    assert sorted(seen + list(fig._exo_groups.zero)) == list(range(len(labels)))
+
+
+def test_the_zero_moment_is_named_not_plotted(exo):
+    """The trunk stands vertical (psi_5 = pi/2), so turning it in azimuth moves no mass: M_phi5 = 0."""
+    fig = moments_figure(exo)
+    labels = fig._exo_labels
+    assert [labels[j] for j in fig._exo_groups.zero] == ["Mφ5 trunk"]
+    assert "Mφ5 trunk" in " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
+
+
+def test_titles_say_model_motion_methods_and_which_quantity(exo, planar):
+    fig = moments_figure(exo)
+    title = fig._suptitle.get_text()
+    assert "exo5-3d" in title and "test gait" in title and "Fig. 7" in title
+    assert "joint moments τ_joint = G⁻ᵀ τ" in title and "not the generalised forces" in title
+    notes = " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
+    assert "pinocchio (solid)" in notes and "noisy (dashed)" in notes and "broken: failed (RuntimeError: boom)" in notes
+    ftitle = forces_figure(planar)._suptitle.get_text()
+    assert "fig5-2d" in ftitle and "Fig. 8" in ftitle and "the same in joint and in absolute coordinates" in ftitle
+    for fig in (moments_figure(planar), forces_figure(planar)):
+        assert fig.axes[-1].get_xlabel() == "time t (s)" or any(ax.get_xlabel() == "time t (s)" for ax in fig.axes)
+        units = {ax.get_ylabel() for ax in fig.axes if ax.get_ylabel()}
+        assert units in ({"M (N·m)"}, {"F (N)"})
+
+
+def test_every_method_is_drawn_and_a_failed_one_is_named(exo):
+    fig = moments_figure(exo)
+    gids = [ln.get_gid() for _, lines in _lines_by_panel(fig) for ln in lines]
+    n = len(plots.moment_labels(exo.mechanism)) - len(fig._exo_groups.zero)
+    assert sum(g.startswith("pinocchio:") for g in gids) == n
+    assert sum(g.startswith("noisy:") for g in gids) == n
+    assert not any(g.startswith("broken:") for g in gids)
+
+
+def test_differences_figure_shows_the_largest_joint_difference_and_needs_two_methods(exo, planar):
+    assert differences_figure(planar) is None
+    fig = differences_figure(exo)
+    mech = exo.mechanism
+    d = exo.results["noisy"].tau - exo.results["pinocchio"].tau
+    dm, df = moments_and_forces(mech, d)
+    lines = [ax.get_lines() for ax in fig.axes if ax.get_lines()]
+    np.testing.assert_allclose(lines[0][0].get_ydata(), np.abs(dm).max(axis=1))
+    np.testing.assert_allclose(lines[1][0].get_ydata(), np.abs(df).max(axis=1))
+    legend = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+    assert any(x.startswith("noisy − pinocchio (max ") for x in legend)
+    assert "method − pinocchio" in fig._suptitle.get_text()
+
+
+def test_a_study_without_results_cannot_be_plotted_and_says_why():
+    mech = fig2b(2)
+    t = np.linspace(0, 1, 10)
+    study = Study("s", mech, planar_gait(mech, t), "m", {"x": MethodResult("x", skipped="over budget")})
+    with pytest.raises(ValueError, match="no method produced tau.*over budget"):
+        moments_figure(study)
+
+
+# ----------------------------------------------------------------------------- kinogram (Fig. 9)
+def _masses_collections(fig):
+    return [c for ax in fig.axes for c in ax.collections
+            if isinstance(c, PathCollection) and (c.get_gid() or "").startswith("masses:")]
+
+
+@pytest.mark.parametrize("which", ["exo", "planar"])
+def test_kinogram_dots_have_area_proportional_to_mass_and_sit_on_the_shifted_frames(which, request):
+    study = request.getfixturevalue(which)
+    mech = study.mechanism
+    fig = kinogram_figure(study, frames=7)
+    idx, rows = fig._exo_frames, fig._exo_rows
+    assert len(idx) == 7 and idx[0] == 0 and idx[-1] == len(study.motion.t) - 1
+    P = point_mass_positions(mech, study.motion.q[idx])                 # (F, n, 3, dim)
+    cols = _masses_collections(fig)
+    assert len(cols) == len(rows) == (2 if mech.dim == 3 else 1)
+    m = np.tile(mech.mass_array.reshape(-1), len(idx))
+    for col, row in zip(cols, rows):
+        sizes = np.asarray(col.get_sizes())
+        np.testing.assert_allclose(sizes / m, (sizes / m)[0])            # area ∝ mass
+        hx, vx = row.axes
+        shift = (np.arange(len(idx)) * row.shift)[:, None, None]
+        expected = np.stack([(P[..., hx] + shift).reshape(-1), P[..., vx].reshape(-1)], axis=1)
+        np.testing.assert_allclose(col.get_offsets(), expected, atol=1e-12)
+        # frames do not overlap: each frame ends left of where the next begins
+        xs = (P[..., hx] + shift).reshape(len(idx), -1)
+        assert np.all(xs.max(axis=1)[:-1] < xs.min(axis=1)[1:])
+
+
+def test_kinogram_of_a_3d_model_is_the_sagittal_projection_and_says_so(exo, planar):
+    fig = kinogram_figure(exo)
+    assert fig._exo_rows[0].axes == (0, 2)                               # x-z
+    title = fig._suptitle.get_text()
+    assert "sagittal projection (x–z)" in title and "exo5-3d" in title and "Fig. 9" in title
+    assert "area ∝ point mass" in title
+    assert fig.axes[0].get_ylabel().startswith("z (m)")
+    assert kinogram_figure(planar)._exo_rows[0].axes == (0, 1)
+
+
+def test_kinogram_draws_every_rod_of_every_frame_from_start_to_end(planar):
+    mech = planar.mechanism
+    fig = kinogram_figure(planar, frames=4)
+    P = point_mass_positions(mech, planar.motion.q[fig._exo_frames])
+    ax = fig.axes[0]
+    rods = [ln for ln in ax.get_lines() if (ln.get_gid() or "").startswith("rod:")]
+    assert len(rods) == 4 * mech.nlinks
+    shift = fig._exo_rows[0].shift
+    for k in range(4):
+        for i in range(mech.nlinks):
+            ln = rods[k * mech.nlinks + i]
+            np.testing.assert_allclose(ln.get_xdata(), [P[k, i, 0, 0] + k * shift, P[k, i, 2, 0] + k * shift])
+            np.testing.assert_allclose(ln.get_ydata(), [P[k, i, 0, 1], P[k, i, 2, 1]])
+
+
+# ----------------------------------------------------------------------------- files
+def test_figures_are_written_as_png_atomically(planar, tmp_path, monkeypatch):
+    paths = write_plots(planar, tmp_path)
+    assert [p.name for p in paths] == ["fig5-2d-moments.png", "fig5-2d-forces.png", "fig5-2d-kinogram.png"]
+    for p in paths:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    before = paths[0].read_bytes()
+
+    def boom(self, *a, **k):
+        raise RuntimeError("renderer died")
+
+    monkeypatch.setattr(Figure, "savefig", boom)
+    with pytest.raises(RuntimeError, match="renderer died"):
+        save_figure(moments_figure(planar), paths[0])
+    assert paths[0].read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == sorted(p.name for p in paths)
+
+
+def test_two_methods_add_the_differences_figure(exo, tmp_path):
+    names = [p.name for p in write_plots(exo, tmp_path, frames=3)]
+    assert names[-1] == "exo5-3d-differences.png" and len(names) == 4
