@@ -333,11 +333,12 @@ def differences_figure(study: Study) -> Figure | None:
         for k, m in enumerate(others):
             d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
             dmax = float(d.max())
+            scale = float(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]).max()) or 1.0
             if dmax == 0.0:
                 ax.plot([], [], color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}: identical (0)")
                 continue
             ax.semilogy(t, np.where(d > 0, d, np.nan), color=_COLORS[k % len(_COLORS)], lw=1.2,
-                        label=f"{m} − {ref} (max {dmax:.2g} {unit})")
+                        label=f"{m} − {ref}: max {dmax:.2g} {unit}\n({dmax / scale:.1e} of the largest {ref} value)")
         name = "joint moments ΔM" if part == 0 else "rod forces ΔF"
         ax.set_ylabel(f"max |Δ| ({unit})")
         ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=9)

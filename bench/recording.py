@@ -365,6 +365,41 @@ def verify_recording(path: str | Path) -> str:
     return report
 
 
-__all__ = ["APPLICATION_ID", "CONVENTIONS", "TIMELINE", "blueprint", "mass_radii", "reference_method",
+def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeout: float = 300.0) -> Path:
+    """A picture of the recording in the rerun viewer with its saved layout, written atomically.
+
+    Runs ``rerun --window-size SIZE --screenshot-to PNG FILE``, which needs a display (an X server;
+    ``Xvfb`` with Mesa's software Vulkan works: ``--renderer vulkan``) and is slow on a CPU renderer.
+    The viewer renders at twice the window size on a high-DPI setup; the picture is scaled back to
+    ``size``."""
+    from PIL import Image
+
+    from bench.reporting import atomic_write
+
+    exe = rerun_executable()
+    if exe is None:
+        raise OSError(f"rerun executable not found next to {sys.executable}")
+    if not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        raise OSError("screenshot: no display (set DISPLAY, e.g. run under Xvfb)")
+    png = Path(png)
+    with tempfile.TemporaryDirectory() as tmp:
+        shot = Path(tmp) / "shot.png"
+        res = subprocess.run([str(exe), "--renderer", "vulkan", "--window-size", size, "--screenshot-to", str(shot),
+                              str(path)], capture_output=True, text=True, timeout=timeout)
+        if res.returncode != 0 or not shot.exists():
+            last = (res.stderr or res.stdout).strip().splitlines()[-1:] or ["no output"]
+            raise OSError(f"screenshot of {path}: rerun exited {res.returncode}: {last[0]}")
+        w, h = (int(x) for x in size.split("x"))
+        img = Image.open(shot).convert("RGB")
+        if img.size != (w, h):
+            img = img.resize((w, h), Image.LANCZOS)
+        import io
+
+        buf = io.BytesIO()
+        img.save(buf, format="PNG", optimize=True)
+    return atomic_write(png, buf.getvalue())
+
+
+__all__ = ["screenshot", "APPLICATION_ID", "CONVENTIONS", "TIMELINE", "blueprint", "mass_radii", "reference_method",
            "rerun_executable", "trail_indices", "trail_points", "verify_recording", "world_positions",
            "write_recording"]

@@ -365,3 +365,28 @@ def test_a_scene_where_no_method_succeeded_still_records_the_motion_and_says_why
     rec = Recording(write_recording(study, tmp_path / "none.rrd"))
     assert "world/rods" in rec.temporal and not any(e.startswith("moments/") for e in rec.temporal)
     assert "ValueError: no such method" in rec.static["meta"]["TextDocument:text"][0]
+
+
+# ----------------------------------------------------------------------------- viewer screenshot
+def test_a_screenshot_needs_a_display_and_says_so(exo, tmp_path, monkeypatch):
+    _, path, _ = exo
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    if rerun_executable() is None:
+        pytest.skip("the rerun executable is not installed next to this Python")
+    with pytest.raises(OSError, match="no display"):
+        recording.screenshot(path, tmp_path / "x.png")
+    assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.skipif(not os.environ.get("EXO_BENCH_SCREENSHOT") or not os.environ.get("DISPLAY"),
+                    reason="slow (about 20 s on a CPU renderer) and needs a display: set EXO_BENCH_SCREENSHOT=1 "
+                           "and DISPLAY (e.g. Xvfb with mesa-vulkan-drivers)")
+def test_the_viewer_renders_the_recording_with_its_layout(exo, tmp_path):
+    from PIL import Image
+
+    _, path, _ = exo
+    png = recording.screenshot(path, tmp_path / "viewer.png", size="1280x720")
+    img = np.asarray(Image.open(png).convert("L"), dtype=float)
+    assert img.shape == (720, 1280)
+    assert img.std() > 10          # not a blank (all-black) frame: the views were drawn
