@@ -196,7 +196,7 @@ def test_differences_figure_shows_the_largest_joint_difference_and_needs_two_met
     np.testing.assert_allclose(lines[0][0].get_ydata(), np.abs(dm).max(axis=1))
     np.testing.assert_allclose(lines[1][0].get_ydata(), np.abs(df).max(axis=1))
     legend = [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
-    assert any(x.startswith("noisy − pinocchio (max ") for x in legend)
+    assert any(x.startswith("noisy − pinocchio: max ") and "of the largest pinocchio value" in x for x in legend)
     assert "method − pinocchio" in fig._suptitle.get_text()
 
 
