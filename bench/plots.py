@@ -527,7 +527,9 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     ax.grid(True, which="both", alpha=0.3)
     ax.set_xlabel("time t (s)")
     ax.set_xlim(t[0], t[-1])
-    fig.suptitle(_header(study, "Overview in the layout of the rerun recording; " + _methods_line(study)), fontsize=10)
+    what = f"Overview in the layout of the rerun recording: moments and forces of {ref}" + (
+        f"; differences of {', '.join(others)} from it" if others else "")
+    fig.suptitle(_header(study, what), fontsize=10)
     return fig
 
 
