@@ -98,7 +98,8 @@ def joint_basis(mech: Mechanism) -> JointBasis:
 def joint_quantities(mech: Mechanism, tau: np.ndarray) -> np.ndarray:
     """``tau_joint = G^-T tau``: the joint moments and rod forces, ``(S, dof)`` in the rows of
     :attr:`JointBasis.names`, from generalised forces ``(S, dof)`` of the absolute angles."""
-    return np.asarray(tau, dtype=float) @ joint_basis(mech).G_inv
+    with np.errstate(invalid="ignore"):   # inf * 0 in a non-finite tau: NaN, reported by nonfinite_notes
+        return np.asarray(tau, dtype=float) @ joint_basis(mech).G_inv
 
 
 def moments_and_forces(mech: Mechanism, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -181,14 +182,19 @@ def scale_caption(groups: ScaleGroups, g: int, unit: str, sym: str = "·") -> st
 
 
 # ----------------------------------------------------------------------------- captions
+def reference_method(study: Study) -> str | None:
+    """The study's reference if it produced tau, else the first method that did (None if none did)."""
+    ok = study.ok_methods()
+    if study.reference in ok:
+        return study.reference
+    return ok[0] if ok else None
+
+
 def _methods_line(study: Study) -> str:
     ok = study.ok_methods()
-    ref = study.reference if study.reference in ok else (ok[0] if ok else None)
-    parts = []
-    for m in ok:
-        parts.append(f"{m} (solid)" if m == ref else f"{m} ({_style_name(ok, ref, m)})")
-    line = "methods: " + (", ".join(parts) if parts else "none succeeded")
-    return line
+    ref = reference_method(study)
+    parts = [f"{m} (solid)" if m == ref else f"{m} ({_style_name(ok, ref, m)})" for m in ok]
+    return "methods: " + (", ".join(parts) if parts else "none succeeded")
 
 
 def _not_run_line(study: Study) -> str:
@@ -197,11 +203,16 @@ def _not_run_line(study: Study) -> str:
     return "; ".join(bad)
 
 
-def _reference(study: Study) -> str | None:
-    ok = study.ok_methods()
-    if study.reference in ok:
-        return study.reference
-    return ok[0] if ok else None
+def nonfinite_notes(study: Study) -> list[str]:
+    """One warning per method whose tau holds NaN or infinite values (they cannot be drawn)."""
+    out = []
+    for m in study.ok_methods():
+        bad = ~np.isfinite(study.results[m].tau)
+        if bad.any():
+            rows = np.flatnonzero(bad.any(axis=1))
+            out.append(f"WARNING: {m} returned {int(bad.sum())} non-finite value(s) at {rows.size} instant(s), "
+                       f"first at t = {study.motion.t[rows[0]]:.4g} s; they are not drawn")
+    return out
 
 
 def _style_of(ok: list[str], ref: str | None, m: str):
@@ -230,7 +241,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
     _check_ok(study)
     mech = study.mechanism
     ok = study.ok_methods()
-    ref = _reference(study)
+    ref = reference_method(study)
     if kind == "moments":
         data = {m: moments_and_forces(mech, study.results[m].tau)[0] for m in ok}
         labels, unit, sym = moment_labels(mech), "N·m", "M"
@@ -244,7 +255,9 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
         what = ("Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
                 "(the same in joint and in absolute coordinates: l_k maps to itself)")
     t = study.motion.t
-    groups = group_by_scale(np.abs(data[ref]).max(axis=0), ratio)  # the reference's scales; others overlay
+    # The reference's scales decide the panels; other methods overlay it. NaN are reported, not grouped.
+    finite = np.where(np.isfinite(data[ref]), np.abs(data[ref]), 0.0)
+    groups = group_by_scale(finite.max(axis=0), ratio)
     rows = max(len(groups.groups), 1)
     notes = [_methods_line(study) + f"; panels grouped by the scale of max |{sym}| (each spans at most {ratio:g}×)"]
     if groups.zero:
@@ -252,6 +265,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
                      + ", ".join(labels[j] for j in groups.zero))
     if _not_run_line(study):
         notes.append("not shown: " + _not_run_line(study))
+    notes += nonfinite_notes(study)
     fig = Figure(figsize=(11.5, 1.6 + 2.35 * rows + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, rows, len(notes))
     curve_color = curve_colors(mech, kind)
@@ -320,20 +334,21 @@ def differences_figure(study: Study) -> Figure | None:
     """Largest ``|method - reference|`` over the joints at each instant, joint moments and rod forces
     separately (log scale). ``None`` when fewer than two methods succeeded."""
     ok = study.ok_methods()
-    ref = _reference(study)
+    ref = reference_method(study)
     others = [m for m in ok if m != ref]
     if ref is None or not others:
         return None
     mech, t = study.mechanism, study.motion.t
     notes = [f"reference: {ref}; " + _methods_line(study)] + (["not shown: " + _not_run_line(study)]
                                                                   if _not_run_line(study) else [])
+    notes += nonfinite_notes(study)
     fig = Figure(figsize=(11.5, 5.6 + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, 2, len(notes))
     for ax, part, unit in ((axes[0], 0, "N·m"), (axes[1], 1, "N")):
         for k, m in enumerate(others):
             d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
-            dmax = float(d.max())
-            scale = float(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]).max()) or 1.0
+            dmax = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+            scale = float(np.nanmax(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]))) or 1.0
             if dmax == 0.0:
                 ax.plot([], [], color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}: identical (0)")
                 continue
@@ -468,7 +483,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     from bench.recording import trail_points  # the same trails as the recording
 
     mech, t = study.mechanism, study.motion.t
-    ok, ref = study.ok_methods(), _reference(study)
+    ok, ref = study.ok_methods(), reference_method(study)
     fig = Figure(figsize=(15, 8), layout="constrained")
     fig.get_layout_engine().set(w_pad=0.25)
     gs = fig.add_gridspec(3, 2, width_ratios=[1.0, 1.45])
@@ -559,5 +574,5 @@ __all__ = [
     "JointBasis", "KinogramRow", "ScaleGroups", "curve_colors", "differences_figure", "force_labels", "forces_figure",
     "generalised_moment_labels", "generalised_moments", "group_by_scale", "joint_basis", "joint_quantities",
     "kinogram_figure", "kinogram_frames", "kinogram_rows", "link_color", "moment_labels", "moments_and_forces",
-    "moments_figure", "overview_figure", "save_figure", "write_plots",
+    "moments_figure", "nonfinite_notes", "overview_figure", "reference_method", "save_figure", "write_plots",
 ]

@@ -34,8 +34,9 @@ import rerun.blueprint as rrb
 from matplotlib.colors import to_rgb
 
 from bench.plots import (SCALE_RATIO, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
-                         group_by_scale, link_color, moment_labels, moments_and_forces, scale_caption)
-from bench.reporting import _git_commit
+                         group_by_scale, link_color, moment_labels, moments_and_forces, nonfinite_notes,
+                         reference_method, scale_caption)
+from bench.reporting import machine_info
 from bench.study import Study
 from models.kinematics import point_mass_positions
 from models.mechanism import Mechanism
@@ -132,17 +133,13 @@ def _groups(study: Study, part: int) -> tuple:
         return None, {}
     data = {m: moments_and_forces(study.mechanism, study.results[m].tau)[part] for m in ok}
     # Groups follow the reference method's scales; the other methods' curves share its groups.
-    return group_by_scale(np.abs(data[reference_method(study)]).max(axis=0), SCALE_RATIO), data
+    ref = data[reference_method(study)]
+    return group_by_scale(np.where(np.isfinite(ref), np.abs(ref), 0.0).max(axis=0), SCALE_RATIO), data
 
 
 def _group_entity(groups, g: int) -> str:
     top = groups.maxima[groups.groups[g][0]]
     return f"group{g + 1}_max{math.ceil(top):d}"
-
-
-def reference_method(study: Study) -> str | None:
-    ok = study.ok_methods()
-    return study.reference if study.reference in ok else (ok[0] if ok else None)
 
 
 def blueprint(study: Study) -> rrb.Blueprint:
@@ -206,7 +203,7 @@ def _describe(study: Study) -> tuple[str, dict]:
     mech = study.mechanism
     ok = study.ok_methods()
     ref = reference_method(study)
-    commit = _git_commit()
+    commit = machine_info()["commit"]
     agreement = study.agreement() if ref == study.reference else {}
     lines = [f"# {study.name}: {study.motion_label}", "",
              f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
@@ -220,6 +217,7 @@ def _describe(study: Study) -> tuple[str, dict]:
             lines.append(f"- {m}: failed ({r.error})")
         elif m in agreement and m != ref:
             lines.append(f"- {m}: max |τ − τ_{ref}| / max |τ_{ref}| = {agreement[m]:.2e}")
+    lines += [f"- **{w}**" for w in nonfinite_notes(study)]
     lines += ["", "## Quantities", "",
               "- `moments/`: the **joint moments** τ_joint = G⁻ᵀ τ (N·m) about the joints of Pinocchio's model "
               "(`L<k>_phi`: relative azimuth φ_k − φ_parent; `L<k>_psi`: elevation ψ_k) — the paper's Fig. 7, "

@@ -283,3 +283,15 @@ def test_figures_are_written_as_png_atomically(planar, tmp_path, monkeypatch):
 def test_two_methods_add_the_differences_figure(exo, tmp_path):
     names = [p.name for p in write_plots(exo, tmp_path, frames=3)]
     assert names[-1] == "exo5-3d-differences.png" and len(names) == 4
+
+
+def test_a_method_returning_nan_is_reported_not_hidden(planar):
+    ref = planar.results["pinocchio"].tau
+    bad = ref.copy()
+    bad[5, 2] = np.nan
+    study = Study(planar.name, planar.mechanism, planar.motion, planar.motion_label,
+                  {"pinocchio": planar.results["pinocchio"], "shaky": MethodResult("shaky", bad)})
+    t5 = f"{planar.motion.t[5]:.4g}"
+    for fig in (moments_figure(study), forces_figure(study), differences_figure(study)):
+        notes = " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
+        assert f"WARNING: shaky returned 1 non-finite value(s) at 1 instant(s), first at t = {t5} s" in notes

@@ -390,3 +390,12 @@ def test_the_viewer_renders_the_recording_with_its_layout(exo, tmp_path):
     img = np.asarray(Image.open(png).convert("L"), dtype=float)
     assert img.shape == (720, 1280)
     assert img.std() > 10          # not a blank (all-black) frame: the views were drawn
+
+
+def test_a_method_returning_nan_is_named_in_the_recording(tmp_path):
+    study = _study(fig2a(2), planar_gait, 30, noisy=False)
+    bad = study.results["pinocchio"].tau.copy()
+    bad[3:5, 0] = np.inf
+    study.results["shaky"] = MethodResult("shaky", bad)
+    rec = Recording(write_recording(study, tmp_path / "nan.rrd"))
+    assert "WARNING: shaky returned 2 non-finite value(s) at 2 instant(s)" in rec.static["meta"]["TextDocument:text"][0]
