@@ -22,6 +22,7 @@ class MethodResult:
     method: str
     tau: np.ndarray | None = None                 # (S, dof) generalised forces, paper's coordinates
     seconds_per_sample: float | None = None
+    setup_seconds: float | None = None            # one-time cost: building models, deriving, compiling
     skipped: str | None = None                    # why the method was not run (over budget, ...)
     error: str | None = None                      # one line: why it failed
 
@@ -69,9 +70,12 @@ def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, m
         try:
             fn = get_method(m)
             t0 = time.perf_counter()
+            fn(mech, motion.q[:1], motion.qd[:1], motion.qdd[:1])  # build / derive / compile once
+            setup = time.perf_counter() - t0
+            t0 = time.perf_counter()
             tau = np.asarray(fn(mech, motion.q, motion.qd, motion.qdd), dtype=float)
             dt = (time.perf_counter() - t0) / S
-            study.results[m] = MethodResult(m, tau, dt)
+            study.results[m] = MethodResult(m, tau, dt, setup_seconds=setup)
         except Exception as e:  # noqa: BLE001 - one failing method must not lose the others
             skip = getattr(e, "skip_reason", None)
             if skip:

@@ -15,15 +15,16 @@ class Sweep:
     compose_2d: tuple[int, ...]        # n for composing the equations, 2D
     compose_3d: tuple[int, ...]        # n for composing the equations, 3D
     compose_budget: float              # seconds per derivation before a row is skipped
+    derive_budget: float               # seconds for lagrange's derivation before a numeric row is skipped
     inverse_n: tuple[int, ...]         # n for numeric inverse dynamics
     samples: int                       # samples per batched call
     inverse_budget: float              # projected seconds per batched call before a row is skipped
     error_subsample: int               # samples checked against the 50-digit reference
 
 
-QUICK = Sweep("quick", compose_2d=(1, 2, 3), compose_3d=(1, 2), compose_budget=20.0,
+QUICK = Sweep("quick", compose_2d=(1, 2, 3), compose_3d=(1, 2), compose_budget=20.0, derive_budget=10.0,
               inverse_n=(1, 2, 5, 20), samples=1000, inverse_budget=5.0, error_subsample=4)
-FULL = Sweep("full", compose_2d=(1, 2, 3, 4, 5, 6), compose_3d=(1, 2, 3, 4, 5), compose_budget=600.0,
+FULL = Sweep("full", compose_2d=(1, 2, 3, 4, 5, 6), compose_3d=(1, 2, 3, 4, 5), compose_budget=600.0, derive_budget=120.0,
              inverse_n=(1, 2, 3, 5, 10, 20, 50, 100), samples=10_000, inverse_budget=120.0, error_subsample=8)
 SWEEPS = {"quick": QUICK, "full": FULL}
 

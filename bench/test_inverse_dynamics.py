@@ -42,7 +42,7 @@ def pytest_generate_tests(metafunc):
             metafunc.parametrize(name, cases, ids=[f"{m}-{t}{n}-{d}d" for m, n, d, t in cases])
 
 
-def _setup(case, samples):
+def _setup(case, samples, sw):
     method, n, dim, topo = case
     mech = exo5(3) if topo == "exo5" else chain(n, dim)
     t = np.linspace(0.0, 10.0, samples)
@@ -52,6 +52,9 @@ def _setup(case, samples):
     if key in _FAILED:
         pytest.skip(_FAILED[key])
     try:
+        if method == "lagrange":  # derive within the sweep's budget (a skip with the reason otherwise)
+            from lagrange import derive
+            derive(mech, budget=sw.derive_budget)
         fn(mech, mo.q[:2], mo.qd[:2], mo.qdd[:2])  # build models / derive once, outside the timing
     except Exception as e:  # noqa: BLE001
         reason = getattr(e, "skip_reason", None)
@@ -73,7 +76,7 @@ def _errors(benchmark, mech, mo, tau, subsample):
 def test_inverse_batched(benchmark, sweep, case):
     method, n, dim, topo = case
     benchmark.group = f"inverse-batched-{dim}d"
-    mech, mo, fn = _setup(case, sweep.samples)
+    mech, mo, fn = _setup(case, sweep.samples, sweep)
     probe = min(50, sweep.samples)
     t0 = time.perf_counter()
     fn(mech, mo.q[:probe], mo.qd[:probe], mo.qdd[:probe])
@@ -91,7 +94,7 @@ def test_inverse_batched(benchmark, sweep, case):
 def test_inverse_per_sample(benchmark, sweep, single_case):
     method, n, dim, topo = single_case
     benchmark.group = f"inverse-per-sample-{dim}d"
-    mech, mo, fn = _setup(single_case, 8)
+    mech, mo, fn = _setup(single_case, 8, sweep)
     benchmark.extra_info.update(method=method, n=n, dim=dim, mechanism=mech.name, samples=1, batched=False)
     tau = benchmark(fn, mech, mo.q[:1], mo.qd[:1], mo.qdd[:1])
     _errors(benchmark, mech, mo, np.vstack([np.asarray(tau)] * mo.q.shape[0]), 1)
