@@ -83,6 +83,12 @@ def cmd_bench(args) -> int:
     return run(args)
 
 
+def cmd_errata(args) -> int:
+    from matrix_method.errata import run
+
+    return run(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from bench.methods import method_names
 
@@ -115,6 +121,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
     s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
     s.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
+                       "write errata.md")
+    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.set_defaults(func=cmd_errata)
     return p
 
 

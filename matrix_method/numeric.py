@@ -45,12 +45,17 @@ def planar_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np.nd
     """Eq. (5): the planar matrices of the model of the same structure at the angles ``phi`` and
     lengths ``l`` of ``q`` (in 3D the ``psi`` are ignored), from the closed forms."""
     phi, _, l = split(mech, np.asarray(q, dtype=float))
-    c, nu_s = signed_coupling(mech), signed_gravity(mech)
-    li, lj, C, S = _pair_geometry(phi, l)
+    return _planar(mech, phi, l, np.cos, np.sin, signed_coupling(mech), signed_gravity(mech))
+
+
+def _planar(mech: Mechanism, phi, l, cos, sin, c, nu_s) -> dict[str, dict[str, np.ndarray]]:
+    """The closed forms of :mod:`matrix_method.planar` on ``(S, n)`` arrays of any dtype."""
+    d = phi[:, :, None] - phi[:, None, :]
+    li, lj, C, S = l[:, :, None], l[:, None, :], cos(d), sin(d)
     out = {}
     for block, fns in planar.PAIRS.items():
         out[block] = {name: f(c, li, lj, C, S) for name, f in fns.items()}
-        out[block]["P"] = planar.GRAVITY[block](nu_s, l, np.cos(phi), np.sin(phi))
+        out[block]["P"] = planar.GRAVITY[block](nu_s, l, cos(phi), sin(phi))
     return out
 
 
@@ -71,8 +76,16 @@ def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
     flat = planar_matrices(mech, q)
     if mech.dim == 2:
         return flat
-    straight = planar_matrices(mech, _straight(mech, q))
     _, psi, l = split(mech, q)
+    return spatial_from_planar(psi, l, flat, planar_matrices(mech, _straight(mech, q)), signed_gravity(mech))
+
+
+def spatial_from_planar(psi: np.ndarray, l: np.ndarray, flat: dict, straight: dict, nu_s: np.ndarray) -> dict:
+    """Eq. (18), corrected: the 3D matrices from the planar ones (``flat``, at the angles ``phi``
+    and lengths ``l``) and those of the straightened model (``straight``, every ``phi = 0``), for
+    the elevations ``psi`` ``(S, n)``.
+    ``nu_s``: the gravity coefficients of the planar ``P`` (``2D p^phi_i = nu_s_i l_i cos phi_i``),
+    which :data:`spatial.GRAVITY` evaluates at ``phi_i -> psi_i``."""
     cp, sp = np.cos(psi), np.sin(psi)
     t = spatial.transition_inputs(flat, straight, l[:, :, None], l[:, None, :],
                                   cp[:, :, None], sp[:, :, None], cp[:, None, :], sp[:, None, :])
@@ -82,7 +95,6 @@ def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
             if (block, name) != ("l", "D"):
                 out[block][name] = f(t)
     out["l"]["D"] = spatial.d_l(np.swapaxes(out["phi"]["H"], -1, -2))
-    nu_s = signed_gravity(mech)
     for block, f in spatial.GRAVITY.items():
         out[block]["P"] = np.broadcast_to(f(nu_s, l, cp, sp), l.shape).copy()
     return out
@@ -197,23 +209,39 @@ def _factored_3d(n, g, c, nu_s, x, xd, xdd):
 
 
 # ----------------------------------------------------------------- as printed
-def paper_matrices(mech: Mechanism, q, table=None) -> dict[str, dict[str, np.ndarray]]:
+def paper_matrices(mech: Mechanism, q, table=None, exact: bool = False) -> dict[str, dict[str, np.ndarray]]:
     """Eq. (17) matrices by eq. (18) **exactly as printed**, evaluated literally.
 
     The planar inputs are the closed forms of :func:`planar_matrices` (the paper prints only
     eq. (6) of them). Divisions by ``cos(phi_i - phi_j)``, ``cos phi_i`` and ``sin phi_i`` are
     evaluated as written, so an exact zero divisor gives 0/0 = NaN, which is returned, not hidden.
+    In floating point only ``sin phi_i`` at ``phi_i = 0`` is an exact zero (no double makes ``cos``
+    vanish); ``exact=True`` evaluates with exact arithmetic instead, as a computer-algebra system
+    would: ``q`` is then an array of sympy numbers (e.g. ``pi/2``) and the result an object array
+    of sympy numbers (``nan`` for 0/0).
     ``table`` (default :data:`matrix_method.printed.TRANSITIONS`) lets a test swap printed lines for
     corrected ones. A 2D model has no transitions: its matrices are the planar closed forms.
     """
     from matrix_method import printed
 
-    q, _, _ = as_states(mech, q)
-    flat = planar_matrices(mech, q)
+    if exact:
+        import sympy as sp
+
+        q = np.asarray(q, dtype=object)
+        if q.ndim == 1:
+            q = q[None, :]
+        cos, sin = np.vectorize(sp.cos, otypes=[object]), np.vectorize(sp.sin, otypes=[object])
+        to_exact = np.vectorize(sp.Rational, otypes=[object])
+        phi, _, l = split(mech, q)
+        flat = _planar(mech, phi, l, cos, sin, to_exact(signed_coupling(mech)), to_exact(signed_gravity(mech)))
+    else:
+        q, _, _ = as_states(mech, q)
+        cos, sin = np.cos, np.sin
+        flat = planar_matrices(mech, q)
     if mech.dim == 2:
         return flat
     table = printed.TRANSITIONS if table is None else table
-    t = printed.transition_namespace(mech, q, flat)
+    t = printed.transition_namespace(mech, q, flat, cos=cos, sin=sin)
     out: dict[str, dict[str, np.ndarray]] = {b: {} for b in ("phi", "psi", "l")}
     with np.errstate(invalid="ignore", divide="ignore"):
         for f in table:                    # in printed order: later lines may use earlier 3D ones
@@ -221,7 +249,7 @@ def paper_matrices(mech: Mechanism, q, table=None) -> dict[str, dict[str, np.nda
                 continue                   # the mu lines name the right-hand sides, no matrix
             value = f.fn(t)
             shape = q.shape[:1] + ((mech.nlinks,) if f.name == "P" else (mech.nlinks, mech.nlinks))
-            out[f.block][f.name] = np.broadcast_to(value, shape).astype(float)
+            out[f.block][f.name] = np.broadcast_to(value, shape).astype(object if exact else float)
             setattr(t, f"{f.name}_{f.block}_3d", out[f.block][f.name])
     return out
 

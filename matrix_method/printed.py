@@ -61,22 +61,24 @@ _PLANAR_NAMES = {("phi", "A"): "a_phi", ("phi", "Lambda"): "lam_phi", ("phi", "D
                  ("l", "D"): "d_l", ("l", "H"): "h_l", ("l", "P"): "p_l"}
 
 
-def transition_namespace(mech: Mechanism, q: np.ndarray, planar: dict, three_d: dict | None = None):
+def transition_namespace(mech: Mechanism, q: np.ndarray, planar: dict, three_d: dict | None = None,
+                         cos=np.cos, sin=np.sin):
     """What the right-hand sides of (18) refer to, as numpy arrays over samples ``S``:
     ``a_phi_2d ... p_l_2d`` (the planar matrices ``(S, n, n)`` / vectors ``(S, n)`` of the model of
     the same structure), ``cos_psi_i, sin_psi_i`` ``(S, n, 1)``, ``cos_psi_j, sin_psi_j``
     ``(S, 1, n)``, ``cos_phi_ij = cos(phi_i - phi_j)``, ``l_i, l_j``, the vectors ``cos_psi, sin_psi,
     cos_phi, sin_phi`` ``(S, n)`` and, from ``three_d`` (``block -> name -> array``), the 3D
-    matrices a line refers to as ``<name>_<block>_3d`` (e.g. ``A_l_3d``)."""
+    matrices a line refers to as ``<name>_<block>_3d`` (e.g. ``A_l_3d``). ``cos, sin``: elementwise
+    functions (numpy's, or sympy's vectorised for exact evaluation)."""
     phi, psi, l = split(mech, q)
     t = SimpleNamespace()
     for (block, name), attr in _PLANAR_NAMES.items():
         setattr(t, f"{attr}_2d", planar[block][name])
-    t.cos_psi_i, t.sin_psi_i = np.cos(psi)[:, :, None], np.sin(psi)[:, :, None]
-    t.cos_psi_j, t.sin_psi_j = np.cos(psi)[:, None, :], np.sin(psi)[:, None, :]
-    t.cos_phi_ij = np.cos(phi[:, :, None] - phi[:, None, :])
+    t.cos_psi, t.sin_psi, t.cos_phi, t.sin_phi = cos(psi), sin(psi), cos(phi), sin(phi)
+    t.cos_psi_i, t.sin_psi_i = t.cos_psi[:, :, None], t.sin_psi[:, :, None]
+    t.cos_psi_j, t.sin_psi_j = t.cos_psi[:, None, :], t.sin_psi[:, None, :]
+    t.cos_phi_ij = cos(phi[:, :, None] - phi[:, None, :])
     t.l_i, t.l_j = l[:, :, None], l[:, None, :]
-    t.cos_psi, t.sin_psi, t.cos_phi, t.sin_phi = np.cos(psi), np.sin(psi), np.cos(phi), np.sin(phi)
     for block, mats in (three_d or {}).items():
         for name, m in mats.items():
             setattr(t, f"{name}_{block}_3d", m)
@@ -431,7 +433,8 @@ def _eq21(x):
 
 _SIGN_READING = ("(19) and (21) print the elements without branch signs; (20) shows a13 and a14 entering "
                  "row 1 with a minus. Read as A = s_i s_j a_ij with the signs of Fig. 5 "
-                 "(s = +1, +1, -1, -1: links 3, 4 after the branch point, reversed).")
+                 "(s = +1, +1, -1, -1: links 3, 4 after the branch point, reversed). The text builds (19) "
+                 "'by the formula (2.13)', a number the paper does not have; read as eq. (6).")
 
 EQUATIONS: tuple[Printed, ...] = (
     Printed("2", "(2)", "one planar link",

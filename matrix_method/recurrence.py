@@ -1,0 +1,154 @@
+"""The recurrence of eqs. (22)-(26): the matrices of n+1 links from those of n links.
+
+Eq. (23), ``A_{n+1} = A_n + delta A_n``, with ``A_n`` padded by a zero row and column (24) and
+``delta A_n`` of eq. (25) for a chain: ``theta_{n+1} l_i l_j C_ij`` on the old block,
+``eta_{n+1} l_i l_{n+1} C_{i,n+1}`` in the new row and column, ``zeta_{n+1} l_{n+1}^2`` in the corner.
+
+**Generalised to trees and to every matrix.** Every planar element is ``c_ij`` times a geometric
+factor of links i and j (:mod:`matrix_method.planar`), and adding link ``k`` (parent among the
+earlier links) changes ``c`` only where it changes the masses riding on two rods
+(:func:`matrix_method.coefficients.recurrence_increments`): ``theta_k s_i s_j`` on pairs of
+ancestors of ``k`` (its mass joins ``Theta`` of each), ``eta_k s_i s_k`` between an ancestor and
+``k``, ``zeta_k`` in the corner, and nothing on any other row or column. So ``delta X_n`` is the
+closed form of ``X`` evaluated with those increments, on the rows and columns of k's ancestors and
+of k itself; the gravity vector gains ``theta_k s_i`` on the ancestors and ``eta_k s_k`` for k. For
+a chain every earlier link is an ancestor and this is eq. (25) for ``A_phi``.
+
+The planar recurrence runs twice, at the configuration and for the straightened model (every
+``phi = 0``), and the 3D matrices of n+1 links follow by the corrected transitions (18):
+``2D A_n -> 2D A_{n+1} -> 3D A_{n+1}`` (eq. 26).
+"""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import numpy as np
+import sympy as sp
+
+from matrix_method import planar
+from matrix_method import numeric as _numeric
+from matrix_method import symbolic as _symbolic
+from matrix_method.coefficients import generic_recurrence_increments, recurrence_increments
+from matrix_method.polynomials import Generators, generators
+from models.mechanism import Mechanism, as_states, split
+
+
+# ------------------------------------------------------------------ numeric
+def planar_step(mech: Mechanism, k: int, mats: dict, nu_s: np.ndarray, l: np.ndarray, C: np.ndarray,
+                S: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray) -> None:
+    """Eqs. (23)-(25) for trees, in place: add link ``k`` to the planar matrices ``mats``
+    (``block -> name -> (S, N, N)``, ``P``: ``(S, N)``) of links ``0..k-1``.
+
+    The arrays are allocated for all N links and zero beyond the links already added, which is
+    the padding of eq. (24); ``delta X`` touches only the rows and columns of k's ancestors and k.
+    ``nu_s`` ``(N,)`` accumulates the gravity coefficients the same way.
+    """
+    idx, dc, dnu = recurrence_increments(mech, k)
+    block = np.ix_(idx, idx)
+    li, lj = l[:, idx][:, :, None], l[:, idx][:, None, :]
+    Cs, Ss = C[:, idx][:, :, idx], S[:, idx][:, :, idx]
+    for b, fns in planar.PAIRS.items():
+        for name, f in fns.items():
+            mats[b][name][(slice(None),) + block] += f(dc, li, lj, Cs, Ss)          # delta X_n (25)
+        mats[b]["P"][:, idx] += planar.GRAVITY[b](dnu, l[:, idx], cos_phi[:, idx], sin_phi[:, idx])
+    nu_s[idx] += dnu
+
+
+def planar_sequence(mech: Mechanism, q: np.ndarray, straight: bool = False) -> Iterator[tuple[int, dict, np.ndarray]]:
+    """Yield ``(n, planar matrices of links 0..n-1, nu_s)`` for n = 1..N, each grown from the
+    previous one by :func:`planar_step`. ``straight``: the straightened model (every ``phi = 0``).
+    The yielded arrays are views of the leading ``n x n`` blocks (valid until the next step)."""
+    phi, _, l = split(mech, q)
+    if straight:
+        phi = np.zeros_like(phi)
+    N, samples = mech.nlinks, q.shape[0]
+    d = phi[:, :, None] - phi[:, None, :]
+    C, S = np.cos(d), np.sin(d)
+    cos_phi, sin_phi = np.cos(phi), np.sin(phi)
+    mats = {b: {name: np.zeros((samples, N, N)) for name in fns} for b, fns in planar.PAIRS.items()}
+    for b in mats:
+        mats[b]["P"] = np.zeros((samples, N))
+    nu_s = np.zeros(N)
+    for k in range(N):
+        planar_step(mech, k, mats, nu_s, l, C, S, cos_phi, sin_phi)
+        n = k + 1
+        yield n, {b: {name: (m[:, :n, :n] if name != "P" else m[:, :n]) for name, m in ms.items()}
+                  for b, ms in mats.items()}, nu_s[:n]
+
+
+def matrix_sequence(mech: Mechanism, q) -> Iterator[tuple[int, dict]]:
+    """Yield ``(n, every matrix of eq. 5 or 17 for links 0..n-1)`` for n = 1..N: the planar
+    recurrence, then in 3D the transitions (18) at every n (eq. 26)."""
+    q, _, _ = as_states(mech, q)
+    _, psi, l = split(mech, q)
+    flat = planar_sequence(mech, q)
+    straight = planar_sequence(mech, q, straight=True) if mech.dim == 3 else None
+    for n, mats, nu_s in flat:
+        if mech.dim == 2:
+            yield n, mats
+            continue
+        _, mats0, _ = next(straight)
+        yield n, _numeric.spatial_from_planar(psi[:, :n], l[:, :n], mats, mats0, nu_s)
+
+
+def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
+    """Every matrix of the full model by the recurrence (copies, safe to keep)."""
+    last = None
+    for _, last in matrix_sequence(mech, q):
+        pass
+    return {b: {name: np.array(m) for name, m in ms.items()} for b, ms in last.items()}
+
+
+def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
+    """Method ``recurrence``: the matrices by eqs. (23)-(26), then eq. (5)/(17), ``(S, dof)``."""
+    q, qd, qdd = as_states(mech, q, qd, qdd)
+    return _numeric.generalised_forces(mech, matrices(mech, q), qd, qdd)
+
+
+# ------------------------------------------------------------------ symbolic
+def _symbolic_planar(mech: Mechanism, G: Generators, straight: bool):
+    """The planar recurrence on ring elements: ``(entries, gravity, nu_s)`` of the full model,
+    ``entries[block][name][(i, j)]`` grown link by link."""
+    params = G.parameters(mech)
+    entries = {b: {name: {} for name in fns} for b, fns in planar.PAIRS.items()}
+    gravity = {b: {} for b in planar.GRAVITY}
+    nu_s: dict[int, object] = {}
+    for k in range(mech.nlinks):
+        idx, dc, dnu = generic_recurrence_increments(mech, params, k)
+        for a, i in enumerate(idx):
+            for b, j in enumerate(idx):
+                C, Sn = (1, 0) if straight else (G.C(i, j), G.S(i, j))
+                for blk, fns in planar.PAIRS.items():
+                    for name, f in fns.items():
+                        delta = f(dc[a][b], G["l", i], G["l", j], C, Sn)        # delta X_n (25)
+                        old = entries[blk][name].get((i, j))
+                        entries[blk][name][(i, j)] = delta if old is None else old + delta
+            nu_s[i] = dnu[a] if i not in nu_s else nu_s[i] + dnu[a]
+            for blk, f in planar.GRAVITY.items():
+                delta = f(dnu[a], G["l", i], G["cphi", i], G["sphi", i])
+                gravity[blk][i] = delta if i not in gravity[blk] else gravity[blk][i] + delta
+    return entries, gravity, nu_s
+
+
+def _symbolic_form(mech: Mechanism, G: Generators):
+    now, gravity, nu_s = _symbolic_planar(mech, G, straight=False)
+    if mech.dim == 2:
+        return now, gravity
+    straight, _, _ = _symbolic_planar(mech, G, straight=True)
+    pairs = list(now["phi"]["A"])
+    entries = _symbolic.spatial_entries(G, now, straight, pairs)
+    return entries, _symbolic.spatial_gravity(G, [nu_s[i] for i in range(mech.nlinks)], range(mech.nlinks))
+
+
+def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, dict[str, sp.Matrix]]:
+    """Every matrix by the recurrence, as sympy matrices (convention of :mod:`lagrange`)."""
+    G = generators(mech.nlinks, mech.dim, symbolic_parameters)
+    return _symbolic.to_matrices(G, mech.nlinks, *_symbolic_form(mech, G))
+
+
+def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tuple[sp.Expr, ...]:
+    """The equations of motion composed by the recurrence (23)-(26) and eq. (5)/(17); the same
+    expressions as :func:`matrix_method.symbolic.compose_equations`."""
+    G = generators(mech.nlinks, mech.dim, symbolic_parameters)
+    return _symbolic.equations_from_entries(G, mech, *_symbolic_form(mech, G))
