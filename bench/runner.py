@@ -137,16 +137,22 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
         p = staging / f"{scene.name}.md"
         atomic_write(p, _scene_table(o))
         o.files.append(p)
-    for kind in ("moments", "forces", "kinogram"):
-        if scene.wants(kind):
-            from bench import plots
-            p = staging / f"{scene.name}-{kind}.png"
-            getattr(plots, f"plot_{kind}")(o.study, p)
-            o.files.append(p)
+    figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
+    if figures and o.study.ok_methods():
+        from bench import plots  # matplotlib only for scenes that ask for figures
+        make = {"moments": plots.moments_figure, "forces": plots.forces_figure, "kinogram": plots.kinogram_figure,
+                "differences": plots.differences_figure, "overview": plots.overview_figure}
+        for kind in figures:
+            fig = make[kind](o.study)
+            if fig is None:  # differences need two methods that ran
+                o.notes.append(f"no {kind} figure: fewer than two methods ran")
+                continue
+            o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
     if scene.wants("recording"):
-        from bench import recording
-        p = staging / f"{scene.name}.rrd"
-        recording.write_recording(o.study, p)
+        from bench import recording  # rerun only for scenes that ask for a recording
+        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd")
+        if recording.rerun_executable() is not None:
+            recording.verify_recording(p)
         o.files.append(p)
     o.seconds = time.perf_counter() - t0
     return o

@@ -7,7 +7,8 @@ Format (every key is checked; an error names the file and the field)::
     mechanism = "exo5-3d"                 # a preset, or a JSON file relative to the scene file
     methods = ["pinocchio", "matrix", "recurrence"]
     reference = "pinocchio"               # optional; the first method by default
-    outputs = ["table", "moments", "forces", "kinogram", "recording"]
+    outputs = ["table", "reference-error", "moments", "forces", "kinogram", "differences", "overview",
+               "recording"]
 
     [motion]
     kind = "gait"                         # gait | planar-gait | smooth-random | states
@@ -38,7 +39,7 @@ from models.mechanism import Mechanism, load_mechanism
 from models.motion import GaitParams, Motion, from_arrays, gait, planar_gait, smooth_random_motion
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
-OUTPUTS = ("table", "moments", "forces", "kinogram", "recording", "reference-error")
+OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording")
 MOTIONS = ("gait", "planar-gait", "smooth-random", "states")
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
 _MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait"}

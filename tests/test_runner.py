@@ -103,3 +103,27 @@ def test_interrupted_run_leaves_nothing_half_written(tmp_path, monkeypatch):
     left = sorted(p.name for p in (tmp_path / "rep").iterdir())
     assert left == ["a.md"]  # the finished scene is whole; no staging folder, no partial b.md
     assert "| pinocchio | ok |" in (tmp_path / "rep" / "a.md").read_text()
+
+
+def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, monkeypatch):
+    """Figures (Figs. 7-9, differences, overview) and a recording that rerun verifies and that holds
+    the scene's methods, including one that failed."""
+    from rerun.chunk import RrdReader
+
+    from bench.recording import rerun_executable, verify_recording
+
+    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_broken", "always fails"))
+    p = tmp_path / "gait.toml"
+    p.write_text('mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
+                 'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
+                 '[motion]\nkind = "planar-gait"\nsamples_per_period = 40\n')
+    rc = runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep")))
+    assert rc == 0
+    names = sorted(q.name for q in (tmp_path / "rep").iterdir())
+    assert names == sorted(["gait.md", "gait-moments.png", "gait-forces.png", "gait-kinogram.png",
+                            "gait-differences.png", "gait-overview.png", "gait.rrd", "summary.md"])
+    if rerun_executable() is not None:
+        verify_recording(tmp_path / "rep" / "gait.rrd")
+    entities = {c.entity_path for c in RrdReader(tmp_path / "rep" / "gait.rrd").stream().to_chunks()}
+    assert {"/world/rods", "/world/masses", "/meta"} <= entities
+    assert any(e.startswith("/differences/") and e.endswith("/lagrange") for e in entities)

@@ -10,7 +10,7 @@ from models.presets import random_tree
 
 def test_every_shipped_scene_loads_and_builds_its_motion():
     names = shipped_scene_names()
-    assert {"exo5-3d-gait", "fig2a-2d-gait", "fig2b-2d-gait", "fig5-2d-gait"} <= set(names)
+    assert {"exo5-3d", "fig2a-2d", "fig2b-2d", "fig5-2d", "exo5-2d"} <= set(names)
     for n in names:
         sc = load_scene(n)
         mo = sc.build_motion()
