@@ -21,7 +21,7 @@ import numpy as np
 
 from bench.reporting import REPORTS, atomic_write, provenance
 from bench.scenes import Scene, load_scene, shipped_scene_names
-from bench.study import Study, run_methods
+from bench.study import Study, finite_max, run_methods
 
 
 @dataclass
@@ -50,7 +50,7 @@ def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     mo = study.motion
     rate = energy_rate(scene.mechanism, f, mo.t)
     scale = max(float(np.abs(rate).max()), 1e-300)
-    return {m: float(np.abs((study.results[m].tau * mo.qd).sum(1) - rate).max()) / scale
+    return {m: finite_max(np.abs((study.results[m].tau * mo.qd).sum(1) - rate)) / scale
             for m in study.ok_methods()}
 
 
@@ -68,7 +68,7 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     scale = max(float(np.abs(ref).max()), 1e-300)
     out = {}
     for m in study.ok_methods():
-        err = float(np.abs(study.results[m].tau[idx] - ref).max())
+        err = finite_max(np.abs(study.results[m].tau[idx] - ref))
         out[m] = (err, err / scale)
     return out
 
@@ -93,8 +93,8 @@ def _scene_table(o: SceneOutcome) -> str:
             status = f"skipped: {r.skipped}" if r.skipped else f"failed: {r.error}"
             lines.append(f"| {m} | {status} | | | | | | |")
             continue
-        nan = int(np.count_nonzero(~np.isfinite(r.tau)))
-        status = "ok" if nan == 0 else f"**{nan} NaN/Inf values**"
+        nan = st.nonfinite(m)
+        status = "ok" if nan == 0 else f"**{nan} NaN/Inf values** (errors over the finite entries)"
         pb = o.power_balance.get(m)
         ae, re_ = o.reference_error.get(m, (None, None))
         fmt = lambda x: "" if x is None else f"{x:.2e}"
@@ -198,6 +198,8 @@ def summary_markdown(outcomes: list[SceneOutcome], command: str) -> str:
                 err = f"{o.reference_error[m][1]:.1e} (ref50)"
             else:
                 err = f"{agree.get(m, float('nan')):.1e} (vs {o.scene.reference})"
+            if o.study.nonfinite(m):
+                err += f"; **{o.study.nonfinite(m)} NaN/Inf**"
             pb = o.power_balance.get(m)
             lines.append(f"| {o.scene.name} | {m} | {err} | {r.seconds_per_sample * 1e6:.2f} | "
                          f"{'' if pb is None else f'{pb:.1e}'} |")

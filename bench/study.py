@@ -52,12 +52,23 @@ class Study:
         return self.results[method].tau - self.results[self.reference].tau
 
     def agreement(self) -> dict[str, float]:
-        """Largest ``|tau_method - tau_reference|`` relative to the largest ``|tau_reference|``."""
+        """Largest ``|tau_method - tau_reference|`` relative to the largest ``|tau_reference|``, over the
+        finite entries (NaN/Inf are counted by :meth:`nonfinite`, never folded into a number)."""
         ref = self.results.get(self.reference)
         if ref is None or not ref.ok:
             return {}
-        scale = max(float(np.abs(ref.tau).max()), 1e-300)
-        return {m: float(np.abs(self.difference(m)).max()) / scale for m in self.ok_methods()}
+        scale = max(float(np.nanmax(np.abs(ref.tau))), 1e-300)
+        return {m: finite_max(np.abs(self.difference(m))) / scale for m in self.ok_methods()}
+
+    def nonfinite(self, method: str) -> int:
+        """How many entries of the method's tau are NaN or infinite."""
+        return int(np.count_nonzero(~np.isfinite(self.results[method].tau)))
+
+
+def finite_max(a: np.ndarray) -> float:
+    """The largest finite entry (NaN when there is none)."""
+    a = np.asarray(a)[np.isfinite(a)]
+    return float(a.max()) if a.size else float("nan")
 
 
 def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
