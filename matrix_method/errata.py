@@ -109,6 +109,19 @@ class PinocchioWitness:
         return pb.inverse_dynamics(mech, q, qd, qdd)
 
 
+@lru_cache(maxsize=256)
+def _lagrange_compiled(mech: Mechanism, budget: float):
+    """Lagrange's matrices and equations of a mechanism, lambdified (cached)."""
+    from lagrange import derive
+
+    d = derive(mech, symbolic_parameters=False, budget=budget)
+    S = d.symbols
+    mats = {(b, name): (M.shape, sp.lambdify(list(S.q), list(M), modules="numpy", cse=True))
+            for b, ms in d.matrices.items() for name, M in ms.items()}
+    eqs = sp.lambdify(list(S.q + S.qd + S.qdd), list(d.equations), modules="numpy", cse=True)
+    return mats, eqs
+
+
 class LagrangeWitness:
     """Lagrange's matrices and equations, lambdified once per mechanism."""
 
@@ -117,16 +130,8 @@ class LagrangeWitness:
     def __init__(self, budget: float = 60.0):
         self.budget = budget
 
-    @lru_cache(maxsize=None)
     def _compiled(self, mech: Mechanism):
-        from lagrange import derive
-
-        d = derive(mech, symbolic_parameters=False, budget=self.budget)
-        S = d.symbols
-        mats = {(b, name): (M.shape, sp.lambdify(list(S.q), list(M), modules="numpy", cse=True))
-                for b, ms in d.matrices.items() for name, M in ms.items()}
-        eqs = sp.lambdify(list(S.q + S.qd + S.qdd), list(d.equations), modules="numpy", cse=True)
-        return mats, eqs
+        return _lagrange_compiled(mech, self.budget)
 
     def matrices(self, mech: Mechanism, q):
         mats, _ = self._compiled(mech)
@@ -498,8 +503,35 @@ def _models(v: Verdict) -> str:
     return ", ".join(names)
 
 
-def render(verdicts: list[Verdict], branch: dict[str, Verdict], singular: list[Singular], gait_: dict,
-           residual: float, seconds: float) -> str:
+@dataclass
+class Results:
+    """Everything the report shows."""
+
+    verdicts: list[Verdict]
+    branch: dict[str, Verdict]
+    singular: list[Singular]
+    gait: dict
+    residual: float
+    seconds: float
+
+
+def compute() -> Results:
+    """Run every check (the slow part of ``exo-bench errata``)."""
+    t0 = time.perf_counter()
+    witnesses = [LagrangeWitness(), PinocchioWitness()]
+    verdicts = check_all(witnesses)
+    branch = check_branch_rule(witnesses)
+    singular = check_singular()
+    g = gait_effect()
+    m = random_tree(4, 3, 3)
+    q, qd, qdd = random_states(m, SAMPLES, SEED)
+    residual = form_residual(m, q, qd, qdd)
+    return Results(verdicts, branch, singular, g, residual, time.perf_counter() - t0)
+
+
+def render(r: Results) -> str:
+    verdicts, branch, singular, gait_, residual, seconds = (r.verdicts, r.branch, r.singular, r.gait, r.residual,
+                                                           r.seconds)
     from bench.reporting import provenance
 
     L = ["# Errata of Borisov & Chigarev, by computation", "", provenance("exo-bench errata")]
@@ -559,7 +591,7 @@ def render(verdicts: list[Verdict], branch: dict[str, Verdict], singular: list[S
           "signs (the product s_i s_j, see the next section), and each transition multiplies them by "
           "functions of psi only, so the 3D elements carry the same signs; checked on random trees with "
           "random signs and several roots.", ""]
-    L += ["## Branch points: the sign rule of section 5", "",
+    L += ["## Branch points: the sign rule of section 5 (`branch`)", "",
           f"Printed: `{printed.BRANCH_RULE.latex}` {printed.BRANCH_RULE.reading}", "",
           "| reading | verdict | largest error |", "|---|---|---|"]
     for reading, v in branch.items():
@@ -608,20 +640,12 @@ def render(verdicts: list[Verdict], branch: dict[str, Verdict], singular: list[S
     return "\n".join(L) + "\n"
 
 
-def write_report(path=None) -> "object":
-    """Compute every check and write ``reports/errata.md`` atomically; returns the path."""
+def write_report(path=None, results: Results | None = None):
+    """Compute every check (unless ``results`` are given) and write ``reports/errata.md``
+    atomically; returns the path."""
     from bench.reporting import REPORTS, atomic_write
 
-    t0 = time.perf_counter()
-    witnesses = [LagrangeWitness(), PinocchioWitness()]
-    verdicts = check_all(witnesses)
-    branch = check_branch_rule(witnesses)
-    singular = check_singular()
-    g = gait_effect()
-    m = random_tree(4, 3, 3)
-    q, qd, qdd = random_states(m, SAMPLES, SEED)
-    residual = form_residual(m, q, qd, qdd)
-    text = render(verdicts, branch, singular, g, residual, time.perf_counter() - t0)
+    text = render(results or compute())
     return atomic_write(path or REPORTS / "errata.md", text)
 
 

@@ -1,0 +1,82 @@
+"""The mass coefficients mu, nu of the closed forms against the point masses' energies and eq. (6)."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from matrix_method import coefficients as co
+from models.kinematics import kinetic_energy, potential_energy, unit_vectors
+from models.mechanism import split
+from models.motion import random_states
+from models.presets import chain, fig5, random_tree
+from models.symbols import symbols_for
+
+
+@pytest.mark.parametrize("n,dim,seed", [(1, 2, 1), (4, 2, 2), (6, 3, 3), (7, 3, 4), (5, 2, 5)])
+def test_kinetic_and_potential_energy_are_quadratic_forms_in_the_rod_vectors(n, dim, seed, rel):
+    """T = 1/2 sum_ij mu_ij w_i' . w_j' and Pi = g sum nu_i w_i . up, w_i = s_i l_i u_i (the
+    energies summed over the point masses by models.kinematics)."""
+    m = random_tree(n, dim, seed)
+    q, qd, _ = random_states(m, 20, seed)
+    _, _, l = split(m, q)
+    u, u_phi, u_psi = unit_vectors(m, q)
+    phid, psid, ld = split(m, qd)
+    udot = u_phi * phid[..., None] + (0 if u_psi is None else u_psi * psid[..., None])
+    s = m.sign_array[None, :, None]
+    w = s * l[..., None] * u
+    wd = s * (ld[..., None] * u + l[..., None] * udot)
+    T = 0.5 * np.einsum("ij,sik,sjk->s", co.coupling(m), wd, wd)
+    Pi = m.g * np.einsum("i,si->s", co.signed_gravity(m) * m.sign_array, w[..., -1])
+    assert rel(T, kinetic_energy(m, q, qd)) < 1e-13
+    assert rel(Pi, potential_energy(m, q)) < 1e-13
+
+
+def test_chain_coupling_is_the_bracket_of_eq6():
+    """For a chain, mu_ij (j >= i) = delta_ij zeta_i + (1 - delta_ij) eta_j + sum_{k>j} theta_k."""
+    m = chain(5, 2, seed=3)
+    zeta, eta, theta = co.link_aggregates(m)
+    mu = co.coupling(m)
+    for i in range(5):
+        for j in range(i, 5):
+            expected = (zeta[i] if i == j else eta[j]) + theta[j + 1:].sum()
+            assert mu[i, j] == pytest.approx(expected, rel=1e-15) and mu[j, i] == mu[i, j]
+
+
+def test_links_on_different_branches_do_not_couple():
+    m = random_tree(8, 3, 7)
+    mu = co.coupling(m)
+    related = m.ancestor_or_self | m.ancestor_or_self.T
+    assert np.all(mu[~related] == 0) and np.all(mu[related] > 0)
+
+
+def test_reversed_links_flip_the_sign_of_couplings_across_the_branch_point():
+    """Fig. 5: links 3, 4 reversed, so c_13, c_14, c_23, c_24 change sign (eq. 20), c_34 does not."""
+    m = fig5(2)
+    c, mu = co.signed_coupling(m), co.coupling(m)
+    assert np.array_equal(np.sign(c), np.outer([1, 1, -1, -1], [1, 1, -1, -1]))
+    assert np.array_equal(np.abs(c), mu)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_recurrence_increments_add_up_to_the_direct_coefficients(seed):
+    m = random_tree(9, 3, seed)
+    c, nu = np.zeros((9, 9)), np.zeros(9)
+    for k in range(9):
+        idx, dc, dnu = co.recurrence_increments(m, k)
+        c[np.ix_(idx, idx)] += dc
+        nu[idx] += dnu
+    assert np.allclose(c, co.signed_coupling(m), rtol=1e-14, atol=0)
+    assert np.allclose(nu, co.signed_gravity(m), rtol=1e-14, atol=0)
+
+
+def test_symbolic_coupling_equals_the_numeric_one():
+    m = random_tree(5, 3, 4)
+    S = symbols_for(5, 3)
+    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=True)
+    values = S.parameter_values(m)
+    num_c = np.array([[float(sp.sympify(x).subs(values)) for x in row] for row in c])
+    num_nu = np.array([float(sp.sympify(x).subs(values)) for x in nu])
+    assert np.allclose(num_c, co.signed_coupling(m), rtol=1e-14, atol=0)
+    assert np.allclose(num_nu, co.signed_gravity(m), rtol=1e-14, atol=0)
+    exact, _ = co.symbolic_coupling(m, S, symbolic_parameters=False)
+    assert all(isinstance(x, sp.Rational) for row in exact for x in row)
