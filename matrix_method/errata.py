@@ -433,10 +433,13 @@ class Singular:
 
 
 def check_singular() -> list[Singular]:
+    """The lines of (18) that divide, at :func:`singular_configuration`. Misprinted lines are taken
+    in their corrected form (still with the division), so that only the divisions are measured."""
     mech, q_exact = singular_configuration()
     q = np.array([float(x) for x in q_exact])[None, :]
-    exact = numeric.paper_matrices(mech, q_exact, exact=True)
-    floating = numeric.paper_matrices(mech, q)
+    table = printed.corrected_table([f.key for f in printed.TRANSITIONS if f.corrected is not None])
+    exact = numeric.paper_matrices(mech, q_exact, table, exact=True)
+    floating = numeric.paper_matrices(mech, q, table)
     ours = numeric.matrices(mech, q)
     ref = pinocchio_matrices(mech, q)
     out = []
@@ -584,9 +587,12 @@ def render(r: Results) -> str:
             L.append(f"- {v.note}")
         L.append("")
     L += ["## How ambiguous print was read", ""]
+    readings: dict[str, list[str]] = {}
     for v in verdicts:
         if v.formula.reading:
-            L.append(f"- {v.formula.equation} {v.formula.label} (`{v.formula.key}`): {v.formula.reading}")
+            readings.setdefault(v.formula.reading, []).append(f"{v.formula.equation} `{v.formula.key}`")
+    for text, where in readings.items():
+        L.append(f"- {', '.join(where)}: {text}")
     L += ["- (18), branched models: the planar elements of a model of the same structure carry the branch "
           "signs (the product s_i s_j, see the next section), and each transition multiplies them by "
           "functions of psi only, so the 3D elements carry the same signs; checked on random trees with "
@@ -602,7 +608,8 @@ def render(r: Results) -> str:
           "those signs, i.e. the transitions leave the signs unchanged.", "",
           "## Singular points of the printed eq. (18)", "",
           "Lines that divide by cos(phi_i - phi_j), cos phi_i, sin phi_i (or l_j) on the exactly singular "
-          "state phi = (pi/2, 0, pi/4), l_3 = 0 of a 3-link spatial chain. `exact`: NaN entries of the printed form "
+          "state phi = (pi/2, 0, pi/4), l_3 = 0 of a 3-link spatial chain, misprinted lines in their "
+          "corrected form (with the division) so that only the divisions are measured. `exact`: NaN entries of the printed form "
           "evaluated with exact arithmetic (as a computer-algebra system does: 0/0). `float`: at the nearest "
           "doubles, where only sin(0) is an exact zero; the error of its finite entries. `matrix`: the "
           "matrix method's division-free element there, against Pinocchio.", "",
