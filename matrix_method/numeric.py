@@ -120,10 +120,21 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
     return np.concatenate(rows, axis=1)
 
 
+def in_blocks(mech: Mechanism, build, q, qd, qdd, block: int | None = None) -> np.ndarray:
+    """``generalised_forces(mech, build(mech, q_b), qd_b, qdd_b)`` over blocks of samples (default
+    :data:`BLOCK`), so that the ``(block, n, n)`` matrices stay in the CPU cache."""
+    block = block or BLOCK
+    out = np.empty_like(q)
+    for s in range(0, q.shape[0], block):
+        b = slice(s, s + block)
+        out[b] = generalised_forces(mech, build(mech, q[b]), qd[b], qdd[b])
+    return out
+
+
 def inverse_dynamics_from_matrices(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """The matrix method step by step: :func:`matrices`, then :func:`generalised_forces`."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    return generalised_forces(mech, matrices(mech, q), qd, qdd)
+    return in_blocks(mech, matrices, q, qd, qdd)
 
 
 def _cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -38,72 +38,76 @@ from models.mechanism import Mechanism, as_states, split
 def planar_step(mech: Mechanism, k: int, mats: dict, nu_s: np.ndarray, l: np.ndarray, C: np.ndarray,
                 S: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray) -> None:
     """Eqs. (23)-(25) for trees, in place: add link ``k`` to the planar matrices ``mats``
-    (``block -> name -> (S, N, N)``, ``P``: ``(S, N)``) of links ``0..k-1``.
+    (``block -> name -> (N, N, samples)``, ``P``: ``(N, samples)``) of links ``0..k-1``.
 
-    The arrays are allocated for all N links and zero beyond the links already added, which is
-    the padding of eq. (24); ``delta X`` touches only the rows and columns of k's ancestors and k.
-    ``nu_s`` ``(N,)`` accumulates the gravity coefficients the same way.
+    Samples are on the last axis here, so that the block of rows and columns a step touches is
+    contiguous. The arrays are allocated for all N links and zero beyond the links already added,
+    which is the padding of eq. (24); ``delta X`` touches only the rows and columns of k's ancestors
+    and k. ``l, cos_phi, sin_phi`` are ``(N, samples)``, ``C, S`` ``(N, N, samples)``; ``nu_s`` ``(N,)``
+    accumulates the gravity coefficients the same way.
     """
     idx, dc, dnu = recurrence_increments(mech, k)
     block = np.ix_(idx, idx)
-    li, lj = l[:, idx][:, :, None], l[:, idx][:, None, :]
-    Cs, Ss = C[:, idx][:, :, idx], S[:, idx][:, :, idx]
+    li, lj = l[idx][:, None, :], l[idx][None, :, :]
+    Cs, Ss = C[block], S[block]
+    dc = dc[:, :, None]
     for b, fns in planar.PAIRS.items():
         for name, f in fns.items():
-            mats[b][name][(slice(None),) + block] += f(dc, li, lj, Cs, Ss)          # delta X_n (25)
-        mats[b]["P"][:, idx] += planar.GRAVITY[b](dnu, l[:, idx], cos_phi[:, idx], sin_phi[:, idx])
+            mats[b][name][block] += f(dc, li, lj, Cs, Ss)                           # delta X_n (25)
+        mats[b]["P"][idx] += planar.GRAVITY[b](dnu[:, None], l[idx], cos_phi[idx], sin_phi[idx])
     nu_s[idx] += dnu
 
 
 def planar_sequence(mech: Mechanism, q: np.ndarray, straight: bool = False) -> Iterator[tuple[int, dict, np.ndarray]]:
     """Yield ``(n, planar matrices of links 0..n-1, nu_s)`` for n = 1..N, each grown from the
-    previous one by :func:`planar_step`. ``straight``: the straightened model (every ``phi = 0``).
-    The yielded arrays are views of the leading ``n x n`` blocks (valid until the next step)."""
+    previous one by :func:`planar_step`; matrices as ``(samples, n, n)`` (``P``: ``(samples, n)``)
+    views, valid until the next step. ``straight``: the straightened model (every ``phi = 0``)."""
     phi, _, l = split(mech, q)
+    phi, l = phi.T, np.ascontiguousarray(l.T)                 # (N, samples)
     if straight:
         phi = np.zeros_like(phi)
     N, samples = mech.nlinks, q.shape[0]
-    d = phi[:, :, None] - phi[:, None, :]
+    d = phi[:, None, :] - phi[None, :, :]
     C, S = np.cos(d), np.sin(d)
     cos_phi, sin_phi = np.cos(phi), np.sin(phi)
-    mats = {b: {name: np.zeros((samples, N, N)) for name in fns} for b, fns in planar.PAIRS.items()}
+    mats = {b: {name: np.zeros((N, N, samples)) for name in fns} for b, fns in planar.PAIRS.items()}
     for b in mats:
-        mats[b]["P"] = np.zeros((samples, N))
+        mats[b]["P"] = np.zeros((N, samples))
     nu_s = np.zeros(N)
     for k in range(N):
         planar_step(mech, k, mats, nu_s, l, C, S, cos_phi, sin_phi)
         n = k + 1
-        yield n, {b: {name: (m[:, :n, :n] if name != "P" else m[:, :n]) for name, m in ms.items()}
+        yield n, {b: {name: (np.moveaxis(m[:n, :n], -1, 0) if name != "P" else m[:n].T) for name, m in ms.items()}
                   for b, ms in mats.items()}, nu_s[:n]
 
 
-def matrix_sequence(mech: Mechanism, q) -> Iterator[tuple[int, dict]]:
-    """Yield ``(n, every matrix of eq. 5 or 17 for links 0..n-1)`` for n = 1..N: the planar
-    recurrence, then in 3D the transitions (18) at every n (eq. 26)."""
+def matrix_sequence(mech: Mechanism, q, every: bool = True) -> Iterator[tuple[int, dict]]:
+    """Yield ``(n, every matrix of eq. 5 or 17 for links 0..n-1)`` for n = 1..N (only n = N
+    when ``every`` is false): the planar recurrence, then in 3D the transitions (18) (eq. 26)."""
     q, _, _ = as_states(mech, q)
     _, psi, l = split(mech, q)
     flat = planar_sequence(mech, q)
     straight = planar_sequence(mech, q, straight=True) if mech.dim == 3 else None
     for n, mats, nu_s in flat:
+        mats0 = next(straight)[1] if straight is not None else None
+        if not every and n < mech.nlinks:
+            continue
         if mech.dim == 2:
             yield n, mats
-            continue
-        _, mats0, _ = next(straight)
-        yield n, _numeric.spatial_from_planar(psi[:, :n], l[:, :n], mats, mats0, nu_s)
+        else:
+            yield n, _numeric.spatial_from_planar(psi[:, :n], l[:, :n], mats, mats0, nu_s)
 
 
 def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
     """Every matrix of the full model by the recurrence (copies, safe to keep)."""
-    last = None
-    for _, last in matrix_sequence(mech, q):
-        pass
-    return {b: {name: np.array(m) for name, m in ms.items()} for b, ms in last.items()}
+    for _, last in matrix_sequence(mech, q, every=False):
+        return {b: {name: np.array(m) for name, m in ms.items()} for b, ms in last.items()}
 
 
 def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """Method ``recurrence``: the matrices by eqs. (23)-(26), then eq. (5)/(17), ``(S, dof)``."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    return _numeric.generalised_forces(mech, matrices(mech, q), qd, qdd)
+    return _numeric.in_blocks(mech, matrices, q, qd, qdd)
 
 
 # ------------------------------------------------------------------ symbolic
