@@ -341,3 +341,14 @@ class Generators:
 def generators(nlinks: int, dim: int, symbolic_parameters: bool) -> Generators:
     """The generators of a model size (cached, like :func:`models.symbols.symbols_for`)."""
     return Generators(nlinks, dim, symbolic_parameters)
+
+
+def clear_caches() -> None:
+    """Forget every cached generator table and sort key (and sympy's own cache), so that the next
+    composition is timed cold, as in a fresh process."""
+    from sympy.core.cache import clear_cache
+
+    generators.cache_clear()
+    _KEYS.clear()
+    _class_key.cache_clear()
+    clear_cache()
