@@ -1,0 +1,411 @@
+"""Forward dynamics: accelerations from a method's mass matrix and bias forces, and their integration.
+
+The equations of motion of every method have the form ``M(q) qdd + h(q, qd) = tau``. Forward
+dynamics solves them for ``qdd``:
+
+* **Pinocchio** exposes ``M`` (CRBA) and ``h`` (``nonLinearEffects``) directly. Its ABA would be
+  faster, but it refuses the mimic joints of the generated URDF, so the suite uses CRBA and a
+  solve (:func:`models.pinocchio_backend.mass_matrix`, :func:`~models.pinocchio_backend.bias_forces`).
+* **Any other method** ``tau = ID(q, qd, qdd)`` gives them exactly, because inverse dynamics is
+  linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``
+  (:func:`terms_from_inverse_dynamics`, one batched call per evaluation).
+
+**Singular configurations.** ``M = J^T (mu (x) I) J``, where ``J`` maps ``qd`` to the rod
+vectors' rates ``d/dt(s_i l_i u_i)`` (per link the columns ``l_i du_i/dphi_i``,
+``l_i du_i/dpsi_i``, ``u_i``) and ``mu`` is the mass distribution matrix of
+:func:`mass_distribution_matrix`. ``M`` is singular exactly when ``mu`` is singular or a link's
+columns are dependent: a rod of length zero (its angles move no mass) or, in 3D, a vertical rod
+(``cos psi_i = 0``: the azimuth column ``l_i cos psi_i (-sin phi_i, cos phi_i, 0)`` vanishes).
+Inverse dynamics is still defined there; forward dynamics is not, and
+:func:`accelerations` raises :class:`SingularConfigurationError` naming the link instead of
+returning NaN or garbage. :func:`singular_reasons` does the detection, exactly (no threshold on
+a condition number), and :func:`condition_numbers` measures how close to singular ``M`` is.
+
+**Integration** (:func:`simulate`) uses scipy's ``solve_ivp`` on the state ``y = [q, qd]``, with
+explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
+so the implicit integrators' finite-difference Jacobian costs one batched call per column block.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from models.mechanism import Mechanism, as_states, split
+
+#: ``|cos psi|`` at or below which a rod counts as vertical to working precision. The float
+#: nearest pi/2 has ``cos = 6.1e-17``; angles within two units in the last place of pi/2
+#: (ulp = 2.2e-16) stay below 5e-16. 1e-15 covers them with a margin and no more.
+COS_VERTICAL = 1e-15
+
+#: The explicit and implicit integrators of ``scipy.integrate.solve_ivp`` that the suite uses.
+EXPLICIT = ("RK45", "DOP853")
+IMPLICIT = ("Radau", "BDF")
+INTEGRATORS = EXPLICIT + IMPLICIT
+
+Controls = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
+
+
+class SingularConfigurationError(ValueError):
+    """The mass matrix is singular: forward dynamics is not defined at this state.
+
+    ``reasons`` lists, per offending sample, what makes it singular (link, coordinate, why).
+    """
+
+    def __init__(self, reasons: list[str]):
+        self.reasons = reasons
+        more = f" (and {len(reasons) - 1} more)" if len(reasons) > 1 else ""
+        super().__init__(f"forward dynamics is not defined: singular mass matrix: {reasons[0]}{more}")
+
+
+# --------------------------------------------------------------------------- mass matrix and bias
+def terms_from_inverse_dynamics(inverse_dynamics, mech: Mechanism, q: np.ndarray, qd: np.ndarray):
+    """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics, in ONE batched call.
+
+    Inverse dynamics is linear in ``qdd``: ``ID(q, qd, qdd) = M(q) qdd + h(q, qd)``. Per sample the
+    batch holds ``(q, qd, 0)`` (gives ``h``), ``(q, 0, 0)`` (gravity only) and ``(q, 0, e_k)`` for
+    every coordinate ``k``; then ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``. The subtraction costs at
+    most ``eps * |gravity forces| / |M e_k|`` relative, which the tests bound against CRBA.
+    """
+    S, d = q.shape
+    k = d + 2
+    Q = np.repeat(q, k, axis=0)                      # (S*k, d): each sample's q, k times
+    QD = np.zeros_like(Q)
+    QD[::k] = qd                                     # first row of each block: the real rates
+    QDD = np.zeros_like(Q)
+    QDD.reshape(S, k, d)[:, 2:, :] = np.eye(d)       # rows 2..: unit accelerations
+    tau = np.asarray(inverse_dynamics(mech, Q, QD, QDD), dtype=float).reshape(S, k, d)
+    h = tau[:, 0]
+    M = tau[:, 2:] - tau[:, 1:2]                     # row k-2 is M e_k: M^T, and M is symmetric
+    return np.swapaxes(M, 1, 2), h
+
+
+def exposed_terms(method: str):
+    """The ``(mass_matrix, bias_forces)`` functions a registered method exposes, or None.
+
+    A method registered as ``module.inverse_dynamics<suffix>`` exposes them when its module also
+    defines ``mass_matrix<suffix>(mech, q)`` and ``bias_forces<suffix>(mech, q, qd)`` (Pinocchio:
+    CRBA and ``nonLinearEffects``; Lagrange: the lambdified ``d tau / d qdd`` and ``tau(qdd = 0)``).
+    """
+    import importlib
+
+    from bench.methods import METHODS
+
+    if method not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
+    module, func, _ = METHODS[method]
+    if not func.startswith("inverse_dynamics"):
+        return None
+    suffix = func[len("inverse_dynamics"):]
+    mod = importlib.import_module(module)
+    mm, bf = getattr(mod, "mass_matrix" + suffix, None), getattr(mod, "bias_forces" + suffix, None)
+    return (mm, bf) if callable(mm) and callable(bf) else None
+
+
+def mass_matrix_and_bias(mech: Mechanism, q: np.ndarray, qd: np.ndarray, method: str = "pinocchio",
+                         via_inverse_dynamics: bool = False):
+    """``M (S, dof, dof)`` and ``h (S, dof)`` of a registered method (see :mod:`bench.methods`).
+
+    From the functions the method exposes (:func:`exposed_terms`), else, or with
+    ``via_inverse_dynamics=True``, from its inverse dynamics (:func:`terms_from_inverse_dynamics`).
+    """
+    terms = None if via_inverse_dynamics else _exposed_cached(method)
+    if terms is not None:
+        mm, bf = terms
+        return np.asarray(mm(mech, q), dtype=float), np.asarray(bf(mech, q, qd), dtype=float)
+    from bench.methods import get_method
+
+    return terms_from_inverse_dynamics(get_method(method), mech, q, qd)
+
+
+_EXPOSED: dict[tuple, object] = {}
+
+
+def _exposed_cached(method: str):
+    """:func:`exposed_terms`, looked up once per registry entry (the right-hand side calls it often)."""
+    from bench.methods import METHODS
+
+    key = (method, METHODS.get(method))
+    if key not in _EXPOSED:
+        _EXPOSED[key] = exposed_terms(method)
+    return _EXPOSED[key]
+
+
+def mass_distribution_matrix(mech: Mechanism) -> np.ndarray:
+    """``mu (n, n)``: ``T = 1/2 sum_ij mu_ij w_i' . w_j'`` with ``w_i = s_i l_i u_i`` the rod vectors.
+
+    ``mu_ii = zeta_i + Theta_desc(i)``; for related links (one an ancestor of the other) with
+    ``k`` the deeper one, ``mu_ij = eta_k + Theta_desc(k)``; links on different branches: 0.
+    """
+    m, f = mech.mass_array, mech.fractions
+    zeta, eta, theta = (m * f**2).sum(1), (m * f).sum(1), m.sum(1)
+    related = mech.ancestor_or_self                   # [i, j]: i is j or an ancestor of j
+    desc = related.astype(float) @ theta - theta      # Theta_desc(i): masses of the strict descendants
+    n = mech.nlinks
+    mu = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            if i == j:
+                mu[i, i] = zeta[i] + desc[i]           # own masses (weights n^2) and everything below
+            elif related[i, j] or related[j, i]:
+                k = j if related[i, j] else i          # the deeper of the two
+                mu[i, j] = eta[k] + desc[k]            # k's own masses (weights n) and everything below k
+    return mu
+
+
+def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
+    """Per sample, why the mass matrix is exactly singular there (an empty list: it is not).
+
+    Three causes, each exact (see the module docstring): the mass distribution ``mu`` is
+    singular (some rod motion moves no mass), a rod has length zero, or (3D) a rod is vertical
+    to working precision (``|cos psi| <= COS_VERTICAL``).
+    """
+    q, _, _ = as_states(mech, q)
+    _, psi, l = split(mech, q)
+    names = mech.names
+    always: list[str] = []
+    mu = mass_distribution_matrix(mech)
+    for i in range(mech.nlinks):
+        if mu[i, i] == 0:
+            always.append(f"link {i + 1} ({names[i]}): no mass moves with its coordinates "
+                          "(no middle or end mass, nothing hanging from it)")
+    if not always:
+        ev = np.linalg.eigvalsh(mu)
+        if ev[0] <= mech.nlinks * np.finfo(float).eps * ev[-1]:
+            always.append("the mass distribution leaves a combination of rod motions without inertia "
+                          f"(smallest eigenvalue of mu {ev[0]:.3g} kg, largest {ev[-1]:.3g} kg)")
+    out = []
+    for s in range(q.shape[0]):
+        r = list(always)
+        for i in range(mech.nlinks):
+            if l[s, i] == 0:
+                r.append(f"link {i + 1} ({names[i]}): rod length l{i + 1} = 0, its angles move no mass")
+            elif psi is not None and abs(np.cos(psi[s, i])) <= COS_VERTICAL:
+                r.append(f"link {i + 1} ({names[i]}): vertical rod (psi{i + 1} = {float(psi[s, i])!r}, "
+                         f"|cos psi{i + 1}| = {abs(np.cos(psi[s, i])):.2g}): its azimuth phi{i + 1} is undefined "
+                         "and its column of M vanishes")
+        out.append(r)
+    return out
+
+
+def condition_numbers(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """2-norm condition numbers of a batch of mass matrices ``(S, dof, dof)``: raw and equilibrated.
+
+    * ``raw = cond(M)`` in SI units (rad and m): the spread of the inertias, hence of the time
+      scales of the motion (stiffness), and the digits a plain LU solve of ``M`` can lose.
+    * ``equilibrated = cond(D^-1/2 M D^-1/2)`` with ``D = diag(M)``: invariant to the units and
+      the scaling of each coordinate. ``inf`` where a diagonal entry is not positive.
+
+    **In exact arithmetic the equilibrated number does not depend on the configuration.** Per link
+    the columns of ``J`` are ``s_i R_i N_i`` with ``R_i`` orthogonal (``u_phi/|u_phi|, u_psi, u``)
+    and ``N_i = diag(l_i cos psi_i, l_i, 1)``, so ``diag(M)`` holds ``mu_ii N_i^2`` and
+    ``D^-1/2 M D^-1/2`` is orthogonally similar to ``(D_mu^-1/2 mu D_mu^-1/2) (x) I_dim``. All the
+    configuration dependence of ``cond(M)`` is the scaling ``N`` (short, near-vertical rods); a
+    computed ``M`` whose equilibrated number departs from that of ``mu`` has lost its small
+    entries (every method computes ``M`` to normwise, not entrywise, accuracy).
+
+    Exactly singular matrices give ``inf``.
+    """
+    M = np.asarray(M, dtype=float)
+
+    def cond(A):
+        s = np.linalg.svd(A, compute_uv=False)
+        with np.errstate(divide="ignore"):
+            return np.where(s[:, -1] > 0, s[:, 0] / np.where(s[:, -1] > 0, s[:, -1], 1.0), np.inf)
+
+    raw = cond(M)
+    dg = np.diagonal(M, axis1=1, axis2=2)
+    ok = (dg > 0).all(axis=1)
+    eq = np.full(M.shape[0], np.inf)
+    if ok.any():
+        r = 1.0 / np.sqrt(dg[ok])
+        eq[ok] = cond(M[ok] * r[:, :, None] * r[:, None, :])
+    return raw, eq
+
+
+def solve_mass_matrix(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``M^-1 b`` for batches ``(S, d, d)``, ``(S, d)``, equilibrated by ``D = diag(M)`` first."""
+    r = 1.0 / np.sqrt(np.diagonal(M, axis1=1, axis2=2))
+    Ms = M * r[:, :, None] * r[:, None, :]
+    return r * np.linalg.solve(Ms, (r * b)[..., None])[..., 0]
+
+
+def accelerations(mech: Mechanism, q, qd, tau, method: str = "pinocchio", check: bool = True) -> np.ndarray:
+    """Forward dynamics ``qdd = M^-1 (tau - h)``, ``(S, dof)``, from a method's ``M`` and ``h``.
+
+    With ``check`` (the default) the states are validated and a singular configuration raises
+    :class:`SingularConfigurationError` (see :func:`singular_reasons`) rather than returning
+    NaN. The integrator calls it with ``check=False`` after checking the initial state.
+    """
+    if check:
+        q, qd, tau = as_states(mech, q, qd, tau, source="forward dynamics")
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(mech, q)) for r in rs]
+        if reasons:
+            raise SingularConfigurationError(reasons)
+    M, h = mass_matrix_and_bias(mech, q, qd, method)
+    return solve_mass_matrix(M, tau - h)
+
+
+# --------------------------------------------------------------------------- controls
+def prescribed_controls(mech: Mechanism, motion_of_t, method: str = "pinocchio") -> Controls:
+    """``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` on the fly along an analytic motion (any ``t``,
+    no interpolation): the controls that should reproduce the motion. ``motion_of_t(t)`` returns
+    a :class:`models.motion.Motion` for an array of times."""
+    from bench.methods import get_method
+
+    fn = get_method(method)
+
+    def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        m = motion_of_t(np.array([t]))
+        return np.broadcast_to(np.asarray(fn(mech, m.q, m.qd, m.qdd), dtype=float), q.shape)
+
+    return controls
+
+
+def rod_spring_damper(mech: Mechanism, k, c, l_rest) -> Controls:
+    """Passive telescopic rods: ``F_i = -k_i (l_i - l_i*) - c_i l_i'`` on every rod, no moments
+    (``k``, ``c``, ``l_rest``: one value for all rods or one per rod)."""
+    n = mech.nlinks
+    k, c, l_rest = (np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in (k, c, l_rest))
+
+    def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        tau = np.zeros_like(q)
+        tau[:, -n:] = -k * (q[:, -n:] - l_rest) - c * qd[:, -n:]
+        return tau
+
+    return controls
+
+
+def spring_energy(mech: Mechanism, q: np.ndarray, k, l_rest) -> np.ndarray:
+    """``sum_i k_i/2 (l_i - l_i*)^2`` per sample: the potential of :func:`rod_spring_damper`."""
+    _, _, l = split(mech, np.atleast_2d(q))
+    return 0.5 * (np.asarray(k, dtype=float) * (l - np.asarray(l_rest, dtype=float)) ** 2).sum(-1)
+
+
+# --------------------------------------------------------------------------- integration
+class IntegrationBudgetExceeded(Exception):
+    """The right-hand side was evaluated more often, or for longer, than allowed."""
+
+    def __init__(self, reason: str):
+        self.skip_reason = reason
+        super().__init__(reason)
+
+
+@dataclass
+class Simulation:
+    """The outcome of :func:`simulate`: the accepted steps and what they cost."""
+
+    integrator: str
+    rtol: float
+    atol: float
+    t: np.ndarray                     # (N,) accepted step times, t[0] the start
+    y: np.ndarray                     # (N, 2 dof) states [q, qd] at those times
+    nfev: int = 0                     # right-hand-side evaluations (columns, for vectorised calls)
+    njev: int = 0
+    nlu: int = 0
+    seconds: float = 0.0
+    status: str = "ok"                # "ok", "budget exceeded: ...", "failed: ..."
+    t_reached: float = math.nan       # the latest time the right-hand side was evaluated at
+    outside: int = 0                  # trial stages outside the domain (l < 0): NaN, step rejected
+    solution: object | None = field(default=None, repr=False)   # dense output when asked for
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def steps(self) -> int:
+        return max(len(self.t) - 1, 0)
+
+    def q(self, dof: int) -> np.ndarray:
+        return self.y[:, :dof]
+
+    def qd(self, dof: int) -> np.ndarray:
+        return self.y[:, dof:]
+
+
+def make_rhs(mech: Mechanism, controls: Controls, method: str = "pinocchio",
+             max_evaluations: int | None = None, max_seconds: float | None = None):
+    """The vectorised right-hand side ``f(t, y)`` of ``y = [q, qd]``, ``y`` of shape ``(2 dof,)`` or
+    ``(2 dof, k)``, and a counter dict (``columns`` evaluated, stages ``rejected`` as outside the
+    domain, the latest ``t`` reached). Over budget it raises
+    :class:`IntegrationBudgetExceeded`."""
+    d = mech.dof
+    count = {"columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        Y = y.reshape(2 * d, -1).T                 # (k, 2d): one row per column of y
+        count["columns"] += Y.shape[0]
+        if max_evaluations is not None and count["columns"] > max_evaluations:
+            raise IntegrationBudgetExceeded(f"gave up after {max_evaluations} right-hand-side evaluations "
+                                            f"(t = {t:.4g} s)")
+        if max_seconds is not None and time.perf_counter() - count["start"] > max_seconds:
+            raise IntegrationBudgetExceeded(f"gave up after {max_seconds:g} s of wall time "
+                                            f"({count['columns']} evaluations, t = {t:.4g} s)")
+        count["t"] = max(count["t"], t)
+        q, qd = np.ascontiguousarray(Y[:, :d]), np.ascontiguousarray(Y[:, d:])
+        # A trial stage of a too-long step can leave the domain (a rod length below zero, or not
+        # finite): its derivative is NaN, which makes scipy reject the step and shorten it. An
+        # integration that cannot get past such states ends with scipy's failure message.
+        valid = np.isfinite(Y).all(axis=1) & (split(mech, q)[2] >= 0).all(axis=1)
+        qdd = np.full_like(q, np.nan)
+        if valid.any():
+            qv, qdv = (q, qd) if valid.all() else (q[valid], qd[valid])
+            tau = controls(t, qv, qdv)
+            M, h = mass_matrix_and_bias(mech, qv, qdv, method)
+            qdd[valid] = solve_mass_matrix(M, tau - h)
+        count["rejected"] += int((~valid).sum())
+        return np.concatenate([qd, qdd], axis=1).T.reshape(y.shape)
+
+    return rhs, count
+
+
+def simulate(mech: Mechanism, q0, qd0, t_span: tuple[float, float], controls: Controls,
+             method: str = "pinocchio", integrator: str = "DOP853", rtol: float = 1e-8,
+             atol: float | None = None, max_evaluations: int | None = None, max_seconds: float | None = None,
+             dense: bool = False, first_step: float | None = None) -> Simulation:
+    """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
+
+    ``atol`` defaults to ``rtol * 1e-3`` (a state component of 1e-3 rad or mm counts as small).
+    The initial state is validated and checked for a singular mass matrix (then
+    :class:`SingularConfigurationError`); a failure during the integration (the budget, an
+    invalid state such as a negative length, a scipy failure) is recorded in ``status``, with
+    the steps accepted so far.
+    """
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator: expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    from scipy.integrate import solve_ivp
+
+    q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")
+    reasons = singular_reasons(mech, q0)[0]
+    if reasons:
+        raise SingularConfigurationError(reasons)
+    atol = rtol * 1e-3 if atol is None else atol
+    rhs, count = make_rhs(mech, controls, method, max_evaluations, max_seconds)
+    y0 = np.concatenate([q0[0], qd0[0]])
+    steps_t, steps_y = [t_span[0]], [y0]
+    t0 = time.perf_counter()
+    status, sol = "ok", None
+    kw = {} if first_step is None else {"first_step": first_step}
+    try:
+        r = solve_ivp(rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True,
+                      dense_output=dense, **kw)
+        steps_t, steps_y = list(r.t), list(r.y.T)
+        njev, nlu = int(r.njev), int(r.nlu)
+        sol = r.sol
+        if r.status != 0:
+            status = f"failed: {r.message}"
+    except IntegrationBudgetExceeded as e:
+        status, njev, nlu = f"budget exceeded: {e.skip_reason}", 0, 0
+    except Exception as e:  # noqa: BLE001 - a method over its budget or raising: record, do not crash
+        skip = getattr(e, "skip_reason", None)
+        status = f"skipped: {skip}" if skip else "failed: " + traceback.format_exception_only(type(e), e)[-1].strip()
+        njev, nlu = 0, 0
+    seconds = time.perf_counter() - t0
+    return Simulation(integrator, rtol, atol, np.asarray(steps_t), np.asarray(steps_y), count["columns"],
+                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol)
