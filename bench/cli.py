@@ -47,13 +47,19 @@ def cmd_presets(args) -> int:
 
 def cmd_inverse(args) -> int:
     from bench.methods import get_method
-    from models.mechanism import load_mechanism
+    from models.mechanism import force_names, load_mechanism
 
     fn = get_method(args.method)  # an unknown method fails before any file is read
     mech = load_mechanism(args.mechanism)
     q, qd, qdd = _load_states(args.states, mech)
-    tau = np.asarray(fn(mech, q, qd, qdd))
-    json.dump({"method": args.method, "tau": tau.tolist()}, sys.stdout)
+    tau = np.asarray(fn(mech, q, qd, qdd), dtype=float)
+    bad = ~np.isfinite(tau)
+    if bad.any():  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
+        s, c = map(int, np.argwhere(bad)[0])
+        print(f"exo-bench: warning: method {args.method!r} gave {int(bad.sum())} NaN/Inf value(s), written as null "
+              f"(first: sample {s}, {force_names(mech)[c]})", file=sys.stderr)
+    rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in tau]
+    json.dump({"method": args.method, "tau": rows}, sys.stdout, allow_nan=False)
     sys.stdout.write("\n")
     return 0
 
@@ -85,6 +91,12 @@ def cmd_bench(args) -> int:
 
 def cmd_errata(args) -> int:
     from matrix_method.errata import run
+
+    return run(args)
+
+
+def cmd_stability(args) -> int:
+    from bench.stability import run
 
     return run(args)
 
@@ -126,6 +138,12 @@ def build_parser() -> argparse.ArgumentParser:
                        "write errata.md")
     s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
     s.set_defaults(func=cmd_errata)
+
+    s = sub.add_parser("stability", help="where each method breaks (extreme cases vs the 50-digit reference) and the "
+                       "forward-dynamics round trip; write stability.md and its plots")
+    s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
+    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.set_defaults(func=cmd_stability)
     return p
 
 

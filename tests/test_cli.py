@@ -81,3 +81,14 @@ def test_bad_input_gives_one_line_and_exit_code_2(case, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1, r.stderr
     assert "Traceback" not in r.stderr and needle in lines[0], lines[0]
+
+
+def test_nan_from_a_method_is_null_in_json_and_announced(tmp_path):
+    """matrix-paper divides 0/0 at sin(phi_i) = 0 (eq. 18 as printed): the output stays valid JSON."""
+    m = exo5(3)
+    mo = gait(m, np.array([0.0, 0.3]))  # phi_1 = phi_4 = 0 at t = 0
+    r = _cli("inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "matrix-paper")
+    assert r.returncode == 0
+    tau = json.loads(r.stdout)["tau"]
+    assert any(x is None for x in tau[0]) and all(x is not None for x in tau[1])
+    assert "NaN/Inf value(s), written as null" in r.stderr and "sample 0" in r.stderr

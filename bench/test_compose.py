@@ -1,0 +1,117 @@
+"""Composing the equations of motion symbolically: the paper's timing table, and more rows.
+
+Every row of one model must produce the same equations; each test checks its method's
+equations against the matrix method's at random points before its timing counts. Caches
+(sympy's, the derivation's, the composition's) are cleared before every round, so each round
+composes from scratch, as the paper's Mathematica timings did.
+"""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+import sympy as sp
+
+from bench.sweep import current
+from models.mechanism import Mechanism
+from models.presets import chain
+
+COMPOSERS = ("lagrange", "lagrange-expr", "sympy-lagrangesmethod", "sympy-kanesmethod", "matrix", "recurrence")
+_FAILED: dict[tuple, str] = {}
+_REFERENCE: dict[Mechanism, tuple] = {}
+_WARM: set[str] = set()
+
+
+def model(n: int, dim: int, topology: str) -> Mechanism:
+    """A serial chain (Fig. 2a style) or a branched one: the second half reversed after a branch
+    point (Fig. 2b for n = 2, Fig. 5 for n = 4)."""
+    m = chain(n, dim)
+    if topology == "branched":
+        m = m.replace(sign=tuple(1 if i < (n + 1) // 2 else -1 for i in range(n)), name=f"branched{n}-{dim}d")
+    return m
+
+
+def _composer(method: str, budget: float):
+    if method in ("lagrange", "lagrange-expr"):
+        from lagrange import derive
+        engine = "poly" if method == "lagrange" else "expr"
+        return lambda m: derive(m, symbolic_parameters=True, budget=budget, engine=engine, cache=False).equations
+    if method in ("sympy-lagrangesmethod", "sympy-kanesmethod"):
+        from lagrange.peer import peer_equations
+        kind = "lagrange" if method == "sympy-lagrangesmethod" else "kane"
+        return lambda m: peer_equations(m, kind, symbolic_parameters=True, budget=budget)
+    if method == "matrix":
+        from matrix_method.symbolic import compose_equations
+        return lambda m: compose_equations(m, symbolic_parameters=True)
+    from matrix_method.recurrence import compose_equations
+    return lambda m: compose_equations(m, symbolic_parameters=True)
+
+
+def _clear_caches():
+    import lagrange
+    from matrix_method import polynomials
+    sp.core.cache.clear_cache()
+    lagrange.clear_cache()
+    polynomials.clear_caches()
+
+
+def _values(eqs) -> dict:
+    rng = random.Random(7)
+    syms = sorted(set().union(*(e.free_symbols for e in eqs)), key=str)
+    return {s: sp.Float(rng.uniform(0.3, 1.3), 30) for s in syms}
+
+
+def _same_equations(mech: Mechanism, eqs) -> float:
+    """Largest relative difference from the matrix method's equations at a random point."""
+    if mech not in _REFERENCE:
+        from matrix_method.symbolic import compose_equations
+        ref = compose_equations(mech, symbolic_parameters=True)
+        vals = _values(ref)
+        _REFERENCE[mech] = (vals, [sp.N(e.xreplace(vals), 25) for e in ref])
+    vals, ref = _REFERENCE[mech]
+    got = [sp.N(e.xreplace(vals), 25) for e in eqs]
+    scale = max(abs(r) for r in ref)
+    return float(max(abs(a - b) for a, b in zip(got, ref)) / scale)
+
+
+def _cases(sw):
+    out = []
+    for dim, ns in ((2, sw.compose_2d), (3, sw.compose_3d)):
+        for n in ns:
+            for topo in ("chain", "branched") if n > 1 else ("chain",):
+                out += [(m, n, dim, topo) for m in COMPOSERS]
+    return out
+
+
+def pytest_generate_tests(metafunc):
+    if "compose_case" in metafunc.fixturenames:
+        cases = _cases(current(metafunc.config.getoption("--sweep")))
+        metafunc.parametrize("compose_case", cases, ids=[f"{m}-{t}{n}-{d}d" for m, n, d, t in cases])
+
+
+def test_compose(benchmark, sweep, compose_case):
+    method, n, dim, topo = compose_case
+    mech = model(n, dim, topo)
+    benchmark.group = f"compose-{dim}d"
+    key = (method, dim, topo)
+    if key in _FAILED and _FAILED[key][0] <= n:  # a smaller model of this kind was already over budget
+        pytest.skip(f"{method}: over budget at n={_FAILED[key][0]}, so at n={n} too ({_FAILED[key][1]})")
+    compose = _composer(method, sweep.compose_budget)
+    if method not in _WARM:  # imports and first-use set-up are not part of composing
+        compose(model(1, dim, "chain"))
+        _WARM.add(method)
+    rounds = 5 if method in ("matrix", "recurrence") else 1
+    benchmark.extra_info.update(method=method, n=n, dim=dim, topology=topo, mechanism=mech.name)
+    try:
+        eqs = benchmark.pedantic(compose, args=(mech,), setup=_clear_caches, rounds=rounds, iterations=1)
+    except Exception as e:  # noqa: BLE001
+        reason = getattr(e, "skip_reason", None)
+        if not reason:
+            raise
+        _FAILED[key] = (n, reason)
+        pytest.skip(f"{method}: {reason}")
+    assert len(eqs) == mech.dof
+    diff = _same_equations(mech, eqs)
+    benchmark.extra_info["max_rel_diff_vs_matrix"] = diff
+    assert diff < 1e-15, f"{method} composes different equations (relative difference {diff:.2e})"
