@@ -308,6 +308,27 @@ def goals(df: pd.DataFrame) -> list[str]:
     return out
 
 
+README_START, README_END = "<!-- paper-table:start -->", "<!-- paper-table:end -->"
+
+
+def readme_with_table(readme: str, table_md: str, command: str) -> str:
+    """The README with the side-by-side table of ``paper_table.md`` between its markers."""
+    if README_START not in readme or README_END not in readme:
+        return readme
+    lines = table_md.splitlines()
+    k = lines.index("## Side by side with the paper")
+    block = [ln for ln in lines[k + 1:] if ln.startswith("|")]
+    block = block[:2 + len(PAPER_TABLE)]
+    from bench.reporting import machine_info
+    info = machine_info()
+    body = "\n".join([f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); "
+                       "seconds to compose the equations; details in [reports/paper_table.md](reports/paper_table.md)._",
+                       "", *block])
+    head, rest = readme.split(README_START, 1)
+    _, tail = rest.split(README_END, 1)
+    return f"{head}{README_START}\n{body}\n{README_END}{tail}"
+
+
 def run(args) -> int:
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
@@ -333,4 +354,10 @@ def run(args) -> int:
         files += [st / "scaling.md", st / "scaling.png", bjson]
         for p in publish(files, out):
             print(f"wrote {p}")
+        if out == REPORTS and (REPO / "README.md").exists():
+            readme = (REPO / "README.md").read_text()
+            updated = readme_with_table(readme, text, command)
+            if updated != readme:
+                atomic_write(REPO / "README.md", updated)
+                print(f"updated the paper table in {REPO / 'README.md'}")
     return 0
