@@ -1,0 +1,136 @@
+"""The stability suite's verdicts (bench/stability.py): one representative of each family, the
+warnings, the bookkeeping of missing/skipped/failing methods, and the report end to end on a tiny
+profile. Physics, not timing: every verdict is checked against what the configuration implies."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from bench import stability as st
+from bench.methods import METHODS, get_method, method_names
+from models import pinocchio_backend as pb
+
+TINY = dataclasses.replace(
+    st.QUICK, name="test", samples=1, distances=(1e-6, 0.0), lengths=(0.0, 1.0), one_length=(0.0,),
+    ratios=(1.0, 1e6), large_n=(8,), periods=(0.1,), lagrange_budget=2.0, wp_rtols=(1e-6, 1e-8),
+    rt_rtols=(1e-6, 1e-8), rt_integrators=("DOP853",), method_rtol=1e-6, energy_rtols=(1e-6,),
+    stiff_k=(1e6,), stiff_mass_scales=(), stiff_budget=3000, method_seconds=30.0,
+    rt_cases=("exo5-2d planar gait",), method_cases=("exo5-2d planar gait",), energy_cases=("exo5-2d passive fall",),
+    stiff_reference_rtol=1e-7)
+
+def _case(cases, label):
+    return next(c for c in cases if c.label == label)
+
+
+def test_at_a_removable_singularity_matrix_is_exact_and_the_printed_eq18_yields_nan():
+    """sin phi_i = 0 exactly (phi_i = 0): eq. (18) as printed divides 0/0; the corrected closed forms
+    have no division and stay at round-off from Pinocchio and the 50-digit reference."""
+    case = _case(st.family_removable(st.QUICK), "sin phi_i = 0, d = 0")
+    assert (case.q[:, :case.mechanism.nlinks] == 0).all()
+    with pytest.warns(st.UnusableMethodWarning, match="matrix-paper"):
+        fam = st.evaluate_family("removable singularities of eq. (18)", [case], ["pinocchio", "matrix", "matrix-paper"])
+    rows = fam.results[0].rows
+    tau = get_method("matrix")(case.mechanism, case.q, case.qd, case.qdd)
+    assert np.isfinite(tau).all()
+    ref = pb.inverse_dynamics(case.mechanism, case.q, case.qd, case.qdd)
+    assert np.abs(tau - ref).max() < 1e-13 * np.abs(ref).max()
+    assert rows["matrix"].verdict == "ok" and rows["matrix"].rel_err < 1e-13
+    assert rows["matrix-paper"].nonfinite > 0 and rows["matrix-paper"].verdict == "unusable"
+    assert "matrix-paper" in fam.warnings and "matrix" not in fam.warnings
+
+
+def test_the_vertical_rod_is_detected_as_singular_for_forward_dynamics():
+    cases = st.family_near_vertical(TINY)
+    with pytest.warns(st.IllConditionedWarning, match="singular"):
+        fam = st.evaluate_family("near-vertical rods", cases, ["pinocchio"])
+    at, near = (next(cr for cr in fam.results if cr.case.x == x) for x in (0.0, 1e-6))
+    assert at.fd_verdict == "singular" and "vertical rod" in at.singular[0]
+    # 1e-6 from vertical M is regular, but cond(M) ~ 1/cos^2 psi: numerically singular
+    assert near.singular_samples == 0 and near.fd_verdict == "numerically singular"
+    # inverse dynamics is still defined there, and right
+    assert at.rows["pinocchio"].verdict == "ok" and at.rows["pinocchio"].rel_err < 1e-13
+
+
+def test_large_mass_ratios_give_a_condition_number_that_is_flagged():
+    cases = [c for c in st.family_masses(TINY) if c.series != "special"]
+    with pytest.warns(st.IllConditionedWarning, match="ill-conditioned"):
+        fam = st.evaluate_family("mass ratios", cases, ["pinocchio"])
+    one, big = (next(cr for cr in fam.results if cr.case.x == r) for r in (1.0, 1e6))
+    assert one.fd_verdict == "ok" and one.cond_raw < st.COND_ILL
+    assert big.fd_verdict == "ill-conditioned" and big.cond_raw >= st.COND_ILL
+    # the heavier swing leg spreads the inertias: cond grows by orders of magnitude with r
+    assert big.cond_raw > 1e4 * one.cond_raw
+    assert "mass ratios" in fam.mass_warning
+
+
+def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatch):
+    import sys
+    import types
+
+    mod = types.ModuleType("fake_methods")
+
+    class Over(Exception):
+        skip_reason = "over its time budget (test)"
+
+    def over(mech, q, qd, qdd):
+        raise Over()
+
+    def boom(mech, q, qd, qdd):
+        raise RuntimeError("boom")
+
+    def nan(mech, q, qd, qdd):
+        return np.full(q.shape, np.nan)
+
+    mod.over, mod.boom, mod.nan = over, boom, nan
+    monkeypatch.setitem(sys.modules, "fake_methods", mod)
+    for name in ("over", "boom", "nan"):
+        monkeypatch.setitem(METHODS, f"fake-{name}", ("fake_methods", name, "test"))
+    monkeypatch.setitem(METHODS, "fake-missing", ("no_such_module_xyz", "f", "test"))
+    names = ["pinocchio", "fake-over", "fake-boom", "fake-nan", "fake-missing"]
+    with pytest.warns(st.UnusableMethodWarning, match="fake-nan"):
+        fam = st.evaluate_family(st.BASELINE, st.family_baseline(TINY)[:2], names)
+    rows = fam.results[0].rows
+    assert [rows[n].status for n in names] == ["ok", "skipped", "failed", "ok", "missing"]
+    assert rows["fake-over"].reason.startswith("over its time budget")
+    assert "boom" in rows["fake-boom"].reason
+    assert rows["fake-nan"].verdict == "unusable" and rows["fake-nan"].nonfinite == fam.results[0].case.q.size
+    # a skip is remembered for mechanisms of the same structure (same symbolic work) and not retried
+    memo = {}
+    case = fam.results[0].case
+    st.evaluate_case(case, ["fake-over"], memo)
+    heavier = dataclasses.replace(case, mechanism=case.mechanism.replace(g=1.62))
+    assert "not retried" in st.evaluate_case(heavier, ["fake-over"], memo).rows["fake-over"].reason
+
+
+def test_the_report_has_rows_for_every_family_and_method(tmp_path, monkeypatch):
+    """End to end on a tiny profile: `exo-bench stability` writes the report and its plots; every
+    family has a summary row for every method registered at run time; the round trip passes."""
+    from bench.cli import main
+
+    monkeypatch.setattr(st, "QUICK", TINY)
+    monkeypatch.setenv("EXO_BENCH_LAGRANGE_BUDGET", "2")
+    with pytest.warns(st.StabilityWarning):
+        code = main(["stability", "--reports", str(tmp_path)])
+    assert code == 0
+    text = (tmp_path / "stability.md").read_text()
+    for png in ("stability-families.png", "stability-conditioning.png", "stability-work-precision.png",
+                "stability-stiff.png"):
+        data = (tmp_path / png).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and f"({png})" in text
+    summary = text.split("## Summary")[1].split("Mass matrix")[0]
+    for fam in st.FAMILIES:
+        for m in method_names():
+            assert f"| {fam} | {m} |" in summary, (fam, m)
+    assert "Generated by `exo-bench stability`" in text
+    assert "**Tolerance.**" in text and "FAIL" not in text.split("### Round trip")[1].split("Per method")[0]
+    assert not list(tmp_path.glob(".*.tmp"))       # nothing half-written
+
+
+def test_thresholds_are_ordered_and_consistent():
+    assert st.REL_DEGRADED < st.REL_UNUSABLE < 1e-4
+    assert st.COND_ILL < st.COND_SINGULAR < 1 / np.finfo(float).eps
+    # at the ill-conditioning threshold the solve error already exceeds the tightest tolerance asked for
+    assert st.COND_ILL * np.finfo(float).eps > min(st.QUICK.wp_rtols)
+    assert math.isclose(st.COND_SINGULAR * np.finfo(float).eps, 2.2e-4, rel_tol=0.01)
