@@ -94,7 +94,7 @@ class Profile:
 
 QUICK = Profile("quick", samples=3, distances=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 0.0),
                 lengths=(0.0, 1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6), one_length=(0.0, 1e-9, 1e-6, 1e-3, 1e3, 1e6),
-                ratios=(1e-6, 1e-3, 1.0, 1e3, 1e6), large_n=(50,), periods=(1.1, 0.1, 0.01),
+                ratios=(1e-6, 1e-3, 1.0, 1e3, 1e6), large_n=(50, 100), periods=(1.1, 0.1, 0.01),
                 lagrange_budget=10.0, wp_rtols=(1e-4, 1e-6, 1e-8, 1e-10, 1e-12), rt_rtols=(1e-6, 1e-8, 1e-10),
                 rt_integrators=("DOP853", "Radau"), method_rtol=1e-8, energy_rtols=(1e-5, 1e-7, 1e-9),
                 stiff_k=(1e4, 1e6, 1e8), stiff_mass_scales=(1e-4,), stiff_rtol=1e-6, stiff_budget=20_000,
@@ -339,14 +339,20 @@ _VERDICT_ORDER = {"ok": 0, "degraded": 1, "unusable": 2, "skipped": -1, "failed"
 _FD_ORDER = {"ok": 0, "ill-conditioned": 1, "numerically singular": 2, "singular": 3}
 
 
-def _structure(mech: Mechanism) -> tuple:
-    return (mech.dim, mech.parent, mech.sign)
+def _memo_skip(memo: dict, method: str, mech: Mechanism) -> str | None:
+    """The reason to skip ``method`` on ``mech`` without trying: it went over its budget on a model of
+    the same structure, or of the same dimension with no more links (the symbolic work grows with n)."""
+    for (m, dim, parent, sign), (nlinks, reason) in memo.items():
+        if m == method and dim == mech.dim and ((parent, sign) == (mech.parent, mech.sign) or mech.nlinks >= nlinks):
+            return reason
+    return None
 
 
 def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> CaseResult:
     """Every method on one case, against the reference; the mass matrix's condition and exact
     singularities. ``memo`` carries skips across cases: a method over its budget on a mechanism
-    is not tried again on another of the same structure (the symbolic work is the same)."""
+    is not tried again on one of the same structure or with at least as many links in the same
+    dimension (the symbolic work is the same or larger)."""
     from bench.methods import get_method
     from models.pinocchio_backend import mass_matrix
 
@@ -357,9 +363,9 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
     rows = {}
     for m in methods:
         row = MethodRow(m)
-        key = (m, _structure(mech))
-        if key in memo:
-            row.status, row.reason = "skipped", memo[key]
+        known = _memo_skip(memo, m, mech)
+        if known:
+            row.status, row.reason = "skipped", known
             rows[m] = row
             continue
         try:
@@ -379,7 +385,9 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
             skip = getattr(e, "skip_reason", None)
             if skip:
                 row.status, row.reason = "skipped", str(skip)
-                memo[key] = f"{skip} (on {mech.name}; not retried on the same structure)"
+                memo[(m, mech.dim, mech.parent, mech.sign)] = (
+                    mech.nlinks, f"{skip} (on {mech.name}; not retried on the same structure or on "
+                                 f"{mech.dim}D models of {mech.nlinks} links or more)")
             else:
                 row.status, row.reason = "failed", _one_line(e)
             rows[m] = row
