@@ -92,11 +92,12 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
 
 
 def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    from bench.plots import save_figure
+
+    fig = Figure(figsize=(12, 5))
+    axes = fig.subplots(1, 2, sharey=True)
     markers = dict(zip(sorted(bat["method"].unique()), "osD^v<>p*"))
     floor = 1e-17
     for ax, dim in zip(axes, (2, 3)):
@@ -116,11 +117,7 @@ def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
     axes[1].legend(fontsize=8)
     fig.suptitle("Inverse dynamics: error against run time")
     fig.tight_layout()
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    atomic_write(png, buf.getvalue())
+    save_figure(fig, png, dpi=110)
 
 
 # ----------------------------------------------------------------------------- scaling
@@ -182,16 +179,18 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
 
 
 def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5), sharey=True)
+    from bench.plots import save_figure
+
+    fig = Figure(figsize=(12, 5))
+    axes = fig.subplots(1, 2, sharey=True)
+    colors = {m: f"C{k}" for k, m in enumerate(sorted(chains["method"].unique()))}
     for ax, dim in zip(axes, (2, 3)):
         for (method, batched), g in chains[chains["dim"] == dim].groupby(["method", "batched"]):
             g = g.sort_values("n")
-            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o", ls="-" if batched else ":",
-                    label=f"{method} ({'batched' if batched else 'per call'})")
+            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o" if batched else "x", ls="-" if batched else ":",
+                    color=colors[method], label=f"{method} ({'batched' if batched else 'per call'})")
         ax.set_xscale("log"); ax.set_yscale("log")
         ax.set_xlabel("number of links n")
         ax.set_title(f"{dim}D serial chains")
@@ -200,11 +199,7 @@ def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
     axes[1].legend(fontsize=7)
     fig.suptitle("Inverse dynamics: cost against n")
     fig.tight_layout()
-    import io
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    atomic_write(png, buf.getvalue())
+    save_figure(fig, png, dpi=110)
 
 
 # ----------------------------------------------------------------------------- paper table
