@@ -24,7 +24,7 @@ class Sweep:
 
 QUICK = Sweep("quick", compose_2d=(1, 2, 3), compose_3d=(1, 2), compose_budget=20.0, derive_budget=10.0,
               inverse_n=(1, 2, 5, 20), samples=1000, inverse_budget=5.0, error_subsample=4)
-FULL = Sweep("full", compose_2d=(1, 2, 3, 4, 5, 6), compose_3d=(1, 2, 3, 4, 5), compose_budget=600.0, derive_budget=120.0,
+FULL = Sweep("full", compose_2d=(1, 2, 3, 4, 5, 6), compose_3d=(1, 2, 3, 4, 5), compose_budget=300.0, derive_budget=120.0,
              inverse_n=(1, 2, 3, 5, 10, 20, 50, 100), samples=10_000, inverse_budget=120.0, error_subsample=8)
 SWEEPS = {"quick": QUICK, "full": FULL}
 
