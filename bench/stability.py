@@ -1,7 +1,7 @@
 """``exo-bench stability``: where each method breaks, and the forward-dynamics round trip.
 
-Six families of extreme cases (:data:`FAMILIES`), each a list of :class:`Case` (a mechanism and
-states). For every case and every method registered in :data:`bench.methods.METHODS` *at run
+A benign baseline and six families of extreme cases (:data:`FAMILIES`), each a list of
+:class:`Case` (a mechanism and states). For every case and every method registered in :data:`bench.methods.METHODS` *at run
 time*, the report gives the largest absolute and relative error against the 50-digit reference,
 the number of NaN/Inf values, and the condition number of the mass matrix; a method that is
 missing, over its time budget or raising is recorded as such (one line), never a crash.
@@ -90,6 +90,7 @@ class Profile:
     method_cases: tuple[str, ...] = ("exo5-2d planar gait", "tree4-3d random motion")  # every method's M, h
     energy_cases: tuple[str, ...] = ()    # conservative cases to run (empty: all)
     stiff_reference_rtol: float = 1e-9    # Radau reference of the stiff runs
+    stiff_seconds: float = 30.0           # wall time per stiff run (and its reference)
 
 
 QUICK = Profile("quick", samples=3, distances=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 0.0),
@@ -109,7 +110,7 @@ FULL = Profile("full", samples=8, distances=(1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6,
                rt_rtols=(1e-6, 1e-8, 1e-10, 1e-12), rt_integrators=("RK45", "DOP853", "Radau", "BDF"),
                method_rtol=1e-10, energy_rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
                stiff_k=(1e3, 1e4, 1e5, 1e6, 1e7, 1e8), stiff_mass_scales=(1e-2, 1e-4, 1e-6), stiff_rtol=1e-6,
-               stiff_budget=200_000, full_cases=True, method_seconds=600.0)
+               stiff_budget=200_000, full_cases=True, method_seconds=600.0, stiff_seconds=120.0)
 
 
 # ----------------------------------------------------------------------------- cases
@@ -698,7 +699,7 @@ def families_figure(families: list[FamilyResult], methods: list[str]):
         zero = " (0 at the far left)" if any(cr.case.x == 0 for cr in cases) else ""
         ax.set_xlabel(_XLABELS.get(fr.name, "parameter") + zero, fontsize=7)
         ax.set_ylabel("relative error vs 50 digits", fontsize=7)
-        ax.tick_params(labelsize=7)
+        ax.tick_params(which="both", labelsize=7)
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=6, loc="center right")
     for ax in axes[len(fams):]:
@@ -746,7 +747,7 @@ def conditioning_figure(families: list[FamilyResult]):
         ax.set_title(_series_title(fr, series), fontsize=8)
         zero = " (0 at the far left)" if any(cr.case.x == 0 for cr in cases) else ""
         ax.set_xlabel(_XLABELS.get(fr.name, "parameter") + zero, fontsize=7)
-        ax.tick_params(labelsize=7)
+        ax.tick_params(which="both", labelsize=7)
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=6)
     for ax in axes[len(fams):]:
