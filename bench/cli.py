@@ -147,7 +147,14 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _terminate(signum, frame):
+    raise KeyboardInterrupt  # so that staging folders are removed on SIGTERM as on Ctrl-C
+
+
 def main(argv: list[str] | None = None) -> int:
+    import signal
+
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         args = build_parser().parse_args(argv)
         return int(args.func(args) or 0)
@@ -159,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"exo-bench: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("exo-bench: interrupted", file=sys.stderr)
+        print("exo-bench: interrupted; nothing half-written was left in the reports folder", file=sys.stderr)
         return 130
 
 

@@ -127,3 +127,21 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
     entities = {c.entity_path for c in RrdReader(tmp_path / "rep" / "gait.rrd").stream().to_chunks()}
     assert {"/world/rods", "/world/masses", "/meta"} <= entities
     assert any(e.startswith("/differences/") and e.endswith("/lagrange") for e in entities)
+
+
+def test_sigterm_leaves_no_staging_folder(tmp_path):
+    """A terminated main job removes its staging folder, like Ctrl-C."""
+    import signal
+    import time
+
+    p = tmp_path / "slow.toml"
+    p.write_text('mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n')
+    proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and not any((tmp_path / "rep").glob(".staging-*")):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "interrupted" in err
+    assert list((tmp_path / "rep").iterdir()) == []
