@@ -805,8 +805,9 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
     refs = sorted({cr.reference for fr in families for cr in fr.results})
     L = ["# Numerical stability: where each method breaks", "",
          provenance("exo-bench stability" + (" --full" if profile.full_cases else "")), "",
-         f"- **profile**: {profile.name} ({profile.samples} states per case; `--full` for the whole sweep); "
-         f"total {seconds:.0f} s",
+         f"- **profile**: {profile.name} ({profile.samples} states per case"
+         f"{'; `exo-bench stability --full` runs the whole sweep' if not profile.full_cases else ''}); "
+         f"total {seconds:.0f} s on this machine",
          f"- **methods** (the registry at run time): {', '.join(methods)}",
          f"- **reference**: {'; '.join(refs)}",
          f"- **lagrange symbolic budget**: {os.environ.get('EXO_BENCH_LAGRANGE_BUDGET', f'{profile.lagrange_budget:g}')} s "
