@@ -324,6 +324,14 @@ def readme_with_table(readme: str, table_md: str, command: str) -> str:
     return f"{head}{README_START}\n{body}\n{README_END}{tail}"
 
 
+def _strip_raw_timings(path: Path) -> None:
+    """Drop the per-round timing lists (megabytes for the per-call rows); the statistics stay."""
+    data = json.loads(path.read_text())
+    for b in data.get("benchmarks", []):
+        b.get("stats", {}).pop("data", None)
+    atomic_write(path, json.dumps(data, indent=1))
+
+
 def run(args) -> int:
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
@@ -339,6 +347,7 @@ def run(args) -> int:
         if r.returncode not in (0,) or not bjson.exists():
             raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
         df, skips, _ = load(bjson, sjson)
+        _strip_raw_timings(bjson)
         files = []
         text = paper_table(df, skips, command)
         atomic_write(st / "paper_table.md", text); files.append(st / "paper_table.md")
