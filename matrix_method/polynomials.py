@@ -99,6 +99,15 @@ def _rational(c) -> sp.Rational:
 
 
 # ------------------------------------------------------------------ the polynomials
+def _accumulate(terms: dict, monomial, coefficient) -> None:
+    """Add ``coefficient * monomial`` to ``terms`` in place, dropping a term that cancels."""
+    total = terms.get(monomial, 0) + coefficient
+    if total == 0:
+        terms.pop(monomial, None)
+    else:
+        terms[monomial] = total
+
+
 class Poly:
     """A sparse polynomial over the state generators: ``{monomial: coefficient}``, monomial a
     sorted tuple of generator indices (repeated for powers). Supports ``+ - *``, ``**`` by small
@@ -122,14 +131,7 @@ class Poly:
         other = self._lift(other)
         out = dict(self.terms)
         for m, c in other.terms.items():
-            if m in out:
-                t = out[m] + c
-                if t == 0:
-                    del out[m]
-                else:
-                    out[m] = t
-            else:
-                out[m] = c
+            _accumulate(out, m, c)
         return type(self)(out)
 
     __radd__ = __add__
@@ -155,16 +157,7 @@ class Poly:
         out: dict = {}
         for m1, c1 in self.terms.items():
             for m2, c2 in other.terms.items():
-                m = tuple(sorted(m1 + m2)) if m1 and m2 else (m1 or m2)
-                c = c1 * c2
-                if m in out:
-                    t = out[m] + c
-                    if t == 0:
-                        del out[m]
-                    else:
-                        out[m] = t
-                else:
-                    out[m] = c
+                _accumulate(out, tuple(sorted(m1 + m2)) if m1 and m2 else (m1 or m2), c1 * c2)
         return type(self)(out)
 
     __rmul__ = __mul__
