@@ -73,6 +73,26 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     return out
 
 
+AGREEMENT = 1e-9  # methods are expected to agree to this, relative to the largest |tau|
+WHY = {"matrix-paper": "it evaluates eq. (18) exactly as printed, misprints included: see reports/errata.md "
+                       "(3D g^l and k^l) and reports/stability.md"}
+
+
+def disagreement_notes(study: Study) -> list[str]:
+    """Where a method departs from the reference by more than AGREEMENT: by how much, where, and why."""
+    notes = []
+    for m, rel in study.agreement().items():
+        if not rel > AGREEMENT:
+            continue
+        d = np.abs(study.difference(m))
+        d[~np.isfinite(d)] = -1.0
+        s_, c = np.unravel_index(int(np.argmax(d)), d.shape)
+        notes.append(f"**{m} disagrees with {study.reference}** by {rel:.1e} of the largest |tau| (largest at "
+                     f"t = {study.motion.t[s_]:.4g} s, {study.force_names[c]})"
+                     + (f": {WHY[m]}." if m in WHY else "."))
+    return notes
+
+
 def _scene_table(o: SceneOutcome) -> str:
     sc, st = o.scene, o.study
     mech = sc.mechanism
@@ -126,6 +146,7 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
         if r.ok and not np.isfinite(r.tau).all():
             o.notes.append(f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
                            "(see the stability report for where this method is unusable)")
+    o.notes += disagreement_notes(o.study)
     o.power_balance = power_balance(scene, o.study)
     if scene.wants("reference-error"):
         try:

@@ -145,3 +145,19 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and "interrupted" in err
     assert list((tmp_path / "rep").iterdir()) == []
+
+
+def _offset(mech, q, qd, qdd):
+    from models.pinocchio_backend import inverse_dynamics
+    tau = inverse_dynamics(mech, q, qd, qdd)
+    tau[7, 1] += 1e-6 * np.abs(tau).max()
+    return tau
+
+
+def test_a_disagreeing_method_is_reported_with_where(tmp_path, monkeypatch):
+    monkeypatch.setitem(methods.METHODS, "offset", (__name__, "_offset", "pinocchio plus a known error"))
+    p = _user_scene(tmp_path, "off", '["pinocchio", "offset"]')
+    assert runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
+    table = (tmp_path / "rep" / "off.md").read_text()
+    line = next(ln for ln in table.splitlines() if "**offset disagrees with pinocchio**" in ln)
+    assert "by 1.0e-06 of the largest |tau|" in line and "M_phi2" in line
