@@ -59,12 +59,14 @@ REFERENCE_SUBSAMPLE = 16
 
 def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict[str, tuple[float, float]]:
     """Largest absolute and relative error of each method against the 50-digit reference
-    (``lagrange.reference``) on an evenly spaced subsample."""
-    from lagrange.reference import inverse_dynamics as reference
+    (``bench.reference``: Lagrange in mpmath, or d'Alembert in mpmath beyond sympy's reach) on an
+    evenly spaced subsample."""
+    from bench.reference import reference
 
     mo = study.motion
     idx = np.unique(np.linspace(0, mo.q.shape[0] - 1, subsample).round().astype(int))
-    ref = reference(study.mechanism, mo.q[idx], mo.qd[idx], mo.qdd[idx])
+    ref, label = reference(study.mechanism, mo.q[idx], mo.qd[idx], mo.qdd[idx])
+    study.reference_label = label
     scale = max(float(np.abs(ref).max()), 1e-300)
     out = {}
     for m in study.ok_methods():
@@ -151,6 +153,7 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
     if scene.wants("reference-error"):
         try:
             o.reference_error = reference_errors(o.study)
+            o.notes.append(f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples")
         except Exception as e:  # noqa: BLE001
             reason = getattr(e, "skip_reason", None) or _one_line(e)
             o.notes.append(f"50-digit reference skipped: {reason}")
@@ -201,7 +204,8 @@ def publish(files: list[Path], out: Path) -> list[Path]:
 
 def summary_markdown(outcomes: list[SceneOutcome], command: str) -> str:
     lines = ["# Summary: every scene, every method", "", provenance(command), "",
-             "Largest error: against the 50-digit Lagrange reference on a subsample where the scene asks for it "
+             "Largest error: against the 50-digit reference (Lagrange in mpmath; d'Alembert in mpmath beyond sympy's "
+             "reach; each scene report names it) on a subsample where the scene asks for it "
              "(`ref50`), otherwise the largest difference relative to the scene's reference method (`vs <method>`). "
              "Quantities are generalised forces of the paper's absolute coordinates.", "",
              "| scene | method | largest error | us/sample | power balance |", "|---|---|---|---|---|"]

@@ -39,6 +39,7 @@ class Study:
     motion_label: str
     results: dict[str, MethodResult] = field(default_factory=dict)
     reference: str = "pinocchio"
+    reference_label: str = ""                     # which 50-digit reference the errors were measured against
 
     @property
     def force_names(self) -> list[str]:
