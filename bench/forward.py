@@ -29,6 +29,7 @@ from typing import Callable
 import numpy as np
 
 from bench.stability import UnusableMethodWarning
+from bench.study import one_line
 from models import forward_dynamics as fd
 from models.kinematics import kinetic_energy, total_energy
 from models.mechanism import Mechanism
@@ -471,10 +472,6 @@ def stiff_figure(runs: list[StiffRun]):
 
 
 # ----------------------------------------------------------------------------- the report's experiments
-def _one_line(e: BaseException) -> str:
-    import traceback
-
-    return traceback.format_exception_only(type(e), e)[-1].strip()
 
 
 def _e(x, digits: int = 1) -> str:
@@ -511,7 +508,7 @@ def terms_agreement(methods: list[str], samples: int = 4) -> list[TermsRow]:
             try:
                 exposed = (not via) and fd.exposed_terms(m) is not None
             except Exception as e:  # noqa: BLE001 - a missing module is a row, not a crash
-                rows.append(TermsRow(mech.name, m, "", "missing: " + _one_line(e)))
+                rows.append(TermsRow(mech.name, m, "", "missing: " + one_line(e)))
                 continue
             row = TermsRow(mech.name, m, "exposed (CRBA, nonLinearEffects)" if m == "pinocchio" and exposed
                            else "exposed" if exposed else "from inverse dynamics")
@@ -523,7 +520,7 @@ def terms_agreement(methods: list[str], samples: int = 4) -> list[TermsRow]:
                 row.h_rel = float(np.abs(h - h0).max() / np.abs(h0).max())
             except Exception as e:  # noqa: BLE001
                 skip = getattr(e, "skip_reason", None)
-                row.status = f"skipped: {skip}" if skip else "failed: " + _one_line(e)
+                row.status = f"skipped: {skip}" if skip else "failed: " + one_line(e)
             rows.append(row)
     return rows
 
@@ -636,7 +633,7 @@ def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
                     skip = getattr(e, "skip_reason", None)
                     rt = RoundTrip(case.name, m, "DOP853", profile.method_rtol,
                                    fd.Simulation("DOP853", profile.method_rtol, 0.0, np.zeros(0), np.zeros((0, 0)),
-                                                 status=(f"skipped: {skip}" if skip else "failed: " + _one_line(e))))
+                                                 status=(f"skipped: {skip}" if skip else "failed: " + one_line(e))))
                     mtrips.append(rt)
                 if rt_failed(mtrips[-1]):
                     warnings.warn(f"forward dynamics from {m!r}'s M and h does not reproduce the motion of "

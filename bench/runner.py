@@ -12,7 +12,6 @@ import os
 import shutil
 import tempfile
 import time
-import traceback
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +20,7 @@ import numpy as np
 
 from bench.reporting import REPORTS, atomic_write, provenance
 from bench.scenes import Scene, load_scene, shipped_scene_names
-from bench.study import Study, finite_max, run_methods
+from bench.study import Study, finite_max, one_line, run_methods
 
 
 @dataclass
@@ -36,8 +35,6 @@ class SceneOutcome:
     seconds: float = 0.0
 
 
-def _one_line(e: BaseException) -> str:
-    return traceback.format_exception_only(type(e), e)[-1].strip()
 
 
 def power_balance(scene: Scene, study: Study) -> dict[str, float]:
@@ -155,7 +152,7 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
             o.reference_error = reference_errors(o.study)
             o.notes.append(f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples")
         except Exception as e:  # noqa: BLE001
-            reason = getattr(e, "skip_reason", None) or _one_line(e)
+            reason = getattr(e, "skip_reason", None) or one_line(e)
             o.notes.append(f"50-digit reference skipped: {reason}")
     if scene.wants("table"):
         p = staging / f"{scene.name}.md"
@@ -289,7 +286,7 @@ def run(args) -> int:
                 o = run_scene(sc, staging)
                 written += publish(o.files, out)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
-                o = SceneOutcome(sc, error=_one_line(e))
+                o = SceneOutcome(sc, error=one_line(e))
             outcomes.append(o)
             progress.advance(task)
         command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
@@ -300,7 +297,7 @@ def run(args) -> int:
             try:
                 fn(_argparse.Namespace(full=full, reports=str(out)))
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
-                job_errors.append(f"{label} failed: {_one_line(e)}")
+                job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
     print_summary(outcomes)
     for p in written:

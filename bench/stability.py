@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 import os
 import time
-import traceback
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.study import one_line
 from models import forward_dynamics as fd
 from models.mechanism import Mechanism
 from models.motion import GaitParams, gait, planar_gait, random_states
@@ -262,8 +262,6 @@ FAMILIES = {
 
 
 # ----------------------------------------------------------------------------- evaluation
-def _one_line(e: BaseException) -> str:
-    return traceback.format_exception_only(type(e), e)[-1].strip()
 
 
 def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
@@ -279,17 +277,17 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
 
         return reference(mech, q, qd, qdd)
     except ImportError as e:
-        why = _one_line(e)
+        why = one_line(e)
     except Exception as e:  # noqa: BLE001
-        why = getattr(e, "skip_reason", None) or _one_line(e)
+        why = getattr(e, "skip_reason", None) or one_line(e)
     try:
         from lagrange.reference import inverse_dynamics as lref
 
         return lref(mech, q, qd, qdd, dps=50), "Lagrange, mpmath 50 digits"
     except ImportError as e:
-        why = why or _one_line(e)
+        why = why or one_line(e)
     except Exception as e:  # noqa: BLE001
-        why = getattr(e, "skip_reason", None) or _one_line(e)
+        why = getattr(e, "skip_reason", None) or one_line(e)
     from models.pinocchio_backend import inverse_dynamics
 
     return inverse_dynamics(mech, q, qd, qdd), f"pinocchio (float64 stand-in: {why})"
@@ -372,7 +370,7 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
         try:
             fn = get_method(m)
         except ImportError as e:
-            row.status, row.reason = "missing", _one_line(e)
+            row.status, row.reason = "missing", one_line(e)
             rows[m] = row
             continue
         try:
@@ -390,7 +388,7 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
                     mech.nlinks, f"{skip} (on {mech.name}; not retried on the same structure or on "
                                  f"{mech.dim}D models of {mech.nlinks} links or more)")
             else:
-                row.status, row.reason = "failed", _one_line(e)
+                row.status, row.reason = "failed", one_line(e)
             rows[m] = row
             continue
         finite = np.isfinite(tau)

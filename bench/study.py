@@ -66,6 +66,11 @@ class Study:
         return int(np.count_nonzero(~np.isfinite(self.results[method].tau)))
 
 
+def one_line(e: BaseException) -> str:
+    """An exception as one line, ``Type: message``, for reports and summaries."""
+    return traceback.format_exception_only(type(e), e)[-1].strip()
+
+
 def finite_max(a: np.ndarray) -> float:
     """The largest finite entry (NaN when there is none)."""
     a = np.asarray(a)[np.isfinite(a)]
@@ -93,6 +98,5 @@ def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, m
             if skip:
                 study.results[m] = MethodResult(m, skipped=str(skip))
             else:
-                last = traceback.format_exception_only(type(e), e)[-1].strip()
-                study.results[m] = MethodResult(m, error=last)
+                study.results[m] = MethodResult(m, error=one_line(e))
     return study
