@@ -661,19 +661,30 @@ def _series_title(fr: FamilyResult, series: list[str]) -> str:
     return fr.name + "\n" + "; ".join(f"{marks[_SERIES_STYLES[i % 4]]}: {s}" for i, s in enumerate(series))
 
 
-def families_figure(families: list[FamilyResult], methods: list[str]):
-    """Relative error against the swept parameter, one panel per family, one colour per method,
-    one line style per sub-series; cases with NaN/Inf are red crosses at 1 (no line point)."""
+def _family_panels(families: list[FamilyResult]):
+    """A 2 x 3 figure with one panel per swept family (unused panels hidden), and per panel
+    ``(ax, family, cases with a finite x, sub-series names, x position of each case by id)``."""
     from matplotlib.figure import Figure
 
     fams = _swept(families)
     fig = Figure(figsize=(13, 7.2), layout="constrained")
     axes = fig.subplots(2, 3).ravel()
+    for ax in axes[len(fams):]:
+        ax.set_visible(False)
+    panels = []
     for ax, fr in zip(axes, fams):
         cases = [cr for cr in fr.results if math.isfinite(cr.case.x)]
         series = list(dict.fromkeys(cr.case.series for cr in cases))
         allx = _xpos(np.array([cr.case.x for cr in cases]))
-        xmap = {id(cr): x for cr, x in zip(cases, allx)}
+        panels.append((ax, fr, cases, series, {id(cr): x for cr, x in zip(cases, allx)}))
+    return fig, panels
+
+
+def families_figure(families: list[FamilyResult], methods: list[str]):
+    """Relative error against the swept parameter, one panel per family, one colour per method,
+    one line style per sub-series; cases with NaN/Inf are red crosses at 1 (no line point)."""
+    fig, panels = _family_panels(families)
+    for ax, fr, cases, series, xmap in panels:
         nan_label = True
         for mi, m in enumerate(methods):
             for si, s in enumerate(series):
@@ -700,8 +711,6 @@ def families_figure(families: list[FamilyResult], methods: list[str]):
         ax.tick_params(which="both", labelsize=7)
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=6, loc="center right")
-    for ax in axes[len(fams):]:
-        ax.set_visible(False)
     fig.suptitle("Inverse dynamics against the 50-digit reference (dashed: degraded / unusable thresholds; "
                  f"errors of 0 drawn at {FLOOR:.0e}; crosses: NaN/Inf)", fontsize=9)
     return fig
@@ -710,16 +719,8 @@ def families_figure(families: list[FamilyResult], methods: list[str]):
 def conditioning_figure(families: list[FamilyResult]):
     """cond(M) and the equilibrated cond against the swept parameter, per family; an infinite
     condition number is drawn as a triangle at the top."""
-    from matplotlib.figure import Figure
-
-    fams = _swept(families)
-    fig = Figure(figsize=(13, 7.2), layout="constrained")
-    axes = fig.subplots(2, 3).ravel()
-    for ax, fr in zip(axes, fams):
-        cases = [cr for cr in fr.results if math.isfinite(cr.case.x)]
-        series = list(dict.fromkeys(cr.case.series for cr in cases))
-        allx = _xpos(np.array([cr.case.x for cr in cases]))
-        xmap = {id(cr): x for cr, x in zip(cases, allx)}
+    fig, panels = _family_panels(families)
+    for ax, fr, cases, series, xmap in panels:
         finite = [v for cr in cases for v in (cr.cond_raw, cr.cond_eq) if math.isfinite(v)]
         top = 10.0 ** math.ceil(math.log10(max(finite + [COND_SINGULAR]))) * 100
         for si, s in enumerate(series):
@@ -748,8 +749,6 @@ def conditioning_figure(families: list[FamilyResult]):
         ax.tick_params(which="both", labelsize=7)
         ax.grid(True, lw=0.3)
         ax.legend(fontsize=6)
-    for ax in axes[len(fams):]:
-        ax.set_visible(False)
     fig.suptitle("Condition number of the mass matrix from CRBA (dashed: ill-conditioned / numerically singular)",
                  fontsize=9)
     return fig
