@@ -91,33 +91,44 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
     return "\n".join(lines) + "\n"
 
 
-def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
+def _log_log_by_dim(png: Path, draw, xlabel: str, ylabel: str, title: str, panel_title: str = "{dim}D",
+                    legend_size: int = 8) -> None:
+    """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel."""
     from matplotlib.figure import Figure
 
     from bench.plots import save_figure
 
     fig = Figure(figsize=(12, 5))
     axes = fig.subplots(1, 2, sharey=True)
+    for ax, dim in zip(axes, (2, 3)):
+        draw(ax, dim)
+        ax.set_xscale("log"); ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_title(panel_title.format(dim=dim))
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel(ylabel)
+    axes[1].legend(fontsize=legend_size)
+    fig.suptitle(title)
+    fig.tight_layout()
+    save_figure(fig, png, dpi=110)
+
+
+def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
     markers = dict(zip(sorted(bat["method"].unique()), "osD^v<>p*"))
     floor = 1e-17
-    for ax, dim in zip(axes, (2, 3)):
-        sub = bat[bat["dim"] == dim]
-        for method, g in sub.groupby("method"):
+
+    def draw(ax, dim):
+        for method, g in bat[bat["dim"] == dim].groupby("method"):
             ax.scatter(g["us_per_sample"] * 1e-6, np.maximum(g["max_rel_err"], floor), marker=markers[method],
                        label=method, s=40)
             for _, r in g.iterrows():
                 ax.annotate(f"n={r['n']}" + (" exo5" if r["mechanism"].startswith("exo5") else ""),
                             (r["us_per_sample"] * 1e-6, max(r["max_rel_err"], floor)), fontsize=6,
                             xytext=(3, 3), textcoords="offset points")
-        ax.set_xscale("log"); ax.set_yscale("log")
-        ax.set_xlabel("seconds per sample (batched, median)")
-        ax.set_title(f"{dim}D")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel(f"max relative error vs 50-digit reference (floored at {floor:g})")
-    axes[1].legend(fontsize=8)
-    fig.suptitle("Inverse dynamics: error against run time")
-    fig.tight_layout()
-    save_figure(fig, png, dpi=110)
+
+    _log_log_by_dim(png, draw, "seconds per sample (batched, median)",
+                    f"max relative error vs 50-digit reference (floored at {floor:g})",
+                    "Inverse dynamics: error against run time")
 
 
 # ----------------------------------------------------------------------------- scaling
@@ -179,27 +190,16 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
 
 
 def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
-    from matplotlib.figure import Figure
-
-    from bench.plots import save_figure
-
-    fig = Figure(figsize=(12, 5))
-    axes = fig.subplots(1, 2, sharey=True)
     colors = {m: f"C{k}" for k, m in enumerate(sorted(chains["method"].unique()))}
-    for ax, dim in zip(axes, (2, 3)):
+
+    def draw(ax, dim):
         for (method, batched), g in chains[chains["dim"] == dim].groupby(["method", "batched"]):
             g = g.sort_values("n")
             ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o" if batched else "x", ls="-" if batched else ":",
                     color=colors[method], label=f"{method} ({'batched' if batched else 'per call'})")
-        ax.set_xscale("log"); ax.set_yscale("log")
-        ax.set_xlabel("number of links n")
-        ax.set_title(f"{dim}D serial chains")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("seconds per sample (median)")
-    axes[1].legend(fontsize=7)
-    fig.suptitle("Inverse dynamics: cost against n")
-    fig.tight_layout()
-    save_figure(fig, png, dpi=110)
+
+    _log_log_by_dim(png, draw, "number of links n", "seconds per sample (median)",
+                    "Inverse dynamics: cost against n", panel_title="{dim}D serial chains", legend_size=7)
 
 
 # ----------------------------------------------------------------------------- paper table
