@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.reporting import REPO, REPORTS, atomic_write, provenance
-from bench.runner import publish, staging_dir
+from exo_bench.bench.reporting import REPO, REPORTS, atomic_write, provenance
+from exo_bench.bench.runner import publish, staging_dir
 
 # The paper's table (section 7), seconds in Mathematica to compose the equations.
 PAPER_TABLE = [
@@ -96,7 +96,7 @@ def _log_log_by_dim(png: Path, draw, xlabel: str, ylabel: str, title: str, panel
     """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel."""
     from matplotlib.figure import Figure
 
-    from bench.plots import save_figure
+    from exo_bench.bench.plots import save_figure
 
     fig = Figure(figsize=(12, 5))
     axes = fig.subplots(1, 2, sharey=True)
@@ -314,7 +314,7 @@ def readme_with_table(readme: str, table_md: str, command: str) -> str:
     k = lines.index("## Side by side with the paper")
     block = [ln for ln in lines[k + 1:] if ln.startswith("|")]
     block = block[:2 + len(PAPER_TABLE)]
-    from bench.reporting import machine_info
+    from exo_bench.bench.reporting import machine_info
     info = machine_info()
     body = "\n".join([f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); "
                        "seconds to compose the equations; details in [reports/paper_table.md](reports/paper_table.md)._",

@@ -20,7 +20,7 @@ class _UsageError(Exception):
 
 
 def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from models.mechanism import as_states
+    from exo_bench.models.mechanism import as_states
 
     p = Path(path)
     if not p.exists():
@@ -38,7 +38,7 @@ def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def cmd_presets(args) -> int:
-    from models.presets import preset_descriptions
+    from exo_bench.models.presets import preset_descriptions
 
     for name, desc in preset_descriptions().items():
         print(f"{name:10s} {desc}")
@@ -46,8 +46,8 @@ def cmd_presets(args) -> int:
 
 
 def cmd_inverse(args) -> int:
-    from bench.methods import get_method
-    from models.mechanism import force_names, load_mechanism
+    from exo_bench.bench.methods import get_method
+    from exo_bench.models.mechanism import force_names, load_mechanism
 
     fn = get_method(args.method)  # an unknown method fails before any file is read
     mech = load_mechanism(args.mechanism)
@@ -65,12 +65,12 @@ def cmd_inverse(args) -> int:
 
 
 def cmd_urdf(args) -> int:
-    from models.mechanism import load_mechanism
-    from models.urdf import to_urdf
+    from exo_bench.models.mechanism import load_mechanism
+    from exo_bench.models.urdf import to_urdf
 
     text = to_urdf(load_mechanism(args.mechanism))
     if args.output:
-        from bench.reporting import atomic_write
+        from exo_bench.bench.reporting import atomic_write
         atomic_write(args.output, text)
     else:
         sys.stdout.write(text)
@@ -78,31 +78,31 @@ def cmd_urdf(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from bench.runner import run
+    from exo_bench.bench.runner import run
 
     return run(args)
 
 
 def cmd_bench(args) -> int:
-    from bench.bench_reports import run
+    from exo_bench.bench.bench_reports import run
 
     return run(args)
 
 
 def cmd_errata(args) -> int:
-    from matrix_method.errata import run
+    from exo_bench.matrix_method.errata import run
 
     return run(args)
 
 
 def cmd_stability(args) -> int:
-    from bench.stability import run
+    from exo_bench.bench.stability import run
 
     return run(args)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from bench.methods import method_names
+    from exo_bench.bench.methods import method_names
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from bench import sweep as _sweep
+from exo_bench.bench import sweep as _sweep
 
 _SKIPS: list[dict] = []
 
@@ -31,5 +31,5 @@ def pytest_runtest_logreport(report):
 def pytest_sessionfinish(session, exitstatus):
     path = session.config.getoption("--skips-json")
     if path:
-        from bench.reporting import atomic_write
+        from exo_bench.bench.reporting import atomic_write
         atomic_write(path, json.dumps(_SKIPS, indent=1))

@@ -28,13 +28,13 @@ from typing import Callable
 
 import numpy as np
 
-from bench.stability import UnusableMethodWarning
-from bench.study import one_line
-from models import forward_dynamics as fd
-from models.kinematics import kinetic_energy, total_energy
-from models.mechanism import Mechanism
-from models.motion import Motion, planar_gait, smooth_random_motion
-from models.presets import chain, exo5, random_tree
+from exo_bench.bench.stability import UnusableMethodWarning
+from exo_bench.bench.study import one_line
+from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.kinematics import kinetic_energy, total_energy
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.motion import Motion, planar_gait, smooth_random_motion
+from exo_bench.models.presets import chain, exo5, random_tree
 
 EPS = np.finfo(float).eps
 
@@ -59,7 +59,7 @@ def _state0(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _save_png(fig, path: str | Path, dpi: int = 80) -> Path:
-    from bench.reporting import atomic_write
+    from exo_bench.bench.reporting import atomic_write
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
@@ -394,7 +394,7 @@ def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: i
     sim = fd.simulate(mech, case.q0, case.qd0, (0.0, case.horizon), case.controls, method, integrator, rtol,
                       ATOL_FACTOR * rtol, max_evaluations=max_evaluations, max_seconds=max_seconds)
     mu = np.diag(fd.mass_distribution_matrix(mech))
-    from models.pinocchio_backend import mass_matrix
+    from exo_bench.models.pinocchio_backend import mass_matrix
 
     cond = float(fd.condition_numbers(mass_matrix(mech, case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)
@@ -496,8 +496,8 @@ def terms_agreement(methods: list[str], samples: int = 4) -> list[TermsRow]:
     ``nonLinearEffects``; Pinocchio itself also through its inverse dynamics (the linearity identity)."""
     import time
 
-    from models import pinocchio_backend as pb
-    from models.motion import random_states
+    from exo_bench.models import pinocchio_backend as pb
+    from exo_bench.models.motion import random_states
 
     rows = []
     for mech in (exo5(3), random_tree(5, 3, 9), exo5(2)):
@@ -534,8 +534,8 @@ class SingularDemo:
 
 def singular_demos() -> list[SingularDemo]:
     """Forward dynamics at genuinely singular configurations: refused, with the link named."""
-    from models.motion import gait, random_states
-    from models.pinocchio_backend import inverse_dynamics
+    from exo_bench.models.motion import gait, random_states
+    from exo_bench.models.pinocchio_backend import inverse_dynamics
 
     e3 = exo5(3)
     g = gait(e3, np.array([0.0]))
@@ -599,7 +599,7 @@ def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
     """Every forward-dynamics experiment of the report, at the profile's sizes."""
     import time
 
-    from models.motion import gait
+    from exo_bench.models.motion import gait
 
     t_start = time.perf_counter()
     log("forward dynamics: mass matrices and bias forces per method")

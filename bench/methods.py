@@ -13,15 +13,15 @@ from typing import Callable
 
 import numpy as np
 
-from models.mechanism import Mechanism
+from exo_bench.models.mechanism import Mechanism
 
 #: method name -> (module, function, one-line description)
 METHODS: dict[str, tuple[str, str, str]] = {
-    "pinocchio": ("models.pinocchio_backend", "inverse_dynamics", "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint"),
-    "lagrange": ("lagrange.numeric", "inverse_dynamics", "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse"),
-    "matrix": ("matrix_method.numeric", "inverse_dynamics", "the matrix method: closed-form matrices of eqs. (5)/(17), corrected eq. (18) without divisions, batched numpy"),
-    "matrix-paper": ("matrix_method.numeric", "inverse_dynamics_paper", "the matrix method with eq. (18) exactly as printed (misprints and 0/0 included)"),
-    "recurrence": ("matrix_method.recurrence", "inverse_dynamics", "the recurrence of eqs. (22)-(26) for trees, then eq. (5)/(17)"),
+    "pinocchio": ("exo_bench.models.pinocchio_backend", "inverse_dynamics", "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint"),
+    "lagrange": ("exo_bench.lagrange.numeric", "inverse_dynamics", "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse"),
+    "matrix": ("exo_bench.matrix_method.numeric", "inverse_dynamics", "the matrix method: closed-form matrices of eqs. (5)/(17), corrected eq. (18) without divisions, batched numpy"),
+    "matrix-paper": ("exo_bench.matrix_method.numeric", "inverse_dynamics_paper", "the matrix method with eq. (18) exactly as printed (misprints and 0/0 included)"),
+    "recurrence": ("exo_bench.matrix_method.recurrence", "inverse_dynamics", "the recurrence of eqs. (22)-(26) for trees, then eq. (5)/(17)"),
 }
 
 InverseDynamics = Callable[[Mechanism, np.ndarray, np.ndarray, np.ndarray], np.ndarray]

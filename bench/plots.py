@@ -31,10 +31,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from bench.reporting import atomic_write
-from bench.study import Study
-from models.kinematics import point_mass_positions
-from models.mechanism import Mechanism
+from exo_bench.bench.reporting import atomic_write
+from exo_bench.bench.study import Study
+from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.mechanism import Mechanism
 
 #: Panels of Figs. 7 and 8 span at most this factor between their largest and smallest maximum.
 SCALE_RATIO = 10.0
@@ -74,7 +74,7 @@ class JointBasis:
 @lru_cache(maxsize=64)
 def joint_basis(mech: Mechanism) -> JointBasis:
     """The joint coordinates of ``mech`` (built once per mechanism)."""
-    from models.pinocchio_backend import build_model
+    from exo_bench.models.pinocchio_backend import build_model
 
     pm = build_model(mech)
     G = np.asarray(pm.G, dtype=float)
@@ -480,7 +480,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     (rods, point masses sized by mass, trails of the last 0.2 s) on the left; joint moments,
     rod forces and the differences between methods on the right."""
     _check_ok(study)
-    from bench.recording import trail_points  # the same trails as the recording
+    from exo_bench.bench.recording import trail_points  # the same trails as the recording
 
     mech, t = study.mechanism, study.motion.t
     ok, ref = study.ok_methods(), reference_method(study)

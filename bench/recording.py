@@ -33,13 +33,13 @@ import rerun as rr
 import rerun.blueprint as rrb
 from matplotlib.colors import to_rgb
 
-from bench.plots import (SCALE_RATIO, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
+from exo_bench.bench.plots import (SCALE_RATIO, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
                          group_by_scale, link_color, moment_labels, moments_and_forces, nonfinite_notes,
                          reference_method, scale_caption)
-from bench.reporting import machine_info
-from bench.study import Study
-from models.kinematics import point_mass_positions
-from models.mechanism import Mechanism
+from exo_bench.bench.reporting import machine_info
+from exo_bench.bench.study import Study
+from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.mechanism import Mechanism
 
 APPLICATION_ID = "exo-bench"
 TIMELINE = "time"
@@ -372,7 +372,7 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
     ``size``."""
     from PIL import Image
 
-    from bench.reporting import atomic_write
+    from exo_bench.bench.reporting import atomic_write
 
     exe = rerun_executable()
     if exe is None:

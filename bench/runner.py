@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.reporting import REPORTS, atomic_write, provenance
-from bench.scenes import Scene, load_scene, shipped_scene_names
-from bench.study import Study, finite_max, one_line, run_methods
+from exo_bench.bench.reporting import REPORTS, atomic_write, provenance
+from exo_bench.bench.scenes import Scene, load_scene, shipped_scene_names
+from exo_bench.bench.study import Study, finite_max, one_line, run_methods
 
 
 @dataclass
@@ -39,7 +39,7 @@ class SceneOutcome:
 
 def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     """max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt| per method, along an analytic motion."""
-    from models.kinematics import energy_rate
+    from exo_bench.models.kinematics import energy_rate
 
     f = scene.motion_function()
     if f is None:
@@ -58,7 +58,7 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     """Largest absolute and relative error of each method against the 50-digit reference
     (``bench.reference``: Lagrange in mpmath, or d'Alembert in mpmath beyond sympy's reach) on an
     evenly spaced subsample."""
-    from bench.reference import reference
+    from exo_bench.bench.reference import reference
 
     mo = study.motion
     idx = np.unique(np.linspace(0, mo.q.shape[0] - 1, subsample).round().astype(int))
@@ -160,7 +160,7 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
         o.files.append(p)
     figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
     if figures and o.study.ok_methods():
-        from bench import plots  # matplotlib only for scenes that ask for figures
+        from exo_bench.bench import plots  # matplotlib only for scenes that ask for figures
         make = {"moments": plots.moments_figure, "forces": plots.forces_figure, "kinogram": plots.kinogram_figure,
                 "differences": plots.differences_figure, "overview": plots.overview_figure}
         for kind in figures:
@@ -170,7 +170,7 @@ def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
                 continue
             o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
     if scene.wants("recording"):
-        from bench import recording  # rerun only for scenes that ask for a recording
+        from exo_bench.bench import recording  # rerun only for scenes that ask for a recording
         p = recording.write_recording(o.study, staging / f"{scene.name}.rrd")
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
@@ -246,9 +246,9 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
 
 #: Suite-wide reports the main job writes after the scenes: (label, module, function).
 SUITE_JOBS = (
-    ("errata (exo-bench errata)", "matrix_method.errata", "run"),
-    ("benchmarks (exo-bench bench)", "bench.bench_reports", "run"),
-    ("stability (exo-bench stability)", "bench.stability", "run"),
+    ("errata (exo-bench errata)", "exo_bench.matrix_method.errata", "run"),
+    ("benchmarks (exo-bench bench)", "exo_bench.bench.bench_reports", "run"),
+    ("stability (exo-bench stability)", "exo_bench.bench.stability", "run"),
 )
 
 

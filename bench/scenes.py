@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from models.mechanism import Mechanism, load_mechanism
-from models.motion import GaitParams, Motion, from_arrays, gait, planar_gait, smooth_random_motion
+from exo_bench.models.mechanism import Mechanism, load_mechanism
+from exo_bench.models.motion import GaitParams, Motion, from_arrays, gait, planar_gait, smooth_random_motion
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
 OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording")
@@ -112,7 +112,7 @@ def _number(path, key, value, lo=None, integer=False):
 
 def load_scene(spec: str | Path) -> Scene:
     """A shipped scene name (``bench/scenes/<name>.toml``) or the path of a TOML file."""
-    from bench.methods import METHODS
+    from exo_bench.bench.methods import METHODS
 
     path = Path(spec)
     if not path.suffix and (SHIPPED / f"{spec}.toml").exists():
@@ -133,7 +133,7 @@ def load_scene(spec: str | Path) -> Scene:
     mech_spec = data["mechanism"]
     if not isinstance(mech_spec, str):
         raise _err(path, "mechanism", "a preset name or a JSON file path", mech_spec)
-    from models.presets import PRESETS
+    from exo_bench.models.presets import PRESETS
 
     try:
         mech = load_mechanism(mech_spec if mech_spec in PRESETS else path.parent / mech_spec)

@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.study import one_line
-from models import forward_dynamics as fd
-from models.mechanism import Mechanism
-from models.motion import GaitParams, gait, planar_gait, random_states
-from models.presets import chain, exo5, random_tree
+from exo_bench.bench.study import one_line
+from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.motion import GaitParams, gait, planar_gait, random_states
+from exo_bench.models.presets import chain, exo5, random_tree
 
 EPS = float(np.finfo(float).eps)
 
@@ -273,7 +273,7 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
     """
     why = ""
     try:
-        from bench.reference import reference
+        from exo_bench.bench.reference import reference
 
         return reference(mech, q, qd, qdd)
     except ImportError as e:
@@ -281,14 +281,14 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
     except Exception as e:  # noqa: BLE001
         why = getattr(e, "skip_reason", None) or one_line(e)
     try:
-        from lagrange.reference import inverse_dynamics as lref
+        from exo_bench.lagrange.reference import inverse_dynamics as lref
 
         return lref(mech, q, qd, qdd, dps=50), "Lagrange, mpmath 50 digits"
     except ImportError as e:
         why = why or one_line(e)
     except Exception as e:  # noqa: BLE001
         why = getattr(e, "skip_reason", None) or one_line(e)
-    from models.pinocchio_backend import inverse_dynamics
+    from exo_bench.models.pinocchio_backend import inverse_dynamics
 
     return inverse_dynamics(mech, q, qd, qdd), f"pinocchio (float64 stand-in: {why})"
 
@@ -352,8 +352,8 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
     singularities. ``memo`` carries skips across cases: a method over its budget on a mechanism
     is not tried again on one of the same structure or with at least as many links in the same
     dimension (the symbolic work is the same or larger)."""
-    from bench.methods import get_method
-    from models.pinocchio_backend import mass_matrix
+    from exo_bench.bench.methods import get_method
+    from exo_bench.models.pinocchio_backend import mass_matrix
 
     memo = {} if memo is None else memo
     mech = case.mechanism
@@ -796,8 +796,8 @@ def findings_markdown(families: list[FamilyResult], methods: list[str], forward=
 
 def report_markdown(profile: Profile, methods: list[str], families: list[FamilyResult], forward,
                     seconds: float, figures: list[str]) -> str:
-    from bench.forward import forward_markdown
-    from bench.reporting import provenance
+    from exo_bench.bench.forward import forward_markdown
+    from exo_bench.bench.reporting import provenance
 
     refs = sorted({cr.reference for fr in families for cr in fr.results})
     L = ["# Numerical stability: where each method breaks", "",
@@ -822,9 +822,9 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
 
 def run(args) -> int:
     """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs."""
-    from bench.forward import forward_figures, run_forward
-    from bench.methods import method_names
-    from bench.reporting import REPORTS, atomic_write
+    from exo_bench.bench.forward import forward_figures, run_forward
+    from exo_bench.bench.methods import method_names
+    from exo_bench.bench.reporting import REPORTS, atomic_write
 
     profile = FULL if getattr(args, "full", False) else QUICK
     out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
@@ -838,7 +838,7 @@ def run(args) -> int:
     figs = {"stability-families.png": families_figure(families, methods),
             "stability-conditioning.png": conditioning_figure(families)}
     figs.update(forward_figures(forward))
-    from bench.forward import _save_png
+    from exo_bench.bench.forward import _save_png
 
     written = [_save_png(fig, out / name) for name, fig in figs.items()]
     text = report_markdown(profile, methods, families, forward, time.perf_counter() - t0, list(figs))

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.methods import get_method
-from models.mechanism import Mechanism, force_names
-from models.motion import Motion
+from exo_bench.bench.methods import get_method
+from exo_bench.models.mechanism import Mechanism, force_names
+from exo_bench.models.motion import Motion
 
 
 @dataclass

@@ -13,9 +13,9 @@ import random
 import pytest
 import sympy as sp
 
-from bench.sweep import current
-from models.mechanism import Mechanism
-from models.presets import chain
+from exo_bench.bench.sweep import current
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.presets import chain
 
 COMPOSERS = ("lagrange", "lagrange-expr", "sympy-lagrangesmethod", "sympy-kanesmethod", "matrix", "recurrence")
 _FAILED: dict[tuple, str] = {}
@@ -34,23 +34,23 @@ def model(n: int, dim: int, topology: str) -> Mechanism:
 
 def _composer(method: str, budget: float):
     if method in ("lagrange", "lagrange-expr"):
-        from lagrange import derive
+        from exo_bench.lagrange import derive
         engine = "poly" if method == "lagrange" else "expr"
         return lambda m: derive(m, symbolic_parameters=True, budget=budget, engine=engine, cache=False).equations
     if method in ("sympy-lagrangesmethod", "sympy-kanesmethod"):
-        from lagrange.peer import peer_equations
+        from exo_bench.lagrange.peer import peer_equations
         kind = "lagrange" if method == "sympy-lagrangesmethod" else "kane"
         return lambda m: peer_equations(m, kind, symbolic_parameters=True, budget=budget)
     if method == "matrix":
-        from matrix_method.symbolic import compose_equations
+        from exo_bench.matrix_method.symbolic import compose_equations
         return lambda m: compose_equations(m, symbolic_parameters=True)
-    from matrix_method.recurrence import compose_equations
+    from exo_bench.matrix_method.recurrence import compose_equations
     return lambda m: compose_equations(m, symbolic_parameters=True)
 
 
 def _clear_caches():
-    import lagrange
-    from matrix_method import polynomials
+    from exo_bench import lagrange
+    from exo_bench.matrix_method import polynomials
     sp.core.cache.clear_cache()
     lagrange.clear_cache()
     polynomials.clear_caches()
@@ -65,7 +65,7 @@ def _values(eqs) -> dict:
 def _same_equations(mech: Mechanism, eqs) -> float:
     """Largest relative difference from the matrix method's equations at a random point."""
     if mech not in _REFERENCE:
-        from matrix_method.symbolic import compose_equations
+        from exo_bench.matrix_method.symbolic import compose_equations
         ref = compose_equations(mech, symbolic_parameters=True)
         vals = _values(ref)
         _REFERENCE[mech] = (vals, [sp.N(e.xreplace(vals), 25) for e in ref])

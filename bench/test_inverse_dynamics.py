@@ -8,12 +8,12 @@ import time
 import numpy as np
 import pytest
 
-from bench.methods import METHODS, get_method
-from bench.reference import reference
-from bench.sweep import current
-from models import pinocchio_backend
-from models.motion import smooth_random_motion
-from models.presets import chain, exo5
+from exo_bench.bench.methods import METHODS, get_method
+from exo_bench.bench.reference import reference
+from exo_bench.bench.sweep import current
+from exo_bench.models import pinocchio_backend
+from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.presets import chain, exo5
 
 NUMERIC = ("matrix", "matrix-paper", "recurrence", "lagrange", "pinocchio", "pinocchio-parallel")
 _FAILED: dict[tuple, str] = {}
@@ -53,7 +53,7 @@ def _setup(case, samples, sw):
         pytest.skip(_FAILED[key])
     try:
         if method == "lagrange":  # derive within the sweep's budget (a skip with the reason otherwise)
-            from lagrange import derive
+            from exo_bench.lagrange import derive
             derive(mech, budget=sw.derive_budget)
         fn(mech, mo.q[:2], mo.qd[:2], mo.qdd[:2])  # build models / derive once, outside the timing
     except Exception as e:  # noqa: BLE001

@@ -6,8 +6,8 @@ with numpy, :mod:`lagrange.reference` at 50 significant digits with mpmath, and
 :mod:`lagrange.peer` builds the same equations with ``sympy.physics.mechanics`` as a peer.
 """
 
-from lagrange.budget import BudgetExceeded
-from lagrange.derivation import (Derivation, FormViolation, canonical_form, clear_cache, derive,
+from exo_bench.lagrange.budget import BudgetExceeded
+from exo_bench.lagrange.derivation import (Derivation, FormViolation, canonical_form, clear_cache, derive,
                                  extract_matrices, rebuild_equations)
 
 __all__ = ["BudgetExceeded", "Derivation", "FormViolation", "canonical_form", "clear_cache", "derive",

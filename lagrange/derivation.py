@@ -44,9 +44,9 @@ import sympy as sp
 from sympy import QQ
 from sympy.polys.rings import ring
 
-from lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
-from models.mechanism import Mechanism
-from models.symbols import Symbols, symbols_for
+from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.symbols import Symbols, symbols_for
 
 #: blocks of coordinates (rows of the matrix form), in block order
 BLOCKS = {2: ("phi", "l"), 3: ("phi", "psi", "l")}

@@ -20,9 +20,9 @@ from typing import Callable
 import numpy as np
 import sympy as sp
 
-from lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
-from lagrange.derivation import derive
-from models.mechanism import Mechanism, as_states
+from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
+from exo_bench.lagrange.derivation import derive
+from exo_bench.models.mechanism import Mechanism, as_states
 
 DEFAULT_BUDGET = 120.0
 BUDGET_ENV = "EXO_BENCH_LAGRANGE_BUDGET"

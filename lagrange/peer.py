@@ -22,10 +22,10 @@ import time
 import sympy as sp
 from sympy.physics import mechanics as me
 
-from lagrange.budget import time_budget
-from lagrange.derivation import parameter_values
-from models.mechanism import Mechanism
-from models.symbols import symbols_for
+from exo_bench.lagrange.budget import time_budget
+from exo_bench.lagrange.derivation import parameter_values
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.symbols import symbols_for
 
 KINDS = ("lagrange", "kane")
 

@@ -23,10 +23,10 @@ import mpmath
 import numpy as np
 import sympy as sp
 
-from lagrange.budget import time_budget
-from lagrange.derivation import derive
-from lagrange.numeric import default_budget
-from models.mechanism import Mechanism, as_states
+from exo_bench.lagrange.budget import time_budget
+from exo_bench.lagrange.derivation import derive
+from exo_bench.lagrange.numeric import default_budget
+from exo_bench.models.mechanism import Mechanism, as_states
 
 
 @dataclass(frozen=True)

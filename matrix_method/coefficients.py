@@ -33,8 +33,8 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from models.mechanism import Mechanism
-from models.symbols import Symbols
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.symbols import Symbols
 
 
 # ----------------------------------------------------------------- numeric

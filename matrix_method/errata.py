@@ -24,12 +24,12 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from matrix_method import numeric, printed
-from matrix_method.printed import Printed
-from models import pinocchio_backend as pb
-from models.mechanism import Mechanism, split
-from models.motion import gait, random_states
-from models.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
+from exo_bench.matrix_method import numeric, printed
+from exo_bench.matrix_method.printed import Printed
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.motion import gait, random_states
+from exo_bench.models.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
 
 TOLERANCE = 1e-9
 SAMPLES = 12
@@ -112,7 +112,7 @@ class PinocchioWitness:
 @lru_cache(maxsize=256)
 def _lagrange_compiled(mech: Mechanism, budget: float):
     """Lagrange's matrices and equations of a mechanism, lambdified (cached)."""
-    from lagrange import derive
+    from exo_bench.lagrange import derive
 
     d = derive(mech, symbolic_parameters=False, budget=budget)
     S = d.symbols
@@ -535,7 +535,7 @@ def compute() -> Results:
 def render(r: Results) -> str:
     verdicts, branch, singular, gait_, residual, seconds = (r.verdicts, r.branch, r.singular, r.gait, r.residual,
                                                            r.seconds)
-    from bench.reporting import provenance
+    from exo_bench.bench.reporting import provenance
 
     L = ["# Errata of Borisov & Chigarev, by computation", "", provenance("exo-bench errata")]
     checked = [v for v in verdicts if v.status != "not checkable"]
@@ -650,7 +650,7 @@ def render(r: Results) -> str:
 def write_report(path=None, results: Results | None = None):
     """Compute every check (unless ``results`` are given) and write ``reports/errata.md``
     atomically; returns the path."""
-    from bench.reporting import REPORTS, atomic_write
+    from exo_bench.bench.reporting import REPORTS, atomic_write
 
     text = render(results or compute())
     return atomic_write(path or REPORTS / "errata.md", text)

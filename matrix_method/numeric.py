@@ -22,9 +22,9 @@ import warnings
 
 import numpy as np
 
-from matrix_method import planar, spatial
-from matrix_method.coefficients import signed_coupling, signed_gravity
-from models.mechanism import Mechanism, as_states, split
+from exo_bench.matrix_method import planar, spatial
+from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.models.mechanism import Mechanism, as_states, split
 
 #: Rate vector multiplying each matrix in eq. (17): (matrix name) -> (factor, block(s) of the rates).
 _RATES = {"A": ("phi",), "B": ("psi",), "Lambda": ("l",), "D": ("phi", "phi"), "E": ("psi", "psi"),
@@ -233,7 +233,7 @@ def paper_matrices(mech: Mechanism, q, table=None, exact: bool = False) -> dict[
     ``table`` (default :data:`matrix_method.printed.TRANSITIONS`) lets a test swap printed lines for
     corrected ones. A 2D model has no transitions: its matrices are the planar closed forms.
     """
-    from matrix_method import printed
+    from exo_bench.matrix_method import printed
 
     if exact:
         import sympy as sp

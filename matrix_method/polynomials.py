@@ -29,8 +29,8 @@ from sympy.core.add import Add
 from sympy.core.basic import Basic, ordering_of_classes
 from sympy.core.mul import Mul
 
-from models.mechanism import Mechanism
-from models.symbols import symbols_for
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.symbols import symbols_for
 
 
 # ------------------------------------------------------------------ sympy's canonical order

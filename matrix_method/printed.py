@@ -25,8 +25,8 @@ from typing import Callable
 
 import numpy as np
 
-from matrix_method.coefficients import link_aggregates
-from models.mechanism import Mechanism, split
+from exo_bench.matrix_method.coefficients import link_aggregates
+from exo_bench.models.mechanism import Mechanism, split
 
 
 @dataclass(frozen=True)

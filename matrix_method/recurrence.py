@@ -26,12 +26,12 @@ from typing import Iterator
 import numpy as np
 import sympy as sp
 
-from matrix_method import planar
-from matrix_method import numeric as _numeric
-from matrix_method import symbolic as _symbolic
-from matrix_method.coefficients import generic_recurrence_increments, recurrence_increments
-from matrix_method.polynomials import Generators, generators
-from models.mechanism import Mechanism, as_states, split
+from exo_bench.matrix_method import planar
+from exo_bench.matrix_method import numeric as _numeric
+from exo_bench.matrix_method import symbolic as _symbolic
+from exo_bench.matrix_method.coefficients import generic_recurrence_increments, recurrence_increments
+from exo_bench.matrix_method.polynomials import Generators, generators
+from exo_bench.models.mechanism import Mechanism, as_states, split
 
 
 # ------------------------------------------------------------------ numeric

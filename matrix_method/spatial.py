@@ -44,7 +44,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from matrix_method import planar
+from exo_bench.matrix_method import planar
 
 
 #: The planar elements whose quotient by ``cos(phi_i - phi_j)`` the transitions use.

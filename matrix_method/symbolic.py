@@ -22,11 +22,11 @@ from functools import lru_cache
 
 import sympy as sp
 
-from matrix_method import planar, spatial
-from matrix_method.coefficients import generic_coupling
-from matrix_method.polynomials import Generators, generators
-from models.mechanism import Mechanism
-from models.symbols import symbols_for
+from exo_bench.matrix_method import planar, spatial
+from exo_bench.matrix_method.coefficients import generic_coupling
+from exo_bench.matrix_method.polynomials import Generators, generators
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.symbols import symbols_for
 
 PLANAR_NAMES = ("A", "Lambda", "D", "H")
 SPATIAL_NAMES = ("A", "B", "Lambda", "D", "E", "G", "H", "K")
@@ -157,7 +157,7 @@ def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tup
 def lambdified(mech: Mechanism, recurrence: bool = False):
     """The composed equations as one numpy function ``f(q..., qd..., qdd...)`` (cached)."""
     if recurrence:
-        from matrix_method.recurrence import compose_equations as compose
+        from exo_bench.matrix_method.recurrence import compose_equations as compose
     else:
         compose = compose_equations
     S = symbols_for(mech.nlinks, mech.dim)

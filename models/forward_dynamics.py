@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from models.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism import Mechanism, as_states, split
 
 #: ``|cos psi|`` at or below which a rod counts as vertical to working precision. The float
 #: nearest pi/2 has ``cos = 6.1e-17``; angles within two units in the last place of pi/2
@@ -94,7 +94,7 @@ def exposed_terms(method: str):
     """
     import importlib
 
-    from bench.methods import METHODS
+    from exo_bench.bench.methods import METHODS
 
     if method not in METHODS:
         raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
@@ -118,7 +118,7 @@ def mass_matrix_and_bias(mech: Mechanism, q: np.ndarray, qd: np.ndarray, method:
     if terms is not None:
         mm, bf = terms
         return np.asarray(mm(mech, q), dtype=float), np.asarray(bf(mech, q, qd), dtype=float)
-    from bench.methods import get_method
+    from exo_bench.bench.methods import get_method
 
     return terms_from_inverse_dynamics(get_method(method), mech, q, qd)
 
@@ -128,7 +128,7 @@ _EXPOSED: dict[tuple, object] = {}
 
 def _exposed_cached(method: str):
     """:func:`exposed_terms`, looked up once per registry entry (the right-hand side calls it often)."""
-    from bench.methods import METHODS
+    from exo_bench.bench.methods import METHODS
 
     key = (method, METHODS.get(method))
     if key not in _EXPOSED:
@@ -256,7 +256,7 @@ def prescribed_controls(mech: Mechanism, motion_of_t, method: str = "pinocchio")
     """``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` on the fly along an analytic motion (any ``t``,
     no interpolation): the controls that should reproduce the motion. ``motion_of_t(t)`` returns
     a :class:`models.motion.Motion` for an array of times."""
-    from bench.methods import get_method
+    from exo_bench.bench.methods import get_method
 
     fn = get_method(method)
 

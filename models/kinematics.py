@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from models.mechanism import Mechanism, split
+from exo_bench.models.mechanism import Mechanism, split
 
 
 def unit_vectors(mech: Mechanism, q: np.ndarray):

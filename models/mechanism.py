@@ -264,7 +264,7 @@ def _validate(m: Mechanism) -> None:
 
 def load_mechanism(spec: str | Path) -> Mechanism:
     """A preset name (see ``exo-bench presets``) or the path of a JSON file."""
-    from models.presets import PRESETS
+    from exo_bench.models.presets import PRESETS
 
     key = str(spec)
     if key in PRESETS:

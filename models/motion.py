@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism import Mechanism, as_states
 
 
 @dataclass(frozen=True)

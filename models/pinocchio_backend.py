@@ -14,8 +14,8 @@ from functools import lru_cache
 import numpy as np
 import pinocchio as pin
 
-from models.mechanism import Mechanism, as_states
-from models.urdf import link_prefix, to_urdf
+from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.urdf import link_prefix, to_urdf
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from models.mechanism import Mechanism
+from exo_bench.models.mechanism import Mechanism
 
 G = 9.81
 

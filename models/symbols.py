@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import sympy as sp
 
-from models.mechanism import Mechanism
+from exo_bench.models.mechanism import Mechanism
 
 
 @dataclass(frozen=True)

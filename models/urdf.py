@@ -26,7 +26,7 @@ from __future__ import annotations
 import re
 from xml.sax.saxutils import quoteattr
 
-from models.mechanism import Mechanism
+from exo_bench.models.mechanism import Mechanism
 
 _LIMIT = '<limit effort="1e6" velocity="1e6" lower="-1e3" upper="1e3"/>'
 

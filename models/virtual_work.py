@@ -20,7 +20,7 @@ from __future__ import annotations
 import mpmath
 import numpy as np
 
-from models.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism import Mechanism, as_states
 
 
 def _unit(dim, phi, psi):

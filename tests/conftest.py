@@ -16,8 +16,8 @@ def rel():
 def power_balance_residual(inverse_dynamics, mech, seed: int) -> float:
     """max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt| along a seeded smooth motion, with T and Pi
     summed over the point masses (models.kinematics): the power balance every method must satisfy."""
-    from models.kinematics import energy_rate
-    from models.motion import smooth_random_motion
+    from exo_bench.models.kinematics import energy_rate
+    from exo_bench.models.motion import smooth_random_motion
 
     f = lambda t: smooth_random_motion(mech, t, seed=seed)
     t = np.linspace(0.0, 3.0, 40)

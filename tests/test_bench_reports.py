@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from bench.bench_reports import (PAPER_TABLE, README_END, README_START, crossover, fit_exponent, paper_table,
+from exo_bench.bench.bench_reports import (PAPER_TABLE, README_END, README_START, crossover, fit_exponent, paper_table,
                                  readme_with_table)
 
 

@@ -7,13 +7,13 @@ import sys
 import numpy as np
 import pytest
 
-from models import pinocchio_backend as pb
-from models.motion import gait, random_states
-from models.presets import exo5, random_tree
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.motion import gait, random_states
+from exo_bench.models.presets import exo5, random_tree
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "bench.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd, timeout=120)
 
 

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from matrix_method import coefficients as co
-from models.kinematics import kinetic_energy, potential_energy, unit_vectors
-from models.mechanism import split
-from models.motion import random_states
-from models.presets import chain, fig5, random_tree
-from models.symbols import symbols_for
+from exo_bench.matrix_method import coefficients as co
+from exo_bench.models.kinematics import kinetic_energy, potential_energy, unit_vectors
+from exo_bench.models.mechanism import split
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import chain, fig5, random_tree
+from exo_bench.models.symbols import symbols_for
 
 
 @pytest.mark.parametrize("n,dim,seed", [(1, 2, 1), (4, 2, 2), (6, 3, 3), (7, 3, 4), (5, 2, 5)])

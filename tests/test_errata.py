@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from bench.cli import main
-from lagrange import BudgetExceeded
-from matrix_method import errata, printed
-from models.motion import random_states
-from models.presets import fig2b, random_tree
+from exo_bench.bench.cli import main
+from exo_bench.lagrange import BudgetExceeded
+from exo_bench.matrix_method import errata, printed
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import fig2b, random_tree
 
 
 @pytest.mark.parametrize("n,dim,seed", [(1, 2, 1), (4, 2, 2), (1, 3, 3), (4, 3, 4), (6, 3, 5)])

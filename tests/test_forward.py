@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from bench import forward as fw
-from bench.methods import METHODS
-from models import forward_dynamics as fd
+from exo_bench.bench import forward as fw
+from exo_bench.bench.methods import METHODS
+from exo_bench.models import forward_dynamics as fd
 
 
 @pytest.fixture(scope="module")

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from models import forward_dynamics as fd
-from models import pinocchio_backend as pb
-from models.kinematics import kinetic_energy, point_mass_velocities
-from models.mechanism import split
-from models.motion import random_states
-from models.presets import exo5, fig1, random_tree
+from exo_bench.models import forward_dynamics as fd
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.kinematics import kinetic_energy, point_mass_velocities
+from exo_bench.models.mechanism import split
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import exo5, fig1, random_tree
 
 TREES = [random_tree(5, 3, 11), random_tree(5, 2, 12), random_tree(4, 3, 13)]
 

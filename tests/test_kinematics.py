@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from models.kinematics import (energy_rate, kinetic_energy, point_mass_positions, point_mass_velocities,
+from exo_bench.models.kinematics import (energy_rate, kinetic_energy, point_mass_positions, point_mass_velocities,
                                potential_energy, total_energy)
-from models.motion import smooth_random_motion
-from models.presets import fig1, random_tree
+from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.presets import fig1, random_tree
 
 
 @pytest.mark.parametrize("dim", [2, 3])

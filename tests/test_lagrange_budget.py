@@ -7,12 +7,12 @@ import time
 import numpy as np
 import pytest
 
-from bench.study import run_methods
-from lagrange import BudgetExceeded, derive
-from lagrange import numeric as ln
-from lagrange.budget import time_budget
-from models.motion import random_states, smooth_random_motion
-from models.presets import chain
+from exo_bench.bench.study import run_methods
+from exo_bench.lagrange import BudgetExceeded, derive
+from exo_bench.lagrange import numeric as ln
+from exo_bench.lagrange.budget import time_budget
+from exo_bench.models.motion import random_states, smooth_random_motion
+from exo_bench.models.presets import chain
 
 
 def test_tiny_budget_on_a_large_model_raises_quickly_naming_n_and_dim():

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from lagrange import canonical_form, derive
-from lagrange.derivation import parameter_values
-from lagrange.peer import peer_equations
-from models.motion import random_states
-from models.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.lagrange import canonical_form, derive
+from exo_bench.lagrange.derivation import parameter_values
+from exo_bench.lagrange.peer import peer_equations
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
 
 CASES = [
     (fig1(2), "lagrange"), (fig2a(2), "lagrange"), (fig2b(2), "lagrange"), (fig2b(2), "kane"),

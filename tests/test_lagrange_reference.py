@@ -5,10 +5,10 @@ import mpmath
 import numpy as np
 import pytest
 
-from lagrange import numeric as ln
-from lagrange import reference as lr
-from models.motion import gait, random_states
-from models.presets import exo5, fig1, random_tree
+from exo_bench.lagrange import numeric as ln
+from exo_bench.lagrange import reference as lr
+from exo_bench.models.motion import gait, random_states
+from exo_bench.models.presets import exo5, fig1, random_tree
 
 
 @pytest.mark.parametrize("n,dim,seed", [(2, 2, 60), (4, 2, 61), (3, 3, 62), (4, 3, 63)])

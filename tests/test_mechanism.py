@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from models.mechanism import Mechanism, as_states, coordinate_names, load_mechanism, save_mechanism
-from models.presets import PRESETS, exo5, random_tree
+from exo_bench.models.mechanism import Mechanism, as_states, coordinate_names, load_mechanism, save_mechanism
+from exo_bench.models.presets import PRESETS, exo5, random_tree
 
 ISSUE_EXAMPLE = {"dim": 3, "g": 9.81,
                  "links": [{"parent": -1, "sign": 1, "masses": [0.7275, 1.455, 0.7275], "n": 0.595},

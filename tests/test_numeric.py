@@ -9,12 +9,12 @@ import pytest
 from conftest import power_balance_residual
 import sympy as sp
 
-from bench.cli import main
-from lagrange import numeric as lagrange_numeric
-from matrix_method import errata, numeric, printed
-from models import pinocchio_backend as pb
-from models.motion import gait, random_states
-from models.presets import exo5, fig5, random_tree
+from exo_bench.bench.cli import main
+from exo_bench.lagrange import numeric as lagrange_numeric
+from exo_bench.matrix_method import errata, numeric, printed
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.motion import gait, random_states
+from exo_bench.models.presets import exo5, fig5, random_tree
 
 #: 100 seeded random trees: n = 1..6, 2D and 3D, random parents (several roots) and signs.
 TREES = [(1 + s % 6, 2 if (s // 6) % 2 == 0 else 3, s) for s in range(100)]

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from conftest import power_balance_residual
 
-from models import pinocchio_backend as pb
-from models.kinematics import kinetic_energy, point_mass_positions
-from models.motion import random_states
-from models.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.kinematics import kinetic_energy, point_mass_positions
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
 
 
 def _one_link_aggregates(m):

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from matrix_method import numeric
-from matrix_method.errata import LagrangeWitness, pinocchio_matrices
-from models.motion import random_states
-from models.presets import fig2a, fig2b, random_tree
+from exo_bench.matrix_method import numeric
+from exo_bench.matrix_method.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import fig2a, fig2b, random_tree
 
 TREES = [(1, 1), (2, 2), (3, 3), (4, 4), (5, 5), (6, 6), (6, 7)]
 

@@ -9,15 +9,15 @@ import pytest
 from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 
-from bench import plots
-from bench.plots import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
+from exo_bench.bench import plots
+from exo_bench.bench.plots import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
                          kinogram_figure, moments_and_forces, moments_figure, save_figure, write_plots)
-from bench.study import MethodResult, Study, run_methods
-from models.kinematics import point_mass_positions
-from models.mechanism import split
-from models.motion import GaitParams, gait, planar_gait, random_states
-from models.pinocchio_backend import build_model, inverse_dynamics, joint_torques
-from models.presets import exo5, fig2b, fig5, random_tree
+from exo_bench.bench.study import MethodResult, Study, run_methods
+from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.mechanism import split
+from exo_bench.models.motion import GaitParams, gait, planar_gait, random_states
+from exo_bench.models.pinocchio_backend import build_model, inverse_dynamics, joint_torques
+from exo_bench.models.presets import exo5, fig2b, fig5, random_tree
 
 
 def _study(mech, motion_fn, samples=120, noisy=False) -> Study:

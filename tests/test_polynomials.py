@@ -7,9 +7,9 @@ import pytest
 import sympy as sp
 from sympy.core.basic import Basic
 
-from matrix_method import polynomials, symbolic
-from matrix_method.polynomials import Poly, order_key
-from models.presets import exo5, random_tree
+from exo_bench.matrix_method import polynomials, symbolic
+from exo_bench.matrix_method.polynomials import Poly, order_key
+from exo_bench.models.presets import exo5, random_tree
 
 
 def _random_exprs(seed, count=60):

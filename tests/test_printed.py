@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from matrix_method import printed
-from matrix_method.errata import pinocchio_matrices
-from models import pinocchio_backend as pb
-from models.motion import random_states
-from models.presets import exo5, fig1, fig5, random_tree
+from exo_bench.matrix_method import printed
+from exo_bench.matrix_method.errata import pinocchio_matrices
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import exo5, fig1, fig5, random_tree
 
 BY_KEY = {f.key: f for f in printed.ALL}
 

@@ -17,15 +17,15 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from bench import recording
-from bench.plots import force_labels, moment_labels
-from bench.recording import (TRAIL_SECONDS, rerun_executable, trail_indices, trail_points, verify_recording,
+from exo_bench.bench import recording
+from exo_bench.bench.plots import force_labels, moment_labels
+from exo_bench.bench.recording import (TRAIL_SECONDS, rerun_executable, trail_indices, trail_points, verify_recording,
                              write_recording)
-from bench.study import MethodResult, Study, run_methods
-from models.kinematics import point_mass_positions
-from models.motion import GaitParams, gait, planar_gait
-from models.pinocchio_backend import build_model, joint_torques
-from models.presets import exo5, fig2a, fig2b, fig5
+from exo_bench.bench.study import MethodResult, Study, run_methods
+from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.motion import GaitParams, gait, planar_gait
+from exo_bench.models.pinocchio_backend import build_model, joint_torques
+from exo_bench.models.presets import exo5, fig2a, fig2b, fig5
 
 NOISE = 1e-6
 

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from lagrange import numeric as lagrange_numeric
-from matrix_method import numeric, recurrence, symbolic
-from matrix_method.errata import prefix, prefix_states
-from models import pinocchio_backend as pb
-from models.motion import random_states
-from models.presets import exo5, random_tree
+from exo_bench.lagrange import numeric as lagrange_numeric
+from exo_bench.matrix_method import numeric, recurrence, symbolic
+from exo_bench.matrix_method.errata import prefix, prefix_states
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import exo5, random_tree
 
 TREES = [(1 + s % 6, 2 if (s // 6) % 2 == 0 else 3, s) for s in range(100)]
 
@@ -71,7 +71,7 @@ def test_symbolic_recurrence_matrices_evaluate_to_the_numeric_ones():
     q, _, _ = random_states(m, 3, 1)
     mats = recurrence.symbolic_matrices(m)
     num = recurrence.matrices(m, q)
-    from models.symbols import symbols_for
+    from exo_bench.models.symbols import symbols_for
     import sympy as sp
     S = symbols_for(4, 3)
     for block in num:

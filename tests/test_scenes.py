@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from bench.scenes import load_scene, shipped_scene_names
-from models.presets import random_tree
+from exo_bench.bench.scenes import load_scene, shipped_scene_names
+from exo_bench.models.presets import random_tree
 
 
 def test_every_shipped_scene_loads_and_builds_its_motion():
@@ -16,7 +16,7 @@ def test_every_shipped_scene_loads_and_builds_its_motion():
         mo = sc.build_motion()
         assert mo.q.shape[1] == sc.mechanism.dof
         if sc.mechanism.dim == 2:  # a 2D scene has no psi anywhere
-            from models.mechanism import coordinate_names, force_names
+            from exo_bench.models.mechanism import coordinate_names, force_names
             assert not any("psi" in c for c in coordinate_names(sc.mechanism) + force_names(sc.mechanism))
 
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from matrix_method import numeric, planar, spatial
-from matrix_method.coefficients import signed_coupling
-from matrix_method.errata import LagrangeWitness, pinocchio_matrices
-from models.motion import random_states
-from models.presets import exo5, fig5, random_tree
+from exo_bench.matrix_method import numeric, planar, spatial
+from exo_bench.matrix_method.coefficients import signed_coupling
+from exo_bench.matrix_method.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import exo5, fig5, random_tree
 
 TREES = [(2, 1), (3, 2), (4, 3), (5, 4), (6, 5), (6, 6)]
 

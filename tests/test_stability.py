@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from bench import stability as st
-from bench.methods import METHODS, get_method, method_names
-from models import pinocchio_backend as pb
+from exo_bench.bench import stability as st
+from exo_bench.bench.methods import METHODS, get_method, method_names
+from exo_bench.models import pinocchio_backend as pb
 
 TINY = dataclasses.replace(
     st.QUICK, name="test", samples=1, distances=(1e-6, 0.0), lengths=(0.0, 1.0), one_length=(0.0,),
@@ -107,7 +107,7 @@ def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatc
 def test_the_report_has_rows_for_every_family_and_method(tmp_path, monkeypatch):
     """End to end on a tiny profile: `exo-bench stability` writes the report and its plots; every
     family has a summary row for every method registered at run time; the round trip passes."""
-    from bench.cli import main
+    from exo_bench.bench.cli import main
 
     monkeypatch.setattr(st, "QUICK", TINY)
     monkeypatch.setenv("EXO_BENCH_LAGRANGE_BUDGET", "2")

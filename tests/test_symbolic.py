@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from lagrange import canonical_form, derive
-from matrix_method import numeric, symbolic
-from models.motion import random_states
-from models.presets import fig1, fig2a, fig2b, random_tree
-from models.symbols import symbols_for
+from exo_bench.lagrange import canonical_form, derive
+from exo_bench.matrix_method import numeric, symbolic
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.models.symbols import symbols_for
 
 MODELS = [fig1(2), fig2a(2), fig2b(2), random_tree(3, 2, 3), random_tree(3, 2, 4),
           fig1(3), fig2b(3), random_tree(2, 3, 5), random_tree(3, 3, 6), random_tree(3, 3, 7)]

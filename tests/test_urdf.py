@@ -6,8 +6,8 @@ import xml.etree.ElementTree as ET
 import pinocchio as pin
 import pytest
 
-from models.presets import exo5, fig2b, random_tree
-from models.urdf import to_urdf
+from exo_bench.models.presets import exo5, fig2b, random_tree
+from exo_bench.models.urdf import to_urdf
 
 
 def _parse(mech):

@@ -4,11 +4,11 @@ import mpmath
 import numpy as np
 import pytest
 
-from models import pinocchio_backend as pb
-from models import virtual_work as vw
-from models.kinematics import energy_rate
-from models.motion import random_states, smooth_random_motion
-from models.presets import chain, exo5, random_tree
+from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models import virtual_work as vw
+from exo_bench.models.kinematics import energy_rate
+from exo_bench.models.motion import random_states, smooth_random_motion
+from exo_bench.models.presets import chain, exo5, random_tree
 
 
 @pytest.mark.parametrize("n,dim,seed", [(1, 2, 0), (3, 2, 1), (7, 2, 2), (1, 3, 3), (4, 3, 4), (8, 3, 5)])
@@ -21,7 +21,7 @@ def test_agrees_with_pinocchio_on_random_trees(n, dim, seed, rel):
 def test_power_balance_holds_to_many_digits_along_the_gait():
     """With 50-digit forces, tau . qd matches d(T+Pi)/dt up to the difference stencil's own error."""
     m = exo5(3)
-    from models.motion import gait
+    from exo_bench.models.motion import gait
     f = lambda t: gait(m, t)
     t = np.linspace(0.05, 1.0, 7)
     mo = f(t)
