@@ -3,8 +3,10 @@
 Every entry point of :mod:`lagrange` takes ``budget`` (seconds) and runs its work inside
 :func:`time_budget`. Two mechanisms stop the work:
 
-* **SIGALRM** (``signal.setitimer``), armed only in the main thread, interrupts any pure-Python
-  sympy call (expansion, ``lambdify``, ``cse``) when the budget runs out;
+* **SIGALRM** (``signal.setitimer``), armed only in the main thread and only while the budget is
+  open (the previous handler is restored on exit), interrupts any pure-Python sympy call
+  (expansion, ``lambdify``, ``cse``) when the budget runs out; :func:`without_interrupts` (the
+  ``interrupt=False`` option of a prepared Lagrange model) turns it off;
 * **cooperative checks**: the derivation's own loops call :meth:`Deadline.check` per point mass,
   per coordinate and per equation. Outside the main thread (where a signal cannot be armed) these
   checks are the only stop, so a single long sympy call there (a large ``lambdify``) can
@@ -76,6 +78,19 @@ class Deadline:
 _active = threading.local()
 
 
+@contextmanager
+def without_interrupts():
+    """Within this block, budgets use only their cooperative checks: no SIGALRM handler is
+    installed, even in the main thread (for callers that own the signal, or that run an event
+    loop). A single long sympy call can then overrun the budget until it returns."""
+    before = getattr(_active, "no_signals", False)
+    _active.no_signals = True
+    try:
+        yield
+    finally:
+        _active.no_signals = before
+
+
 def current_deadline() -> Deadline | None:
     """The innermost active deadline of this thread, if any."""
     stack = getattr(_active, "stack", None)
@@ -96,7 +111,8 @@ def time_budget(budget: float, what: str, nlinks: int, dim: int):
     if outer is not None and outer.end < dl.end:
         # The enclosing budget ends first: it is the one that is exceeded.
         dl = Deadline(outer.what, outer.nlinks, outer.dim, outer.budget, start=outer.start)
-    main = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    main = (threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+            and not getattr(_active, "no_signals", False))
     old_handler = None
     old_remaining = 0.0
     if main:

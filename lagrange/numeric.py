@@ -5,14 +5,12 @@ Every function takes states as batch-first ``(samples, dof)`` arrays in block or
 :func:`models.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
 (derivation plus ``lambdify``) the first time a mechanism is seen; the compiled functions are
 cached per mechanism. Over budget, :class:`lagrange.BudgetExceeded` carries a ``skip_reason``.
-``budget=None`` means :func:`default_budget`: the environment variable ``EXO_BENCH_LAGRANGE_BUDGET``
-(seconds) when set, else 120 s; it is read at call time, so a benchmark run through the method
-registry (which passes no budget) can set it.
+``budget=None`` means :data:`DEFAULT_BUDGET` (120 s). The prepared model
+(:class:`lagrange.prepared.LagrangeModel`) takes the budget as a constructor option.
 """
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -25,21 +23,11 @@ from exo_bench.lagrange.derivation import derive
 from exo_bench.models.mechanism import Mechanism, as_states
 
 DEFAULT_BUDGET = 120.0
-BUDGET_ENV = "EXO_BENCH_LAGRANGE_BUDGET"
 
 
 def default_budget() -> float:
-    """Seconds allowed for the symbolic work: ``$EXO_BENCH_LAGRANGE_BUDGET`` or 120."""
-    text = os.environ.get(BUDGET_ENV)
-    if text is None:
-        return DEFAULT_BUDGET
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value > 0:
-        raise ValueError(f"environment variable {BUDGET_ENV}: expected a positive number of seconds, got {text!r}")
-    return value
+    """Seconds allowed for the symbolic work when no budget is given: :data:`DEFAULT_BUDGET`."""
+    return DEFAULT_BUDGET
 
 
 @dataclass(frozen=True)

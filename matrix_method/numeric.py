@@ -24,15 +24,13 @@ import numpy as np
 
 from exo_bench.matrix_method import planar, spatial
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.models import equation_form
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
-#: Rate vector multiplying each matrix in eq. (17): (matrix name) -> (factor, block(s) of the rates).
-_RATES = {"A": ("phi",), "B": ("psi",), "Lambda": ("l",), "D": ("phi", "phi"), "E": ("psi", "psi"),
-          "G": ("phi", "psi"), "H": ("phi", "l"), "K": ("psi", "l")}
 
 
 def blocks(mech: Mechanism) -> tuple[str, ...]:
-    return ("phi", "psi", "l") if mech.dim == 3 else ("phi", "l")
+    return equation_form.blocks(mech.dim)
 
 
 def _pair_geometry(phi: np.ndarray, l: np.ndarray):
@@ -106,18 +104,25 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
     phi_dd, psi_dd, l_dd = split(mech, qdd)
     first = {"phi": phi_d, "psi": psi_d, "l": l_d}
     second = {"phi": phi_dd, "psi": psi_dd, "l": l_dd}
-    factor = {"D": 1.0, "E": 1.0, "G": 2.0, "H": 2.0, "K": 2.0}
     rows = []
     for block in blocks(mech):
         tau = mech.g * mats[block]["P"]                                 # gravity
         for name, m in mats[block].items():
             if name == "P":
                 continue
-            r = _RATES[name]
-            x = second[r[0]] if len(r) == 1 else factor[name] * first[r[0]] * first[r[1]]
+            factor, r = equation_form.RATES[name]
+            x = second[r[0]] if len(r) == 1 else factor * first[r[0]] * first[r[1]]
             tau = tau + np.einsum("sij,sj->si", m, x)
         rows.append(tau)
     return np.concatenate(rows, axis=1)
+
+
+def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
+    """Eq. (5) / (17): the mass matrix ``(S, dof, dof)`` assembled from the matrices multiplying the
+    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`equation_form.ACCELERATION`)."""
+    bl = blocks(mech)
+    return np.concatenate([np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2)
+                           for r in bl], axis=1)
 
 
 def in_blocks(mech: Mechanism, build, q, qd, qdd, block: int | None = None) -> np.ndarray:

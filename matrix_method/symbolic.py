@@ -28,12 +28,7 @@ from exo_bench.matrix_method.polynomials import Generators, generators
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import symbols_for
 
-PLANAR_NAMES = ("A", "Lambda", "D", "H")
-SPATIAL_NAMES = ("A", "B", "Lambda", "D", "E", "G", "H", "K")
-
-
-def blocks(dim: int) -> tuple[str, ...]:
-    return ("phi", "psi", "l") if dim == 3 else ("phi", "l")
+from exo_bench.models.equation_form import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
 
 
 def planar_entries(G: Generators, c, pairs, straight: bool = False):
@@ -117,14 +112,16 @@ def matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, di
 
 
 def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
-    """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j."""
-    r = {"A": [G["ddphi", j] for j in range(n)], "Lambda": [G["ddl", j] for j in range(n)],
-         "D": [G["dphi", j] ** 2 for j in range(n)], "H": [2 * G["dphi", j] * G["dl", j] for j in range(n)]}
-    if dim == 3:
-        r.update({"B": [G["ddpsi", j] for j in range(n)], "E": [G["dpsi", j] ** 2 for j in range(n)],
-                  "G": [2 * G["dphi", j] * G["dpsi", j] for j in range(n)],
-                  "K": [2 * G["dpsi", j] * G["dl", j] for j in range(n)]})
-    return r
+    """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j, from the rate
+    table :data:`models.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
+    def rate(name: str, j: int):
+        factor, r = RATES[name]
+        if len(r) == 1:
+            return G["dd" + r[0], j]
+        x = G["d" + r[0], j] ** 2 if r[0] == r[1] else G["d" + r[0], j] * G["d" + r[1], j]
+        return x if factor == 1 else int(factor) * x      # an integer keeps the ring exact
+
+    return {name: [rate(name, j) for j in range(n)] for name in matrix_names(dim)}
 
 
 def equations_from_entries(G: Generators, mech: Mechanism, entries, gravity) -> tuple[sp.Expr, ...]:

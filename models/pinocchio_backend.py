@@ -8,6 +8,7 @@ joints (``buildModelFromXML(xml, mimic=True)``), and kept apart from the scratch
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -15,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.prepared import PreparedModel
 from exo_bench.models.urdf import link_prefix, to_urdf
 
 
@@ -176,3 +178,75 @@ def point_mass_positions(mech: Mechanism, q) -> np.ndarray:
                    else start + mech.n[i] * (end - start))
             out[s, i] = np.stack([start, mid, end])[:, :mech.dim]
     return out
+
+
+class PinocchioRNEA(PreparedModel):
+    """Method ``pinocchio``: ``pin.rnea`` on the generated URDF's model, ``tau = G^T tau_joint``.
+
+    Prepared once: the Pinocchio model (:func:`build_model`), ``G``, and per thread a ``Data``
+    (never shared between threads). Options:
+
+    * ``threads`` (default 1): batches of more than one sample go through ``pin.rneaInParallel``
+      with this many threads and a ``ModelPool`` built once; 1 loops ``pin.rnea`` in Python.
+
+    ``mass_matrix`` is CRBA (with a fresh ``Data`` per call: pin 4.1's CRBA on a revolute mimic
+    joint depends on what earlier calls left in ``Data``) and ``bias_forces`` is
+    ``nonLinearEffects``, both mapped by ``G``.
+    """
+
+    method = "pinocchio"
+
+    def __init__(self, mechanism: Mechanism, threads: int = 1):
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"pinocchio: option 'threads': expected an integer >= 1, got {threads!r}")
+        super().__init__(mechanism, threads=int(threads))
+        self.threads = int(threads)
+        pm = build_model(mechanism)
+        self.pin_model: pin.Model = pm.model
+        self.G: np.ndarray = np.ascontiguousarray(pm.G)
+        self.GT: np.ndarray = np.ascontiguousarray(pm.G.T)
+        self.joint_names = pm.joint_names
+        self._local = threading.local()
+        self._pool = pin.ModelPool(pm.model, self.threads) if self.threads > 1 else None
+
+    @property
+    def data(self) -> pin.Data:
+        """This thread's scratch ``Data`` (created on first use in each thread)."""
+        d = getattr(self._local, "data", None)
+        if d is None:
+            d = self._local.data = self.pin_model.createData()
+        return d
+
+    def joint_torques(self, q, qd, qdd, check: bool = True) -> np.ndarray:
+        """The physical joint moments and rod forces ``(S, nv)`` (rows: :attr:`joint_names`)."""
+        if check:
+            q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
+        GT = self.GT
+        qj, vj, aj = q @ GT, qd @ GT, qdd @ GT
+        if self._pool is not None and q.shape[0] > 1:
+            f = lambda x: np.asfortranarray(x.T)
+            tau = np.zeros((self.pin_model.nv, q.shape[0]), order="F")
+            pin.rneaInParallel(self.threads, self._pool, f(qj), f(vj), f(aj), tau)
+            return tau.T
+        model, data = self.pin_model, self.data
+        out = np.empty((q.shape[0], self.pin_model.nv))
+        for s in range(q.shape[0]):
+            out[s] = pin.rnea(model, data, qj[s], vj[s], aj[s])
+        return out
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        return self.joint_torques(q, qd, qdd, check=False) @ self.G
+
+    def _mass_matrix(self, q):
+        qj = q @ self.GT
+        out = np.empty((q.shape[0], self._dof, self._dof))
+        for s in range(q.shape[0]):
+            M = pin.crba(self.pin_model, self.pin_model.createData(), qj[s])
+            M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
+            out[s] = self.GT @ M @ self.G
+        return out
+
+    def _bias_forces(self, q, qd):
+        qj, vj = q @ self.GT, qd @ self.GT
+        model, data = self.pin_model, self.data
+        return np.stack([pin.nonLinearEffects(model, data, qj[s], vj[s]) for s in range(q.shape[0])]) @ self.G

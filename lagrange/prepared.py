@@ -1,0 +1,64 @@
+"""Lagrange II as a prepared model: derive and lambdify once, then evaluate numpy code.
+
+:class:`LagrangeModel` (method ``lagrange``) derives the equations of a mechanism with sympy
+(:func:`lagrange.derive`) and lambdifies them to numpy with common-subexpression elimination in
+its constructor, within a time budget. The mass matrix and the bias forces are native: the
+Jacobian ``d tau / d qdd`` and ``tau(q, qd, 0)`` of the same derivation, lambdified on first use
+within the same budget.
+
+Options (constructor arguments; nothing is read from the environment):
+
+* ``budget`` (seconds, default 120): for the symbolic work. Over budget the constructor raises
+  :class:`lagrange.BudgetExceeded`, whose ``skip_reason`` names the work, the model size and the
+  budget.
+* ``interrupt`` (default True): in the main thread, a SIGALRM timer interrupts a long sympy
+  call when the budget runs out (the previous handler is restored afterwards). False uses only
+  the cooperative checks between steps. In other threads only those checks run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+
+from exo_bench.lagrange import numeric
+from exo_bench.lagrange.budget import without_interrupts
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.prepared import PreparedModel
+
+
+class LagrangeModel(PreparedModel):
+    """Method ``lagrange``: Lagrange II derived with sympy from the point masses' T and Pi,
+    lambdified to numpy with CSE."""
+
+    method = "lagrange"
+
+    def __init__(self, mechanism: Mechanism, budget: float = numeric.DEFAULT_BUDGET, interrupt: bool = True):
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
+            raise ValueError(f"lagrange: option 'budget': expected a positive number of seconds, got {budget!r}")
+        super().__init__(mechanism, budget=float(budget), interrupt=bool(interrupt))
+        self.budget, self.interrupt = float(budget), bool(interrupt)
+        with self._signals():
+            self._equations = numeric.compile_equations(mechanism, self.budget).fn
+        self._mass = self._bias = None
+
+    def _signals(self):
+        return contextlib.nullcontext() if self.interrupt else without_interrupts()
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        return numeric._columns(self._equations, [*q.T, *qd.T, *qdd.T], q.shape[0], self._dof)
+
+    def _mass_matrix(self, q):
+        if self._mass is None:
+            with self._signals():
+                self._mass = numeric._compile(self._mechanism, "mass matrix", self.budget,
+                                              numeric._mass_matrix_build).fn
+        d = self._dof
+        return numeric._columns(self._mass, list(q.T), q.shape[0], d * d).reshape(-1, d, d)
+
+    def _bias_forces(self, q, qd):
+        if self._bias is None:
+            with self._signals():
+                self._bias = numeric._compile(self._mechanism, "bias forces", self.budget, numeric._bias_build).fn
+        return numeric._columns(self._bias, [*q.T, *qd.T], q.shape[0], self._dof)

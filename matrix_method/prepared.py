@@ -1,0 +1,145 @@
+"""The matrix family as prepared models: the per-mechanism coefficients computed once.
+
+* ``matrix`` (:class:`MatrixProducts`): the paper's route. Form every matrix of eq. (5)/(17) from
+  the closed forms (3D: the corrected transitions (18), nothing divides), then the products with
+  the rate vectors. Mass matrix and bias forces are native (the ``A, B, Lambda`` blocks; the
+  products with ``qdd = 0``).
+* ``matrix-factored`` (:class:`MatrixFactored`): the same equations in factored form, no matrix
+  formed (:func:`matrix_method.numeric.inverse_dynamics` says how the factorisation follows from
+  the closed forms). The fast path.
+* ``matrix-paper`` (:class:`MatrixPaper`): eq. (18) exactly as printed, misprints and divisions
+  included. **Wrong in 3D by design** (reports/errata.md): kept to expose the misprints.
+* ``recurrence`` (:class:`Recurrence`): the matrices grown link by link by eqs. (22)-(26), then
+  the products.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from exo_bench.matrix_method import numeric
+from exo_bench.matrix_method import recurrence as _recurrence
+from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.prepared import PreparedModel
+
+
+def _block_option(method: str, block) -> int:
+    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
+        raise ValueError(f"{method}: option 'block': expected a number of samples >= 1, got {block!r}")
+    return int(block)
+
+
+class _MatrixFamily(PreparedModel):
+    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK):
+        super().__init__(mechanism, block=_block_option(self.method, block))
+        self.block = int(block)
+        self.coupling = np.ascontiguousarray(signed_coupling(mechanism))     # c_ij = mu_ij s_i s_j
+        self.gravity_coefficients = np.ascontiguousarray(signed_gravity(mechanism))   # nu_i s_i
+
+    def matrices(self, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+        """Every matrix of eq. (5)/(17) at ``(S, dof)`` configurations, ``block -> name -> array``."""
+        raise NotImplementedError
+
+    def _blocks(self, q, qd, qdd, fn) -> np.ndarray:
+        out = np.empty_like(q)
+        for s in range(0, q.shape[0], self.block):
+            b = slice(s, s + self.block)
+            out[b] = fn(q[b], qd[b], qdd[b])
+        return out
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        mech = self._mechanism
+        return self._blocks(q, qd, qdd, lambda a, b, c: numeric.generalised_forces(mech, self.matrices(a), b, c))
+
+    def _mass_matrix(self, q):
+        return numeric.mass_matrix_from_matrices(self._mechanism, self.matrices(q))
+
+    def _bias_forces(self, q, qd):
+        return numeric.generalised_forces(self._mechanism, self.matrices(q), qd, np.zeros_like(q))
+
+
+class MatrixProducts(_MatrixFamily):
+    """Method ``matrix``: form every matrix of eq. (5)/(17) from the closed forms (3D: the planar
+    matrices and those of the straightened model, then the corrected eq. (18)), then the products
+    with the rate vectors, in blocks of ``block`` samples."""
+
+    method = "matrix"
+
+    def matrices(self, q):
+        mech = self._mechanism
+        phi, _, l = split(mech, q)
+        flat = numeric._planar(mech, phi, l, np.cos, np.sin, self.coupling, self.gravity_coefficients)
+        if mech.dim == 2:
+            return flat
+        straight = numeric._planar(mech, np.zeros_like(phi), l, np.cos, np.sin, self.coupling,
+                                   self.gravity_coefficients)
+        _, psi, _ = split(mech, q)
+        return numeric.spatial_from_planar(psi, l, flat, straight, self.gravity_coefficients)
+
+
+class MatrixFactored(_MatrixFamily):
+    """Method ``matrix-factored``: eq. (5)/(17) in factored form, no matrix formed.
+
+    Every element is ``c_ij`` times a dot product of a vector of link i and one of link j, so the
+    sum over the matrices of a block is ``r_a,i . sum_j c_ij kappa_j`` (the derivation is in
+    :func:`matrix_method.numeric.inverse_dynamics`). Samples go on the fast axis in blocks of
+    ``block``. The kernel forms no matrix, so the mass matrix and the bias forces are derived from
+    its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'."""
+
+    method = "matrix-factored"
+
+    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK):
+        super().__init__(mechanism, block)
+        n = mechanism.nlinks
+        self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
+        self._nu = self.gravity_coefficients[:, None]
+        self._n, self._g = n, mechanism.g
+        self._products = MatrixProducts(mechanism, block)
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        kernel, n, g, c, nu = self._kernel, self._n, self._g, self.coupling, self._nu
+        if q.shape[0] <= self.block:
+            return kernel(n, g, c, nu, q.T.copy(), qd.T.copy(), qdd.T.copy()).T
+        return self._blocks(q, qd, qdd, lambda a, b, d: kernel(n, g, c, nu, a.T.copy(), b.T.copy(), d.T.copy()).T)
+
+    def matrices(self, q):
+        return self._products.matrices(q)
+
+    _mass_matrix = PreparedModel._mass_matrix      # derived from the factored inverse dynamics
+    _bias_forces = PreparedModel._bias_forces
+
+
+class MatrixPaper(_MatrixFamily):
+    """Method ``matrix-paper``: eq. (17) with the matrices of eq. (18) **exactly as printed**.
+
+    Wrong in 3D by design: the printed misprints (reports/errata.md) give wrong forces, and where a
+    printed line divides by an exact zero (``sin phi_i = 0`` at ``phi_i = 0``) the forces are NaN and
+    a :class:`RuntimeWarning` names the samples. In 2D it is the closed forms and correct."""
+
+    method = "matrix-paper"
+
+    def matrices(self, q):
+        return numeric.paper_matrices(self._mechanism, q)
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        tau = numeric.generalised_forces(self._mechanism, self.matrices(q), qd, qdd)
+        bad = np.isnan(tau).any(axis=1)
+        if bad.any():
+            idx = np.flatnonzero(bad)
+            warnings.warn(f"matrix-paper: eq. (18) as printed divides 0/0 at {idx.size} sample(s) "
+                          f"(first: {idx[:5].tolist()}); their forces are NaN", RuntimeWarning, stacklevel=3)
+        return tau
+
+
+class Recurrence(_MatrixFamily):
+    """Method ``recurrence``: the matrices grown link by link by eqs. (22)-(26) (3D: the planar
+    recurrence at the configuration and for the straightened model, then eq. (18)), then the
+    products with the rate vectors."""
+
+    method = "recurrence"
+
+    def matrices(self, q):
+        return _recurrence.matrices(self._mechanism, q)
