@@ -67,3 +67,14 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
             known = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "mechanism")]
             raise ValueError(f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}") from None
         raise
+
+
+def get_method(name: str):
+    """TRANSITIONAL: ``f(mechanism, q, qd, qdd)`` that prepares on every call. Callers move to
+    :func:`prepare`; this goes when the last one has."""
+    method_class(name)
+
+    def f(mechanism, q, qd, qdd):
+        return prepare(mechanism, name).inverse_dynamics(q, qd, qdd)
+
+    return f

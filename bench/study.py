@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exo_bench.bench.methods import get_method
+from exo_bench.bench.methods import prepare
 from exo_bench.models.mechanism import Mechanism, force_names
 from exo_bench.models.motion import Motion
 
@@ -78,19 +78,20 @@ def finite_max(a: np.ndarray) -> float:
 
 
 def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
-                reference: str = "pinocchio") -> Study:
+                reference: str = "pinocchio", options: dict[str, dict] | None = None) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and
-    does not stop the others."""
+    does not stop the others. ``options``: method -> its :func:`prepare` options."""
     study = Study(name, mech, motion, motion_label, reference=reference)
     S = motion.q.shape[0]
+    options = options or {}
     for m in methods:
         try:
-            fn = get_method(m)
             t0 = time.perf_counter()
-            fn(mech, motion.q[:1], motion.qd[:1], motion.qdd[:1])  # build / derive / compile once
+            model = prepare(mech, m, **options.get(m, {}))  # build / derive / compile once
             setup = time.perf_counter() - t0
+            model.inverse_dynamics(motion.q[:1], motion.qd[:1], motion.qdd[:1])  # warm (first-call costs)
             t0 = time.perf_counter()
-            tau = np.asarray(fn(mech, motion.q, motion.qd, motion.qdd), dtype=float)
+            tau = np.asarray(model.inverse_dynamics(motion.q, motion.qd, motion.qdd), dtype=float)
             dt = (time.perf_counter() - t0) / S
             study.results[m] = MethodResult(m, tau, dt, setup_seconds=setup)
         except Exception as e:  # noqa: BLE001 - one failing method must not lose the others

@@ -5,6 +5,8 @@ import threading
 import time
 
 import numpy as np
+
+from exo_bench import prepare
 import pytest
 
 from exo_bench.bench.study import run_methods
@@ -35,25 +37,22 @@ def test_an_unfinished_derivation_is_not_retried_with_no_more_time():
     assert time.perf_counter() - t0 < 0.1
 
 
-def test_run_methods_records_an_over_budget_method_as_skipped(monkeypatch):
-    monkeypatch.setenv(ln.BUDGET_ENV, "0.1")
+def test_run_methods_records_an_over_budget_method_as_skipped():
     m = chain(10, 3)
     mo = smooth_random_motion(m, np.linspace(0, 1, 5), seed=1)
-    study = run_methods("budget", m, mo, "random", ["pinocchio", "lagrange"])
+    study = run_methods("budget", m, mo, "random", ["pinocchio", "lagrange"], options={"lagrange": {"budget": 0.1}})
     r = study.results["lagrange"]
     assert r.tau is None and r.error is None
     assert "n=10" in r.skipped and "dim=3" in r.skipped
     assert study.results["pinocchio"].ok
 
 
-def test_a_bad_budget_is_a_value_error(monkeypatch):
+def test_a_bad_budget_is_a_value_error():
     with pytest.raises(ValueError, match="budget"):
         derive(chain(2, 2), budget=0)
-    monkeypatch.setenv(ln.BUDGET_ENV, "soon")
-    m = chain(9, 2)
-    q, qd, qdd = random_states(m, 1, 0)
-    with pytest.raises(ValueError, match=ln.BUDGET_ENV):
-        ln.inverse_dynamics(m, q, qd, qdd)
+    for bad in (0, -1.0, "soon", True):
+        with pytest.raises(ValueError, match="lagrange: option 'budget': expected a positive number of seconds"):
+            prepare(chain(9, 2), "lagrange", budget=bad)
 
 
 def test_outside_the_main_thread_the_budget_is_checked_cooperatively():

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import exo_bench.bench.runner as runner
+from exo_bench.models.prepared import PreparedModel
 from exo_bench.bench import methods
 from exo_bench.models.presets import random_tree
 
@@ -72,12 +73,15 @@ def test_undeclared_things_are_never_built(tmp_path):
     assert r.stdout.strip() == "[]"
 
 
-def _broken(mech, q, qd, qdd):
-    raise RuntimeError("solver exploded")
+class _Broken(PreparedModel):
+    method = "broken"
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        raise RuntimeError("solver exploded")
 
 
 def test_a_failing_method_does_not_lose_other_results(tmp_path, monkeypatch):
-    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_broken", "always fails"))
+    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_Broken", "always fails"))
     a = _user_scene(tmp_path, "a", '["pinocchio", "broken"]')
     b = _user_scene(tmp_path, "b")
     rc = runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(tmp_path / "rep")))
@@ -112,7 +116,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
 
     from exo_bench.bench.recording import rerun_executable, verify_recording
 
-    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_broken", "always fails"))
+    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_Broken", "always fails"))
     p = tmp_path / "gait.toml"
     p.write_text('mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
                  'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
@@ -147,15 +151,18 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
     assert list((tmp_path / "rep").iterdir()) == []
 
 
-def _offset(mech, q, qd, qdd):
-    from exo_bench.models.pinocchio_backend import inverse_dynamics
-    tau = inverse_dynamics(mech, q, qd, qdd)
-    tau[-1, 1] += 1e-6 * np.abs(tau).max()  # the last sample, on M_phi2
-    return tau
+class _Offset(PreparedModel):
+    method = "offset"
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        from exo_bench.models.pinocchio_backend import inverse_dynamics
+        tau = inverse_dynamics(self.mechanism, q, qd, qdd)
+        tau[-1, 1] += 1e-6 * np.abs(tau).max()  # the last sample, on M_phi2
+        return tau
 
 
 def test_a_disagreeing_method_is_reported_with_where(tmp_path, monkeypatch):
-    monkeypatch.setitem(methods.METHODS, "offset", (__name__, "_offset", "pinocchio plus a known error"))
+    monkeypatch.setitem(methods.METHODS, "offset", (__name__, "_Offset", "pinocchio plus a known error"))
     p = _user_scene(tmp_path, "off", '["pinocchio", "offset"]')
     assert runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
     table = (tmp_path / "rep" / "off.md").read_text()
