@@ -125,24 +125,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("run", help="the main job: run every scene and write the reports")
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
-    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
-    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_bench)
 
     s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
                        "write errata.md")
-    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_errata)
 
     s = sub.add_parser("stability", help="where each method breaks (extreme cases vs the 50-digit reference) and the "
                        "forward-dynamics round trip; write stability.md and its plots")
     s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
-    s.add_argument("--reports", default=None, help="output folder (default: reports/ of the checkout)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_stability)
     return p
 

@@ -11,8 +11,12 @@ import tempfile
 from importlib import metadata
 from pathlib import Path
 
+#: The source checkout when exo-bench runs from one (editable install); for a regular install this
+#: is the installed package folder, which has no git metadata and no README.
 REPO = Path(__file__).resolve().parent.parent
-REPORTS = REPO / "reports"
+#: The default output folder: ``./reports`` in the current directory (a relative path, resolved
+#: when it is used), so that an installed exo-bench writes where the user runs it.
+REPORTS = Path("reports")
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> Path:
