@@ -151,11 +151,10 @@ def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tup
 
 
 @lru_cache(maxsize=32)
-def lambdified(mech: Mechanism, recurrence: bool = False):
-    """The composed equations as one numpy function ``f(q..., qd..., qdd...)`` (cached)."""
-    if recurrence:
-        from exo_bench.matrix_method.recurrence import compose_equations as compose
-    else:
-        compose = compose_equations
+def lambdified(mech: Mechanism, compose=None):
+    """The composed equations as one numpy function ``f(q..., qd..., qdd...)`` (cached).
+    ``compose``: the composer (default :func:`compose_equations`; the recurrence's
+    ``matrix_method.recurrence.compose_equations`` gives the same equations)."""
+    compose = compose or compose_equations
     S = symbols_for(mech.nlinks, mech.dim)
     return sp.lambdify(list(S.q + S.qd + S.qdd), list(compose(mech)), modules="numpy", cse=True)
