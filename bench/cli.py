@@ -22,15 +22,9 @@ class _UsageError(Exception):
 def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     from exo_bench.models.mechanism import as_states
 
-    p = Path(path)
-    if not p.exists():
-        raise ValueError(f"states {path!r}: no such file")
-    try:
-        data = json.loads(p.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"states {path!r}: invalid JSON: {e}") from None
-    except OSError as e:
-        raise ValueError(f"states {path!r}: cannot read: {e.strerror}") from None
+    from exo_bench.models.loading import read_json
+
+    data = read_json(path, f"states {path!r}")
     if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
         got = sorted(data) if isinstance(data, dict) else type(data).__name__
         raise ValueError(f"states {path!r}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
@@ -46,13 +40,18 @@ def cmd_presets(args) -> int:
 
 
 def cmd_inverse(args) -> int:
-    from exo_bench.bench.methods import get_method
-    from exo_bench.models.mechanism import force_names, load_mechanism
+    from exo_bench.bench.methods import KNOWN_WRONG, method_class, prepare
+    from exo_bench.models.loading import load_mechanism
+    from exo_bench.models.mechanism import force_names
 
-    fn = get_method(args.method)  # an unknown method fails before any file is read
+    method_class(args.method)  # an unknown method fails before any file is read
     mech = load_mechanism(args.mechanism)
     q, qd, qdd = _load_states(args.states, mech)
-    tau = np.asarray(fn(mech, q, qd, qdd), dtype=float)
+    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    model = prepare(mech, args.method, **options)
+    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
+    if args.method in KNOWN_WRONG and mech.dim == 3:
+        print(f"exo-bench: warning: method {args.method!r}: {KNOWN_WRONG[args.method]}", file=sys.stderr)
     bad = ~np.isfinite(tau)
     if bad.any():  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
         s, c = map(int, np.argwhere(bad)[0])
@@ -65,7 +64,7 @@ def cmd_inverse(args) -> int:
 
 
 def cmd_urdf(args) -> int:
-    from exo_bench.models.mechanism import load_mechanism
+    from exo_bench.models.loading import load_mechanism
     from exo_bench.models.urdf import to_urdf
 
     text = to_urdf(load_mechanism(args.mechanism))
@@ -90,7 +89,7 @@ def cmd_bench(args) -> int:
 
 
 def cmd_errata(args) -> int:
-    from exo_bench.matrix_method.errata import run
+    from exo_bench.bench.errata import run
 
     return run(args)
 
@@ -115,7 +114,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
                    "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    s.add_argument("--method", default="pinocchio", help=f"one of: {', '.join(method_names())}")
+    s.add_argument("--method", default="pinocchio",
+                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: wrong in 3D by "
+                        "design, kept to expose the paper's misprints)")
+    s.add_argument("--budget", type=float, default=None,
+                   help="seconds for lagrange's symbolic derivation (default 120)")
     s.set_defaults(func=cmd_inverse)
 
     s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
@@ -131,6 +134,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
+    s.add_argument("--update-readme", action="store_true",
+                   help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_bench)
 
@@ -168,6 +173,19 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("exo-bench: interrupted; nothing half-written was left in the reports folder", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("exo-bench: error: out of memory: the model or the batch is too large for this machine; "
+              "try a smaller batch or the matrix-factored method", file=sys.stderr)
+        return 2
+    except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
+        skip = getattr(e, "skip_reason", None)
+        if skip:
+            print(f"exo-bench: error: {skip}; raise the budget with --budget SECONDS or choose another method",
+                  file=sys.stderr)
+        else:
+            msg = str(e).splitlines()[0] if str(e) else ""
+            print(f"exo-bench: internal error: {type(e).__name__}: {msg} (please report it)", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

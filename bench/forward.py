@@ -19,7 +19,6 @@ Jacobian that scipy estimates from the vectorised right-hand side).
 
 from __future__ import annotations
 
-import io
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -28,8 +27,8 @@ from typing import Callable
 
 import numpy as np
 
-from exo_bench.bench.stability import UnusableMethodWarning
-from exo_bench.bench.study import one_line
+from exo_bench.bench.methods import PreparedSet
+from exo_bench.bench.study import UnusableMethodWarning, one_line
 from exo_bench.models import forward_dynamics as fd
 from exo_bench.models.kinematics import kinetic_energy, total_energy
 from exo_bench.models.mechanism import Mechanism
@@ -54,16 +53,16 @@ ROUND_TRIP_RULE = (
 
 
 # ----------------------------------------------------------------------------- helpers
+def _models(models: PreparedSet | None) -> PreparedSet:
+    """The run's prepared models, or this process's default set (default options)."""
+    return _DEFAULT_MODELS if models is None else models
+
+
+_DEFAULT_MODELS = PreparedSet()
+
+
 def _state0(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return motion.q[:1], motion.qd[:1]
-
-
-def _save_png(fig, path: str | Path, dpi: int = 80) -> Path:
-    from exo_bench.bench.reporting import atomic_write
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return atomic_write(path, buf.getvalue())
 
 
 # ----------------------------------------------------------------------------- round trip
@@ -127,14 +126,14 @@ class Variational:
 
 
 def variational(mech: Mechanism, controls: fd.Controls, q0, qd0, horizon: float, method: str = "pinocchio",
-                delta: float = 1e-7, rtol: float = 1e-12) -> Variational:
+                delta: float = 1e-7, rtol: float = 1e-12, models: PreparedSet | None = None) -> Variational:
     """Integrate the nominal state and ``2 dof`` copies perturbed by ``delta`` in one vectorised
     ODE (DOP853, tight tolerance): each copy is one column of the vectorised right-hand side."""
     from scipy.integrate import solve_ivp
 
     d = mech.dof
     m = 2 * d
-    rhs, _ = fd.make_rhs(mech, controls, method)
+    rhs, _ = fd.make_rhs(_models(models)(mech, method), controls)
     y0 = np.concatenate([np.asarray(q0, float).ravel(), np.asarray(qd0, float).ravel()])
     Z0 = y0[:, None] + delta * np.hstack([np.zeros((m, 1)), np.eye(m)])
     sol = solve_ivp(lambda t, z: rhs(t, z.reshape(m, m + 1)).ravel(), (0.0, horizon), Z0.ravel(),
@@ -197,15 +196,16 @@ class RoundTrip:
 
 def round_trip_run(case: RoundTripCase, integrator: str, rtol: float, method: str = "pinocchio",
                    control_method: str = "pinocchio", max_seconds: float | None = None,
-                   controls: fd.Controls | None = None) -> fd.Simulation:
+                   controls: fd.Controls | None = None, models: PreparedSet | None = None) -> fd.Simulation:
     """One integration of the round trip (dense output, so that it can serve as the tighter run
     of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
     dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
     state."""
     mech = case.mechanism
-    ctrl = controls or fd.prescribed_controls(mech, case.motion_of_t, control_method)
+    models = _models(models)
+    ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
     q0, qd0 = _state0(case.motion_of_t(np.array([0.0])))
-    return fd.simulate(mech, q0, qd0, (0.0, case.horizon), ctrl, method, integrator, rtol, ATOL_FACTOR * rtol,
+    return fd.simulate(models(mech, method), q0, qd0, (0.0, case.horizon), ctrl, integrator, rtol, ATOL_FACTOR * rtol,
                        max_seconds=max_seconds, dense=True)
 
 
@@ -213,7 +213,7 @@ def round_trip(case: RoundTripCase, integrator: str, rtol: float, method: str = 
                control_method: str = "pinocchio", var: Variational | None = None,
                sim: fd.Simulation | None = None, tighter: fd.Simulation | None = None,
                estimate: bool = True, max_seconds: float | None = None,
-               controls: fd.Controls | None = None) -> RoundTrip:
+               controls: fd.Controls | None = None, models: PreparedSet | None = None) -> RoundTrip:
     """Drive the forward dynamics of ``method`` with the controls of ``control_method``'s inverse
     dynamics along ``case``'s motion and compare with the motion (see :data:`ROUND_TRIP_RULE`).
 
@@ -224,13 +224,14 @@ def round_trip(case: RoundTripCase, integrator: str, rtol: float, method: str = 
     mech = case.mechanism
     d = mech.dof
     if sim is None:
-        sim = round_trip_run(case, integrator, rtol, method, control_method, max_seconds, controls)
+        sim = round_trip_run(case, integrator, rtol, method, control_method, max_seconds, controls, models)
     rt = RoundTrip(case.name, method, integrator, rtol, sim)
     if not sim.ok:
         return rt
     rt.error = float(np.abs(sim.q(d) - case.motion_of_t(sim.t).q).max())
     if tighter is None and estimate:
-        tighter = round_trip_run(case, integrator, rtol / TIGHTER, method, control_method, max_seconds, controls)
+        tighter = round_trip_run(case, integrator, rtol / TIGHTER, method, control_method, max_seconds, controls,
+                                 models)
     if tighter is None:
         rt.note = "no tighter run: pass criterion not evaluated"
     elif tighter.ok and tighter.solution is not None:
@@ -333,10 +334,11 @@ class EnergyRun:
 
 
 def energy_drift(case: SpringCase, integrator: str, rtol: float, method: str = "pinocchio",
-                 max_seconds: float | None = None) -> EnergyRun:
+                 max_seconds: float | None = None, models: PreparedSet | None = None) -> EnergyRun:
     mech = case.mechanism
     d = mech.dof
-    sim = fd.simulate(mech, case.q0, case.qd0, (0.0, case.horizon), case.controls, method, integrator, rtol,
+    sim = fd.simulate(_models(models)(mech, method), case.q0, case.qd0, (0.0, case.horizon), case.controls,
+                      integrator, rtol,
                       ATOL_FACTOR * rtol, max_seconds=max_seconds)
     run = EnergyRun(case.name, integrator, rtol, sim)
     if sim.steps:
@@ -389,14 +391,14 @@ class StiffRun:
 
 
 def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: int, reference=None,
-              method: str = "pinocchio", max_seconds: float | None = None) -> StiffRun:
+              method: str = "pinocchio", max_seconds: float | None = None,
+              models: PreparedSet | None = None) -> StiffRun:
     mech = case.mechanism
-    sim = fd.simulate(mech, case.q0, case.qd0, (0.0, case.horizon), case.controls, method, integrator, rtol,
+    sim = fd.simulate(_models(models)(mech, method), case.q0, case.qd0, (0.0, case.horizon), case.controls,
+                      integrator, rtol,
                       ATOL_FACTOR * rtol, max_evaluations=max_evaluations, max_seconds=max_seconds)
     mu = np.diag(fd.mass_distribution_matrix(mech))
-    from exo_bench.models.pinocchio_backend import mass_matrix
-
-    cond = float(fd.condition_numbers(mass_matrix(mech, case.q0[None]))[0][0])
+    cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)
     d = mech.dof
     if sim.ok and reference is not None and reference.ok:
@@ -491,30 +493,36 @@ class TermsRow:
     seconds: float = math.nan
 
 
-def terms_agreement(methods: list[str], samples: int = 4) -> list[TermsRow]:
+def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | None = None) -> list[TermsRow]:
     """Each method's M and h (exposed or from its inverse dynamics) against Pinocchio's CRBA and
     ``nonLinearEffects``; Pinocchio itself also through its inverse dynamics (the linearity identity)."""
     import time
 
-    from exo_bench.models import pinocchio_backend as pb
     from exo_bench.models.motion import random_states
 
+    models = _models(models)
     rows = []
     for mech in (exo5(3), random_tree(5, 3, 9), exo5(2)):
         q, qd, _ = random_states(mech, samples, 21)
-        M0, h0 = pb.mass_matrix(mech, q), pb.bias_forces(mech, q, qd)
+        pin_model = models(mech, "pinocchio")
+        M0, h0 = pin_model.mass_matrix(q), pin_model.bias_forces(q, qd)
         plan = [(m, False) for m in methods] + [("pinocchio", True)]
         for m, via in plan:
             try:
-                exposed = (not via) and fd.exposed_terms(m) is not None
-            except Exception as e:  # noqa: BLE001 - a missing module is a row, not a crash
+                model = models(mech, m)
+            except ImportError as e:   # a missing module is a row, not a crash
                 rows.append(TermsRow(mech.name, m, "", "missing: " + one_line(e)))
                 continue
+            except Exception as e:  # noqa: BLE001 - over budget or failing to prepare: a row
+                skip = getattr(e, "skip_reason", None)
+                rows.append(TermsRow(mech.name, m, "", f"skipped: {skip}" if skip else "failed: " + one_line(e)))
+                continue
+            exposed = (not via) and model.native_terms
             row = TermsRow(mech.name, m, "exposed (CRBA, nonLinearEffects)" if m == "pinocchio" and exposed
                            else "exposed" if exposed else "from inverse dynamics")
             try:
                 t0 = time.perf_counter()
-                M, h = fd.mass_matrix_and_bias(mech, q, qd, m, via_inverse_dynamics=via)
+                M, h = fd.mass_matrix_and_bias(model, q, qd, via_inverse_dynamics=via)
                 row.seconds = time.perf_counter() - t0
                 row.m_rel = float(np.abs(M - M0).max() / np.abs(M0).max())
                 row.h_rel = float(np.abs(h - h0).max() / np.abs(h0).max())
@@ -532,10 +540,11 @@ class SingularDemo:
     forward: str                      # what forward dynamics says
 
 
-def singular_demos() -> list[SingularDemo]:
+def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
     """Forward dynamics at genuinely singular configurations: refused, with the link named."""
     from exo_bench.models.motion import gait, random_states
-    from exo_bench.models.pinocchio_backend import inverse_dynamics
+
+    models = _models(models)
 
     e3 = exo5(3)
     g = gait(e3, np.array([0.0]))
@@ -549,10 +558,11 @@ def singular_demos() -> list[SingularDemo]:
     for label, mech, (a, b, c) in (("exo5-3d gait of eq. (26) at t = 0 (trunk at psi5 = pi/2)", e3, (g.q, g.qd, g.qdd)),
                                    ("exo5-3d, random state with l2 = 0", e3, (q0, qd, qdd)),
                                    ("exo5-3d with a massless swing shin", massless, (q, qd, qdd))):
-        tau = inverse_dynamics(mech, a, b, c)
+        model = models(mech, "pinocchio")
+        tau = model.inverse_dynamics(a, b, c)
         inv = "finite" if np.isfinite(tau).all() else "NaN/Inf"
         try:
-            fd.accelerations(mech, a, b, tau)
+            fd.accelerations(model, a, b, tau)
             fwd = "accepted (NOT detected)"
         except fd.SingularConfigurationError as e:
             fwd = f"refused: {e.reasons[0]}"
@@ -577,15 +587,17 @@ class ForwardResults:
     stiff_notes: list[str] = field(default_factory=list)
 
 
-def _grid(case: RoundTripCase, integrators, rtols, var, method="pinocchio", max_seconds=None) -> list[RoundTrip]:
+def _grid(case: RoundTripCase, integrators, rtols, var, method="pinocchio", max_seconds=None,
+          models: PreparedSet | None = None) -> list[RoundTrip]:
     """Every integrator at every tolerance; the run at rtol / TIGHTER (when in the grid) is the
     error estimate of the run at rtol."""
     out = []
     for integ in integrators:
-        sims = {r: round_trip_run(case, integ, r, method, max_seconds=max_seconds) for r in rtols}
+        sims = {r: round_trip_run(case, integ, r, method, max_seconds=max_seconds, models=models) for r in rtols}
         for r in rtols:
             tighter = next((s for r2, s in sims.items() if math.isclose(r2, r / TIGHTER, rel_tol=1e-6)), None)
-            out.append(round_trip(case, integ, r, method, var=var, sim=sims[r], tighter=tighter, estimate=False))
+            out.append(round_trip(case, integ, r, method, var=var, sim=sims[r], tighter=tighter, estimate=False,
+                                  models=models))
         for s in sims.values():
             s.solution = None          # the dense outputs served as estimates; they are large
     return out
@@ -595,7 +607,7 @@ def rt_failed(rt: RoundTrip) -> bool:
     return rt.verdict == "FAIL"
 
 
-def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
+def run_forward(profile, methods: list[str], log=print, models: PreparedSet | None = None) -> ForwardResults:
     """Every forward-dynamics experiment of the report, at the profile's sizes."""
     import time
 
@@ -603,29 +615,31 @@ def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
 
     t_start = time.perf_counter()
     log("forward dynamics: mass matrices and bias forces per method")
-    terms = terms_agreement(methods)
-    sing = singular_demos()
+    models = _models(models)
+    terms = terms_agreement(methods, models=models)
+    sing = singular_demos(models)
     cases = [c for c in round_trip_cases(profile.full_cases) if not profile.rt_cases or c.name in profile.rt_cases]
     growth, trips, mtrips, refused = {}, [], [], []
     for i, case in enumerate(cases):
         log(f"forward dynamics: round trip {case.name}")
-        ctrl = fd.prescribed_controls(case.mechanism, case.motion_of_t)
+        ctrl = fd.prescribed_controls(models(case.mechanism, "pinocchio"), case.motion_of_t)
         m0 = case.motion_of_t(np.array([0.0]))
-        var = variational(case.mechanism, ctrl, m0.q, m0.qd, case.horizon)
+        var = variational(case.mechanism, ctrl, m0.q, m0.qd, case.horizon, models=models)
         growth[case.name] = var.max_growth()
         if i == 0:
-            trips += _grid(case, fd.INTEGRATORS, profile.wp_rtols, var)
+            trips += _grid(case, fd.INTEGRATORS, profile.wp_rtols, var, models=models)
         else:
-            trips += _grid(case, profile.rt_integrators, profile.rt_rtols, var)
+            trips += _grid(case, profile.rt_integrators, profile.rt_rtols, var, models=models)
         if case.name in profile.method_cases:
             for m in methods:
                 log(f"forward dynamics: round trip {case.name} with {m}'s M and h")
                 try:
-                    sim = round_trip_run(case, "DOP853", profile.method_rtol, m, max_seconds=profile.method_seconds)
+                    sim = round_trip_run(case, "DOP853", profile.method_rtol, m, max_seconds=profile.method_seconds,
+                                         models=models)
                     tight = (round_trip_run(case, "DOP853", profile.method_rtol / TIGHTER, m,
-                                            max_seconds=profile.method_seconds) if sim.ok else None)
+                                            max_seconds=profile.method_seconds, models=models) if sim.ok else None)
                     mtrips.append(round_trip(case, "DOP853", profile.method_rtol, m, var=var, sim=sim, tighter=tight,
-                                             estimate=False))
+                                             estimate=False, models=models))
                     sim.solution = None
                     if tight is not None:
                         tight.solution = None
@@ -642,13 +656,14 @@ def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
     e3 = exo5(3)
     try:
         g = gait(e3, np.array([0.0]))
-        fd.simulate(e3, g.q, g.qd, (0.0, 0.1), fd.prescribed_controls(e3, lambda t: gait(e3, t)))
+        e3_model = models(e3, "pinocchio")
+        fd.simulate(e3_model, g.q, g.qd, (0.0, 0.1), fd.prescribed_controls(e3_model, lambda t: gait(e3, t)))
         refused.append(("exo5-3d gait of eq. (26)", "accepted (NOT detected)"))
     except fd.SingularConfigurationError as e:
         refused.append(("exo5-3d gait of eq. (26)", str(e)))
     log("forward dynamics: conservative case")
     springs = [c for c in conservative_cases() if not profile.energy_cases or c.name in profile.energy_cases]
-    energy = [energy_drift(c, integ, r, max_seconds=profile.method_seconds) for c in springs
+    energy = [energy_drift(c, integ, r, max_seconds=profile.method_seconds, models=models) for c in springs
               for integ in fd.INTEGRATORS for r in profile.energy_rtols]
     log("forward dynamics: stiff rods")
     stiff, stiff_wp = [], []
@@ -657,16 +672,19 @@ def run_forward(profile, methods: list[str], log=print) -> ForwardResults:
     secs = profile.stiff_seconds
     for c in variants:
         r_ref = profile.stiff_reference_rtol
-        ref = fd.simulate(c.mechanism, c.q0, c.qd0, (0.0, c.horizon), c.controls, integrator="Radau", rtol=r_ref,
+        ref = fd.simulate(models(c.mechanism, "pinocchio"), c.q0, c.qd0, (0.0, c.horizon), c.controls,
+                          integrator="Radau", rtol=r_ref,
                           atol=ATOL_FACTOR * r_ref, max_seconds=secs)
         if not ref.ok:
             notes.append(f"{c.name}: the reference (Radau, rtol {r_ref:.0e}) did not finish: {ref.status}")
         for integ in fd.INTEGRATORS:
-            stiff.append(stiff_run(c, integ, profile.stiff_rtol, profile.stiff_budget, ref, max_seconds=secs))
+            stiff.append(stiff_run(c, integ, profile.stiff_rtol, profile.stiff_budget, ref, max_seconds=secs,
+                                   models=models))
         if c.k == 1e6 and c.mechanism.name == "chain3-2d hanging":
             for integ in fd.INTEGRATORS:
                 for r in (1e-3, 1e-4, 1e-5):
-                    stiff_wp.append(stiff_run(c, integ, r, profile.stiff_budget, ref, max_seconds=secs))
+                    stiff_wp.append(stiff_run(c, integ, r, profile.stiff_budget, ref, max_seconds=secs,
+                                                    models=models))
             stiff_wp += [s for s in stiff if s.case == c.name]
     descr = {c.name: c.description for c in cases}
     descr.update({c.name: c.description for c in springs})

@@ -69,12 +69,21 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
         raise
 
 
-def get_method(name: str):
-    """TRANSITIONAL: ``f(mechanism, q, qd, qdd)`` that prepares on every call. Callers move to
-    :func:`prepare`; this goes when the last one has."""
-    method_class(name)
+class PreparedSet:
+    """The prepared models of one run: ``models(mechanism, method)`` prepares on first use, with
+    the run's options for that method (``{"lagrange": {"budget": 10.0}}``), and returns the same
+    model afterwards. A study creates one per run and passes it down, so nothing is cached
+    behind the caller's back and a failure to prepare (over budget) is raised where it is used."""
 
-    def f(mechanism, q, qd, qdd):
-        return prepare(mechanism, name).inverse_dynamics(q, qd, qdd)
+    def __init__(self, options: dict[str, dict] | None = None):
+        self.options = {k: dict(v) for k, v in (options or {}).items()}
+        self._models: dict[tuple, PreparedModel] = {}
 
-    return f
+    def __call__(self, mechanism: Mechanism, method: str) -> PreparedModel:
+        key = (mechanism, method)
+        if key not in self._models:
+            self._models[key] = prepare(mechanism, method, **self.options.get(method, {}))
+        return self._models[key]
+
+    def clear(self) -> None:
+        self._models.clear()

@@ -21,7 +21,6 @@ saved atomically by :func:`save_figure`.
 
 from __future__ import annotations
 
-import io
 import re
 from dataclasses import dataclass
 from functools import lru_cache
@@ -31,7 +30,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from exo_bench.bench.reporting import atomic_write
+from exo_bench.bench.reporting import save_figure  # noqa: F401 (re-exported: the scene figures' writer)
 from exo_bench.bench.study import Study
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
@@ -480,7 +479,6 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     (rods, point masses sized by mass, trails of the last 0.2 s) on the left; joint moments,
     rod forces and the differences between methods on the right."""
     _check_ok(study)
-    from exo_bench.bench.recording import trail_points  # the same trails as the recording
 
     mech, t = study.mechanism, study.motion.t
     ok, ref = study.ok_methods(), reference_method(study)
@@ -549,11 +547,27 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
 
 
 # ----------------------------------------------------------------------------- saving
-def save_figure(fig: Figure, path: str | Path, dpi: int = 130) -> Path:
-    """Render the figure to PNG in memory and write it atomically (no half-written file)."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return atomic_write(path, buf.getvalue())
+def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
+    """The points whose recent path is drawn, as ``name -> (link, mass index)``.
+
+    ``hip``: the branch point where the reversed (hanging) links start, i.e. the end of the parent
+    of the first reversed link (the end of link 2 for the exoskeleton); ``foot``: the free end of
+    a reversed leaf link (the swing shin). A model without reversed links gets the ``tip``, the
+    free end of its last link.
+    """
+    out: dict[str, tuple[int, int]] = {}
+    reversed_links = [i for i in range(mech.nlinks) if mech.sign[i] < 0]
+    for i in reversed_links:
+        p = mech.parent[i]
+        if p >= 0 and mech.sign[p] > 0:
+            out["hip"] = (p, 2)
+            break
+    feet = [i for i in reversed_links if not mech.children[i]]
+    for k, i in enumerate(feet):
+        out["foot" if len(feet) == 1 else f"foot{k + 1}"] = (i, 2)
+    if not reversed_links:
+        out["tip"] = (mech.nlinks - 1, 2)
+    return out
 
 
 def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, frames: int = 11) -> list[Path]:

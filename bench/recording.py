@@ -33,7 +33,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from matplotlib.colors import to_rgb
 
-from exo_bench.bench.plots import (SCALE_RATIO, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
+from exo_bench.bench.plots import (SCALE_RATIO, trail_points, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
                          group_by_scale, link_color, moment_labels, moments_and_forces, nonfinite_notes,
                          reference_method, scale_caption)
 from exo_bench.bench.reporting import machine_info
@@ -80,29 +80,6 @@ def _lighter(color: str, k: int) -> tuple[int, int, int]:
 
 
 # ----------------------------------------------------------------------------- geometry
-def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
-    """The points whose recent path is drawn, as ``name -> (link, mass index)``.
-
-    ``hip``: the branch point where the reversed (hanging) links start, i.e. the end of the parent
-    of the first reversed link (the end of link 2 for the exoskeleton); ``foot``: the free end of
-    a reversed leaf link (the swing shin). A model without reversed links gets the ``tip``, the
-    free end of its last link.
-    """
-    out: dict[str, tuple[int, int]] = {}
-    reversed_links = [i for i in range(mech.nlinks) if mech.sign[i] < 0]
-    for i in reversed_links:
-        p = mech.parent[i]
-        if p >= 0 and mech.sign[p] > 0:
-            out["hip"] = (p, 2)
-            break
-    feet = [i for i in reversed_links if not mech.children[i]]
-    for k, i in enumerate(feet):
-        out["foot" if len(feet) == 1 else f"foot{k + 1}"] = (i, 2)
-    if not reversed_links:
-        out["tip"] = (mech.nlinks - 1, 2)
-    return out
-
-
 def world_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
     """Point-mass positions in the 3D viewer frame (z up), ``(S, n, 3, 3)``; planar models lie in x-z."""
     P = point_mass_positions(mech, q)
@@ -315,13 +292,11 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
 
 def write_recording(study: Study, path: str | Path) -> Path:
     """Write the scene's recording with its default blueprint to ``path`` (atomically)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    stream = rr.RecordingStream(APPLICATION_ID, send_properties=True)
-    try:
-        stream.save(tmp, default_blueprint=blueprint(study))
+    from exo_bench.bench.reporting import atomic_path
+
+    with atomic_path(path) as tmp:
+        stream = rr.RecordingStream(APPLICATION_ID, send_properties=True)
+        stream.save(str(tmp), default_blueprint=blueprint(study))
         stream.send_recording_name(study.name)
         times = rr.TimeColumn(TIMELINE, duration=np.asarray(study.motion.t, dtype=float))
         text, values = _describe(study)
@@ -332,14 +307,7 @@ def write_recording(study: Study, path: str | Path) -> Path:
             _log_series(stream, study, times)
         stream.flush()
         stream.disconnect()   # closes the file sink and writes the footer
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)  # mkstemp makes 0600; a recording is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return Path(path)
 
 
 def rerun_executable() -> Path | None:

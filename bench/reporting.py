@@ -8,6 +8,7 @@ import platform
 import subprocess
 import sys
 import tempfile
+from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
 
@@ -19,22 +20,46 @@ REPO = Path(__file__).resolve().parent.parent
 REPORTS = Path("reports")
 
 
-def atomic_write(path: str | Path, data: str | bytes) -> Path:
-    """Write to a temporary file beside ``path`` and rename it into place, so that an
-    error or Ctrl-C never leaves a half-written report."""
+@contextmanager
+def atomic_path(path: str | Path):
+    """Yield a temporary path beside ``path`` for a writer that needs a file name (a rerun file
+    sink, a PNG renderer); on success it is renamed into place with ordinary permissions, on any
+    error or Ctrl-C it is removed, so that no half-written file is ever left."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    mode = "wb" if isinstance(data, bytes) else "w"
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
     try:
-        with os.fdopen(fd, mode) as f:
-            f.write(data)
+        yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; reports are ordinary files
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return path
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> Path:
+    """Write to a temporary file beside ``path`` and rename it into place, so that an
+    error or Ctrl-C never leaves a half-written report."""
+    with atomic_path(path) as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data)
+    return Path(path)
+
+
+#: Every PNG the suite writes: 150 dpi, so that 9 pt text is 19 px high.
+PNG_DPI = 150
+
+
+def save_figure(fig, path: str | Path, dpi: int = PNG_DPI) -> Path:
+    """Render a matplotlib figure to PNG in memory and write it atomically (no half-written file)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return atomic_write(path, buf.getvalue())
 
 
 def _umask() -> int:

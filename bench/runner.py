@@ -246,7 +246,7 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
 
 #: Suite-wide reports the main job writes after the scenes: (label, module, function).
 SUITE_JOBS = (
-    ("errata (exo-bench errata)", "exo_bench.matrix_method.errata", "run"),
+    ("errata (exo-bench errata)", "exo_bench.bench.errata", "run"),
     ("benchmarks (exo-bench bench)", "exo_bench.bench.bench_reports", "run"),
     ("stability (exo-bench stability)", "exo_bench.bench.stability", "run"),
 )

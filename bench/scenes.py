@@ -26,16 +26,15 @@ scene without ``recording`` never imports rerun, a 2D scene has no psi anywhere.
 
 from __future__ import annotations
 
-import json
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism, load_mechanism
+from exo_bench.models.loading import load_mechanism, read_json, read_toml
+from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import GaitParams, Motion, from_arrays, gait, planar_gait, smooth_random_motion
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
@@ -120,10 +119,7 @@ def load_scene(spec: str | Path) -> Scene:
     if not path.exists():
         known = ", ".join(shipped_scene_names())
         raise ValueError(f"scene {str(spec)!r}: not a shipped scene ({known}) and no such file")
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise ValueError(f"{path}: invalid TOML: {e}") from None
+    data = read_toml(path, str(path))
     extra = data.keys() - _TOP
     if extra:
         raise _err(path, sorted(extra)[0], f"one of {sorted(_TOP)}", sorted(extra)[0])
@@ -210,10 +206,7 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
         p = path.parent / f
         if not p.exists():
             raise _err(path, "motion.file", "an existing file", str(p))
-        try:
-            data = json.loads(p.read_text())
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: field 'motion.file': invalid JSON in {p}: {e}") from None
+        data = read_json(p, f"{path}: field 'motion.file' ({p})")
         if not isinstance(data, dict) or not {"t", "q", "qd", "qdd"} <= data.keys():
             raise _err(path, "motion.file", "an object with keys t, q, qd, qdd",
                        sorted(data) if isinstance(data, dict) else type(data).__name__)

@@ -23,15 +23,14 @@ in :mod:`bench.forward`; :func:`run` writes both into ``reports/stability.md`` w
 from __future__ import annotations
 
 import math
-import os
 import time
 import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from exo_bench.bench.methods import PreparedSet
 from exo_bench.bench.study import one_line
 from exo_bench.models import forward_dynamics as fd
 from exo_bench.models.mechanism import Mechanism
@@ -50,12 +49,7 @@ COND_ILL = 1e6
 COND_SINGULAR = 1e12
 
 
-class StabilityWarning(RuntimeWarning):
-    """Base class of the stability suite's warnings."""
-
-
-class UnusableMethodWarning(StabilityWarning):
-    """A method returned NaN/Inf or lost more than ``REL_UNUSABLE`` relative accuracy on a family."""
+from exo_bench.bench.study import StabilityWarning, UnusableMethodWarning  # noqa: E402 (re-exported)
 
 
 class IllConditionedWarning(StabilityWarning):
@@ -347,15 +341,14 @@ def _memo_skip(memo: dict, method: str, mech: Mechanism) -> str | None:
     return None
 
 
-def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> CaseResult:
+def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
+                  models: PreparedSet | None = None) -> CaseResult:
     """Every method on one case, against the reference; the mass matrix's condition and exact
     singularities. ``memo`` carries skips across cases: a method over its budget on a mechanism
     is not tried again on one of the same structure or with at least as many links in the same
     dimension (the symbolic work is the same or larger)."""
-    from exo_bench.bench.methods import get_method
-    from exo_bench.models.pinocchio_backend import mass_matrix
-
     memo = {} if memo is None else memo
+    models = PreparedSet() if models is None else models
     mech = case.mechanism
     ref, label = reference_forces(mech, case.q, case.qd, case.qdd)
     scale = float(np.abs(ref).max())
@@ -368,15 +361,19 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
             rows[m] = row
             continue
         try:
-            fn = get_method(m)
+            model = models(mech, m)
         except ImportError as e:
             row.status, row.reason = "missing", one_line(e)
             rows[m] = row
             continue
+        except Exception as e:  # noqa: BLE001 - over budget while preparing: handled below
+            model = e
         try:
+            if isinstance(model, Exception):
+                raise model
             t0 = time.perf_counter()
             with np.errstate(all="ignore"):
-                tau = np.asarray(fn(mech, case.q, case.qd, case.qdd), dtype=float)
+                tau = np.asarray(model.inverse_dynamics(case.q, case.qd, case.qdd), dtype=float)
             row.seconds = time.perf_counter() - t0
             if tau.shape != ref.shape:
                 raise ValueError(f"returned shape {tau.shape}, expected {ref.shape}")
@@ -397,7 +394,7 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None) -> C
         row.abs_err = float(err.max()) if finite.any() else math.nan
         row.rel_err = row.abs_err / scale if scale > 0 else (0.0 if row.abs_err == 0 else math.inf)
         rows[m] = row
-    M = mass_matrix(mech, case.q)
+    M = models(mech, "pinocchio").mass_matrix(case.q)
     raw, eq = fd.condition_numbers(M)
     reasons = fd.singular_reasons(mech, case.q)
     flat = [f"sample {s}: {r}" for s, rs in enumerate(reasons) for r in rs]
@@ -445,12 +442,14 @@ class FamilyResult:
 
 
 def evaluate_family(name: str, cases: list[Case], methods: list[str], memo: dict | None = None,
-                    doc: str = "") -> FamilyResult:
+                    doc: str = "", options: dict[str, dict] | None = None) -> FamilyResult:
     """Evaluate every case; warn (:class:`UnusableMethodWarning`, :class:`IllConditionedWarning`)
     once per unusable method and once for an ill-conditioned or singular family."""
     t0 = time.perf_counter()
     memo = {} if memo is None else memo
-    res = FamilyResult(name, doc, [evaluate_case(c, methods, memo) for c in cases], 0.0)
+    # One set of prepared models per case: the cases' mechanisms differ, and large Pinocchio models
+    # (n = 100) are released before the next case.
+    res = FamilyResult(name, doc, [evaluate_case(c, methods, memo, PreparedSet(options)) for c in cases], 0.0)
     res.seconds = time.perf_counter() - t0
     for m in methods:
         bad = [cr for cr in res.results if m in cr.rows and cr.rows[m].verdict == "unusable"]
@@ -479,21 +478,6 @@ def _nan_or_rel(row: MethodRow) -> str:
     if row.nonfinite:
         return f"{row.nonfinite} NaN/Inf"
     return f"relative error {row.rel_err:.1e}"
-
-
-@contextmanager
-def lagrange_budget(seconds: float):
-    """Set the symbolic budget of ``lagrange`` (``$EXO_BENCH_LAGRANGE_BUDGET``, read at call time)
-    for the duration of the run, and restore it."""
-    key = "EXO_BENCH_LAGRANGE_BUDGET"
-    old = os.environ.get(key)
-    if old is None:
-        os.environ[key] = f"{seconds:g}"
-    try:
-        yield
-    finally:
-        if old is None:
-            os.environ.pop(key, None)
 
 
 # ----------------------------------------------------------------------------- report: families
@@ -755,13 +739,18 @@ def conditioning_figure(families: list[FamilyResult]):
 
 
 # ----------------------------------------------------------------------------- run
+def method_options(profile: Profile) -> dict[str, dict]:
+    """The :func:`prepare` options of the profile: the symbolic budget of ``lagrange``."""
+    return {"lagrange": {"budget": profile.lagrange_budget}}
+
+
 def evaluate_families(profile: Profile, methods: list[str], log=print) -> list[FamilyResult]:
     memo: dict = {}
     out = []
     for name, make in FAMILIES.items():
         log(f"stability: family {name}")
         doc = " ".join((make.__doc__ or "").split())
-        out.append(evaluate_family(name, make(profile), methods, memo, doc))
+        out.append(evaluate_family(name, make(profile), methods, memo, doc, method_options(profile)))
     return out
 
 
@@ -807,7 +796,7 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
          f"total {seconds:.0f} s on this machine",
          f"- **methods** (the registry at run time): {', '.join(methods)}",
          f"- **reference**: {'; '.join(refs)}",
-         f"- **lagrange symbolic budget**: {os.environ.get('EXO_BENCH_LAGRANGE_BUDGET', f'{profile.lagrange_budget:g}')} s "
+         f"- **lagrange symbolic budget**: {profile.lagrange_budget:g} s "
          "per mechanism (over it, the method is recorded as skipped with the reason)",
          "- **quantities**: generalised forces of the paper's absolute coordinates (M_phi, M_psi in N m, F in N)", ""]
     L += ["## Findings", "", findings_markdown(families, methods, forward), ""]
@@ -824,23 +813,21 @@ def run(args) -> int:
     """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs."""
     from exo_bench.bench.forward import forward_figures, run_forward
     from exo_bench.bench.methods import method_names
-    from exo_bench.bench.reporting import REPORTS, atomic_write
+    from exo_bench.bench.reporting import REPORTS, atomic_write, save_figure
 
     profile = FULL if getattr(args, "full", False) else QUICK
     out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
     methods = method_names()
     t0 = time.perf_counter()
     log = lambda msg: print(msg, flush=True)  # noqa: E731
-    with lagrange_budget(profile.lagrange_budget), warnings.catch_warnings():
+    with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
         families = evaluate_families(profile, methods, log)
-        forward = run_forward(profile, methods, log)
+        forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
     figs = {"stability-families.png": families_figure(families, methods),
             "stability-conditioning.png": conditioning_figure(families)}
     figs.update(forward_figures(forward))
-    from exo_bench.bench.forward import _save_png
-
-    written = [_save_png(fig, out / name) for name, fig in figs.items()]
+    written = [save_figure(fig, out / name) for name, fig in figs.items()]
     text = report_markdown(profile, methods, families, forward, time.perf_counter() - t0, list(figs))
     written.append(atomic_write(out / "stability.md", text))
     for p in written:

@@ -77,6 +77,15 @@ def finite_max(a: np.ndarray) -> float:
     return float(a.max()) if a.size else float("nan")
 
 
+class StabilityWarning(RuntimeWarning):
+    """Base class of the stability suite's warnings."""
+
+
+class UnusableMethodWarning(StabilityWarning):
+    """A method returned NaN/Inf or lost more than the stated relative accuracy on a family, or its
+    forward dynamics does not reproduce a motion."""
+
+
 def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
                 reference: str = "pinocchio", options: dict[str, dict] | None = None) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and

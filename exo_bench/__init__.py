@@ -27,10 +27,14 @@ def __getattr__(name: str):
         from exo_bench.bench import methods
 
         return getattr(methods, name)
-    if name in ("Mechanism", "load_mechanism"):
-        from exo_bench.models import mechanism
+    if name == "Mechanism":
+        from exo_bench.models.mechanism import Mechanism
 
-        return getattr(mechanism, name)
+        return Mechanism
+    if name == "load_mechanism":
+        from exo_bench.models.loading import load_mechanism
+
+        return load_mechanism
     if name == "presets":
         from exo_bench.models import presets
 

@@ -3,12 +3,15 @@
 The equations of motion of every method have the form ``M(q) qdd + h(q, qd) = tau``. Forward
 dynamics solves them for ``qdd``:
 
+Every function takes a prepared model (:func:`exo_bench.prepare`, :mod:`models.prepared`):
+
 * **Pinocchio** exposes ``M`` (CRBA) and ``h`` (``nonLinearEffects``) directly. Its ABA would be
   faster, but it refuses the mimic joints of the generated URDF, so the suite uses CRBA and a
-  solve (:func:`models.pinocchio_backend.mass_matrix`, :func:`~models.pinocchio_backend.bias_forces`).
-* **Any other method** ``tau = ID(q, qd, qdd)`` gives them exactly, because inverse dynamics is
+  solve.
+* **Any method** ``tau = ID(q, qd, qdd)`` gives them exactly, because inverse dynamics is
   linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``
-  (:func:`terms_from_inverse_dynamics`, one batched call per evaluation).
+  (:func:`models.prepared.terms_from_inverse_dynamics`, one batched call per evaluation); a
+  prepared model uses its own terms where it has them (``native_terms``).
 
 **Singular configurations.** ``M = J^T (mu (x) I) J``, where ``J`` maps ``qd`` to the rod
 vectors' rates ``d/dt(s_i l_i u_i)`` (per link the columns ``l_i du_i/dphi_i``,
@@ -37,6 +40,7 @@ from typing import Callable
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, as_states, split
+from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
 
 #: ``|cos psi|`` at or below which a rod counts as vertical to working precision. The float
 #: nearest pi/2 has ``cos = 6.1e-17``; angles within two units in the last place of pi/2
@@ -64,76 +68,18 @@ class SingularConfigurationError(ValueError):
 
 
 # --------------------------------------------------------------------------- mass matrix and bias
-def terms_from_inverse_dynamics(inverse_dynamics, mech: Mechanism, q: np.ndarray, qd: np.ndarray):
-    """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics, in ONE batched call.
+def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, via_inverse_dynamics: bool = False):
+    """``M (S, dof, dof)`` and ``h (S, dof)`` of a prepared model, on validated ``(S, dof)`` arrays.
 
-    Inverse dynamics is linear in ``qdd``: ``ID(q, qd, qdd) = M(q) qdd + h(q, qd)``. Per sample the
-    batch holds ``(q, qd, 0)`` (gives ``h``), ``(q, 0, 0)`` (gravity only) and ``(q, 0, e_k)`` for
-    every coordinate ``k``; then ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``. The subtraction costs at
-    most ``eps * |gravity forces| / |M e_k|`` relative, which the tests bound against CRBA.
+    The model's own terms where it has them (``model.native_terms``: Pinocchio's CRBA and
+    ``nonLinearEffects``, Lagrange's lambdified ``d tau / d qdd`` and ``tau(qdd = 0)``, the matrix
+    method's ``A, B, Lambda`` blocks), else, or with ``via_inverse_dynamics=True``, from its inverse
+    dynamics (:func:`models.prepared.terms_from_inverse_dynamics`, one batched call).
     """
-    S, d = q.shape
-    k = d + 2
-    Q = np.repeat(q, k, axis=0)                      # (S*k, d): each sample's q, k times
-    QD = np.zeros_like(Q)
-    QD[::k] = qd                                     # first row of each block: the real rates
-    QDD = np.zeros_like(Q)
-    QDD.reshape(S, k, d)[:, 2:, :] = np.eye(d)       # rows 2..: unit accelerations
-    tau = np.asarray(inverse_dynamics(mech, Q, QD, QDD), dtype=float).reshape(S, k, d)
-    h = tau[:, 0]
-    M = tau[:, 2:] - tau[:, 1:2]                     # row k-2 is M e_k: M^T, and M is symmetric
-    return np.swapaxes(M, 1, 2), h
-
-
-def exposed_terms(method: str):
-    """The ``(mass_matrix, bias_forces)`` functions a registered method exposes, or None.
-
-    A method registered as ``module.inverse_dynamics<suffix>`` exposes them when its module also
-    defines ``mass_matrix<suffix>(mech, q)`` and ``bias_forces<suffix>(mech, q, qd)`` (Pinocchio:
-    CRBA and ``nonLinearEffects``; Lagrange: the lambdified ``d tau / d qdd`` and ``tau(qdd = 0)``).
-    """
-    import importlib
-
-    from exo_bench.bench.methods import METHODS
-
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {method!r}")
-    module, func, _ = METHODS[method]
-    if not func.startswith("inverse_dynamics"):
-        return None
-    suffix = func[len("inverse_dynamics"):]
-    mod = importlib.import_module(module)
-    mm, bf = getattr(mod, "mass_matrix" + suffix, None), getattr(mod, "bias_forces" + suffix, None)
-    return (mm, bf) if callable(mm) and callable(bf) else None
-
-
-def mass_matrix_and_bias(mech: Mechanism, q: np.ndarray, qd: np.ndarray, method: str = "pinocchio",
-                         via_inverse_dynamics: bool = False):
-    """``M (S, dof, dof)`` and ``h (S, dof)`` of a registered method (see :mod:`bench.methods`).
-
-    From the functions the method exposes (:func:`exposed_terms`), else, or with
-    ``via_inverse_dynamics=True``, from its inverse dynamics (:func:`terms_from_inverse_dynamics`).
-    """
-    terms = None if via_inverse_dynamics else _exposed_cached(method)
-    if terms is not None:
-        mm, bf = terms
-        return np.asarray(mm(mech, q), dtype=float), np.asarray(bf(mech, q, qd), dtype=float)
-    from exo_bench.bench.methods import get_method
-
-    return terms_from_inverse_dynamics(get_method(method), mech, q, qd)
-
-
-_EXPOSED: dict[tuple, object] = {}
-
-
-def _exposed_cached(method: str):
-    """:func:`exposed_terms`, looked up once per registry entry (the right-hand side calls it often)."""
-    from exo_bench.bench.methods import METHODS
-
-    key = (method, METHODS.get(method))
-    if key not in _EXPOSED:
-        _EXPOSED[key] = exposed_terms(method)
-    return _EXPOSED[key]
+    if via_inverse_dynamics:
+        return terms_from_inverse_dynamics(lambda a, b, c: model.inverse_dynamics(a, b, c, check=False),
+                                           model.dof, q, qd)
+    return model.mass_matrix_and_bias(q, qd, check=False)
 
 
 def mass_distribution_matrix(mech: Mechanism) -> np.ndarray:
@@ -235,34 +181,31 @@ def solve_mass_matrix(M: np.ndarray, b: np.ndarray) -> np.ndarray:
     return r * np.linalg.solve(Ms, (r * b)[..., None])[..., 0]
 
 
-def accelerations(mech: Mechanism, q, qd, tau, method: str = "pinocchio", check: bool = True) -> np.ndarray:
-    """Forward dynamics ``qdd = M^-1 (tau - h)``, ``(S, dof)``, from a method's ``M`` and ``h``.
+def accelerations(model: PreparedModel, q, qd, tau, check: bool = True) -> np.ndarray:
+    """Forward dynamics ``qdd = M^-1 (tau - h)``, ``(S, dof)``, from a prepared model's ``M`` and ``h``.
 
     With ``check`` (the default) the states are validated and a singular configuration raises
     :class:`SingularConfigurationError` (see :func:`singular_reasons`) rather than returning
     NaN. The integrator calls it with ``check=False`` after checking the initial state.
     """
     if check:
-        q, qd, tau = as_states(mech, q, qd, tau, source="forward dynamics")
-        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(mech, q)) for r in rs]
+        q, qd, tau = as_states(model.mechanism, q, qd, tau, source="forward dynamics")
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(model.mechanism, q)) for r in rs]
         if reasons:
             raise SingularConfigurationError(reasons)
-    M, h = mass_matrix_and_bias(mech, q, qd, method)
+    M, h = mass_matrix_and_bias(model, q, qd)
     return solve_mass_matrix(M, tau - h)
 
 
 # --------------------------------------------------------------------------- controls
-def prescribed_controls(mech: Mechanism, motion_of_t, method: str = "pinocchio") -> Controls:
+def prescribed_controls(model: PreparedModel, motion_of_t) -> Controls:
     """``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` on the fly along an analytic motion (any ``t``,
-    no interpolation): the controls that should reproduce the motion. ``motion_of_t(t)`` returns
-    a :class:`models.motion.Motion` for an array of times."""
-    from exo_bench.bench.methods import get_method
-
-    fn = get_method(method)
+    no interpolation), by a prepared model: the controls that should reproduce the motion.
+    ``motion_of_t(t)`` returns a :class:`models.motion.Motion` for an array of times."""
 
     def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         m = motion_of_t(np.array([t]))
-        return np.broadcast_to(np.asarray(fn(mech, m.q, m.qd, m.qdd), dtype=float), q.shape)
+        return np.broadcast_to(model.inverse_dynamics(m.q, m.qd, m.qdd, check=False), q.shape)
 
     return controls
 
@@ -329,12 +272,13 @@ class Simulation:
         return self.y[:, dof:]
 
 
-def make_rhs(mech: Mechanism, controls: Controls, method: str = "pinocchio",
-             max_evaluations: int | None = None, max_seconds: float | None = None):
+def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | None = None,
+             max_seconds: float | None = None):
     """The vectorised right-hand side ``f(t, y)`` of ``y = [q, qd]``, ``y`` of shape ``(2 dof,)`` or
     ``(2 dof, k)``, and a counter dict (``columns`` evaluated, stages ``rejected`` as outside the
     domain, the latest ``t`` reached). Over budget it raises
     :class:`IntegrationBudgetExceeded`."""
+    mech = model.mechanism
     d = mech.dof
     count = {"columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
 
@@ -357,7 +301,7 @@ def make_rhs(mech: Mechanism, controls: Controls, method: str = "pinocchio",
         if valid.any():
             qv, qdv = (q, qd) if valid.all() else (q[valid], qd[valid])
             tau = controls(t, qv, qdv)
-            M, h = mass_matrix_and_bias(mech, qv, qdv, method)
+            M, h = mass_matrix_and_bias(model, qv, qdv)
             qdd[valid] = solve_mass_matrix(M, tau - h)
         count["rejected"] += int((~valid).sum())
         return np.concatenate([qd, qdd], axis=1).T.reshape(y.shape)
@@ -365,8 +309,8 @@ def make_rhs(mech: Mechanism, controls: Controls, method: str = "pinocchio",
     return rhs, count
 
 
-def simulate(mech: Mechanism, q0, qd0, t_span: tuple[float, float], controls: Controls,
-             method: str = "pinocchio", integrator: str = "DOP853", rtol: float = 1e-8,
+def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], controls: Controls,
+             integrator: str = "DOP853", rtol: float = 1e-8,
              atol: float | None = None, max_evaluations: int | None = None, max_seconds: float | None = None,
              dense: bool = False, first_step: float | None = None) -> Simulation:
     """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
@@ -381,12 +325,13 @@ def simulate(mech: Mechanism, q0, qd0, t_span: tuple[float, float], controls: Co
         raise ValueError(f"integrator: expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
     from scipy.integrate import solve_ivp
 
+    mech = model.mechanism
     q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")
     reasons = singular_reasons(mech, q0)[0]
     if reasons:
         raise SingularConfigurationError(reasons)
     atol = rtol * 1e-3 if atol is None else atol
-    rhs, count = make_rhs(mech, controls, method, max_evaluations, max_seconds)
+    rhs, count = make_rhs(model, controls, max_evaluations, max_seconds)
     y0 = np.concatenate([q0[0], qd0[0]])
     steps_t, steps_y = [t_span[0]], [y0]
     t0 = time.perf_counter()

@@ -262,27 +262,6 @@ def _validate(m: Mechanism) -> None:
         raise ValueError(f"{m.name}: field 'masses': expected at least one positive mass, got all zero")
 
 
-def load_mechanism(spec: str | Path) -> Mechanism:
-    """A preset name (see ``exo-bench presets``) or the path of a JSON file."""
-    from exo_bench.models.presets import PRESETS
-
-    key = str(spec)
-    if key in PRESETS:
-        return PRESETS[key]()
-    path = Path(spec)
-    if not path.exists():
-        raise ValueError(f"mechanism {key!r}: not a preset ({', '.join(sorted(PRESETS))}) and no such file")
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise ValueError(f"mechanism {key!r}: cannot read: {e.strerror}") from None
-    return Mechanism.from_json(text, source=str(path))
-
-
-def save_mechanism(mech: Mechanism, path: str | Path) -> None:
-    Path(path).write_text(mech.to_json() + "\n")
-
-
 # --------------------------------------------------------------- coordinates
 def coordinate_names(mech: Mechanism) -> list[str]:
     """Labels in block order: ``phi1..phin, psi1..psin, l1..ln`` (no psi in 2D)."""

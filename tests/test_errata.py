@@ -5,7 +5,8 @@ import pytest
 
 from exo_bench.bench.cli import main
 from exo_bench.lagrange import BudgetExceeded
-from exo_bench.matrix_method import errata, printed
+from exo_bench.bench import errata
+from exo_bench.matrix_method import printed
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig2b, random_tree
 

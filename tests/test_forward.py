@@ -6,6 +6,8 @@ integrators while the explicit ones hit the stability limit."""
 import math
 
 import numpy as np
+
+from exo_bench import prepare
 import pytest
 
 from exo_bench.bench import forward as fw
@@ -20,7 +22,7 @@ def gait_case():
 
 @pytest.fixture(scope="module")
 def gait_flow(gait_case):
-    ctrl = fd.prescribed_controls(gait_case.mechanism, gait_case.motion_of_t)
+    ctrl = fd.prescribed_controls(prepare(gait_case.mechanism, "pinocchio"), gait_case.motion_of_t)
     m0 = gait_case.motion_of_t(np.array([0.0]))
     return fw.variational(gait_case.mechanism, ctrl, m0.q, m0.qd, gait_case.horizon)
 
@@ -37,7 +39,7 @@ def test_controls_from_inverse_dynamics_reproduce_the_planar_gait(gait_case, gai
 def test_a_wrong_control_is_caught_by_the_round_trip_tolerance(gait_case, gait_flow):
     """Controls off by one part in 1e5 (a tiny modelling error) break the rule: the deviation no
     longer follows the integrator's error. The stated tolerance is sharp enough to tell."""
-    good = fd.prescribed_controls(gait_case.mechanism, gait_case.motion_of_t)
+    good = fd.prescribed_controls(prepare(gait_case.mechanism, "pinocchio"), gait_case.motion_of_t)
     wrong = lambda t, q, qd: good(t, q, qd) * (1 + 1e-5)  # noqa: E731
     rt = fw.round_trip(gait_case, "DOP853", 1e-8, var=gait_flow, controls=wrong)
     assert rt.sim.ok

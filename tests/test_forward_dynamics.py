@@ -5,6 +5,9 @@ condition number, and the integrator plumbing (budgets, states outside the domai
 import math
 
 import numpy as np
+
+from exo_bench import prepare
+from exo_bench.models.prepared import terms_from_inverse_dynamics
 import pytest
 
 from exo_bench.models import forward_dynamics as fd
@@ -22,7 +25,8 @@ def test_inverse_dynamics_is_linear_in_qdd_so_it_gives_M_and_h(mech, rel):
     """h = ID(q, qd, 0) and M e_k = ID(q, 0, e_k) - ID(q, 0, 0) from RNEA equal CRBA and
     nonLinearEffects, two different algorithms."""
     q, qd, _ = random_states(mech, 5, 1)
-    M, h = fd.terms_from_inverse_dynamics(pb.inverse_dynamics, mech, q, qd)
+    rnea = lambda a, b, c: pb.inverse_dynamics(mech, a, b, c)  # noqa: E731 - RNEA only, no CRBA
+    M, h = terms_from_inverse_dynamics(rnea, mech.dof, q, qd)
     assert rel(M, pb.mass_matrix(mech, q)) < 1e-13
     assert rel(h, pb.bias_forces(mech, q, qd)) < 1e-13
     assert np.abs(M - np.swapaxes(M, 1, 2)).max() < 1e-13 * np.abs(M).max()
@@ -33,11 +37,11 @@ def test_terms_from_inverse_dynamics_make_one_call():
     q, qd, _ = random_states(mech, 3, 2)
     calls = []
 
-    def counting(m, a, b, c):
+    def counting(a, b, c):
         calls.append(a.shape)
-        return pb.inverse_dynamics(m, a, b, c)
+        return pb.inverse_dynamics(mech, a, b, c)
 
-    fd.terms_from_inverse_dynamics(counting, mech, q, qd)
+    terms_from_inverse_dynamics(counting, mech.dof, q, qd)
     assert calls == [(3 * (mech.dof + 2), mech.dof)]
 
 
@@ -61,7 +65,7 @@ def test_mass_distribution_matrix_gives_the_kinetic_energy_of_the_point_masses(m
 def test_forward_dynamics_inverts_inverse_dynamics(mech, rel):
     q, qd, qdd = random_states(mech, 8, 4)
     tau = pb.inverse_dynamics(mech, q, qd, qdd)
-    assert rel(fd.accelerations(mech, q, qd, tau), qdd) < 1e-11
+    assert rel(fd.accelerations(prepare(mech, "pinocchio"), q, qd, tau), qdd) < 1e-11
 
 
 @pytest.mark.parametrize("mech", TREES + [exo5(3), exo5(2)], ids=lambda m: m.name)
@@ -90,7 +94,7 @@ def test_vertical_rod_is_singular_for_forward_dynamics_but_not_for_inverse_dynam
     reasons = fd.singular_reasons(mech, q)[0]
     assert len(reasons) == 1 and "link 3" in reasons[0] and "vertical" in reasons[0]
     with pytest.raises(fd.SingularConfigurationError, match="link 3 .*vertical rod"):
-        fd.accelerations(mech, q, qd, tau)
+        fd.accelerations(prepare(mech, "pinocchio"), q, qd, tau)
 
 
 def test_near_vertical_rod_is_regular_and_its_condition_number_grows_like_1_over_cos_squared():
@@ -134,10 +138,11 @@ def test_budget_and_states_outside_the_domain_are_recorded_not_raised():
     mech = fig1(2)
     q0 = np.array([[-1.0, 0.5]])
     ctrl = fd.rod_spring_damper(mech, 1e3, 0.0, 0.5)
-    sim = fd.simulate(mech, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10,
+    model = prepare(mech, "pinocchio")
+    sim = fd.simulate(model, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10,
                       max_evaluations=200)
     assert sim.status.startswith("budget exceeded") and not sim.ok and sim.nfev == 201
-    rhs, count = fd.make_rhs(mech, ctrl)
+    rhs, count = fd.make_rhs(model, ctrl)
     y = np.array([[-1.0, -1.0], [0.5, -0.1], [0.0, 0.0], [0.0, 0.0]])   # columns: l = 0.5 and l = -0.1
     f = rhs(0.0, y)
     assert np.isfinite(f[:, 0]).all() and np.isnan(f[2:, 1]).all() and count["rejected"] == 1
@@ -147,7 +152,7 @@ def test_simulate_refuses_a_singular_initial_state():
     mech = fig1(3)
     q0 = np.array([[0.3, math.pi / 2, 0.4]])
     with pytest.raises(fd.SingularConfigurationError, match="vertical"):
-        fd.simulate(mech, q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4))
+        fd.simulate(prepare(mech, "matrix"), q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4))
 
 
 def test_spring_damper_forces_act_on_the_rods_only():

@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from exo_bench.models.mechanism import Mechanism, as_states, coordinate_names, load_mechanism, save_mechanism
+from exo_bench.models.loading import load_mechanism, save_mechanism
+from exo_bench.models.mechanism import Mechanism, as_states, coordinate_names
 from exo_bench.models.presets import PRESETS, exo5, random_tree
 
 ISSUE_EXAMPLE = {"dim": 3, "g": 9.81,

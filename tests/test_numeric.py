@@ -11,7 +11,8 @@ import sympy as sp
 
 from exo_bench.bench.cli import main
 from exo_bench.lagrange import numeric as lagrange_numeric
-from exo_bench.matrix_method import errata, numeric, printed
+from exo_bench.bench import errata
+from exo_bench.matrix_method import numeric, printed
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import gait, random_states
 from exo_bench.models.presets import exo5, fig5, random_tree

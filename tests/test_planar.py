@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from exo_bench.matrix_method import numeric
-from exo_bench.matrix_method.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.bench.errata import LagrangeWitness, pinocchio_matrices
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig2a, fig2b, random_tree
 

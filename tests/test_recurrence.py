@@ -5,7 +5,7 @@ import pytest
 
 from exo_bench.lagrange import numeric as lagrange_numeric
 from exo_bench.matrix_method import numeric, recurrence, symbolic
-from exo_bench.matrix_method.errata import prefix, prefix_states
+from exo_bench.bench.errata import prefix, prefix_states
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, random_tree

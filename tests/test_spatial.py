@@ -5,7 +5,7 @@ import pytest
 
 from exo_bench.matrix_method import numeric, planar, spatial
 from exo_bench.matrix_method.coefficients import signed_coupling
-from exo_bench.matrix_method.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.bench.errata import LagrangeWitness, pinocchio_matrices
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig5, random_tree
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from exo_bench.bench import stability as st
-from exo_bench.bench.methods import METHODS, get_method, method_names
+from exo_bench.bench.methods import METHODS, method_names, prepare
+from exo_bench.models.prepared import PreparedModel
 from exo_bench.models import pinocchio_backend as pb
 
 TINY = dataclasses.replace(
@@ -32,7 +33,7 @@ def test_at_a_removable_singularity_matrix_is_exact_and_the_printed_eq18_yields_
     with pytest.warns(st.UnusableMethodWarning, match="matrix-paper"):
         fam = st.evaluate_family("removable singularities of eq. (18)", [case], ["pinocchio", "matrix", "matrix-paper"])
     rows = fam.results[0].rows
-    tau = get_method("matrix")(case.mechanism, case.q, case.qd, case.qdd)
+    tau = prepare(case.mechanism, "matrix").inverse_dynamics(case.q, case.qd, case.qdd)
     assert np.isfinite(tau).all()
     ref = pb.inverse_dynamics(case.mechanism, case.q, case.qd, case.qdd)
     assert np.abs(tau - ref).max() < 1e-13 * np.abs(ref).max()
@@ -74,14 +75,17 @@ def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatc
     class Over(Exception):
         skip_reason = "over its time budget (test)"
 
-    def over(mech, q, qd, qdd):
-        raise Over()
+    class over(PreparedModel):            # over budget while preparing, as lagrange's derivation can be
+        def __init__(self, mechanism):
+            raise Over()
 
-    def boom(mech, q, qd, qdd):
-        raise RuntimeError("boom")
+    class boom(PreparedModel):            # prepares, then fails when called
+        def _inverse_dynamics(self, q, qd, qdd):
+            raise RuntimeError("boom")
 
-    def nan(mech, q, qd, qdd):
-        return np.full(q.shape, np.nan)
+    class nan(PreparedModel):
+        def _inverse_dynamics(self, q, qd, qdd):
+            return np.full(q.shape, np.nan)
 
     mod.over, mod.boom, mod.nan = over, boom, nan
     monkeypatch.setitem(sys.modules, "fake_methods", mod)
