@@ -49,6 +49,15 @@ def atomic_write(path: str | Path, data: str | bytes) -> Path:
     return Path(path)
 
 
+def sci(x, digits: int = 1) -> str:
+    """A report cell in scientific notation: ``""`` for None or NaN, ``"inf"`` for infinity."""
+    import math
+
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return ""
+    return "inf" if math.isinf(x) else f"{x:.{digits}e}"
+
+
 #: Every PNG the suite writes: 150 dpi, so that 9 pt text is 19 px high.
 PNG_DPI = 150
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 
-import numpy as np
 
 from exo_bench.lagrange import numeric
 from exo_bench.lagrange.budget import without_interrupts

@@ -1,4 +1,4 @@
-"""The forward-dynamics experiments (bench/forward.py): the round trip recovers the prescribed
+"""The forward-dynamics experiments (bench/stability/forward_*.py): the round trip recovers the prescribed
 motion within its stated tolerance (and a wrong control does not), the conservative case keeps
 its energy within the bound derived from rtol, stiff rods are solved by the implicit
 integrators while the explicit ones hit the stability limit."""
@@ -10,7 +10,7 @@ import numpy as np
 from exo_bench import prepare
 import pytest
 
-from exo_bench.bench import forward as fw
+from exo_bench.bench import stability as fw
 from exo_bench.bench.methods import METHODS
 from exo_bench.models import forward_dynamics as fd
 

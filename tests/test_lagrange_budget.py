@@ -11,9 +11,8 @@ import pytest
 
 from exo_bench.bench.study import run_methods
 from exo_bench.lagrange import BudgetExceeded, derive
-from exo_bench.lagrange import numeric as ln
 from exo_bench.lagrange.budget import time_budget
-from exo_bench.models.motion import random_states, smooth_random_motion
+from exo_bench.models.motion import smooth_random_motion
 from exo_bench.models.presets import chain
 
 

@@ -1,103 +1,26 @@
-"""Forward-dynamics experiments of the stability report: round trip, energy drift, stiffness, work.
-
-Everything integrates ``M(q) qdd + h(q, qd) = tau`` with :func:`models.forward_dynamics.simulate`
-(scipy's ``solve_ivp``: RK45, DOP853 explicit; Radau, BDF implicit with a finite-difference
-Jacobian that scipy estimates from the vectorised right-hand side).
-
-* **Round trip** (:func:`round_trip`): the controls that inverse dynamics computes along a
-  prescribed analytic motion, ``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` evaluated on the fly, must
-  reproduce the motion. Pass criterion (:data:`ROUND_TRIP_RULE`): the deviation from ``q*`` is at
-  most twice the integrator's own global error, estimated without ``q*`` by a second run at a
-  100x tighter tolerance, plus a round-off floor. The first-order worst case, propagated with the
-  linearised flow ``Phi`` (:func:`variational`), is reported beside it.
-* **Conservative case** (:func:`energy_drift`): no controls, passive springs in the rods; the
-  drift of ``T + Pi + V_spring`` must stay below the first-order bound from the tolerance
-  (:func:`energy_bound`): energy is a first integral, so local errors are not amplified.
-* **Stiff variants** (:func:`stiff_run`): critically damped stiff springs in the rods, or tiny
-  masses; explicit integrators' step counts grow like ``sqrt(k/m)``, implicit ones do not.
+"""Forward-dynamics study, the evaluation: the round trip (controls from inverse dynamics drive
+forward dynamics, compared with the motion and an a-priori bound), energy drift against its bound,
+stiff rods, mass matrices and bias forces per method, singular configurations.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from dataclasses import field
 import math
 import warnings
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from exo_bench.bench.methods import PreparedSet
-from exo_bench.bench.study import UnusableMethodWarning, one_line
+from exo_bench.bench.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripCase, SpringCase, TIGHTER, _models, _state0, conservative_cases, round_trip_cases, stiff_case
+from exo_bench.bench.study import UnusableMethodWarning
+from exo_bench.bench.study import one_line
 from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.kinematics import kinetic_energy, total_energy
+from exo_bench.models.kinematics import kinetic_energy
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import Motion, planar_gait, smooth_random_motion
-from exo_bench.models.presets import chain, exo5, random_tree
-
-EPS = np.finfo(float).eps
-
-#: atol = ATOL_FACTOR * rtol: a state component of 1e-2 (rad, m, rad/s, m/s) counts as small.
-ATOL_FACTOR = 1e-2
-#: The second run of a round trip uses rtol / TIGHTER to estimate the first run's global error.
-TIGHTER = 100.0
-
-ROUND_TRIP_RULE = (
-    "max_t |q(t) - q*(t)| <= 2 E + F, where E = max_t |q_rtol(t) - q_rtol/100(t)| is the integrator's own "
-    "global error, estimated from a second run at a 100x tighter tolerance that never looks at q*, and "
-    "F = N_steps * G(H) * eps * max|y| is the round-off floor (every step may add a few eps * |y|, and a "
-    "perturbation grows by at most G(H) = max_t ||Phi_q(t)||_inf over the horizon H). Why 2 E: if the "
-    "tighter run's deviation is at most half the first run's (any convergent method whose error follows the "
-    "tolerance, here 100x tighter), then err <= E + err/2. If the controls did not reproduce the motion, "
-    "q* would not solve the ODE and the deviation would not shrink with the tolerance: the rule fails.")
-
-
-# ----------------------------------------------------------------------------- helpers
-def _models(models: PreparedSet | None) -> PreparedSet:
-    """The run's prepared models, or this process's default set (default options)."""
-    return _DEFAULT_MODELS if models is None else models
-
-
-_DEFAULT_MODELS = PreparedSet()
-
-
-def _state0(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    return motion.q[:1], motion.qd[:1]
-
-
-# ----------------------------------------------------------------------------- round trip
-@dataclass(frozen=True, eq=False)
-class RoundTripCase:
-    name: str
-    mechanism: Mechanism
-    motion_of_t: Callable[[np.ndarray], Motion]
-    horizon: float
-    description: str
-
-
-def round_trip_cases(full: bool = False) -> list[RoundTripCase]:
-    """The prescribed motions of the round trip.
-
-    * the planar gait (eq. 26 in the sagittal plane) of the five-link exoskeleton over 0.3 s: the
-      stance leg and trunk stand upright, an inverted multi-link pendulum, so open-loop
-      perturbations grow about 10x per 0.05 s; 0.3 s keeps the growth G near 1e4;
-    * smooth random motions of seeded random trees (2D and 3D) over 1 s.
-    """
-    e2 = exo5(2)
-    t2, t3 = random_tree(4, 2, 5), random_tree(4, 3, 5)
-    cases = [
-        RoundTripCase("exo5-2d planar gait", e2, lambda t: planar_gait(e2, t), 0.3,
-                      "eq. (26) in the sagittal plane, T = 1.1 s, first 0.3 s"),
-        RoundTripCase("tree4-2d random motion", t2, lambda t: smooth_random_motion(t2, t, 3), 1.0,
-                      "smooth random motion (seed 3) of random_tree(4, 2, 5), 1 s"),
-        RoundTripCase("tree4-3d random motion", t3, lambda t: smooth_random_motion(t3, t, 3), 1.0,
-                      "smooth random motion (seed 3) of random_tree(4, 3, 5), 1 s"),
-    ]
-    if full:
-        t5 = random_tree(6, 3, 11)
-        cases.append(RoundTripCase("tree6-3d random motion", t5, lambda t: smooth_random_motion(t5, t, 4), 1.0,
-                                   "smooth random motion (seed 4) of random_tree(6, 3, 11), 1 s"))
-    return cases
+from exo_bench.models.presets import exo5
+from exo_bench.models.presets import random_tree
 
 
 @dataclass
@@ -247,51 +170,6 @@ def round_trip(case: RoundTripCase, integrator: str, rtol: float, method: str = 
     return rt
 
 
-# ----------------------------------------------------------------------------- conservative case
-@dataclass(frozen=True, eq=False)
-class SpringCase:
-    name: str
-    mechanism: Mechanism
-    q0: np.ndarray
-    qd0: np.ndarray
-    k: float
-    c: np.ndarray | float
-    l_rest: np.ndarray
-    horizon: float
-    description: str
-
-    @property
-    def controls(self) -> fd.Controls:
-        return fd.rod_spring_damper(self.mechanism, self.k, self.c, self.l_rest)
-
-    def energy(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """``T + Pi + V_spring`` per sample."""
-        return total_energy(self.mechanism, q, qd) + fd.spring_energy(self.mechanism, q, self.k, self.l_rest)
-
-
-def conservative_cases() -> list[SpringCase]:
-    """Passive mechanisms (no actuators) with springs in the rods, no damping.
-
-    Without a restoring force the telescopes of a free mechanism collapse (``l -> 0``, where M is
-    singular) or extend without bound, so the rods carry springs ``F = -k (l - l*)`` at a moderate
-    ``k`` (rod modes of 10-60 rad/s, not stiff); their energy ``k/2 (l - l*)^2`` joins ``T + Pi``.
-    """
-    e2 = exo5(2)
-    g = planar_gait(e2, np.array([0.0]))
-    t3 = random_tree(4, 3, 5)
-    rng = np.random.default_rng(7)
-    n = t3.nlinks
-    q3 = np.concatenate([rng.uniform(-math.pi, math.pi, n), rng.uniform(-0.8, 0.8, n), rng.uniform(0.4, 1.0, n)])
-    qd3 = rng.uniform(-1.0, 1.0, 3 * n) * np.r_[np.ones(2 * n), 0.1 * np.ones(n)]
-    return [
-        SpringCase("exo5-2d passive fall", e2, g.q[0], g.qd[0], 2e3, 0.0, g.q[0, -5:], 0.5,
-                   "the five-link exoskeleton released from the gait's initial state, rods on springs "
-                   "k = 2e3 N/m at their initial length, 0.5 s"),
-        SpringCase("tree4-3d passive swing", t3, q3, qd3, 2e3, 0.0, q3[-n:], 1.0,
-                   "random_tree(4, 3, 5) from a seeded random state, rods on springs k = 2e3 N/m, 1 s"),
-    ]
-
-
 def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndarray:
     """``dE/dy (N, m)`` by central differences (one batched energy call)."""
     N, m = y.shape
@@ -349,31 +227,6 @@ def energy_drift(case: SpringCase, integrator: str, rtol: float, method: str = "
     return run
 
 
-# ----------------------------------------------------------------------------- stiff variants
-def hanging_chain(mass_scale: float = 1.0) -> tuple[Mechanism, np.ndarray]:
-    """A planar three-link chain hanging from the support point, released from rest at
-    angles -pi/2 + (0.5, 0.3, -0.4); ``mass_scale`` multiplies the masses of the last link."""
-    base = chain(3, 2)
-    masses = list(base.masses)
-    masses[-1] = tuple(mass_scale * x for x in masses[-1])
-    name = "chain3-2d hanging" + ("" if mass_scale == 1 else f", last link masses x{mass_scale:g}")
-    mech = base.replace(masses=tuple(masses), name=name)
-    q0 = np.array([-math.pi / 2 + 0.5, -math.pi / 2 + 0.3, -math.pi / 2 - 0.4, 0.43, 0.43, 0.43])
-    return mech, q0
-
-
-def stiff_case(k: float, mass_scale: float = 1.0, horizon: float = 1.0) -> SpringCase:
-    """Critically damped stiff rods: ``c_i = 2 sqrt(k mu_ii)`` with ``mu_ii`` the mass that moves
-    along rod i (the diagonal of M for ``l_i``), so each rod mode decays at ``sqrt(k / mu_ii)``
-    without ringing: a stiff, not an oscillatory, problem."""
-    mech, q0 = hanging_chain(mass_scale)
-    mu = np.diag(fd.mass_distribution_matrix(mech))
-    c = 2.0 * np.sqrt(k * mu)
-    return SpringCase(f"{mech.name}, k = {k:.0e}", mech, q0, np.zeros_like(q0), k, c, q0[-3:], horizon,
-                      f"{mech.name}: rods on critically damped springs k = {k:.0e} N/m, "
-                      f"fastest rod mode {math.sqrt(k / mu.min()):.2e} rad/s")
-
-
 @dataclass
 class StiffRun:
     case: str
@@ -407,79 +260,6 @@ def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: i
         E = case.energy(sim.q(d), sim.qd(d))
         run.energy_change = float((E - E[0]).max())
     return run
-
-
-# ----------------------------------------------------------------------------- plots
-def work_precision_figure(panels: list[tuple[str, str, dict[str, list[tuple[float, float, float]]]]]):
-    """One log-log panel per problem: x the error, y the run time, a line per integrator through
-    its tolerances (each point labelled with its rtol exponent). ``panels``: (title, x label,
-    {integrator: [(rtol, error, seconds), ...]})."""
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(4.2 * len(panels), 3.6), layout="constrained")
-    axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    markers = {"RK45": "o", "DOP853": "s", "Radau": "^", "BDF": "v"}
-    for ax, (title, xlabel, series) in zip(axes, panels):
-        for integ, pts in series.items():
-            pts = [p for p in pts if math.isfinite(p[1]) and p[1] > 0 and math.isfinite(p[2])]
-            if not pts:
-                continue
-            r, e, s = map(np.array, zip(*sorted(pts)))
-            ax.loglog(e, s, marker=markers.get(integ, "x"), label=integ, ms=4, lw=1)
-            for ri, ei, si in zip(r, e, s):
-                ax.annotate(f"{math.log10(ri):.0f}", (ei, si), fontsize=6, xytext=(2, 2), textcoords="offset points")
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel(xlabel, fontsize=8)
-        ax.set_ylabel("run time (s)", fontsize=8)
-        ax.tick_params(which="both", labelsize=7)
-        ax.grid(True, which="major", lw=0.3)
-        ax.legend(fontsize=7)
-    return fig
-
-
-def stiff_figure(runs: list[StiffRun]):
-    """Right-hand-side evaluations against the fastest rod rate, per integrator (log-log)."""
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(5.0, 3.6), layout="constrained")
-    ax = fig.subplots()
-    by: dict[tuple[str, bool], list[StiffRun]] = {}
-    for r in runs:
-        by.setdefault((r.integrator, "masses x" in r.case), []).append(r)
-    markers = {"RK45": "o", "DOP853": "s", "Radau": "^", "BDF": "v"}
-    colors = {"RK45": "#1f77b4", "DOP853": "#ff7f0e", "Radau": "#2ca02c", "BDF": "#d62728"}
-    for (integ, tiny), rs in by.items():
-        rs = sorted(rs, key=lambda r: r.stiffness)
-        x = [r.stiffness for r in rs]
-        y = [r.sim.nfev for r in rs]
-        if tiny:
-            ax.scatter(x, y, marker=markers.get(integ, "x"), facecolors="none", edgecolors=colors.get(integ), s=40,
-                       label=f"{integ}, tiny masses (k = 1e4)")
-        else:
-            ax.loglog(x, y, marker=markers.get(integ, "x"), color=colors.get(integ), label=f"{integ}, stiff k", ms=4,
-                      lw=1)
-        for r in rs:
-            if not r.solved:
-                ax.annotate("gave up", (r.stiffness, r.sim.nfev), fontsize=6, color="red")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("fastest rod rate sqrt(k / m) (1/s)", fontsize=8)
-    ax.set_ylabel("right-hand-side evaluations", fontsize=8)
-    ax.set_title("stiff rods: cost of one horizon", fontsize=9)
-    ax.tick_params(which="both", labelsize=7)
-    ax.grid(True, which="major", lw=0.3)
-    ax.legend(fontsize=7)
-    return fig
-
-
-
-# ----------------------------------------------------------------------------- the report's experiments
-
-
-def _e(x, digits: int = 1) -> str:
-    if x is None or (isinstance(x, float) and math.isnan(x)):
-        return ""
-    return "inf" if math.isinf(x) else f"{x:.{digits}e}"
 
 
 @dataclass
@@ -692,133 +472,3 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     return ForwardResults(profile, terms, sing, growth, trips, mtrips, refused, energy, stiff, stiff_wp, descr,
                           time.perf_counter() - t_start, notes)
 
-
-def forward_markdown(res: ForwardResults) -> str:
-    p = res.profile
-    L = ["## Forward dynamics", "",
-         "`M(q) qdd + h(q, qd) = tau` solved for qdd (`models.forward_dynamics`): Pinocchio's M and h from CRBA and "
-         "`nonLinearEffects` (its ABA refuses the URDF's mimic joints), other methods' from the functions they "
-         "expose or, exactly, from their inverse dynamics (it is linear in qdd: h = ID(q, qd, 0), M e_k = "
-         "ID(q, 0, e_k) - ID(q, 0, 0), one batched call per evaluation). The solve is equilibrated by diag(M). "
-         "Integration: scipy `solve_ivp`, RK45 and DOP853 (explicit), Radau and BDF (implicit, Jacobian "
-         f"estimated by scipy from the vectorised right-hand side); atol = {ATOL_FACTOR:g} * rtol.", "",
-         "### Each method's M and h against CRBA", "",
-         "| mechanism | method | M and h | max rel. diff M | max rel. diff h | seconds (4 states) |",
-         "|---|---|---|---|---|---|"]
-    for r in res.terms:
-        if r.status != "ok":
-            L.append(f"| {r.mechanism} | {r.method} | {r.source} | {r.status} | | |")
-        else:
-            L.append(f"| {r.mechanism} | {r.method} | {r.source} | {_e(r.m_rel)} | {_e(r.h_rel)} | {r.seconds:.3f} |")
-    L += ["", "### Singular configurations", "",
-          "| configuration | inverse dynamics | forward dynamics |", "|---|---|---|"]
-    L += [f"| {s.case} | {s.inverse} | {s.forward} |" for s in res.singular]
-    for name, why in res.refused:
-        L += ["", f"**Round trip on the {name} is refused: {why}.** The trunk of eq. (26) stands exactly "
-              "vertical (psi5 = pi/2) at every instant: its azimuth is undefined, M is singular, so the spatial gait "
-              "has inverse dynamics but no forward dynamics in the paper's coordinates. The round trip below uses "
-              "the planar gait and random motions instead."]
-    L += ["", "### Round trip: controls from inverse dynamics reproduce the prescribed motion", "",
-          "Controls tau(t) = ID_pinocchio(q*(t), qd*(t), qdd*(t)), evaluated on the fly at every time the integrator "
-          "asks for (no interpolation), drive the forward dynamics from (q*(0), qd*(0)); the deviation is "
-          "measured at every accepted step, max over time and coordinates (rad or m).", "",
-          f"**Tolerance.** {ROUND_TRIP_RULE}", "",
-          "The a priori column is the first-order worst case sum_k |Phi(t_j, t_k)|_q sqrt(m) (atol + rtol |y_k|) "
-          "over the accepted steps (each local error passes scipy's RMS test, so each component is below sqrt(m) "
-          "times its scale, and is carried to t_j by the linearised flow Phi, computed from 2 dof perturbed copies). "
-          "It always holds and is far from sharp: the error estimators of these methods are pessimistic "
-          "(local extrapolation), so the pass rule uses the a posteriori estimate.", ""]
-    L += ["| case | growth G(H) | description |", "|---|---|---|"]
-    L += [f"| {c} | {_e(g)} | {res.cases[c]} |" for c, g in res.growth.items()]
-    L += ["", "| case | integrator | rtol | steps | RHS evals | seconds | deviation from q* | estimate E | floor F | "
-          "tolerance 2E + F | a priori bound | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for rt in res.round_trips:
-        v = rt.verdict if rt.verdict != "FAIL" else "**FAIL**"
-        L.append(f"| {rt.case} | {rt.integrator} | {rt.rtol:.0e} | {rt.sim.steps} | {rt.sim.nfev} | "
-                 f"{rt.sim.seconds:.2f} | {_e(rt.error)} | {_e(rt.estimate)} | {_e(rt.floor)} | "
-                 f"{_e(rt.tolerance) if math.isfinite(rt.estimate) else ''} | {_e(rt.bound)} | {v} |")
-    judged = [rt for rt in res.round_trips if math.isfinite(rt.estimate)]
-    npass = sum(rt.passed for rt in judged)
-    L += ["", f"**{npass} of {len(judged)} judged round trips pass** (the others have no tighter run in the grid)."]
-    if res.method_trips:
-        L += ["", f"Per method: forward dynamics from each method's M and h (DOP853, rtol {p.method_rtol:.0e}, "
-              f"estimate from rtol {p.method_rtol / TIGHTER:.0e}), the same controls (Pinocchio's inverse dynamics), "
-              "so a method passes only if its M and h agree with Pinocchio's RNEA:", "",
-              "| case | method | steps | seconds | deviation from q* | estimate E | tolerance | verdict |",
-              "|---|---|---|---|---|---|---|---|"]
-        for rt in res.method_trips:
-            if not rt.sim.ok:
-                L.append(f"| {rt.case} | {rt.method} | | | | | | {rt.sim.status} |")
-                continue
-            v = rt.verdict if rt.verdict != "FAIL" else "**FAIL**"
-            L.append(f"| {rt.case} | {rt.method} | {rt.sim.steps} | {rt.sim.seconds:.2f} | {_e(rt.error)} | "
-                     f"{_e(rt.estimate)} | {_e(rt.tolerance)} | {v} |")
-    L += ["", "### Conservative case: energy drift", "",
-          "No actuators; the rods carry springs F = -k (l - l*) with no damping (without them the free telescopes "
-          "collapse to l = 0, where M is singular, or extend without bound), so E = T + Pi + sum k/2 (l - l*)^2 "
-          "(`models.kinematics.total_energy` plus the springs) is conserved by the exact flow.", "",
-          "**Tolerance.** E(y_k) - E(y_k-1) = E(y_k) - E(flow(y_k-1)) ~ dE/dy . l_k with l_k the local error of step "
-          "k: the drift is a sum of local errors weighted by the energy gradient and is never amplified (E is a "
-          "first integral). With |l_k,i| <= sqrt(m) (atol + rtol |y_k,i|) (scipy's RMS test), the bound is "
-          "sum_k |dE/dy(y_k)| . sqrt(m) (atol + rtol |y_k|), computed along the run (gradient by central "
-          "differences).", "",
-          "| case | integrator | rtol | steps | seconds | max drift (J) | drift / max T | bound (J) | verdict |",
-          "|---|---|---|---|---|---|---|---|---|"]
-    for r in res.energy:
-        v = ("pass" if r.passed else "**FAIL**") if r.sim.ok else r.sim.status
-        L.append(f"| {r.case} | {r.integrator} | {r.rtol:.0e} | {r.sim.steps} | {r.sim.seconds:.2f} | {_e(r.drift)} | "
-                 f"{_e(r.drift / r.scale if r.scale else math.nan)} | {_e(r.bound)} | {v} |")
-    L += ["", f"### Stiff rods and tiny masses (rtol {p.stiff_rtol:.0e}, at most {p.stiff_budget} right-hand-side "
-          f"evaluations or {p.stiff_seconds:g} s per run)", "",
-          "Rods on critically damped springs (c_i = 2 sqrt(k mu_ii), so the rod modes decay at sqrt(k / mu_ii) without "
-          "ringing) in a hanging three-link chain released from rest; tiny masses on the last link at k = 1e4 give "
-          f"the same stiffness through the mass. The error is |q(H) - q_ref(H)| against Radau at rtol "
-          f"{p.stiff_reference_rtol:.0e}. The "
-          "dampers only dissipate, so E = T + Pi + springs never rises along the exact flow: a positive "
-          "`max E - E(0)` can only be integration error.", "",
-          "| case | fastest rod rate (1/s) | cond(M) at start | integrator | status | RHS evals | steps | Jacobians | "
-          "LU | seconds | error at H | max E - E(0) (J) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in res.stiff:
-        st = "solved" if r.solved else f"**{r.sim.status}**"
-        L.append(f"| {r.case} | {r.stiffness:.1e} | {_e(r.cond)} | {r.integrator} | {st} | {r.sim.nfev} | "
-                 f"{r.sim.steps} | {r.sim.njev} | {r.sim.nlu} | {r.sim.seconds:.2f} | {_e(r.error)} | "
-                 f"{_e(r.energy_change)} |")
-    if res.stiff_notes:
-        L += [""] + [f"- {n}" for n in res.stiff_notes]
-        L += ["", "A reference that does not finish at a tight tolerance is itself a finding: where cond(M) is large "
-              "(tiny masses), the right-hand side is accurate to about cond(M) * eps only, below which the error "
-              "estimates of the implicit integrators are noise and their steps collapse."]
-    expl = [r for r in res.stiff if r.integrator in fd.EXPLICIT]
-    impl = [r for r in res.stiff if r.integrator in fd.IMPLICIT]
-    if expl and impl:
-        stiffest = max(r.stiffness for r in res.stiff)
-        e_max = max(r.sim.nfev for r in expl if r.stiffness == stiffest)
-        i_max = max(r.sim.nfev for r in impl if r.stiffness == stiffest)
-        L += ["", f"At the stiffest variant ({stiffest:.1e} 1/s) the explicit integrators used up to {e_max} "
-              f"evaluations{' (or gave up)' if any(not r.solved for r in expl) else ''}, the implicit ones at most "
-              f"{i_max}: explicit step sizes are bounded by stability (h ~ 3 / rate), implicit ones by accuracy."]
-    return "\n".join(L) + "\n"
-
-
-def forward_figures(res: ForwardResults) -> dict[str, object]:
-    """``stability-work-precision.png`` and ``stability-stiff.png``."""
-    first = next(iter(res.growth), None)
-    rt_series: dict[str, list] = {}
-    for rt in res.round_trips:
-        if rt.case == first:
-            rt_series.setdefault(rt.integrator, []).append((rt.rtol, rt.error, rt.sim.seconds))
-    en_series: dict[str, list] = {}
-    e_first = res.energy[0].case if res.energy else None
-    for r in res.energy:
-        if r.case == e_first:
-            en_series.setdefault(r.integrator, []).append((r.rtol, r.drift / r.scale, r.sim.seconds))
-    st_series: dict[str, list] = {}
-    for r in res.stiff_wp:
-        if r.solved:
-            st_series.setdefault(r.integrator, []).append((r.rtol, r.error, r.sim.seconds))
-    panels = [(f"round trip: {first}", "max |q - q*| (rad, m)", rt_series),
-              (f"energy drift: {e_first}", "max |E - E0| / max T", en_series)]
-    if st_series:
-        panels.append((f"stiff: {res.stiff_wp[0].case}", "|q(H) - q_ref(H)|", st_series))
-    return {"stability-work-precision.png": work_precision_figure(panels),
-            "stability-stiff.png": stiff_figure(res.stiff)}
