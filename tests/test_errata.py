@@ -35,9 +35,18 @@ def test_the_two_witnesses_agree_on_every_matrix(n, dim, seed):
 @pytest.fixture
 def small(monkeypatch):
     """A quick configuration of the report: two models for (18), chains of 1..3 links."""
-    monkeypatch.setattr(errata, "spatial_models", lambda: [fig2b(3), random_tree(3, 3, 2)])
-    monkeypatch.setattr(errata, "CHAIN_LENGTHS", (1, 2))
-    monkeypatch.setattr(errata, "SAMPLES", 4)
+    _everywhere(monkeypatch, "spatial_models", lambda: [fig2b(3), random_tree(3, 3, 2)])
+    _everywhere(monkeypatch, "CHAIN_LENGTHS", (1, 2))
+    _everywhere(monkeypatch, "SAMPLES", 4)
+
+
+def _everywhere(monkeypatch, name, value):
+    """Set ``name`` in every module of the errata package that uses it (each imported its own binding)."""
+    from exo_bench.bench.errata import checks, report, witnesses
+
+    for mod in (errata, witnesses, checks, report):
+        if hasattr(mod, name):
+            monkeypatch.setattr(mod, name, value)
 
 
 def _disagreeing_lines(models):
@@ -85,7 +94,7 @@ def test_a_witness_over_budget_is_reported_as_skipped(small, monkeypatch):
 def test_an_interrupted_run_leaves_no_report(small, monkeypatch, tmp_path):
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
-    monkeypatch.setattr(errata, "check_all", boom)           # interrupted during the checks
+    _everywhere(monkeypatch, "check_all", boom)           # interrupted during the checks
     with pytest.raises(KeyboardInterrupt):
         errata.write_report(tmp_path / "errata.md")
     assert not list(tmp_path.iterdir())
