@@ -370,7 +370,7 @@ def _strip_raw_timings(path: Path) -> None:
 def run(args) -> int:
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
-    out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
+    out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
     command = "exo-bench bench" + (" --full" if full else "")
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
