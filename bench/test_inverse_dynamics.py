@@ -31,6 +31,7 @@ from exo_bench.bench.methods import METHODS, prepare
 from exo_bench.bench.reference import reference
 from exo_bench.bench.sweep import current
 from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.prepared import PreparedModel
 from exo_bench.models.presets import chain, exo5
 
 K = 16
@@ -152,6 +153,33 @@ def test_inverse_per_call(benchmark, sweep, single_case):
 
 
 WRAPPED = ("matrix-factored", "matrix", "pinocchio")
+
+
+class _NullKernel(PreparedModel):
+    """A prepared model whose kernel does no work (returns ``qdd``): its call with ``check=False``
+    costs the wrapper alone, without the noise of a real kernel's time."""
+
+    method = "null-kernel"
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        return qdd
+
+
+@pytest.mark.parametrize("part", ["call", "kernel"])
+def test_wrapper_alone(benchmark, part):
+    mech = exo5(3)
+    benchmark.group = "wrapper-exo5-3d"
+    model = _NullKernel(mech)
+    q = qd = qdd = np.zeros(mech.dof)
+    Q = q[None]
+    benchmark.extra_info.update(method="(wrapper alone)", part=part, mechanism=mech.name, samples=1, batched=False,
+                                n=5, dim=3)
+    if part == "call":
+        out = benchmark(model.inverse_dynamics, q, qd, qdd, check=False)
+        assert out.shape == (mech.dof,)       # the wrapper returns one sample for one sample
+    else:
+        out = benchmark(model._inverse_dynamics, Q, Q, Q)
+        assert out.shape == (1, mech.dof)
 
 
 @pytest.mark.parametrize("part", ["call", "kernel"])

@@ -278,10 +278,15 @@ def inverse_dynamics_paper(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     samples. Where a printed line is wrong (see ``reports/errata.md``) the forces are wrong.
     """
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    tau = generalised_forces(mech, paper_matrices(mech, q), qd, qdd)
+    return warn_paper_nan(generalised_forces(mech, paper_matrices(mech, q), qd, qdd), stacklevel=3)
+
+
+def warn_paper_nan(tau: np.ndarray, stacklevel: int = 2) -> np.ndarray:
+    """Say which samples of a ``matrix-paper`` result are NaN (0/0 of eq. (18) as printed), never
+    hide them; return ``tau`` unchanged."""
     bad = np.isnan(tau).any(axis=1)
     if bad.any():
         idx = np.flatnonzero(bad)
         warnings.warn(f"matrix-paper: eq. (18) as printed divides 0/0 at {idx.size} sample(s) "
-                      f"(first: {idx[:5].tolist()}); their forces are NaN", RuntimeWarning, stacklevel=2)
+                      f"(first: {idx[:5].tolist()}); their forces are NaN", RuntimeWarning, stacklevel=stacklevel + 1)
     return tau

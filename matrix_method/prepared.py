@@ -15,8 +15,6 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 from exo_bench.matrix_method import numeric
@@ -125,13 +123,8 @@ class MatrixPaper(_MatrixFamily):
         return numeric.paper_matrices(self._mechanism, q)
 
     def _inverse_dynamics(self, q, qd, qdd):
-        tau = numeric.generalised_forces(self._mechanism, self.matrices(q), qd, qdd)
-        bad = np.isnan(tau).any(axis=1)
-        if bad.any():
-            idx = np.flatnonzero(bad)
-            warnings.warn(f"matrix-paper: eq. (18) as printed divides 0/0 at {idx.size} sample(s) "
-                          f"(first: {idx[:5].tolist()}); their forces are NaN", RuntimeWarning, stacklevel=3)
-        return tau
+        return numeric.warn_paper_nan(numeric.generalised_forces(self._mechanism, self.matrices(q), qd, qdd),
+                                      stacklevel=3)
 
 
 class Recurrence(_MatrixFamily):
