@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from exo_bench.matrix_method.coefficients import link_aggregates
+from exo_bench.models.aggregates import link_aggregates
 from exo_bench.models.mechanism import Mechanism, split
 
 
