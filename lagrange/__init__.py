@@ -7,9 +7,9 @@ with numpy, :mod:`lagrange.reference` at 50 significant digits with mpmath, and
 """
 
 from exo_bench.lagrange.budget import BudgetExceeded
-from exo_bench.lagrange.derivation import clear_cache, derive
-from exo_bench.lagrange.matrix_form import canonical_form, extract_matrices, rebuild_equations
-from exo_bench.lagrange.structure import Derivation, FormViolation
+from exo_bench.lagrange.derivation import Derivation, clear_cache, derive
+from exo_bench.lagrange.matrix_form import FormViolation, extract_matrices, rebuild_equations
+from exo_bench.lagrange.ring import canonical_form
 
 __all__ = ["BudgetExceeded", "Derivation", "FormViolation", "canonical_form", "clear_cache", "derive",
            "extract_matrices", "rebuild_equations"]

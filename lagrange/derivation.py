@@ -1,100 +1,133 @@
 """Lagrange's equations of the second kind, derived with sympy from the point masses' T and Pi.
 
 This is the suite's independent symbolic check of the paper's matrix method: it never uses the
-closed forms (mu, nu, eq. 6). Positions are built from the geometry alone, link by link down the
-tree (:mod:`models.mechanism`): link ``i`` starts at the end of its parent and its masses sit at
-fractions ``0, n_i, 1`` of ``w_i = sign_i l_i u_i``. Then
+closed forms (mu, nu, eq. 6). One responsibility per module:
 
-* ``T = 1/2 sum_ib m_ib |v_ib|^2`` with ``v_ib = sum_a (d r_ib / d q_a) qd_a``,
-* ``Pi = g sum_ib m_ib h_ib`` (``h`` the last Cartesian coordinate),
-* Lagrange II, term by term: ``tau_a = sum_b (d2T/dqd_a dq_b) qd_b + sum_b (d2T/dqd_a dqd_b) qdd_b
-  - dT/dq_a + dPi/dq_a``.
+* :mod:`lagrange.energies`: T and Pi from the geometry, and Lagrange II, term by term;
+* :mod:`lagrange.ring`: the polynomial ring it is done in, and the normal form modulo
+  ``sin^2 + cos^2 = 1`` (:func:`canonical_form`);
+* :mod:`lagrange.matrix_form`: the paper's matrices (eqs. 5 and 17) read off the equations
+  (:func:`extract_matrices`, :class:`FormViolation`) and written back (:func:`rebuild_equations`);
+* this module: :func:`derive`, the entry point, its result :class:`Derivation`, the time budget
+  and the caches.
 
-**Engines.** ``engine="poly"`` (the default) does every step in a sparse polynomial ring
-(:func:`sympy.polys.rings.ring`) over the rationals whose generators are ``sin``/``cos`` of the
-angles, the lengths, rates, accelerations, masses, fractions and ``g``; ``d/dphi`` acts by the
-chain rule ``d sin(phi) = cos(phi) dphi``, ``d cos(phi) = -sin(phi) dphi``. ``engine="expr"`` is
-the textbook route: the same T and Pi as sympy expressions, ``sympy.diff`` and ``sympy.expand``;
-it gives identical equations about a hundred times slower and exists so that a benchmark can
-time the plain computer-algebra derivation the paper timed in Mathematica.
-
-**Normal form.** Results are reduced modulo ``sin^2 + cos^2 = 1`` by ``cos(x)^2 -> 1 - sin(x)^2``
-(every ``cos`` appears at most to the first power). This normal form is canonical, so two
-polynomial expressions in sines and cosines are equal exactly when their normal forms are;
-:func:`canonical_form` brings any expression (e.g. with ``cos(phi_i - phi_j)``) to it.
-
-**Matrix form** (eqs. 5 and 17): :func:`extract_matrices` reads the paper's matrices off the
-equations term by term and raises :class:`FormViolation` on any product of rates that the form
-does not have (e.g. ``dphi_i dphi_j`` with ``i != j``, or ``dl_j^2``).
+**Engines.** ``engine="poly"`` (the default) does every step in the sparse polynomial ring;
+``engine="expr"`` is the textbook route: the same T and Pi as sympy expressions, ``sympy.diff`` and
+``sympy.expand``; it gives identical equations about a hundred times slower and exists so that a
+benchmark can time the plain computer-algebra derivation the paper timed in Mathematica.
 
 **Parameters and caching.** The symbolic form is derived once per *structure* (dim, parent,
 sign and which masses are zero; zero masses are structural zeros) with masses ``m{i}_{b}``,
 fractions ``n{i}`` and ``g`` as symbols. ``symbolic_parameters=False`` then substitutes the
 mechanism's numbers as **exact sympy Rationals** equal to the float64 values (so the 50-digit
 reference of :mod:`lagrange.reference` sees exactly the float model).
-
-Modules: :mod:`lagrange.structure` (inputs and result), :mod:`lagrange.ring` (the polynomial
-ring), :mod:`lagrange.engines` (T, Pi and Lagrange II), :mod:`lagrange.matrix_form` (the
-matrices); this module is the entry point, :func:`derive`, with its cache.
 """
 
 from __future__ import annotations
 
 import time
-
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import sympy as sp
 
-from exo_bench.lagrange.budget import BudgetAlarm
-from exo_bench.lagrange.budget import BudgetExceeded
-from exo_bench.lagrange.budget import Deadline
-from exo_bench.lagrange.budget import time_budget
-from exo_bench.lagrange.engines import _derive_expr, _energies_poly, _lagrange_poly
-from exo_bench.lagrange.matrix_form import _extract_ring, _matrices_expr
-from exo_bench.lagrange.ring import _Ring, _RingForm
-from exo_bench.lagrange.structure import Derivation, ENGINES, Structure, structure_of
+from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
+from exo_bench.lagrange.energies import Structure, derive_expr, energies_poly, lagrange_poly, structure_of
+from exo_bench.lagrange.matrix_form import BLOCKS, extract_ring, matrices_expr
+from exo_bench.lagrange.ring import TrigRing
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import Symbols
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.symbols import Symbols, symbols_for
+
+ENGINES = ("poly", "expr")
+
+
+# ------------------------------------------------------------------ result
+@dataclass(frozen=True, eq=False)
+class Derivation:
+    """Lagrange II for one mechanism (or one structure, with symbolic parameters).
+
+    ``equations[a]`` is the generalised force of coordinate ``a`` (block order, as ``tau``);
+    ``matrices[block][name]`` the paper's matrices (``P`` is ``(n, 1)`` and excludes ``g``);
+    ``seconds`` the wall time of each phase when this result was first computed.
+    """
+
+    structure: Structure
+    symbols: Symbols
+    equations: tuple[sp.Expr, ...]
+    matrices: dict[str, dict[str, sp.Matrix]]
+    kinetic_energy: sp.Expr
+    potential_energy: sp.Expr
+    symbolic_parameters: bool
+    engine: str
+    seconds: dict[str, float] = field(default_factory=dict)
+    ring_form: "RingForm | None" = field(default=None, repr=False)   # internal: the ring elements
+    values: dict = field(default_factory=dict, repr=False)   # the substituted parameter values ({} if symbolic)
+
+    @property
+    def g(self) -> sp.Expr:
+        """The gravity factor in front of ``P``: the symbol ``g``, or its substituted value."""
+        return self.values.get(self.symbols.g, self.symbols.g)
+
+    @property
+    def dim(self) -> int:
+        return self.structure.dim
+
+    @property
+    def nlinks(self) -> int:
+        return self.structure.nlinks
+
+    @cached_property
+    def mass_matrix(self) -> sp.Matrix:
+        """``(dof, dof)``: row block k is ``[A_k, B_k, Lambda_k]`` (``[A_k, Lambda_k]`` in 2D)."""
+        cols = ("A", "B", "Lambda") if self.dim == 3 else ("A", "Lambda")
+        return sp.Matrix.vstack(*[sp.Matrix.hstack(*[self.matrices[k][c] for c in cols])
+                                  for k in BLOCKS[self.dim]])
+
+
+@dataclass(frozen=True, eq=False)
+class RingForm:
+    """The ring elements behind a symbolic :class:`Derivation` (numbers are substituted here)."""
+
+    ring: TrigRing
+    equations: list
+    matrices: dict[str, dict[str, list]]
+    T: object
+    Pi: object
 
 
 def _derive_symbolic(st: Structure, engine: str, dl: Deadline) -> Derivation:
     S = symbols_for(st.nlinks, st.dim)
     seconds: dict[str, float] = {}
     t0 = time.perf_counter()
-    rg = _Ring(S, st.dim)
+    rg = TrigRing(S, st.dim)
     if engine == "poly":
-        E = _energies_poly(st, rg, dl)
+        E = energies_poly(st, rg, dl)
         t1 = time.perf_counter()
         seconds["energies"] = t1 - t0
-        eqs = _lagrange_poly(rg, E, st.dim * st.nlinks, dl)
+        eqs = lagrange_poly(rg, E, st.dim * st.nlinks, dl)
         seconds["lagrange"] = time.perf_counter() - t1
     else:
-        E, eqs = _derive_expr(st, rg, dl)
+        E, eqs = derive_expr(st, rg, dl)
         seconds["lagrange"] = time.perf_counter() - t0
     t2 = time.perf_counter()
-    mats = _extract_ring(rg, eqs, dl)
+    mats = extract_ring(rg, eqs, dl)
     seconds["matrices"] = time.perf_counter() - t2
-    form = _RingForm(rg, eqs, mats, E.T, E.Pi)
+    form = RingForm(rg, eqs, mats, E.T, E.Pi)
     out = _from_ring(st, form, True, engine, seconds)
     seconds["total"] = time.perf_counter() - t0
     return out
 
 
-def _from_ring(st: Structure, form: _RingForm, symbolic: bool, engine: str, seconds: dict,
+def _from_ring(st: Structure, form: RingForm, symbolic: bool, engine: str, seconds: dict,
                values: dict | None = None) -> Derivation:
     """The sympy expressions of a ring form."""
-    return Derivation(st, form.ring.S, tuple(e.as_expr() for e in form.equations), _matrices_expr(form.matrices),
+    return Derivation(st, form.ring.S, tuple(e.as_expr() for e in form.equations), matrices_expr(form.matrices),
                       form.T.as_expr(), form.Pi.as_expr(), symbolic, engine, seconds, form, values or {})
 
 
 # ------------------------------------------------------------------ entry point
 _SYMBOLIC: dict[tuple[Structure, str], Derivation] = {}
-
-
 _NUMERIC: dict[tuple[Mechanism, str], Derivation] = {}
-
-
 _FAILED: dict[tuple[Structure, str], float] = {}   # seconds an unfinished derivation ran
 
 
@@ -116,7 +149,7 @@ def _substitute(sym: Derivation, mech: Mechanism) -> Derivation:
     rg = f.ring
     vals = parameter_values(mech, sym.symbols)
     sub = lambda p: rg.substitute(p, vals)
-    form = _RingForm(rg, [sub(e) for e in f.equations],
+    form = RingForm(rg, [sub(e) for e in f.equations],
                      {blk: {name: [[sub(x) for x in row] for row in rows] for name, rows in m.items()}
                       for blk, m in f.matrices.items()}, sub(f.T), sub(f.Pi))
     seconds = dict(sym.seconds)
@@ -162,4 +195,3 @@ def derive(mech: Mechanism, symbolic_parameters: bool = False, budget: float = 6
         if cache:
             _NUMERIC[(mech, engine)] = num
         return num
-

@@ -1,36 +1,40 @@
-"""Lagrange derivation, the matrix form (eqs. 5 and 17): read the paper's matrices off the equations
-term by term (:class:`~lagrange.structure.FormViolation` on a term the form does not have), rebuild
-equations from matrices, and the canonical form of sine-cosine polynomials.
+"""The paper's matrix form (eqs. 5 and 17) of Lagrange's equations: reading the matrices off, and back.
+
+Row ``i`` of block ``k`` is ``sum_j (A ddphi_j + B ddpsi_j + Lambda ddl_j + D dphi_j^2 + E dpsi_j^2
++ 2 G dphi_j dpsi_j + 2 H dphi_j dl_j + 2 K dpsi_j dl_j)[i, j] + g P[i]``. :func:`extract_matrices`
+reads the matrices off the equations term by term and raises :class:`FormViolation` on any product
+of rates that the form does not have (e.g. ``dphi_i dphi_j`` with ``i != j``, or ``dl_j^2``);
+:func:`rebuild_equations` writes the equations back.
 """
 
 from __future__ import annotations
 
-
+import sympy as sp
 from sympy import QQ
 
-import sympy as sp
-
 from exo_bench.lagrange.budget import Deadline
-from exo_bench.lagrange.ring import _Ring
-from exo_bench.lagrange.structure import BLOCKS, FormViolation, MATRIX_NAMES
-from exo_bench.models.equation_form import ACCELERATION
-from exo_bench.models.equation_form import RATES
+from exo_bench.lagrange.ring import TrigRing
+from exo_bench.models.equation_form import ACCELERATION, RATES, blocks, matrix_names
 from exo_bench.models.symbols import Symbols
 
+#: blocks of coordinates (rows of the matrix form), in block order
+BLOCKS = {dim: blocks(dim) for dim in (2, 3)}   # models.equation_form: the block order, defined once
+#: names of the matrices of eq. (5) (2D) and eq. (17) (3D)
+MATRIX_NAMES = {dim: (*matrix_names(dim), "P") for dim in (2, 3)}
 
-# ------------------------------------------------------------------ matrix form
+
+class FormViolation(ValueError):
+    """An equation has a term that the paper's matrix form (eqs. 5, 17) cannot hold."""
+
+
 # which matrix holds a term, and the factor in front of it in the form (2G, 2H, 2K)
 # (all from the rate table of models.equation_form)
 _ACCEL = ACCELERATION
-
-
 _SQUARE = {r[0]: name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] == r[1]}
-
-
 _PAIR = {frozenset(r): name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] != r[1]}
 
 
-def _rate_slots(rg: _Ring) -> dict[int, tuple[str, str, int]]:
+def _rate_slots(rg: TrigRing) -> dict[int, tuple[str, str, int]]:
     """ring generator index of every rate and acceleration -> (order 'd'/'dd', block, link)."""
     S = rg.S
     out = {}
@@ -58,7 +62,7 @@ def _classify(items: list[tuple[tuple[str, str, int], int]]) -> tuple[str, int, 
     return None
 
 
-def _extract_ring(rg: _Ring, eqs: list, deadline: Deadline | None = None) -> dict[str, dict[str, list]]:
+def extract_ring(rg: TrigRing, eqs: list, deadline: Deadline | None = None) -> dict[str, dict[str, list]]:
     """The matrix form of ring equations: ``{block: {name: rows of ring elements}}``."""
     S, R = rg.S, rg.R
     dim = 3 if S.psi else 2
@@ -104,7 +108,7 @@ def _extract_ring(rg: _Ring, eqs: list, deadline: Deadline | None = None) -> dic
     return out
 
 
-def _matrices_expr(mats: dict[str, dict[str, list]]) -> dict[str, dict[str, sp.Matrix]]:
+def matrices_expr(mats: dict[str, dict[str, list]]) -> dict[str, dict[str, sp.Matrix]]:
     return {blk: {name: sp.Matrix([[x.as_expr() for x in row] for row in rows]) for name, rows in m.items()}
             for blk, m in mats.items()}
 
@@ -130,7 +134,7 @@ def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = No
     if len(equations) != dim * n:
         raise ValueError(f"extract_matrices: field 'equations': expected {dim * n} equations "
                          f"(block order {', '.join(BLOCKS[dim])}), got {len(equations)}")
-    rg = _Ring(S, dim)
+    rg = TrigRing(S, dim)
     eqs = []
     for k, e in enumerate(equations):
         try:
@@ -138,7 +142,7 @@ def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = No
         except (ValueError, sp.polys.polyerrors.PolynomialError) as err:
             raise ValueError(f"extract_matrices: equation {k + 1}: expected a polynomial in sines and cosines "
                              f"of the angles, lengths, rates and the shared parameter symbols: {err}") from None
-    return _matrices_expr(_extract_ring(rg, eqs, deadline))
+    return matrices_expr(extract_ring(rg, eqs, deadline))
 
 
 def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols, g: sp.Expr | None = None
@@ -162,23 +166,3 @@ def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbol
                     e += 2 * M["G"][i, j] * S.dphi[j] * S.dpsi[j] + 2 * M["K"][i, j] * S.dpsi[j] * S.dl[j]
             out.append(e)
     return tuple(out)
-
-
-def canonical_form(expr: sp.Expr, symbols: Symbols) -> sp.Expr:
-    """The normal form of an expression polynomial in sines and cosines of the angles (after
-    ``expand_trig``, so ``cos(phi1 - phi2)`` is allowed): expanded, every ``cos^2`` replaced by
-    ``1 - sin^2``. Two such expressions are equal exactly when their normal forms are."""
-    dim = 3 if symbols.psi else 2
-    e = sp.expand(sp.expand_trig(sp.sympify(expr)))
-    angles = set(symbols.phi) | set(symbols.psi)
-    known = set(_Ring(symbols, dim).index)
-    # Symbols outside the shared set (a caller's own parameters) become extra generators.
-    extra = tuple(sorted(e.free_symbols - known - angles, key=str))
-    rg = _Ring(symbols, dim, extra)
-    try:
-        p = rg.R.from_expr(e)
-    except (ValueError, sp.polys.polyerrors.PolynomialError) as err:
-        raise ValueError(f"canonical_form: expected a polynomial in sines and cosines of the angles, "
-                         f"lengths, rates and parameters, got {expr}: {err}") from None
-    return rg.reduce(p).as_expr()
-

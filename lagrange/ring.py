@@ -1,21 +1,25 @@
-"""Lagrange derivation, the algebra: a sparse polynomial ring over the rationals whose generators
-are the sines and cosines of the angles, the lengths, rates, accelerations and parameters, with
-``d/dt`` by the chain rule and the normal form ``cos^2 -> 1 - sin^2``.
+"""The polynomial ring of the Lagrange derivation and its normal form modulo ``sin^2 + cos^2 = 1``.
+
+The ring (:func:`sympy.polys.rings.ring` over the rationals) has as generators ``sin``/``cos`` of
+the angles, the lengths, rates, accelerations, masses, fractions and ``g``; ``d/dphi`` acts by the
+chain rule ``d sin(phi) = cos(phi) dphi``, ``d cos(phi) = -sin(phi) dphi``.
+
+**Normal form.** Results are reduced modulo ``sin^2 + cos^2 = 1`` by ``cos(x)^2 -> 1 - sin(x)^2``
+(every ``cos`` appears at most to the first power). This normal form is canonical, so two
+polynomial expressions in sines and cosines are equal exactly when their normal forms are;
+:func:`canonical_form` brings any expression (e.g. with ``cos(phi_i - phi_j)``) to it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+import sympy as sp
 from sympy import QQ
 from sympy.polys.rings import ring
-import sympy as sp
 
 from exo_bench.models.symbols import Symbols
 
 
-# ------------------------------------------------------------------ polynomial ring
-class _Ring:
+class TrigRing:
     """The polynomial ring of the derivation: generators ``sin``/``cos`` of every angle, then
     lengths, rates, accelerations, masses, fractions and ``g``."""
 
@@ -100,19 +104,20 @@ class _Ring:
         return self.R.from_expr(sp.expand(expr))
 
 
-@dataclass
-class _Energies:
-    T: object
-    Pi: object
-
-
-@dataclass(frozen=True, eq=False)
-class _RingForm:
-    """The ring elements behind a symbolic :class:`Derivation` (numbers are substituted here)."""
-
-    ring: _Ring
-    equations: list
-    matrices: dict[str, dict[str, list]]
-    T: object
-    Pi: object
-
+def canonical_form(expr: sp.Expr, symbols: Symbols) -> sp.Expr:
+    """The normal form of an expression polynomial in sines and cosines of the angles (after
+    ``expand_trig``, so ``cos(phi1 - phi2)`` is allowed): expanded, every ``cos^2`` replaced by
+    ``1 - sin^2``. Two such expressions are equal exactly when their normal forms are."""
+    dim = 3 if symbols.psi else 2
+    e = sp.expand(sp.expand_trig(sp.sympify(expr)))
+    angles = set(symbols.phi) | set(symbols.psi)
+    known = set(TrigRing(symbols, dim).index)
+    # Symbols outside the shared set (a caller's own parameters) become extra generators.
+    extra = tuple(sorted(e.free_symbols - known - angles, key=str))
+    rg = TrigRing(symbols, dim, extra)
+    try:
+        p = rg.R.from_expr(e)
+    except (ValueError, sp.polys.polyerrors.PolynomialError) as err:
+        raise ValueError(f"canonical_form: expected a polynomial in sines and cosines of the angles, "
+                         f"lengths, rates and parameters, got {expr}: {err}") from None
+    return rg.reduce(p).as_expr()

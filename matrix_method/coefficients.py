@@ -1,29 +1,15 @@
-"""The mass coefficients of the closed forms: the tree generalisation of the sums of eq. (6).
+"""The mass coefficients of the closed forms: the aggregates of eq. (6) with the branch signs.
 
-Derivation (checked against Lagrange's equations and Pinocchio by the tests). Write
-``w_i = s_i l_i u_i`` for the vector from the start of rod ``i`` to its end (``s_i = sign[i]``).
-Point mass ``beta`` of link ``i`` sits at ``r_ib = sum_{a in anc(i)} w_a + n_ib w_i``, so
-
-    T = 1/2 sum_ij mu_ij  d/dt(w_i) . d/dt(w_j),      Pi = g sum_k nu_k (w_k . up)
-
-where, with the per-link aggregates of eq. (6)
-``zeta_i = sum_b m_ib n_ib^2``, ``eta_i = sum_b m_ib n_ib``, ``theta_i = sum_b m_ib`` and
-``Theta(k) = sum of theta over the strict descendants of k``:
-
-* ``mu_ii = zeta_i + Theta(i)``                      (every descendant mass moves with w_i);
-* ``mu_ij = eta_k + Theta(k)`` if ``i`` and ``j`` are related (one is an ancestor of the other)
-  and ``k`` is the deeper of the two (the masses that ride on both rods: link k's own, at
-  fractions n_kb, and every descendant of k, at fraction 1);
-* ``mu_ij = 0`` for links on different branches (no mass rides on both);
-* ``nu_k = eta_k + Theta(k)``.
-
-For a chain, ``Theta(k) = sum_{m=k+1..n} theta_m`` and ``mu`` is exactly the bracket of eq. (6).
+The aggregates ``zeta, eta, theta`` of eq. (6), the descendant masses ``Theta`` and the mass
+coupling ``mu_ij`` / gravity coefficients ``nu_k`` of ``T = 1/2 sum_ij mu_ij w_i' . w_j'`` and
+``Pi = g sum_k nu_k (w_k . up)`` are defined once, in :mod:`models.aggregates` (derivation there).
 Every matrix element of eqs. (5) and (17) is ``c_ij = mu_ij s_i s_j`` times a geometric factor of
 links i and j (:mod:`matrix_method.planar`), so the sign products of a branched model ("reversed
-links contribute sign products") live in ``c`` alone.
+links contribute sign products") live in ``c`` alone; this module adds them.
 
 Each function exists in a numeric form (floats from the mechanism) and a symbolic form
-(expressions in the shared mass symbols of :func:`models.symbols.symbols_for`).
+(expressions in the shared mass symbols of :func:`models.symbols.symbols_for`), both built on
+:func:`models.aggregates.aggregates` and :func:`models.aggregates.coupling_entries`.
 """
 
 from __future__ import annotations
@@ -33,47 +19,12 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
+from exo_bench.models.aggregates import aggregates, coupling, coupling_entries, gravity_coupling, link_aggregates
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import Symbols
 
 
 # ----------------------------------------------------------------- numeric
-def link_aggregates(mech: Mechanism) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Eq. (6), definitions: ``zeta_i, eta_i, theta_i`` of every link, each ``(n,)``."""
-    m, f = mech.mass_array, mech.fractions
-    return (m * f**2).sum(1), (m * f).sum(1), m.sum(1)
-
-
-def descendant_mass(mech: Mechanism) -> np.ndarray:
-    """Eq. (6), the sum ``sum_{k=j+1..n} theta_k`` on a tree: ``Theta(k)``, the total mass of the
-    strict descendants of each link, ``(n,)``."""
-    _, _, theta = link_aggregates(mech)
-    out = np.zeros(mech.nlinks)
-    for k in range(mech.nlinks):
-        for a in mech.ancestors[k]:
-            out[a] += theta[k]
-    return out
-
-
-@lru_cache(maxsize=256)
-def coupling(mech: Mechanism) -> np.ndarray:
-    """Eq. (6) generalised to trees: the symmetric ``(n, n)`` mass coupling ``mu_ij``.
-
-    ``mu_ii = zeta_i + Theta(i)``; ``mu_ij = eta_k + Theta(k)`` for related links (k the deeper);
-    0 for links on different branches. Read-only (cached per mechanism).
-    """
-    zeta, eta, _ = link_aggregates(mech)
-    Theta = descendant_mass(mech)
-    n = mech.nlinks
-    mu = np.zeros((n, n))
-    for k in range(n):
-        mu[k, k] = zeta[k] + Theta[k]           # First term: the link with itself
-        for a in mech.ancestors[k]:             # Second term: k with each ancestor, k deeper
-            mu[a, k] = mu[k, a] = eta[k] + Theta[k]
-    mu.flags.writeable = False
-    return mu
-
-
 @lru_cache(maxsize=256)
 def signed_coupling(mech: Mechanism) -> np.ndarray:
     """``c_ij = mu_ij s_i s_j``, the coefficient every closed-form element carries, ``(n, n)``."""
@@ -86,8 +37,7 @@ def signed_coupling(mech: Mechanism) -> np.ndarray:
 @lru_cache(maxsize=256)
 def signed_gravity(mech: Mechanism) -> np.ndarray:
     """``nu_i s_i`` with ``nu_i = eta_i + Theta(i)``: the coefficient of the gravity vectors ``P``."""
-    _, eta, _ = link_aggregates(mech)
-    out = (eta + descendant_mass(mech)) * mech.sign_array
+    out = gravity_coupling(mech) * mech.sign_array
     out.flags.writeable = False
     return out
 
@@ -123,13 +73,9 @@ def _parameters(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 
 def generic_aggregates(params):
     """Eq. (6), definitions, in any arithmetic (sympy, ring elements): ``zeta, eta, theta`` per link
-    from ``params = [(m0, m1, m2, n), ...]`` (``n_i0 = 0``, ``n_i2 = 1``)."""
-    zeta, eta, theta = [], [], []
-    for m0, m1, m2, n in params:
-        zeta.append(m1 * n**2 + m2)
-        eta.append(m1 * n + m2)
-        theta.append(m0 + m1 + m2)
-    return zeta, eta, theta
+    from ``params = [(m0, m1, m2, n), ...]`` (:func:`models.aggregates.aggregates`)."""
+    per_link = [aggregates(*p) for p in params]
+    return [a[0] for a in per_link], [a[1] for a in per_link], [a[2] for a in per_link]
 
 
 def symbolic_aggregates(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
@@ -139,25 +85,15 @@ def symbolic_aggregates(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 
 def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
-    different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`."""
+    different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
+    :func:`models.aggregates.coupling_entries`."""
     n = mech.nlinks
-    zeta, eta, theta = generic_aggregates(params)
-    Theta = []
-    for i in range(n):
-        total = zero
-        for k in range(n):
-            if i in mech.ancestors[k]:
-                total = total + theta[k]
-        Theta.append(total)
+    mu, nu = coupling_entries(mech, *generic_aggregates(params), zero=zero)
     s = mech.sign
-    c = [[zero] * n for _ in range(n)]
-    nu_s = []
-    for k in range(n):
-        c[k][k] = zeta[k] + Theta[k]                       # First term: the link with itself
-        for a in mech.ancestors[k]:                        # Second term: with each ancestor
-            c[a][k] = c[k][a] = (s[a] * s[k]) * (eta[k] + Theta[k])
-        nu_s.append(s[k] * (eta[k] + Theta[k]))
-    return c, nu_s
+    related = mech.ancestor_or_self
+    c = [[(s[i] * s[j]) * mu[i][j] if i != j and (related[i, j] or related[j, i]) else mu[i][j]
+          for j in range(n)] for i in range(n)]          # the diagonal has s_i^2 = 1, unrelated links zero
+    return c, [s[k] * nu[k] for k in range(n)]
 
 
 def symbolic_coupling(mech: Mechanism, S: Symbols, symbolic_parameters: bool):

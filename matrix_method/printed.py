@@ -1,6 +1,6 @@
 """The paper's formulas **exactly as printed**, each once, with its equation number.
 
-Nothing here is trusted: :mod:`matrix_method.errata` evaluates every entry against Lagrange's
+Nothing here is trusted: the errata study (``exo-bench errata``, ``bench/errata``) evaluates every entry against Lagrange's
 equations (and Pinocchio) and writes the verdicts to ``reports/errata.md``; the method
 ``matrix-paper`` evaluates :data:`TRANSITIONS` literally. Where an entry carries a ``corrected``
 form, that is a hypothesis the same report verifies.
@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from exo_bench.matrix_method.coefficients import link_aggregates
+from exo_bench.models.aggregates import link_aggregates
 from exo_bench.models.mechanism import Mechanism, split
 
 

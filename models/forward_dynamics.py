@@ -15,9 +15,9 @@ Every function takes a prepared model (:func:`exo_bench.prepare`, :mod:`models.p
 
 **Singular configurations.** ``M = J^T (mu (x) I) J``, where ``J`` maps ``qd`` to the rod
 vectors' rates ``d/dt(s_i l_i u_i)`` (per link the columns ``l_i du_i/dphi_i``,
-``l_i du_i/dpsi_i``, ``u_i``) and ``mu`` is the mass distribution matrix of
-:func:`mass_distribution_matrix`. ``M`` is singular exactly when ``mu`` is singular or a link's
-columns are dependent: a rod of length zero (its angles move no mass) or, in 3D, a vertical rod
+``l_i du_i/dpsi_i``, ``u_i``) and ``mu`` is the mass coupling of eq. (6), the mass distribution
+matrix (:func:`models.aggregates.coupling`). ``M`` is singular exactly when ``mu`` is singular or
+a link's columns are dependent: a rod of length zero (its angles move no mass) or, in 3D, a vertical rod
 (``cos psi_i = 0``: the azimuth column ``l_i cos psi_i (-sin phi_i, cos phi_i, 0)`` vanishes).
 Inverse dynamics is still defined there; forward dynamics is not, and
 :func:`accelerations` raises :class:`SingularConfigurationError` naming the link instead of
@@ -39,6 +39,7 @@ from typing import Callable
 
 import numpy as np
 
+from exo_bench.models.aggregates import coupling
 from exo_bench.models.mechanism import Mechanism, as_states, split
 from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
 
@@ -82,28 +83,6 @@ def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, vi
     return model.mass_matrix_and_bias(q, qd, check=False)
 
 
-def mass_distribution_matrix(mech: Mechanism) -> np.ndarray:
-    """``mu (n, n)``: ``T = 1/2 sum_ij mu_ij w_i' . w_j'`` with ``w_i = s_i l_i u_i`` the rod vectors.
-
-    ``mu_ii = zeta_i + Theta_desc(i)``; for related links (one an ancestor of the other) with
-    ``k`` the deeper one, ``mu_ij = eta_k + Theta_desc(k)``; links on different branches: 0.
-    """
-    m, f = mech.mass_array, mech.fractions
-    zeta, eta, theta = (m * f**2).sum(1), (m * f).sum(1), m.sum(1)
-    related = mech.ancestor_or_self                   # [i, j]: i is j or an ancestor of j
-    desc = related.astype(float) @ theta - theta      # Theta_desc(i): masses of the strict descendants
-    n = mech.nlinks
-    mu = np.zeros((n, n))
-    for i in range(n):
-        for j in range(n):
-            if i == j:
-                mu[i, i] = zeta[i] + desc[i]           # own masses (weights n^2) and everything below
-            elif related[i, j] or related[j, i]:
-                k = j if related[i, j] else i          # the deeper of the two
-                mu[i, j] = eta[k] + desc[k]            # k's own masses (weights n) and everything below k
-    return mu
-
-
 def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
     """Per sample, why the mass matrix is exactly singular there (an empty list: it is not).
 
@@ -115,7 +94,7 @@ def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
     _, psi, l = split(mech, q)
     names = mech.names
     always: list[str] = []
-    mu = mass_distribution_matrix(mech)
+    mu = coupling(mech)
     for i in range(mech.nlinks):
         if mu[i, i] == 0:
             always.append(f"link {i + 1} ({names[i]}): no mass moves with its coordinates "

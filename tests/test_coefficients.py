@@ -5,6 +5,7 @@ import pytest
 import sympy as sp
 
 from exo_bench.matrix_method import coefficients as co
+from exo_bench.models import aggregates as ag
 from exo_bench.models.kinematics import kinetic_energy, potential_energy, unit_vectors
 from exo_bench.models.mechanism import split
 from exo_bench.models.motion import random_states
@@ -25,7 +26,7 @@ def test_kinetic_and_potential_energy_are_quadratic_forms_in_the_rod_vectors(n, 
     s = m.sign_array[None, :, None]
     w = s * l[..., None] * u
     wd = s * (ld[..., None] * u + l[..., None] * udot)
-    T = 0.5 * np.einsum("ij,sik,sjk->s", co.coupling(m), wd, wd)
+    T = 0.5 * np.einsum("ij,sik,sjk->s", ag.coupling(m), wd, wd)
     Pi = m.g * np.einsum("i,si->s", co.signed_gravity(m) * m.sign_array, w[..., -1])
     assert rel(T, kinetic_energy(m, q, qd)) < 1e-13
     assert rel(Pi, potential_energy(m, q)) < 1e-13
@@ -34,8 +35,8 @@ def test_kinetic_and_potential_energy_are_quadratic_forms_in_the_rod_vectors(n, 
 def test_chain_coupling_is_the_bracket_of_eq6():
     """For a chain, mu_ij (j >= i) = delta_ij zeta_i + (1 - delta_ij) eta_j + sum_{k>j} theta_k."""
     m = chain(5, 2, seed=3)
-    zeta, eta, theta = co.link_aggregates(m)
-    mu = co.coupling(m)
+    zeta, eta, theta = ag.link_aggregates(m)
+    mu = ag.coupling(m)
     for i in range(5):
         for j in range(i, 5):
             expected = (zeta[i] if i == j else eta[j]) + theta[j + 1:].sum()
@@ -44,7 +45,7 @@ def test_chain_coupling_is_the_bracket_of_eq6():
 
 def test_links_on_different_branches_do_not_couple():
     m = random_tree(8, 3, 7)
-    mu = co.coupling(m)
+    mu = ag.coupling(m)
     related = m.ancestor_or_self | m.ancestor_or_self.T
     assert np.all(mu[~related] == 0) and np.all(mu[related] > 0)
 
@@ -52,7 +53,7 @@ def test_links_on_different_branches_do_not_couple():
 def test_reversed_links_flip_the_sign_of_couplings_across_the_branch_point():
     """Fig. 5: links 3, 4 reversed, so c_13, c_14, c_23, c_24 change sign (eq. 20), c_34 does not."""
     m = fig5(2)
-    c, mu = co.signed_coupling(m), co.coupling(m)
+    c, mu = co.signed_coupling(m), ag.coupling(m)
     assert np.array_equal(np.sign(c), np.outer([1, 1, -1, -1], [1, 1, -1, -1]))
     assert np.array_equal(np.abs(c), mu)
 

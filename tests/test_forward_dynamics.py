@@ -11,6 +11,7 @@ from exo_bench.models.prepared import terms_from_inverse_dynamics
 import pytest
 
 from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.aggregates import coupling
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.kinematics import kinetic_energy, point_mass_velocities
 from exo_bench.models.mechanism import split
@@ -46,10 +47,10 @@ def test_terms_from_inverse_dynamics_make_one_call():
 
 
 @pytest.mark.parametrize("mech", TREES, ids=lambda m: m.name)
-def test_mass_distribution_matrix_gives_the_kinetic_energy_of_the_point_masses(mech, rel):
+def test_mass_coupling_gives_the_kinetic_energy_of_the_point_masses(mech, rel):
     """T = 1/2 sum_ij mu_ij w_i' . w_j' with w_i = s_i l_i u_i the rod vectors, against the point masses."""
     q, qd, _ = random_states(mech, 6, 3)
-    mu = fd.mass_distribution_matrix(mech)
+    mu = coupling(mech)
     # w_i': the velocity of the end of link i relative to its start (the end of its parent, or O)
     v = point_mass_velocities(mech, q, qd)                     # (S, n, 3, dim)
     parent_end = np.zeros_like(v[:, :, 0])
@@ -74,7 +75,7 @@ def test_equilibrated_condition_number_is_that_of_the_mass_distribution_at_every
     while cond(M) itself does (it carries the scaling l_i cos psi_i, l_i, 1)."""
     q, _, _ = random_states(mech, 6, 5)
     raw, eq = fd.condition_numbers(pb.mass_matrix(mech, q))
-    mu = fd.mass_distribution_matrix(mech)
+    mu = coupling(mech)
     r = 1 / np.sqrt(np.diag(mu))
     expected = np.linalg.cond(mu * r[:, None] * r[None, :])
     assert np.allclose(eq, expected, rtol=1e-9)

@@ -11,12 +11,25 @@ seeded random states of the models it speaks about and compared with two indepen
 A formula *holds* when its largest error, relative to the largest magnitude of what it is compared
 with, is at most :data:`TOLERANCE` for both witnesses on every model; otherwise it *fails*, and the
 report gives the corrected form (a hypothesis encoded in :mod:`matrix_method.printed`) with its own
-error. Nothing in the report is typed by hand: verdicts, errors and evidence come from this module.
+error. Nothing in the report is typed by hand: verdicts, errors and evidence come from this package.
 
-Modules: ``witnesses`` (Lagrange and Pinocchio), ``checks`` (the verdicts), ``report`` (the
-Markdown and :func:`run`). This package re-exports their public names.
+One responsibility per module: ``cases`` (the models and states each formula is checked on),
+``witnesses`` (Lagrange and Pinocchio, the matrices read off them), ``evaluation`` (the checks,
+the verdicts, the singular points and the gait), ``report`` (the Markdown, and :func:`run`, the
+``exo-bench errata`` job). This package re-exports their public names.
 """
 
-from exo_bench.bench.errata.witnesses import TOLERANCE, SAMPLES, SEED, TREES, CHAIN_LENGTHS, pinocchio_matrices, form_residual, PinocchioWitness, LagrangeWitness  # noqa: F401
-from exo_bench.bench.errata.checks import Check, Verdict, prefix, prefix_states, spatial_models, check_transition, check_equation, chains, check_matrix, check_branch_rule, check_all, singular_configuration, Singular, check_singular, gait_effect  # noqa: F401
-from exo_bench.bench.errata.report import Results, compute, render, write_report, run  # noqa: F401
+from exo_bench.bench.errata.cases import (CHAIN_LENGTHS, SAMPLES, SEED, TREES, chains, prefix,
+                                         prefix_states, singular_configuration, spatial_models)
+from exo_bench.bench.errata.witnesses import (LagrangeWitness, PinocchioWitness, form_residual,
+                                             pinocchio_matrices)
+from exo_bench.bench.errata.evaluation import (TOLERANCE, Check, Results, Singular, Verdict,
+                                              check_all, check_branch_rule, check_equation, check_matrix,
+                                              check_singular, check_transition, compute, gait_effect)
+from exo_bench.bench.errata.report import render, run, write_report
+
+__all__ = ["CHAIN_LENGTHS", "SAMPLES", "SEED", "TREES", "chains", "prefix", "prefix_states", "singular_configuration",
+           "spatial_models", "LagrangeWitness", "PinocchioWitness", "form_residual", "pinocchio_matrices",
+           "TOLERANCE", "Check", "Results", "Singular", "Verdict", "check_all", "check_branch_rule", "check_equation",
+           "check_matrix", "check_singular", "check_transition", "compute", "gait_effect", "render", "run",
+           "write_report"]

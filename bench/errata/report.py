@@ -1,23 +1,19 @@
-"""Errata study, the report: ``reports/errata.md`` and :func:`run`, the ``exo-bench errata`` job.
+"""Errata study, the report: ``reports/errata.md`` and the ``exo-bench errata`` job.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-import math
-import time
+from pathlib import Path
 
-from exo_bench.bench.errata.checks import Singular, Verdict, check_all, check_branch_rule, check_singular, gait_effect, spatial_models
-from exo_bench.bench.errata.witnesses import (CHAIN_LENGTHS, SAMPLES, SEED, TOLERANCE, LagrangeWitness, PinocchioWitness,
-                                              form_residual)
+from exo_bench.bench.errata import cases
+from exo_bench.bench.errata.evaluation import TOLERANCE, Results, Verdict, compute
+from exo_bench.bench import reporting
+from exo_bench.bench.reporting import atomic_write, provenance, sci
 from exo_bench.matrix_method import printed
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import random_tree
 
 
-# ------------------------------------------------------------------ the report
 def _fmt(x: float) -> str:
-    return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.1e}"
+    return sci(x) or "—"
 
 
 def _witness_summary(v: Verdict) -> str:
@@ -40,56 +36,28 @@ def _models(v: Verdict) -> str:
     return ", ".join(names)
 
 
-@dataclass
-class Results:
-    """Everything the report shows."""
-
-    verdicts: list[Verdict]
-    branch: dict[str, Verdict]
-    singular: list[Singular]
-    gait: dict
-    residual: float
-    seconds: float
-
-
-def compute() -> Results:
-    """Run every check (the slow part of ``exo-bench errata``)."""
-    t0 = time.perf_counter()
-    witnesses = [LagrangeWitness(), PinocchioWitness()]
-    verdicts = check_all(witnesses)
-    branch = check_branch_rule(witnesses)
-    singular = check_singular()
-    g = gait_effect()
-    m = random_tree(4, 3, 3)
-    q, qd, qdd = random_states(m, SAMPLES, SEED)
-    residual = form_residual(m, q, qd, qdd)
-    return Results(verdicts, branch, singular, g, residual, time.perf_counter() - t0)
-
-
 def render(r: Results) -> str:
     verdicts, branch, singular, gait_, residual, seconds = (r.verdicts, r.branch, r.singular, r.gait, r.residual,
                                                            r.seconds)
-    from exo_bench.bench.reporting import provenance
-
     L = ["# Errata of Borisov & Chigarev, by computation", "", provenance("exo-bench errata")]
     checked = [v for v in verdicts if v.status != "not checkable"]
     fails = [v for v in checked if v.status != "holds"]
     L += ["## Method", "",
           "Every formula below is encoded once, exactly as printed in the Russian original "
           "(`matrix_method/printed.py`), and evaluated on seeded random states "
-          f"({SAMPLES} per model, seed {SEED}) of the models it speaks about. It is compared with two "
+          f"({cases.SAMPLES} per model, seed {cases.SEED}) of the models it speaks about. It is compared with two "
           "independent witnesses: **Lagrange** (`lagrange.derive`, sympy, from the point masses' "
           "T and Pi; matrices and equations lambdified) and **Pinocchio** (CRBA/RNEA on the generated URDF; "
           "every matrix of eq. (5)/(17) read off the mass matrix and the bias forces, "
-          "`matrix_method.errata.pinocchio_matrices`). A formula **holds** when its largest error, "
+          "`bench.errata.witnesses.pinocchio_matrices`). A formula **holds** when its largest error, "
           "relative to the largest magnitude of the witness's value on that model, is at most "
           f"{TOLERANCE:g} for both witnesses on every model; otherwise it **fails**.",
           "",
-          f"- Models for eq. (18): {', '.join(m.name for m in spatial_models())} (random trees: random "
+          f"- Models for eq. (18): {', '.join(m.name for m in cases.spatial_models())} (random trees: random "
           "parents including several roots, random signs); each compared with the planar model of the "
           "same structure.",
-          f"- Chains for eqs. (6), (22), (25), (26): seeded random chains of {min(CHAIN_LENGTHS)}.."
-          f"{max(CHAIN_LENGTHS) + 1} links, each the first links of the next.",
+          f"- Chains for eqs. (6), (22), (25), (26): seeded random chains of {min(cases.CHAIN_LENGTHS)}.."
+          f"{max(cases.CHAIN_LENGTHS) + 1} links, each the first links of the next.",
           f"- Pinocchio has exactly the paper's matrix form (only products of a link's own rates): "
           f"eq. (17) rebuilt from the extracted matrices reproduces its inverse dynamics to {_fmt(residual)} "
           "relative on a random 4-link 3D tree.",
@@ -184,18 +152,13 @@ def render(r: Results) -> str:
 def write_report(path=None, results: Results | None = None):
     """Compute every check (unless ``results`` are given) and write ``reports/errata.md``
     atomically; returns the path."""
-    from exo_bench.bench.reporting import REPORTS, atomic_write
-
     text = render(results or compute())
-    return atomic_write(path or REPORTS / "errata.md", text)
+    return atomic_write(path or reporting.REPORTS / "errata.md", text)
 
 
 def run(args) -> int:
     """``exo-bench errata [--reports DIR]`` (also a suite job of ``exo-bench run``)."""
-    from pathlib import Path
-
     folder = getattr(args, "reports", None)
     path = write_report(Path(folder) / "errata.md" if folder else None)
     print(f"wrote {path}")
     return 0
-

@@ -1,5 +1,4 @@
-"""Errata study, the witnesses: the matrices of eq. (5)/(17) read off Pinocchio (CRBA and RNEA,
-column by column) and Lagrange's (sympy), which every printed formula is compared with.
+"""Errata study, the witnesses: Lagrange and Pinocchio, and every matrix of eq. (5)/(17) read off them.
 """
 
 from __future__ import annotations
@@ -14,23 +13,6 @@ from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.mechanism import Mechanism
 
 
-TOLERANCE = 1e-9
-
-
-SAMPLES = 12
-
-
-SEED = 20240
-
-
-#: (links, seed) of the random 3D trees eq. (18) is checked on, besides the paper's own models
-TREES = ((2, 1), (3, 2), (3, 5), (4, 3), (4, 8), (4, 11))
-
-
-CHAIN_LENGTHS = (1, 2, 3, 4, 5)
-
-
-# ------------------------------------------------------------------ witnesses
 def _blocks(mech: Mechanism):
     return ("phi", "psi", "l") if mech.dim == 3 else ("phi", "l")
 
@@ -137,4 +119,3 @@ class LagrangeWitness:
         _, f = self._compiled(mech)
         S = q.shape[0]
         return np.stack([np.broadcast_to(np.asarray(v, dtype=float), (S,)) for v in f(*q.T, *qd.T, *qdd.T)], -1)
-

@@ -17,6 +17,7 @@ from exo_bench.bench.stability.cases import COND_ILL, COND_SINGULAR, Case, FAMIL
 from exo_bench.bench.study import UnusableMethodWarning
 from exo_bench.bench.study import one_line
 from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.aggregates import coupling
 from exo_bench.models.mechanism import Mechanism
 
 
@@ -169,7 +170,7 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
 def equilibrated_mu_condition(mech: Mechanism) -> float:
     """``cond(D^-1/2 mu D^-1/2)``, ``D = diag(mu)``: the equilibrated condition number of M at every
     configuration where M is regular (see :func:`models.forward_dynamics.condition_numbers`)."""
-    mu = fd.mass_distribution_matrix(mech)
+    mu = coupling(mech)
     dg = np.diag(mu)
     if (dg <= 0).any():
         return math.inf

@@ -12,6 +12,7 @@ import numpy as np
 
 from exo_bench.bench.methods import PreparedSet
 from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.aggregates import coupling
 from exo_bench.models.kinematics import total_energy
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import Motion
@@ -154,7 +155,7 @@ def stiff_case(k: float, mass_scale: float = 1.0, horizon: float = 1.0) -> Sprin
     along rod i (the diagonal of M for ``l_i``), so each rod mode decays at ``sqrt(k / mu_ii)``
     without ringing: a stiff, not an oscillatory, problem."""
     mech, q0 = hanging_chain(mass_scale)
-    mu = np.diag(fd.mass_distribution_matrix(mech))
+    mu = np.diag(coupling(mech))
     c = 2.0 * np.sqrt(k * mu)
     return SpringCase(f"{mech.name}, k = {k:.0e}", mech, q0, np.zeros_like(q0), k, c, q0[-3:], horizon,
                       f"{mech.name}: rods on critically damped springs k = {k:.0e} N/m, "

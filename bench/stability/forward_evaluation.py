@@ -17,6 +17,7 @@ from exo_bench.bench.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripC
 from exo_bench.bench.study import UnusableMethodWarning
 from exo_bench.bench.study import one_line
 from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.aggregates import coupling
 from exo_bench.models.kinematics import kinetic_energy
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.presets import exo5
@@ -250,7 +251,7 @@ def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: i
     sim = fd.simulate(_models(models)(mech, method), case.q0, case.qd0, (0.0, case.horizon), case.controls,
                       integrator, rtol,
                       ATOL_FACTOR * rtol, max_evaluations=max_evaluations, max_seconds=max_seconds)
-    mu = np.diag(fd.mass_distribution_matrix(mech))
+    mu = np.diag(coupling(mech))
     cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)
     d = mech.dof

@@ -1,18 +1,57 @@
-"""Lagrange derivation, the two engines: T and Pi of the point masses and Lagrange II term by term,
-in the polynomial ring (``poly``) or with plain sympy expressions (``expr``, the textbook route).
+"""Lagrange II from the point masses' T and Pi, built from the geometry alone.
+
+Positions are built link by link down the tree (:mod:`models.mechanism`): link ``i`` starts at the
+end of its parent and its masses sit at fractions ``0, n_i, 1`` of ``w_i = sign_i l_i u_i``. Then
+
+* ``T = 1/2 sum_ib m_ib |v_ib|^2`` with ``v_ib = sum_a (d r_ib / d q_a) qd_a``,
+* ``Pi = g sum_ib m_ib h_ib`` (``h`` the last Cartesian coordinate),
+* Lagrange II, term by term: ``tau_a = sum_b (d2T/dqd_a dq_b) qd_b + sum_b (d2T/dqd_a dqd_b) qdd_b
+  - dT/dq_a + dPi/dq_a``.
+
+Two engines: :func:`energies_poly` and :func:`lagrange_poly` do every step in the ring of
+:mod:`lagrange.ring`; :func:`derive_expr` is the textbook route (sympy expressions, ``sympy.diff``,
+``sympy.expand``), identical equations about a hundred times slower. What the result depends on is
+the :class:`Structure` (tree, signs, zero masses), never the numbers.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import sympy as sp
 
 from exo_bench.lagrange.budget import Deadline
-from exo_bench.lagrange.ring import _Energies, _Ring
-from exo_bench.lagrange.structure import Structure
+from exo_bench.lagrange.ring import TrigRing
+from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import Symbols
 
 
-def _energies_poly(st: Structure, rg: _Ring, dl: Deadline) -> _Energies:
+@dataclass(frozen=True)
+class Structure:
+    """What the symbolic derivation depends on: the tree, the signs and the zero masses."""
+
+    dim: int
+    parent: tuple[int, ...]
+    sign: tuple[int, ...]
+    zero_masses: tuple[tuple[bool, bool, bool], ...]
+
+    @property
+    def nlinks(self) -> int:
+        return len(self.parent)
+
+
+def structure_of(mech: Mechanism) -> Structure:
+    return Structure(mech.dim, mech.parent, mech.sign,
+                     tuple(tuple(m == 0.0 for m in ms) for ms in mech.masses))
+
+
+@dataclass
+class Energies:
+    T: object
+    Pi: object
+
+
+def energies_poly(st: Structure, rg: TrigRing, dl: Deadline) -> Energies:
     """T and Pi of the point masses, positions built down the tree from the geometry."""
     R, S, n, dim = rg.R, rg.S, st.nlinks, st.dim
     dof = dim * n
@@ -33,10 +72,10 @@ def _energies_poly(st: Structure, rg: _Ring, dl: Deadline) -> _Energies:
             v = [sum((rg.d_dq(x, a) * rg.qd[a] for a in range(dof)), R.zero) for x in r]
             T += m * sum((x * x for x in v), R.zero) / 2                  # 1/2 m |v|^2
             Pi += m * g * r[-1]                                           # m g h
-    return _Energies(rg.reduce(T), Pi)
+    return Energies(rg.reduce(T), Pi)
 
 
-def _lagrange_poly(rg: _Ring, E: _Energies, dof: int, dl: Deadline) -> list:
+def lagrange_poly(rg: TrigRing, E: Energies, dof: int, dl: Deadline) -> list:
     """Lagrange II for every coordinate, in the ring."""
     eqs = []
     for a in range(dof):
@@ -57,7 +96,7 @@ def _unit_expr(S: Symbols, i: int, dim: int) -> sp.Matrix:
     return sp.Matrix([c * sp.cos(S.phi[i]), c * sp.sin(S.phi[i]), sp.sin(S.psi[i])])
 
 
-def _derive_expr(st: Structure, rg: _Ring, dl: Deadline) -> tuple[_Energies, list]:
+def derive_expr(st: Structure, rg: TrigRing, dl: Deadline) -> tuple[Energies, list]:
     """The textbook route: T and Pi as sympy expressions, ``sympy.diff`` and ``sympy.expand``."""
     S, n, dim = rg.S, st.nlinks, st.dim
     q, qd, qdd = S.q, S.qd, S.qdd
@@ -82,5 +121,4 @@ def _derive_expr(st: Structure, rg: _Ring, dl: Deadline) -> tuple[_Energies, lis
         p_a = sp.diff(T, qd[a])
         ddt = sum(sp.diff(p_a, q[b]) * qd[b] + sp.diff(p_a, qd[b]) * qdd[b] for b in range(len(q)))
         eqs.append(rg.reduce(rg.from_expr(ddt - sp.diff(T, q[a]) + sp.diff(Pi, q[a]))))
-    return _Energies(rg.reduce(rg.from_expr(T)), rg.from_expr(Pi)), eqs
-
+    return Energies(rg.reduce(rg.from_expr(T)), rg.from_expr(Pi)), eqs

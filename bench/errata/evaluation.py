@@ -1,36 +1,30 @@
-"""Errata study, the checks: every printed formula of :mod:`matrix_method.printed` on seeded random
-states of the models it speaks about, against both witnesses; the singular points of eq. (18) as
-printed, and the effect on the gait.
+"""Errata study, the evaluation: each printed formula against the witnesses, the verdicts, the
+singular points of eq. (18) and the effect of the misprints on the gait.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from dataclasses import field
 import math
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
 
-from exo_bench.bench.errata.witnesses import CHAIN_LENGTHS, LagrangeWitness, PinocchioWitness, SAMPLES, SEED, TOLERANCE, TREES, pinocchio_matrices
-from exo_bench.matrix_method import numeric
-from exo_bench.matrix_method import printed
+from exo_bench.bench.errata import cases
+from exo_bench.bench.errata.witnesses import LagrangeWitness, PinocchioWitness, form_residual, pinocchio_matrices
+from exo_bench.matrix_method import numeric, printed
 from exo_bench.matrix_method.printed import Printed
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.mechanism import split
-from exo_bench.models.motion import gait
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
-from exo_bench.models.presets import exo5
-from exo_bench.models.presets import fig1
-from exo_bench.models.presets import fig2a
-from exo_bench.models.presets import fig2b
-from exo_bench.models.presets import fig5
-from exo_bench.models.presets import random_tree
+from exo_bench.models.motion import gait, random_states
+from exo_bench.models.presets import exo5, fig5, random_tree
+
+#: A formula holds when its largest error relative to the witness's largest magnitude is at most
+#: this, for both witnesses on every model.
+TOLERANCE = 1e-9
 
 
-# ------------------------------------------------------------------ results
 @dataclass
 class Check:
     """One formula on one model against one witness."""
@@ -95,26 +89,6 @@ def _rel(value, ref, scale=None):
     return err, s
 
 
-def _states(mech: Mechanism, seed: int):
-    return random_states(mech, SAMPLES, seed)
-
-
-def prefix(mech: Mechanism, n: int) -> Mechanism:
-    """The model of the first n links."""
-    return mech.replace(parent=mech.parent[:n], sign=mech.sign[:n], masses=mech.masses[:n], n=mech.n[:n],
-                        names=mech.names[:n], name=f"{mech.name}[:{n}]")
-
-
-def prefix_states(mech: Mechanism, q: np.ndarray, n: int) -> np.ndarray:
-    N = mech.nlinks
-    return np.concatenate([q[:, b * N:b * N + n] for b in range(mech.dim)], axis=1)
-
-
-def _planar_states(mech: Mechanism, q: np.ndarray) -> np.ndarray:
-    phi, _, l = split(mech, q)
-    return np.concatenate([phi, l], axis=1)
-
-
 def _model_scale(mats) -> float:
     return max(float(np.abs(m).max()) for ms in mats.values() for m in ms.values())
 
@@ -140,11 +114,6 @@ def _run(witnesses, mech: Mechanism, fn, verdict: Verdict):
             verdict.checks.append(Check(mech.name, w.name, skipped=str(reason)))
 
 
-# ------------------------------------------------------------------ the checks
-def spatial_models() -> list[Mechanism]:
-    return [fig2a(3), fig2b(3), fig5(3), exo5(3)] + [random_tree(n, 3, s) for n, s in TREES]
-
-
 def check_transition(f: Printed, witnesses, models=None) -> Verdict:
     """A line of eq. (18): the printed right side from the witness's planar matrices of the same
     structure (and the 3D matrices a line names) against the witness's 3D matrix."""
@@ -152,10 +121,10 @@ def check_transition(f: Printed, witnesses, models=None) -> Verdict:
     if f.kind == "notation":
         v.note = f.reading
         return v
-    for k, mech in enumerate(models or spatial_models()):
-        q, _, _ = _states(mech, SEED + k)
+    for k, mech in enumerate(models or cases.spatial_models()):
+        q, _, _ = cases.states(mech, cases.SEED + k)
         mech2 = mech.replace(dim=2, name=mech.name.replace("3d", "2d"))
-        q2 = _planar_states(mech, q)
+        q2 = cases.planar_states(mech, q)
 
         def fn(w):
             planar, spatial = w.matrices(mech2, q2), w.matrices(mech, q)
@@ -182,26 +151,11 @@ def check_transition(f: Printed, witnesses, models=None) -> Verdict:
     return v
 
 
-def _equation_models(key: str):
-    """The models and reference rows of a printed equation."""
-    if key == "2":
-        return [fig1(2)], None
-    if key == "4+":
-        return [fig2a(2)], None
-    if key == "4-":
-        return [fig2b(2)], None
-    if key in ("13", "14", "15"):
-        return [fig1(3)], [int(key) - 13]
-    if key == "20":
-        return [fig5(2)], "A phi'' row 1"
-    raise KeyError(key)
-
-
 def check_equation(f: Printed, witnesses) -> Verdict:
     v = Verdict(f, note=f.reading)
-    models, rows = _equation_models(f.key)
+    models, rows = cases.equation_models(f.key)
     for k, mech in enumerate(models):
-        q, qd, qdd = _states(mech, SEED + 100 + k)
+        q, qd, qdd = cases.states(mech, cases.SEED + 100 + k)
         x = printed.equation_namespace(mech, q, qd, qdd)
 
         def fn(w):
@@ -221,30 +175,10 @@ def check_equation(f: Printed, witnesses) -> Verdict:
     return v
 
 
-def chains(dim: int = 2) -> list[Mechanism]:
-    """Seeded random chains of 1..5 links; each is the prefix of the next (eq. 25 needs that)."""
-    longest = chain(max(CHAIN_LENGTHS) + 1, dim, seed=SEED)
-    return [prefix(longest, n) for n in CHAIN_LENGTHS + (max(CHAIN_LENGTHS) + 1,)]
-
-
 def check_matrix(f: Printed, witnesses) -> Verdict:
     v = Verdict(f, note=f.reading)
-    if f.key in ("6", "22"):
-        cases = [(m, None) for m in chains(2)[:-1]]
-    elif f.key == "19":
-        cases = [(fig5(2), None)]
-    elif f.key == "21":
-        cases = [(fig5(3), None)]
-    elif f.key == "25":
-        cs = chains(2)
-        cases = [(cs[k + 1], cs[k]) for k in range(len(cs) - 1)]
-    elif f.key == "26":
-        cs = chains(3)
-        cases = [(cs[k + 1], cs[k]) for k in range(len(cs) - 1)]
-    else:
-        raise KeyError(f.key)
-    for k, (mech, smaller) in enumerate(cases):
-        q, qd, qdd = _states(mech, SEED + 200 + k)
+    for k, (mech, smaller) in enumerate(cases.matrix_cases(f.key)):
+        q, qd, qdd = cases.states(mech, cases.SEED + 200 + k)
         x = printed.equation_namespace(mech, q, qd, qdd)
 
         def fn(w):
@@ -252,7 +186,7 @@ def check_matrix(f: Printed, witnesses) -> Verdict:
             if smaller is not None:                      # A_{n+1} - (A_n padded), eqs. (23)-(24)
                 n = smaller.nlinks
                 pad = np.zeros_like(ref)
-                pad[:, :n, :n] = w.matrices(smaller, prefix_states(mech, q, n))["phi"]["A"]
+                pad[:, :n, :n] = w.matrices(smaller, cases.prefix_states(mech, q, n))["phi"]["A"]
                 ref = ref - pad
             value = f.fn(x)
             err, scale = _rel(value, ref)
@@ -265,7 +199,7 @@ def check_branch_rule(witnesses) -> dict[str, Verdict]:
     """The sign rule of section 5, three readings, on Fig. 5 (links 3, 4 after the branch point)."""
     branched = fig5(2)
     straight = branched.replace(sign=(1,) * branched.nlinks, name="fig5-2d as a chain")
-    q, _, _ = _states(branched, SEED + 300)
+    q, _, _ = cases.states(branched, cases.SEED + 300)
     out = {}
     for reading, sigma in printed.branch_sign_readings(3, branched.nlinks).items():
         v = Verdict(printed.BRANCH_RULE, note=f"Reading: {reading}.")
@@ -288,20 +222,9 @@ def check_all(witnesses=None) -> list[Verdict]:
     out = []
     for f in printed.EQUATIONS:
         out.append(check_equation(f, witnesses) if f.kind == "equation" else check_matrix(f, witnesses))
-    models = spatial_models()
+    models = cases.spatial_models()
     out.extend(check_transition(f, witnesses, models) for f in printed.TRANSITIONS)
     return out
-
-
-# ------------------------------------------------------------------ singular points and the gait
-def singular_configuration() -> tuple[Mechanism, np.ndarray]:
-    """A 3-link chain at an exactly singular state: ``phi = (pi/2, 0, pi/4)`` makes
-    ``cos phi_1 = 0``, ``sin phi_2 = 0`` and ``cos(phi_1 - phi_2) = 0``, and ``l_3 = 0`` (a rod
-    retracted to zero length, the divisor of the printed ``k^l``); exact sympy numbers."""
-    mech = chain(3, 3, seed=SEED)
-    q = np.array([sp.pi / 2, sp.S.Zero, sp.pi / 4, sp.Rational(1, 3), sp.Rational(-1, 5), sp.Rational(2, 7),
-                  sp.Rational(1, 2), sp.Rational(3, 4), sp.S.Zero], dtype=object)
-    return mech, q
 
 
 @dataclass
@@ -317,7 +240,7 @@ class Singular:
 def check_singular() -> list[Singular]:
     """The lines of (18) that divide, at :func:`singular_configuration`. Misprinted lines are taken
     in their corrected form (still with the division), so that only the divisions are measured."""
-    mech, q_exact = singular_configuration()
+    mech, q_exact = cases.singular_configuration()
     q = np.array([float(x) for x in q_exact])[None, :]
     table = printed.corrected_table([f.key for f in printed.TRANSITIONS if f.corrected is not None])
     exact = numeric.paper_matrices(mech, q_exact, table, exact=True)
@@ -362,3 +285,28 @@ def gait_effect(samples: int = 111) -> dict:
     out["matrix"] = float(np.abs(ours - ref).max() / np.abs(ref).max())
     return out
 
+
+@dataclass
+class Results:
+    """Everything the report shows."""
+
+    verdicts: list[Verdict]
+    branch: dict[str, Verdict]
+    singular: list[Singular]
+    gait: dict
+    residual: float
+    seconds: float
+
+
+def compute() -> Results:
+    """Run every check (the slow part of ``exo-bench errata``)."""
+    t0 = time.perf_counter()
+    witnesses = [LagrangeWitness(), PinocchioWitness()]
+    verdicts = check_all(witnesses)
+    branch = check_branch_rule(witnesses)
+    singular = check_singular()
+    g = gait_effect()
+    m = random_tree(4, 3, 3)
+    q, qd, qdd = random_states(m, cases.SAMPLES, cases.SEED)
+    residual = form_residual(m, q, qd, qdd)
+    return Results(verdicts, branch, singular, g, residual, time.perf_counter() - t0)
