@@ -75,7 +75,7 @@ class Mechanism:
         object.__setattr__(self, "sign", tuple(int(s) for s in self.sign))
         object.__setattr__(self, "masses", tuple(tuple(float(x) for x in m) for m in self.masses))
         object.__setattr__(self, "n", tuple(float(x) for x in self.n))
-        object.__setattr__(self, "g", float(self.g))
+        object.__setattr__(self, "g", float(self.g) + 0.0)  # -0.0 -> 0.0: one mechanism, one hash
         object.__setattr__(self, "dim", int(self.dim))
         object.__setattr__(self, "_hash", hash((self.dim, self.g, self.parent, self.sign, self.masses, self.n,
                                                 self.names, self.name)))
@@ -179,6 +179,8 @@ class Mechanism:
             raise ValueError(f"{source}: field 'dim': expected 2 or 3, got {dim!r}")
         if not _is_number(g) or not math.isfinite(g):
             raise ValueError(f"{source}: field 'g': expected a finite number, got {g!r}")
+        if g < 0:
+            raise ValueError(f"{source}: field 'g': {_NEGATIVE_G}, got {g!r}")
         if not isinstance(links, list) or not links:
             raise ValueError(f"{source}: field 'links': expected a non-empty list of links, got {links!r}")
         parent, sign, masses, frac, names = [], [], [], [], []
@@ -228,12 +230,38 @@ class Mechanism:
         return Mechanism(**d)
 
 
+#: Why a negative g is refused (the choice is documented in docs/errors.md and tested).
+_NEGATIVE_G = ("expected g >= 0: g is the magnitude of gravity, which acts along -y in 2D and -z in 3D by convention "
+               "(a model that hangs from its support is described by its angles, not by reversing gravity)")
+
+#: The largest force scale accepted: a bound on |tau| of ``1e300`` leaves float64 (largest 1.8e308)
+#: a margin of 1e8 for the sums and products inside every method.
+MAX_FORCE_SCALE = 1e300
+
+
+def force_scale_log10(mech: "Mechanism", length: float = 1.0, rate: float = 1.0, acceleration: float = 1.0) -> float:
+    """``log10`` of a bound on the generalised forces of ``mech`` at rod lengths up to ``length``,
+    rates up to ``rate`` and accelerations up to ``acceleration``:
+    ``total mass * n^2 * (1 + length)^2 * (1 + acceleration + rate^2 + g)``.
+
+    Every term of the equations of motion is a mass times at most two lengths (summed over at most
+    n links along a branch) times an acceleration, a squared rate or g, so ``|tau|`` is below this
+    bound. Computed in logarithms, so it is finite for any finite input."""
+    lg = lambda x: math.log10(x) if x > 0 else -math.inf
+    n = max(len(mech.masses), 1)
+    total_log = lg(max((max(m) for m in mech.masses), default=0.0)) + math.log10(3 * n)  # >= log10(total mass)
+    dyn = max(0.0, lg(acceleration), 2 * lg(rate), lg(mech.g)) + math.log10(4)
+    return total_log + 2 * math.log10(n) + 2 * lg(1.0 + length) + dyn
+
+
 def _validate(m: Mechanism) -> None:
     """Check every field once; messages name the link, the field, expected and actual."""
     if m.dim not in (2, 3) or isinstance(m.dim, bool):
         raise ValueError(f"{m.name}: field 'dim': expected 2 or 3, got {m.dim!r}")
     if not _is_number(m.g) or not math.isfinite(m.g):
         raise ValueError(f"{m.name}: field 'g': expected a finite number, got {m.g!r}")
+    if m.g < 0:
+        raise ValueError(f"{m.name}: field 'g': {_NEGATIVE_G}, got {m.g!r}")
     n = len(m.parent)
     if n == 0:
         raise ValueError(f"{m.name}: field 'links': expected at least one link, got none")
@@ -244,7 +272,12 @@ def _validate(m: Mechanism) -> None:
         where = f"{m.name}: {_where(i, m.names[i])}"
         p = m.parent[i]
         if not isinstance(p, (int, np.integer)) or isinstance(p, bool) or not (-1 <= p < i):
-            raise ValueError(f"{where}: field 'parent': expected -1 or the index of an earlier link (0..{i - 1}), got {p!r}")
+            if i == 0:
+                expected = "-1 (the support: the first link has no earlier link to hang from)"
+            else:
+                expected = (f"-1 (the support) or the 0-based index of an earlier link, 0..{i - 1} "
+                            f"(links 1..{i})")
+            raise ValueError(f"{where}: field 'parent': expected {expected}, got {p!r}")
         s = m.sign[i]
         if isinstance(s, bool) or s not in (1, -1):
             raise ValueError(f"{where}: field 'sign': expected +1 or -1, got {s!r}")
@@ -259,6 +292,12 @@ def _validate(m: Mechanism) -> None:
             raise ValueError(f"{where}: field 'n': expected a fraction in (0, 1), got {f!r}")
     if all(x == 0 for ms in m.masses for x in ms):
         raise ValueError(f"{m.name}: field 'masses': expected at least one positive mass, got all zero")
+    scale = force_scale_log10(m)
+    if not scale < math.log10(MAX_FORCE_SCALE):
+        big = max(max(ms) for ms in m.masses)
+        raise ValueError(f"{m.name}: field 'masses': the forces of masses this large overflow float64 even at unit "
+                         f"lengths and rates (largest mass {big:.3g} kg, force bound 1e{scale:.0f} > "
+                         f"{MAX_FORCE_SCALE:.0e}); express the model in other units")
 
 
 # --------------------------------------------------------------- coordinates
@@ -284,12 +323,42 @@ def split(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None
     return q[..., :n], q[..., n:2 * n], q[..., 2 * n:]
 
 
+#: Rows checked at a time for NaN/Inf and negative lengths: the check's own memory stays fixed.
+CHECK_ROWS = 65536
+
+
+def _array_problem(arr: Any) -> str:
+    """What is wrong with a nested list that numpy cannot turn into a float array: ragged rows,
+    or the first entry that is not a number."""
+    if isinstance(arr, (list, tuple)):
+        rows = [r for r in arr]
+        if rows and all(isinstance(r, (list, tuple)) for r in rows):
+            lengths = [len(r) for r in rows]
+            if len(set(lengths)) > 1:
+                k = next(i for i, n in enumerate(lengths) if n != lengths[0])
+                return (f"ragged rows: expected every row to have the same number of coordinates, got row 0 with "
+                        f"{lengths[0]} and row {k} with {lengths[k]}")
+            for s_, r in enumerate(rows):
+                for c, x in enumerate(r):
+                    if not _is_number(x):
+                        return f"expected numbers, got {x!r} ({type(x).__name__}) at sample {s_}, column {c}"
+        for c, x in enumerate(rows):
+            if not isinstance(x, (list, tuple)) and not _is_number(x):
+                return f"expected numbers, got {x!r} ({type(x).__name__}) at index {c}"
+        if any(isinstance(r, (list, tuple)) for r in rows) and not all(isinstance(r, (list, tuple)) for r in rows):
+            return "ragged rows: expected a list of rows (lists of numbers), got a mix of rows and numbers"
+        return "expected a list of rows of numbers"
+    return f"expected numbers, got {type(arr).__name__}"
+
+
 def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
     """Validate state arrays at the edge and return them as float ``(samples, dof)`` arrays.
 
-    Accepts one sample ``(dof,)`` or a batch ``(samples, dof)``. Rejects wrong shapes,
-    NaN/Inf and negative rod lengths with a message naming the array, sample and
-    coordinate.
+    Accepts one sample ``(dof,)`` or a batch ``(samples, dof)``. Rejects wrong shapes, ragged
+    rows, entries that are not numbers, NaN/Inf, negative rod lengths (each with a message naming
+    the array, sample and coordinate) and states whose forces would overflow float64
+    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). Float64 arrays are not copied; the
+    checks run :data:`CHECK_ROWS` rows at a time.
     """
     names = coordinate_names(mech)
     out = []
@@ -297,27 +366,49 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
         if arr is None:
             out.append(None)
             continue
+        if isinstance(arr, (str, bytes, dict)) or arr is True or arr is False:
+            raise ValueError(f"{source}: field '{label}': expected numbers, got {type(arr).__name__}")
         try:
             a = np.asarray(arr, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{source}: field '{label}': expected numbers, got {type(arr).__name__}") from None
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
         if a.ndim == 1:
             a = a[None, :]
         if a.ndim != 2 or a.shape[1] != mech.dof:
             raise ValueError(
                 f"{source}: field '{label}': expected shape (samples, {mech.dof}) in the order "
                 f"{names[0]}..{names[-1]}, got {tuple(np.shape(arr))}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            s, c = map(int, np.argwhere(bad)[0])
-            raise ValueError(f"{source}: field '{label}' sample {s} coordinate {names[c]}: expected a finite number, got {a[s, c]}")
+        for s0 in range(0, a.shape[0], CHECK_ROWS):
+            bad = ~np.isfinite(a[s0:s0 + CHECK_ROWS])
+            if bad.any():
+                s, c = map(int, np.argwhere(bad)[0])
+                s += s0
+                raise ValueError(f"{source}: field '{label}' sample {s} coordinate {names[c]}: "
+                                 f"expected a finite number, got {a[s, c]}")
         out.append(a)
     shapes = {a.shape[0] for a in out if a is not None}
     if len(shapes) > 1:
         raise ValueError(f"{source}: q, qd and qdd must have the same number of samples, got {sorted(shapes)}")
-    _, _, l = split(mech, out[0])
-    if (l < 0).any():
-        s, i = map(int, np.argwhere(l < 0)[0])
-        raise ValueError(f"{source}: field 'q' sample {s} coordinate l{i + 1} ({_where(i, mech.names[i])}): "
-                         f"expected a rod length >= 0, got {l[s, i]}")
+    n = mech.nlinks
+    length = rate = acceleration = 0.0
+    for s0 in range(0, out[0].shape[0], CHECK_ROWS):
+        l = out[0][s0:s0 + CHECK_ROWS, -n:]
+        if (l < 0).any():
+            s, i = map(int, np.argwhere(l < 0)[0])
+            s += s0
+            raise ValueError(f"{source}: field 'q' sample {s} coordinate l{i + 1} ({_where(i, mech.names[i])}): "
+                             f"expected a rod length >= 0, got {l[s - s0, i]}")
+        if l.size:
+            length = max(length, float(l.max()))
+        if out[1] is not None and out[1].size:
+            rate = max(rate, float(np.abs(out[1][s0:s0 + CHECK_ROWS]).max()))
+        if out[2] is not None and out[2].size:
+            acceleration = max(acceleration, float(np.abs(out[2][s0:s0 + CHECK_ROWS]).max()))
+    scale = force_scale_log10(mech, length, rate, acceleration)
+    if not scale < math.log10(MAX_FORCE_SCALE):
+        big = max(max(ms) for ms in mech.masses)
+        raise ValueError(f"{source}: the forces would overflow float64: with masses up to {big:.3g} kg, "
+                         f"rod lengths up to {length:.3g}, rates up to {rate:.3g} and accelerations up to "
+                         f"{acceleration:.3g} the force bound is 1e{scale:.0f} > {MAX_FORCE_SCALE:.0e} "
+                         "(models/mechanism.py force_scale_log10); express the states in other units")
     return tuple(out)

@@ -3,6 +3,20 @@
 The model is built once per mechanism from :func:`models.urdf.to_urdf` with mimic
 joints (``buildModelFromXML(xml, mimic=True)``), and kept apart from the scratch
 ``Data``, as Pinocchio itself does.
+
+**Memory: Pinocchio's ``Data`` grows as nv^3.** ``pin.Data(model)`` (``createData``) allocates,
+and zero-fills, whatever algorithm will run: among its fields are four dense ``nv x nv x nv``
+tensors of second-order derivatives (``d2tau_dqdq``, ``d2tau_dvdv``, ``d2tau_dqdv``,
+``d2tau_dadq``) and the ``6 x nv x nv`` ``kinematic_hessians`` (pinocchio/multibody/data.hxx).
+That is ``32 nv^3`` bytes whether or not those algorithms are ever called: 0.87 GB for a 3D
+chain of 100 links (nv = 300), 23 GB for 300 links (nv = 900). Neither the URDF's nesting nor
+the mimic joints cause it (mimic joints make ``nv`` smaller: without them a 3D chain has
+``nv = 5n - 1`` instead of ``3n``, and 4.4 times the memory); ``nv = dof`` is the least any
+Pinocchio model of the mechanism can have. :func:`data_bytes` is the measured size, and the
+backend checks it against the available memory before it creates a ``Data``
+(:class:`PinocchioDataTooLarge`). Reproduction and the upstream report: docs/pinocchio-memory.md.
+
+Every cache here holds models (kilobytes), never a ``Data``.
 """
 
 from __future__ import annotations
@@ -11,6 +25,7 @@ import os
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -46,21 +61,101 @@ class PinocchioModel:
     frames: np.ndarray         # (n, 3) frame ids of the start, middle, end bodies (-1: no middle body)
 
     def create_data(self) -> pin.Data:
+        """A new scratch ``Data`` (``32 nv^3`` bytes and more: :func:`data_bytes`), after checking
+        that it fits in the available memory. Never cached here: the model cache would keep it."""
+        check_data_fits(self.mechanism)
         return self.model.createData()
 
     @property
     def data(self) -> pin.Data:
-        """Scratch data for serial RNEA/kinematics calls, created once per model."""
-        d = self.__dict__.get("_data")
-        if d is None:
-            d = self.model.createData()
-            object.__setattr__(self, "_data", d)
-        return d
+        """A new scratch ``Data`` (see :meth:`create_data`)."""
+        return self.create_data()
+
+
+# ----------------------------------------------------------------------------- memory of Data
+#: Bytes of a ``pin.Data`` beyond its dense arrays, per joint: measured as the RSS growth of
+#: ``createData()`` minus the dense part of :func:`data_bytes` on 2D and 3D chains of 10 to 150
+#: links (pin 4.1, x86-64): 38 to 57 kB per joint, rounded up.
+DATA_BYTES_PER_JOINT = 60_000
+
+
+def model_size(mech: Mechanism) -> tuple[int, int]:
+    """``(nv, njoints)`` of the mechanism's Pinocchio model, without building it: ``nv = dof``
+    (mimic joints have no velocity of their own); joints: the universe, then per link ``phi``,
+    (3D) ``psi`` and, below the root, the mimic ``undo``, ``len``, and the mimic ``mid`` when the
+    middle mass is not zero (models/urdf.py)."""
+    n = mech.nlinks
+    per_link = 2 if mech.dim == 2 else 3
+    undo = sum(1 for p in mech.parent if p >= 0) if mech.dim == 3 else 0
+    mid = sum(1 for m in mech.masses if m[1] > 0)
+    return mech.dof, 1 + per_link * n + undo + mid
+
+
+def data_bytes(nv: int, njoints: int) -> int:
+    """Bytes of one ``pin.Data`` of a model with ``nv`` velocities and ``njoints`` joints (pin 4.1).
+
+    Dense part, from the constructor (pinocchio/multibody/data.hxx): four ``nv^3`` tensors and the
+    ``6 nv^2`` kinematic Hessians; ten ``nv x nv`` matrices (M, Minv, C, U, dtau_dq, dtau_dv,
+    ddq_dq, ddq_dv, ddq_dtau, sDUiJt); the ``nv x 10 (njoints - 1)`` joint-torque regressor and one
+    ``6 x nv`` Fcrb per joint; all float64. Plus :data:`DATA_BYTES_PER_JOINT`. Measured against
+    the RSS growth of ``createData()`` (3D chain, 100 links: predicted 0.92 GB, measured 0.91 GB).
+    """
+    dense = 4 * nv**3 + 6 * nv**2 + 10 * nv**2 + 10 * nv * max(njoints - 1, 0) + 6 * nv * njoints
+    return 8 * dense + DATA_BYTES_PER_JOINT * njoints
+
+
+def mechanism_data_bytes(mech: Mechanism) -> int:
+    """:func:`data_bytes` of the mechanism's model, computed without building it."""
+    return data_bytes(*model_size(mech))
+
+
+def available_memory() -> int | None:
+    """Bytes the kernel says can be allocated without swapping (``MemAvailable`` of
+    /proc/meminfo), or None where that is unknown."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+class PinocchioDataTooLarge(MemoryError):
+    """A ``pin.Data`` would not fit in the available memory; the message says how large it is,
+    why, and what fits. ``budget`` names the limit (bytes)."""
+
+    def __init__(self, mech: Mechanism, need: int, limit: int, count: int = 1):
+        nv, nj = model_size(mech)
+        self.need, self.limit, self.budget = need, limit, limit
+        what = "one pin.Data" if count == 1 else f"{count} pin.Data (one per thread)"
+        super().__init__(
+            f"pinocchio: {what} for {mech.name!r} ({mech.dim}D, {mech.nlinks} links, nv = {nv}) needs "
+            f"{_gb(need * count)}, more than the {_gb(limit)} of memory available: Pinocchio allocates four "
+            f"nv^3 tensors in every Data (docs/pinocchio-memory.md); use method matrix-factored")
+
+
+def _gb(x: float) -> str:
+    return f"{x / 1e9:.2f} GB" if x >= 1e8 else f"{x / 1e6:.1f} MB"
+
+
+def check_data_fits(mech: Mechanism, count: int = 1, limit: int | None = None) -> int:
+    """Raise :class:`PinocchioDataTooLarge` unless ``count`` Data of the mechanism fit in ``limit``
+    bytes (default: the available memory); return the bytes of one Data."""
+    need = mechanism_data_bytes(mech)
+    limit = available_memory() if limit is None else limit
+    if limit is not None and need * count > limit:
+        raise PinocchioDataTooLarge(mech, need, limit, count)
+    return need
 
 
 @lru_cache(maxsize=64)
 def build_model(mech: Mechanism) -> PinocchioModel:
-    """Build (once per mechanism) the Pinocchio model from the generated URDF."""
+    """Build (once per mechanism) the Pinocchio model from the generated URDF. The cache holds
+    the model (kilobytes per link), never a ``Data``."""
     model = pin.buildModelFromXML(to_urdf(mech), mimic=True)
     model.gravity.linear = np.array([0.0, -mech.g, 0.0] if mech.dim == 2 else [0.0, 0.0, -mech.g])
     n = mech.nlinks
@@ -103,7 +198,7 @@ def joint_torques(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """
     q, qd, qdd = as_states(mech, q, qd, qdd)
     pm = build_model(mech)
-    data, model = pm.data, pm.model
+    data, model = pm.create_data(), pm.model
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
     return np.stack([pin.rnea(model, data, qj[s], vj[s], aj[s]) for s in range(q.shape[0])])
 
@@ -116,20 +211,16 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     return joint_torques(mech, q, qd, qdd) @ build_model(mech).G
 
 
-@lru_cache(maxsize=16)
-def _pool(mech: Mechanism, threads: int) -> pin.ModelPool:
-    return pin.ModelPool(build_model(mech).model, threads)
-
-
 def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None = None) -> np.ndarray:
     """The same as :func:`inverse_dynamics`, batched through ``pin.rneaInParallel``."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
     threads = threads or os.cpu_count() or 1
     pm = build_model(mech)
+    check_data_fits(mech, threads)
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
     f = lambda x: np.asfortranarray(x.T)
     tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
-    pin.rneaInParallel(threads, _pool(mech, threads), f(qj), f(vj), f(aj), tau)
+    pin.rneaInParallel(threads, pin.ModelPool(pm.model, threads), f(qj), f(vj), f(aj), tau)
     return tau.T @ pm.G
 
 
@@ -138,14 +229,25 @@ def mass_matrix(mech: Mechanism, q) -> np.ndarray:
     q, _, _ = as_states(mech, q)
     pm = build_model(mech)
     qj = q @ pm.G.T
+    data = pm.create_data()
     out = np.empty((q.shape[0], mech.dof, mech.dof))
     for s in range(q.shape[0]):
-        # A fresh Data per call: on models with a revolute mimic joint (every 3D model with
-        # more than one link), pin 4.1's CRBA depends on what earlier calls left in Data.
-        M = pin.crba(pm.model, pm.create_data(), qj[s])
-        M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
-        out[s] = pm.G.T @ M @ pm.G
+        out[s] = pm.G.T @ crba(pm.model, data, qj[s]) @ pm.G
     return out
+
+
+def crba(model: pin.Model, data: pin.Data, qj: np.ndarray) -> np.ndarray:
+    """The symmetric joint-space mass matrix by ``pin.crba``, correct when ``data`` is reused.
+
+    On a model with a mimic joint (every 3D model with more than one link) pin 4.1's CRBA reads
+    ``data.Fcrb`` as left by the previous call, so a reused ``Data`` gives a wrong matrix (the
+    reproduction is in docs/pinocchio-memory.md). Zeroing ``Fcrb`` first gives the fresh-Data
+    result at ``O(njoints nv)`` cost instead of a new ``Data`` (``32 nv^3`` bytes) per sample.
+    """
+    for F in data.Fcrb:
+        F[...] = 0.0
+    M = pin.crba(model, data, qj)
+    return np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
 
 
 def bias_forces(mech: Mechanism, q, qd) -> np.ndarray:
@@ -189,9 +291,14 @@ class PinocchioRNEA(PreparedModel):
     * ``threads`` (default 1): batches of more than one sample go through ``pin.rneaInParallel``
       with this many threads and a ``ModelPool`` built once; 1 loops ``pin.rnea`` in Python.
 
-    ``mass_matrix`` is CRBA (with a fresh ``Data`` per call: pin 4.1's CRBA on a revolute mimic
-    joint depends on what earlier calls left in ``Data``) and ``bias_forces`` is
+    ``mass_matrix`` is CRBA (:func:`crba`: ``data.Fcrb`` zeroed before each call, as pin 4.1's CRBA
+    on a mimic joint reads what the previous call left there) and ``bias_forces`` is
     ``nonLinearEffects``, both mapped by ``G``.
+
+    **Memory.** Each ``Data`` is :func:`data_bytes` (``32 nv^3`` bytes and more); the model holds
+    one per thread that calls it, plus ``threads`` in the ``ModelPool`` when ``threads > 1``. The
+    constructor checks that they fit in the available memory and raises
+    :class:`PinocchioDataTooLarge` (a ``MemoryError`` with a one-line message) when they do not.
     """
 
     method = "pinocchio"
@@ -201,6 +308,7 @@ class PinocchioRNEA(PreparedModel):
             raise ValueError(f"pinocchio: option 'threads': expected an integer >= 1, got {threads!r}")
         super().__init__(mechanism, threads=int(threads))
         self.threads = int(threads)
+        self.data_bytes = check_data_fits(mechanism, 1 + (int(threads) if threads > 1 else 0))
         pm = build_model(mechanism)
         self.pin_model: pin.Model = pm.model
         self.G: np.ndarray = np.ascontiguousarray(pm.G)
@@ -240,10 +348,9 @@ class PinocchioRNEA(PreparedModel):
     def _mass_matrix(self, q):
         qj = q @ self.GT
         out = np.empty((q.shape[0], self._dof, self._dof))
+        model, data = self.pin_model, self.data
         for s in range(q.shape[0]):
-            M = pin.crba(self.pin_model, self.pin_model.createData(), qj[s])
-            M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
-            out[s] = self.GT @ M @ self.G
+            out[s] = self.GT @ crba(model, data, qj[s]) @ self.G
         return out
 
     def _bias_forces(self, q, qd):

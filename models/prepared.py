@@ -18,6 +18,13 @@ message that names the array, the sample and the coordinate. ``check=False`` is 
 for trusted hot loops (an ODE right-hand side, a controller): the arrays must already be float64
 ``(dof,)`` or ``(samples, dof)`` and nothing is checked.
 
+**Chunks.** A batch is evaluated :attr:`PreparedModel.chunk_samples` samples at a time into a
+preallocated result, so that a batch of any length needs the inputs, the result and a fixed
+working set (one chunk's temporaries): 10^6 samples take no more scratch memory than one chunk
+(bench/test_memory.py measures it). The default chunk keeps the working set near
+:data:`CHUNK_BYTES` for the largest per-sample temporaries of any method (``n x n`` matrices);
+``exo_bench.prepare`` sets it from the method's calibrated cost model (bench/resources.py).
+
 **Threads and processes.** A prepared model holds no mutable state shared between calls other
 than per-thread scratch space, so one model can serve several threads. It pickles by
 reconstruction: the pickle holds the mechanism, the method's name and its options, and
@@ -61,6 +68,28 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
     return cls(mechanism, **options)
 
 
+#: Target bytes of one chunk's temporaries (see :func:`default_chunk_samples`).
+CHUNK_BYTES = 64 * 2**20
+#: No chunk is longer than this: past it a longer chunk saves no measurable call overhead.
+MAX_CHUNK = 65536
+
+
+def default_chunk_samples(dof: int, bytes_per_sample: float | None = None) -> int:
+    """Samples per chunk so that one chunk's temporaries stay near :data:`CHUNK_BYTES`.
+
+    ``bytes_per_sample`` defaults to a bound for every method: ``8 (dof^2 + 64 dof)`` bytes (the
+    matrix family forms ``(samples, n, n)`` matrices, some dozens of them, ``n <= dof / 2``;
+    the others keep a few dozen ``(samples, dof)`` arrays)."""
+    if bytes_per_sample is None:
+        bytes_per_sample = 8.0 * (dof * dof + 64 * dof)
+    return int(max(1, min(MAX_CHUNK, CHUNK_BYTES // max(bytes_per_sample, 1.0))))
+
+
+def _chunks(S: int, size: int):
+    for s0 in range(0, S, size):
+        yield slice(s0, min(S, s0 + size))
+
+
 class PreparedModel:
     """A mechanism prepared for one method. Subclasses set :attr:`method` and implement
     :meth:`_inverse_dynamics`; they may override ``_mass_matrix`` and ``_bias_forces``."""
@@ -75,6 +104,7 @@ class PreparedModel:
         self._mechanism = mechanism
         self._options = dict(options)
         self._dof = mechanism.dof
+        self._chunk = default_chunk_samples(mechanism.dof)
 
     # ------------------------------------------------------------------ what it is
     @property
@@ -89,6 +119,29 @@ class PreparedModel:
     @property
     def dof(self) -> int:
         return self._dof
+
+    @property
+    def chunk_samples(self) -> int:
+        """Samples evaluated at a time: batches longer than this are split into chunks written
+        into one preallocated result (the working set stays that of one chunk)."""
+        return self._chunk
+
+    @chunk_samples.setter
+    def chunk_samples(self, value: int) -> None:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{self.method}: chunk_samples: expected an integer >= 1, got {value!r}")
+        self._chunk = int(value)
+
+    def _chunked(self, fn, arrays, out_shape) -> np.ndarray:
+        """``fn(*chunks)`` over the rows of ``arrays`` in chunks of :attr:`chunk_samples`, into one
+        result of shape ``(S, *out_shape)``; one call when the batch fits in a chunk."""
+        S = arrays[0].shape[0]
+        if S <= self._chunk:
+            return fn(*arrays)
+        out = np.empty((S, *out_shape))
+        for c in _chunks(S, self._chunk):
+            out[c] = fn(*(a[c] for a in arrays))
+        return out
 
     @property
     def native_terms(self) -> bool:
@@ -111,11 +164,13 @@ class PreparedModel:
         if check:
             single = np.ndim(q) == 1
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
-            tau = self._inverse_dynamics(q, qd, qdd)
+            tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
             return tau[0] if single else tau
         if q.ndim == 1:
             return self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-        return self._inverse_dynamics(q, qd, qdd)
+        if q.shape[0] <= self._chunk:
+            return self._inverse_dynamics(q, qd, qdd)
+        return self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
 
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
@@ -124,7 +179,8 @@ class PreparedModel:
             q, _, _ = as_states(self._mechanism, q)
         elif single:
             q = q[None]
-        M = self._mass_matrix(q)
+        d = self._dof
+        M = self._chunked(self._mass_matrix, (q,), (d, d))
         return M[0] if single else M
 
     def bias_forces(self, q, qd, check: bool = True) -> np.ndarray:
@@ -134,7 +190,7 @@ class PreparedModel:
             q, qd, _ = as_states(self._mechanism, q, qd)
         elif single:
             q, qd = q[None], qd[None]
-        h = self._bias_forces(q, qd)
+        h = self._chunked(self._bias_forces, (q, qd), (self._dof,))
         return h[0] if single else h
 
     def mass_matrix_and_bias(self, q, qd, check: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -142,16 +198,32 @@ class PreparedModel:
         one batched inverse-dynamics call where the terms are derived."""
         if check:
             q, qd, _ = as_states(self._mechanism, q, qd)
+        d = self._dof
         if self.native_terms:
-            return self._mass_matrix(q), self._bias_forces(q, qd)
-        return terms_from_inverse_dynamics(self._inverse_dynamics, self._dof, q, qd)
+            return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
+        # (dof + 2) inverse-dynamics rows per sample: chunks of fewer samples keep the same working set
+        size = max(1, self._chunk // (d + 2))
+        S = q.shape[0]
+        if S <= size:
+            return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, qd)
+        M, h = np.empty((S, d, d)), np.empty((S, d))
+        for c in _chunks(S, size):
+            M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
+        return M, h
 
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
     def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        return terms_from_inverse_dynamics(self._inverse_dynamics, self._dof, q, np.zeros_like(q))[0]
+        d = self._dof
+        size = max(1, self._chunk // (d + 2))   # (dof + 2) inverse-dynamics rows per sample
+        if q.shape[0] <= size:
+            return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, np.zeros_like(q))[0]
+        M = np.empty((q.shape[0], d, d))
+        for c in _chunks(q.shape[0], size):
+            M[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], np.zeros_like(q[c]))[0]
+        return M
 
     def _bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))

@@ -1,0 +1,101 @@
+"""Minimal reproductions of the two Pinocchio behaviours described in docs/pinocchio-memory.md.
+
+Pure Pinocchio and numpy (no exo-bench code). Run: ``python docs/pinocchio_data_memory.py``
+(Linux: memory is read from /proc/self/status).
+
+1. ``pin.Data(model)`` allocates and zero-fills about ``32 nv^3`` bytes on any model, whatever
+   algorithm is then called: a plain chain of revolute joints shows it.
+2. On a model with a mimic joint, ``pin.crba`` with a reused ``Data`` depends on the previous
+   call: ``data.Fcrb`` is read before it is written.
+"""
+
+import time
+
+import numpy as np
+import pinocchio as pin
+
+
+def rss_bytes() -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmRSS")
+
+
+def revolute_chain(nv: int) -> pin.Model:
+    """nv revolute joints in series, a 1 kg point mass at the end of each 0.1 m link."""
+    model = pin.Model()
+    parent = 0
+    for k in range(nv):
+        placement = pin.SE3(np.eye(3), np.array([0.1, 0.0, 0.0]) if k else np.zeros(3))
+        parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"j{k}")
+        model.appendBodyToJoint(parent, pin.Inertia.FromSphere(1.0, 0.0), pin.SE3.Identity())
+    return model
+
+
+def data_memory() -> None:
+    print("1. pin.Data(model) on a chain of nv revolute joints (pin", pin.__version__ + ")")
+    print(f"{'nv':>5} {'createData MB':>14} {'32 nv^3 MB':>11} {'seconds':>8} {'rnea us':>8}")
+    for nv in (50, 100, 200, 400):
+        model = revolute_chain(nv)
+        before = rss_bytes()
+        t0 = time.perf_counter()
+        data = model.createData()
+        seconds = time.perf_counter() - t0
+        grown = rss_bytes() - before
+        q = np.zeros(nv)
+        t0 = time.perf_counter()
+        pin.rnea(model, data, q, q, q)
+        rnea = (time.perf_counter() - t0) * 1e6
+        print(f"{nv:5d} {grown / 1e6:14.1f} {32 * nv**3 / 1e6:11.1f} {seconds:8.3f} {rnea:8.0f}")
+        del data
+    print("RNEA itself needs O(nv) memory; the nv^3 part is d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq "
+          "(nv x nv x nv each) and kinematic_hessians (6 x nv x nv), all allocated in DataTpl's constructor.")
+
+
+URDF = """<?xml version="1.0"?>
+<robot name="mimic_crba">
+  <link name="base"/>
+  <joint name="a" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0"/>
+    <axis xyz="0 -1 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="l1"/>
+  <joint name="b" type="prismatic"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0"/>
+    <axis xyz="1 0 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="l2"><inertial><origin xyz="0 0 0"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+  <joint name="undo" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0 0 0"/>
+    <axis xyz="0 -1 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/>
+    <mimic joint="a" multiplier="-1" offset="0"/></joint>
+  <link name="l3"/>
+  <joint name="c" type="revolute"><parent link="l3"/><child link="l4"/><origin xyz="0 0 0"/>
+    <axis xyz="0 0 1"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="l4"/>
+  <joint name="d" type="prismatic"><parent link="l4"/><child link="l5"/><origin xyz="0 0 0"/>
+    <axis xyz="1 0 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="l5"><inertial><origin xyz="0 0 0"/><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+</robot>
+"""
+
+
+def crba_with_mimic() -> None:
+    print("\n2. pin.crba on a model with a mimic joint, Data reused")
+    model = pin.buildModelFromXML(URDF, mimic=True)
+    q0, q1 = np.array([0.3, 0.7, -0.4, 0.9]), np.array([-0.5, 0.4, 0.6, 1.1])
+    fresh = np.triu(pin.crba(model, model.createData(), q1))
+    data = model.createData()
+    pin.crba(model, data, q0)
+    reused = np.triu(pin.crba(model, data, q1))
+    print(f"max |M(q1) with a reused Data - M(q1) with a fresh Data| = {np.abs(reused - fresh).max():.3g}")
+    data = model.createData()
+    pin.crba(model, data, q0)
+    for F in data.Fcrb:
+        F[...] = 0.0
+    zeroed = np.triu(pin.crba(model, data, q1))
+    print(f"the same after zeroing data.Fcrb: {np.abs(zeroed - fresh).max():.3g}")
+
+
+if __name__ == "__main__":
+    data_memory()
+    crba_with_mimic()
