@@ -179,6 +179,7 @@ def findings_markdown(families: list[FamilyResult], methods: list[str], forward=
 
 def report_markdown(profile: Profile, methods: list[str], families: list[FamilyResult], forward,
                     seconds: float, figures: list[str]) -> str:
+    from exo_bench.bench.stability.forward_cases import ATOL_FACTOR
     from exo_bench.bench.stability.forward_report import forward_markdown
     from exo_bench.bench.reporting import provenance
 
@@ -197,9 +198,23 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
     L += [thresholds_markdown(families, min(profile.wp_rtols)), family_summary_markdown(families, methods),
           "## Families in detail", ""]
     L += [family_detail_markdown(fr, methods) for fr in families]
-    L += [f"![relative errors per family]({figures[0]})", "", f"![condition numbers per family]({figures[1]})", ""]
+    L += [f"![relative errors per family]({figures[0]})", "",
+          "Relative error of each method per case against the 50-digit reference, one panel per family; "
+          "markers tell a family's sub-series apart (named in the panel title); dashed lines are the "
+          f"thresholds (grey: degraded above {REL_DEGRADED:.0e}, black: unusable above {REL_UNUSABLE:.0e}); "
+          "crosses at 1 mark cases where the method returned NaN/Inf.", "",
+          f"![condition numbers per family]({figures[1]})", "",
+          "Condition number of the mass matrix (CRBA) per case, raw (SI units) and equilibrated; dashed "
+          f"lines: ill-conditioned from {COND_ILL:.0e} (grey), numerically singular from {COND_SINGULAR:.0e} "
+          "(black); open circles: an exact cause of singularity was found.", ""]
     L += [forward_markdown(forward)]
-    L += [f"![work-precision]({figures[2]})", "", f"![stiff rods]({figures[3]})", ""]
+    L += [f"![work-precision]({figures[2]})", "",
+          "Work-precision: run time against the error reached, one line per integrator through its "
+          "tolerances; the number beside each point is k for the requested rtol = 1e-k "
+          f"(atol = rtol x {ATOL_FACTOR:g}).", "",
+          f"![stiff rods]({figures[3]})", "",
+          "Stiff rods: right-hand-side evaluations for one horizon against the fastest rod rate; "
+          "black crosses mark runs that gave up at the evaluation budget.", ""]
     return "\n".join(L)
 
 
