@@ -197,6 +197,14 @@ def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
     return float((grad * sc).sum() * math.sqrt(m))
 
 
+def _simulate_spring(case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None,
+                     **budget) -> fd.Simulation:
+    """A spring case integrated from its initial state over its horizon with ``method``'s ``M`` and
+    ``h`` (atol = ``ATOL_FACTOR`` rtol); ``budget``: ``max_evaluations``, ``max_seconds``."""
+    return fd.simulate(_models(models)(case.mechanism, method), case.q0, case.qd0, (0.0, case.horizon),
+                       case.controls, integrator, rtol, ATOL_FACTOR * rtol, **budget)
+
+
 @dataclass
 class EnergyRun:
     case: str
@@ -216,9 +224,7 @@ def energy_drift(case: SpringCase, integrator: str, rtol: float, method: str = "
                  max_seconds: float | None = None, models: PreparedSet | None = None) -> EnergyRun:
     mech = case.mechanism
     d = mech.dof
-    sim = fd.simulate(_models(models)(mech, method), case.q0, case.qd0, (0.0, case.horizon), case.controls,
-                      integrator, rtol,
-                      ATOL_FACTOR * rtol, max_seconds=max_seconds)
+    sim = _simulate_spring(case, integrator, rtol, method, models, max_seconds=max_seconds)
     run = EnergyRun(case.name, integrator, rtol, sim)
     if sim.steps:
         E = case.energy(sim.q(d), sim.qd(d))
@@ -248,9 +254,8 @@ def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: i
               method: str = "pinocchio", max_seconds: float | None = None,
               models: PreparedSet | None = None) -> StiffRun:
     mech = case.mechanism
-    sim = fd.simulate(_models(models)(mech, method), case.q0, case.qd0, (0.0, case.horizon), case.controls,
-                      integrator, rtol,
-                      ATOL_FACTOR * rtol, max_evaluations=max_evaluations, max_seconds=max_seconds)
+    sim = _simulate_spring(case, integrator, rtol, method, models, max_evaluations=max_evaluations,
+                           max_seconds=max_seconds)
     mu = np.diag(coupling(mech))
     cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)

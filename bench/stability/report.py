@@ -19,9 +19,6 @@ from exo_bench.models import forward_dynamics as fd
 
 
 # ----------------------------------------------------------------------------- report: families
-_e = sci   # one formatter for every report cell (bench.reporting.sci)
-
-
 def baseline_level(families: list[FamilyResult]) -> tuple[float, list[str]]:
     """The largest relative error on the benign baseline among the methods usable there, and them."""
     base = next((fr for fr in families if fr.name == BASELINE), None)
@@ -77,7 +74,7 @@ def _cell(row: MethodRow | None) -> str:
         return row.status
     if row.nonfinite:
         return f"**{row.nonfinite} NaN/Inf**"
-    txt = _e(row.rel_err)
+    txt = sci(row.rel_err)
     return f"**{txt}**" if v == "unusable" else (f"_{txt}_" if v == "degraded" else txt)
 
 
@@ -103,7 +100,7 @@ def family_summary_markdown(families: list[FamilyResult], methods: list[str]) ->
             where = cr.case.label + (f"; skipped/failed on {len(skipped)}: {skipped[0].rows[m].reason}"
                                      if skipped else "")
             vtxt = f"**{verdict}**" if verdict in ("unusable", "failed") else verdict
-            lines.append(f"| {fr.name} | {m} | {vtxt} | {len(ran)}/{len(fr.results)} | {_e(amax)} | {_e(rmax)} | "
+            lines.append(f"| {fr.name} | {m} | {vtxt} | {len(ran)}/{len(fr.results)} | {sci(amax)} | {sci(rmax)} | "
                          f"{nan} | {where} |")
     lines += ["", "Mass matrix (from Pinocchio's CRBA) over each family:", "",
               "| family | forward dynamics | cases flagged | cond(M) range | cond_eq range | cond(mu_s) range |",
@@ -114,7 +111,7 @@ def family_summary_markdown(families: list[FamilyResult], methods: list[str]) ->
         raws = [cr.cond_raw for cr in fr.results]
         eqs = [cr.cond_eq for cr in fr.results]
         mus = [cr.cond_mu for cr in fr.results]
-        rng = lambda xs: f"{_e(min(xs))} .. {_e(max(xs))}"
+        rng = lambda xs: f"{sci(min(xs))} .. {sci(max(xs))}"
         vtxt = f"**{v}**" if v != "ok" else v
         lines.append(f"| {fr.name} | {vtxt} | {len(flagged)}/{len(fr.results)} | {rng(raws)} | {rng(eqs)} | {rng(mus)} |")
     return "\n".join(lines) + "\n"
@@ -129,7 +126,7 @@ def family_detail_markdown(fr: FamilyResult, methods: list[str]) -> str:
              "|---|---|---|---|---|" + "---|" * len(methods)]
     for cr in fr.results:
         fdv = cr.fd_verdict if cr.fd_verdict == "ok" else f"**{cr.fd_verdict}**"
-        lines.append(f"| {cr.case.label} | {_e(cr.cond_raw)} | {_e(cr.cond_eq)} | {_e(cr.cond_mu)} | {fdv} | "
+        lines.append(f"| {cr.case.label} | {sci(cr.cond_raw)} | {sci(cr.cond_eq)} | {sci(cr.cond_mu)} | {fdv} | "
                      + " | ".join(_cell(cr.rows.get(m)) for m in methods) + " |")
     sing = [cr for cr in fr.results if cr.singular]
     if sing:
