@@ -38,9 +38,9 @@ pinocchio           3     O(dof)                       4.6 us (5), 65 (25), 518 
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.91 GB at 3D n = 100, zero-filled at about 0.5 GB/s) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices; ``lagrange`` derives with sympy:
-2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; 3D n = 5: 2.8 s, 37 MB; n = 10:
+2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
 17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
-largest n by the power law through the last two points: about n^3.4 in time and n^3.5 in memory).
+largest n by the power law through the last two points: about n^3.5 in time and n^3.7 in memory).
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ def _matrix_setup(mech, options):
 LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
     (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
     (5, 2): (0.87, 17.5e6), (6, 2): (1.14, 23.0e6), (8, 2): (3.38, 39.7e6), (10, 2): (4.15, 69.9e6),
-    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6),
+    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6), (30, 2): (174.7, 3066.1e6),
     (1, 3): (0.14, 9.4e6), (2, 3): (0.28, 12.4e6), (3, 3): (0.57, 16.9e6), (4, 3): (1.57, 25.0e6),
     (5, 3): (2.79, 37.1e6), (6, 3): (3.56, 55.7e6), (8, 3): (8.37, 122.2e6), (10, 3): (17.4, 241.9e6),
 }
@@ -245,8 +245,9 @@ class Limits:
                 f"{USABLE_SHARE:.0%} of the available memory; set the limit with --max-memory")
 
 
-def _over(est: Estimate, limits: Limits) -> str | None:
-    """Which limit the estimate exceeds, as a phrase, or None."""
+def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
+    """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
+    ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
     mem, mem_src = limits.memory_limit()
     if mem is not None and est.memory > mem:
         return f"over the memory limit of {_size(mem)} ({mem_src})"
@@ -255,7 +256,9 @@ def _over(est: Estimate, limits: Limits) -> str | None:
     if est.method == "lagrange":
         from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
 
-        budget = limits.budget if limits.budget is not None else DEFAULT_BUDGET
+        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
+            return None  # not a budget: the method's constructor says so
         if est.setup_seconds > budget:
             return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS)")
     return None
@@ -280,10 +283,10 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
     method that fits (or that none does, and why)."""
     limits = limits or Limits()
     est = estimate(mech, method, samples, options)
-    over = _over(est, limits)
+    over = _over(est, limits, options)
     if over is None:
         return est
-    size = f"{mech.dim}D, {mech.nlinks} link(s), {samples} sample(s)"
+    size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
     note = f" ({est.note})" if est.note else ""
     msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
     alt = fitting_method(mech, samples, limits, exclude=method)
