@@ -180,25 +180,37 @@ def cmd_run(args) -> int:
     return run(args)
 
 
+def _report_job(run, args, command: str) -> int:
+    """A suite job run on its own: its files are marked with this process's run in the folder's
+    runs.json and summary.md (bench/runner.py), so the summary always says which run made each file."""
+    from exo_bench.bench.reporting import REPORTS
+    from exo_bench.bench.runner import record_files, snapshot
+
+    args.reports = reports_folder(args.reports)
+    out = Path(args.reports) if args.reports else REPORTS
+    before = snapshot(out)
+    try:
+        return run(args)
+    finally:
+        record_files(out, before, command + (" --full" if getattr(args, "full", False) else ""))
+
+
 def cmd_bench(args) -> int:
     from exo_bench.bench.bench_reports import run
 
-    args.reports = reports_folder(args.reports)
-    return run(args)
+    return _report_job(run, args, "exo-bench bench")
 
 
 def cmd_errata(args) -> int:
     from exo_bench.bench.errata import run
 
-    args.reports = reports_folder(args.reports)
-    return run(args)
+    return _report_job(run, args, "exo-bench errata")
 
 
 def cmd_stability(args) -> int:
     from exo_bench.bench.stability import run
 
-    args.reports = reports_folder(args.reports)
-    return run(args)
+    return _report_job(run, args, "exo-bench stability")
 
 
 def _size_arg(text: str) -> int:
