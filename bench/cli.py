@@ -48,11 +48,28 @@ def _read_npz(path: str, what: str) -> dict:
 
     from exo_bench.models.loading import read_text  # noqa: F401 (same checks for missing files and folders)
 
+    from exo_bench.models.prepared import usable_memory
+
     p = Path(path)
-    if not p.exists():
+    try:
+        exists, is_dir, is_file = p.exists(), p.is_dir(), p.is_file()
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{what}: not a usable path ({getattr(e, 'strerror', None) or e})") from None
+    if not exists:
         raise ValueError(f"{what}: no such file")
-    if p.is_dir():
+    if is_dir:
         raise ValueError(f"{what}: expected a file, got a folder")
+    if not is_file:
+        raise ValueError(f"{what}: expected a regular file, got a device, FIFO or socket")
+    try:
+        with zipfile.ZipFile(p) as zf:
+            size = sum(i.file_size for i in zf.infolist())
+    except (zipfile.BadZipFile, EOFError, OSError) as e:
+        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
+    limit = usable_memory()
+    if limit is not None and size > limit:
+        raise ValueError(f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
+                         "use (--max-memory does not raise this); split the batch")
     try:
         with np.load(p, allow_pickle=False) as z:
             return {k: z[k] for k in z.files if k in ("q", "qd", "qdd")} | {k: None for k in z.files
@@ -359,9 +376,17 @@ def main(argv: list[str] | None = None) -> int:
     import warnings
 
     try:
-        signal.signal(signal.SIGTERM, _terminate)
+        previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread (main() called from a thread): Ctrl-C handling only
-        pass
+        previous = None
+    try:
+        return _main(argv, warnings)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv, warnings) -> int:
     with warnings.catch_warnings():
         warnings.showwarning = _show_warning
         warnings.simplefilter("default")

@@ -303,6 +303,23 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
     raise ResourceLimit(msg, budget)
 
 
+#: Arrays a scene's motion and study hold per sample and coordinate: t, q, qd, qdd, and per
+#: method its tau and a difference (the scene's methods, up to six).
+SCENE_ARRAYS = 16
+
+
+def check_samples(mech: Mechanism, samples: int, limits: Limits | None = None, what: str = "motion") -> float:
+    """Refuse (:class:`ResourceLimit`) a motion whose arrays alone would exceed the memory limit,
+    before it is built; return their estimated bytes."""
+    limits = limits or Limits()
+    need = BASE_BYTES + SCENE_ARRAYS * F8 * (mech.dof + 1) * max(samples, 0)
+    mem, src = limits.memory_limit()
+    if mem is not None and need > mem:
+        raise ResourceLimit(f"{what}: {samples} samples of {mech.dof} coordinates need about {_size(need)} of arrays, "
+                            f"over the memory limit of {_size(mem)} ({src}); use fewer samples", "memory")
+    return need
+
+
 def parse_size(text: str) -> int:
     """``"2G"``, ``"512M"``, ``"1.5GB"``, ``"2GiB"``, ``"1e9"`` -> bytes (K, M, G, T are powers of 1024)."""
     import re

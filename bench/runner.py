@@ -151,8 +151,11 @@ def _scene_table(o: SceneOutcome) -> str:
 def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     """Run one scene, writing its outputs into ``staging``; never raises for a method's failure.
     ``limits`` (:class:`bench.resources.Limits`): a method estimated beyond them is skipped."""
+    from exo_bench.bench.resources import check_samples
+
     o = SceneOutcome(scene)
     t0 = time.perf_counter()
+    check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
     motion = scene.build_motion()
     o.study = run_methods(scene.name, scene.mechanism, motion, scene.motion_label(), list(scene.methods),
                           reference=scene.reference, limits=limits)
@@ -491,7 +494,7 @@ def run(args) -> int:
             try:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
-                o = SceneOutcome(sc, error=one_line(e))
+                o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
             outcomes.append(o)
             progress.advance(task)
         for label, fn in jobs:

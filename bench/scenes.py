@@ -86,6 +86,15 @@ class Scene:
             return lambda t: smooth_random_motion(m, t, seed=self.motion["seed"])
         return None
 
+    def samples(self) -> int:
+        """How many samples :meth:`build_motion` makes (known before building it)."""
+        k = self.motion["kind"]
+        if k in ("gait", "planar-gait"):
+            return int(round(self.motion["samples_per_period"] * self.motion["periods"]))
+        if k == "smooth-random":
+            return int(self.motion["samples"])
+        return len(self.motion["data"]["t"])
+
     def build_motion(self) -> Motion:
         k = self.motion["kind"]
         if k in ("gait", "planar-gait"):
