@@ -1,4 +1,11 @@
-"""``exo-bench``: the command line. Errors print one line on stderr and exit with code 2."""
+"""``exo-bench``: the command line. Errors print one line on stderr and exit with code 2.
+
+No traceback reaches the user from any command: bad input, a file that cannot be read or
+written, a method over a memory, time or derivation budget, running out of memory, a resource
+error of sympy or Pinocchio and anything unforeseen each end in one line on stderr (``main``);
+warnings are one line each too. tests/test_fuzz_cli.py drives every subcommand with generated bad
+input to hold this, and docs/errors.md lists the messages (checked against the tests).
+"""
 
 from __future__ import annotations
 
@@ -19,15 +26,78 @@ class _UsageError(Exception):
 
 
 def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
+    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file)."""
+    from exo_bench.models.loading import read_json
     from exo_bench.models.mechanism import as_states
 
-    from exo_bench.models.loading import read_json
-
-    data = read_json(path, f"states {path!r}")
+    what = f"states {path!r}"
+    if str(path).endswith(".npz"):
+        data = _read_npz(path, what)
+    else:
+        data = read_json(path, what)
     if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
         got = sorted(data) if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"states {path!r}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
-    return as_states(mech, data["q"], data["qd"], data["qdd"], source=f"states {path!r}")
+        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
+    return as_states(mech, data["q"], data["qd"], data["qdd"], source=what)
+
+
+def _read_npz(path: str, what: str) -> dict:
+    import zipfile
+
+    from exo_bench.models.loading import read_text  # noqa: F401 (same checks for missing files and folders)
+
+    from exo_bench.models.prepared import usable_memory
+
+    p = Path(path)
+    try:
+        exists, is_dir, is_file = p.exists(), p.is_dir(), p.is_file()
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{what}: not a usable path ({getattr(e, 'strerror', None) or e})") from None
+    if not exists:
+        raise ValueError(f"{what}: no such file")
+    if is_dir:
+        raise ValueError(f"{what}: expected a file, got a folder")
+    if not is_file:
+        raise ValueError(f"{what}: expected a regular file, got a device, FIFO or socket")
+    try:
+        with zipfile.ZipFile(p) as zf:
+            size = sum(i.file_size for i in zf.infolist())
+    except (zipfile.BadZipFile, EOFError, OSError) as e:
+        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
+    limit = usable_memory()
+    if limit is not None and size > limit:
+        raise ValueError(f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
+                         "use (--max-memory does not raise this); split the batch")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files if k in ("q", "qd", "qdd")} | {k: None for k in z.files
+                                                                             if k not in ("q", "qd", "qdd")}
+    except (zipfile.BadZipFile, EOFError) as e:
+        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
+    except ValueError as e:
+        raise ValueError(f"{what}: cannot read the arrays: {str(e).splitlines()[0]}") from None
+    except OSError as e:
+        raise ValueError(f"{what}: cannot read: {e.strerror or e}") from None
+
+
+def _limits(args, method: str):
+    from exo_bench.bench.resources import Limits
+
+    return Limits(memory=getattr(args, "max_memory", None), seconds=getattr(args, "max_time", None),
+                  budget=getattr(args, "budget", None) if method == "lagrange" else None)
+
+
+def _write_tau(method: str, tau: np.ndarray, out) -> None:
+    """``{"method": ..., "tau": [[...], ...]}`` written row block by row block (no list of the
+    whole batch is built); non-finite values are null (JSON has no NaN)."""
+    out.write(json.dumps({"method": method})[:-1] + ', "tau": [')
+    for s0 in range(0, tau.shape[0], 4096):
+        block = tau[s0:s0 + 4096]
+        rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]
+        text = json.dumps(rows, allow_nan=False)[1:-1]
+        out.write((", " if s0 else "") + text)
+    out.write("]}\n")
 
 
 def cmd_presets(args) -> int:
@@ -38,8 +108,21 @@ def cmd_presets(args) -> int:
     return 0
 
 
+def known_wrong_warning(method: str, dim: int) -> str | None:
+    """The one-line warning that every CLI result of a method known to be wrong carries."""
+    from exo_bench.bench.methods import KNOWN_WRONG
+
+    if method not in KNOWN_WRONG:
+        return None
+    if dim == 3:
+        return f"exo-bench: warning: method {method!r}: {KNOWN_WRONG[method]}"
+    return (f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
+            "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")
+
+
 def cmd_inverse(args) -> int:
-    from exo_bench.bench.methods import KNOWN_WRONG, method_class, prepare
+    from exo_bench.bench.methods import method_class, prepare
+    from exo_bench.bench.resources import check
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.mechanism import force_names
 
@@ -47,18 +130,21 @@ def cmd_inverse(args) -> int:
     mech = load_mechanism(args.mechanism)
     q, qd, qdd = _load_states(args.states, mech)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
     model = prepare(mech, args.method, **options)
     tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
-    if args.method in KNOWN_WRONG and mech.dim == 3:
-        print(f"exo-bench: warning: method {args.method!r}: {KNOWN_WRONG[args.method]}", file=sys.stderr)
-    bad = ~np.isfinite(tau)
-    if bad.any():  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
-        s, c = map(int, np.argwhere(bad)[0])
-        print(f"exo-bench: warning: method {args.method!r} gave {int(bad.sum())} NaN/Inf value(s), written as null "
+    warn = known_wrong_warning(args.method, mech.dim)
+    if warn:
+        print(warn, file=sys.stderr)
+    bad_rows = [s0 + int(r) for s0 in range(0, tau.shape[0], 65536)
+                for r in np.flatnonzero(~np.isfinite(tau[s0:s0 + 65536]).all(axis=1))[:1]][:1]
+    if bad_rows:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
+        count = sum(int(np.count_nonzero(~np.isfinite(tau[s0:s0 + 65536]))) for s0 in range(0, tau.shape[0], 65536))
+        s = bad_rows[0]
+        c = int(np.flatnonzero(~np.isfinite(tau[s]))[0])
+        print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
               f"(first: sample {s}, {force_names(mech)[c]})", file=sys.stderr)
-    rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in tau]
-    json.dump({"method": args.method, "tau": rows}, sys.stdout, allow_nan=False)
-    sys.stdout.write("\n")
+    _write_tau(args.method, tau, sys.stdout)
     return 0
 
 
@@ -75,28 +161,104 @@ def cmd_urdf(args) -> int:
     return 0
 
 
+def reports_folder(value: str | None) -> str | None:
+    """``--reports``: a folder that exists or can be made, refused in words when it names a file
+    (or lies under one) or cannot be written; checked before any work starts."""
+    import os
+
+    if value is None:
+        return None
+    text = str(value)
+    if not text.strip():
+        raise ValueError("--reports: expected a folder, got an empty path")
+    if "\0" in text:
+        raise ValueError(f"--reports {text!r}: expected a folder, got a path with a NUL character")
+    p = Path(text)
+    try:
+        for parent in [p, *p.parents]:
+            if parent.exists():
+                if not parent.is_dir():
+                    where = "is a file" if parent == p else f"lies under {str(parent)!r}, which is a file"
+                    raise ValueError(f"--reports {text!r}: expected a folder, but it {where}")
+                if not os.access(parent, os.W_OK | os.X_OK):
+                    raise ValueError(f"--reports {text!r}: the folder {str(parent)!r} cannot be written "
+                                     "(permission denied)")
+                break
+    except OSError as e:  # a name too long, a loop of links, ...
+        raise ValueError(f"--reports {text!r}: not a usable folder ({e.strerror or e})") from None
+    return text
+
+
 def cmd_run(args) -> int:
     from exo_bench.bench.runner import run
 
+    args.reports = reports_folder(args.reports)
     return run(args)
+
+
+def _report_job(run, args, command: str) -> int:
+    """A suite job run on its own: its files are marked with this process's run in the folder's
+    runs.json and summary.md (bench/runner.py), so the summary always says which run made each file."""
+    from exo_bench.bench.reporting import REPORTS
+    from exo_bench.bench.runner import record_files, snapshot
+
+    args.reports = reports_folder(args.reports)
+    out = Path(args.reports) if args.reports else REPORTS
+    before = snapshot(out)
+    try:
+        return run(args)
+    finally:
+        record_files(out, before, command + (" --full" if getattr(args, "full", False) else ""))
 
 
 def cmd_bench(args) -> int:
     from exo_bench.bench.bench_reports import run
 
-    return run(args)
+    return _report_job(run, args, "exo-bench bench")
 
 
 def cmd_errata(args) -> int:
     from exo_bench.bench.errata import run
 
-    return run(args)
+    return _report_job(run, args, "exo-bench errata")
 
 
 def cmd_stability(args) -> int:
     from exo_bench.bench.stability import run
 
-    return run(args)
+    return _report_job(run, args, "exo-bench stability")
+
+
+def _size_arg(text: str) -> int:
+    from exo_bench.bench.resources import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-memory: ")) from None
+
+
+def _seconds_arg(text: str) -> float:
+    from exo_bench.bench.resources import parse_seconds
+
+    try:
+        return parse_seconds(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-time: ")) from None
+
+
+def _budget_arg(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
+                   "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -114,10 +276,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
                    "one row per sample, coordinates in block order [phi..., psi..., l...]")
     s.add_argument("--method", default="pinocchio",
-                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: wrong in 3D by "
-                        "design, kept to expose the paper's misprints)")
-    s.add_argument("--budget", type=float, default=None,
+                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
+                        "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
+    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
                    help="seconds for lagrange's symbolic derivation (default 120)")
+    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
+    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
+                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
+                        "(default: no limit)")
     s.set_defaults(func=cmd_inverse)
 
     s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
@@ -129,6 +295,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
+    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE",
+                   help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
+                        "(default: 80%% of the machine's available memory)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
@@ -155,36 +324,107 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt  # so that staging folders are removed on SIGTERM as on Ctrl-C
 
 
+def _one_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Python warnings as one line each on stderr (no source line, no file name)."""
+    print(f"exo-bench: warning: {_one_line(message) if isinstance(message, BaseException) else str(message).splitlines()[0]}",
+          file=sys.stderr)
+
+
+def error_line(e: BaseException) -> str:
+    """The one line (without the ``exo-bench: error:`` prefix) for an exception that ends a command:
+    every budget or resource error names the budget and how to raise it."""
+    from exo_bench.bench.resources import ResourceLimit
+
+    if isinstance(e, ResourceLimit):
+        return str(e)
+    skip = getattr(e, "skip_reason", None)
+    if skip:  # lagrange.BudgetExceeded: the derivation's time budget
+        return f"{skip}; raise the budget with --budget SECONDS or choose another method (matrix-factored)"
+    if isinstance(e, MemoryError):
+        avail = _available()
+        if str(e).strip():  # e.g. the Pinocchio backend's check of its Data against the available memory
+            return f"out of memory: {_one_line(e)}"
+        return (f"out of memory: the model or the batch did not fit in the {avail} available (the limit of every "
+                "run; estimated beforehand, see --max-memory); try a smaller batch or method matrix-factored")
+    if isinstance(e, RecursionError):  # sympy on a very large expression
+        return (f"the symbolic derivation nested deeper than Python's recursion limit ({sys.getrecursionlimit()}): "
+                "the model is too large for method lagrange; choose another method (matrix-factored)")
+    if isinstance(e, RuntimeError) and any(k in str(e) for k in ("bad_alloc", "length_error", "Unable to allocate")):
+        return (f"out of memory in Pinocchio ({_one_line(e)}): the model does not fit in the {_available()} available "
+                "(see --max-memory); choose method matrix-factored")
+    if isinstance(e, OSError):
+        name = e.filename if e.filename is not None else ""
+        return f"{name!s}: {e.strerror or _one_line(e)}" if name else (e.strerror or _one_line(e))
+    return _one_line(e)
+
+
+def _available() -> str:
+    from exo_bench.models.prepared import available_memory
+
+    a = available_memory()
+    return "memory" if a is None else f"{a / 1e9:.1f} GB of memory"
+
+
 def main(argv: list[str] | None = None) -> int:
     import signal
+    import warnings
 
-    signal.signal(signal.SIGTERM, _terminate)
     try:
-        args = build_parser().parse_args(argv)
-        return int(args.func(args) or 0)
-    except _UsageError as e:
-        print(str(e), file=sys.stderr)
-        return 2
-    except (ValueError, OSError) as e:
-        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
-        print(f"exo-bench: error: {msg}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("exo-bench: interrupted; nothing half-written was left in the reports folder", file=sys.stderr)
-        return 130
-    except MemoryError:
-        print("exo-bench: error: out of memory: the model or the batch is too large for this machine; "
-              "try a smaller batch or the matrix-factored method", file=sys.stderr)
-        return 2
-    except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
-        skip = getattr(e, "skip_reason", None)
-        if skip:
-            print(f"exo-bench: error: {skip}; raise the budget with --budget SECONDS or choose another method",
-                  file=sys.stderr)
-        else:
-            msg = str(e).splitlines()[0] if str(e) else ""
-            print(f"exo-bench: internal error: {type(e).__name__}: {msg} (please report it)", file=sys.stderr)
-        return 2
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread (main() called from a thread): Ctrl-C handling only
+        previous = None
+    try:
+        return _main(argv, warnings)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv, warnings) -> int:
+    with warnings.catch_warnings():
+        warnings.showwarning = _show_warning
+        warnings.simplefilter("default")
+        try:
+            args = build_parser().parse_args(argv)
+            return int(args.func(args) or 0)
+        except _UsageError as e:
+            print(str(e).splitlines()[0], file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print("exo-bench: interrupted; the reports folder holds only whole files of earlier runs or of this one "
+                  "(summary.md says which)", file=sys.stderr)
+            return 130
+        except BrokenPipeError:  # the reader of stdout went away (| head): nothing more to say
+            _silence_stdout()
+            return 0
+        except (ValueError, OSError) as e:
+            print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
+            return 2
+        except (MemoryError, RecursionError) as e:
+            print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
+            return 2
+        except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
+            if getattr(e, "skip_reason", None) or isinstance(e, RuntimeError) and "alloc" in str(e):
+                print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
+            else:
+                print(f"exo-bench: internal error: {type(e).__name__}: {_one_line(e)} (please report it)",
+                      file=sys.stderr)
+            return 2
+
+
+def _silence_stdout() -> None:
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":

@@ -59,7 +59,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     """
     cls = method_class(method)
     try:
-        return cls(mechanism, **options)
+        model = cls(mechanism, **options)
     except TypeError as e:
         if "unexpected keyword argument" in str(e):
             import inspect
@@ -67,6 +67,10 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
             known = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "mechanism")]
             raise ValueError(f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}") from None
         raise
+    from exo_bench.bench.resources import chunk_samples  # noqa: PLC0415 - the calibrated chunk of this method
+
+    model.chunk_samples = chunk_samples(mechanism, method)
+    return model
 
 
 class PreparedSet:

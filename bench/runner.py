@@ -1,15 +1,28 @@
 """The main job, ``exo-bench run [SCENE...]``: run scenes, write their reports, print a summary.
 
-Every output is first written into a staging folder inside ``reports/`` and moved into place
-with an atomic rename when its scene has finished, so an error or Ctrl-C never leaves a
-half-written report; the staging folder is removed on every exit path. A scene or method that
-fails is recorded (one line) and the other scenes go on.
+**Nothing half-written, nothing mixed unannounced.** Every output of a run (scene reports and
+figures, and the suite's errata, benchmark and stability reports) is written into a staging
+folder inside ``reports/`` and published only when the whole run has finished, by atomic renames
+with SIGINT/SIGTERM held back. An error or Ctrl-C before that leaves the folder exactly as it was
+(all old); the staging folder is removed on every exit path. Publishing writes ``runs.json`` and a
+``summary.md`` that say "being published" first, then the files, then the final ones, so even a
+``kill -9`` in that window leaves each file marked by its run and the summary saying so.
+
+**Runs never overwrite results of a wider run.** Each run has an identifier
+(:func:`bench.reporting.current_run_id`) that every report carries. ``runs.json`` keeps, per scene,
+the summary rows of the run that last ran it and, per file, the run that wrote it; ``summary.md``
+is made from it, so ``exo-bench run SCENE`` replaces that scene's rows and keeps every other
+scene's, and lists which run produced each report file. A scene or method that fails is
+recorded (one line) and the other scenes go on.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
+import signal
+import sys
 import tempfile
 import time
 from contextlib import contextmanager
@@ -18,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from exo_bench.bench.reporting import REPORTS, atomic_write, provenance
+from exo_bench.bench.reporting import (REPORTS, atomic_write, current_run_id, new_run_id, provenance, run_id_of,
+                                       set_run_id)
 from exo_bench.bench.scenes import Scene, load_scene, shipped_scene_names
 from exo_bench.bench.study import Study, finite_max, one_line, run_methods
 
@@ -134,13 +148,17 @@ def _scene_table(o: SceneOutcome) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_scene(scene: Scene, staging: Path) -> SceneOutcome:
-    """Run one scene, writing its outputs into ``staging``; never raises for a method's failure."""
+def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
+    """Run one scene, writing its outputs into ``staging``; never raises for a method's failure.
+    ``limits`` (:class:`bench.resources.Limits`): a method estimated beyond them is skipped."""
+    from exo_bench.bench.resources import check_samples
+
     o = SceneOutcome(scene)
     t0 = time.perf_counter()
+    check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
     motion = scene.build_motion()
     o.study = run_methods(scene.name, scene.mechanism, motion, scene.motion_label(), list(scene.methods),
-                          reference=scene.reference)
+                          reference=scene.reference, limits=limits)
     for m, r in o.study.results.items():
         if r.ok and not np.isfinite(r.tau).all():
             o.notes.append(f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
@@ -199,33 +217,201 @@ def publish(files: list[Path], out: Path) -> list[Path]:
     return done
 
 
-def summary_markdown(outcomes: list[SceneOutcome], command: str) -> str:
+SUMMARY_HEADER = ("| scene | method | largest error | us/sample | power balance |", "|---|---|---|---|---|")
+
+
+def scene_rows(o: SceneOutcome) -> list[list[str]]:
+    """The summary rows of one scene's outcome: ``[scene, method, largest error, us/sample, power balance]``."""
+    if o.error:
+        return [[o.scene.name, "(scene failed)", o.error, "", ""]]
+    rows = []
+    agree = o.study.agreement()
+    for m in o.scene.methods:
+        r = o.study.results[m]
+        if not r.ok:
+            rows.append([o.scene.name, m, "skipped: " + r.skipped if r.skipped else "failed: " + r.error, "", ""])
+            continue
+        if m in o.reference_error:
+            err = f"{o.reference_error[m][1]:.1e} (ref50)"
+        else:
+            err = f"{agree.get(m, float('nan')):.1e} (vs {o.scene.reference})"
+        if o.study.nonfinite(m):
+            err += f"; **{o.study.nonfinite(m)} NaN/Inf**"
+        pb = o.power_balance.get(m)
+        rows.append([o.scene.name, m, err, f"{r.seconds_per_sample * 1e6:.2f}", "" if pb is None else f"{pb:.1e}"])
+    return rows
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def summary_markdown(outcomes: list[SceneOutcome], command: str, manifest: dict | None = None,
+                     folder: Path | None = None) -> str:
+    """``summary.md``: every scene's rows (this run's ``outcomes`` and, from ``manifest``, the
+    scenes of earlier runs, each with its run), and which run produced each report file."""
+    manifest = manifest if manifest is not None else new_manifest()
+    run_id = current_run_id()
+    scenes = {k: dict(v) for k, v in manifest.get("scenes", {}).items()}
+    for o in outcomes:
+        scenes[o.scene.name] = {"run": run_id, "rows": scene_rows(o)}
     lines = ["# Summary: every scene, every method", "", provenance(command), "",
              "Largest error: against the 50-digit reference (Lagrange in mpmath; d'Alembert in mpmath beyond sympy's "
              "reach; each scene report names it) on a subsample where the scene asks for it "
              "(`ref50`), otherwise the largest difference relative to the scene's reference method (`vs <method>`). "
-             "Quantities are generalised forces of the paper's absolute coordinates.", "",
-             "| scene | method | largest error | us/sample | power balance |", "|---|---|---|---|---|"]
-    for o in outcomes:
-        if o.error:
-            lines.append(f"| {o.scene.name} | (scene failed) | {o.error} | | |")
-            continue
-        agree = o.study.agreement()
-        for m in o.scene.methods:
-            r = o.study.results[m]
-            if not r.ok:
-                lines.append(f"| {o.scene.name} | {m} | {'skipped: ' + r.skipped if r.skipped else 'failed: ' + r.error} | | |")
-                continue
-            if m in o.reference_error:
-                err = f"{o.reference_error[m][1]:.1e} (ref50)"
-            else:
-                err = f"{agree.get(m, float('nan')):.1e} (vs {o.scene.reference})"
-            if o.study.nonfinite(m):
-                err += f"; **{o.study.nonfinite(m)} NaN/Inf**"
-            pb = o.power_balance.get(m)
-            lines.append(f"| {o.scene.name} | {m} | {err} | {r.seconds_per_sample * 1e6:.2f} | "
-                         f"{'' if pb is None else f'{pb:.1e}'} |")
+             "Quantities are generalised forces of the paper's absolute coordinates. `run`: the run that produced "
+             "the row (a run of some scenes replaces only their rows).", ""]
+    pending = [(rid, r) for rid, r in manifest.get("runs", {}).items() if r.get("status") in ("publishing", "interrupted")]
+    for rid, r in pending:
+        lines += [f"**Run `{rid}` (`{r.get('command', '?')}`) was interrupted while its files were being published**: "
+                  f"the files marked `{rid}` below are from it, the others from earlier runs.", ""]
+    lines += [SUMMARY_HEADER[0] + " run |", SUMMARY_HEADER[1] + "---|"]
+    for name in sorted(scenes):
+        for row in scenes[name]["rows"]:
+            rid = scenes[name]["run"]
+            lines.append("| " + " | ".join(_cell(c) for c in row) + " | "
+                         + (f"`{rid}`" if rid != "unknown" else "unknown (before run identifiers)") + " |")
+    files = manifest.get("files", {})
+    names = sorted(set(files) | ({f.name for f in Path(folder).iterdir() if _is_report(f)} if folder else set()))
+    names = [n for n in names if n not in (SUMMARY, MANIFEST)]
+    if names:
+        lines += ["", "## Report files", "",
+                  "Which run produced each file of this folder (`runs.json` holds the same, machine-readable).", "",
+                  "| file | run | command |", "|---|---|---|"]
+        runs = manifest.get("runs", {})
+        for n in names:
+            rid = files.get(n, {}).get("run") or (run_id_of(Path(folder) / n) if folder else None)
+            cmd = runs.get(rid, {}).get("command", "") if rid else ""
+            lines.append(f"| {n} | {f'`{rid}`' if rid else 'unknown (written before run identifiers)'} | "
+                         f"{f'`{cmd}`' if cmd else ''} |")
     return "\n".join(lines) + "\n"
+
+
+SUMMARY, MANIFEST = "summary.md", "runs.json"
+
+
+def _is_report(p: Path) -> bool:
+    return p.is_file() and not p.name.startswith(".")
+
+
+def new_manifest() -> dict:
+    return {"format": 1, "runs": {}, "scenes": {}, "files": {}}
+
+
+def read_manifest(out: Path) -> dict:
+    """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
+    rows of its ``summary.md`` (marked as of an unknown run)."""
+    p = Path(out) / MANIFEST
+    if p.exists():
+        try:
+            data = json.loads(p.read_text())
+            if isinstance(data, dict) and data.get("format") == 1:
+                return data
+        except (OSError, ValueError):
+            pass
+        print(f"exo-bench: warning: {p} is not a manifest this version can read; its runs are listed as unknown",
+              file=sys.stderr)
+    m = new_manifest()
+    old = Path(out) / SUMMARY
+    if old.exists():
+        try:
+            text = old.read_text(errors="replace")
+        except OSError:
+            return m
+        for line in text.splitlines():
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if line.startswith("| ") and len(cells) >= 5 and cells[0] not in ("scene", "") and not cells[0].startswith("-"):
+                m["scenes"].setdefault(cells[0], {"run": "unknown", "rows": []})["rows"].append(cells[:5])
+        if m["scenes"]:
+            m["runs"]["unknown"] = {"command": "a run before run identifiers", "status": "complete"}
+    return m
+
+
+@contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM wait until the block ends (publishing is a few renames)."""
+    sigs = {signal.SIGINT, signal.SIGTERM}
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    except (AttributeError, ValueError, OSError):
+        old = None
+    try:
+        yield
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def publish_run(staging: Path, out: Path, outcomes: list[SceneOutcome], command: str, manifest: dict) -> list[Path]:
+    """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
+    ``summary.md``: first both saying the run is being published, then the files (atomic renames),
+    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile."""
+    run_id = current_run_id()
+    files = sorted(f for f in staging.iterdir() if _is_report(f))
+    manifest = json.loads(json.dumps(manifest))
+    for r in manifest.setdefault("runs", {}).values():   # an earlier run killed while publishing
+        if r.get("status") == "publishing":
+            r["status"] = "interrupted"
+    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "publishing",
+                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    for f in files:
+        manifest.setdefault("files", {})[f.name] = {"run": run_id}
+    for o in outcomes:
+        manifest.setdefault("scenes", {})[o.scene.name] = {"run": run_id, "rows": scene_rows(o)}
+    _prune(manifest, out)
+    done = []
+    with _signals_held():
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+        atomic_write(out / SUMMARY, summary_markdown([], command, manifest, out))
+        done = publish(files, out)
+        manifest["runs"][run_id]["status"] = "complete"
+        atomic_write(out / SUMMARY, summary_markdown([], command, manifest, out))
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+    return done + [out / SUMMARY, out / MANIFEST]
+
+
+def _prune(manifest: dict, out: Path) -> None:
+    """Forget files that are no longer in the folder (and are not being published) and runs that
+    no scene row and no file refers to any more."""
+    files = manifest.get("files", {})
+    for name in [n for n, f in files.items() if not (Path(out) / n).exists()
+                 and manifest.get("runs", {}).get(f.get("run"), {}).get("status") != "publishing"]:
+        del files[name]
+    used = {v.get("run") for v in manifest.get("scenes", {}).values()} | {f.get("run") for f in files.values()}
+    runs = manifest.get("runs", {})
+    for rid in [r for r, v in runs.items() if r not in used and v.get("status") != "publishing"]:
+        del runs[rid]
+
+
+def record_files(out: Path, before: dict[str, int], command: str) -> None:
+    """After a standalone report command (``exo-bench errata``/``bench``/``stability``) wrote into
+    ``out``: mark the files it changed (``before``: name -> mtime from :func:`snapshot`) with this
+    process's run in ``runs.json`` and rewrite ``summary.md``, keeping every scene's rows."""
+    out = Path(out)
+    if not out.is_dir():
+        return
+    now = snapshot(out)
+    changed = [n for n, t in now.items() if before.get(n) != t and n not in (SUMMARY, MANIFEST)]
+    if not changed:
+        return
+    manifest = read_manifest(out)
+    run_id = current_run_id()
+    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "complete",
+                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    for n in changed:
+        manifest.setdefault("files", {})[n] = {"run": run_id}
+    _prune(manifest, out)
+    with _signals_held():
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+        atomic_write(out / SUMMARY, summary_markdown([], command, manifest, out))
+
+
+def snapshot(out: Path) -> dict[str, int]:
+    """``name -> mtime_ns`` of the report files in ``out`` (empty when it does not exist)."""
+    out = Path(out)
+    if not out.is_dir():
+        return {}
+    return {f.name: f.stat().st_mtime_ns for f in out.iterdir() if _is_report(f)}
 
 
 def print_summary(outcomes: list[SceneOutcome]) -> None:
@@ -235,9 +421,9 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
     table = Table(title="exo-bench: scene x method")
     for col in ("scene", "method", "largest error", "us/sample", "power balance"):
         table.add_column(col, no_wrap=col != "largest error", overflow="fold")
-    for row in summary_markdown(outcomes, "").splitlines():
-        if row.startswith("| ") and not row.startswith("| scene |"):
-            table.add_row(*[c.strip() for c in row.strip("|").split("|")])
+    for o in outcomes:
+        for row in scene_rows(o):
+            table.add_row(*row)
     console = Console()
     if not console.is_terminal:
         console = Console(width=140)
@@ -263,16 +449,39 @@ def _suite_jobs() -> list[tuple[str, object]]:
     return jobs
 
 
+class _StagingPaths:
+    """A stdout that shows the final path of files the suite's jobs announce from the staging folder."""
+
+    def __init__(self, stream, staging: Path, out: Path):
+        self.stream, self.staging, self.out = stream, str(staging), str(out)
+
+    def write(self, text: str) -> int:
+        return self.stream.write(text.replace(self.staging + os.sep, self.out + os.sep).replace(self.staging, self.out))
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
 def run(args) -> int:
     import argparse as _argparse
+    from contextlib import redirect_stdout
 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from exo_bench.bench.resources import Limits
 
     out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
     full = bool(getattr(args, "full", False))
     names = list(args.scenes) or shipped_scene_names()
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
     jobs = _suite_jobs() if not args.scenes else []  # naming scenes runs just those scenes
+    limits = Limits(memory=getattr(args, "max_memory", None))
+    set_run_id(new_run_id())
+    command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
+    _warn_known_wrong(scenes)
     outcomes: list[SceneOutcome] = []
     written: list[Path] = []
     job_errors: list[str] = []
@@ -283,22 +492,20 @@ def run(args) -> int:
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
             try:
-                o = run_scene(sc, staging)
-                written += publish(o.files, out)
+                o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
-                o = SceneOutcome(sc, error=one_line(e))
+                o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
             outcomes.append(o)
             progress.advance(task)
-        command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
-        atomic_write(staging / "summary.md", summary_markdown(outcomes, command))
-        written += publish([staging / "summary.md"], out)
         for label, fn in jobs:
             progress.update(task, description=label)
             try:
-                fn(_argparse.Namespace(full=full, reports=str(out)))
+                with redirect_stdout(_StagingPaths(sys.stdout, staging, out)):
+                    fn(_argparse.Namespace(full=full, reports=str(staging)))
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
+        written = publish_run(staging, out, outcomes, command, read_manifest(out))
     print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
@@ -308,3 +515,18 @@ def run(args) -> int:
     for line in job_errors:
         print(line)
     return 1 if failed or job_errors else 0
+
+
+def _warn_known_wrong(scenes: list[Scene]) -> None:
+    """One stderr line when a scene runs a method known to be wrong (its results are in the reports)."""
+    from exo_bench.bench.methods import KNOWN_WRONG
+
+    hits = sorted({(m, sc.mechanism.dim) for sc in scenes for m in sc.methods if m in KNOWN_WRONG})
+    for m, dim in hits:
+        if dim == 3:
+            print(f"exo-bench: warning: method {m!r}: {KNOWN_WRONG[m]}", file=sys.stderr)
+            return
+    if hits:
+        m = hits[0][0]
+        print(f"exo-bench: warning: method {m!r} is eq. (18) exactly as printed, kept to expose the paper's misprints: "
+              "wrong in 3D by design (its 2D results here are the closed forms)", file=sys.stderr)

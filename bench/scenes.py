@@ -15,10 +15,14 @@ Format (every key is checked; an error names the file and the field)::
     periods = 1.0                         # gait, planar-gait
     samples_per_period = 1000             # gait, planar-gait
     # duration = 2.0, samples = 400, seed = 0   (smooth-random)
-    # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...})
+    # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
+    #                                      t strictly increasing, at least 2 samples)
 
     [motion.gait]                         # optional overrides of models.motion.GaitParams
     T = 1.1
+
+Every motion has at least :data:`MIN_SAMPLES` samples (power balance differentiates along it,
+the figures draw it) and strictly increasing times; the checks name the file and the field.
 
 The runner builds only what a scene declares: a scene without ``lagrange`` never derives, a
 scene without ``recording`` never imports rerun, a 2D scene has no psi anywhere.
@@ -42,6 +46,8 @@ OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differe
 MOTIONS = ("gait", "planar-gait", "smooth-random", "states")
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
 _MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait"}
+#: Fewest samples of a motion: derivatives (power balance) and plots need at least two.
+MIN_SAMPLES = 2
 
 
 @dataclass(frozen=True)
@@ -79,6 +85,15 @@ class Scene:
         if k == "smooth-random":
             return lambda t: smooth_random_motion(m, t, seed=self.motion["seed"])
         return None
+
+    def samples(self) -> int:
+        """How many samples :meth:`build_motion` makes (known before building it)."""
+        k = self.motion["kind"]
+        if k in ("gait", "planar-gait"):
+            return int(round(self.motion["samples_per_period"] * self.motion["periods"]))
+        if k == "smooth-random":
+            return int(self.motion["samples"])
+        return len(self.motion["data"]["t"])
 
     def build_motion(self) -> Motion:
         k = self.motion["kind"]
@@ -195,6 +210,10 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
             else:
                 _number(path, f"motion.gait.{k}", v, lo=0 if k == "T" else None)
         out["params"] = GaitParams(**overrides)
+        S = int(round(out["samples_per_period"] * out["periods"]))
+        if S < MIN_SAMPLES:
+            raise _err(path, "motion.periods", f"periods x samples_per_period >= {MIN_SAMPLES} samples (derivatives "
+                       "and plots need at least two)", f"{out['periods']} x {out['samples_per_period']} = {S} sample(s)")
     elif kind == "smooth-random":
         out["duration"] = _number(path, "motion.duration", m.get("duration", 2.0), lo=0)
         out["samples"] = _number(path, "motion.samples", m.get("samples", 400), lo=1, integer=True)
@@ -211,8 +230,31 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
             raise _err(path, "motion.file", "an object with keys t, q, qd, qdd",
                        sorted(data) if isinstance(data, dict) else type(data).__name__)
         out["file"], out["data"] = f, data
-        from_arrays(mech, data["t"], data["q"], data["qd"], data["qdd"], source=f"{path}: motion.file {f!r}")
+        source = f"{path}: motion.file {f!r}"
+        motion = from_arrays(mech, _times(source, data["t"]), data["q"], data["qd"], data["qdd"], source=source)
+        if motion.q.shape[0] < MIN_SAMPLES:
+            raise ValueError(f"{source}: expected at least {MIN_SAMPLES} samples (derivatives and plots need two), "
+                             f"got {motion.q.shape[0]}")
     return out
+
+
+def _times(source: str, t: Any) -> np.ndarray:
+    """The times of a sampled motion: a list of finite numbers, strictly increasing."""
+    if not isinstance(t, list):
+        raise ValueError(f"{source}: field 't': expected a list of numbers (seconds), got {type(t).__name__}")
+    for k, x in enumerate(t):
+        if not isinstance(x, (int, float)) or isinstance(x, bool):
+            raise ValueError(f"{source}: field 't' sample {k}: expected a number (seconds), got {x!r}")
+    a = np.asarray(t, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"{source}: field 't' sample {int(bad[0])}: expected a finite time, got {a[bad[0]]}")
+    steps = np.flatnonzero(np.diff(a) <= 0)
+    if steps.size:
+        k = int(steps[0]) + 1
+        raise ValueError(f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {a[k - 1]!r} "
+                         f"then t[{k}] = {a[k]!r}")
+    return a
 
 
 def shipped_scene_names() -> list[str]:

@@ -87,14 +87,18 @@ class UnusableMethodWarning(StabilityWarning):
 
 
 def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
-                reference: str = "pinocchio", options: dict[str, dict] | None = None) -> Study:
+                reference: str = "pinocchio", options: dict[str, dict] | None = None, limits=None) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and
-    does not stop the others. ``options``: method -> its :func:`prepare` options."""
+    does not stop the others. ``options``: method -> its :func:`prepare` options. A method whose
+    estimated memory or time exceeds ``limits`` (:class:`bench.resources.Limits`; default: a share
+    of the available memory) is recorded as skipped with the estimate, before it runs."""
+    from exo_bench.bench.resources import check
     study = Study(name, mech, motion, motion_label, reference=reference)
     S = motion.q.shape[0]
     options = options or {}
     for m in methods:
         try:
+            check(mech, m, S, options.get(m, {}), limits)    # refuse before any work (ResourceLimit: a skip)
             t0 = time.perf_counter()
             model = prepare(mech, m, **options.get(m, {}))  # build / derive / compile once
             setup = time.perf_counter() - t0

@@ -25,14 +25,14 @@ import os
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models.urdf import link_prefix, to_urdf
+from exo_bench.models.prepared import PreparedModel, usable_memory
+from exo_bench.models.urdf import (DATA_BYTES_PER_JOINT, data_bytes, link_prefix, pinocchio_data_bytes,  # noqa: F401
+                                   pinocchio_model_size, to_urdf)
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,55 +73,9 @@ class PinocchioModel:
 
 
 # ----------------------------------------------------------------------------- memory of Data
-#: Bytes of a ``pin.Data`` beyond its dense arrays, per joint: measured as the RSS growth of
-#: ``createData()`` minus the dense part of :func:`data_bytes` on 2D and 3D chains of 10 to 150
-#: links (pin 4.1, x86-64): 38 to 57 kB per joint, rounded up.
-DATA_BYTES_PER_JOINT = 60_000
-
-
-def model_size(mech: Mechanism) -> tuple[int, int]:
-    """``(nv, njoints)`` of the mechanism's Pinocchio model, without building it: ``nv = dof``
-    (mimic joints have no velocity of their own); joints: the universe, then per link ``phi``,
-    (3D) ``psi`` and, below the root, the mimic ``undo``, ``len``, and the mimic ``mid`` when the
-    middle mass is not zero (models/urdf.py)."""
-    n = mech.nlinks
-    per_link = 2 if mech.dim == 2 else 3
-    undo = sum(1 for p in mech.parent if p >= 0) if mech.dim == 3 else 0
-    mid = sum(1 for m in mech.masses if m[1] > 0)
-    return mech.dof, 1 + per_link * n + undo + mid
-
-
-def data_bytes(nv: int, njoints: int) -> int:
-    """Bytes of one ``pin.Data`` of a model with ``nv`` velocities and ``njoints`` joints (pin 4.1).
-
-    Dense part, from the constructor (pinocchio/multibody/data.hxx): four ``nv^3`` tensors and the
-    ``6 nv^2`` kinematic Hessians; ten ``nv x nv`` matrices (M, Minv, C, U, dtau_dq, dtau_dv,
-    ddq_dq, ddq_dv, ddq_dtau, sDUiJt); the ``nv x 10 (njoints - 1)`` joint-torque regressor and one
-    ``6 x nv`` Fcrb per joint; all float64. Plus :data:`DATA_BYTES_PER_JOINT`. Measured against
-    the RSS growth of ``createData()`` (3D chain, 100 links: predicted 0.92 GB, measured 0.91 GB).
-    """
-    dense = 4 * nv**3 + 6 * nv**2 + 10 * nv**2 + 10 * nv * max(njoints - 1, 0) + 6 * nv * njoints
-    return 8 * dense + DATA_BYTES_PER_JOINT * njoints
-
-
-def mechanism_data_bytes(mech: Mechanism) -> int:
-    """:func:`data_bytes` of the mechanism's model, computed without building it."""
-    return data_bytes(*model_size(mech))
-
-
-def available_memory() -> int | None:
-    """Bytes the kernel says can be allocated without swapping (``MemAvailable`` of
-    /proc/meminfo), or None where that is unknown."""
-    try:
-        for line in Path("/proc/meminfo").read_text().splitlines():
-            if line.startswith("MemAvailable:"):
-                return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):
-        return None
+# The size formulas live in models/urdf.py (no Pinocchio import needed to estimate them).
+model_size = pinocchio_model_size
+mechanism_data_bytes = pinocchio_data_bytes
 
 
 class PinocchioDataTooLarge(MemoryError):
@@ -134,7 +88,7 @@ class PinocchioDataTooLarge(MemoryError):
         what = "one pin.Data" if count == 1 else f"{count} pin.Data (one per thread)"
         super().__init__(
             f"pinocchio: {what} for {mech.name!r} ({mech.dim}D, {mech.nlinks} links, nv = {nv}) needs "
-            f"{_gb(need * count)}, more than the {_gb(limit)} of memory available: Pinocchio allocates four "
+            f"{_gb(need * count)}, more than the {_gb(limit)} of memory it may use: Pinocchio allocates four "
             f"nv^3 tensors in every Data (docs/pinocchio-memory.md); use method matrix-factored")
 
 
@@ -144,9 +98,10 @@ def _gb(x: float) -> str:
 
 def check_data_fits(mech: Mechanism, count: int = 1, limit: int | None = None) -> int:
     """Raise :class:`PinocchioDataTooLarge` unless ``count`` Data of the mechanism fit in ``limit``
-    bytes (default: the available memory); return the bytes of one Data."""
+    bytes (default: :func:`models.prepared.usable_memory`, a share of the available memory); return
+    the bytes of one Data."""
     need = mechanism_data_bytes(mech)
-    limit = available_memory() if limit is None else limit
+    limit = usable_memory() if limit is None else limit
     if limit is not None and need * count > limit:
         raise PinocchioDataTooLarge(mech, need, limit, count)
     return need

@@ -92,21 +92,25 @@ def test_a_failing_method_does_not_lose_other_results(tmp_path, monkeypatch):
 
 
 def test_interrupted_run_leaves_nothing_half_written(tmp_path, monkeypatch):
+    """Ctrl-C in the middle of a run: the folder is exactly as the earlier run left it (all old),
+    with no staging folder and no partial file."""
     a, b = _user_scene(tmp_path, "a"), _user_scene(tmp_path, "b")
+    rep = tmp_path / "rep"
+    assert runner.run(argparse.Namespace(scenes=[str(a)], reports=str(rep))) == 0
+    before = {p.name: p.read_bytes() for p in rep.iterdir()}
     real = runner.run_scene
 
-    def interrupt_second(scene, staging):
+    def interrupt_second(scene, staging, limits=None):
         if scene.name == "b":
             (staging / "b.md").write_text("half")  # a partial file in staging
             raise KeyboardInterrupt
-        return real(scene, staging)
+        return real(scene, staging, limits)
 
     monkeypatch.setattr(runner, "run_scene", interrupt_second)
     with pytest.raises(KeyboardInterrupt):
-        runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(tmp_path / "rep")))
-    left = sorted(p.name for p in (tmp_path / "rep").iterdir())
-    assert left == ["a.md"]  # the finished scene is whole; no staging folder, no partial b.md
-    assert "| pinocchio | ok |" in (tmp_path / "rep" / "a.md").read_text()
+        runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep)))
+    assert {p.name: p.read_bytes() for p in rep.iterdir()} == before  # all old: a.md of the first run, no b.md
+    assert "| pinocchio | ok |" in (rep / "a.md").read_text()
 
 
 def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, monkeypatch):
@@ -125,7 +129,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
     assert rc == 0
     names = sorted(q.name for q in (tmp_path / "rep").iterdir())
     assert names == sorted(["gait.md", "gait-moments.png", "gait-forces.png", "gait-kinogram.png",
-                            "gait-differences.png", "gait-overview.png", "gait.rrd", "summary.md"])
+                            "gait-differences.png", "gait-overview.png", "gait.rrd", "summary.md", "runs.json"])
     if rerun_executable() is not None:
         verify_recording(tmp_path / "rep" / "gait.rrd")
     entities = {c.entity_path for c in RrdReader(tmp_path / "rep" / "gait.rrd").stream().to_chunks()}
