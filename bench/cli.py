@@ -13,6 +13,8 @@ import argparse
 import json
 import sys
 
+from pathlib import Path
+
 import numpy as np
 
 
