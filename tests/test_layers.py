@@ -55,3 +55,17 @@ def test_a_users_own_models_module_does_not_shadow_ours(tmp_path):
     assert r.returncode == 0, r.stderr
     # Two float64 implementations of the same forces: a few ulps of the largest force (conftest).
     assert float(r.stdout) < 1e-13
+
+
+def test_every_package_is_installed():
+    """pyproject's explicit package list names every folder with an __init__.py (a subpackage left
+    out is missing from a regular, non-editable install)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {"exo_bench"}
+    for sub in SUBPACKAGES:
+        for init in (ROOT / sub).rglob("__init__.py"):
+            rel = init.parent.relative_to(ROOT).parts
+            found.add(".".join(("exo_bench",) + rel))
+    assert found == listed, (sorted(found - listed), sorted(listed - found))
