@@ -326,9 +326,20 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt  # so that staging folders are removed on SIGTERM as on Ctrl-C
 
 
+#: The longest line an error prints: a user's value can be huge (a 400-digit integer, a long string).
+MAX_LINE = 500
+
+
 def _one_line(e: BaseException) -> str:
     text = str(e).strip()
-    return text.splitlines()[0] if text else type(e).__name__
+    return _shorten(text.splitlines()[0] if text else type(e).__name__)
+
+
+def _shorten(line: str) -> str:
+    if len(line) <= MAX_LINE:
+        return line
+    cut = len(line) - MAX_LINE + 40
+    return f"{line[:MAX_LINE // 2]} ... ({cut} characters left out) ... {line[-(MAX_LINE // 2 - 40):]}"
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -395,7 +406,7 @@ def _main(argv, warnings) -> int:
             args = build_parser().parse_args(argv)
             return int(args.func(args) or 0)
         except _UsageError as e:
-            print(str(e).splitlines()[0], file=sys.stderr)
+            print(_shorten(str(e).splitlines()[0] if str(e).strip() else "exo-bench: usage error"), file=sys.stderr)
             return 2
         except KeyboardInterrupt:
             print("exo-bench: interrupted; the reports folder holds only whole files of earlier runs or of this one "
@@ -404,15 +415,12 @@ def _main(argv, warnings) -> int:
         except BrokenPipeError:  # the reader of stdout went away (| head): nothing more to say
             _silence_stdout()
             return 0
-        except (ValueError, OSError) as e:
-            print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
-            return 2
-        except (MemoryError, RecursionError) as e:
-            print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
+        except (ValueError, OSError, MemoryError, RecursionError) as e:
+            print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             return 2
         except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
             if getattr(e, "skip_reason", None) or isinstance(e, RuntimeError) and "alloc" in str(e):
-                print(f"exo-bench: error: {error_line(e)}", file=sys.stderr)
+                print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             else:
                 print(f"exo-bench: internal error: {type(e).__name__}: {_one_line(e)} (please report it)",
                       file=sys.stderr)

@@ -33,7 +33,12 @@ def atomic_path(path: str | Path):
     sink, a PNG renderer); on success it is renamed into place with ordinary permissions, on any
     error or Ctrl-C it is removed, so that no half-written file is ever left."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_dir():
+        raise ValueError(f"{path}: expected a file to write, got a folder")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ValueError(f"{path}: cannot make its folder {str(path.parent)!r}: {e.strerror or e}") from None
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:

@@ -280,10 +280,20 @@ def summary_markdown(outcomes: list[SceneOutcome], command: str, manifest: dict 
                   "| file | run | command |", "|---|---|---|"]
         runs = manifest.get("runs", {})
         for n in names:
-            rid = files.get(n, {}).get("run") or (run_id_of(Path(folder) / n) if folder else None)
+            own = run_id_of(Path(folder) / n) if folder and (Path(folder) / n).exists() else None
+            planned = files.get(n, {}).get("run")
+            rid = own or planned
+            if planned and planned != own and runs.get(planned, {}).get("status") in ("publishing", "interrupted"):
+                earlier = f"`{own}`" if own else "an earlier run"
+                shown = (f"`{planned}` if published before the interruption, else {earlier}"
+                         + (" (the file's own mark says which)" if own or n.endswith((".md", ".png")) else ""))
+                rid = planned
+            elif rid is None:
+                shown = "unknown (written before run identifiers)"
+            else:
+                shown = f"`{rid}`"
             cmd = runs.get(rid, {}).get("command", "") if rid else ""
-            lines.append(f"| {n} | {f'`{rid}`' if rid else 'unknown (written before run identifiers)'} | "
-                         f"{f'`{cmd}`' if cmd else ''} |")
+            lines.append(f"| {n} | {shown} | {f'`{cmd}`' if cmd else ''} |")
     return "\n".join(lines) + "\n"
 
 

@@ -252,8 +252,8 @@ def _times(source: str, t: Any) -> np.ndarray:
     steps = np.flatnonzero(np.diff(a) <= 0)
     if steps.size:
         k = int(steps[0]) + 1
-        raise ValueError(f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {a[k - 1]!r} "
-                         f"then t[{k}] = {a[k]!r}")
+        raise ValueError(f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {float(a[k - 1])!r} "
+                         f"then t[{k}] = {float(a[k])!r}")
     return a
 
 

@@ -56,17 +56,24 @@ def read_text(path: str | Path, what: str) -> str:
 
 
 def read_json(path: str | Path, what: str) -> Any:
+    text = read_text(path, what)
     try:
-        return json.loads(read_text(path, what))
+        return json.loads(text)
     except json.JSONDecodeError as e:
         raise ValueError(f"{what}: invalid JSON: {e}") from None
+    except RecursionError:
+        raise ValueError(f"{what}: JSON nested too deeply to read (more than Python's recursion limit of "
+                         "about 1000 levels)") from None
 
 
 def read_toml(path: str | Path, what: str) -> dict:
+    text = read_text(path, what)
     try:
-        return tomllib.loads(read_text(path, what))
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ValueError(f"{what}: invalid TOML: {e}") from None
+    except RecursionError:
+        raise ValueError(f"{what}: TOML nested too deeply to read") from None
 
 
 def load_mechanism(spec: str | Path) -> Mechanism:

@@ -42,6 +42,14 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
 
 
+def _finite(x: Any) -> bool:
+    """A number that is a finite float64 (an integer too large for a float is not)."""
+    try:
+        return math.isfinite(float(x))
+    except (OverflowError, TypeError, ValueError):
+        return False
+
+
 @dataclass(frozen=True)
 class Mechanism:
     """A tree of ``n`` telescopic links with three point masses each.
@@ -177,7 +185,7 @@ class Mechanism:
         dim, g, links = data["dim"], data["g"], data["links"]
         if not isinstance(dim, int) or isinstance(dim, bool) or dim not in (2, 3):
             raise ValueError(f"{source}: field 'dim': expected 2 or 3, got {dim!r}")
-        if not _is_number(g) or not math.isfinite(g):
+        if not _is_number(g) or not _finite(g):
             raise ValueError(f"{source}: field 'g': expected a finite number, got {g!r}")
         if g < 0:
             raise ValueError(f"{source}: field 'g': {_NEGATIVE_G}, got {g!r}")
@@ -258,7 +266,7 @@ def _validate(m: Mechanism) -> None:
     """Check every field once; messages name the link, the field, expected and actual."""
     if m.dim not in (2, 3) or isinstance(m.dim, bool):
         raise ValueError(f"{m.name}: field 'dim': expected 2 or 3, got {m.dim!r}")
-    if not _is_number(m.g) or not math.isfinite(m.g):
+    if not _is_number(m.g) or not _finite(m.g):
         raise ValueError(f"{m.name}: field 'g': expected a finite number, got {m.g!r}")
     if m.g < 0:
         raise ValueError(f"{m.name}: field 'g': {_NEGATIVE_G}, got {m.g!r}")
@@ -285,10 +293,10 @@ def _validate(m: Mechanism) -> None:
         if len(ms) != 3:
             raise ValueError(f"{where}: field 'masses': expected three masses [m0, m1, m2], got {len(ms)}")
         for b, x in enumerate(ms):
-            if not _is_number(x) or not math.isfinite(x) or x < 0:
+            if not _is_number(x) or not _finite(x) or x < 0:
                 raise ValueError(f"{where}: field 'masses[{b}]': expected a finite mass >= 0, got {x!r}")
         f = m.n[i]
-        if not _is_number(f) or not math.isfinite(f) or not (0.0 < f < 1.0):
+        if not _is_number(f) or not _finite(f) or not (0.0 < f < 1.0):
             raise ValueError(f"{where}: field 'n': expected a fraction in (0, 1), got {f!r}")
     if all(x == 0 for ms in m.masses for x in ms):
         raise ValueError(f"{m.name}: field 'masses': expected at least one positive mass, got all zero")
@@ -368,6 +376,8 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
             continue
         if isinstance(arr, (str, bytes, dict)) or arr is True or arr is False:
             raise ValueError(f"{source}: field '{label}': expected numbers, got {type(arr).__name__}")
+        if isinstance(arr, np.ndarray) and arr.dtype.kind not in "iuf":
+            raise ValueError(f"{source}: field '{label}': expected an array of real numbers, got dtype {arr.dtype}")
         try:
             a = np.asarray(arr, dtype=float)
         except (TypeError, ValueError, OverflowError):

@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.prepared import PreparedModel, usable_memory
+from exo_bench.models.prepared import USABLE_SHARE, PreparedModel, usable_memory
 from exo_bench.models.urdf import (DATA_BYTES_PER_JOINT, data_bytes, link_prefix, pinocchio_data_bytes,  # noqa: F401
                                    pinocchio_model_size, to_urdf)
 
@@ -88,8 +88,9 @@ class PinocchioDataTooLarge(MemoryError):
         what = "one pin.Data" if count == 1 else f"{count} pin.Data (one per thread)"
         super().__init__(
             f"pinocchio: {what} for {mech.name!r} ({mech.dim}D, {mech.nlinks} links, nv = {nv}) needs "
-            f"{_gb(need * count)}, more than the {_gb(limit)} of memory it may use: Pinocchio allocates four "
-            f"nv^3 tensors in every Data (docs/pinocchio-memory.md); use method matrix-factored")
+            f"{_gb(need * count)}, more than the {_gb(limit)} of memory it may use ({USABLE_SHARE:.0%} of the memory available now, so "
+            f"that the machine is not driven out of memory): Pinocchio allocates four nv^3 tensors in every Data "
+            f"(docs/pinocchio-memory.md); use method matrix-factored")
 
 
 def _gb(x: float) -> str:

@@ -1,0 +1,451 @@
+"""The bad-input catalogue: every class of bad input, the one line a user sees, exit code 2.
+
+:data:`CASES` is the single source of docs/errors.md: each case builds a command line (and its
+files) in a fresh folder, runs ``exo_bench.bench.cli.main`` in-process, and asserts the exit code,
+that stdout is empty, that stderr is one line with no traceback, and that the line contains the
+case's key phrase. ``test_errors_md_is_current`` regenerates the catalogue from the same runs and
+compares it with docs/errors.md, so the document cannot go stale; rewrite it with
+``python tests/test_bad_inputs.py``.
+
+The rows of issue 16's table are marked ``issue=...`` (docs/errors.md lists them with their tests).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import pytest
+
+from exo_bench.bench import cli
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import chain, exo5
+
+ROOT = Path(__file__).resolve().parent.parent
+DOC = ROOT / "docs" / "errors.md"
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    """``exo-bench argv`` in this process: (exit code, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = cli.main([str(a) for a in argv])
+    return rc, out.getvalue(), err.getvalue()
+
+
+# ------------------------------------------------------------------------------ files for the cases
+def _states(m, samples=2, seed=0, path=None, **changes):
+    q, qd, qdd = random_states(m, samples, seed)
+    d = {"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}
+    d.update(changes)
+    path.write_text(json.dumps(d))
+    return path
+
+
+def _mech(d: Path, name="m.json", **changes):
+    data = exo5(3).to_dict()
+    for k, v in changes.items():
+        if k.startswith("link") and k[4].isdigit():
+            i, key = k[4:].split("_", 1)
+            data["links"][int(i) - 1][key] = v
+        else:
+            data[k] = v
+    (d / name).write_text(json.dumps(data))
+    return d / name
+
+
+def _s5(d: Path) -> Path:
+    return _states(exo5(3), path=d / "s.json")
+
+
+def _scene(d: Path, motion: str, mech="fig2a-2d", methods='["pinocchio"]') -> Path:
+    (d / "sc.toml").write_text(f'mechanism = "{mech}"\nmethods = {methods}\n[motion]\n{motion}\n')
+    return d / "sc.toml"
+
+
+def _motion_file(d: Path, t, samples=3) -> Path:
+    q, qd, qdd = random_states(chain(2, 2), samples, 1)
+    (d / "mo.json").write_text(json.dumps({"t": t, "q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
+    return _scene(d, 'kind = "states"\nfile = "mo.json"', mech="fig2a-2d")
+
+
+def _chain_file(d: Path, n: int, dim: int) -> Path:
+    (d / "c.json").write_text(chain(n, dim).to_json(indent=None))
+    return d / "c.json"
+
+
+def _npz(d: Path, **arrays) -> Path:
+    np.savez(d / "s.npz", **arrays)
+    return d / "s.npz"
+
+
+def _raise(exc: BaseException):
+    def method(self, q, qd, qdd):
+        raise exc
+    return method
+
+
+@dataclass
+class Case:
+    id: str
+    kind: str                                   # the class of input, as docs/errors.md lists it
+    argv: Callable[[Path], list]                # the command line, built in a fresh folder
+    needle: str                                 # a phrase the line must contain
+    rc: int = 2
+    issue: str = ""                             # the row of issue 16's table it covers
+    patch: Callable[[pytest.MonkeyPatch], None] | None = None
+    example: str = ""                           # what the user typed, for the document
+    tags: tuple = field(default_factory=tuple)
+
+
+def _no_preflight(mp):
+    """Let the work start (the estimate would refuse first) to reach the error raised inside it."""
+    mp.setattr("exo_bench.bench.resources.check", lambda *a, **k: None)
+
+
+def _method_raises(exc):
+    def patch(mp):
+        from exo_bench.matrix_method.prepared import MatrixFactored
+        mp.setattr(MatrixFactored, "_inverse_dynamics", _raise(exc))
+    return patch
+
+
+def _pin_data_too_large(mp):
+    _no_preflight(mp)
+    mp.setattr("exo_bench.models.pinocchio_backend.usable_memory", lambda: 50_000_000)
+
+
+def _pin_bad_alloc(mp):
+    from exo_bench.models.pinocchio_backend import PinocchioRNEA
+    mp.setattr(PinocchioRNEA, "_inverse_dynamics", _raise(RuntimeError("std::bad_alloc")))
+
+
+MF = ["--method", "matrix-factored"]
+
+CASES = [
+    # ---------------------------------------------------------------- the mechanism
+    Case("mechanism-missing", "mechanism: no such file or preset", lambda d: ["inverse", d / "none.json", _s5(d)],
+         "not a preset"),
+    Case("mechanism-folder", "mechanism: a folder", lambda d: ["inverse", d, _s5(d)], "expected a file, got a folder"),
+    Case("mechanism-binary", "mechanism: a binary file", lambda d: ["inverse", _bin(d), _s5(d)],
+         "mechanism '<dir>/bin.json': expected UTF-8 text", issue="binary file"),
+    Case("mechanism-device", "mechanism: a device or FIFO", lambda d: ["inverse", "/dev/zero", _s5(d)],
+         "expected a regular file"),
+    Case("mechanism-nul", "mechanism: a path with a NUL character", lambda d: ["inverse", "m\0.json", _s5(d)],
+         "and no such file"),
+    Case("mechanism-json", "mechanism: invalid JSON", lambda d: ["inverse", _text(d, "{oops"), _s5(d)], "invalid JSON"),
+    Case("mechanism-array", "mechanism: JSON that is not an object", lambda d: ["inverse", _text(d, "[1, 2]"), _s5(d)],
+         "expected a JSON object"),
+    Case("mechanism-missing-key", "mechanism: a missing key", lambda d: ["inverse", _text(d, '{"dim": 2, "g": 9.81}'),
+                                                                        _s5(d)], "missing key(s) ['links']"),
+    Case("mechanism-dim", "mechanism: dim not 2 or 3", lambda d: ["inverse", _mech(d, dim=4), _s5(d)],
+         "field 'dim': expected 2 or 3, got 4"),
+    Case("mechanism-negative-g", "mechanism: negative g", lambda d: ["inverse", _mech(d, g=-9.81), _s5(d)],
+         "expected g >= 0: g is the magnitude of gravity", issue="negative g"),
+    Case("mechanism-g-string", "mechanism: g not a number", lambda d: ["inverse", _mech(d, g="9.81"), _s5(d)],
+         "field 'g': expected a finite number"),
+    Case("mechanism-huge-masses", "mechanism: masses whose forces overflow float64",
+         lambda d: ["inverse", _mech(d, link1_masses=[1e308, 1e308, 1e308]), _s5(d)],
+         "the forces of masses this large overflow float64", issue="masses of 1e308"),
+    Case("mechanism-negative-mass", "mechanism: a negative mass",
+         lambda d: ["inverse", _mech(d, link2_masses=[1, -1, 1]), _s5(d)], "masses[1]': expected a finite mass >= 0"),
+    Case("mechanism-fraction", "mechanism: n outside (0, 1)", lambda d: ["inverse", _mech(d, link3_n=1.5), _s5(d)],
+         "field 'n': expected a fraction in (0, 1)"),
+    Case("mechanism-parent-link1", "mechanism: a bad parent on link 1",
+         lambda d: ["inverse", _mech(d, link1_parent=3), _s5(d)],
+         "expected -1 (the support: the first link has no earlier link to hang from), got 3", issue="parent on link 1"),
+    Case("mechanism-parent-later", "mechanism: a parent that is not an earlier link",
+         lambda d: ["inverse", _mech(d, link3_parent=3), _s5(d)], "0..1 (links 1..2), got 3"),
+    Case("mechanism-sign", "mechanism: sign not +1 or -1", lambda d: ["inverse", _mech(d, link2_sign=0), _s5(d)],
+         "field 'sign': expected +1 or -1, got 0"),
+    Case("mechanism-no-links", "mechanism: no links", lambda d: ["inverse", _mech(d, links=[]), _s5(d)],
+         "expected a non-empty list of links"),
+    # ---------------------------------------------------------------- the states
+    Case("states-missing", "states: no such file", lambda d: ["inverse", "exo5-3d", d / "none.json"], "no such file"),
+    Case("states-binary", "states: a binary file", lambda d: ["inverse", "exo5-3d", _bin(d)],
+         "states '<dir>/bin.json': expected UTF-8 text", issue="binary file"),
+    Case("states-json", "states: invalid JSON", lambda d: ["inverse", "exo5-3d", _text(d, "{")], "invalid JSON"),
+    Case("states-keys", "states: missing keys", lambda d: ["inverse", "exo5-3d", _text(d, '{"q": []}')],
+         "expected an object with keys ['q', 'qd', 'qdd']"),
+    Case("states-ragged", "states: ragged rows", lambda d: ["inverse", "exo5-3d", _states(
+        exo5(3), path=d / "s.json", q=[[0.5] * 15, [0.5] * 14])], "ragged rows", issue="ragged rows"),
+    Case("states-shape", "states: the wrong number of coordinates", lambda d: ["inverse", "fig1-2d", _s5(d)],
+         "expected shape (samples, 2) in the order phi1..l1, got (2, 15)"),
+    Case("states-string", "states: an entry that is not a number", lambda d: ["inverse", "exo5-3d", _states(
+        exo5(3), path=d / "s.json", qd=[["x"] * 15] * 2)], "expected numbers, got 'x' (str) at sample 0, column 0"),
+    Case("states-nan", "states: NaN", lambda d: ["inverse", "exo5-3d", _text(d, _nan_states())],
+         "field 'qd' sample 1 coordinate phi1: expected a finite number, got nan"),
+    Case("states-negative-length", "states: a negative rod length", lambda d: ["inverse", "fig1-2d", _text(
+        d, '{"q": [0.1, -0.5], "qd": [0, 0], "qdd": [0, 0]}')], "expected a rod length >= 0, got -0.5"),
+    Case("states-overflow", "states: lengths whose forces overflow float64", lambda d: ["inverse", "fig1-2d", _text(
+        d, '{"q": [0.1, 1e200], "qd": [0, 0], "qdd": [0, 0]}')], "the forces would overflow float64"),
+    Case("states-samples", "states: q, qd, qdd of different lengths", lambda d: ["inverse", "fig1-2d", _text(
+        d, '{"q": [[0.1, 1]], "qd": [[0, 0], [0, 0]], "qdd": [[0, 0]]}')], "same number of samples"),
+    Case("states-npz", "states: a .npz file that is not an archive", lambda d: ["inverse", "fig1-2d",
+                                                                             _text(d, "not zip", "s.npz")],
+         "expected a NumPy .npz archive"),
+    Case("states-npz-object", "states: a .npz archive of Python objects", lambda d: [
+        "inverse", "fig1-2d", _npz(d, q=np.array([[0.1, "a"]], dtype=object), qd=np.zeros((1, 2)),
+                                   qdd=np.zeros((1, 2)))], "cannot read the arrays"),
+    # ---------------------------------------------------------------- memory, time, budgets
+    Case("chain300-3d-default", "a 300-link 3D chain with the default method (pinocchio)",
+         lambda d: ["inverse", _chain_file(d, 300, 3), _states(chain(300, 3), 1, path=d / "s.json"), "--max-memory", "2G"],
+         "method 'pinocchio' on 'chain300-3d' (n=300 links, dim=3, 1 sample(s)) needs about 23.7 GB",
+         issue="300-link 3D chain", example="exo-bench inverse chain300-3d.json s.json --max-memory 2G"),
+    Case("chain300-2d-default", "a 300-link 2D chain with the default method",
+         lambda d: ["inverse", _chain_file(d, 300, 2), _states(chain(300, 2), 1, path=d / "s.json"), "--max-memory", "2G"],
+         "matrix-factored fits", issue="300-link 3D chain"),
+    Case("lagrange-50", "method lagrange on a 50-link chain",
+         lambda d: ["inverse", _chain_file(d, 50, 2), _states(chain(50, 2), 2, path=d / "s.json"), "--method", "lagrange",
+                    "--max-memory", "1000G"],
+         "its derivation alone over the budget of 120 s (raise it with --budget SECONDS)", issue="lagrange"),
+    Case("lagrange-budget", "lagrange's derivation over its budget (--budget)",
+         lambda d: ["inverse", "fig2a-3d", _states(chain(2, 3), 1, path=d / "s.json"), "--method", "lagrange",
+                    "--budget", "0.01"],
+         "exceeded the time budget of 0.01 s", issue="lagrange", patch=_no_preflight),
+    Case("max-time", "a method over --max-time", lambda d: ["inverse", _chain_file(d, 300, 3), _states(
+        chain(300, 3), 1, path=d / "s.json"), "--method", "recurrence", "--max-time", "0.001", "--max-memory", "2G"],
+         "over the time limit of 1 ms (--max-time)"),
+    Case("batch-too-large", "a batch whose arrays alone exceed the limit", lambda d: [
+        "inverse", "exo5-3d", _npz(d, **dict(zip(("q", "qd", "qdd"), random_states(exo5(3), 20000, 0)))),
+        "--max-memory", "17M", *MF], "no method fits: the batch's arrays alone take"),
+    Case("max-memory-value", "--max-memory not a size", lambda d: ["inverse", "exo5-3d", _s5(d), "--max-memory", "2X"],
+         "expected a size such as 2G"),
+    Case("budget-value", "--budget not a positive number", lambda d: ["inverse", "exo5-3d", _s5(d), "--budget", "-1"],
+         "expected a positive number of seconds"),
+    Case("memory-error", "out of memory inside a method", lambda d: ["inverse", "exo5-3d", _s5(d), *MF],
+         "out of memory: the model or the batch did not fit", patch=_method_raises(MemoryError())),
+    Case("recursion-error", "sympy's recursion limit", lambda d: ["inverse", "exo5-3d", _s5(d), *MF],
+         "nested deeper than Python's recursion limit", patch=_method_raises(RecursionError("maximum recursion"))),
+    Case("pinocchio-data", "a Pinocchio Data larger than the memory a run may use",
+         lambda d: ["inverse", _chain_file(d, 40, 3), _states(chain(40, 3), 1, path=d / "s.json")],
+         "needs 72.2 MB, more than the 50.0 MB of memory it may use", patch=_pin_data_too_large),
+    Case("pinocchio-bad-alloc", "Pinocchio's own allocation failure", lambda d: ["inverse", "exo5-3d", _s5(d)],
+         "out of memory in Pinocchio (std::bad_alloc)", patch=_pin_bad_alloc),
+    # ---------------------------------------------------------------- scenes and reports folders
+    Case("scene-unknown", "run: an unknown scene", lambda d: ["run", "no-such-scene", "--reports", d / "rep"],
+         "not a shipped scene"),
+    Case("scene-toml", "run: invalid TOML", lambda d: ["run", _text(d, "a = [", "x.toml"), "--reports", d / "rep"],
+         "invalid TOML"),
+    Case("scene-zero-samples", "run: a motion of 0 samples", lambda d: [
+        "run", _scene(d, 'kind = "planar-gait"\nperiods = 0.0001'), "--reports", d / "rep"],
+         "expected periods x samples_per_period >= 2 samples", issue="0 samples"),
+    Case("scene-one-sample", "run: a states file of 1 sample", lambda d: [
+        "run", _motion_file(d, [0.0], samples=1), "--reports", d / "rep"], "expected at least 2 samples",
+         issue="0 samples"),
+    Case("scene-times", "run: times not increasing", lambda d: [
+        "run", _motion_file(d, [0.0, 0.2, 0.1]), "--reports", d / "rep"],
+         "expected strictly increasing times, got t[1] = 0.2 then t[2] = 0.1", issue="t not increasing"),
+    Case("reports-file", "--reports naming a file", lambda d: ["errata", "--reports", _text(d, "x", "afile")],
+         "--reports '<dir>/afile': expected a folder, but it is a file", issue="--reports naming a file"),
+    Case("reports-file-run", "--reports naming a file (run)", lambda d: [
+        "run", "fig2a-2d", "--reports", _text(d, "x", "afile")], "expected a folder, but it is a file",
+         issue="--reports naming a file"),
+    Case("reports-under-file", "--reports under a file", lambda d: [
+        "stability", "--reports", _text(d, "x", "afile") / "sub"], "lies under '<dir>/afile', which is a file"),
+    Case("urdf-output-folder", "urdf -o naming a folder", lambda d: ["urdf", "fig1-2d", "-o", d],
+         "<dir>: expected a file to write, got a folder"),
+    Case("urdf-output-under-file", "urdf -o under a file", lambda d: ["urdf", "fig1-2d", "-o", _text(d, "x", "f") / "u"],
+         "<dir>/f/u: cannot make its folder '<dir>/f'"),
+    Case("unknown-command", "an unknown command", lambda d: ["frobnicate"], "invalid choice"),
+    Case("missing-argument", "a missing argument", lambda d: ["inverse", "exo5-3d"], "required"),
+    Case("unknown-method", "an unknown method", lambda d: ["inverse", "exo5-3d", _s5(d), "--method", "newton"],
+         "method: expected one of"),
+    # ---------------------------------------------------------------- warnings and accepted edges (exit 0)
+    Case("matrix-paper-3d", "matrix-paper on a 3D model (a result with a warning)", lambda d: [
+        "inverse", "exo5-3d", _s5(d), "--method", "matrix-paper"], "3D results are wrong by design", rc=0,
+         issue="matrix-paper"),
+    Case("matrix-paper-2d", "matrix-paper on a 2D model (a result with a warning)", lambda d: [
+        "inverse", "fig2a-2d", _states(chain(2, 2), path=d / "s.json"), "--method", "matrix-paper"],
+         "wrong in 3D by design", rc=0, issue="matrix-paper"),
+    Case("nan-result", "a method that returns NaN (written as null, with a warning)", lambda d: [
+        "inverse", "exo5-3d", _states(exo5(3), path=d / "s.json", q=[[0.0] * 5 + [1.2] * 5 + [0.5] * 5] * 2),
+        "--method", "matrix-paper"], "NaN/Inf value(s), written as null", rc=0),
+    Case("negative-zero-g", "g = -0.0 (accepted: it is 0)", lambda d: ["inverse", _mech(d, g=-0.0), _s5(d), *MF],
+         "", rc=0),
+]
+
+
+def _bin(d: Path) -> Path:
+    (d / "bin.json").write_bytes(bytes(range(256)))
+    return d / "bin.json"
+
+
+def _text(d: Path, text: str, name: str = "t.json") -> Path:
+    (d / name).write_text(text)
+    return d / name
+
+
+def _nan_states() -> str:
+    q, qd, qdd = random_states(exo5(3), 2, 0)
+    qd[1, 0] = np.nan
+    return json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()})  # JSON's NaN extension
+
+
+def run_case(case: Case, folder: Path) -> tuple[int, str, str, list]:
+    folder.mkdir(parents=True, exist_ok=True)
+    cwd = os.getcwd()
+    with pytest.MonkeyPatch.context() as mp:
+        if case.patch:
+            case.patch(mp)
+        os.chdir(folder)
+        try:
+            argv = [str(a) for a in case.argv(folder)]
+            rc, out, err = run_cli(argv)
+        finally:
+            os.chdir(cwd)
+    return rc, out, err, argv
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
+def test_bad_input(case, tmp_path):
+    rc, out, err, _ = run_case(case, tmp_path)
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert rc == case.rc, err
+    if case.rc == 2:
+        assert out == "" and len(lines) == 1, err
+        assert lines[0].startswith("exo-bench"), lines[0]
+    else:
+        assert all(line.startswith("exo-bench: warning: ") for line in lines), err
+        json.loads(out)
+    text = err.replace(str(tmp_path), "<dir>")
+    assert case.needle in text, (case.needle, text)
+
+
+def test_the_method_help_says_matrix_paper_is_wrong_in_3d_by_design():
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+        cli.main(["inverse", "--help"])
+    text = " ".join(buf.getvalue().split())
+    assert "matrix-paper is eq. (18) as printed: WRONG in 3D by design" in text and "warning on stderr" in text
+
+
+def test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work(tmp_path, monkeypatch):
+    """No --method and no --max-memory, on a machine where 16 GB may be used: one line naming a method
+    that fits, and Pinocchio never builds a model or a Data (the refusal is the estimate alone)."""
+    import exo_bench.models.pinocchio_backend as pb
+
+    monkeypatch.setattr("exo_bench.bench.resources.usable_memory", lambda: 16 * 10**9)
+    monkeypatch.setattr(pb, "build_model", lambda mech: pytest.fail("a model was built"))
+    monkeypatch.setattr(pb.PinocchioRNEA, "__init__", lambda *a, **k: pytest.fail("the method was prepared"))
+    f = _chain_file(tmp_path, 300, 3)
+    rc, out, err = run_cli(["inverse", f, _states(chain(300, 3), 1, path=tmp_path / "s.json")])
+    assert rc == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert "over the memory limit of 16.0 GB (80% of the available memory" in err and "matrix-factored fits" in err
+
+
+def test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits(tmp_path):
+    """The method the refusal names does answer, under --max-memory 2G (and agrees with recurrence,
+    an independent route, on a sample)."""
+    m = chain(300, 3)
+    q, qd, qdd = random_states(m, 1, 3)
+    (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
+    rc, out, err = run_cli(["inverse", _chain_file(tmp_path, 300, 3), tmp_path / "s.json", "--max-memory", "2G", *MF])
+    assert rc == 0 and err == ""
+    tau = np.array(json.loads(out)["tau"])
+    from exo_bench.bench.methods import prepare
+    ref = prepare(m, "recurrence").inverse_dynamics(q, qd, qdd)
+    assert np.abs(tau - ref).max() <= 16 * np.finfo(float).eps * m.dof * np.abs(ref).max()
+
+
+# ------------------------------------------------------------------------------ docs/errors.md
+ISSUE_ROWS = {
+    "300-link 3D chain": "a 300-link 3D chain with the default method: killed for memory, or a raw MemoryError",
+    "lagrange": "a 50-link chain with --method lagrange: BudgetExceeded traceback after 120 s",
+    "matrix-paper": "--method matrix-paper on a 3D model: wrong forces with nothing on stderr",
+    "0 samples": "a scene whose motion has 0 samples: an internal numpy error",
+    "t not increasing": "a states file whose t is not increasing: accepted silently",
+    "negative g": "a negative g: accepted silently",
+    "masses of 1e308": "masses of 1e308: accepted, all-null output",
+    "--reports naming a file": "--reports naming a file: [Errno 17] File exists",
+    "binary file": "a binary file as mechanism or states: a decode error that does not name the file",
+    "ragged rows": "ragged rows in states: 'expected numbers, got list'",
+    "parent on link 1": "a bad parent on link 1: the range reads (0..-1)",
+}
+OTHER_ROWS = [
+    ("exo-bench run SCENE overwrote summary.md with that scene alone",
+     "tests/test_run_ids.py::test_running_one_scene_keeps_every_other_scenes_rows, "
+     "test_a_folder_from_before_run_identifiers_keeps_its_rows"),
+    ("Ctrl-C or SIGTERM during run left a folder mixing two runs, unannounced",
+     "tests/test_runner.py::test_interrupted_run_leaves_nothing_half_written, "
+     "tests/test_run_ids.py::test_a_run_killed_while_publishing_is_announced_and_each_file_marked, "
+     "test_every_report_carries_its_run"),
+    ("a 300-link 3D chain: answer within 2 GB or refuse within 2 s naming a method that fits",
+     "tests/test_bad_inputs.py::test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work, "
+     "test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits"),
+]
+
+
+def _line(case: Case, tmp: Path) -> tuple[str, str]:
+    import re
+
+    rc, out, err, argv = run_case(case, tmp)
+    line = err.strip().splitlines()[0] if err.strip() else "(nothing: exit 0)"
+    # times measured by the run itself vary: the document shows them as "..."
+    line = re.sub(r"\(stopped after [0-9.]+ s\)(; an earlier attempt ran [0-9.]+ s without finishing)?",
+                  "(stopped after ... s)", line)
+    line = re.sub(r"[0-9.]+ GB of memory available", "... GB of memory available", line)  # this machine's
+    shown = [a.replace(str(tmp), "<dir>") for a in argv]
+    line = line.replace(str(tmp), "<dir>")
+    example = case.example or "exo-bench " + " ".join(a if a and " " not in a and "\0" not in a else repr(a) for a in shown)
+    return example, line
+
+
+def render(tmp: Path) -> str:
+    def esc(s: str) -> str:
+        return s.replace("|", "\\|").replace("\0", "\\0")
+
+    lines = ["# What exo-bench says to bad input", "",
+             "_Generated by `python tests/test_bad_inputs.py` from the cases of tests/test_bad_inputs.py, which also "
+             "check every line below (`test_errors_md_is_current` fails when this file is stale)._", "",
+             "Every error is one line on stderr and exit code 2; no command prints a traceback "
+             "(tests/test_fuzz_cli.py drives every subcommand with generated bad input to hold this). Warnings are one "
+             "line each and the result is still written (exit 0). Paths under the test's folder read `<dir>`.", "",
+             "Choices made: a negative `g` is refused (g is the magnitude of gravity, which acts along -y in 2D and "
+             "-z in 3D); `-0.0` is accepted as 0. A motion needs at least 2 samples and strictly increasing times. "
+             "Masses, lengths and rates whose forces could overflow float64 (a bound above 1e300, "
+             "`models.mechanism.force_scale_log10`) are refused. Memory and time are estimated before any work "
+             "(bench/resources.py); the memory limit is 80 % of the available memory unless `--max-memory` says "
+             "otherwise.", "",
+             "| input | exit | what the user sees | example | test |", "|---|---|---|---|---|"]
+    for case in CASES:
+        example, line = _line(case, tmp / case.id)
+        lines.append(f"| {esc(case.kind)} | {case.rc} | `{esc(line)}` | `{esc(example)}` | "
+                     f"tests/test_bad_inputs.py::test_bad_input[{case.id}] |")
+    lines += ["", "## The rows of issue 16", "", "| reported | covered by |", "|---|---|"]
+    for key, text in ISSUE_ROWS.items():
+        ids = [c.id for c in CASES if c.issue == key]
+        lines.append(f"| {esc(text)} | " + ", ".join(f"test_bad_input[{i}]" for i in ids) + " |")
+    for text, tests in OTHER_ROWS:
+        lines.append(f"| {esc(text)} | {tests} |")
+    return "\n".join(lines) + "\n"
+
+
+def test_errors_md_is_current(tmp_path):
+    assert DOC.exists(), "docs/errors.md is missing: run python tests/test_bad_inputs.py"
+    assert DOC.read_text() == render(tmp_path), "docs/errors.md is stale: run python tests/test_bad_inputs.py"
+
+
+def test_every_issue_row_has_a_test():
+    for key in ISSUE_ROWS:
+        assert any(c.issue == key for c in CASES), key
+    for _, tests in OTHER_ROWS:
+        for name in tests.split(", "):
+            path, func = name.split("::") if "::" in name else (None, name)
+            assert any(f"def {func}(" in p.read_text() for p in (ROOT / "tests").glob("test_*.py")), name
+
+
+if __name__ == "__main__":
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        DOC.write_text(render(Path(d)))
+    print(f"wrote {DOC}")
