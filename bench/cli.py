@@ -47,21 +47,10 @@ def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _read_npz(path: str, what: str) -> dict:
     import zipfile
 
-    from exo_bench.models.loading import read_text  # noqa: F401 (same checks for missing files and folders)
-
+    from exo_bench.models.loading import regular_file
     from exo_bench.models.prepared import usable_memory
 
-    p = Path(path)
-    try:
-        exists, is_dir, is_file = p.exists(), p.is_dir(), p.is_file()
-    except (OSError, ValueError) as e:
-        raise ValueError(f"{what}: not a usable path ({getattr(e, 'strerror', None) or e})") from None
-    if not exists:
-        raise ValueError(f"{what}: no such file")
-    if is_dir:
-        raise ValueError(f"{what}: expected a file, got a folder")
-    if not is_file:
-        raise ValueError(f"{what}: expected a regular file, got a device, FIFO or socket")
+    p = regular_file(path, what)   # the same checks and messages as every other file we read
     try:
         with zipfile.ZipFile(p) as zf:
             size = sum(i.file_size for i in zf.infolist())

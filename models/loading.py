@@ -20,13 +20,9 @@ from exo_bench.models.mechanism import Mechanism
 READ_BYTES_PER_BYTE = 4
 
 
-def read_text(path: str | Path, what: str) -> str:
-    """The UTF-8 text of ``path``; ``what`` names the file's role in messages (``"states 'x.json'"``).
-
-    Only regular files are read (a FIFO or a device such as /dev/zero would block or never end),
-    and only when reading fits in the memory a run may use (:func:`models.prepared.usable_memory`)."""
-    from exo_bench.models.prepared import usable_memory
-
+def regular_file(path: str | Path, what: str) -> Path:
+    """``path`` as a :class:`Path` when it names an existing regular file; otherwise one
+    ValueError line (no such file, a folder, a device/FIFO/socket, an unusable path)."""
     p = Path(path)
     try:
         exists, is_dir, is_file = p.exists(), p.is_dir(), p.is_file()
@@ -38,6 +34,17 @@ def read_text(path: str | Path, what: str) -> str:
         raise ValueError(f"{what}: expected a file, got a folder")
     if not is_file:
         raise ValueError(f"{what}: expected a regular file, got a device, FIFO or socket")
+    return p
+
+
+def read_text(path: str | Path, what: str) -> str:
+    """The UTF-8 text of ``path``; ``what`` names the file's role in messages (``"states 'x.json'"``).
+
+    Only regular files are read (a FIFO or a device such as /dev/zero would block or never end),
+    and only when reading fits in the memory a run may use (:func:`models.prepared.usable_memory`)."""
+    from exo_bench.models.prepared import usable_memory
+
+    p = regular_file(path, what)
     size = p.stat().st_size
     limit = usable_memory()
     if limit is not None and size * READ_BYTES_PER_BYTE > limit:

@@ -26,14 +26,6 @@ def test_model_size_is_the_built_models(dim, seed):
     assert pinocchio_model_size(m) == (model.nv, model.njoints)
 
 
-def _rss() -> int:
-    with open("/proc/self/status") as f:
-        for line in f:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) * 1024
-    raise RuntimeError
-
-
 _MEASURE_DATA = """
 import json, pinocchio as pin
 from exo_bench.models.presets import chain
