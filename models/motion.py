@@ -30,24 +30,62 @@ class Motion:
 
 @dataclass(frozen=True)
 class GaitParams:
-    """Parameters of eq. (26) that the paper does not print. ASSUMPTIONS, chosen from anthropometry.
+    """Parameters of eq. (26), which the paper does not print. The defaults are the shipped gait,
+    ``winter-fit-v1``: fitted to normative level walking by :mod:`models.gait_fit` (rerun it with
+    ``python -m exo_bench.models.gait_fit``; ``tests/test_gait_fit.py`` re-checks the constraints).
 
-    * ``T = 1.1 s``: a comfortable walking stride (cadence about 110 steps/min).
-    * ``j``: swing amplitudes in rad; thigh and shank excursions of 0.3-0.45 rad (17-26 deg)
-      are typical of level walking; the trunk yaws by 0.05 rad.
-    * ``f``: phases chosen so the stance leg and the swing leg move in opposition:
-      ``f1 = f4 = pi/2``, ``f2 = f3 = 0`` make every elevation swing between
-      ``pi/2 - j`` and ``pi/2 + j`` over a period.
-    * ``l_star``: rest lengths for a 1.75 m person (Winter's segment ratios: shank and thigh
-      0.245 H = 0.43 m, hip to shoulder 0.288 H = 0.50 m).
-    * ``l = 0.02``: the telescopic rods stretch by +-2 %.
+    Values (radians, metres, seconds):
+
+    * ``T = 0.987 s``: one stride of Winter's walk (121.6 steps/min at 1.41 m/s, Winter 2009,
+      Appendix A; :mod:`models.normative`). No other target depends on T, so it is not searched.
+    * ``j``, ``f``: amplitudes and phases of links 1-4, fitted so that each link's sagittal angle over
+      the first half period follows Winter's curve of the segment it plays: the stance shank and
+      thigh over single support, the swing thigh and shank over the swing phase.
+    * ``j_5 = 0.05``: not fitted; with ``psi_5 = pi/2`` the trunk's azimuth moves no point mass.
+    * ``l_star``: rest lengths, fitted near Winter's anthropometric fractions of a 1.75 m stature
+      (leg 0.246 H, thigh 0.245 H, hip to shoulder 0.288 H; ``l_5*`` enters no target).
+    * ``l``: the rods' stretch amplitude, fitted near 0 (the rods stretch only if a target needs it).
+
+    Targets: the segment-angle curves (residual scale 1 deg); every swing-leg point mass at least
+    1 cm above the floor (constraint); every point mass within 10 cm of the sagittal plane (our
+    assumption, a constraint); rest lengths near anthropometry (scale 5 mm). What the stored values
+    achieve (the output of ``models.gait_fit.describe``; a test checks that it is still true):
+
+    ::
+
+        T = 0.987 s (121.6 steps/min; target 0.987 s, 121.6 steps/min at 1.41 m/s)
+        link 1 (stance shank, single support): RMS 9.6 deg over the phase; range 73.1 to 96.7 deg, Winter 58.7 to 91.9 deg (residual +14.4, +4.8)
+        link 2 (stance thigh, single support): RMS 3.5 deg over the phase; range 79.4 to 100.5 deg, Winter 73.1 to 106.9 deg (residual +6.3, -6.4)
+        link 3 (swing thigh, swing): RMS 8.9 deg over the phase; range 84.2 to 110.9 deg, Winter 82.5 to 115.7 deg (residual +1.7, -4.8)
+        link 4 (swing shank, swing): RMS 13.4 deg over the phase; range 60.3 to 115.8 deg, Winter 36.8 to 112.0 deg (residual +23.5, +3.8)
+        lowest swing-leg point mass: 1.00 cm at t = 0.327 s (target >= 1 cm)
+        largest |y| of any point mass: 10.00 cm (bound 10 cm)
+        rest lengths (0.4301, 0.4285, 0.4264, 0.4239, 0.504) m (anthropometric (0.4305, 0.4287, 0.4287, 0.4305, 0.504)), stretch l = 0.0
+
+    Eq. (26)'s waveform cannot follow Winter's curves closer: it gives each azimuth the amplitude of
+    its elevation, so a lopsided sagittal range swings the link sideways (the 10 cm bound binds),
+    and a segment whose range is not centred on the vertical turns back within the half period.
+
+    The parameters used before the fit are :data:`GAITS` ``["paper-assumed-v1"]`` (the swing foot
+    reaches 1.7 cm below the floor).
     """
 
-    T: float = 1.1
-    j: tuple[float, ...] = (0.35, 0.30, 0.40, 0.35, 0.05)
-    f: tuple[float, ...] = (math.pi / 2, 0.0, 0.0, math.pi / 2)
-    l_star: tuple[float, ...] = (0.43, 0.43, 0.43, 0.43, 0.50)
-    l: float = 0.02
+    T: float = 0.987
+    j: tuple[float, ...] = (0.3082, 0.1875, 0.3663, 0.5624, 0.05)
+    f: tuple[float, ...] = (0.3891, -0.1036, 1.269, 0.9269)
+    l_star: tuple[float, ...] = (0.4301, 0.4285, 0.4264, 0.4239, 0.504)
+    l: float = 0.0
+
+
+#: The paper's assumptions before the fit (anthropometry, no data): T = 1.1 s; amplitudes
+#: 0.3-0.4 rad; phases f1 = f4 = pi/2, f2 = f3 = 0 (each elevation swings monotonically between
+#: pi/2 - j and pi/2 + j each half period); rest lengths of a 1.75 m person; rods stretch +-2 %.
+PAPER_ASSUMED_V1 = GaitParams(T=1.1, j=(0.35, 0.30, 0.40, 0.35, 0.05), f=(math.pi / 2, 0.0, 0.0, math.pi / 2),
+                              l_star=(0.43, 0.43, 0.43, 0.43, 0.50), l=0.02)
+
+#: Named gaits a scene can select (``[motion] gait = "paper-assumed-v1"``); the first is the default.
+GAITS: dict[str, GaitParams] = {"winter-fit-v1": GaitParams(), "paper-assumed-v1": PAPER_ASSUMED_V1}
+DEFAULT_GAIT = "winter-fit-v1"
 
 
 def _sin_chain(a, a1, a2):
