@@ -18,8 +18,11 @@ Format (every key is checked; an error names the file and the field)::
     # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
     #                                      t strictly increasing, at least 2 samples)
 
-    [motion.gait]                         # optional overrides of models.motion.GaitParams
-    T = 1.1
+    gait = "paper-assumed-v1"             # optional: a named gait of models.motion.GAITS
+                                          # (default "winter-fit-v1", the fitted one), or a table:
+    # [motion.gait]                       # overrides of models.motion.GaitParams, and
+    # base = "paper-assumed-v1"           # optionally the named gait they change
+    # T = 1.1
 
 Every motion has at least :data:`MIN_SAMPLES` samples (power balance differentiates along it,
 the figures draw it) and strictly increasing times; the checks name the file and the field.
@@ -31,7 +34,7 @@ scene without ``recording`` never imports rerun, a 2D scene has no psi anywhere.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +42,8 @@ import numpy as np
 
 from exo_bench.models.loading import load_mechanism, read_json, read_toml
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import GaitParams, Motion, from_arrays, gait, planar_gait, smooth_random_motion
+from exo_bench.models.motion import (DEFAULT_GAIT, GAITS, GaitParams, Motion, from_arrays, gait, planar_gait,
+                                     smooth_random_motion)
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
 OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording")
@@ -67,9 +71,10 @@ class Scene:
     def motion_label(self) -> str:
         k = self.motion["kind"]
         if k == "gait":
-            return f"gait of eq. (26), {self.motion['periods']:g} period(s) x {self.motion['samples_per_period']} samples"
+            return (f"gait of eq. (26), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
+                    f"{self.motion['samples_per_period']} samples")
         if k == "planar-gait":
-            return (f"planar gait (eq. 26, sagittal), {self.motion['periods']:g} period(s) x "
+            return (f"planar gait (eq. 26, sagittal), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
                     f"{self.motion['samples_per_period']} samples")
         if k == "smooth-random":
             return f"smooth random motion (seed {self.motion['seed']}), {self.motion['samples']} samples"
@@ -195,21 +200,28 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
         out["periods"] = _number(path, "motion.periods", m.get("periods", 1.0), lo=0)
         out["samples_per_period"] = _number(path, "motion.samples_per_period", m.get("samples_per_period", 1000),
                                             lo=1, integer=True)
-        overrides = m.get("gait", {})
-        if not isinstance(overrides, dict):
-            raise _err(path, "motion.gait", "a table of GaitParams fields", overrides)
+        spec = m.get("gait", {})
+        named = isinstance(spec, str)
+        spec = {"base": spec} if named else spec
+        if not isinstance(spec, dict):
+            raise _err(path, "motion.gait", "a gait name or a table of GaitParams fields", spec)
+        overrides = {k: v for k, v in spec.items() if k != "base"}
+        base = spec.get("base", DEFAULT_GAIT)
+        if not isinstance(base, str) or base not in GAITS:
+            raise _err(path, "motion.gait" if named else "motion.gait.base", f"a gait among {', '.join(GAITS)}", base)
         names = {f.name for f in fields(GaitParams)}
         for k, v in overrides.items():
             if k not in names:
-                raise _err(path, f"motion.gait.{k}", f"one of {sorted(names)}", k)
+                raise _err(path, f"motion.gait.{k}", f"one of {sorted(names | {'base'})}", k)
             if isinstance(v, list):
-                default = getattr(GaitParams(), k)
+                default = getattr(GAITS[base], k)
                 if len(v) != len(default) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
                     raise _err(path, f"motion.gait.{k}", f"a list of {len(default)} numbers", v)
                 overrides = {**overrides, k: tuple(float(x) for x in v)}
             else:
                 _number(path, f"motion.gait.{k}", v, lo=0 if k == "T" else None)
-        out["params"] = GaitParams(**overrides)
+        out["params"] = replace(GAITS[base], **overrides)
+        out["gait_name"] = base + (f" with {', '.join(sorted(overrides))} changed" if overrides else "")
         S = int(round(out["samples_per_period"] * out["periods"]))
         if S < MIN_SAMPLES:
             raise _err(path, "motion.periods", f"periods x samples_per_period >= {MIN_SAMPLES} samples (derivatives "

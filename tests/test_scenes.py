@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from exo_bench.bench.scenes import load_scene, shipped_scene_names
@@ -45,6 +46,9 @@ BAD = {
     "negative samples": (None, GOOD.replace("50", "-5"), "field 'motion.samples_per_period'"),
     "bad gait override": (None, GOOD + "[motion.gait]\nT = -1.0\n", "field 'motion.gait.T'"),
     "unknown gait parameter": (None, GOOD + "[motion.gait]\nspeed = 2.0\n", "field 'motion.gait.speed'"),
+    "unknown named gait": (None, GOOD + 'gait = "moonwalk"\n', "field 'motion.gait': expected a gait among "
+                           "winter-fit-v1, paper-assumed-v1, got 'moonwalk'"),
+    "unknown base gait": (None, GOOD + '[motion.gait]\nbase = 3\n', "field 'motion.gait.base'"),
     "unknown preset": (None, GOOD.replace("fig2b-2d", "fig9-2d"), "field 'mechanism'"),
     "invalid TOML": (None, "mechanism = [", "invalid TOML"),
 }
@@ -58,6 +62,22 @@ def test_malformed_scene_names_file_and_field(case, tmp_path):
         load_scene(p)
     msg = str(e.value)
     assert msg.startswith(str(p)) and needle in msg, msg
+
+
+def test_a_scene_selects_a_named_gait_and_overrides_its_fields(tmp_path):
+    from exo_bench.models.motion import GAITS, PAPER_ASSUMED_V1, GaitParams, planar_gait
+
+    default = load_scene(_write(tmp_path, GOOD, "a.toml"))
+    assert default.motion["params"] == GaitParams() and "winter-fit-v1" in default.motion_label()
+    old = load_scene(_write(tmp_path, GOOD + 'gait = "paper-assumed-v1"\n', "b.toml"))
+    assert old.motion["params"] == PAPER_ASSUMED_V1 == GAITS["paper-assumed-v1"]
+    assert "paper-assumed-v1" in old.motion_label()
+    mo = old.build_motion()                                 # the old figures' motion, sample for sample
+    np.testing.assert_array_equal(mo.q, planar_gait(old.mechanism, mo.t, PAPER_ASSUMED_V1).q)
+    assert mo.t[-1] == pytest.approx(1.1 * 49 / 50)
+    changed = load_scene(_write(tmp_path, GOOD + '[motion.gait]\nbase = "paper-assumed-v1"\nT = 2.0\n', "c.toml"))
+    assert changed.motion["params"].T == 2.0 and changed.motion["params"].j == PAPER_ASSUMED_V1.j
+    assert "paper-assumed-v1 with T changed" in changed.motion_label()
 
 
 def test_invalid_mechanism_file_in_a_scene_names_the_link(tmp_path):
