@@ -145,6 +145,10 @@ def _scene_table(o: SceneOutcome) -> str:
             lines.append(f"| {name} | {col.min():.4g} | {col.max():.4g} | {np.abs(col).max():.4g} |")
     if o.notes:
         lines += ["", "Notes:", ""] + [f"- {n}" for n in o.notes]
+    if sc.motion["kind"] in ("gait", "planar-gait") and st.ok_methods():
+        from exo_bench.bench.plausibility import markdown, plausibility
+
+        lines += ["", markdown(plausibility(st)).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
