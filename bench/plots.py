@@ -42,6 +42,14 @@ ZERO_FRACTION = 1e-9
 
 _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
            "#bcbd22", "#7f7f7f")
+#: One colour per method, the same in every figure (Dark2: none is a link colour, none is the grey or
+#: black that thresholds use); methods not listed take the remaining ones in order.
+METHOD_COLORS = {"pinocchio": "#1b9e77", "matrix": "#d95f02", "matrix-factored": "#7570b3", "matrix-paper": "#e7298a",
+                 "recurrence": "#66a61e", "lagrange": "#e6ab02"}
+_SPARE_METHOD_COLORS = ("#a6761d", "#1f78b4", "#b15928", "#6a3d9a")
+#: Smallest text in any figure (points): 9 pt at 150 dpi is 19 px high.
+TEXT_PT = 9.0
+TITLE_PT = 10.0
 _STYLES = ("--", ":", "-.", (0, (5, 1, 1, 1)), (0, (1, 3)), (0, (8, 3)))
 _JOINT = re.compile(r"L(\d+)_(phi|psi|len)$")
 _SYMBOL = {"phi": "Mφ", "psi": "Mψ", "len": "F"}
@@ -50,6 +58,16 @@ _SYMBOL = {"phi": "Mφ", "psi": "Mψ", "len": "F"}
 def link_color(i: int) -> str:
     """The colour of link ``i`` (0-based) in every figure and recording."""
     return _COLORS[i % len(_COLORS)]
+
+
+def method_color(method: str, others: list[str] | tuple[str, ...] = ()) -> str:
+    """The colour of ``method`` in every figure: :data:`METHOD_COLORS`, or for a method not listed
+    there the spare colour of its place among the unlisted ``others``."""
+    if method in METHOD_COLORS:
+        return METHOD_COLORS[method]
+    unlisted = [m for m in others if m not in METHOD_COLORS]
+    k = unlisted.index(method) if method in unlisted else 0
+    return _SPARE_METHOD_COLORS[k % len(_SPARE_METHOD_COLORS)]
 
 
 # ----------------------------------------------------------------------------- joint quantities
@@ -245,9 +263,11 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
         data = {m: moments_and_forces(mech, study.results[m].tau)[0] for m in ok}
         labels, unit, sym = moment_labels(mech), "N·m", "M"
         what = ("Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
-                "about each joint's own angle (" + ("relative azimuth φ_k − φ_parent, elevation ψ_k"
+                "about each joint's own angle (" + ("relative azimuth φ_k − φ_parent, absolute elevation ψ_k"
                                                     if mech.dim == 3 else "relative angle φ_k − φ_parent")
-                + "), not the generalised forces of the absolute angles")
+                + "), not the generalised forces of the absolute angles"
+                + ("\n(Mψ of a link with children is its joint's moment minus its children's: net joint moments "
+                   "are in the scene report)" if mech.dim == 3 else ""))
     else:
         data = {m: moments_and_forces(mech, study.results[m].tau)[1] for m in ok}
         labels, unit, sym = force_labels(mech), "N", "F"
@@ -274,28 +294,27 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
             for m in ok:
                 ax.plot(t, data[m][:, j], color=curve_color[j], ls=_style_of(ok, ref, m),
                         lw=1.8 if m == ref else 1.2, label=labels[j] if m == ref else None, gid=f"{m}:{labels[j]}")
-        ax.set_ylabel(f"{sym} ({unit})")
-        ax.set_title(scale_caption(groups, g, unit, sym) if groups.groups else "all zero", loc="left", fontsize=9)
+        ax.set_ylabel(f"{sym} ({unit})", fontsize=TEXT_PT)
+        ax.set_title(scale_caption(groups, g, unit, sym) if groups.groups else "all zero", loc="left",
+                     fontsize=TEXT_PT)
         ax.grid(True, alpha=0.3)
         ax.axhline(0.0, color="k", lw=0.6, alpha=0.5)
-        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False)
+        ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=TEXT_PT, frameon=False)
         ax.set_xlim(t[0], t[-1])
-    axes[-1].set_xlabel("time t (s)")
-    if len(ok) > 1:
+        ax.tick_params(labelsize=TEXT_PT)
+    axes[-1].set_xlabel("time t (s)", fontsize=TEXT_PT)
+    if len(ok) > 1:   # line style = method, outside the plots
         handles = [Line2D([], [], color="0.3", ls=_style_of(ok, ref, m)) for m in ok]
-        axes[0].add_artist(axes[0].legend(handles, ok, loc="upper right", fontsize=7, title="method",
-                                          title_fontsize=7, framealpha=0.8))
-        axes[0].legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8, frameon=False)
-    fig.suptitle(_header(study, what), fontsize=10)
+        fig.legend(handles, ok, loc="outside right lower", fontsize=TEXT_PT, title="method (line style)",
+                   title_fontsize=TEXT_PT, frameon=False)
+    fig.suptitle(_header(study, what), fontsize=TITLE_PT)
     _write_notes(note_ax, notes)
-    fig._exo_groups = groups  # for tests and callers: which curve went to which panel
-    fig._exo_labels = labels
     return fig
 
 
 def _panels(fig: Figure, rows: int, note_lines: int):
     """``rows`` stacked plots sharing the time axis, and a text strip below them for notes."""
-    gs = fig.add_gridspec(rows + 1, 1, height_ratios=[1.0] * rows + [0.06 + 0.07 * note_lines])
+    gs = fig.add_gridspec(rows + 1, 1, height_ratios=[1.0] * rows + [0.08 + 0.09 * note_lines])
     axes = [fig.add_subplot(gs[0, 0])]
     for r in range(1, rows):
         axes.append(fig.add_subplot(gs[r, 0], sharex=axes[0]))
@@ -307,7 +326,7 @@ def _panels(fig: Figure, rows: int, note_lines: int):
 
 
 def _write_notes(ax, lines: list[str]) -> None:
-    ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=8, color="0.2")
+    ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=TEXT_PT, color="0.2")
 
 
 def curve_colors(mech: Mechanism, kind: str) -> list[str]:
@@ -348,20 +367,22 @@ def differences_figure(study: Study) -> Figure | None:
             d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
             dmax = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
             scale = float(np.nanmax(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]))) or 1.0
+            color = method_color(m, ok)
             if dmax == 0.0:
-                ax.plot([], [], color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}: identical (0)")
+                ax.plot([], [], color=color, label=f"{m} − {ref}: identical (0)")
                 continue
-            ax.semilogy(t, np.where(d > 0, d, np.nan), color=_COLORS[k % len(_COLORS)], lw=1.2,
+            ax.semilogy(t, np.where(d > 0, d, np.nan), color=color, lw=1.2, gid=f"diff:{m}",
                         label=f"{m} − {ref}: max {dmax:.2g} {unit}\n({dmax / scale:.1e} of the largest {ref} value)")
         name = "joint moments ΔM" if part == 0 else "rod forces ΔF"
-        ax.set_ylabel(f"max |Δ| ({unit})")
-        ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=9)
+        ax.set_ylabel(f"max |Δ| ({unit})", fontsize=TEXT_PT)
+        ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=TEXT_PT)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
-    axes[-1].set_xlabel("time t (s)")
+        ax.tick_params(labelsize=TEXT_PT)
+        ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    axes[-1].set_xlabel("time t (s)", fontsize=TEXT_PT)
     axes[-1].set_xlim(t[0], t[-1])
-    fig.suptitle(_header(study, f"Differences between methods, method − {ref}, in joint moments τ_joint = G⁻ᵀ τ "
-                                "and rod forces"), fontsize=10)
+    fig.suptitle(_header(study, f"Differences between methods, method − {ref}, in the joint moments τ_joint = G⁻ᵀ τ "
+                                "and rod forces"), fontsize=TITLE_PT)
     _write_notes(note_ax, notes)
     return fig
 
@@ -369,16 +390,18 @@ def differences_figure(study: Study) -> Figure | None:
 # ----------------------------------------------------------------------------- kinogram (Fig. 9)
 #: Marker area (pt^2) of the heaviest point mass in a kinogram.
 KINOGRAM_MAX_AREA = 160.0
+#: Opacity of the first frame of the overlay; the last is opaque.
+KINOGRAM_FIRST_ALPHA = 0.15
 
 
 @dataclass(frozen=True)
-class KinogramRow:
-    """One projection of a kinogram: which world axes are drawn and what shift separates frames."""
+class Projection:
+    """A view of the motion: which world axes are drawn, horizontal and vertical, and their names."""
 
     name: str
-    axes: tuple[int, int]   # indices into the position vector: (horizontal, vertical)
+    short: str
+    axes: tuple[int, int]
     labels: tuple[str, str]
-    shift: float            # horizontal offset between consecutive frames (m)
 
 
 def kinogram_frames(study: Study, frames: int) -> np.ndarray:
@@ -389,87 +412,110 @@ def kinogram_frames(study: Study, frames: int) -> np.ndarray:
     return np.unique(np.linspace(0, S - 1, min(frames, S)).round().astype(int))
 
 
-def kinogram_rows(study: Study, positions: np.ndarray) -> list[KinogramRow]:
-    """The projections drawn: x-y for a planar model; sagittal x-z and frontal y-z for 3D.
-
-    ``positions`` are the frames' point masses ``(F, n, 3, dim)``. Frame k is drawn shifted by
-    ``k * shift``; the shift is the smallest that keeps every frame clear of the next one
-    (``max_k (right edge of k - left edge of k+1)``) plus a margin of a fifth of the figure's height.
-    """
-    mech = study.mechanism
+def projections(mech: Mechanism) -> list[Projection]:
+    """x-y for a planar model; sagittal x-z and frontal y-z for 3D. Axis names say only what the
+    coordinates are (no "walking direction": a user's mechanism need not walk)."""
     if mech.dim == 2:
-        specs = [("plane of the model (x–y)", (0, 1), ("x (m), frames shifted along x", "y (m), up"))]
-    else:
-        specs = [("sagittal projection (x–z)", (0, 2), ("x (m), walking direction, frames shifted", "z (m), up")),
-                 ("frontal projection (y–z)", (1, 2), ("y (m), lateral, frames shifted", "z (m), up"))]
-    rows = []
-    for name, ax, labels in specs:
-        h = positions[..., ax[0]].reshape(positions.shape[0], -1)     # (F, points)
-        height = float(np.ptp(positions[..., ax[1]])) or 1.0
-        lo, hi = h.min(axis=1), h.max(axis=1)
-        need = float(np.max(hi[:-1] - lo[1:])) if len(h) > 1 else float(hi[0] - lo[0])
-        rows.append(KinogramRow(name, ax, labels, max(need, 0.0) + 0.2 * height))
-    return rows
+        return [Projection("plane of the model (x–y)", "x–y plane", (0, 1), ("x (m)", "y (m), up"))]
+    return [Projection("sagittal projection (x–z)", "sagittal (x–z)", (0, 2), ("x (m)", "z (m), up")),
+            Projection("frontal projection (y–z)", "frontal (y–z)", (1, 2), ("y (m)", "z (m), up"))]
 
 
-def kinogram_figure(study: Study, frames: int = 11) -> Figure:
-    """Stick-figure frames of the motion side by side (the paper's Fig. 9).
+def _draw_frame(ax, mech: Mechanism, P: np.ndarray, proj: Projection, area: np.ndarray, alpha: float, gid: str):
+    """One frame in place: rods from start to end, point masses with area ∝ mass."""
+    hx, vx = proj.axes
+    for i in range(mech.nlinks):
+        ax.plot([P[i, 0, hx], P[i, 2, hx]], [P[i, 0, vx], P[i, 2, vx]], color=link_color(i), lw=2.2, alpha=alpha,
+                solid_capstyle="round", zorder=2, gid=f"rod:{gid}:{i}")
+    ax.scatter(P[:, :, hx].ravel(), P[:, :, vx].ravel(), s=area.ravel(),
+               c=[link_color(i) for i in range(mech.nlinks) for _ in range(3)], edgecolors="k", linewidths=0.5,
+               alpha=alpha, zorder=3, gid=f"masses:{gid}")
 
-    Rods are lines from the start to the end point of each link; point masses are dots whose
-    area is proportional to their mass (the heaviest gets :data:`KINOGRAM_MAX_AREA` pt^2);
-    the support point O is a triangle. 3D models are drawn in the sagittal projection (x-z)
-    and, below it, the frontal one (y-z)."""
+
+def _floor_and_support(ax, proj: Projection, lo: float, hi: float) -> None:
+    ax.plot([lo, hi], [0.0, 0.0], color="0.45", lw=1.0, ls="--", zorder=1, gid="floor")
+    ax.plot([0.0], [0.0], marker="^", color="k", ms=8, ls="none", zorder=4, gid="support")
+
+
+def kinogram_figure(study: Study, frames: int = 9) -> Figure:
+    """Stick-figure frames of the motion (the paper's Fig. 9), drawn as they are.
+
+    Every frame is drawn **in place**: the support point O stays at the origin and no frame is
+    shifted. The top row overlays all frames in each projection (x-z and y-z for 3D, the model's
+    plane for 2D), the later the more opaque; the bottom row shows the same frames one per panel,
+    left to right in time, all at the same scale. Rods are lines from the start to the end of each
+    link; point masses are dots whose area is proportional to their mass; a grey dashed line is the
+    floor (height 0, through O)."""
     mech = study.mechanism
     idx = kinogram_frames(study, frames)
     P = point_mass_positions(mech, study.motion.q[idx])          # (F, n, 3, dim)
-    rows = kinogram_rows(study, P)
-    masses = mech.mass_array                                      # (n, 3)
+    F = len(idx)
+    projs = projections(mech)
+    masses = mech.mass_array
     area = masses / masses.max() * KINOGRAM_MAX_AREA
     t = study.motion.t[idx]
-    widths = [float(P[..., r.axes[0]].max() - P[..., r.axes[0]].min()) + (len(idx) - 1) * r.shift for r in rows]
-    heights = [float(np.ptp(P[..., r.axes[1]])) + 0.35 for r in rows]
-    inch = min(15.0 / max(widths), 2.4)      # figure inches per metre, the same for every row
-    fig = Figure(figsize=(max(widths) * inch + 1.2, sum(heights) * inch + 1.0 + 0.55 * len(rows)),
-                 layout="constrained")
-    axes = fig.subplots(len(rows), 1, squeeze=False)[:, 0]
-    for ax, row in zip(axes, rows):
-        hx, vx = row.axes
-        offsets, sizes, colors = [], [], []
-        for k in range(len(idx)):
-            dx = k * row.shift
-            for i in range(mech.nlinks):
-                a, b = P[k, i, 0], P[k, i, 2]
-                ax.plot([a[hx] + dx, b[hx] + dx], [a[vx], b[vx]], color=link_color(i), lw=2.2,
-                        solid_capstyle="round", zorder=2, gid=f"rod:{k}:{i}")
-                for beta in range(3):
-                    offsets.append((P[k, i, beta, hx] + dx, P[k, i, beta, vx]))
-                    sizes.append(area[i, beta])
-                    colors.append(link_color(i))
-            ax.plot([dx], [0.0], marker="^", color="k", ms=7, zorder=4, ls="none")
-            ax.text(dx, P[..., vx].min() - 0.06, f"{t[k]:.2f} s", ha="center", va="top", fontsize=7.5)
-        offsets = np.array(offsets)
-        ax.scatter(offsets[:, 0], offsets[:, 1], s=sizes, c=colors, edgecolors="k", linewidths=0.5,
-                   zorder=3, gid=f"masses:{row.name}")
-        lo = P[..., hx].min() - 0.1
-        hi = P[..., hx].max() + (len(idx) - 1) * row.shift + 0.1
-        ax.axhline(0.0, color="0.5", lw=0.8, zorder=1)
-        ax.set_xlim(lo, hi)
-        ax.set_ylim(P[..., vx].min() - 0.25, P[..., vx].max() + 0.1)
+    alphas = np.linspace(KINOGRAM_FIRST_ALPHA, 1.0, F) if F > 1 else np.ones(1)
+    lo = {a: float(min(P[..., a].min(), 0.0)) - 0.08 for a in range(mech.dim)}
+    hi = {a: float(max(P[..., a].max(), 0.0)) + 0.08 for a in range(mech.dim)}
+    span = lambda a: hi[a] - lo[a]
+    vert = projs[0].axes[1]
+    cell = max(span(projs[0].axes[0]), 0.3)
+    small = min(1.6, 14.0 / (F * cell))                  # inches per metre in the frame panels
+    width = max(F * cell * small + 1.5, 11.0)
+    inch = min(3.6, 0.6 * width / sum(span(p.axes[0]) for p in projs))   # inches per metre in the overlay
+    fig = Figure(figsize=(width, span(vert) * (inch + small) + 3.4), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=[span(vert) * inch + 1.3, span(vert) * small + 1.4])
+    ratios = [span(p.axes[0]) for p in projs]
+    grid = top.subplots(1, len(projs) + 1, squeeze=False,
+                        gridspec_kw={"width_ratios": ratios + [max(0.25 * sum(ratios), width / inch - sum(ratios))]})[0]
+    overlay, note = grid[:-1], grid[-1]
+    for ax, proj in zip(overlay, projs):
+        hx, vx = proj.axes
+        for k in range(F):
+            _draw_frame(ax, mech, P[k], proj, area, float(alphas[k]), f"overlay:{proj.name}:{k}")
+        _floor_and_support(ax, proj, lo[hx], hi[hx])
+        ax.set_xlim(lo[hx], hi[hx])
+        ax.set_ylim(lo[vx], hi[vx])
         ax.set_aspect("equal")
-        ax.set_xlabel(row.labels[0] + f" by {row.shift:.2f} m", fontsize=8.5)
-        ax.set_ylabel(row.labels[1], fontsize=8.5)
-        ax.set_title(row.name, loc="left", fontsize=9)
-        ax.tick_params(labelsize=7.5)
+        ax.set_xlabel(proj.labels[0], fontsize=TEXT_PT)
+        ax.set_ylabel(proj.labels[1], fontsize=TEXT_PT)
+        ax.set_title(proj.short, loc="left", fontsize=TEXT_PT)
+        ax.tick_params(labelsize=TEXT_PT)
+        ax.locator_params(axis="x", nbins=4)
+    note.set_axis_off()
+    how = [f"How to read: every frame is drawn where it is. The support point O (▲) stays at the origin and no "
+           f"frame is shifted, so the model does not walk away: link 1 stays on O for the whole motion.",
+           "", f"Left: all {F} frames overlaid in each projection; the first frame is the palest "
+           f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
+           "", "Below: the same frames one per panel, left to right in time, at one common scale.",
+           "", "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
+           "the grey dashed line is the floor (height 0)."]
+    note.text(0.06, 0.95, "\n".join(how), transform=note.transAxes, ha="left", va="top", fontsize=TEXT_PT,
+              color="0.15", wrap=True)
+    panels = bottom.subplots(1, F, sharey=True, squeeze=False)[0]
+    proj = projs[0]
+    hx, vx = proj.axes
+    for k, ax in enumerate(panels):
+        _draw_frame(ax, mech, P[k], proj, area, 1.0, f"frame:{k}")
+        _floor_and_support(ax, proj, lo[hx], hi[hx])
+        ax.set_xlim(lo[hx], hi[hx])
+        ax.set_ylim(lo[vx], hi[vx])
+        ax.set_aspect("equal")
+        ax.set_title(f"frame {k + 1}\nt = {t[k]:.2f} s", fontsize=TEXT_PT)
+        ax.set_xlabel(proj.labels[0].split(",")[0], fontsize=TEXT_PT)
+        ax.tick_params(labelsize=TEXT_PT)
+        ax.locator_params(axis="x", nbins=3)
+    panels[0].set_ylabel(proj.labels[1], fontsize=TEXT_PT)
+    bottom.suptitle(f"The same {F} frames one per panel, {proj.name}, left to right in time", fontsize=TEXT_PT,
+                    x=0.01, ha="left")
     handles = [Line2D([], [], color=link_color(i), lw=2.2, label=f"link {i + 1}: {mech.names[i]}")
                for i in range(mech.nlinks)]
-    fig.legend(handles=handles, fontsize=8, loc="outside lower center", ncols=min(mech.nlinks, 6), frameon=False)
-    proj = "sagittal projection (x–z) and frontal projection (y–z) of the 3D motion" if mech.dim == 3 \
-        else "the model's plane"
-    fig.suptitle(_header(study, f"Kinogram (paper's Fig. 9): {len(idx)} frames over {t[-1] - t[0]:.2f} s, {proj}; "
-                                f"dot area ∝ point mass (largest {masses.max():.3g} kg), ▲ support point O"),
-                 fontsize=10)
-    fig._exo_frames = idx
-    fig._exo_rows = rows
+    handles += [Line2D([], [], color="0.45", ls="--", label="floor (height 0)"),
+                Line2D([], [], color="k", marker="^", ls="none", label="support point O")]
+    fig.legend(handles=handles, fontsize=TEXT_PT, loc="outside lower center", ncols=min(len(handles), 7), frameon=False)
+    fig.suptitle(_header(study, f"Kinogram (paper's Fig. 9): {F} frames over {t[-1] - t[0]:.2f} s, drawn in place "
+                                f"(the support point O is fixed; frames are not shifted); dot area ∝ point mass "
+                                f"(largest {masses.max():.3g} kg)"), fontsize=TITLE_PT)
     return fig
 
 
@@ -478,99 +524,134 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     """One picture of a scene laid out like its rerun recording: the model in 3D at one instant
     (rods, point masses sized by mass, trails of the last 0.2 s) on the left; joint moments,
     rod forces and the differences between methods on the right."""
+    from matplotlib.ticker import MaxNLocator
+
     _check_ok(study)
 
     mech, t = study.mechanism, study.motion.t
     ok, ref = study.ok_methods(), reference_method(study)
-    fig = Figure(figsize=(15, 8), layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.25)
-    gs = fig.add_gridspec(3, 2, width_ratios=[1.0, 1.45])
+    fig = Figure(figsize=(16, 9), layout="constrained")
+    fig.get_layout_engine().set(w_pad=0.15)
+    gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1.45])
     ax3 = fig.add_subplot(gs[:, 0], projection="3d")
     s = int(round(frame * (len(t) - 1)))
     P = point_mass_positions(mech, study.motion.q)
     P3 = P if mech.dim == 3 else np.stack([P[..., 0], np.zeros_like(P[..., 0]), P[..., 1]], axis=-1)
     masses = mech.mass_array
+    handles = []
     for i in range(mech.nlinks):
         a, b = P3[s, i, 0], P3[s, i, 2]
-        ax3.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color=link_color(i), lw=3, label=f"{i + 1} {mech.names[i]}")
+        handles += ax3.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color=link_color(i), lw=3,
+                            label=f"link {i + 1}: {mech.names[i]}")
         ax3.scatter(P3[s, i, :, 0], P3[s, i, :, 1], P3[s, i, :, 2], s=masses[i] / masses.max() * 220,
                     color=link_color(i), edgecolors="k", depthshade=False)
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
     back = max(int(round(0.2 / dt)), 1)
-    for name, (link, beta) in trail_points(mech).items():
+    for k, (name, (link, beta)) in enumerate(trail_points(mech).items()):
         w = P3[max(s - back, 0): s + 1, link, beta]
-        ax3.plot(w[:, 0], w[:, 1], w[:, 2], color="k", lw=1.2, ls="--")
-        ax3.text(*w[-1], f" {name}", fontsize=8)
-    ax3.scatter([0], [0], [0], marker="^", color="k", s=60)
+        handles += ax3.plot(w[:, 0], w[:, 1], w[:, 2], color="k", lw=1.2, ls=("--", ":", "-.")[k % 3],
+                            label=f"trail: {name}, last 0.2 s")
+    handles += [ax3.scatter([0], [0], [0], marker="^", color="k", s=60, label="support point O")]
     span = float(np.ptp(P3[..., 2])) or 1.0
     c = P3[s].reshape(-1, 3).mean(axis=0)
     ax3.set_xlim(c[0] - span / 2, c[0] + span / 2)
     ax3.set_ylim(c[1] - span / 2, c[1] + span / 2)
     ax3.set_zlim(min(0.0, P3[..., 2].min()), P3[..., 2].max())
-    ax3.set_box_aspect((1, 1, 1))
-    ax3.set_xlabel("x (m)")
-    ax3.set_ylabel("y (m)")
-    ax3.set_zlabel("z (m), up", labelpad=4)
+    ax3.set_box_aspect((1, 1, 1), zoom=1.1)
+    for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+    ax3.tick_params(labelsize=TEXT_PT)
+    ax3.set_xlabel("x (m)", fontsize=TEXT_PT, labelpad=6)
+    ax3.set_ylabel("y (m)", fontsize=TEXT_PT, labelpad=6)
+    ax3.set_zlabel("z (m), up", fontsize=TEXT_PT, labelpad=6)
     ax3.view_init(elev=12, azim=-60)
-    ax3.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, 0.93))
-    ax3.set_title(f"3D view at t = {t[s]:.2f} s (dashed: trails of the last 0.2 s)", fontsize=9)
+    ax3.set_title(f"3D view at t = {t[s]:.2f} s; dot area ∝ point mass", fontsize=TEXT_PT)
+    fig.legend(handles=handles, loc="outside lower left", fontsize=TEXT_PT, ncols=3, frameon=False)
     M = moments_and_forces(mech, study.results[ref].tau)
-    for r, (vals, labels, unit, title) in enumerate(((M[0], moment_labels(mech), "N·m", "joint moments τ_joint = G⁻ᵀ τ"),
-                                                     (M[1], force_labels(mech), "N", "rod forces F"))):
+    for r, (vals, labels, unit, sym, title) in enumerate(
+            ((M[0], moment_labels(mech), "N·m", "M", "joint moments τ_joint = G⁻ᵀ τ"),
+             (M[1], force_labels(mech), "N", "F", "rod forces F"))):
         ax = fig.add_subplot(gs[r, 1])
         inv = curve_colors(mech, "moments" if r == 0 else "forces")
         for j in range(vals.shape[1]):
             ax.plot(t, vals[:, j], color=inv[j], lw=1.3, label=labels[j])
-        ax.set_ylabel(f"({unit})")
-        ax.set_title(f"{title} ({ref})", loc="left", fontsize=9)
+        ax.set_ylabel(f"{sym} ({unit})", fontsize=TEXT_PT)
+        ax.set_title(f"{title} ({ref})", loc="left", fontsize=TEXT_PT)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=6.5, ncols=2 if vals.shape[1] > 6 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5),
+        ax.tick_params(labelsize=TEXT_PT)
+        ax.legend(fontsize=TEXT_PT, ncols=2 if vals.shape[1] > 6 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5),
                   frameon=False)
         ax.set_xlim(t[0], t[-1])
+        ax.tick_params(labelbottom=False)
     ax = fig.add_subplot(gs[2, 1])
     others = [m for m in ok if m != ref]
-    for k, m in enumerate(others):
+    for m in others:
         tj = joint_quantities(mech, study.results[m].tau - study.results[ref].tau)
         d = np.abs(tj).max(axis=1)
-        ax.semilogy(t, np.where(d > 0, d, np.nan), color=_COLORS[k % len(_COLORS)], label=f"{m} − {ref}")
-    ax.set_title("differences: largest |method − reference| over all joints (N·m or N)"
-                 if others else "differences: only one method ran", loc="left", fontsize=9)
+        ax.semilogy(t, np.where(d > 0, d, np.nan), color=method_color(m, ok), label=f"{m} − {ref}", gid=f"diff:{m}")
+    ax.set_title("differences: largest |method − reference| over all joints"
+                 if others else "differences: only one method ran", loc="left", fontsize=TEXT_PT)
+    ax.set_ylabel("max |Δ| (N·m or N)", fontsize=TEXT_PT)
     if others:
-        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
+        ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_xlabel("time t (s)")
+    ax.tick_params(labelsize=TEXT_PT)
+    ax.set_xlabel("time t (s)", fontsize=TEXT_PT)
     ax.set_xlim(t[0], t[-1])
     what = f"Overview in the layout of the rerun recording: moments and forces of {ref}" + (
         f"; differences of {', '.join(others)} from it" if others else "")
-    fig.suptitle(_header(study, what), fontsize=10)
+    fig.suptitle(_header(study, what), fontsize=TITLE_PT)
     return fig
 
 
 # ----------------------------------------------------------------------------- saving
-def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
-    """The points whose recent path is drawn, as ``name -> (link, mass index)``.
+#: Anatomical names of link ends, for the exoskeleton's link names only.
+_ANATOMY = {"stance_thigh": "hip", "swing_shin": "swing ankle", "stance_shin": "stance knee", "swing_thigh": "swing knee"}
 
-    ``hip``: the branch point where the reversed (hanging) links start, i.e. the end of the parent
-    of the first reversed link (the end of link 2 for the exoskeleton); ``foot``: the free end of
-    a reversed leaf link (the swing shin). A model without reversed links gets the ``tip``, the
-    free end of its last link.
+
+def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
+    """The points whose recent path is drawn, as ``name -> (link, mass index)``, named after the
+    mechanism's own links: ``"<link> end"``, with the anatomical name in brackets for the
+    exoskeleton's links (``"stance_thigh end (hip)"``).
+
+    Which points: the branch point where reversed (hanging) links start, i.e. the end of the parent
+    of the first reversed link, and the free end of every reversed leaf link; a model without
+    reversed links gets the free end of its last link.
     """
+    def name(i: int) -> str:
+        n = mech.names[i]
+        return f"{n} end" + (f" ({_ANATOMY[n]})" if n in _ANATOMY else "")
+
     out: dict[str, tuple[int, int]] = {}
     reversed_links = [i for i in range(mech.nlinks) if mech.sign[i] < 0]
     for i in reversed_links:
         p = mech.parent[i]
         if p >= 0 and mech.sign[p] > 0:
-            out["hip"] = (p, 2)
+            out[name(p)] = (p, 2)
             break
-    feet = [i for i in reversed_links if not mech.children[i]]
-    for k, i in enumerate(feet):
-        out["foot" if len(feet) == 1 else f"foot{k + 1}"] = (i, 2)
+    for i in reversed_links:
+        if not mech.children[i]:
+            out[name(i)] = (i, 2)
     if not reversed_links:
-        out["tip"] = (mech.nlinks - 1, 2)
+        out[name(mech.nlinks - 1)] = (mech.nlinks - 1, 2)
     return out
 
 
-def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, frames: int = 11) -> list[Path]:
+#: The scene figures, by output name.
+FIGURES = ("moments", "forces", "kinogram", "differences", "overview")
+
+
+def scene_figure(study: Study, kind: str) -> Figure | None:
+    """The figure ``kind`` (one of :data:`FIGURES`) of a study; None for differences with fewer than
+    two methods."""
+    make = {"moments": moments_figure, "forces": forces_figure, "kinogram": kinogram_figure,
+            "differences": differences_figure, "overview": overview_figure}
+    if kind not in make:
+        raise ValueError(f"scene figure: field 'kind': expected one of {', '.join(FIGURES)}, got {kind!r}")
+    return make[kind](study)
+
+
+def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, frames: int = 9) -> list[Path]:
     """Write ``<prefix>-moments.png``, ``-forces.png``, ``-kinogram.png`` and, with two or more
     methods, ``-differences.png``; return the paths written."""
     out = Path(out_dir)
@@ -585,8 +666,9 @@ def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, fr
 
 
 __all__ = [
-    "JointBasis", "KinogramRow", "ScaleGroups", "curve_colors", "differences_figure", "force_labels", "forces_figure",
-    "generalised_moment_labels", "generalised_moments", "group_by_scale", "joint_basis", "joint_quantities",
-    "kinogram_figure", "kinogram_frames", "kinogram_rows", "link_color", "moment_labels", "moments_and_forces",
-    "moments_figure", "nonfinite_notes", "overview_figure", "reference_method", "save_figure", "write_plots",
+    "FIGURES", "JointBasis", "METHOD_COLORS", "Projection", "ScaleGroups", "TEXT_PT", "curve_colors",
+    "differences_figure", "force_labels", "forces_figure", "generalised_moment_labels", "generalised_moments",
+    "group_by_scale", "joint_basis", "joint_quantities", "kinogram_figure", "kinogram_frames", "link_color",
+    "method_color", "moment_labels", "moments_and_forces", "moments_figure", "nonfinite_notes", "overview_figure",
+    "projections", "reference_method", "save_figure", "scene_figure", "trail_points", "write_plots",
 ]

@@ -4,7 +4,8 @@ One recording per scene holds, on the timeline ``time`` (seconds since the start
 
 * ``world/...`` - the model in 3D: ``world/rods`` (one line strip per rod), ``world/masses``
   (point masses as spheres of radius proportional to mass^(1/3)), ``world/support`` (the support
-  point O, static) and ``world/trails/<point>`` (the last 0.2 s of the hip and the swing foot).
+  point O, static) and ``world/trails/<point>`` (the last 0.2 s of the points
+  :func:`bench.plots.trail_points` names after the mechanism's links, e.g. the hip and the swing ankle).
   Planar models are drawn in the x-z plane with z up, so one viewer layout serves both.
 * ``moments/<scale group>/<method>`` - the joint moments ``tau_joint = G^-T tau`` (N·m), grouped
   by the scale of their maxima like the paper's Fig. 7;
@@ -12,7 +13,8 @@ One recording per scene holds, on the timeline ``time`` (seconds since the start
   ``generalised/<reference method>`` - the paper's generalised moments of the absolute angles (N·m);
   ``differences/moments/<method>``, ``differences/forces/<method>`` - method minus reference.
 * ``meta`` - what the recording holds and how it was made (rerun-sdk version, exo-bench commit,
-  methods, quantity conventions), as a Markdown document and as plain values.
+  methods, quantity conventions) and the loads beside level walking (:mod:`bench.plausibility`),
+  as a Markdown document and as plain values.
 
 Every time series is sent with ``send_columns`` (one call per entity, all samples at once); the
 layout is a saved blueprint (the file opens with it). The file is written to a temporary name
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -36,6 +39,8 @@ from matplotlib.colors import to_rgb
 from exo_bench.bench.plots import (SCALE_RATIO, trail_points, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
                          group_by_scale, link_color, moment_labels, moments_and_forces, nonfinite_notes,
                          reference_method, scale_caption)
+from exo_bench.bench.plausibility import plausibility
+from exo_bench.bench.plausibility import text as plausibility_text
 from exo_bench.bench.reporting import machine_info
 from exo_bench.bench.study import Study
 from exo_bench.models.kinematics import point_mass_positions
@@ -43,7 +48,7 @@ from exo_bench.models.mechanism import Mechanism
 
 APPLICATION_ID = "exo-bench"
 TIMELINE = "time"
-#: Trails show where the hip and the swing foot were over this many seconds.
+#: Trails show where the trail points were over this many seconds.
 TRAIL_SECONDS = 0.2
 #: Points per trail (the trail is subsampled; the newest point is the current one).
 TRAIL_POINTS = 11
@@ -95,6 +100,11 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
     dt = float(np.median(np.diff(t))) if S > 1 else 1.0
     back = np.round(np.linspace(seconds / dt, 0.0, points)).astype(int)   # samples back, within dt/2 of exact
     return np.clip(np.arange(S)[:, None] - back[None, :], 0, S - 1)
+
+
+def trail_entity(name: str) -> str:
+    """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``)."""
+    return re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", name)).strip("_")
 
 
 def mass_radii(mech: Mechanism) -> np.ndarray:
@@ -195,6 +205,9 @@ def _describe(study: Study) -> tuple[str, dict]:
         elif m in agreement and m != ref:
             lines.append(f"- {m}: max |τ − τ_{ref}| / max |τ_{ref}| = {agreement[m]:.2e}")
     lines += [f"- **{w}**" for w in nonfinite_notes(study)]
+    plaus = plausibility(study)
+    if plaus is not None:
+        lines += ["", "## Loads", "", plausibility_text(plaus)]
     lines += ["", "## Quantities", "",
               "- `moments/`: the **joint moments** τ_joint = G⁻ᵀ τ (N·m) about the joints of Pinocchio's model "
               "(`L<k>_phi`: relative azimuth φ_k − φ_parent; `L<k>_psi`: elevation ψ_k) — the paper's Fig. 7, "
@@ -249,13 +262,14 @@ def _log_world(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) -
     labels = [f"m{i + 1},{b} = {mech.masses[i][b]:.4g} kg ({mech.names[i]})" for i in range(n) for b in range(3)]
     stream.log("world/masses", rr.Points3D.from_fields(radii=mass_radii(mech), colors=[c for c in link_rgb for _ in range(3)],
                                                        labels=labels, show_labels=False), static=True)
-    # Trails: the recent path of the hip and the swing foot.
+    # Trails: the recent path of the trail points.
     idx = trail_indices(study.motion.t)
     for name, (i, b) in trail_points(mech).items():
         path = P[idx, i, b]                                           # (S, points, 3)
-        stream.send_columns(f"world/trails/{name}", indexes=[times],
+        entity = f"world/trails/{trail_entity(name)}"
+        stream.send_columns(entity, indexes=[times],
                             columns=rr.LineStrips3D.columns(strips=path).partition([1] * S))
-        stream.log(f"world/trails/{name}", rr.LineStrips3D.from_fields(
+        stream.log(entity, rr.LineStrips3D.from_fields(
             colors=[(200, 200, 200)], radii=[0.004], labels=[f"{name}, last {TRAIL_SECONDS:g} s"], show_labels=False),
             static=True)
 
@@ -367,5 +381,5 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
 
 
 __all__ = ["screenshot", "APPLICATION_ID", "CONVENTIONS", "TIMELINE", "blueprint", "mass_radii", "reference_method",
-           "rerun_executable", "trail_indices", "trail_points", "verify_recording", "world_positions",
+           "rerun_executable", "trail_entity", "trail_indices", "trail_points", "verify_recording", "world_positions",
            "write_recording"]

@@ -183,10 +183,8 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
     if figures and o.study.ok_methods():
         from exo_bench.bench import plots  # matplotlib only for scenes that ask for figures
-        make = {"moments": plots.moments_figure, "forces": plots.forces_figure, "kinogram": plots.kinogram_figure,
-                "differences": plots.differences_figure, "overview": plots.overview_figure}
         for kind in figures:
-            fig = make[kind](o.study)
+            fig = plots.scene_figure(o.study, kind)
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue

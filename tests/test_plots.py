@@ -129,20 +129,33 @@ def _lines_by_panel(fig: Figure):
     return out
 
 
+def _notes(fig) -> str:
+    return " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
+
+
+def _zero_named(fig, labels) -> list[str]:
+    """The curves the figure's notes name as zero throughout."""
+    notes = _notes(fig)
+    if "zero throughout" not in notes:
+        return []
+    named = notes.split("zero throughout", 1)[1].split(":", 1)[1].split("\n")[0]
+    return [x.strip() for x in named.split(",") if x.strip() in labels]
+
+
 @pytest.mark.parametrize("kind", ["moments", "forces"])
 @pytest.mark.parametrize("which", ["exo", "planar"])
 def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
+    """Read from what is drawn: every panel's reference curves are the study's arrays, span at most
+    the ratio of their maxima, and every curve is drawn in exactly one panel or named as zero."""
     study = request.getfixturevalue(which)
     fig = (moments_figure if kind == "moments" else forces_figure)(study)
     mech = study.mechanism
     values = moments_and_forces(mech, study.results["pinocchio"].tau)[0 if kind == "moments" else 1]
     labels = plots.moment_labels(mech) if kind == "moments" else plots.force_labels(mech)
     panels = _lines_by_panel(fig)
-    assert len(panels) == len(fig._exo_groups.groups)
     seen = []
-    for (ax, lines), grp in zip(panels, fig._exo_groups.groups):
+    for ax, lines in panels:
         ref_lines = [ln for ln in lines if ln.get_gid().startswith("pinocchio:")]
-        assert sorted(ln.get_gid().split(":", 1)[1] for ln in ref_lines) == sorted(labels[j] for j in grp)
         maxima = [np.abs(ln.get_ydata()).max() for ln in ref_lines]
         assert max(maxima) <= 10.0 * min(maxima)
         for ln in ref_lines:                                               # the curve is the study's array
@@ -151,15 +164,19 @@ def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
             seen.append(j)
         lo, hi = min(maxima), max(maxima)
         assert f"{hi:.3g}" in ax.get_title(loc="left") and f"{lo:.3g}" in ax.get_title(loc="left")
-    assert sorted(seen + list(fig._exo_groups.zero)) == list(range(len(labels)))
+    zero = [labels.index(x) for x in _zero_named(fig, labels)]
+    assert sorted(seen + zero) == list(range(len(labels)))
+    for a, b in zip(panels, panels[1:]):                                   # larger scales above smaller ones
+        assert min(np.abs(ln.get_ydata()).max() for ln in a[1]) > max(np.abs(ln.get_ydata()).max() for ln in b[1])
 
 
 def test_the_zero_moment_is_named_not_plotted(exo):
     """The trunk stands vertical (psi_5 = pi/2), so turning it in azimuth moves no mass: M_phi5 = 0."""
     fig = moments_figure(exo)
-    labels = fig._exo_labels
-    assert [labels[j] for j in fig._exo_groups.zero] == ["Mφ5 trunk"]
-    assert "Mφ5 trunk" in " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
+    labels = plots.moment_labels(exo.mechanism)
+    assert _zero_named(fig, labels) == ["Mφ5 trunk"]
+    gids = [ln.get_gid() for _, lines in _lines_by_panel(fig) for ln in lines]
+    assert not any(g.endswith(":Mφ5 trunk") for g in gids)
 
 
 def test_titles_say_model_motion_methods_and_which_quantity(exo, planar):
@@ -167,6 +184,7 @@ def test_titles_say_model_motion_methods_and_which_quantity(exo, planar):
     title = fig._suptitle.get_text()
     assert "exo5-3d" in title and "test gait" in title and "Fig. 7" in title
     assert "joint moments τ_joint = G⁻ᵀ τ" in title and "not the generalised forces" in title
+    assert "absolute elevation ψ_k" in title and "net joint moments" in title
     notes = " ".join(t.get_text() for ax in fig.axes for t in ax.texts)
     assert "pinocchio (solid)" in notes and "noisy (dashed)" in notes and "broken: failed (RuntimeError: boom)" in notes
     ftitle = forces_figure(planar)._suptitle.get_text()
@@ -180,7 +198,8 @@ def test_titles_say_model_motion_methods_and_which_quantity(exo, planar):
 def test_every_method_is_drawn_and_a_failed_one_is_named(exo):
     fig = moments_figure(exo)
     gids = [ln.get_gid() for _, lines in _lines_by_panel(fig) for ln in lines]
-    n = len(plots.moment_labels(exo.mechanism)) - len(fig._exo_groups.zero)
+    labels = plots.moment_labels(exo.mechanism)
+    n = len(labels) - len(_zero_named(fig, labels))
     assert sum(g.startswith("pinocchio:") for g in gids) == n
     assert sum(g.startswith("noisy:") for g in gids) == n
     assert not any(g.startswith("broken:") for g in gids)
@@ -210,56 +229,84 @@ def test_a_study_without_results_cannot_be_plotted_and_says_why():
 
 # ----------------------------------------------------------------------------- kinogram (Fig. 9)
 def _masses_collections(fig):
-    return [c for ax in fig.axes for c in ax.collections
-            if isinstance(c, PathCollection) and (c.get_gid() or "").startswith("masses:")]
+    return {c.get_gid(): c for ax in fig.axes for c in ax.collections
+            if isinstance(c, PathCollection) and (c.get_gid() or "").startswith("masses:")}
+
+
+def _frame_times(fig) -> list[float]:
+    """The times the frame panels' titles give ("frame k\nt = 0.12 s")."""
+    out = []
+    for ax in fig.axes:
+        title = ax.get_title()
+        if title.startswith("frame "):
+            out.append(float(title.split("t = ")[1].split(" s")[0]))
+    return out
 
 
 @pytest.mark.parametrize("which", ["exo", "planar"])
-def test_kinogram_dots_have_area_proportional_to_mass_and_sit_on_the_shifted_frames(which, request):
+def test_kinogram_frames_are_drawn_in_place_with_dots_of_area_proportional_to_mass(which, request):
+    """Every frame, overlaid and one per panel, sits where the kinematics puts it: no shift."""
     study = request.getfixturevalue(which)
     mech = study.mechanism
     fig = kinogram_figure(study, frames=7)
-    idx, rows = fig._exo_frames, fig._exo_rows
+    idx = plots.kinogram_frames(study, 7)                                # evenly spread, first and last sample
     assert len(idx) == 7 and idx[0] == 0 and idx[-1] == len(study.motion.t) - 1
+    np.testing.assert_allclose(study.motion.t[idx], _frame_times(fig), atol=0.005 + 1e-12)
     P = point_mass_positions(mech, study.motion.q[idx])                 # (F, n, 3, dim)
     cols = _masses_collections(fig)
-    assert len(cols) == len(rows) == (2 if mech.dim == 3 else 1)
-    m = np.tile(mech.mass_array.reshape(-1), len(idx))
-    for col, row in zip(cols, rows):
-        sizes = np.asarray(col.get_sizes())
-        np.testing.assert_allclose(sizes / m, (sizes / m)[0])            # area ∝ mass
-        hx, vx = row.axes
-        shift = (np.arange(len(idx)) * row.shift)[:, None, None]
-        expected = np.stack([(P[..., hx] + shift).reshape(-1), P[..., vx].reshape(-1)], axis=1)
-        np.testing.assert_allclose(col.get_offsets(), expected, atol=1e-12)
-        # frames do not overlap: each frame ends left of where the next begins
-        xs = (P[..., hx] + shift).reshape(len(idx), -1)
-        assert np.all(xs.max(axis=1)[:-1] < xs.min(axis=1)[1:])
+    projections = plots.projections(mech)
+    assert len(cols) == 7 * (len(projections) + 1)                      # overlays + one panel per frame
+    m = mech.mass_array.reshape(-1)
+    for k in range(7):
+        for gid, proj in [(f"masses:frame:{k}", projections[0])] + [(f"masses:overlay:{p.name}:{k}", p)
+                                                                     for p in projections]:
+            col = cols[gid]
+            sizes = np.asarray(col.get_sizes())
+            np.testing.assert_allclose(sizes / m, (sizes / m)[0])            # area ∝ mass
+            hx, vx = proj.axes
+            expected = np.stack([P[k, :, :, hx].reshape(-1), P[k, :, :, vx].reshape(-1)], axis=1)
+            np.testing.assert_allclose(col.get_offsets(), expected, atol=1e-12)
 
 
-def test_kinogram_of_a_3d_model_is_the_sagittal_projection_and_says_so(exo, planar):
-    fig = kinogram_figure(exo)
-    assert fig._exo_rows[0].axes == (0, 2)                               # x-z
-    title = fig._suptitle.get_text()
-    assert "sagittal projection (x–z)" in title and "exo5-3d" in title and "Fig. 9" in title
-    assert "area ∝ point mass" in title
-    assert fig.axes[0].get_ylabel().startswith("z (m)")
-    assert kinogram_figure(planar)._exo_rows[0].axes == (0, 1)
-
-
-def test_kinogram_draws_every_rod_of_every_frame_from_start_to_end(planar):
+def test_kinogram_draws_every_rod_of_every_frame_from_start_to_end_and_the_support_at_the_origin(planar):
     mech = planar.mechanism
     fig = kinogram_figure(planar, frames=4)
-    P = point_mass_positions(mech, planar.motion.q[fig._exo_frames])
-    ax = fig.axes[0]
-    rods = [ln for ln in ax.get_lines() if (ln.get_gid() or "").startswith("rod:")]
-    assert len(rods) == 4 * mech.nlinks
-    shift = fig._exo_rows[0].shift
+    idx = plots.kinogram_frames(planar, 4)
+    P = point_mass_positions(mech, planar.motion.q[idx])
+    rods = {ln.get_gid(): ln for ax in fig.axes for ln in ax.get_lines() if (ln.get_gid() or "").startswith("rod:")}
     for k in range(4):
         for i in range(mech.nlinks):
-            ln = rods[k * mech.nlinks + i]
-            np.testing.assert_allclose(ln.get_xdata(), [P[k, i, 0, 0] + k * shift, P[k, i, 2, 0] + k * shift])
+            ln = rods[f"rod:frame:{k}:{i}"]
+            np.testing.assert_allclose(ln.get_xdata(), [P[k, i, 0, 0], P[k, i, 2, 0]])
             np.testing.assert_allclose(ln.get_ydata(), [P[k, i, 0, 1], P[k, i, 2, 1]])
+    supports = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_gid() == "support"]
+    assert supports and all(list(ln.get_xdata()) == [0.0] and list(ln.get_ydata()) == [0.0] for ln in supports)
+    floors = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_gid() == "floor"]
+    assert floors and all(set(ln.get_ydata()) == {0.0} for ln in floors)
+
+
+def test_the_shipped_gaits_kinogram_shows_no_swing_leg_point_below_the_floor():
+    from exo_bench.bench.scenes import load_scene
+
+    sc = load_scene("exo5-3d")
+    study = run_methods(sc.name, sc.mechanism, sc.build_motion(), sc.motion_label(), ["pinocchio"])
+    fig = kinogram_figure(study)
+    swing = [3 * i + b for i in (2, 3) for b in range(3)]                 # the dots of links 3 and 4
+    for gid, col in _masses_collections(fig).items():
+        if gid.startswith("masses:frame:") or "sagittal" in gid:
+            assert np.asarray(col.get_offsets())[swing, 1].min() >= 0.0, gid
+
+
+def test_kinogram_of_a_3d_model_has_sagittal_and_frontal_views_and_says_it_is_drawn_in_place(exo, planar):
+    fig = kinogram_figure(exo)
+    title = fig._suptitle.get_text()
+    assert "exo5-3d" in title and "Fig. 9" in title and "area ∝ point mass" in title
+    assert "drawn in place" in title and "frames are not shifted" in title
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert "sagittal (x–z)" in titles and "frontal (y–z)" in titles
+    labels = {ax.get_xlabel() for ax in fig.axes} | {ax.get_ylabel() for ax in fig.axes}
+    assert not any("walking" in x or "shifted" in x for x in labels)
+    assert "x–y plane" in [ax.get_title(loc="left") for ax in kinogram_figure(planar).axes]
 
 
 # ----------------------------------------------------------------------------- files
@@ -283,6 +330,9 @@ def test_figures_are_written_as_png_atomically(planar, tmp_path, monkeypatch):
 def test_two_methods_add_the_differences_figure(exo, tmp_path):
     names = [p.name for p in write_plots(exo, tmp_path, frames=3)]
     assert names[-1] == "exo5-3d-differences.png" and len(names) == 4
+    fig = differences_figure(exo)
+    colours = {ln.get_gid(): ln.get_color() for ax in fig.axes for ln in ax.get_lines() if ln.get_gid()}
+    assert colours["diff:noisy"] == plots.method_color("noisy", ["pinocchio", "noisy"])
 
 
 def test_a_method_returning_nan_is_reported_not_hidden(planar):

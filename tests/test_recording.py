@@ -19,8 +19,8 @@ from rerun.chunk import RrdReader
 
 from exo_bench.bench import recording
 from exo_bench.bench.plots import force_labels, moment_labels
-from exo_bench.bench.recording import (TRAIL_SECONDS, rerun_executable, trail_indices, trail_points, verify_recording,
-                             write_recording)
+from exo_bench.bench.recording import (TRAIL_SECONDS, rerun_executable, trail_entity, trail_indices, trail_points,
+                                      verify_recording, write_recording)
 from exo_bench.bench.study import MethodResult, Study, run_methods
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.motion import GaitParams, gait, planar_gait
@@ -242,13 +242,13 @@ def test_point_mass_spheres_have_volume_proportional_to_mass(exo):
     np.testing.assert_allclose(r**3 / m, (r**3 / m)[0], rtol=1e-5)
 
 
-def test_trails_follow_the_hip_and_the_swing_foot_over_the_last_fifth_of_a_second(exo):
+def test_trails_follow_the_hip_and_the_swing_ankle_over_the_last_fifth_of_a_second(exo):
     study, _, rec = exo
     mech = study.mechanism
-    assert trail_points(mech) == {"hip": (1, 2), "foot": (3, 2)}    # end of the stance thigh, of the swing shin
+    assert trail_points(mech) == {"stance_thigh end (hip)": (1, 2), "swing_shin end (swing ankle)": (3, 2)}
     P = point_mass_positions(mech, study.motion.q)
     t = study.motion.t
-    for name, link in (("hip", 1), ("foot", 3)):
+    for name, link in (("stance_thigh_end_hip", 1), ("swing_shin_end_swing_ankle", 3)):
         strips = np.array(rec.temporal[f"world/trails/{name}"]["LineStrips3D:strips"], dtype=float)  # (S, 1, k, 3)
         assert strips.shape[:2] == (len(t), 1)
         path = strips[:, 0]
@@ -260,10 +260,12 @@ def test_trails_follow_the_hip_and_the_swing_foot_over_the_last_fifth_of_a_secon
         assert abs((t[i0] - t[j]) - TRAIL_SECONDS) <= 0.5 * (t[1] - t[0]) + 1e-12
 
 
-def test_trail_points_of_the_planar_scenes():
-    assert trail_points(fig2a(2)) == {"tip": (1, 2)}
-    assert trail_points(fig2b(2)) == {"hip": (0, 2), "foot": (1, 2)}
-    assert trail_points(fig5(2)) == {"hip": (1, 2), "foot": (3, 2)}
+def test_trail_points_of_the_planar_scenes_are_named_after_their_links():
+    """fig2b's branch point is the end of its shin (a knee, not a hip): names come from the links."""
+    assert trail_points(fig2a(2)) == {"thigh end": (1, 2)}
+    assert trail_points(fig2b(2)) == {"shin end": (0, 2), "thigh end": (1, 2)}
+    assert trail_points(fig5(2)) == {"stance_thigh end (hip)": (1, 2), "swing_shin end (swing ankle)": (3, 2)}
+    assert trail_entity("stance_thigh end (hip)") == "stance_thigh_end_hip"
 
 
 def test_trail_indices_look_back_a_fixed_time_and_never_before_the_start():
@@ -287,6 +289,12 @@ def test_meta_records_the_sdk_version_commit_methods_and_conventions(exo):
     text = meta["TextDocument:text"][0]
     assert "over the time budget of 1 s" in text and "RuntimeError: singular matrix" in text
     assert "joint moments" in text and rr.__version__ in text
+    # the loads beside level walking, with the same numbers as the scene report's table
+    from exo_bench.bench.plausibility import plausibility
+    p = plausibility(study)
+    assert "## Loads" in text and "beside level walking" in text and "Not comparable with walking" in text
+    for row in p.joints:
+        assert f"- {row.joint}: {row.sagittal:.2f} N·m/kg sagittal" in text
 
 
 def test_blueprint_lays_out_the_3d_view_and_time_series_of_recorded_entities(exo):
@@ -312,14 +320,17 @@ def test_blueprint_lays_out_the_3d_view_and_time_series_of_recorded_entities(exo
     assert groups <= set(series)                                           # and every group has a plot
 
 
-@pytest.mark.skipif(rerun_executable() is None, reason="the rerun executable is not installed next to this Python")
+def test_the_rerun_executable_is_installed_with_rerun_sdk():
+    """The checks below need it; it comes with the rerun-sdk dependency, so its absence is a broken install."""
+    assert rerun_executable() is not None
+
+
 @pytest.mark.parametrize("which", ["exo", "planar"])
 def test_rerun_rrd_verify_accepts_the_recording(which, request):
     _, path, _ = request.getfixturevalue(which)
     assert "1 file verified without error" in verify_recording(path)
 
 
-@pytest.mark.skipif(rerun_executable() is None, reason="the rerun executable is not installed next to this Python")
 def test_verify_rejects_a_truncated_recording_and_a_non_recording(exo, tmp_path):
     _, path, _ = exo
     data = path.read_bytes()
@@ -372,8 +383,6 @@ def test_a_screenshot_needs_a_display_and_says_so(exo, tmp_path, monkeypatch):
     _, path, _ = exo
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    if rerun_executable() is None:
-        pytest.skip("the rerun executable is not installed next to this Python")
     with pytest.raises(OSError, match="no display"):
         recording.screenshot(path, tmp_path / "x.png")
     assert not (tmp_path / "x.png").exists()

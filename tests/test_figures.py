@@ -1,0 +1,163 @@
+"""The scene figures as a reader gets them: PNGs at 150 dpi or more, text of 9 pt or more, legends
+outside the plots, every axis with its unit, one colour per method never used for anything else,
+and names that come from the mechanism.
+
+Checked with matplotlib on the figures the runner saves (drawn with the Agg renderer, so every
+bounding box is the one in the PNG) and with Pillow on the PNG files themselves.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.text import Text
+from PIL import Image
+
+from exo_bench.bench import plots, runner
+from exo_bench.bench.plots import FIGURES, METHOD_COLORS, TEXT_PT
+from exo_bench.bench.reporting import PNG_DPI
+from exo_bench.bench.scenes import load_scene, shipped_scene_names
+from exo_bench.bench.study import run_methods
+from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.presets import chain
+
+REPORTS = Path(__file__).resolve().parents[1] / "reports"
+UNIT = re.compile(r"\([^()]*[A-Za-z·/]+[^()]*\)")
+
+
+def _scene(tmp_path, mechanism: str, kind: str) -> Path:
+    p = tmp_path / f"{mechanism}.toml"
+    p.write_text(f'mechanism = "{mechanism}"\nmethods = ["pinocchio", "matrix", "recurrence"]\n'
+                 f'outputs = ["table", {", ".join(repr(k).replace(chr(39), chr(34)) for k in FIGURES)}]\n'
+                 f'[motion]\nkind = "{kind}"\nsamples_per_period = 120\n')
+    return p
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    """Two scenes run by the runner (its PNGs) and their figures (matplotlib objects)."""
+    out = {}
+    for mech, kind in (("exo5-3d", "gait"), ("fig5-2d", "planar-gait")):
+        d = tmp_path_factory.mktemp(mech)
+        o = runner.run_scene(load_scene(_scene(d, mech, kind)), d)
+        out[mech] = (o, {k: plots.scene_figure(o.study, k) for k in FIGURES})
+    return out
+
+
+def _arm_study():
+    """A user's 3-link arm: no stance leg, no swing leg, no walking."""
+    mech = chain(3, dim=3)
+    t = np.linspace(0.0, 1.0, 60)
+    return run_methods("arm", mech, smooth_random_motion(mech, t, seed=1), "a reach", ["pinocchio", "matrix"])
+
+
+def _drawn(fig):
+    FigureCanvasAgg(fig).draw()
+    return fig.canvas.get_renderer()
+
+
+def _all_legends(fig):
+    out = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    stack = [fig]
+    while stack:
+        f = stack.pop()
+        out += list(f.legends)
+        stack += list(f.subfigs)
+    return out
+
+
+def _plots(fig):
+    """The axes that show data (the note strips are axes with their axis turned off)."""
+    return [ax for ax in fig.axes if ax.axison]
+
+
+def test_every_png_the_runner_writes_is_150_dpi_or_more(scenes):
+    for o, _ in scenes.values():
+        pngs = [f for f in o.files if f.suffix == ".png"]
+        assert len(pngs) == len(FIGURES)
+        for f in pngs:
+            dpi = Image.open(f).info["dpi"]
+            assert min(dpi) >= 150 - 0.5, f"{f.name}: {dpi}"
+
+
+@pytest.mark.parametrize("scene", sorted(n for n in shipped_scene_names()))
+def test_the_shipped_reports_figures_are_150_dpi_or_more(scene):
+    sc = load_scene(scene)
+    for kind in FIGURES:
+        if not sc.wants(kind):
+            continue
+        png = REPORTS / f"{scene}-{kind}.png"
+        assert png.exists(), png
+        assert min(Image.open(png).info["dpi"]) >= 150 - 0.5, png.name
+    assert PNG_DPI >= 150
+
+
+@pytest.mark.parametrize("mech", ["exo5-3d", "fig5-2d"])
+@pytest.mark.parametrize("kind", FIGURES)
+def test_no_legend_covers_a_plot(scenes, mech, kind):
+    fig = scenes[mech][1][kind]
+    renderer = _drawn(fig)
+    legends = _all_legends(fig)
+    assert legends, "every scene figure has a legend"
+    for leg in legends:
+        box = leg.get_window_extent(renderer)
+        for ax in _plots(fig):
+            assert not box.overlaps(ax.get_window_extent(renderer)), (kind, [t.get_text() for t in leg.get_texts()][:3])
+
+
+@pytest.mark.parametrize("mech", ["exo5-3d", "fig5-2d"])
+@pytest.mark.parametrize("kind", FIGURES)
+def test_all_text_is_9_pt_or_more(scenes, mech, kind):
+    fig = scenes[mech][1][kind]
+    _drawn(fig)
+    small = [(t.get_text()[:30], t.get_fontsize()) for t in fig.findobj(Text)
+             if t.get_visible() and t.get_text().strip() and t.get_fontsize() < TEXT_PT]
+    assert not small
+
+
+@pytest.mark.parametrize("mech", ["exo5-3d", "fig5-2d"])
+@pytest.mark.parametrize("kind", FIGURES)
+def test_every_axis_with_tick_labels_names_its_unit(scenes, mech, kind):
+    fig = scenes[mech][1][kind]
+    _drawn(fig)
+    for ax in _plots(fig):
+        axes = [("x", ax.get_xticklabels(), ax.get_xlabel()), ("y", ax.get_yticklabels(), ax.get_ylabel())]
+        if hasattr(ax, "get_zlabel"):
+            axes.append(("z", ax.get_zticklabels(), ax.get_zlabel()))
+        for name, ticks, label in axes:
+            if any(t.get_visible() and t.get_text() for t in ticks):
+                assert UNIT.search(label), (kind, name, label)
+
+
+@pytest.mark.parametrize("kind", ["differences", "overview"])
+def test_each_method_has_its_colour_and_nothing_else_uses_a_method_colour(scenes, kind):
+    fig = scenes["exo5-3d"][1][kind]
+    method_lines = [ln for ax in fig.axes for ln in ax.get_lines() if (ln.get_gid() or "").startswith("diff:")]
+    assert {ln.get_gid()[5:] for ln in method_lines} == {"matrix", "recurrence"}
+    for ln in method_lines:
+        assert ln.get_color() == METHOD_COLORS[ln.get_gid()[5:]]
+    reserved = set(METHOD_COLORS.values())
+    others = [ln for ax in fig.axes for ln in ax.get_lines() if not (ln.get_gid() or "").startswith("diff:")]
+    assert not [ln.get_label() for ln in others if ln.get_color() in reserved]
+
+
+def test_method_colours_are_not_link_colours_grey_or_black():
+    links = {plots.link_color(i) for i in range(10)}
+    assert not set(METHOD_COLORS.values()) & (links | {"#000000", "#7f7f7f", "k", "0.45"})
+    assert len(set(METHOD_COLORS.values())) == len(METHOD_COLORS)
+
+
+def test_a_users_arm_gets_names_from_its_links_not_from_walking():
+    study = _arm_study()
+    assert plots.trail_points(study.mechanism) == {"link3 end": (2, 2)}
+    for kind in ("kinogram", "overview"):
+        fig = plots.scene_figure(study, kind)
+        _drawn(fig)
+        words = " ".join(t.get_text() for t in fig.findobj(Text)).lower()
+        for bad in ("walking direction", "foot", "hip", "stance", "swing"):
+            assert bad not in words, (kind, bad)
+    assert "link3 end" in " ".join(t.get_text() for t in plots.overview_figure(study).findobj(Text))
