@@ -17,7 +17,13 @@ from exo_bench.models import forward_dynamics as fd
 
 @pytest.fixture(scope="module")
 def gait_case():
-    return fw.round_trip_cases()[0]            # the planar gait of the five-link exoskeleton, 0.3 s
+    """The planar gait of the five-link exoskeleton, 0.3 s, with the parameters the case describes
+    (T = 1.1 s: paper-assumed-v1; the shipped gait is now the fitted winter-fit-v1)."""
+    from exo_bench.models.motion import PAPER_ASSUMED_V1, planar_gait
+
+    c = fw.round_trip_cases()[0]
+    return fw.RoundTripCase(c.name, c.mechanism, lambda t: planar_gait(c.mechanism, t, PAPER_ASSUMED_V1),
+                            c.horizon, c.description)
 
 
 @pytest.fixture(scope="module")
