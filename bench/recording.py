@@ -146,7 +146,7 @@ def blueprint(study: Study) -> rrb.Blueprint:
         rrb.Spatial3DView(origin="world", name=f"{study.name}: rods, point masses (radius ∝ mass^⅓), trails",
                           eye_controls=eye, line_grid=rrb.LineGrid3D(visible=True, spacing=0.1)),
         rrb.TextDocumentView(origin="meta", name="About this recording"),
-        row_shares=[4, 1])
+        row_shares=[3, 2])
     right: list = []
     if ok:
         mg, _ = _groups(study, 0)
@@ -195,8 +195,11 @@ def _describe(study: Study) -> tuple[str, dict]:
     lines = [f"# {study.name}: {study.motion_label}", "",
              f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
              f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
-             f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`.", "",
-             f"Methods: {', '.join(ok) if ok else 'none succeeded'}; reference: {ref}."]
+             f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`."]
+    plaus = plausibility(study)
+    if plaus is not None:
+        lines += ["", "## Loads", "", plausibility_text(plaus)]
+    lines += ["", "## Methods", "", f"Methods: {', '.join(ok) if ok else 'none succeeded'}; reference: {ref}."]
     for m, r in study.results.items():
         if r.skipped:
             lines.append(f"- {m}: skipped ({r.skipped})")
@@ -205,9 +208,6 @@ def _describe(study: Study) -> tuple[str, dict]:
         elif m in agreement and m != ref:
             lines.append(f"- {m}: max |τ − τ_{ref}| / max |τ_{ref}| = {agreement[m]:.2e}")
     lines += [f"- **{w}**" for w in nonfinite_notes(study)]
-    plaus = plausibility(study)
-    if plaus is not None:
-        lines += ["", "## Loads", "", plausibility_text(plaus)]
     lines += ["", "## Quantities", "",
               "- `moments/`: the **joint moments** τ_joint = G⁻ᵀ τ (N·m) about the joints of Pinocchio's model "
               "(`L<k>_phi`: relative azimuth φ_k − φ_parent; `L<k>_psi`: elevation ψ_k) — the paper's Fig. 7, "
