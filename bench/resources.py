@@ -36,7 +36,8 @@ pinocchio           3     O(dof)                       4.6 us (5), 65 (25), 518 
 ==================  ====  ===========================  =========================
 
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
-and more, 0.91 GB at 3D n = 100, zero-filled at about 0.5 GB/s) plus its model (9 MB at 3D n = 100);
+and more, 0.91 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
+would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
 17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
@@ -76,7 +77,7 @@ def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
     from exo_bench.models.urdf import pinocchio_data_bytes
 
     threads = int(options.get("threads", 1) or 1)
-    count = 1 + (threads if threads > 1 else 0)          # this thread's Data, and the pool's
+    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
     return pinocchio_data_bytes(mech), count
 
 
@@ -87,7 +88,7 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count / 0.5e9 + 2e-4 * mech.nlinks        # createData zero-fills at ~0.5 GB/s
+    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
 
 
 def _pin_note(mech, options):
