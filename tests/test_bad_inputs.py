@@ -226,7 +226,7 @@ CASES = [
          "nested deeper than Python's recursion limit", patch=_method_raises(RecursionError("maximum recursion"))),
     Case("pinocchio-data", "a Pinocchio Data larger than the memory a run may use",
          lambda d: ["inverse", _chain_file(d, 40, 3), _states(chain(40, 3), 1, path=d / "s.json")],
-         "needs 72.2 MB, more than the 50.0 MB of memory it may use", patch=_pin_data_too_large),
+         "(3D, 40 links, nv = 120) needs 65.3 MB, more than the 50.0 MB of memory it may use", patch=_pin_data_too_large),
     Case("pinocchio-bad-alloc", "Pinocchio's own allocation failure", lambda d: ["inverse", "exo5-3d", _s5(d)],
          "out of memory in Pinocchio (std::bad_alloc)", patch=_pin_bad_alloc),
     # ---------------------------------------------------------------- scenes and reports folders
