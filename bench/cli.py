@@ -391,8 +391,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv, warnings) -> int:
     with warnings.catch_warnings():
-        warnings.showwarning = _show_warning
-        warnings.simplefilter("default")
+        # Where Python would print a warning (file, line, source: two lines), print one line instead;
+        # where a caller records warnings (a test harness, an embedding program), leave them to it.
+        impl = getattr(warnings, "_showwarnmsg_impl", None)   # catch_warnings(record=True) replaces it
+        if (warnings.showwarning is getattr(warnings, "_showwarning_orig", None)
+                and getattr(impl, "__name__", "") == "_showwarnmsg_impl"):
+            warnings.showwarning = _show_warning
         try:
             args = build_parser().parse_args(argv)
             return int(args.func(args) or 0)
