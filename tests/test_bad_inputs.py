@@ -388,7 +388,10 @@ def _line(case: Case, tmp: Path) -> tuple[str, str]:
     import re
 
     rc, out, err, argv = run_case(case, tmp)
-    line = err.strip().splitlines()[0] if err.strip() else "(nothing: exit 0)"
+    lines = err.strip().splitlines()
+    # the line of the case (a result's stderr may also hold warnings that Python's recorder takes under pytest)
+    line = next((ln for ln in lines if case.needle and case.needle in ln.replace(str(tmp), "<dir>")),
+                lines[0] if lines else "(nothing: exit 0)")
     # times measured by the run itself vary: the document shows them as "..."
     line = re.sub(r"\(stopped after [0-9.]+ s\)(; an earlier attempt ran [0-9.]+ s without finishing)?",
                   "(stopped after ... s)", line)
