@@ -391,12 +391,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv, warnings) -> int:
     with warnings.catch_warnings():
-        # Where Python would print a warning (file, line, source: two lines), print one line instead;
-        # where a caller records warnings (a test harness, an embedding program), leave them to it.
-        impl = getattr(warnings, "_showwarnmsg_impl", None)   # catch_warnings(record=True) replaces it
-        if (warnings.showwarning is getattr(warnings, "_showwarning_orig", None)
-                and getattr(impl, "__name__", "") == "_showwarnmsg_impl"):
-            warnings.showwarning = _show_warning
+        warnings.showwarning = _show_warning   # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
             return int(args.func(args) or 0)

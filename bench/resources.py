@@ -22,7 +22,7 @@ Memory is rounded up (an estimate that is too high refuses a run that would fit;
 a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is not
 rounded up, so that a refusal for its budget is a real one.
 
-Measured against estimated by :func:`calibration_table` (the estimate without :data:`BASE_BYTES`;
+Measured against estimated by :func:`bench.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
 afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
 
     | method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |
