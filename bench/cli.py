@@ -62,8 +62,7 @@ def _read_npz(path: str, what: str) -> dict:
                          "use (--max-memory does not raise this); split the batch")
     try:
         with np.load(p, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files if k in ("q", "qd", "qdd")} | {k: None for k in z.files
-                                                                             if k not in ("q", "qd", "qdd")}
+            return {k: (z[k] if k in ("q", "qd", "qdd") else None) for k in z.files}
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     except ValueError as e:
@@ -127,14 +126,17 @@ def cmd_inverse(args) -> int:
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
-    bad_rows = [s0 + int(r) for s0 in range(0, tau.shape[0], 65536)
-                for r in np.flatnonzero(~np.isfinite(tau[s0:s0 + 65536]).all(axis=1))[:1]][:1]
-    if bad_rows:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
-        count = sum(int(np.count_nonzero(~np.isfinite(tau[s0:s0 + 65536]))) for s0 in range(0, tau.shape[0], 65536))
-        s = bad_rows[0]
-        c = int(np.flatnonzero(~np.isfinite(tau[s]))[0])
+    count, first = 0, None
+    for s0 in range(0, tau.shape[0], 65536):   # in row blocks: no (samples, dof) mask
+        bad = ~np.isfinite(tau[s0:s0 + 65536])
+        if bad.any():
+            count += int(bad.sum())
+            if first is None:
+                s, c = map(int, np.argwhere(bad)[0])
+                first = (s0 + s, c)
+    if count:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
         print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
-              f"(first: sample {s}, {force_names(mech)[c]})", file=sys.stderr)
+              f"(first: sample {first[0]}, {force_names(mech)[first[1]]})", file=sys.stderr)
     _write_tau(args.method, tau, sys.stdout)
     return 0
 
@@ -389,8 +391,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv, warnings) -> int:
     with warnings.catch_warnings():
-        warnings.showwarning = _show_warning
-        warnings.simplefilter("default")
+        warnings.showwarning = _show_warning   # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
             return int(args.func(args) or 0)

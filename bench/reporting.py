@@ -126,7 +126,7 @@ def run_id_of(path: str | Path) -> str | None:
                         return line[len(RUN_LINE):].strip().strip("`") or None
         elif path.suffix == ".png":
             head = path.read_bytes()[:65536]
-            m = re.search(rb"exo-bench run ([0-9]{8}T[0-9]{6}Z-[0-9a-f]+)", head)
+            m = re.search(rb"exo-bench run ([0-9]{8}T[0-9]{6}Z-[0-9a-f]{4})", head)   # 4 hex digits, then binary (the CRC)
             return m.group(1).decode() if m else None
     except OSError:
         return None

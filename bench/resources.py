@@ -19,24 +19,52 @@ because Pinocchio allocates in C++ where tracemalloc does not see; time is ``per
 chains of n = 5, 25 and 100 links (lagrange: 1 to 30) in 2D and 3D with batches of 1 and 2000
 samples, on a 2-core x86-64 machine shared with other jobs (pin 4.1.0, numpy 2.4, sympy 1.14).
 Memory is rounded up (an estimate that is too high refuses a run that would fit; one too low lets
-a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is rounded
-down, so that a refusal for its budget is a real one. The measured points:
+a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is not
+rounded up, so that a refusal for its budget is a real one.
 
-==================  ====  ===========================  =========================
-method              dim   per-sample bytes (in chunk)   seconds per sample (bulk)
-==================  ====  ===========================  =========================
-matrix              2     ~19 n^2 floats (n=25, 100)   2.8 us (5), 74 (25), 736 (100)
-matrix              3     ~33 n^2 floats               9.9 us (5), 189 (25), 2540 (100)
-matrix-paper        2/3   ~9 / ~15 n^2 floats          3.5 / 11 us (5), 590 / 2455 (100)
-recurrence          2     ~19-30 n^2 floats            5.6 us (5), 605 (25), 19860 (100)
-recurrence          3     ~52-56 n^2 floats            17 us (5), 985 (25), 49000 (100)
-matrix-factored     2/3   O(n), ~6 kB at n = 100       0.5 / 0.8 us (5), 2.7 / 4.7 (25), 22-164 (100)
-pinocchio           2     O(dof)                       3.0 us (5), 29 (25), 277 (100)
-pinocchio           3     O(dof)                       4.6 us (5), 65 (25), 518 (100)
-==================  ====  ===========================  =========================
+Measured against estimated by :func:`bench.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
+afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
+
+    | method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |
+    |---|---|---|---|---|---|---|---|
+    | matrix-factored | 2 | 5 | 2000 | 2.2 | 6.2 | 0.00679 | 0.00108 |
+    | matrix-factored | 2 | 25 | 2000 | 6.1 | 26.7 | 0.0105 | 0.00527 |
+    | matrix-factored | 2 | 100 | 200 | 5.5 | 11.9 | 0.0346 | 0.0162 |
+    | matrix-factored | 3 | 5 | 2000 | 2.7 | 7.1 | 0.00675 | 0.00108 |
+    | matrix-factored | 3 | 25 | 2000 | 9.2 | 31.5 | 0.0153 | 0.00527 |
+    | matrix-factored | 3 | 100 | 200 | 7.1 | 13.8 | 0.0811 | 0.0162 |
+    | matrix | 2 | 5 | 2000 | 3.6 | 14.5 | 0.0233 | 0.00713 |
+    | matrix | 2 | 25 | 2000 | 31.6 | 71.4 | 0.218 | 0.128 |
+    | matrix | 2 | 100 | 200 | 32.5 | 69.3 | 0.313 | 0.211 |
+    | matrix | 3 | 5 | 2000 | 9.7 | 21.2 | 0.0549 | 0.0171 |
+    | matrix | 3 | 25 | 2000 | 68.9 | 72.9 | 0.823 | 0.378 |
+    | matrix | 3 | 100 | 200 | 70.7 | 68.2 | 1.14 | 0.611 |
+    | matrix-paper | 2 | 5 | 2000 | 7.3 | 16.1 | 0.0361 | 0.00713 |
+    | matrix-paper | 2 | 25 | 2000 | 31.3 | 71.3 | 0.23 | 0.128 |
+    | matrix-paper | 2 | 100 | 200 | 33.3 | 69.9 | 0.336 | 0.211 |
+    | matrix-paper | 3 | 5 | 2000 | 17.7 | 26.0 | 0.0417 | 0.0171 |
+    | matrix-paper | 3 | 25 | 2000 | 51.3 | 72.9 | 0.4 | 0.378 |
+    | matrix-paper | 3 | 100 | 200 | 54.9 | 69.7 | 0.692 | 0.611 |
+    | recurrence | 2 | 5 | 2000 | 5.5 | 22.5 | 0.0177 | 0.0249 |
+    | recurrence | 2 | 25 | 2000 | 32.5 | 71.3 | 0.799 | 1.21 |
+    | recurrence | 2 | 100 | 200 | 32.9 | 67.9 | 4.34 | 3.96 |
+    | recurrence | 3 | 5 | 2000 | 16.1 | 38.8 | 0.0426 | 0.0247 |
+    | recurrence | 3 | 25 | 2000 | 59.4 | 72.6 | 1.85 | 1.93 |
+    | recurrence | 3 | 100 | 200 | 63.6 | 68.1 | 10.2 | 9.62 |
+    | pinocchio | 2 | 5 | 2000 | 4.7 | 6.0 | 0.0152 | 0.0328 |
+    | pinocchio | 2 | 25 | 2000 | 12.9 | 25.7 | 0.114 | 0.161 |
+    | pinocchio | 2 | 100 | 200 | 281.2 | 305.4 | 0.201 | 0.224 |
+    | pinocchio | 3 | 5 | 2000 | 4.9 | 7.7 | 0.0172 | 0.0581 |
+    | pinocchio | 3 | 25 | 2000 | 26.7 | 44.8 | 0.117 | 0.293 |
+    | pinocchio | 3 | 100 | 200 | 916.6 | 945.5 | 0.428 | 0.593 |
+    | lagrange | 2 | 5 | 200 | 18.9 | 20.8 | 0.651 | 0.871 |
+    | lagrange | 2 | 10 | 200 | 71.1 | 82.8 | 4.18 | 4.15 |
+    | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
+    | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
 
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
-and more, 0.91 GB at 3D n = 100, zero-filled at about 0.5 GB/s) plus its model (9 MB at 3D n = 100);
+and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
+would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
 17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
@@ -76,7 +104,7 @@ def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
     from exo_bench.models.urdf import pinocchio_data_bytes
 
     threads = int(options.get("threads", 1) or 1)
-    count = 1 + (threads if threads > 1 else 0)          # this thread's Data, and the pool's
+    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
     return pinocchio_data_bytes(mech), count
 
 
@@ -87,7 +115,7 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count / 0.5e9 + 2e-4 * mech.nlinks        # createData zero-fills at ~0.5 GB/s
+    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
 
 
 def _pin_note(mech, options):
@@ -142,24 +170,24 @@ MODELS: dict[str, CostModel] = {
         sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
         note=lambda m, o: "the sympy derivation"),
     "matrix": CostModel(
-        _matrix_setup, lambda m, o: 1e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 40) * n * n + 40 * n),
+        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 44) * n * n + 40 * n),
         sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
         note=lambda m, o: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
     "matrix-paper": CostModel(
-        _matrix_setup, lambda m, o: 1e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((16 if d == 2 else 24) * n * n + 60 * n),
+        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 48) * n * n + 60 * n),
         sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
         note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})"),
     "recurrence": CostModel(
-        _matrix_setup, lambda m, o: 1e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((36 if d == 2 else 64) * n * n + 60 * n),
+        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((40 if d == 2 else 80) * n * n + 60 * n),
         sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
         note=lambda m, o: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
     "matrix-factored": CostModel(
-        _matrix_setup, lambda m, o: 1e-6 * m.nlinks**2,
+        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
-        sample_seconds=lambda n, d: (0.4 + 0.003 * n * n) * 1e-6,
+        sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
         note=lambda m, o: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
 }
 

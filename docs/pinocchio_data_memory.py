@@ -4,7 +4,8 @@ Pure Pinocchio and numpy (no exo-bench code). Run: ``python docs/pinocchio_data_
 (Linux: memory is read from /proc/self/status).
 
 1. ``pin.Data(model)`` allocates and zero-fills about ``32 nv^3`` bytes on any model, whatever
-   algorithm is then called: a plain chain of revolute joints shows it.
+   algorithm is then called: a plain chain of revolute joints shows it. ``model.createData()``
+   peaks at twice that (it returns a copy).
 2. On a model with a mimic joint, ``pin.crba`` with a reused ``Data`` depends on the previous
    call: ``data.Fcrb`` is read before it is written.
 """
@@ -15,12 +16,27 @@ import numpy as np
 import pinocchio as pin
 
 
-def rss_bytes() -> int:
+def status(key: str = "VmRSS") -> int:
     with open("/proc/self/status") as f:
         for line in f:
-            if line.startswith("VmRSS:"):
+            if line.startswith(key + ":"):
                 return int(line.split()[1]) * 1024
-    raise RuntimeError("no VmRSS")
+    raise RuntimeError(f"no {key}")
+
+
+def rss_bytes() -> int:
+    return status("VmRSS")
+
+
+def peak_of(make):
+    """(object, peak RSS growth, kept RSS growth, seconds) of ``make()``; the peak is reset first."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    before = rss_bytes()
+    t0 = time.perf_counter()
+    obj = make()
+    seconds = time.perf_counter() - t0
+    return obj, status("VmHWM") - before, rss_bytes() - before, seconds
 
 
 def revolute_chain(nv: int) -> pin.Model:
@@ -35,23 +51,24 @@ def revolute_chain(nv: int) -> pin.Model:
 
 
 def data_memory() -> None:
-    print("1. pin.Data(model) on a chain of nv revolute joints (pin", pin.__version__ + ")")
-    print(f"{'nv':>5} {'createData MB':>14} {'32 nv^3 MB':>11} {'seconds':>8} {'rnea us':>8}")
+    print("1. pin.Data(model) on a chain of nv revolute joints (pin", pin.__version__ + "): RSS growth in MB")
+    print(f"{'nv':>5} {'32 nv^3':>9} {'pin.Data kept':>14} {'peak':>8} {'createData kept':>16} {'peak':>8} "
+          f"{'seconds':>8} {'rnea us':>8}")
     for nv in (50, 100, 200, 400):
         model = revolute_chain(nv)
-        before = rss_bytes()
-        t0 = time.perf_counter()
-        data = model.createData()
-        seconds = time.perf_counter() - t0
-        grown = rss_bytes() - before
+        data, peak, kept, seconds = peak_of(lambda: pin.Data(model))
         q = np.zeros(nv)
         t0 = time.perf_counter()
         pin.rnea(model, data, q, q, q)
         rnea = (time.perf_counter() - t0) * 1e6
-        print(f"{nv:5d} {grown / 1e6:14.1f} {32 * nv**3 / 1e6:11.1f} {seconds:8.3f} {rnea:8.0f}")
         del data
+        data, cpeak, ckept, _ = peak_of(model.createData)
+        del data
+        print(f"{nv:5d} {32 * nv**3 / 1e6:9.1f} {kept / 1e6:14.1f} {peak / 1e6:8.1f} {ckept / 1e6:16.1f} "
+              f"{cpeak / 1e6:8.1f} {seconds:8.3f} {rnea:8.0f}")
     print("RNEA itself needs O(nv) memory; the nv^3 part is d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq "
-          "(nv x nv x nv each) and kinematic_hessians (6 x nv x nv), all allocated in DataTpl's constructor.")
+          "(nv x nv x nv each) and kinematic_hessians (6 x nv x nv), all allocated in DataTpl's constructor. "
+          "createData() peaks at twice the size: it returns a copy.")
 
 
 URDF = """<?xml version="1.0"?>

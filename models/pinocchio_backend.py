@@ -9,7 +9,9 @@ and zero-fills, whatever algorithm will run: among its fields are four dense ``n
 tensors of second-order derivatives (``d2tau_dqdq``, ``d2tau_dvdv``, ``d2tau_dqdv``,
 ``d2tau_dadq``) and the ``6 x nv x nv`` ``kinematic_hessians`` (pinocchio/multibody/data.hxx).
 That is ``32 nv^3`` bytes whether or not those algorithms are ever called: 0.87 GB for a 3D
-chain of 100 links (nv = 300), 23 GB for 300 links (nv = 900). Neither the URDF's nesting nor
+chain of 100 links (nv = 300), 23 GB for 300 links (nv = 900). ``model.createData()`` moreover
+returns a copy, so its peak is twice that; ``pin.Data(model)`` builds in place, and is what the
+backend uses. Neither the URDF's nesting nor
 the mimic joints cause it (mimic joints make ``nv`` smaller: without them a 3D chain has
 ``nv = 5n - 1`` instead of ``3n``, and 4.4 times the memory); ``nv = dof`` is the least any
 Pinocchio model of the mechanism can have. :func:`data_bytes` is the measured size, and the
@@ -64,7 +66,7 @@ class PinocchioModel:
         """A new scratch ``Data`` (``32 nv^3`` bytes and more: :func:`data_bytes`), after checking
         that it fits in the available memory. Never cached here: the model cache would keep it."""
         check_data_fits(self.mechanism)
-        return self.model.createData()
+        return pin.Data(self.model)   # in place: createData() returns a copy, twice the peak
 
     @property
     def data(self) -> pin.Data:
@@ -172,7 +174,7 @@ def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None =
     q, qd, qdd = as_states(mech, q, qd, qdd)
     threads = threads or os.cpu_count() or 1
     pm = build_model(mech)
-    check_data_fits(mech, threads)
+    check_data_fits(mech, threads + 1)   # the pool's Data, and one more while it copies them
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
     f = lambda x: np.asfortranarray(x.T)
     tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
@@ -264,7 +266,8 @@ class PinocchioRNEA(PreparedModel):
             raise ValueError(f"pinocchio: option 'threads': expected an integer >= 1, got {threads!r}")
         super().__init__(mechanism, threads=int(threads))
         self.threads = int(threads)
-        self.data_bytes = check_data_fits(mechanism, 1 + (int(threads) if threads > 1 else 0))
+        # this thread's Data, and the pool's (its construction copies one more: threads + 1 at its peak)
+        self.data_bytes = check_data_fits(mechanism, 1 + (int(threads) + 1 if threads > 1 else 0))
         pm = build_model(mechanism)
         self.pin_model: pin.Model = pm.model
         self.G: np.ndarray = np.ascontiguousarray(pm.G)
@@ -278,7 +281,7 @@ class PinocchioRNEA(PreparedModel):
         """This thread's scratch ``Data`` (created on first use in each thread)."""
         d = getattr(self._local, "data", None)
         if d is None:
-            d = self._local.data = self.pin_model.createData()
+            d = self._local.data = pin.Data(self.pin_model)   # in place (createData(): twice the peak)
         return d
 
     def joint_torques(self, q, qd, qdd, check: bool = True) -> np.ndarray:

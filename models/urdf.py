@@ -93,10 +93,12 @@ def to_urdf(mech: Mechanism) -> str:
 
 
 # ------------------------------------------------------------------ size of the Pinocchio model and Data
-#: Bytes of a ``pin.Data`` beyond its dense arrays, per joint: measured as the RSS growth of
-#: ``createData()`` minus the dense part of :func:`data_bytes` on 2D and 3D chains of 10 to 150
-#: links (pin 4.1, x86-64): 38 to 57 kB per joint, rounded up.
-DATA_BYTES_PER_JOINT = 60_000
+#: Bytes of a ``pin.Data`` beyond its dense arrays: per joint, and once. Measured as the growth of
+#: the peak RSS of a fresh process across ``pin.Data(model)`` minus the dense part of
+#: :func:`data_bytes`, on 2D and 3D chains of 10 to 60 links (pin 4.1, x86-64): 10 to 15 kB per
+#: joint and up to 0.5 MB once, rounded up.
+DATA_BYTES_PER_JOINT = 20_000
+DATA_BYTES_ONCE = 2**20
 
 
 def pinocchio_model_size(mech: Mechanism) -> tuple[int, int]:
@@ -118,11 +120,12 @@ def data_bytes(nv: int, njoints: int) -> int:
     second-order derivatives and the ``6 nv^2`` kinematic Hessians, allocated whatever algorithm
     runs; ten ``nv x nv`` matrices (M, Minv, C, U, dtau_dq, dtau_dv, ddq_dq, ddq_dv, ddq_dtau,
     sDUiJt); the ``nv x 10 (njoints - 1)`` joint-torque regressor and one ``6 x nv`` Fcrb per joint;
-    all float64. Plus :data:`DATA_BYTES_PER_JOINT`. Against the RSS growth of ``createData()``:
-    3D chain of 100 links predicted 0.92 GB, measured 0.91 GB (docs/pinocchio-memory.md).
+    all float64. Plus :data:`DATA_BYTES_PER_JOINT` per joint and :data:`DATA_BYTES_ONCE`. Against
+    the peak RSS growth of ``pin.Data(model)`` (docs/pinocchio-memory.md): 3D chain of 60 links
+    predicted 205 MB, measured 200 MB. ``model.createData()`` peaks at twice this (it returns a copy).
     """
     dense = 4 * nv**3 + 6 * nv**2 + 10 * nv**2 + 10 * nv * max(njoints - 1, 0) + 6 * nv * njoints
-    return 8 * dense + DATA_BYTES_PER_JOINT * njoints
+    return 8 * dense + DATA_BYTES_PER_JOINT * njoints + DATA_BYTES_ONCE
 
 
 def pinocchio_data_bytes(mech: Mechanism) -> int:

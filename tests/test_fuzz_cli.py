@@ -332,3 +332,18 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
                        cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
+
+
+def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
+    """matrix-paper divides 0/0 at phi = 0 and warns (RuntimeWarning): on the command line that is one
+    line, like every other line on stderr, not Python's two-line warning with a source line."""
+    from exo_bench.models.motion import gait
+
+    mo = gait(exo5(3), np.array([0.0, 0.3]))
+    (tmp_path / "s.json").write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))
+    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", "inverse", "exo5-3d", str(tmp_path / "s.json"),
+                        "--method", "matrix-paper"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0
+    lines = r.stderr.strip().splitlines()
+    assert any("divides 0/0" in line for line in lines), r.stderr
+    assert all(line.startswith("exo-bench: warning: ") for line in lines), r.stderr

@@ -15,7 +15,7 @@ from exo_bench.bench.resources import Limits, ResourceLimit, check, estimate, pa
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, random_tree
-from exo_bench.models.urdf import pinocchio_model_size
+from exo_bench.models.urdf import data_bytes, pinocchio_model_size
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -29,31 +29,33 @@ def test_model_size_is_the_built_models(dim, seed):
 _MEASURE_DATA = """
 import json, pinocchio as pin
 from exo_bench.models.presets import chain
-from exo_bench.models.urdf import data_bytes, to_urdf
-def rss():
-    with open("/proc/self/status") as f:
-        return next(int(l.split()[1]) * 1024 for l in f if l.startswith("VmRSS:"))
-model = pin.buildModelFromXML(to_urdf(chain(40, {dim})), mimic=True)
-before = rss()
-data = model.createData()
-print(json.dumps(dict(grown=rss() - before, predicted=data_bytes(model.nv, model.njoints), nv=model.nv)))
+from exo_bench.models.urdf import to_urdf
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+model = pin.buildModelFromXML(to_urdf(chain({n}, {dim})), mimic=True)
+open("/proc/self/clear_refs", "w").write("5")
+before = status("VmRSS")
+data = pin.Data(model)
+print(json.dumps([status("VmHWM") - before, model.nv, model.njoints]))
 """
 
 
 @pytest.mark.parametrize("dim", [2, 3])
-def test_data_bytes_bounds_the_measured_growth_of_createData(dim):
-    """The nv^3 law: createData of a 40-link chain grows the RSS by what data_bytes predicts
-    (an upper estimate within 25 %), and the nv^3 part is most of it. Measured in a fresh process:
-    in a long-lived one the allocator may serve the Data from memory freed earlier (no RSS growth)."""
+def test_data_bytes_bounds_the_measured_growth_of_a_data(dim):
+    """The nv^3 law: pin.Data of a 40-link chain grows the peak RSS of a fresh process by what
+    data_bytes predicts (an upper estimate within 25 %), and the nv^3 part is most of it. A fresh
+    process: in a long-lived one the allocator may serve the Data from memory freed earlier."""
     import json
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "-c", _MEASURE_DATA.format(dim=dim)], capture_output=True, text=True,
-                       timeout=300)
+    r = subprocess.run([sys.executable, "-c", _MEASURE_DATA.format(n=40, dim=dim)], capture_output=True, text=True,
+                       timeout=120)
     assert r.returncode == 0, r.stderr
-    got = json.loads(r.stdout.strip().splitlines()[-1])
-    grown, predicted, nv = got["grown"], got["predicted"], got["nv"]
+    grown, nv, njoints = json.loads(r.stdout)
+    predicted = data_bytes(nv, njoints)
     assert grown <= predicted <= 1.25 * grown, (grown, predicted)
     assert 32 * nv**3 > 0.5 * grown
 

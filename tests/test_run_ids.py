@@ -162,3 +162,22 @@ def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
     assert manifest["files"]["errata.md"]["run"] == run_id_of(rep / "errata.md")
     assert _rows((rep / "summary.md").read_text())["a"]
     shutil.rmtree(rep)
+
+
+def test_the_run_of_a_png_is_read_back_exactly(tmp_path):
+    """The identifier sits in a PNG text chunk followed by binary bytes (the chunk's CRC), which
+    can look like more hex digits: 32 identifiers read back exactly."""
+    from matplotlib.figure import Figure
+
+    from exo_bench.bench import reporting
+
+    keep = reporting.current_run_id()
+    try:
+        for k in range(32):
+            rid = reporting.set_run_id(reporting.new_run_id())
+            fig = Figure(figsize=(1, 1))
+            fig.add_subplot().plot([0, k])
+            reporting.save_figure(fig, tmp_path / "f.png", dpi=20)
+            assert run_id_of(tmp_path / "f.png") == rid
+    finally:
+        reporting.set_run_id(keep)
