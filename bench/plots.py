@@ -616,7 +616,8 @@ def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
 
     Which points: the branch point where reversed (hanging) links start, i.e. the end of the parent
     of the first reversed link, and the free end of every reversed leaf link; a model without
-    reversed links gets the free end of its last link.
+    reversed links gets the free end of its last link, its tip (``"tip (hand end)"`` for a user's
+    arm whose last link is ``hand``).
     """
     def name(i: int) -> str:
         n = mech.names[i]
@@ -633,7 +634,9 @@ def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
         if not mech.children[i]:
             out[name(i)] = (i, 2)
     if not reversed_links:
-        out[name(mech.nlinks - 1)] = (mech.nlinks - 1, 2)
+        last = mech.nlinks - 1
+        n = mech.names[last]
+        out[f"{n} end ({_ANATOMY[n]})" if n in _ANATOMY else f"tip ({n} end)"] = (last, 2)
     return out
 
 

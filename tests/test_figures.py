@@ -8,6 +8,7 @@ bounding box is the one in the PNG) and with Pillow on the PNG files themselves.
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -153,11 +154,43 @@ def test_method_colours_are_not_link_colours_grey_or_black():
 
 def test_a_users_arm_gets_names_from_its_links_not_from_walking():
     study = _arm_study()
-    assert plots.trail_points(study.mechanism) == {"link3 end": (2, 2)}
+    assert plots.trail_points(study.mechanism) == {"tip (link3 end)": (2, 2)}
     for kind in ("kinogram", "overview"):
         fig = plots.scene_figure(study, kind)
         _drawn(fig)
         words = " ".join(t.get_text() for t in fig.findobj(Text)).lower()
         for bad in ("walking direction", "foot", "hip", "stance", "swing"):
             assert bad not in words, (kind, bad)
-    assert "link3 end" in " ".join(t.get_text() for t in plots.overview_figure(study).findobj(Text))
+    assert "tip (link3 end)" in " ".join(t.get_text() for t in plots.overview_figure(study).findobj(Text))
+
+
+WALKING_WORDS = ("walking direction", "walking", "foot", "hip", "stance", "swing", "ankle", "knee")
+
+
+def test_a_users_arm_scene_names_its_tip_and_never_walks(tmp_path):
+    """A user's own 3-link arm (a mechanism file with its own link names) in a scene with every
+    figure: the trail is the arm's "tip", named after its last link, and no figure, report or
+    recording text speaks of walking, feet or hips, or compares its loads with walking."""
+    arm = chain(3, dim=3).to_dict()
+    arm["name"] = "my-arm"
+    for link, name in zip(arm["links"], ("upper_arm", "forearm", "hand")):
+        link["name"] = name
+    (tmp_path / "arm.json").write_text(json.dumps(arm))
+    (tmp_path / "arm.toml").write_text(
+        'mechanism = "arm.json"\nmethods = ["pinocchio", "matrix"]\n'
+        f'outputs = ["table", {", ".join(chr(34) + k + chr(34) for k in FIGURES)}]\n'
+        '[motion]\nkind = "smooth-random"\nduration = 1.0\nsamples = 60\nseed = 3\n')
+    o = runner.run_scene(load_scene(tmp_path / "arm.toml"), tmp_path)
+    study = o.study
+    assert plots.trail_points(study.mechanism) == {"tip (hand end)": (2, 2)}
+    assert sorted(f.name for f in o.files if f.suffix == ".png") == sorted(f"arm-{k}.png" for k in FIGURES)
+    for kind in FIGURES:
+        fig = plots.scene_figure(study, kind)
+        _drawn(fig)
+        words = " ".join(t.get_text() for t in fig.findobj(Text))
+        for bad in WALKING_WORDS:
+            assert bad not in words.lower(), (kind, bad)
+        if kind == "overview":                      # the figure that draws the trails
+            assert "tip (hand end)" in words
+    report = next(f for f in o.files if f.suffix == ".md").read_text()
+    assert "Plausibility" not in report and "Winter" not in report

@@ -262,7 +262,7 @@ def test_trails_follow_the_hip_and_the_swing_ankle_over_the_last_fifth_of_a_seco
 
 def test_trail_points_of_the_planar_scenes_are_named_after_their_links():
     """fig2b's branch point is the end of its shin (a knee, not a hip): names come from the links."""
-    assert trail_points(fig2a(2)) == {"thigh end": (1, 2)}
+    assert trail_points(fig2a(2)) == {"tip (thigh end)": (1, 2)}   # a chain: the free end of its last link
     assert trail_points(fig2b(2)) == {"shin end": (0, 2), "thigh end": (1, 2)}
     assert trail_points(fig5(2)) == {"stance_thigh end (hip)": (1, 2), "swing_shin end (swing ankle)": (3, 2)}
     assert trail_entity("stance_thigh end (hip)") == "stance_thigh_end_hip"
