@@ -22,6 +22,7 @@ saved atomically by :func:`save_figure`.
 from __future__ import annotations
 
 import re
+import textwrap
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -284,7 +285,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
                      + ", ".join(labels[j] for j in groups.zero))
     if _not_run_line(study):
         notes.append("not shown: " + _not_run_line(study))
-    notes += nonfinite_notes(study)
+    notes = _wrap_notes(notes + nonfinite_notes(study))
     fig = Figure(figsize=(11.5, 1.6 + 2.35 * rows + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, rows, len(notes))
     curve_color = curve_colors(mech, kind)
@@ -325,8 +326,24 @@ def _panels(fig: Figure, rows: int, note_lines: int):
     return axes, note_ax
 
 
+#: Characters per line of a figure's notes: 9 pt text across the plots of an 11.5 in wide figure.
+NOTE_WIDTH = 120
+
+
+def _wrap_notes(lines: list[str], width: int = NOTE_WIDTH) -> list[str]:
+    """The notes broken into lines that fit under the plots (continuation lines indented)."""
+    out: list[str] = []
+    for line in lines:
+        out += textwrap.wrap(line, width, subsequent_indent="  ", break_on_hyphens=False) or [""]
+    return out
+
+
 def _write_notes(ax, lines: list[str]) -> None:
-    ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=TEXT_PT, color="0.2")
+    """The (wrapped) notes in the strip below the plots. The text takes no part in the layout: a long
+    line would otherwise make constrained layout shrink the whole column of plots to fit it."""
+    txt = ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=TEXT_PT,
+                  color="0.2")
+    txt.set_in_layout(False)
 
 
 def curve_colors(mech: Mechanism, kind: str) -> list[str]:
@@ -357,9 +374,10 @@ def differences_figure(study: Study) -> Figure | None:
     if ref is None or not others:
         return None
     mech, t = study.mechanism, study.motion.t
-    notes = [f"reference: {ref}; " + _methods_line(study)] + (["not shown: " + _not_run_line(study)]
-                                                                  if _not_run_line(study) else [])
-    notes += nonfinite_notes(study)
+    notes = [f"reference: {ref}; one colour per method (legend); log scale: an instant where a method equals "
+             f"{ref} exactly (Δ = 0) leaves a gap"] + (["not shown: " + _not_run_line(study)]
+                                                       if _not_run_line(study) else [])
+    notes = _wrap_notes(notes + nonfinite_notes(study))
     fig = Figure(figsize=(11.5, 5.6 + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, 2, len(notes))
     for ax, part, unit in ((axes[0], 0, "N·m"), (axes[1], 1, "N")):
@@ -462,7 +480,7 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
     cell = max(span(projs[0].axes[0]), 0.3)
     small = min(1.6, 14.0 / (F * cell))                  # inches per metre in the frame panels
     width = max(F * cell * small + 1.5, 11.0)
-    inch = min(3.6, 0.6 * width / sum(span(p.axes[0]) for p in projs))   # inches per metre in the overlay
+    inch = min(4.4, 0.6 * width / sum(span(p.axes[0]) for p in projs))   # inches per metre in the overlay
     fig = Figure(figsize=(width, span(vert) * (inch + small) + 3.4), layout="constrained")
     top, bottom = fig.subfigures(2, 1, height_ratios=[span(vert) * inch + 1.3, span(vert) * small + 1.4])
     ratios = [span(p.axes[0]) for p in projs]
@@ -490,8 +508,12 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
            "", "Below: the same frames one per panel, left to right in time, at one common scale.",
            "", "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
            "the grey dashed line is the floor (height 0)."]
-    note.text(0.06, 0.95, "\n".join(how), transform=note.transAxes, ha="left", va="top", fontsize=TEXT_PT,
-              color="0.15", wrap=True)
+    # wrapped to the note's column by hand: the text takes no part in the layout (constrained layout
+    # would otherwise shrink the plots beside it to make room for a long line)
+    chars = max(30, int((width - inch * sum(ratios) - 1.0) * 72 / (0.6 * TEXT_PT)))
+    text = "\n".join("\n".join(textwrap.wrap(line, chars)) if line else "" for line in how)
+    note.text(0.06, 0.95, text, transform=note.transAxes, ha="left", va="top", fontsize=TEXT_PT,
+              color="0.15").set_in_layout(False)
     panels = bottom.subplots(1, F, sharey=True, squeeze=False)[0]
     proj = projs[0]
     hx, vx = proj.axes
