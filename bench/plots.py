@@ -450,6 +450,13 @@ def _draw_frame(ax, mech: Mechanism, P: np.ndarray, proj: Projection, area: np.n
                alpha=alpha, zorder=3, gid=f"masses:{gid}")
 
 
+def ground_label(mech: Mechanism) -> str:
+    """What the dashed line at height 0 is: the floor for a model that stands on a stance leg (the
+    exoskeleton's ``stance_shin`` starts at O), only the level of O for any other mechanism (a
+    reversed link may reach below it: it is no floor)."""
+    return "floor (height 0)" if "stance_shin" in mech.names else "height 0 (level of O; not a floor)"
+
+
 def _floor_and_support(ax, proj: Projection, lo: float, hi: float) -> None:
     ax.plot([lo, hi], [0.0, 0.0], color="0.45", lw=1.0, ls="--", zorder=1, gid="floor")
     ax.plot([0.0], [0.0], marker="^", color="k", ms=8, ls="none", zorder=4, gid="support")
@@ -462,8 +469,8 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
     shifted. The top row overlays all frames in each projection (x-z and y-z for 3D, the model's
     plane for 2D), the later the more opaque; the bottom row shows the same frames one per panel,
     left to right in time, all at the same scale. Rods are lines from the start to the end of each
-    link; point masses are dots whose area is proportional to their mass; a grey dashed line is the
-    floor (height 0, through O)."""
+    link; point masses are dots whose area is proportional to their mass; a grey dashed line is
+    height 0 through O (:func:`ground_label`: the floor only for a model standing on a stance leg)."""
     mech = study.mechanism
     idx = kinogram_frames(study, frames)
     P = point_mass_positions(mech, study.motion.q[idx])          # (F, n, 3, dim)
@@ -507,7 +514,7 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
            f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
            "", "Below: the same frames one per panel, left to right in time, at one common scale.",
            "", "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
-           "the grey dashed line is the floor (height 0)."]
+           f"the grey dashed line is the {ground_label(mech)}."]
     # wrapped to the note's column by hand: the text takes no part in the layout (constrained layout
     # would otherwise shrink the plots beside it to make room for a long line)
     chars = max(30, int((width - inch * sum(ratios) - 1.0) * 72 / (0.6 * TEXT_PT)))
@@ -532,7 +539,7 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
                     x=0.01, ha="left")
     handles = [Line2D([], [], color=link_color(i), lw=2.2, label=f"link {i + 1}: {mech.names[i]}")
                for i in range(mech.nlinks)]
-    handles += [Line2D([], [], color="0.45", ls="--", label="floor (height 0)"),
+    handles += [Line2D([], [], color="0.45", ls="--", label=ground_label(mech)),
                 Line2D([], [], color="k", marker="^", ls="none", label="support point O")]
     fig.legend(handles=handles, fontsize=TEXT_PT, loc="outside lower center", ncols=min(len(handles), 7), frameon=False)
     fig.suptitle(_header(study, f"Kinogram (paper's Fig. 9): {F} frames over {t[-1] - t[0]:.2f} s, drawn in place "
@@ -693,7 +700,7 @@ def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, fr
 __all__ = [
     "FIGURES", "JointBasis", "METHOD_COLORS", "Projection", "ScaleGroups", "TEXT_PT", "curve_colors",
     "differences_figure", "force_labels", "forces_figure", "generalised_moment_labels", "generalised_moments",
-    "group_by_scale", "joint_basis", "joint_quantities", "kinogram_figure", "kinogram_frames", "link_color",
+    "ground_label", "group_by_scale", "joint_basis", "joint_quantities", "kinogram_figure", "kinogram_frames", "link_color",
     "method_color", "moment_labels", "moments_and_forces", "moments_figure", "nonfinite_notes", "overview_figure",
     "projections", "reference_method", "save_figure", "scene_figure", "trail_points", "write_plots",
 ]

@@ -170,6 +170,18 @@ class _Problem:
         return LATERAL_BOUND - np.abs(P[..., 1]).reshape(len(self.t), -1).max(axis=1)
 
 
+def _vector(params: GaitParams) -> np.ndarray:
+    """The fitted values of ``params`` as the optimiser's vector (the inverse of :func:`_params`)."""
+    return np.array(params.j[:4] + tuple(params.f) + params.l_star[:4] + (params.l,), dtype=float)
+
+
+def objective(params: GaitParams, samples: int = FIT_SAMPLES) -> float:
+    """The fit's objective at ``params``: the sum of the squared scaled residuals (each link's angle
+    curve in units of :data:`ANGLE_SCALE` per sqrt(frame), the rest lengths in :data:`LENGTH_SCALE`,
+    the stretch in :data:`STRETCH_SCALE`). The constraints are not in it (see :func:`check_gait`)."""
+    return _Problem(samples).objective(_vector(params))
+
+
 BOUNDS = ([(0.0, 1.5)] * 4 + [(-math.pi, math.pi)] * 4 + [(0.9 * a, 1.1 * a) for a in REST_LENGTHS[:4]]
           + [(0.0, 0.1)])
 

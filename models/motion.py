@@ -62,6 +62,11 @@ class GaitParams:
         largest |y| of any point mass: 10.00 cm (bound 10 cm)
         rest lengths (0.4301, 0.4285, 0.4264, 0.4239, 0.504) m (anthropometric (0.4305, 0.4287, 0.4287, 0.4305, 0.504)), stretch l = 0.0
 
+    The fit's residual: SLSQP from 16 seeded starts (12 met both constraints) ends at an objective
+    of 365 (``models.gait_fit.objective``: the sum of the squared scaled residuals, of which the
+    four angle curves give 92, 12, 79 and 180, i.e. their RMS in degrees squared, and the rest
+    lengths 2).
+
     Eq. (26)'s waveform cannot follow Winter's curves closer: it gives each azimuth the amplitude of
     its elevation, so a lopsided sagittal range swings the link sideways (the 10 cm bound binds),
     and a segment whose range is not centred on the vertical turns back within the half period.

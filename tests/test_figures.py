@@ -223,3 +223,16 @@ def test_all_text_lies_inside_the_figure_and_the_time_plots_use_its_width(scenes
     if kind in ("moments", "forces", "differences"):
         for ax in _plots(fig):
             assert ax.get_window_extent(renderer).width >= 0.55 * page.width, kind
+
+
+def test_the_dashed_line_at_height_0_is_a_floor_only_for_a_model_standing_on_a_stance_leg():
+    """fig2b's thigh hangs from its shin's end and reaches below the level of O: that line is no
+    floor there. The exoskeleton (and fig5's planar walker) stand on it."""
+    from exo_bench.models.presets import exo5, fig2b, fig5
+
+    assert plots.ground_label(exo5(3)) == plots.ground_label(fig5(2)) == "floor (height 0)"
+    for mech in (fig2b(2), chain(3, dim=3)):
+        assert "floor (height" not in plots.ground_label(mech)
+        assert "not a floor" in plots.ground_label(mech)
+    words = " ".join(t.get_text() for t in plots.kinogram_figure(_arm_study()).findobj(Text))
+    assert "floor (height 0)" not in words and "level of O" in words

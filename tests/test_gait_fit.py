@@ -62,6 +62,17 @@ def test_the_documented_fit_is_what_the_stored_parameters_achieve():
     assert " ".join(describe(GaitParams()).split()) in doc
 
 
+def test_the_documented_residual_of_the_fit_is_the_objective_of_the_stored_parameters(shipped):
+    """The docstring's objective (365) and its angle part: each link's share is its RMS squared,
+    because each link's residuals are weighted by 1/sqrt(frames) (1 deg scale)."""
+    assert round(gait_fit.objective(GaitParams())) == 365
+    assert "objective of 365" in " ".join(GaitParams.__doc__.split())
+    angles = sum(r**2 for r in shipped.rms) / gait_fit.ANGLE_SCALE**2
+    lengths = sum(((a - b) / gait_fit.LENGTH_SCALE) ** 2 for a, b in zip(GaitParams().l_star, gait_fit.REST_LENGTHS[:4]))
+    assert gait_fit.objective(GaitParams()) == pytest.approx(angles + lengths + (GaitParams().l / gait_fit.STRETCH_SCALE) ** 2,
+                                                             rel=1e-3)
+
+
 def test_the_fit_follows_winters_curves_closer_than_the_paper_assumed_gait(shipped):
     old = check_gait(PAPER_ASSUMED_V1)
     assert sum(shipped.rms) < sum(old.rms)
