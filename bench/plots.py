@@ -514,7 +514,7 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
            f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
            "", "Below: the same frames one per panel, left to right in time, at one common scale.",
            "", "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
-           f"the grey dashed line is the {ground_label(mech)}."]
+           f"the grey dashed line: {ground_label(mech)}."]
     # wrapped to the note's column by hand: the text takes no part in the layout (constrained layout
     # would otherwise shrink the plots beside it to make room for a long line)
     chars = max(30, int((width - inch * sum(ratios) - 1.0) * 72 / (0.6 * TEXT_PT)))
