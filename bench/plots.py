@@ -560,7 +560,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     mech, t = study.mechanism, study.motion.t
     ok, ref = study.ok_methods(), reference_method(study)
     fig = Figure(figsize=(16, 9), layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.15)
+    fig.get_layout_engine().set(w_pad=0.15, wspace=0.12)   # room for the 3D panel's z label
     gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1.45])
     ax3 = fig.add_subplot(gs[:, 0], projection="3d")
     s = int(round(frame * (len(t) - 1)))

@@ -236,3 +236,17 @@ def test_the_dashed_line_at_height_0_is_a_floor_only_for_a_model_standing_on_a_s
         assert "not a floor" in plots.ground_label(mech)
     words = " ".join(t.get_text() for t in plots.kinogram_figure(_arm_study()).findobj(Text))
     assert "floor (height 0)" not in words and "level of O" in words
+
+
+@pytest.mark.parametrize("mech", ["exo5-3d", "fig5-2d"])
+@pytest.mark.parametrize("kind", FIGURES)
+def test_no_two_axis_labels_overlap(scenes, mech, kind):
+    """The overview's 3D z label once sat on top of the rod-force panel's y label."""
+    fig = scenes[mech][1][kind]
+    renderer = _drawn(fig)
+    labels = [a.label for ax in fig.axes for a in (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None))
+              if a is not None and a.label.get_visible() and a.label.get_text().strip()]
+    boxes = [(lab.get_text(), lab.get_window_extent(renderer)) for lab in labels]
+    for i, (ta, a) in enumerate(boxes):
+        for tb, b in boxes[i + 1:]:
+            assert not a.overlaps(b), (kind, ta, tb)
