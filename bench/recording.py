@@ -140,7 +140,7 @@ def blueprint(study: Study) -> rrb.Blueprint:
     lo, hi = P.reshape(-1, 3).min(axis=0), P.reshape(-1, 3).max(axis=0)
     centre = 0.5 * (lo + hi)
     size = float(max(hi - lo)) or 1.0
-    eye = rrb.EyeControls3D(position=centre + np.array([0.75, -1.45, 0.2]) * size, look_target=centre,
+    eye = rrb.EyeControls3D(position=centre + np.array([0.62, -1.2, 0.2]) * size, look_target=centre,
                             eye_up=[0.0, 0.0, 1.0])
     left = rrb.Vertical(
         rrb.Spatial3DView(origin="world", name=f"{study.name}: rods, point masses (radius ∝ mass^⅓), trails",
