@@ -88,6 +88,7 @@ def _cases(sw):
                 out += [(m, n, dim, topo) for m in COMPOSERS]
     if 5 not in sw.compose_3d:
         out += [(m, 5, 3, "chain") for m in FAST_3D5]
+    out += [(m, n, 3, "chain") for n in sw.compose_3d_fast if n not in sw.compose_3d for m in ("matrix", "recurrence")]
     return out
 
 

@@ -215,8 +215,11 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
     return "\n".join(L)
 
 
-def run(args) -> int:
-    """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs."""
+def run(args, evaluate=None) -> int:
+    """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs.
+
+    ``evaluate(profile, methods, log) -> (families, forward)`` computes the results (default: here,
+    in this process; ``bench.distributed.stability_evaluator``: as tasks on a Dask cluster)."""
     from exo_bench.bench.stability.forward_evaluation import run_forward
     from exo_bench.bench.stability.forward_figures import forward_figures
     from exo_bench.bench.methods import method_names
@@ -229,8 +232,11 @@ def run(args) -> int:
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
-        families = evaluate_families(profile, methods, log)
-        forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
+        if evaluate is not None:
+            families, forward = evaluate(profile, methods, log)
+        else:
+            families = evaluate_families(profile, methods, log)
+            forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
     figs = {"stability-families.png": families_figure(families, methods),
             "stability-conditioning.png": conditioning_figure(families)}
     figs.update(forward_figures(forward))
