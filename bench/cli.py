@@ -229,7 +229,7 @@ def cmd_stability(args) -> int:
 
     if _on_cluster(args):
         from exo_bench.bench.distributed import stability_evaluator
-        return _report_job(lambda a: run(a, evaluate=stability_evaluator(a)), args, "exo-bench stability")
+        args.evaluate = stability_evaluator(args)
     return _report_job(run, args, "exo-bench stability")
 
 

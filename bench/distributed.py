@@ -96,15 +96,20 @@ def default_checkpoints(reports: Path) -> Path:
 
 
 # ----------------------------------------------------------------------------- one row (on a worker)
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
-    """The row's pytest process gets SIGKILL when its worker dies (Linux), so a killed worker leaves
-    no orphan timing on its host while the scheduler runs the row again elsewhere."""
+def _death_signal():
+    """A ``preexec_fn`` by which the row's pytest process gets SIGKILL when its worker dies (Linux
+    ``PR_SET_PDEATHSIG``), so a killed worker leaves no orphan timing on its host while the
+    scheduler runs the row again elsewhere; ``None`` where prctl is not available. libc is loaded
+    here, in the parent, so the child between fork and exec only calls it."""
+    if not sys.platform.startswith("linux"):
+        return None
     try:
         import ctypes
 
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)   # PR_SET_PDEATHSIG
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
-        pass
+        return None
+    return lambda: prctl(1, signal.SIGKILL)   # PR_SET_PDEATHSIG = 1
 
 
 def host_and_cpu() -> tuple[str, str]:
@@ -152,7 +157,7 @@ def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytes
         proc = subprocess.Popen(cmd, cwd=where, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                 stdin=subprocess.DEVNULL, start_new_session=True,
                                 env={**os.environ, "COLUMNS": "400"},   # failure lines in full in the summary
-                                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+                                preexec_fn=_death_signal())
         try:
             output, _ = proc.communicate(timeout=budget)
         except subprocess.TimeoutExpired:
@@ -219,6 +224,13 @@ def cluster(scheduler: str | None = None, workers: int | None = None):
         lc.close()
 
 
+def check_scheduler(scheduler: str | None) -> None:
+    """Refuse (one line, before any work) a ``--scheduler`` address where no scheduler answers."""
+    if scheduler:
+        with cluster(scheduler):
+            pass
+
+
 def _cancel(client, futures) -> None:
     with contextlib.suppress(Exception):
         client.cancel(futures, force=True)
@@ -269,13 +281,14 @@ def _progress(total: int, enabled: bool):
 
 def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str | None = None,
               workers: int | None = None, budget: float | None = None, pytest_args: tuple = (),
-              repo: Path = REPO, progress: bool = True, on_result=None, log=print) -> SweepOutcome:
+              repo: Path = REPO, only=None, progress: bool = True, on_result=None, log=print) -> SweepOutcome:
     """Run every row of the benchmark ``files`` on a Dask cluster (see the module docstring).
 
     ``checkpoints``: the base folder of the checkpoints (a subfolder per :func:`code_key`);
     ``budget``: seconds per row (default: the profile's :attr:`Sweep.row_budget`); ``pytest_args``:
     appended to every pytest command; ``repo``: the folder pytest runs in (the checkout, on every
-    worker too: each resolves its own copy unless it is given); ``on_result(record)``: called in this process as each row
+    worker too: each resolves its own copy unless it is given); ``only``: row keys to keep (the
+    others are left out, as if not collected); ``on_result(record)``: called in this process as each row
     finishes (after its checkpoint is written)."""
     from distributed import as_completed
 
@@ -289,6 +302,8 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
     code = code_key(repo)
     folder = checkpoint_dir(checkpoints, code)
     rows = enumerate_rows(list(files), sweep, repo=repo, pytest_args=pytest_args)
+    if only is not None:
+        rows = [r for r in rows if r["key"] in set(only)]
     where = None if Path(repo).resolve() == REPO.resolve() else str(repo)
     records: dict[str, dict] = {}
     resumed = []
@@ -374,6 +389,7 @@ def bench_run(args) -> int:
     sweep = "full" if full else "quick"
     out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
     command = "exo-bench bench" + (" --full" if full else "")
+    check_scheduler(args.scheduler)
     outcome = run_sweep(["bench"], sweep, checkpoints=default_checkpoints(out), scheduler=args.scheduler,
                         workers=args.workers)
     print(f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
@@ -438,6 +454,7 @@ def stability_evaluator(args):
     from exo_bench.bench.stability import cases
 
     out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
+    check_scheduler(args.scheduler)
 
     def evaluate(profile, methods, log):
         from distributed import as_completed

@@ -160,8 +160,11 @@ def ratio(num: float, den: float, host_num: str | None, host_den: str | None, wh
 
 
 #: The columns that make one comparison group of the reports: every ratio they take (method
-#: against method, call against kernel, crossovers at equal n) is between rows of one group.
-RATIO_GROUP = ("kind", "dim", "n", "mechanism", "topology", "batched")
+#: against method, crossovers at equal n) is between rows of one group.
+RATIO_GROUP = ("kind", "dim", "n", "mechanism", "topology", "batched", "within")
+#: Kinds whose ratios stay within one method (the wrapper's call against its kernel): ``within``
+#: is the method for them, so two methods of such a kind may come from different hosts.
+WITHIN_METHOD = ("wrapper",)
 
 
 def check_ratio_groups(df) -> None:
@@ -172,6 +175,8 @@ def check_ratio_groups(df) -> None:
     if df is None or len(df) == 0 or "host" not in df or "group" not in df:
         return
     d = df.assign(kind=df["group"].astype(str).str.split("-").str[0])
+    method = d["method"].astype(str) if "method" in d else ""
+    d = d.assign(within=method.where(d["kind"].isin(WITHIN_METHOD), "") if "method" in d else "")
     cols = [c for c in RATIO_GROUP if c in d]
     d = d[cols + ["host"]].astype(str)   # NaN and mixed types as text, so that groupby keeps every row
     for key, g in d.groupby(cols, dropna=False):

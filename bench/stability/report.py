@@ -215,11 +215,11 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
     return "\n".join(L)
 
 
-def run(args, evaluate=None) -> int:
+def run(args) -> int:
     """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs.
 
-    ``evaluate(profile, methods, log) -> (families, forward)`` computes the results (default: here,
-    in this process; ``bench.distributed.stability_evaluator``: as tasks on a Dask cluster)."""
+    ``args.evaluate(profile, methods, log) -> (families, forward)``, if set, computes the results
+    (``bench.distributed.stability_evaluator``: as tasks on a Dask cluster); else this process does."""
     from exo_bench.bench.stability.forward_evaluation import run_forward
     from exo_bench.bench.stability.forward_figures import forward_figures
     from exo_bench.bench.methods import method_names
@@ -232,6 +232,7 @@ def run(args, evaluate=None) -> int:
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
+        evaluate = getattr(args, "evaluate", None)
         if evaluate is not None:
             families, forward = evaluate(profile, methods, log)
         else:
