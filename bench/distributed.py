@@ -113,10 +113,12 @@ def _death_signal():
 
 
 def host_and_cpu() -> tuple[str, str]:
-    from exo_bench.bench.reporting import machine_info
+    """This host's name and CPU, as ``bench.reporting.machine_info`` says them."""
+    import platform
 
-    info = machine_info()
-    return info["host"], info["cpu"]
+    from exo_bench.bench.reporting import _cpu_model
+
+    return platform.node(), f"{_cpu_model()}, {os.cpu_count()} logical cores"
 
 
 def _failure_lines(output: str) -> str:

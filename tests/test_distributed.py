@@ -67,13 +67,13 @@ def sweep(folder: Path, workers: int, budget: float = 60.0, **kw):
 
 
 def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
-    d = tiny_bench(tmp_path / "b", ns=(1, 2, 4, 5), fail=True, sleep=120.0)
+    d = tiny_bench(tmp_path / "b", ns=(1, 4, 5), fail=True, sleep=120.0)
     out = sweep(d, workers=2, budget=10.0)
     keys = [r["key"] for r in out.rows]
-    assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 2, 4, 5)]
+    assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
     assert out.workers == 2 and sorted(out.ran) == sorted(keys) and out.resumed == []
     status = {k.rsplit(":", 1)[1]: r for k, r in zip(keys, out.rows)}
-    ok = [k for k in status if k.endswith(("n1", "n2")) or k == "2d-chain-n5"]
+    ok = [k for k in status if k.endswith("n1") or k == "2d-chain-n5"]
     assert all(status[k]["status"] == "ok" for k in ok), out.rows
     # a row whose tests fail: recorded with the reason, and the rest goes on
     assert status["2d-chain-n4"]["status"] == "failed"
@@ -101,7 +101,7 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     r = subprocess.run([str(cli), "compare", str(path), "--columns=min,median"], capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 0, r.stderr
-    assert "test_tiny[alpha-chain2-3d]" in r.stdout and "test_tiny[beta-chain1-2d]" in r.stdout
+    assert "test_tiny[alpha-chain1-3d]" in r.stdout and "test_tiny[beta-chain5-2d]" in r.stdout
 
 
 def test_a_killed_worker_does_not_lose_the_sweep(tmp_path):
@@ -115,22 +115,21 @@ def test_a_killed_worker_does_not_lose_the_sweep(tmp_path):
 
 
 def test_a_second_run_after_an_interrupted_one_does_only_the_missing_rows(tmp_path):
-    d = tiny_bench(tmp_path / "b", ns=(1, 2))
+    d = tiny_bench(tmp_path / "b", ns=(1,))
     seen = []
 
     def interrupt(rec):
         seen.append(rec["key"])
-        if len(seen) == 2:
-            raise KeyboardInterrupt
+        raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
         sweep(d, workers=2, on_result=interrupt)
     out = sweep(d, workers=2)
     assert sorted(out.resumed) == sorted(seen)
-    assert sorted(out.ran) == sorted(set(r["key"] for r in out.rows) - set(seen)) and len(out.ran) == 2
-    assert len(out.merged["benchmarks"]) == 8 and all(r["status"] == "ok" for r in out.rows)
+    assert sorted(out.ran) == sorted(set(r["key"] for r in out.rows) - set(seen)) and len(out.ran) == 1
+    assert len(out.merged["benchmarks"]) == 4 and all(r["status"] == "ok" for r in out.rows)
     again = sweep(d, workers=2)                               # nothing missing: nothing runs, not even a cluster
-    assert again.ran == [] and again.workers == 0 and len(again.merged["benchmarks"]) == 8
+    assert again.ran == [] and again.workers == 0 and len(again.merged["benchmarks"]) == 4
 
 
 # ----------------------------------------------------------------------------- one host per ratio
