@@ -23,6 +23,10 @@ def pytest_collection_modifyitems(session, config, items):
     _rows.select(config, items, _sweep.current(config.getoption("--sweep")).name)
 
 
+def pytest_benchmark_update_json(config, benchmarks, output_json):
+    _rows.record_peak_memory(config, output_json)
+
+
 @pytest.fixture(scope="session")
 def sweep(request) -> _sweep.Sweep:
     return _sweep.current(request.config.getoption("--sweep"))

@@ -87,6 +87,21 @@ def select(config, items: list, profile: str) -> None:
     items[:] = keep
 
 
+def record_peak_memory(config, output_json: dict) -> None:
+    """``pytest_benchmark_update_json``: in a row's run (``--row``), its process's peak resident
+    memory in MB (``peak_rss_mb``), which :func:`merge` keeps per row: a worker's peak for that row."""
+    if not config.getoption("--row"):
+        return
+    try:
+        import resource
+    except ImportError:   # not POSIX
+        return
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss   # KiB on Linux, bytes on macOS
+    output_json["peak_rss_mb"] = peak / 1e6 if sys.platform == "darwin" else peak * 1024 / 1e6
+
+
 def enumerate_rows(items: Iterable, keys: list[str]) -> list[dict]:
     """``[{"key", "file", "nodeids", "dim", "n", ...}]`` in collection order, one per row."""
     rows: dict[str, dict] = {}
@@ -118,12 +133,13 @@ def merge(results: list[dict]) -> tuple[dict, list[dict]]:
     Each benchmark keeps its row's host and CPU in ``extra_info`` (``host``, ``cpu``, ``row``); the
     top level has the usual ``machine_info``/``commit_info``/``datetime``/``version`` (of the first
     row that ran; ``machine_info["hosts"]`` lists every host) so ``py.test-benchmark compare`` reads
-    it, and ``rows`` records each row's status, reason, host, CPU and seconds."""
+    it, and ``rows`` records each row's status, reason, host, CPU, seconds and peak memory."""
     benchmarks, skips, rows, top = [], [], {}, None
     hosts: list[str] = []
     for r in results:
-        rows[r["key"]] = {k: r.get(k) for k in ("status", "reason", "host", "cpu", "seconds", "machine_info")}
         data = r.get("benchmark_json") or {}
+        rows[r["key"]] = {k: r.get(k) for k in ("status", "reason", "host", "cpu", "seconds", "machine_info")}
+        rows[r["key"]]["peak_rss_mb"] = data.get("peak_rss_mb")
         if data and top is None:
             top = data
         if r.get("host") and r["host"] not in hosts:
@@ -137,7 +153,7 @@ def merge(results: list[dict]) -> tuple[dict, list[dict]]:
             done = {b["fullname"] for b in data.get("benchmarks", [])} | {s["nodeid"] for s in r.get("skips") or []}
             skips += [{"nodeid": nid, "reason": f"row {r['status']}: {r.get('reason')}", "params": []}
                       for nid in r.get("nodeids", []) if nid not in done]
-    merged = {k: v for k, v in (top or {}).items() if k != "benchmarks"}
+    merged = {k: v for k, v in (top or {}).items() if k not in ("benchmarks", "peak_rss_mb")}
     merged.setdefault("machine_info", {})
     merged["machine_info"] = {**merged["machine_info"], "hosts": hosts}
     merged["benchmarks"] = benchmarks

@@ -72,6 +72,9 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     keys = [r["key"] for r in out.rows]
     assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
     assert out.workers == 2 and sorted(out.ran) == sorted(keys) and out.resumed == []
+    # each finished row records its pytest process's peak memory (a Python process: tens of MB at least)
+    assert all(10 < out.merged["rows"][k]["peak_rss_mb"] < 10_000 for k in keys
+               if out.merged["rows"][k]["status"] == "ok")
     status = {k.rsplit(":", 1)[1]: r for k, r in zip(keys, out.rows)}
     ok = [k for k in status if k.endswith("n1") or k == "2d-chain-n5"]
     assert all(status[k]["status"] == "ok" for k in ok), out.rows
