@@ -56,6 +56,10 @@ SCHEDULER_TIMEOUT = 10
 #: Task retries after an exception in the task itself (a worker's death is counted by the
 #: scheduler's ``allowed-failures`` instead).
 RETRIES = 1
+#: Benchmark files whose rows form chains: the rows of one (file, dim, topology) run in increasing
+#: n, each after the one before, whose skips it receives (``--prior-skips``): a sympy peer over its
+#: budget at n is skipped at every larger n without spending its budget again.
+CHAINED = ("bench/test_compose.py",)
 #: Row statuses whose record is final and checkpointed: pytest ran the row to its end (its tests
 #: passed or failed), or the row exceeded its budget (running it again would exceed it again).
 FINAL = ("ok", "failed", "over budget")
@@ -130,15 +134,19 @@ def _failure_lines(output: str) -> str:
 
 
 def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytest_args: tuple = (),
-            repo: str | None = None) -> dict:
+            repo: str | None = None, prior: dict | None = None) -> dict:
     """Run one row (every benchmark of it) in a pytest subprocess; its record (see :func:`rows.merge`).
 
     Runs on a worker. ``code`` is the client's :func:`code_key`: a worker running other code refuses
-    the row (timings of other code would be merged silently otherwise)."""
+    the row (timings of other code would be merged silently otherwise). ``prior``: the record of the
+    row before this one in its chain (:data:`CHAINED`), whose skips (and those it inherited) reach
+    pytest as ``--prior-skips``, so a method over budget at a smaller n is not tried again."""
     t0 = time.perf_counter()
     host, cpu = host_and_cpu()
+    inherited = ((prior.get("skips") or []) + (prior.get("inherited") or [])) if prior else []
     rec = {"key": row["key"], "nodeids": row.get("nodeids", []), "host": host, "cpu": cpu, "status": "error",
-           "reason": "", "seconds": 0.0, "benchmark_json": None, "skips": [], "machine_info": None}
+           "reason": "", "seconds": 0.0, "benchmark_json": None, "skips": [], "machine_info": None,
+           "inherited": [s for s in inherited if any(p[0] == _rows.OVER_BUDGET for p in s.get("params") or [])]}
     try:
         from distributed import get_worker
 
@@ -152,10 +160,13 @@ def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytes
             rec["reason"] = f"worker {host} runs code {mine}, the sweep measures {code}; install the same commit"
             return rec
     with tempfile.TemporaryDirectory(prefix="exo-bench-row-") as d:
-        bjson, sjson = Path(d) / "benchmarks.json", Path(d) / "skips.json"
+        bjson, sjson, pjson = Path(d) / "benchmarks.json", Path(d) / "skips.json", Path(d) / "prior-skips.json"
         cmd = [sys.executable, "-m", "pytest", row["file"], "--row", row["key"], "-q", "-rfE", "-p", "no:cacheprovider",
                "--benchmark-enable", f"--benchmark-json={bjson}", f"--skips-json={sjson}", f"--sweep={sweep}",
                *pytest_args]
+        if rec["inherited"]:
+            pjson.write_text(json.dumps(rec["inherited"]))
+            cmd.append(f"--prior-skips={pjson}")
         proc = subprocess.Popen(cmd, cwd=where, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                 stdin=subprocess.DEVNULL, start_new_session=True,
                                 env={**os.environ, "COLUMNS": "400"},   # failure lines in full in the summary
@@ -281,16 +292,36 @@ def _progress(total: int, enabled: bool):
                     console=console, disable=not enabled, transient=False)
 
 
+def _chains(rows: list[dict], chained) -> dict[str, str]:
+    """``{row key: key of the row before it in its chain}`` for the rows of the ``chained`` files."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r["file"] in chained and r.get("n") is not None:
+            groups.setdefault((r["file"], r.get("dim"), r.get("topology")), []).append(r)
+    out = {}
+    for g in groups.values():
+        g = sorted(g, key=lambda r: r["n"])
+        out.update({b["key"]: a["key"] for a, b in zip(g, g[1:])})
+    return out
+
+
+def _priority(row: dict) -> int:
+    """Larger rows first (n, then 3D before 2D: :func:`rows.schedule_order`)."""
+    return 10 * (row.get("n") or 0) + (row.get("dim") or 0)
+
+
 def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str | None = None,
               workers: int | None = None, budget: float | None = None, pytest_args: tuple = (),
-              repo: Path = REPO, only=None, progress: bool = True, on_result=None, log=print) -> SweepOutcome:
+              repo: Path = REPO, only=None, chained=CHAINED, progress: bool = True, on_result=None,
+              log=print) -> SweepOutcome:
     """Run every row of the benchmark ``files`` on a Dask cluster (see the module docstring).
 
     ``checkpoints``: the base folder of the checkpoints (a subfolder per :func:`code_key`);
     ``budget``: seconds per row (default: the profile's :attr:`Sweep.row_budget`); ``pytest_args``:
     appended to every pytest command; ``repo``: the folder pytest runs in (the checkout, on every
     worker too: each resolves its own copy unless it is given); ``only``: row keys to keep (the
-    others are left out, as if not collected); ``on_result(record)``: called in this process as each row
+    others are left out, as if not collected); ``chained``: files whose rows run as chains
+    (:data:`CHAINED`); ``on_result(record)``: called in this process as each row
     finishes (after its checkpoint is written)."""
     from distributed import as_completed
 
@@ -339,12 +370,19 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
 
                 client.subscribe_topic(TOPIC, started)
                 describe()
-                futures = {}
-                for r in todo:
-                    f = client.submit(run_row, r, sweep, budget, code, tuple(pytest_args), where,
+                futures, submitted = {}, {}
+                prior_of = _chains(rows, chained)
+                # chains in increasing n first (a row's prior is submitted before it); the scheduler
+                # runs the largest rows first anyway (priority)
+                for r in sorted(todo, key=lambda r: (r["key"] not in prior_of, r.get("n") or 0)):
+                    p = prior_of.get(r["key"])
+                    prior = submitted[p] if p in submitted else (
+                        {k: records[p].get(k) for k in ("skips", "inherited")} if p in records else None)
+                    f = client.submit(run_row, r, sweep, budget, code, tuple(pytest_args), where, prior,
                                       key=f"exo-bench-row-{_rows.safe_name(r['key'])}-{uuid.uuid4().hex[:8]}",
-                                      pure=False, retries=RETRIES)
+                                      pure=False, retries=RETRIES, priority=_priority(r))
                     futures[f] = r
+                    submitted[r["key"]] = f
                 try:
                     for f in as_completed(list(futures)):
                         r = futures[f]

@@ -62,6 +62,30 @@ def add_options(parser) -> None:
                      help="run only the benchmarks of this row (repeatable; keys from --rows-json)")
     parser.addoption("--rows-json", default=None, metavar="PATH",
                      help="write the rows of the collected benchmarks (key, file, node ids) to PATH")
+    parser.addoption("--prior-skips", default=None, metavar="PATH",
+                     help="skips of the rows before this one in its chain (a JSON list as --skips-json writes): "
+                          "methods over budget at a smaller n are skipped here without trying")
+
+
+#: The user property by which a benchmark says it was skipped over budget, as
+#: ``[method, n, dim, topology, reason]``, so a larger n of the same kind can skip without trying.
+OVER_BUDGET = "over_budget"
+
+
+def prior_over_budget(config) -> dict[tuple, tuple]:
+    """``{(method, dim, topology): (n, reason)}`` from ``--prior-skips``: what the rows before this
+    one in its chain (smaller n, bench/distributed.py) found over budget."""
+    path = config.getoption("--prior-skips")
+    if not path:
+        return {}
+    out: dict[tuple, tuple] = {}
+    for s in json.loads(Path(path).read_text()):
+        for name, value in s.get("params") or []:
+            if name == OVER_BUDGET:
+                method, n, dim, topology, reason = value
+                if (method, dim, topology) not in out or n < out[(method, dim, topology)][0]:
+                    out[(method, dim, topology)] = (n, reason)
+    return out
 
 
 def select(config, items: list, profile: str) -> None:

@@ -33,12 +33,19 @@ import pytest
 KILL_MARKER = {kill!r}      # a row of n = 3 kills its worker once (this file is the marker)
 FAIL = {fail!r}             # the rows of n = 4 fail their assertion
 SLEEP = {sleep!r}           # the row of n = 5 in 3D sleeps this long (past the row budget)
+CHAIN = {chain!r}           # rows of n >= 6: "over budget" from n = 6 on for method beta (chained rows)
 CASES = [(m, n, d, "chain") for d in (2, 3) for n in {ns!r} for m in ("alpha", "beta")]
 
 
 @pytest.mark.parametrize("case", CASES, ids=[f"{{m}}-{{t}}{{n}}-{{d}}d" for m, n, d, t in CASES])
-def test_tiny(benchmark, case):
+def test_tiny(benchmark, case, request):
     method, n, dim, topology = case
+    if CHAIN and method == "beta" and n >= 6:
+        from exo_bench.bench.rows import OVER_BUDGET, prior_over_budget
+        known = prior_over_budget(request.config).get((method, dim, topology))
+        first = known[0] if known else n
+        request.node.user_properties.append((OVER_BUDGET, [method, first, dim, topology, "test-only budget"]))
+        pytest.skip(f"over budget at n={{first}}" + (" (told by an earlier row)" if known else " (tried)"))
     benchmark.group = f"inverse-batched-{{dim}}d"
     benchmark.extra_info.update(method=method, n=n, dim=dim, mechanism=f"chain{{n}}-{{dim}}d", batched=True,
                                 samples=1, pid=os.getpid(), worker=os.getppid())
@@ -54,10 +61,10 @@ def test_tiny(benchmark, case):
 '''
 
 
-def tiny_bench(folder: Path, ns=(1, 2), kill: Path | None = None, fail=False, sleep=0.0) -> Path:
+def tiny_bench(folder: Path, ns=(1, 2), kill: Path | None = None, fail=False, sleep=0.0, chain=False) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "tiny_rows.py").write_text(TINY.format(kill=str(kill) if kill else None, fail=fail, sleep=sleep,
-                                                     ns=tuple(ns)))
+                                                     ns=tuple(ns), chain=chain))
     return folder
 
 
@@ -107,14 +114,19 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     assert "test_tiny[alpha-chain1-3d]" in r.stdout and "test_tiny[beta-chain5-2d]" in r.stdout
 
 
-def test_a_killed_worker_does_not_lose_the_sweep(tmp_path):
+def test_a_killed_worker_does_not_lose_the_sweep_and_chained_rows_pass_on_their_skips(tmp_path):
     marker = tmp_path / "killed"
-    d = tiny_bench(tmp_path / "b", ns=(1, 3), kill=marker)
-    out = sweep(d, workers=2)
+    d = tiny_bench(tmp_path / "b", ns=(3, 6, 7), kill=marker, chain=True)
+    out = sweep(d, workers=2, chained=("tiny_rows.py",))
     assert marker.exists()                                    # the row did kill its worker
     assert all(r["status"] == "ok" for r in out.rows), out.rows
     killer = [b for b in out.merged["benchmarks"] if b["extra_info"]["n"] == 3]
     assert len(killer) == 4                                   # the killed row ran again, elsewhere, to its end
+    # chains: the row of n = 7 ran after the row of n = 6 (killed row n = 3 before both) and was told
+    # that beta is over budget from n = 6, so it skipped beta without trying
+    reasons = {s["nodeid"].split("[")[1].rstrip("]"): s["reason"] for s in out.skips}
+    assert reasons["beta-chain6-2d"] == "over budget at n=6 (tried)"
+    assert reasons["beta-chain7-2d"] == reasons["beta-chain7-3d"] == "over budget at n=6 (told by an earlier row)"
 
 
 def test_a_second_run_after_an_interrupted_one_does_only_the_missing_rows(tmp_path):
