@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from exo_bench.bench.reporting import REPO, REPORTS, atomic_write, provenance
+from exo_bench.bench.rows import check_ratio_groups
 from exo_bench.bench.runner import publish, staging_dir
 
 # The paper's table (section 7), seconds in Mathematica to compose the equations.
@@ -49,6 +50,7 @@ def load(json_path: Path, skips_path: Path | None = None) -> tuple[pd.DataFrame,
                     rounds=st["rounds"], iqr=st.get("iqr", float("nan")))
         rows.append(info)
     skips = json.loads(Path(skips_path).read_text()) if skips_path and Path(skips_path).exists() else []
+    check_ratio_groups(pd.DataFrame(rows))   # never a ratio of timings from two hosts (bench/rows.py)
     return pd.DataFrame(rows), skips, data.get("machine_info", {})
 
 

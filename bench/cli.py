@@ -204,9 +204,17 @@ def _report_job(run, args, command: str) -> int:
         record_files(out, before, command + (" --full" if getattr(args, "full", False) else ""))
 
 
+def _on_cluster(args) -> bool:
+    """The full sweep runs on a Dask cluster (bench/distributed.py); so does the quick one when
+    --workers or --scheduler is given."""
+    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler)
+
+
 def cmd_bench(args) -> int:
     from exo_bench.bench.bench_reports import run
 
+    if _on_cluster(args):
+        from exo_bench.bench.distributed import bench_run as run
     return _report_job(run, args, "exo-bench bench")
 
 
@@ -219,6 +227,9 @@ def cmd_errata(args) -> int:
 def cmd_stability(args) -> int:
     from exo_bench.bench.stability import run
 
+    if _on_cluster(args):
+        from exo_bench.bench.distributed import stability_evaluator
+        args.evaluate = stability_evaluator(args)
     return _report_job(run, args, "exo-bench stability")
 
 
@@ -248,6 +259,24 @@ def _budget_arg(text: str) -> float:
     if not (value > 0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
     return value
+
+
+def _workers_arg(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1 worker, got {value}")
+    return value
+
+
+def _cluster_args(s) -> None:
+    s.add_argument("--workers", type=_workers_arg, default=None, metavar="N",
+                   help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
+                        "per core; 1 = serial)")
+    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the sweep on the running Dask cluster at ADDRESS (e.g. tcp://10.0.0.1:8786)")
 
 
 MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
@@ -298,6 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--update-readme", action="store_true",
                    help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    _cluster_args(s)
     s.set_defaults(func=cmd_bench)
 
     s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
@@ -309,6 +339,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "forward-dynamics round trip; write stability.md and its plots")
     s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    _cluster_args(s)
     s.set_defaults(func=cmd_stability)
     return p
 

@@ -1,4 +1,5 @@
-"""pytest-benchmark configuration: the sweep profile and a record of skipped rows with reasons."""
+"""pytest-benchmark configuration: the sweep profile, a record of skipped rows with reasons, and the
+rows of the distributed sweep (``--row KEY``, ``--rows-json PATH``: bench/rows.py)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import json
 
 import pytest
 
+from exo_bench.bench import rows as _rows
 from exo_bench.bench import sweep as _sweep
 
 _SKIPS: list[dict] = []
@@ -14,6 +16,15 @@ _SKIPS: list[dict] = []
 def pytest_addoption(parser):
     parser.addoption("--sweep", default=None, help="benchmark profile: quick (default) or full")
     parser.addoption("--skips-json", default=None, help="write skipped benchmark rows and reasons to this file")
+    _rows.add_options(parser)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    _rows.select(config, items, _sweep.current(config.getoption("--sweep")).name)
+
+
+def pytest_benchmark_update_json(config, benchmarks, output_json):
+    _rows.record_peak_memory(config, output_json)
 
 
 @pytest.fixture(scope="session")

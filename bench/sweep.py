@@ -20,12 +20,15 @@ class Sweep:
     samples: int                       # samples per batched call
     inverse_budget: float              # projected seconds per batched call before a row is skipped
     error_subsample: int               # samples checked against the 50-digit reference
+    compose_3d_fast: tuple[int, ...] = ()   # more n for composing in 3D, matrix and recurrence only
+    row_budget: float = 1800.0         # seconds for one row of the distributed sweep (bench/rows.py) before it is killed
 
 
 QUICK = Sweep("quick", compose_2d=(1, 2, 3), compose_3d=(1, 2), compose_budget=20.0, derive_budget=10.0,
               inverse_n=(1, 2, 5, 20), samples=1000, inverse_budget=5.0, error_subsample=4)
 FULL = Sweep("full", compose_2d=(1, 2, 3, 4, 5, 6), compose_3d=(1, 2, 3, 4, 5), compose_budget=300.0, derive_budget=120.0,
-             inverse_n=(1, 2, 3, 5, 10, 20, 50, 100), samples=10_000, inverse_budget=120.0, error_subsample=8)
+             inverse_n=(1, 2, 5, 10, 20, 50, 100), samples=10_000, inverse_budget=120.0, error_subsample=8,
+             compose_3d_fast=(10, 20, 50), row_budget=1800.0)
 SWEEPS = {"quick": QUICK, "full": FULL}
 
 

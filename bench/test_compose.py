@@ -13,6 +13,7 @@ import random
 import pytest
 import sympy as sp
 
+from exo_bench.bench.rows import OVER_BUDGET, prior_over_budget
 from exo_bench.bench.sweep import current
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.presets import chain
@@ -88,6 +89,7 @@ def _cases(sw):
                 out += [(m, n, dim, topo) for m in COMPOSERS]
     if 5 not in sw.compose_3d:
         out += [(m, 5, 3, "chain") for m in FAST_3D5]
+    out += [(m, n, 3, "chain") for n in sw.compose_3d_fast if n not in sw.compose_3d for m in ("matrix", "recurrence")]
     return out
 
 
@@ -97,12 +99,15 @@ def pytest_generate_tests(metafunc):
         metafunc.parametrize("compose_case", cases, ids=[f"{m}-{t}{n}-{d}d" for m, n, d, t in cases])
 
 
-def test_compose(benchmark, sweep, compose_case):
+def test_compose(benchmark, sweep, compose_case, request):
     method, n, dim, topo = compose_case
     mech = model(n, dim, topo)
     benchmark.group = f"compose-{dim}d"
     key = (method, dim, topo)
+    for k, v in prior_over_budget(request.config).items():   # found by earlier rows of a distributed sweep
+        _FAILED.setdefault(k, v)
     if key in _FAILED and _FAILED[key][0] <= n:  # a smaller model of this kind was already over budget
+        request.node.user_properties.append((OVER_BUDGET, [method, *_FAILED[key][:1], dim, topo, _FAILED[key][1]]))
         pytest.skip(f"{method}: over budget at n={_FAILED[key][0]}, so at n={n} too ({_FAILED[key][1]})")
     compose = _composer(method, sweep.compose_budget)
     if method not in _WARM:  # imports and first-use set-up are not part of composing
@@ -117,6 +122,7 @@ def test_compose(benchmark, sweep, compose_case):
         if not reason:
             raise
         _FAILED[key] = (n, reason)
+        request.node.user_properties.append((OVER_BUDGET, [method, n, dim, topo, reason]))
         pytest.skip(f"{method}: {reason}")
     assert len(eqs) == mech.dof
     diff = _same_equations(mech, eqs)

@@ -250,6 +250,19 @@ CASES = [
          issue="--reports naming a file"),
     Case("reports-under-file", "--reports under a file", lambda d: [
         "stability", "--reports", _text(d, "x", "afile") / "sub"], "lies under '<dir>/afile', which is a file"),
+    # ---------------------------------------------------------------- the distributed sweep (bench/distributed.py)
+    Case("workers-zero", "--workers 0", lambda d: ["bench", "--full", "--workers", "0", "--reports", d / "rep"],
+         "argument --workers: expected at least 1 worker, got 0"),
+    Case("workers-not-a-number", "--workers not a number", lambda d: [
+        "stability", "--full", "--workers", "two", "--reports", d / "rep"],
+         "expected a whole number of worker processes, got 'two'"),
+    Case("scheduler-unreachable", "--scheduler where no scheduler answers", lambda d: [
+        "bench", "--full", "--scheduler", "tcp://127.0.0.1:1", "--reports", d / "rep"],
+         "--scheduler 'tcp://127.0.0.1:1': no Dask scheduler reachable there",
+         patch=lambda mp: mp.setattr("exo_bench.bench.distributed.SCHEDULER_TIMEOUT", 1)),
+    Case("scheduler-malformed", "--scheduler not an address", lambda d: [
+        "stability", "--full", "--scheduler", "tcp://[bad", "--reports", d / "rep"],
+         "no Dask scheduler reachable there"),
     Case("urdf-output-folder", "urdf -o naming a folder", lambda d: ["urdf", "fig1-2d", "-o", d],
          "<dir>: expected a file to write, got a folder"),
     Case("urdf-output-under-file", "urdf -o under a file", lambda d: ["urdf", "fig1-2d", "-o", _text(d, "x", "f") / "u"],

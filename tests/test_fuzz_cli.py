@@ -304,6 +304,7 @@ def test_any_argument_list(argv):
     with workdir() as d, pytest.MonkeyPatch.context() as mp:
         for mod in (runner, bench_reports, errata, stability):  # the heavy jobs: stubs
             mp.setattr(mod, "run", lambda args: 0)
+        mp.setattr("exo_bench.bench.distributed.bench_run", lambda args: 0)   # bench --full: the Dask sweep
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
         (d / "m.json").write_text(fig1(2).to_json())

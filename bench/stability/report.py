@@ -216,7 +216,10 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
 
 
 def run(args) -> int:
-    """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs."""
+    """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs.
+
+    ``args.evaluate(profile, methods, log) -> (families, forward)``, if set, computes the results
+    (``bench.distributed.stability_evaluator``: as tasks on a Dask cluster); else this process does."""
     from exo_bench.bench.stability.forward_evaluation import run_forward
     from exo_bench.bench.stability.forward_figures import forward_figures
     from exo_bench.bench.methods import method_names
@@ -229,8 +232,12 @@ def run(args) -> int:
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
-        families = evaluate_families(profile, methods, log)
-        forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
+        evaluate = getattr(args, "evaluate", None)
+        if evaluate is not None:
+            families, forward = evaluate(profile, methods, log)
+        else:
+            families = evaluate_families(profile, methods, log)
+            forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
     figs = {"stability-families.png": families_figure(families, methods),
             "stability-conditioning.png": conditioning_figure(families)}
     figs.update(forward_figures(forward))
