@@ -106,3 +106,19 @@ def test_corrected_transitions_are_the_dot_products_of_their_definition():
             assert _is_zero(value - pairs[block][name]), (block, name)
     for block, f in spatial.GRAVITY.items():
         assert _is_zero(f(nu, l_i, sp.cos(psi_i), sp.sin(psi_i)) - gravity[block]), block
+
+
+def test_a_link_that_carries_no_mass_has_finite_zero_gravity_terms():
+    """A tip link without middle or end mass (and nothing below it): nu = 0, no term of its own,
+    yet every 3D element and force is finite and Pinocchio's (no 0 / nu anywhere)."""
+    from exo_bench import prepare
+    from conftest import assert_forces_agree
+    m = random_tree(3, 3, 21)
+    m = m.replace(parent=(-1, 0, 1), masses=(m.masses[0], m.masses[1], (0.7, 0.0, 0.0)))
+    q, qd, qdd = random_states(m, 6, 4)
+    mats = numeric.matrices(m, q)
+    assert all(np.isfinite(x).all() for b in mats.values() for x in b.values())
+    assert np.all(mats["phi"]["P"] == 0)
+    ref = prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd)
+    for method in ("matrix", "recurrence"):
+        assert_forces_agree(prepare(m, method).inverse_dynamics(q, qd, qdd), ref, m, q, qd, qdd, what=method)
