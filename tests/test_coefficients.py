@@ -110,6 +110,8 @@ def test_coefficients_are_those_of_the_point_masses(seed):
     c, nu = co.symbolic_coupling(m, S, symbolic_parameters=False)      # exact Rationals of the floats
     assert close(np.array([[float(x) for x in row] for row in c]), mu_ref * np.outer(s, s))
     assert close(np.array([float(x) for x in nu]), nu_ref * s)
+    gc, gnu = co.generic_coupling(m, co._parameters(m, S, False))        # the default zero of any arithmetic
+    assert close(np.array(gc, dtype=float), mu_ref * np.outer(s, s)) and close(np.array(gnu, dtype=float), nu_ref * s)
     for k in range(m.nlinks):                                          # eq. (25)'s increments, both twins
         idx, dc, dnu = co.recurrence_increments(m, k)
         gidx, gdc, gdnu = co.generic_recurrence_increments(m, co._parameters(m, S, False), k)
