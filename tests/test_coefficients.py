@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import sympy as sp
+from conftest import mass_coupling_oracle
 
 from exo_bench.matrix_method import coefficients as co
 from exo_bench.models import aggregates as ag
@@ -66,8 +67,56 @@ def test_recurrence_increments_add_up_to_the_direct_coefficients(seed):
         idx, dc, dnu = co.recurrence_increments(m, k)
         c[np.ix_(idx, idx)] += dc
         nu[idx] += dnu
-    assert np.allclose(c, co.signed_coupling(m), rtol=1e-14, atol=0)
-    assert np.allclose(nu, co.signed_gravity(m), rtol=1e-14, atol=0)
+    mu_ref, nu_ref = mass_coupling_oracle(m)                 # from the point masses, not from eq. (6)
+    s = m.sign_array
+    # a few roundings of sums of at most 3n masses: 4 n eps relative
+    tol = 4 * m.nlinks * np.finfo(float).eps
+    assert np.allclose(c, mu_ref * np.outer(s, s), rtol=tol, atol=0)
+    assert np.allclose(nu, nu_ref * s, rtol=tol, atol=0)
+
+
+def _tree_with_zero_masses(seed):
+    m = random_tree(7, 3, seed)
+    rng = np.random.default_rng(seed)
+    masses = [tuple(0.0 if rng.random() < 0.3 else x for x in ms) for ms in m.masses]
+    if not any(x for ms in masses for x in ms):
+        masses[0] = (0.0, 0.0, 1.0)
+    return m.replace(masses=tuple(masses))
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13, 14])
+def test_coefficients_are_those_of_the_point_masses(seed):
+    """mu, nu (models.aggregates), the signed c and nu s (matrix_method.coefficients), the descendant
+    masses, the per-link aggregates and the symbolic twins, all against the sums over the point
+    masses of tests/conftest.py (mass m at fraction f of link k rides on its ancestors' rods with
+    weight 1 and on k's with weight f), on trees with zero masses."""
+    m = _tree_with_zero_masses(seed)
+    mu_ref, nu_ref = mass_coupling_oracle(m)
+    s = m.sign_array
+    tol = 4 * m.nlinks * np.finfo(float).eps
+    close = lambda a, b: np.allclose(a, b, rtol=tol, atol=tol * max(1.0, np.abs(b).max()))
+    assert close(ag.coupling(m), mu_ref) and close(ag.gravity_coupling(m), nu_ref)
+    assert close(co.signed_coupling(m), mu_ref * np.outer(s, s)) and close(co.signed_gravity(m), nu_ref * s)
+    masses, f = m.mass_array, m.n_array if hasattr(m, "n_array") else np.array(m.n)
+    zeta, eta, theta = ag.link_aggregates(m)
+    assert close(zeta, masses[:, 1] * f**2 + masses[:, 2]) and close(eta, masses[:, 1] * f + masses[:, 2])
+    assert close(theta, masses.sum(axis=1))
+    below = np.array([sum(masses[j].sum() for j in range(m.nlinks) if i in m.ancestors[j]) for i in range(m.nlinks)])
+    assert close(ag.descendant_mass(m), below)
+    assert close(np.array(ag.descendant_sums(m, list(theta))), below)          # the default zero of any arithmetic
+    mu_default, nu_default = ag.coupling_entries(m, zeta, eta, theta)
+    assert close(np.array(mu_default, dtype=float), mu_ref) and close(np.array(nu_default, dtype=float), nu_ref)
+    S = symbols_for(m.nlinks, 3)
+    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=False)      # exact Rationals of the floats
+    assert close(np.array([[float(x) for x in row] for row in c]), mu_ref * np.outer(s, s))
+    assert close(np.array([float(x) for x in nu]), nu_ref * s)
+    gc, gnu = co.generic_coupling(m, co._parameters(m, S, False))        # the default zero of any arithmetic
+    assert close(np.array(gc, dtype=float), mu_ref * np.outer(s, s)) and close(np.array(gnu, dtype=float), nu_ref * s)
+    for k in range(m.nlinks):                                          # eq. (25)'s increments, both twins
+        idx, dc, dnu = co.recurrence_increments(m, k)
+        gidx, gdc, gdnu = co.generic_recurrence_increments(m, co._parameters(m, S, False), k)
+        assert list(idx) == list(gidx) == sorted(m.ancestors[k]) + [k]
+        assert close(np.array(gdc, dtype=float), dc) and close(np.array(gdnu, dtype=float), dnu)
 
 
 def test_symbolic_coupling_equals_the_numeric_one():
@@ -81,3 +130,12 @@ def test_symbolic_coupling_equals_the_numeric_one():
     assert np.allclose(num_nu, co.signed_gravity(m), rtol=1e-14, atol=0)
     exact, _ = co.symbolic_coupling(m, S, symbolic_parameters=False)
     assert all(isinstance(x, sp.Rational) for row in exact for x in row)
+
+
+def test_the_cached_coefficients_are_read_only():
+    """mu, nu, c and nu s are cached per mechanism and shared by every model of it: writing into
+    one would change every later result, so each is a read-only array."""
+    m = random_tree(3, 2, 5)
+    for arr in (ag.coupling(m), ag.gravity_coupling(m), co.signed_coupling(m), co.signed_gravity(m)):
+        with pytest.raises(ValueError, match="read-only"):
+            arr[0, ...] = 1.0

@@ -5,8 +5,9 @@ import json
 
 import numpy as np
 import pytest
-from conftest import power_balance_residual
+from conftest import POWER_BALANCE_TOL, assert_forces_agree, assert_mass_matrices_agree, power_balance_residual
 
+from exo_bench import prepare
 from exo_bench.bench.cli import main
 from exo_bench.lagrange import numeric as ln
 from exo_bench.models import pinocchio_backend as pb
@@ -18,31 +19,35 @@ TREES = [(1 + seed % 4, dim, seed) for dim in (2, 3) for seed in range(100, 125)
 
 
 @pytest.mark.parametrize("n,dim,seed", TREES)
-def test_inverse_dynamics_agrees_with_pinocchio_on_random_trees(n, dim, seed, rel):
+def test_inverse_dynamics_agrees_with_pinocchio_on_random_trees(n, dim, seed):
+    """Within the float64 error model of tests/conftest.py."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 30, seed)
-    assert rel(ln.inverse_dynamics(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+    assert_forces_agree(prepare(m, "lagrange").inverse_dynamics(q, qd, qdd),
+                        prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd), m, q, qd, qdd)
 
 
 @pytest.mark.parametrize("n,dim,seed", TREES[1::8])
-def test_mass_matrix_and_bias_agree_with_pinocchio(n, dim, seed, rel):
+def test_mass_matrix_and_bias_agree_with_pinocchio(n, dim, seed):
+    """Lagrange's d tau / d qdd against CRBA, and its tau(qdd = 0) against nonLinearEffects."""
     m = random_tree(n, dim, seed)
     q, qd, _ = random_states(m, 10, seed + 1)
-    assert rel(ln.mass_matrix(m, q), pb.mass_matrix(m, q)) < 1e-10
-    assert rel(ln.bias_forces(m, q, qd), pb.bias_forces(m, q, qd)) < 1e-10
+    lagrange, pinocchio = prepare(m, "lagrange"), prepare(m, "pinocchio")
+    assert_mass_matrices_agree(lagrange.mass_matrix(q), pinocchio.mass_matrix(q), m, q)
+    assert_forces_agree(lagrange.bias_forces(q, qd), pinocchio.bias_forces(q, qd), m, q, qd, None)
 
 
 @pytest.mark.parametrize("n,dim,seed", [(3, 2, 50), (4, 3, 51)])
 def test_power_balance_along_smooth_random_motion(n, dim, seed):
     """d(T + Pi)/dt = tau . qd with T and Pi summed over the point masses (models.kinematics)."""
-    assert power_balance_residual(ln.inverse_dynamics, random_tree(n, dim, seed), seed) < 1e-8
+    assert power_balance_residual(ln.inverse_dynamics, random_tree(n, dim, seed), seed) < POWER_BALANCE_TOL
 
 
-def test_zero_middle_masses_agree_with_pinocchio(rel):
+def test_zero_middle_masses_agree_with_pinocchio():
     m = random_tree(4, 3, 52)
     m = m.replace(masses=tuple((a, 0.0 if i % 2 else b, c) for i, (a, b, c) in enumerate(m.masses)))
     q, qd, qdd = random_states(m, 20, 3)
-    assert rel(ln.inverse_dynamics(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+    assert_forces_agree(ln.inverse_dynamics(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd), m, q, qd, qdd)
 
 
 def test_cli_lagrange_agrees_with_pinocchio_on_the_exo5_gait(tmp_path, capsys):
@@ -55,7 +60,7 @@ def test_cli_lagrange_agrees_with_pinocchio_on_the_exo5_gait(tmp_path, capsys):
         assert main(["inverse", "exo5-3d", str(states), "--method", method]) == 0
         out[method] = np.array(json.loads(capsys.readouterr().out)["tau"])
     assert out["lagrange"].shape == (23, 15)
-    assert np.abs(out["lagrange"] - out["pinocchio"]).max() < 1e-10 * np.abs(out["pinocchio"]).max()
+    assert_forces_agree(out["lagrange"], out["pinocchio"], m, mo.q, mo.qd, mo.qdd)   # JSON floats: exact round trip
 
 
 def test_one_sample_and_bad_states():

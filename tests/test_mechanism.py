@@ -122,3 +122,48 @@ def test_unknown_preset_or_missing_file_is_a_clear_error(tmp_path):
     (tmp_path / "bad.json").write_text("{not json")
     with pytest.raises(ValueError, match="invalid JSON"):
         load_mechanism(tmp_path / "bad.json")
+
+
+def _one_link(**changes):
+    d = dict(dim=2, g=9.81, parent=(-1,), sign=(1,), masses=((0.1, 0.2, 0.3),), n=(0.5,), name="m")
+    d.update(changes)
+    return Mechanism(**d)
+
+
+@pytest.mark.parametrize("changes,message", [
+    ({"dim": 5}, r"m: field 'dim': expected 2 or 3, got 5"),
+    ({"dim": True}, r"m: field 'dim': expected 2 or 3, got True"),
+    ({"g": float("nan")}, r"m: field 'g': expected a finite number, got nan"),
+    ({"g": 10**400}, r"m: field 'g': expected a finite number, got 1000"),            # an int no float can hold
+    ({"masses": ((0.1, 10**400, 0.3),)}, r"link 1 \('link1'\): field 'masses\[1\]': expected a finite mass >= 0"),
+    ({"n": (10**400,)}, r"link 1 \('link1'\): field 'n': expected a fraction in \(0, 1\)"),
+])
+def test_the_constructor_validates_every_field_itself(changes, message):
+    """Mechanism(...) directly (not through JSON) names the field, the expected and the actual value."""
+    with pytest.raises(ValueError, match=message):
+        _one_link(**changes)
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("dim", 2.0, r"field 'dim': expected 2 or 3, got 2.0"),
+    ("parent", 0.5, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got 0.5"),
+    ("parent", True, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got True"),
+    ("sign", 1.0, r"link 1: field 'sign': expected \+1 or -1, got 1.0"),
+    ("sign", True, r"link 1: field 'sign': expected \+1 or -1, got True"),
+])
+def test_json_numbers_of_the_wrong_type_are_refused(field, value, message):
+    """JSON 2.0, 1.0 or true where an integer belongs is refused, not silently converted."""
+    data = json.loads(json.dumps(ISSUE_EXAMPLE))
+    if field == "dim":
+        data["dim"] = value
+    else:
+        data["links"][0][field] = value
+    with pytest.raises(ValueError, match=message):
+        Mechanism.from_dict(data, source="file.json")
+
+
+def test_negative_zero_gravity_is_stored_as_zero():
+    """g = -0.0 is accepted (it is not negative) and stored as +0.0: one mechanism, one JSON."""
+    m = _one_link(g=-0.0)
+    assert math.copysign(1.0, m.g) == 1.0 and '"g": 0.0' in m.to_json()
+    assert m == _one_link(g=0.0) and m.to_json() == _one_link(g=0.0).to_json()

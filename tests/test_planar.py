@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import assert_matrices_agree
 
 from exo_bench.matrix_method import numeric
 from exo_bench.bench.errata import LagrangeWitness, pinocchio_matrices
@@ -12,23 +13,17 @@ TREES = [(1, 1), (2, 2), (3, 3), (4, 4), (5, 5), (6, 6), (6, 7)]
 
 
 @pytest.mark.parametrize("n,seed", TREES)
-def test_every_planar_matrix_equals_pinocchios(n, seed, rel):
+def test_every_planar_matrix_equals_pinocchios(n, seed):
     m = random_tree(n, 2, seed)
     q, _, _ = random_states(m, 10, seed)
-    ours, ref = numeric.planar_matrices(m, q), pinocchio_matrices(m, q)
-    for block in ref:
-        for name in ref[block]:
-            assert rel(ours[block][name], ref[block][name]) < 1e-12, (block, name)
+    assert_matrices_agree(numeric.planar_matrices(m, q), pinocchio_matrices(m, q), m, q)
 
 
 @pytest.mark.parametrize("n,seed", TREES[:4])
-def test_every_planar_matrix_equals_lagranges(n, seed, rel):
+def test_every_planar_matrix_equals_lagranges(n, seed):
     m = random_tree(n, 2, seed)
     q, _, _ = random_states(m, 10, seed)
-    ours, ref = numeric.planar_matrices(m, q), LagrangeWitness().matrices(m, q)
-    for block in ref:
-        for name in ref[block]:
-            assert np.abs(ours[block][name] - ref[block][name]).max() < 1e-12 * max(1.0, np.abs(ref[block][name]).max())
+    assert_matrices_agree(numeric.planar_matrices(m, q), LagrangeWitness().matrices(m, q), m, q)
 
 
 def test_kinetic_symmetries_of_the_planar_matrices():

@@ -1,38 +1,42 @@
-"""The recurrence (22)-(26) for trees: against Lagrange, Pinocchio and the direct closed forms."""
+"""The recurrence (22)-(26) for trees, against oracles that do not share its closed forms:
+Pinocchio's RNEA, Lagrange's equations (numeric and symbolic), and the structure of eq. (24)."""
 
 import numpy as np
 import pytest
+from conftest import assert_forces_agree
 
-from exo_bench.lagrange import numeric as lagrange_numeric
+from exo_bench import prepare
+from exo_bench.lagrange import canonical_form, derive
 from exo_bench.matrix_method import numeric, recurrence, symbolic
 from exo_bench.bench.errata import prefix, prefix_states
-from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.presets import exo5, fig2b, random_tree
 
 TREES = [(1 + s % 6, 2 if (s // 6) % 2 == 0 else 3, s) for s in range(100)]
 
 
 @pytest.mark.parametrize("n,dim,seed", TREES)
-def test_recurrence_agrees_with_pinocchio_and_lagrange_on_random_trees(n, dim, seed, rel):
+def test_recurrence_agrees_with_pinocchio_and_lagrange_on_random_trees(n, dim, seed):
+    """Within the float64 error model of tests/conftest.py."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 8, seed)
-    tau = recurrence.inverse_dynamics(m, q, qd, qdd)
-    assert rel(tau, pb.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+    tau = prepare(m, "recurrence").inverse_dynamics(q, qd, qdd)
+    assert_forces_agree(tau, prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd), m, q, qd, qdd, what="pinocchio")
     if n <= 3:
-        assert rel(tau, lagrange_numeric.inverse_dynamics(m, q, qd, qdd)) < 1e-10
+        assert_forces_agree(tau, prepare(m, "lagrange").inverse_dynamics(q, qd, qdd), m, q, qd, qdd, what="lagrange")
 
 
 @pytest.mark.parametrize("dim,seed", [(2, 1), (3, 2), (3, 3)])
-def test_recurrence_equals_the_direct_closed_forms_for_every_n_up_to_20(dim, seed):
+def test_every_intermediate_model_of_the_recurrence_is_pinocchios_for_every_n_up_to_20(dim, seed):
+    """Eq. (23): the matrices after adding link n are those of the first n links: their forces are
+    Pinocchio's RNEA on the model of the first n links (each prefix a model of its own)."""
     m = random_tree(20, dim, seed)
-    q, _, _ = random_states(m, 4, seed)
+    q, qd, qdd = random_states(m, 4, seed)
     for n, mats in recurrence.matrix_sequence(m, q):
-        direct = numeric.matrices(prefix(m, n), prefix_states(m, q, n))
-        for block in direct:
-            for name in direct[block]:
-                scale = max(1.0, np.abs(direct[block][name]).max())
-                assert np.abs(mats[block][name] - direct[block][name]).max() < 1e-13 * scale, (n, block, name)
+        sub = prefix(m, n)
+        qs, qds, qdds = (prefix_states(m, x, n) for x in (q, qd, qdd))
+        tau = numeric.generalised_forces(sub, mats, qds, qdds)
+        assert_forces_agree(tau, prepare(sub, "pinocchio").inverse_dynamics(qs, qds, qdds), sub, qs, qds, qdds, what=f"n={n}")
 
 
 @pytest.mark.parametrize("seed", [4, 5, 6])
@@ -58,25 +62,23 @@ def test_a_new_link_changes_only_the_rows_and_columns_of_its_ancestors(seed):
         previous = {b: {k_: np.array(v) for k_, v in ms.items()} for b, ms in mats.items()}
 
 
-@pytest.mark.parametrize("mech", [random_tree(3, 2, 7), random_tree(4, 3, 8), exo5(3)], ids=lambda m: m.name)
+@pytest.mark.parametrize("mech", [random_tree(3, 2, 7), fig2b(3), random_tree(3, 3, 8)], ids=lambda m: m.name)
 @pytest.mark.parametrize("symbolic_parameters", [False, True])
-def test_symbolic_recurrence_composes_the_same_equations_as_the_matrix_method(mech, symbolic_parameters):
-    a = recurrence.compose_equations(mech, symbolic_parameters)
-    b = symbolic.compose_equations(mech, symbolic_parameters)
-    assert a == b
+def test_symbolic_recurrence_composes_lagranges_equations(mech, symbolic_parameters):
+    """The equations grown link by link equal Lagrange II derived from T and Pi of the point
+    masses (lagrange.derive), exactly: the difference's canonical form is zero."""
+    d = derive(mech, symbolic_parameters=symbolic_parameters)
+    ours = recurrence.compose_equations(mech, symbolic_parameters)
+    assert len(ours) == mech.dof
+    for a, b in zip(ours, d.equations):
+        assert canonical_form(a - b, d.symbols) == 0
 
 
-def test_symbolic_recurrence_matrices_evaluate_to_the_numeric_ones():
-    m = random_tree(4, 3, 9)
-    q, _, _ = random_states(m, 3, 1)
-    mats = recurrence.symbolic_matrices(m)
-    num = recurrence.matrices(m, q)
-    from exo_bench.models.symbols import symbols_for
-    import sympy as sp
-    S = symbols_for(4, 3)
-    for block in num:
-        for name in num[block]:
-            f = sp.lambdify(list(S.q), mats[block][name], modules="numpy")
-            for s in range(3):
-                val = np.asarray(f(*q[s]), dtype=float).reshape(num[block][name][s].shape)
-                assert np.allclose(val, num[block][name][s], rtol=1e-12, atol=1e-12)
+@pytest.mark.parametrize("mech", [random_tree(4, 3, 9), exo5(3)], ids=lambda m: m.name)
+def test_symbolic_recurrence_evaluates_to_pinocchios_forces(mech):
+    """The symbolic recurrence's equations, lambdified, against Pinocchio's RNEA (models too large
+    for an exact comparison with Lagrange within CI's time)."""
+    q, qd, qdd = random_states(mech, 5, 1)
+    f = symbolic.lambdified(mech, compose=recurrence.compose_equations)
+    tau = np.stack([np.broadcast_to(np.asarray(v, dtype=float), (5,)) for v in f(*q.T, *qd.T, *qdd.T)], -1)
+    assert_forces_agree(tau, prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd), mech, q, qd, qdd)

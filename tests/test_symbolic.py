@@ -1,10 +1,14 @@
-"""The symbolic matrix method: its equations and matrices are Lagrange's, exactly."""
+"""The symbolic matrix method: its equations and matrices are Lagrange's, exactly, and those of an
+independent sympy.physics.mechanics model (LagrangesMethod, KanesMethod)."""
 
 import numpy as np
 import pytest
+from conftest import assert_forces_agree
 
+from exo_bench import prepare
 from exo_bench.lagrange import canonical_form, derive
-from exo_bench.matrix_method import numeric, symbolic
+from exo_bench.lagrange.peer import peer_equations
+from exo_bench.matrix_method import symbolic
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
 from exo_bench.models.symbols import symbols_for
@@ -41,13 +45,32 @@ def test_every_matrix_equals_lagranges_entry_by_entry(mech):
                     assert canonical_form(ours[block][name][i, j] - M[i, j], d.symbols) == 0, (block, name, i, j)
 
 
+PEER_CASES = [(fig2b(2), "lagrange"), (random_tree(3, 2, 11), "kane"), (fig2b(3), "kane"),
+              (random_tree(2, 3, 73), "kane")]
+
+
+@pytest.mark.parametrize("mech,kind", PEER_CASES, ids=[f"{m.name}-{k}" for m, k in PEER_CASES])
+def test_composed_equations_equal_sympy_mechanics(mech, kind):
+    """An oracle derived another way: frames, points and particles of sympy.physics.mechanics run
+    through LagrangesMethod or KanesMethod (lagrange/peer.py shares no code with the matrix method);
+    equal as polynomials in the sines and cosines, with symbolic masses."""
+    ours = symbolic.compose_equations(mech, symbolic_parameters=True)
+    theirs = peer_equations(mech, kind, symbolic_parameters=True)
+    S = derive(mech, symbolic_parameters=True).symbols
+    assert len(theirs) == len(ours) == mech.dof
+    for k, (a, b) in enumerate(zip(ours, theirs)):
+        assert canonical_form(a - b, S) == 0, k
+
+
 @pytest.mark.parametrize("n,dim,seed", [(5, 2, 1), (6, 3, 2)])
-def test_lambdified_equations_equal_the_numeric_matrix_method(n, dim, seed, rel):
+def test_lambdified_equations_give_pinocchios_forces(n, dim, seed):
+    """Larger trees than an exact comparison allows in CI: the composed equations, lambdified,
+    against Pinocchio's RNEA within the error model of tests/conftest.py."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 20, seed)
     f = symbolic.lambdified(m)
     tau = np.stack([np.broadcast_to(v, (20,)) for v in f(*q.T, *qd.T, *qdd.T)], -1)
-    assert rel(tau, numeric.inverse_dynamics(m, q, qd, qdd)) < 1e-12
+    assert_forces_agree(tau, prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd), m, q, qd, qdd)
 
 
 def test_equations_use_the_shared_symbols_and_only_own_rate_products():

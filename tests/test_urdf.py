@@ -62,3 +62,16 @@ def test_zero_mass_adds_no_body():
     assert len(ms) == 3 * 3 - 2
     assert "L2_mid" not in {j.get("name") for j in joints}
     assert root.find("link[@name='L2_frame']").find("inertial") is None
+
+
+@pytest.mark.parametrize("mech", TREES + [exo5(3), exo5(2), fig2b(3)], ids=lambda m: m.name)
+@pytest.mark.parametrize("zero_middle", [False, True])
+def test_model_size_predicted_without_building_is_pinocchios(mech, zero_middle):
+    """pinocchio_model_size (the memory estimate's input) against the model Pinocchio builds from the
+    URDF: nv = dof (mimic joints have no velocity), and the joints per link (phi, psi, the 3D undo
+    mimic below a root, len, the mid mimic only for a middle mass)."""
+    from exo_bench.models.urdf import pinocchio_model_size
+    if zero_middle:
+        mech = mech.replace(masses=tuple((a, 0.0 if i % 2 == 0 else b, c) for i, (a, b, c) in enumerate(mech.masses)))
+    model = pin.buildModelFromXML(to_urdf(mech), mimic=True)
+    assert pinocchio_model_size(mech) == (model.nv, model.njoints)
