@@ -310,6 +310,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_stability)
+
+    from exo_bench.bench.equations import add_parser  # exo-bench equations (bench/equations.py)
+    add_parser(sub)
     return p
 
 
