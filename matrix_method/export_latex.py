@@ -209,8 +209,8 @@ class Latex:
             parts.append(rf"\left({self(c)}\right)" if c.is_Add else self(c))
         if gm != 1:
             parts.append(rf"\left({self(gm)}\right)" if gm.is_Add and c != 1 else self(gm))
-        text = " ".join(parts) or "1"
-        return ("- " if sign < 0 else "") + text
+        text = r" \cdot ".join(parts) if len(parts) > 1 and parts[-1].startswith(r"\left(") else " ".join(parts)
+        return ("- " if sign < 0 else "") + (text or "1")
 
 
 def element_name(block: str, name: str, i: int, j: int | None = None) -> str:
