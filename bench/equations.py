@@ -8,7 +8,7 @@
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.
 * A scene listing ``equations`` in its outputs gets ``equations-<scene>.md`` and ``.tex`` in the
-  reports (:func:`scene_pages`); a two-link planar scene's page writes eq. (4) with both signs.
+  reports (:func:`bench.equation_pages.scene_pages`); a two-link planar scene's page writes eq. (4) with both signs.
 * ``exo-bench equations --size-report [--full]`` measures, for chains and random trees of
   n = 1..20 (quick: 1..4) in 2D and 3D, the operation count after CSE, the lines of generated C and
   the seconds to compose and to generate, for the matrix method, our Lagrange II derivation and
@@ -23,16 +23,10 @@ import sys
 import time
 from pathlib import Path
 
+from exo_bench.bench.equation_pages import (DEFAULT_BUDGET, EquationsBudget, _Clock, eq4_pair,  # noqa: F401
+                                            md_matrices, scene_pages)
+
 FORMATS = ("latex", "python", "c")
-#: Seconds that composing and generating may take (``--budget``).
-DEFAULT_BUDGET = 120.0
-
-
-class EquationsBudget(ValueError):
-    """The composition and generation would take, or took, longer than the budget."""
-
-    def __init__(self, message: str):
-        super().__init__(message)
 
 
 # ------------------------------------------------------------------------------ the command
@@ -131,29 +125,6 @@ def file_stem(name: str) -> str:
     return re.sub(r"[^0-9A-Za-z._-]", "_", name) or "mechanism"
 
 
-class _Clock:
-    """The budget of one generation: refused up front by the estimate, checked between phases."""
-
-    def __init__(self, mech, fmt: str, budget: float):
-        from exo_bench.bench.resources import equations_estimate
-
-        self.mech, self.fmt, self.budget = mech, fmt, float(budget)
-        self.start = time.perf_counter()
-        est = equations_estimate(mech, fmt)
-        if est > self.budget:
-            raise EquationsBudget(self._message(f"needs about {_seconds(est)} (estimated before any work)"))
-
-    def _message(self, what: str) -> str:
-        m = self.mech
-        return (f"equations of {m.name!r} (n={m.nlinks} links, dim={m.dim}) as {self.fmt}: composing and generating "
-                f"{what}, over the budget of {self.budget:g} s; raise it with --budget SECONDS")
-
-    def check(self, phase: str) -> None:
-        t = time.perf_counter() - self.start
-        if t > self.budget:
-            raise EquationsBudget(self._message(f"took {t:.1f} s by the end of {phase}"))
-
-
 def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DEFAULT_BUDGET) -> dict[str, str]:
     """``file name -> text`` of the equations of ``mech`` in ``fmt`` (nothing written)."""
     import exo_bench
@@ -205,46 +176,6 @@ def _latex_header(mech, symbolic_parameters: bool) -> str:
 
     flag = " --symbolic-parameters" if symbolic_parameters else ""
     return provenance(f"exo-bench equations {mech.name} --format latex{flag}")
-
-
-def eq4_pair(mech):
-    """The serial and branched two-link planar models of ``mech``'s masses (eq. (4)), or None."""
-    if mech.dim != 2 or mech.nlinks != 2 or tuple(mech.parent) != (-1, 0):
-        return None
-    return mech.replace(sign=(1, 1)), mech.replace(sign=(1, -1))
-
-
-#: Elements a Markdown page lists in full; beyond, it shows A and B (and P), the .tex has everything.
-MD_ELEMENTS = 200
-
-
-def md_matrices(mech):
-    from exo_bench.models.equation_form import blocks, matrix_names
-
-    count = len(blocks(mech.dim)) * len(matrix_names(mech.dim)) * mech.nlinks ** 2
-    if count <= MD_ELEMENTS:
-        return None
-    return ("A", "B", "P") if mech.dim == 3 else ("A", "Lambda", "P")
-
-
-# ------------------------------------------------------------------------------ the scene output
-def scene_pages(scene, staging: Path) -> list[Path]:
-    """The ``equations`` output of a scene: ``equations-<scene>.md`` and ``.tex`` with the
-    aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
-    from exo_bench.bench.reporting import atomic_write, provenance
-    from exo_bench.matrix_method import export_latex
-
-    mech = scene.mechanism
-    _Clock(mech, "latex", DEFAULT_BUDGET)
-    parts = export_latex.element_parts(mech, True)
-    header = provenance(f"exo-bench run {scene.name}")
-    title = f"Equations of motion of scene `{scene.name}` ({mech.name})"
-    md = export_latex.document(mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech),
-                               matrices_shown=md_matrices(mech))
-    tex = export_latex.document(mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts,
-                                eq4=eq4_pair(mech))
-    return [atomic_write(staging / f"equations-{scene.name}.md", md),
-            atomic_write(staging / f"equations-{scene.name}.tex", tex)]
 
 
 # ------------------------------------------------------------------------------ the size study
@@ -382,9 +313,3 @@ def size_report(args) -> int:
     md = atomic_write(out / "equations_size.md", "\n".join(lines))
     print(f"wrote {md}\nwrote {png}")
     return 0
-
-
-def _seconds(x: float) -> str:
-    from exo_bench.bench.resources import _seconds as fmt
-
-    return fmt(x)

@@ -188,7 +188,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
                 continue
             o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
     if scene.wants("equations"):
-        from exo_bench.bench.equations import scene_pages  # the equations page only for scenes that ask for it
+        from exo_bench.bench.equation_pages import scene_pages  # only for scenes that ask for it
         o.files += scene_pages(scene, staging)
     if scene.wants("recording"):
         from exo_bench.bench import recording  # rerun only for scenes that ask for a recording

@@ -209,6 +209,7 @@ class Latex:
             parts.append(rf"\left({self(c)}\right)" if c.is_Add else self(c))
         if gm != 1:
             parts.append(rf"\left({self(gm)}\right)" if gm.is_Add and c != 1 else self(gm))
+        # a symbol before "\left(" would read as a function call: an explicit product there
         text = r" \cdot ".join(parts) if len(parts) > 1 and parts[-1].startswith(r"\left(") else " ".join(parts)
         return ("- " if sign < 0 else "") + (text or "1")
 
@@ -314,8 +315,6 @@ def legend(mech: Mechanism, symbolic_parameters: bool) -> list[str]:
     lines = []
     for i, (z, e, t) in enumerate(zip(*aggregate_symbols(n))):
         vals = []
-        if not symbolic_parameters:
-            pass
         for sym in (z, e, t):
             value = defs[sym].xreplace(symbols_for(n, mech.dim).parameter_values(mech))
             vals.append(f"{L.printer.doprint(sym)} = {L(defs[sym])} = {shortest(float(value))}")
