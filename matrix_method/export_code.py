@@ -177,7 +177,8 @@ def python_module(es: EquationSet, version: str) -> str:
     dof = len(es.tau)
     p = _NumpyPrinter({"fully_qualified_modules": True, "inline": True, "allow_unknown_functions": False})
     inputs = _inputs(S, es.symbolic_parameters)
-    out = ['"""' + "\n".join(header_lines(es, version)), "",
+    doc = "\n".join(header_lines(es, version)).replace("\\", "\\\\").replace('"""', '\\"\\"\\"')
+    out = ['"""' + doc, "",
            "Each function takes arrays of shape (samples, dof) or (dof,) and returns the same leading shape.",
            '"""', "", "import numpy", "", f"DOF = {dof}",
            f"COORDINATES = {tuple(coordinate_names(m))!r}", f"FORCES = {tuple(force_names(m))!r}",
@@ -248,7 +249,7 @@ def c_sources(es: EquationSet, version: str, prefix: str | None = None) -> tuple
     prefix = c_identifier(prefix or m.name)
     dof = len(es.tau)
     guard = prefix.upper() + "_H"
-    info = header_lines(es, version)
+    info = [ln.replace("*/", "* /") for ln in header_lines(es, version)]   # a user's name cannot end the comment
     head = ["/*"] + [" * " + ln for ln in info] + [
         " *",
         f" * One sample per call: q, qd, qdd hold {dof} doubles; tau and h {dof}; M {dof * dof} (row-major).",

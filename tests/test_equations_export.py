@@ -249,12 +249,12 @@ def _evaluate(text: str, values: dict[str, float]) -> float:
                          ids=["fig2a-2d-numbers", "fig2b-2d-aggregates", "fig2b-3d-aggregates"])
 def test_latex_parses_back_to_the_equations_of_pinocchio(mech, symbolic):
     """Every element of every matrix, parsed back from the LaTeX and assembled into eq. (5)/(17),
-    gives Pinocchio's M and tau."""
+    gives Pinocchio's and Lagrange's M and tau."""
     from exo_bench.models.equation_form import ACCELERATION, RATES, blocks, matrix_names
 
     els = export_latex.elements(mech, symbolic)
     q, qd, qdd = random_states(mech, 3, 21)
-    pin = prepare(mech, "pinocchio")
+    pin, lag = prepare(mech, "pinocchio"), prepare(mech, "lagrange")
     n, bl = mech.nlinks, blocks(mech.dim)
     coord = {b: slice(k * n, (k + 1) * n) for k, b in enumerate(bl)}
     for s in range(3):
@@ -277,23 +277,25 @@ def test_latex_parses_back_to_the_equations_of_pinocchio(mech, symbolic):
                 for c, cb in enumerate(bl):
                     for j in range(n):
                         M[row, c * n + j] = _evaluate(els[block][ACCELERATION[cb]][(i, j)], v)
-        assert _rel(M, pin.mass_matrix(q[s])) < TOL
-        assert _rel(tau, pin.inverse_dynamics(q[s], qd[s], qdd[s])) < TOL
+        for ref in (pin, lag):
+            assert _rel(M, ref.mass_matrix(q[s])) < TOL, ref.method
+            assert _rel(tau, ref.inverse_dynamics(q[s], qd[s], qdd[s])) < TOL, ref.method
 
 
 @pytest.mark.parametrize("mech", [fig2a(2), fig2b(2)], ids=lambda m: m.name)
 def test_eq4_with_both_signs_parses_back_to_the_serial_and_branched_models(mech):
-    """Eq. (4) on the page: upper signs give Fig. 2a's equations, lower signs Fig. 2b's (Pinocchio)."""
+    """Eq. (4) on the page: upper signs give Fig. 2a's equations, lower signs Fig. 2b's (Pinocchio and
+    Lagrange)."""
     rows = export_latex.eq4_rows(*beq.eq4_pair(mech))
     text = " ".join(rows)
     assert r"\pm" in text and r"\mp" in text
     q, qd, qdd = random_states(mech, 2, 31)
     for model, (pm, mp) in ((fig2a(2), ("+", "-")), (fig2b(2), ("-", "+"))):
-        pin = prepare(model, "pinocchio")
-        for s in range(2):
-            v = _values(model, q[s], qd[s], qdd[s], True)
-            lhs = [_evaluate(r.split("&=")[0].replace(r"\pm", pm).replace(r"\mp", mp), v) for r in rows]
-            assert _rel(lhs, pin.inverse_dynamics(q[s], qd[s], qdd[s])) < TOL, model.name
+        for ref in (prepare(model, "pinocchio"), prepare(model, "lagrange")):
+            for s in range(2):
+                v = _values(model, q[s], qd[s], qdd[s], True)
+                lhs = [_evaluate(r.split("&=")[0].replace(r"\pm", pm).replace(r"\mp", mp), v) for r in rows]
+                assert _rel(lhs, ref.inverse_dynamics(q[s], qd[s], qdd[s])) < TOL, (model.name, ref.method)
 
 
 def test_branch_zeros_and_signs_are_shown():
@@ -389,3 +391,19 @@ def test_size_points_of_the_three_routes_count_the_same_equations():
     for p in pts.values():
         assert p["ops"] > 0 and p["c_lines"] > 20 and p["compose"] >= 0 and p["generate"] > 0
     assert pts["matrix"]["ops"] <= pts["LagrangesMethod"]["ops"]
+
+
+def test_a_hostile_mechanism_name_cannot_break_the_generated_code(tmp_path):
+    """A user's JSON names the mechanism: quotes, comment ends and backslashes stay text."""
+    mech = fig2a(2).replace(name='evil */ """ \\ \' x')
+    es = export_code.equation_set(mech)
+    text = export_code.python_module(es, "0")
+    ns: dict = {}
+    exec(compile(text, "gen.py", "exec"), ns)          # still valid Python, the name intact
+    assert ns["MECHANISM"] == mech.name
+    q, qd, qdd = random_states(mech, 3, 1)
+    assert _rel(ns["inverse_dynamics"](q, qd, qdd), prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)) < TOL
+    lib, prefix, _ = _compile(tmp_path, mech, False)        # still compiles, warning-free
+    assert prefix.isidentifier()
+    tau, _, _ = _call_c(lib, prefix, mech, False, q, qd, qdd)
+    assert _rel(tau, ns["inverse_dynamics"](q, qd, qdd)) < TOL
