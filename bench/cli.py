@@ -341,6 +341,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     _cluster_args(s)
     s.set_defaults(func=cmd_stability)
+
+    from exo_bench.bench.equations import add_parser  # exo-bench equations (bench/equations.py)
+    add_parser(sub)
     return p
 
 

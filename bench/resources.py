@@ -386,3 +386,20 @@ def _seconds(x: float) -> str:
     if x >= 1:
         return f"{x:.0f} s" if x >= 10 else f"{x:.1f} s"
     return f"{x * 1e3:.0f} ms" if x >= 1e-3 else f"{x * 1e6:.0f} us"
+
+
+#: ``exo-bench equations``: seconds to compose and generate, measured on chains (one run each on
+#: the shared 2-core machine; python and c: three CSEs and the printing, latex: the Markdown page
+#: and the .tex): format -> dim -> ((n, seconds), ...). Interpolated in log-log and extended by the
+#: power law through the last two points (about n^2 for code, n^4 for latex), not rounded up, so
+#: that a refusal for the budget is a real one.
+EQUATIONS_POINTS: dict[str, dict[int, tuple[tuple[int, float], ...]]] = {
+    "python": {2: ((2, 0.05), (5, 0.14), (10, 0.57), (20, 2.4)), 3: ((2, 0.13), (5, 0.95), (10, 3.5), (20, 13.7))},
+    "c": {2: ((2, 0.04), (5, 0.08), (10, 0.53), (20, 3.5)), 3: ((2, 0.05), (5, 1.07), (10, 2.5), (20, 15.7))},
+    "latex": {2: ((2, 0.02), (5, 0.05), (10, 0.3), (20, 4.0)), 3: ((2, 0.07), (5, 0.45), (10, 1.5), (20, 26.0))},
+}
+
+
+def equations_estimate(mech: Mechanism, fmt: str) -> float:
+    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c)."""
+    return _loglog(list(EQUATIONS_POINTS[fmt][mech.dim]), float(mech.nlinks))

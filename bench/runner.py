@@ -189,6 +189,9 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
             o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
+    if scene.wants("equations"):
+        from exo_bench.bench.equation_pages import scene_pages  # only for scenes that ask for it
+        o.files += scene_pages(scene, staging)
     if scene.wants("recording"):
         from exo_bench.bench import recording  # rerun only for scenes that ask for a recording
         p = recording.write_recording(o.study, staging / f"{scene.name}.rrd")

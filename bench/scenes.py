@@ -8,7 +8,7 @@ Format (every key is checked; an error names the file and the field)::
     methods = ["pinocchio", "matrix", "recurrence"]
     reference = "pinocchio"               # optional; the first method by default
     outputs = ["table", "reference-error", "moments", "forces", "kinogram", "differences", "overview",
-               "recording"]
+               "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/equations.py)
 
     [motion]
     kind = "gait"                         # gait | planar-gait | smooth-random | states
@@ -46,7 +46,8 @@ from exo_bench.models.motion import (DEFAULT_GAIT, GAITS, GaitParams, Motion, fr
                                      smooth_random_motion)
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
-OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording")
+OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording",
+           "equations")
 MOTIONS = ("gait", "planar-gait", "smooth-random", "states")
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
 _MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait"}

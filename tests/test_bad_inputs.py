@@ -271,6 +271,24 @@ CASES = [
     Case("missing-argument", "a missing argument", lambda d: ["inverse", "exo5-3d"], "required"),
     Case("unknown-method", "an unknown method", lambda d: ["inverse", "exo5-3d", _s5(d), "--method", "newton"],
          "method: expected one of"),
+    # ---------------------------------------------------------------- exo-bench equations
+    Case("equations-format", "equations: an unknown format", lambda d: ["equations", "fig2a-2d", "--format", "pdf",
+                                                                          "-o", d], "expected one of latex, python, c"),
+    Case("equations-no-format", "equations: no format", lambda d: ["equations", "fig2a-2d", "-o", d],
+         "expected one of latex, python, c, got nothing"),
+    Case("equations-mechanism", "equations: an unknown mechanism", lambda d: ["equations", "fig9-2d", "--format", "c",
+                                                                              "-o", d], "not a preset"),
+    Case("equations-output-file", "equations: -o naming a file", lambda d: [
+        "equations", "fig2a-2d", "--format", "c", "-o", _text(d, "x", "afile")], "expected a folder, but it is a file"),
+    Case("equations-output-under-file", "equations: an output folder that cannot be made (under a file)", lambda d: [
+        "equations", "fig2a-2d", "--format", "latex", "-o", _text(d, "x", "afile") / "out"],
+         "lies under '<dir>/afile', which is a file"),
+    Case("equations-budget", "equations: a composition over its time budget (estimated before any work)",
+         lambda d: ["equations", _chain_file(d, 200, 3), "--format", "c", "-o", d],
+         "as c: composing and generating needs about 2.0 h (estimated before any work), over the budget of 120 s; "
+         "raise it with --budget SECONDS"),
+    Case("equations-budget-value", "equations: --budget not a positive number", lambda d: [
+        "equations", "fig2a-2d", "--format", "c", "--budget", "0"], "expected a positive number of seconds"),
     # ---------------------------------------------------------------- warnings and accepted edges (exit 0)
     Case("matrix-paper-3d", "matrix-paper on a 3D model (a result with a warning)", lambda d: [
         "inverse", "exo5-3d", _s5(d), "--method", "matrix-paper"], "3D results are wrong by design", rc=0,

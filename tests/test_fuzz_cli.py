@@ -211,7 +211,8 @@ KINDS = ["missing", "folder", "binary", "empty", "bom", "device", "fifo", "nul",
 
 
 @settings(max_examples=len(KINDS) * 3, deadline=None, derandomize=True, database=None)
-@given(st.sampled_from(KINDS), st.sampled_from(["mechanism", "states", "scene", "urdf-out", "urdf-mechanism"]))
+@given(st.sampled_from(KINDS), st.sampled_from(["mechanism", "states", "scene", "urdf-out", "urdf-mechanism",
+                                                "equations-out", "equations-mechanism"]))
 def test_every_kind_of_file_in_every_role(kind, role):
     with workdir() as d:
         bad = _make(kind, d)
@@ -223,6 +224,10 @@ def test_every_kind_of_file_in_every_role(kind, role):
             holds(["run", bad, "--reports", d / "rep"])
         elif role == "urdf-out":
             holds(["urdf", "fig1-2d", "-o", bad])
+        elif role == "equations-out":
+            holds(["equations", "fig1-2d", "--format", "c", "-o", bad])
+        elif role == "equations-mechanism":
+            holds(["equations", bad, "--format", "python"])
         else:
             holds(["urdf", bad])
 
@@ -290,7 +295,8 @@ def test_run_with_generated_scenes(values, present):
 # ------------------------------------------------------------------------------ free-form argument lists
 TOKENS = ["inverse", "urdf", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
           "--max-time", "--reports", "--full", "-o", "--output", "--update-readme", "-h", "fig1-2d", "exo5-3d",
-          "matrix", "2G", "-1", "nan", "s.json", "m.json", "x", "", "--", "-", "\0"]
+          "matrix", "2G", "-1", "nan", "s.json", "m.json", "x", "", "--", "-", "\0",
+          "equations", "--format", "latex", "python", "c", "--symbolic-parameters", "--size-report"]
 
 
 @FUZZ
@@ -305,6 +311,7 @@ def test_any_argument_list(argv):
         for mod in (runner, bench_reports, errata, stability):  # the heavy jobs: stubs
             mp.setattr(mod, "run", lambda args: 0)
         mp.setattr("exo_bench.bench.distributed.bench_run", lambda args: 0)   # bench --full: the Dask sweep
+        mp.setattr("exo_bench.bench.equations.size_report", lambda args: 0)
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
         (d / "m.json").write_text(fig1(2).to_json())
