@@ -13,13 +13,15 @@ The kernels themselves, one algorithm per file:
 The pure-numpy kernels (:mod:`matrix_method.numeric`, :mod:`matrix_method.recurrence`) stay the
 reference implementation; tests/test_compiled.py holds these to them at 1e-14 relative.
 
-**One kernel, one sample or a batch.** Each algorithm is a per-sample function (``@njit``,
-inlined) and two drivers that run it over the samples of flat, C-ordered ``(samples * dof,)``
-arrays (a ``(dof,)`` sample is already such an array, a ``(samples, dof)`` batch is its
-``reshape(-1)``, a view): :func:`serial` loops, and for batches of at least
-:data:`PARALLEL_MIN_SAMPLES` samples the parallel driver runs blocks of :data:`BLOCK` samples
-over numba's threads (``prange``). Scratch space is allocated once per driver call (serial) or
-per block (parallel), never per sample.
+**One kernel, one sample or a batch.** Each algorithm is a per-sample function, a block function
+that runs it over samples ``start .. stop - 1`` with its scratch allocated once, and two drivers
+``kernel(*args, q, qd, qdd, o)`` that write the forces into ``o``; states and forces are flat,
+C-ordered ``(samples * dof,)`` float64 arrays (a ``(dof,)`` sample is already one, a
+``(samples, dof)`` batch is its ``reshape(-1)``, a view): one signature per kernel. The serial
+driver runs one block; for batches of at least :data:`PARALLEL_MIN_SAMPLES` samples the parallel
+driver runs blocks of :data:`BLOCK` samples over numba's threads (``prange``). Writing into a
+given ``o`` (no array returned) keeps a per-call answer to the dispatch and the arithmetic: the
+caller may preallocate it (``inverse_dynamics(..., out=)``).
 
 **Closed forms written once.** The compiled ``matrix`` and ``recurrence`` kernels call the very
 functions of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial` (registered here with
@@ -117,7 +119,7 @@ def run(serial, parallel, args: tuple, samples: int):
     return serial(*args)
 
 
-def compile_times(kernels: dict, args: dict) -> dict[str, dict]:
+def compile_times(kernels: dict, args: dict) -> dict[str, dict]:  # noqa: D401
     """Per kernel name, the first call's seconds (compiling, or loading from numba's cache) and
     whether numba's cache served it: ``{name: {"seconds", "cache_hits", "cache_misses"}}``.
     ``kernels[name]`` is a numba dispatcher, ``args[name]`` its arguments."""

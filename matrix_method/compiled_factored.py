@@ -106,39 +106,31 @@ def _samples_3d(p, q, qd, qdd, o, start, stop):
 
 
 @njit(**JIT)
-def factored_2d(p, q, qd, qdd):
-    """Method ``matrix-factored``, planar: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def factored_2d(p, q, qd, qdd, o):
+    """Method ``matrix-factored``, planar: every sample of the flat states, in turn, into ``o``."""
     _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
-    return o
 
 
 @njit(parallel=True, **JIT)
-def factored_2d_parallel(p, q, qd, qdd):
+def factored_2d_parallel(p, q, qd, qdd, o):
     """:func:`factored_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-    return o
 
 
 @njit(**JIT)
-def factored_3d(p, q, qd, qdd):
-    """Method ``matrix-factored``, spatial: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def factored_3d(p, q, qd, qdd, o):
+    """Method ``matrix-factored``, spatial: every sample of the flat states, in turn, into ``o``."""
     _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
-    return o
 
 
 @njit(parallel=True, **JIT)
-def factored_3d_parallel(p, q, qd, qdd):
+def factored_3d_parallel(p, q, qd, qdd, o):
     """:func:`factored_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-    return o
 
 
 #: dim -> (serial kernel, parallel kernel)

@@ -169,39 +169,31 @@ def _samples_3d(p, q, qd, qdd, o, start, stop):
 
 
 @njit(**JIT)
-def matrix_2d(p, q, qd, qdd):
-    """Method ``matrix``, planar: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def matrix_2d(p, q, qd, qdd, o):
+    """Method ``matrix``, planar: every sample of the flat states, in turn, into ``o``."""
     _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
-    return o
 
 
 @njit(parallel=True, **JIT)
-def matrix_2d_parallel(p, q, qd, qdd):
+def matrix_2d_parallel(p, q, qd, qdd, o):
     """:func:`matrix_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-    return o
 
 
 @njit(**JIT)
-def matrix_3d(p, q, qd, qdd):
-    """Method ``matrix``, spatial: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def matrix_3d(p, q, qd, qdd, o):
+    """Method ``matrix``, spatial: every sample of the flat states, in turn, into ``o``."""
     _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
-    return o
 
 
 @njit(parallel=True, **JIT)
-def matrix_3d_parallel(p, q, qd, qdd):
+def matrix_3d_parallel(p, q, qd, qdd, o):
     """:func:`matrix_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-    return o
 
 
 #: dim -> (serial kernel, parallel kernel)

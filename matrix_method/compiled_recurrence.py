@@ -123,39 +123,31 @@ def _samples(p, ints, floats, q, qd, qdd, o, start, stop, dim):
 
 
 @njit(**JIT)
-def recurrence_2d(p, ints, floats, q, qd, qdd):
-    """Method ``recurrence``, planar: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def recurrence_2d(p, ints, floats, q, qd, qdd, o):
+    """Method ``recurrence``, planar: every sample of the flat states, in turn, into ``o``."""
     _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]), 2)
-    return o
 
 
 @njit(parallel=True, **JIT)
-def recurrence_2d_parallel(p, ints, floats, q, qd, qdd):
+def recurrence_2d_parallel(p, ints, floats, q, qd, qdd, o):
     """:func:`recurrence_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 2)
-    return o
 
 
 @njit(**JIT)
-def recurrence_3d(p, ints, floats, q, qd, qdd):
-    """Method ``recurrence``, spatial: every sample of the flat states, in turn."""
-    o = np.empty_like(q)
+def recurrence_3d(p, ints, floats, q, qd, qdd, o):
+    """Method ``recurrence``, spatial: every sample of the flat states, in turn, into ``o``."""
     _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]), 3)
-    return o
 
 
 @njit(parallel=True, **JIT)
-def recurrence_3d_parallel(p, ints, floats, q, qd, qdd):
+def recurrence_3d_parallel(p, ints, floats, q, qd, qdd, o):
     """:func:`recurrence_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
-    o = np.empty_like(q)
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 3)
-    return o
 
 
 #: dim -> (serial kernel, parallel kernel)

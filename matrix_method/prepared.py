@@ -17,7 +17,8 @@
 a batch, threads for large batches; compiled on first use and cached on disk), ``"numpy"`` the
 vectorised numpy reference of :mod:`matrix_method.numeric`/:mod:`matrix_method.recurrence`.
 Both compute the same arithmetic and agree to rounding (tests/test_compiled.py). With
-``check=False`` a numba model's call is the kernel call and a reshape: nothing else runs.
+``check=False`` a numba model's call on one sample is the kernel call writing into ``out`` (or a
+new array): nothing else runs.
 """
 
 from __future__ import annotations
@@ -99,20 +100,26 @@ class _Compiled(_MatrixFamily):
     def _kernel_extra(self, mechanism: Mechanism) -> tuple:
         return ()
 
-    def inverse_dynamics(self, q, qd, qdd, check: bool = True) -> np.ndarray:
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
-            return PreparedModel.inverse_dynamics(self, q, qd, qdd, check)
+            return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
         if q.ndim == 1:                         # one sample: the serial kernel on the arrays as given
-            return self.serial_kernel(*self.kernel_args, q, qd, qdd)
-        return self._inverse_dynamics(q, qd, qdd)   # a batch: the compiled kernel, no chunks (O(n^2) scratch)
+            o = np.empty_like(q) if out is None else out
+            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
+            return o
+        if out is None:                         # a batch: the compiled kernel, no chunks (O(n^2) scratch)
+            return self._inverse_dynamics(q, qd, qdd)
+        return self._compiled(q, qd, qdd, out)
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
 
-    def _compiled(self, q, qd, qdd):
-        """The compiled kernel on ``(samples, dof)`` states (flattened: a view when C-ordered)."""
-        return compiled.run(self.serial_kernel, self.parallel_kernel,
-                            (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1)),
-                            q.shape[0]).reshape(q.shape)
+    def _compiled(self, q, qd, qdd, out=None):
+        """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
+        ``out`` (C-ordered) or a new array."""
+        o = np.empty_like(q) if out is None else out
+        compiled.run(self.serial_kernel, self.parallel_kernel,
+                     (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1)), q.shape[0])
+        return o
 
 
 class MatrixProducts(_Compiled):

@@ -141,3 +141,22 @@ def test_a_second_process_loads_the_kernel_from_numbas_cache(tmp_path):
     assert warm["hits"] >= 1 and warm["misses"] == 0, warm
     assert cold["tau0"] == warm["tau0"] == second["tau0"]
     print(f"first call of factored_3d: compiling {cold['seconds']:.2f} s, from the cache {warm['seconds'] * 1e3:.1f} ms")
+
+
+@pytest.mark.parametrize("method", COMPILED)
+def test_out_receives_the_forces(method):
+    """``out=``: the result is written into the caller's array (one sample and a batch, with and
+    without checks), equal to the result without ``out``; a wrong ``out`` is named."""
+    mech = exo5(3)
+    model = prepare(mech, method)
+    for S in (None, 5):
+        q, qd, qdd = _states(mech, 1 if S is None else S, seed=4)
+        if S is None:
+            q, qd, qdd = q[0].copy(), qd[0].copy(), qdd[0].copy()
+        want = model.inverse_dynamics(q, qd, qdd)
+        for check in (True, False):
+            out = np.full(q.shape, np.nan)
+            got = model.inverse_dynamics(q, qd, qdd, check=check, out=out)
+            assert got is out and np.array_equal(out, want)
+    with pytest.raises(ValueError, match=r"field 'out': expected a writable C-ordered float64 array of shape \(15,\), got float32"):
+        model.inverse_dynamics(q[0], qd[0], qdd[0], out=np.empty(15, np.float32))
