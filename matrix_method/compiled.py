@@ -36,9 +36,14 @@ kernel's own file changes, not when a closed form in ``planar.py``/``spatial.py`
 editing those, delete ``matrix_method/__pycache__/*.nbi``/``*.nbc`` (the tests would catch the
 stale kernel: they hold it to the numpy reference).
 
-**Threads.** A parallel driver is entered by one Python thread at a time (numba's default
-``workqueue`` threading layer aborts the process on concurrent parallel launches); a model called
-from several threads at once runs the serial driver in the others (:func:`run`).
+**Threads.** The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
+the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
+otherwise take OpenMP where libgomp is loaded (Pinocchio brings it), and on the shared 2-core
+machine OpenMP's statically scheduled, spin-waiting threads made the parallel driver 4 to 150 times
+slower than the serial one whenever another process (or Pinocchio's own ``rneaInParallel`` pool)
+held a core, while ``workqueue`` was never slower than serial. A parallel driver is entered by one
+Python thread at a time (``workqueue`` aborts the process on concurrent parallel launches); a
+model called from several threads at once runs the serial driver in the others (:func:`run`).
 """
 
 from __future__ import annotations
@@ -47,12 +52,30 @@ import threading
 import time
 from collections import namedtuple
 
+import os
+
+import numba
 import numpy as np
 from numba import njit  # noqa: F401 - re-exported for the kernel modules
 from numba.extending import register_jitable
 
 from exo_bench.matrix_method import planar, spatial
 from exo_bench.models import equation_form
+
+def _threading_layer() -> str:
+    """Choose numba's ``workqueue`` threading layer (module docstring) when nobody chose one yet;
+    return the layer numba will use (or uses)."""
+    try:
+        from numba.np.ufunc import parallel
+        started = bool(parallel._is_initialized)
+    except (ImportError, AttributeError):
+        started = True
+    if not started and "NUMBA_THREADING_LAYER" not in os.environ:
+        numba.config.THREADING_LAYER = "workqueue"
+    return numba.config.THREADING_LAYER
+
+
+THREADING_LAYER = _threading_layer()
 
 #: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
 #: fastmath: the kernels are held to the numpy reference at 1e-14).
