@@ -10,16 +10,20 @@ it may fuse a multiply and an add into one FMA instruction, which the estimate a
 
 **Throughput** (:func:`throughput`), small numba loops compiled like the kernels (no fastmath):
 
-* ``scalar_fma_per_s``: ``a_k = a_k * x + y`` on 8 independent scalar accumulators: the rate of
-  dependent-free scalar multiply-adds (LLVM does not vectorize it: that would reassociate);
-* ``simd_fma_per_s``: the same chain of 16 multiply-adds on every element of an array that stays
+* ``scalar_flops_per_s``: ``a_k = a_k * x + y`` on 16 independent scalar accumulators, two flops
+  each (a multiply and an add: without ``fastmath`` numba does not fuse them), enough independent
+  work to cover the latency: the scalar rate (numba runs LLVM's SLP vectorizer only when
+  ``numba.config.SLP_VECTORIZE`` is on, off by default, which :func:`throughput` checks; so the
+  accumulators stay scalar registers);
+* ``simd_flops_per_s``: the same chain of 16 multiply-adds on every element of an array that stays
   in the L1 cache: LLVM vectorizes the loop over elements (AVX2/AVX-512 where the CPU has it);
-* ``sin_per_s``: ``sin`` of every element of an array (libm's scalar ``sin``: numba does not
-  vectorize it without Intel's SVML).
+* ``sincos_per_s``: ``sin`` and ``cos`` of every element of an array, the way the kernel calls
+  them for each angle (libm's scalar functions, which LLVM may merge into one ``sincos``; numba
+  does not vectorize them without Intel's SVML).
 
 Each is the best of several repeats (the machine is shared). :func:`estimate` turns a count and
-the throughputs into the seconds of one sample: ``max(adds, muls)`` multiply-adds (each FMA does
-one of each; the rest are plain adds or multiplies at the same rate) plus the transcendental calls.
+the rates into the seconds of one sample: its flops at the scalar or the SIMD rate, plus its
+angles (``trig / 2`` sin-cos pairs) at the measured rate.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import math
 import time
 import types
 
+import numba
 import numpy as np
 from numba import njit
 
@@ -89,6 +94,7 @@ def count_factored(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndar
 @njit(cache=True)
 def _scalar_fma(iters, x, y):
     a0, a1, a2, a3, a4, a5, a6, a7 = 1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7
+    b0, b1, b2, b3, b4, b5, b6, b7 = 2.0, 2.1, 2.2, 2.3, 2.4, 2.5, 2.6, 2.7
     for _ in range(iters):
         a0 = a0 * x + y
         a1 = a1 * x + y
@@ -98,7 +104,15 @@ def _scalar_fma(iters, x, y):
         a5 = a5 * x + y
         a6 = a6 * x + y
         a7 = a7 * x + y
-    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7
+        b0 = b0 * x + y
+        b1 = b1 * x + y
+        b2 = b2 * x + y
+        b3 = b3 * x + y
+        b4 = b4 * x + y
+        b5 = b5 * x + y
+        b6 = b6 * x + y
+        b7 = b7 * x + y
+    return a0 + a1 + a2 + a3 + a4 + a5 + a6 + a7 + b0 + b1 + b2 + b3 + b4 + b5 + b6 + b7
 
 
 @njit(cache=True)
@@ -113,10 +127,12 @@ def _simd_fma(a, reps, x, y):
 
 
 @njit(cache=True)
-def _sin_loop(a, out, reps):
+def _sincos_loop(a, out, reps):
     for _ in range(reps):
         for i in range(a.shape[0]):
-            out[i] = math.sin(a[i])
+            x = a[i]
+            c, s = math.cos(x), math.sin(x)        # as the kernel: cf, sf = math.cos(phi), math.sin(phi)
+            out[i] = c * s
     return out[0]
 
 
@@ -129,29 +145,37 @@ def _best(fn, repeats: int = 5) -> float:
     return best
 
 
+def scalar_rate(scale: int = 1) -> float:
+    """Flops per second of :func:`_scalar_fma` as compiled in this process (see :func:`throughput`)."""
+    x, y = 0.999999, 1e-7
+    iters = 1_000_000 * scale
+    _scalar_fma(10, x, y)
+    return 2 * 16 * iters / _best(lambda: _scalar_fma(iters, x, y))
+
+
 def throughput(scale: int = 1) -> dict[str, float]:
     """This CPU's scalar and SIMD multiply-add rate and ``sin`` rate, per second, from numba loops
     (module docstring); ``scale`` multiplies the loop lengths."""
     x, y = 0.999999, 1e-7                      # |x| < 1: the values stay bounded
-    iters = 2_000_000 * scale
-    _scalar_fma(10, x, y)
-    scalar = 8 * iters / _best(lambda: _scalar_fma(iters, x, y))
-    a = np.random.default_rng(0).uniform(-1.0, 1.0, 1024)
+    if numba.config.SLP_VECTORIZE:
+        raise RuntimeError("limit: numba's SLP vectorizer is on (NUMBA_SLP_VECTORIZE): the scalar rate would be a SIMD one")
+    scalar = scalar_rate(scale)
+    a = np.random.default_rng(0).uniform(-np.pi, np.pi, 1024)
     reps = 2000 * scale
-    _simd_fma(a.copy(), 1, x, y)
-    simd = 16 * a.size * reps / _best(lambda: _simd_fma(a, reps, x, y))
+    b = np.random.default_rng(1).uniform(-1.0, 1.0, 1024)
+    _simd_fma(b.copy(), 1, x, y)
+    simd = 2 * 16 * b.size * reps / _best(lambda: _simd_fma(b, reps, x, y))
     out = np.empty_like(a)
-    _sin_loop(a, out, 1)
+    _sincos_loop(a, out, 1)
     sin_reps = 1000 * scale
-    sin = a.size * sin_reps / _best(lambda: _sin_loop(a, out, sin_reps))
-    return {"scalar_fma_per_s": scalar, "simd_fma_per_s": simd, "sin_per_s": sin}
+    sincos = a.size * sin_reps / _best(lambda: _sincos_loop(a, out, sin_reps))
+    return {"scalar_flops_per_s": scalar, "simd_flops_per_s": simd, "sincos_per_s": sincos}
 
 
 def estimate(count: dict[str, int], rates: dict[str, float]) -> dict[str, float]:
-    """Seconds of one sample at the measured rates: ``max(add, mul)`` multiply-adds and ``trig``
-    calls, all scalar, and with the multiply-adds at the SIMD rate (the calls stay scalar)."""
-    fmas = max(count["add"], count["mul"])
-    trig = count["trig"] / rates["sin_per_s"]
-    return {"scalar_s": fmas / rates["scalar_fma_per_s"] + trig,
-            "simd_s": fmas / rates["simd_fma_per_s"] + trig,
+    """Seconds of one sample at the measured rates: its flops at the scalar and at the SIMD rate,
+    each plus its ``trig / 2`` sin-cos pairs (scalar calls either way)."""
+    trig = count["trig"] / 2 / rates["sincos_per_s"]
+    return {"scalar_s": count["flops"] / rates["scalar_flops_per_s"] + trig,
+            "simd_s": count["flops"] / rates["simd_flops_per_s"] + trig,
             "trig_s": trig}

@@ -100,7 +100,10 @@ def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
     cpus = os.cpu_count() or 1
     times = {}
     for t in sorted({2, cpus, 2 * cpus}):
-        m = prepare(mech, "pinocchio", threads=t)
+        try:
+            m = prepare(mech, "pinocchio", threads=t)
+        except MemoryError:                  # PinocchioDataTooLarge: one Data per thread does not fit
+            continue
         m.inverse_dynamics(q[:8], qd[:8], qdd[:8], check=False)
         best = np.inf
         for _ in range(3):
@@ -108,7 +111,7 @@ def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
             m.inverse_dynamics(q, qd, qdd, check=False)
             best = min(best, time.perf_counter() - t0)
         times[t] = best
-    return min(times, key=times.get), times
+    return (min(times, key=times.get) if times else 2), times
 
 
 def _prepare(method: str, kernel, mech, sw, batch=None):
@@ -125,7 +128,7 @@ def _prepare(method: str, kernel, mech, sw, batch=None):
     try:
         return prepare(mech, base, **options)
     except Exception as e:  # noqa: BLE001
-        reason = getattr(e, "skip_reason", None)
+        reason = getattr(e, "skip_reason", None) or (str(e) if isinstance(e, MemoryError) else None)
         if not reason:
             raise
         _FAILED[key] = f"{method}: {reason}"

@@ -142,7 +142,7 @@ def run(serial, parallel, args: tuple, samples: int):
     return serial(*args)
 
 
-def compile_times(kernels: dict, args: dict) -> dict[str, dict]:  # noqa: D401
+def compile_times(kernels: dict, args: dict) -> dict[str, dict]:
     """Per kernel name, the first call's seconds (compiling, or loading from numba's cache) and
     whether numba's cache served it: ``{name: {"seconds", "cache_hits", "cache_misses"}}``.
     ``kernels[name]`` is a numba dispatcher, ``args[name]`` its arguments."""
