@@ -20,8 +20,9 @@ C-ordered ``(samples * dof,)`` float64 arrays (a ``(dof,)`` sample is already on
 ``(samples, dof)`` batch is its ``reshape(-1)``, a view): one signature per kernel. The serial
 driver runs one block; for batches of at least :data:`PARALLEL_MIN_SAMPLES` samples the parallel
 driver runs blocks of :data:`BLOCK` samples over numba's threads (``prange``). Writing into a
-given ``o`` (no array returned) keeps a per-call answer to the dispatch and the arithmetic: the
-caller may preallocate it (``inverse_dynamics(..., out=)``).
+given ``o`` (no array returned) leaves a one-sample call with numba's dispatch and the arithmetic
+only (returning a new array cost about as much as the arithmetic of exo5-3d): the caller may
+preallocate it (``inverse_dynamics(..., out=)``).
 
 **Closed forms written once.** The compiled ``matrix`` and ``recurrence`` kernels call the very
 functions of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial` (registered here with
@@ -31,7 +32,8 @@ sympy); the transitions take their namespace ``t`` as a namedtuple (:data:`Trans
 **Compile once per machine.** ``cache=True`` writes the machine code beside this package
 (``__pycache__``, or numba's user-wide cache folder where that is not writable), so a second
 process loads it instead of compiling. The first call of each kernel in a fresh cache compiles it
-(about a second each); :func:`compile_times` measures it. numba's cache is invalidated when the
+(1 to 10 s each on the 2-core machine, the ``compile`` table of reports/scaling.md, measured by
+:func:`compile_times`). numba's cache is invalidated when the
 kernel's own file changes, not when a closed form in ``planar.py``/``spatial.py`` does: after
 editing those, delete ``matrix_method/__pycache__/*.nbi``/``*.nbc`` (the tests would catch the
 stale kernel: they hold it to the numpy reference).
@@ -48,11 +50,10 @@ model called from several threads at once runs the serial driver in the others (
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import namedtuple
-
-import os
 
 import numba
 import numpy as np
