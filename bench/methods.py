@@ -25,13 +25,16 @@ METHODS: dict[str, tuple[str, str, str]] = {
                  "(options: budget, interrupt)"),
     "matrix": ("exo_bench.matrix_method.prepared", "MatrixProducts",
                "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
-               "no division), then the products with the rates; batched numpy"),
+               "no division), then the products with the rates; compiled loops (option kernel: numba, the "
+               "default, or numpy)"),
     "matrix-factored": ("exo_bench.matrix_method.prepared", "MatrixFactored",
-                        "the matrix method's equations in factored form (no matrix formed); batched numpy"),
+                        "the matrix method's equations in factored form (no matrix formed); compiled loops "
+                        "(option kernel: numba, the default, or numpy)"),
     "matrix-paper": ("exo_bench.matrix_method.prepared", "MatrixPaper",
                      "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)"),
     "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
-                   "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17)"),
+                   "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
+                   "loops (option kernel: numba, the default, or numpy)"),
 }
 
 #: Methods whose results are known to be wrong (kept to expose the paper's misprints).
@@ -55,7 +58,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     ``mass_matrix`` and ``bias_forces`` as often as needed.
 
     ``options`` are the method's constructor arguments (``threads`` for pinocchio, ``budget`` and
-    ``interrupt`` for lagrange, ``block`` for the matrix family); an unknown option is a ValueError.
+    ``interrupt`` for lagrange, ``block`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
     """
     cls = method_class(method)
     try:

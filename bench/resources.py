@@ -65,7 +65,12 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
 would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
-the matrix family keeps ``n x n`` coefficient matrices; ``lagrange`` derives with sympy:
+the matrix family keeps ``n x n`` coefficient matrices, and its compiled kernels (option
+``kernel="numba"``, the default of ``matrix``, ``matrix-factored``, ``recurrence``) add numba's
+runtime on first use and, when numba's on-disk cache lacks them, a one-time compile
+(:data:`NUMBA_BYTES`; :data:`NUMBA_COMPILE_SECONDS`, named in the note); per sample the compiled kernels need less
+time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
+model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
 17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
 largest n by the power law through the last two points: about n^3.5 in time and n^3.7 in memory).
@@ -131,6 +136,38 @@ def _matrix_setup(mech, options):
     return F8 * 8 * mech.nlinks**2 + 2**20                  # coupling and gravity coefficients, several n x n
 
 
+#: Methods whose default kernel is compiled by numba (option ``kernel="numba"``).
+NUMBA_METHODS = ("matrix-factored", "matrix", "recurrence")
+#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
+#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
+#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
+#: depend on the state of the cache.
+NUMBA_BYTES = 128 * 2**20
+#: Seconds to compile the serial and the parallel kernel of one dimension when numba's cache is
+#: empty, measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
+#: matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up. Paid once per machine (and per edit of a
+#: kernel's file), so it is named in the estimate's note and not added to its seconds: a time
+#: limit guards the run, and the run's time does not depend on the state of the cache.
+NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0}
+
+
+def _numba(options: dict, method: str) -> bool:
+    return method in NUMBA_METHODS and options.get("kernel", "numba") == "numba"
+
+
+def _compiled_setup_bytes(method: str):
+    return lambda mech, options: _matrix_setup(mech, options) + (NUMBA_BYTES if _numba(options, method) else 0)
+
+
+def _compiled_note(method: str, what):
+    def note(mech, options):
+        if not _numba(options, method):
+            return what(mech) + "; numpy kernel"
+        return (what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
+                f"{NUMBA_COMPILE_SECONDS[method]:g} s (then cached on disk)")
+    return note
+
+
 #: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
 LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
     (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
@@ -170,25 +207,25 @@ MODELS: dict[str, CostModel] = {
         sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
         note=lambda m, o: "the sympy derivation"),
     "matrix": CostModel(
-        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        _compiled_setup_bytes("matrix"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 44) * n * n + 40 * n),
         sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
-        note=lambda m, o: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
+        note=_compiled_note("matrix", lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})")),
     "matrix-paper": CostModel(
         _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 48) * n * n + 60 * n),
         sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
         note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})"),
     "recurrence": CostModel(
-        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        _compiled_setup_bytes("recurrence"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * ((40 if d == 2 else 80) * n * n + 60 * n),
         sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
-        note=lambda m, o: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
+        note=_compiled_note("recurrence", lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})")),
     "matrix-factored": CostModel(
-        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        _compiled_setup_bytes("matrix-factored"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
         sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
-        note=lambda m, o: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
+        note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
 }
 
 #: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).

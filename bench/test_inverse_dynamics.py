@@ -2,31 +2,50 @@
 its error against the 50-digit reference in ``extra_info`` and ASSERTED (one table for error
 against run time, one for scaling in n, one for the wrapper's own cost).
 
-Rows (``method`` names say what is timed):
+Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readable parameters);
+``extra_info["method"]`` is the row's name, which says what runs:
 
-* every registered method, prepared once outside the timing (``exo_bench.prepare``);
-* ``pinocchio-parallel``: the ``pinocchio`` method prepared with ``threads=2`` (``rneaInParallel``
-  with a ``ModelPool``, the G^T map one matmul over the batch), batched only;
+* every registered method, prepared once outside the timing (``exo_bench.prepare``); the matrix
+  family's compiled methods twice, ``matrix-factored (numba)`` and ``matrix-factored (numpy)``
+  (option ``kernel``);
+* ``pinocchio-parallel``: the ``pinocchio`` method prepared with the thread count that is fastest
+  on this machine for the batch (``rneaInParallel`` with a ``ModelPool``, the G^T map one matmul over
+  the batch), batched only; the thread count is in ``extra_info``;
 * ``pin.rnea (bare)``: per call, ``pin.rnea`` on preallocated joint-coordinate arrays of the same
   Pinocchio model, without our G maps: Pinocchio's own cost;
+* ``pydy-cython``: per call, PyDy's Cython code generator on the same composed equations
+  (:mod:`bench.peers`; skipped with the reason when pydy/cython are not installed);
 * group ``wrapper``: on exo5-3d, a prepared model's call with ``check=False`` next to the kernel
-  it calls, so the report gives the wrapper's own per-call cost (call minus kernel).
+  it calls, so the report gives the wrapper's own per-call cost (call minus kernel);
+* group ``compile``: the first call's compile time of each compiled kernel (a fresh numba cache
+  in a subprocess) and its load time from numba's cache in a second process;
+* group ``limit``: the flops and transcendental calls of one exo5-3d sample of the factored
+  kernel and this CPU's measured scalar/SIMD rates (:mod:`bench.limit`).
+
+Per call, every prepared model and PyDy write into a preallocated ``out`` (``check=False``): what a
+controller's loop does.
 
 **Error bound** (asserted, see ``_bound``): every method but ``matrix-paper`` computes the
 generalised forces in float64 with O(dof) roundings per entry, so against the 50-digit reference
 (exact up to its own final rounding) ``max|tau - ref| <= K * eps * dof * max|ref|`` with
 ``K = 16``. ``matrix-paper`` is eq. (18) as printed: in 3D with more than one link its error must be
 LARGE (the misprints are real; a tiny error there would mean the printed formulas are not what
-runs), and in 2D it is the closed forms and held to the same bound.
+runs), and in 2D it is the closed forms and held to the same bound. PyDy evaluates the same
+equations with the coefficients rounded to double once and cse: the same bound.
 """
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
 import pytest
 
+from exo_bench.bench import limit, peers
 from exo_bench.bench.methods import METHODS, prepare
 from exo_bench.bench.reference import reference
 from exo_bench.bench.sweep import current
@@ -37,42 +56,79 @@ from exo_bench.models.presets import chain, exo5
 K = 16
 EPS = float(np.finfo(float).eps)
 PAPER_WRONG_3D = 1e-3            # the printed eq. (18) is off by far more than this in 3D (reports/errata.md)
+#: Methods with the option ``kernel``: each is a row per kernel.
+COMPILED = ("matrix-factored", "matrix", "recurrence")
+KERNELS = ("numba", "numpy")
 BATCHED = (*METHODS, "pinocchio-parallel")
-PER_CALL = (*METHODS, "pin.rnea (bare)")
+PER_CALL = (*METHODS, "pin.rnea (bare)", "pydy-cython")
 _FAILED: dict[tuple, str] = {}
+
+
+def row_name(method: str, kernel: str | None) -> str:
+    """The row's name: the method, and the kernel where the method has the option."""
+    return f"{method} ({kernel})" if kernel else method
 
 
 def _mechanism(n, dim, topo):
     return exo5(3) if topo == "exo5" else chain(n, dim)
 
 
-def _cases(sw, methods):
-    cases = [(m, n, d, "chain") for d in (2, 3) for n in sw.inverse_n for m in methods]
-    cases += [(m, 5, 3, "exo5") for m in methods]  # the paper's five-link model: the goal rows
+def _variants(methods):
+    return [(m, k) for m in methods for k in (KERNELS if m in COMPILED else (None,))]
+
+
+def _cases(ns, methods):
+    cases = [(m, k, n, d, "chain") for d in (2, 3) for n in ns for m, k in _variants(methods)]
+    cases += [(m, k, 5, 3, "exo5") for m, k in _variants(methods)]  # the paper's five-link model: the goal rows
     return cases
 
 
 def pytest_generate_tests(metafunc):
+    if "topology" not in metafunc.fixturenames:
+        return
     sw = current(metafunc.config.getoption("--sweep"))
-    for name, methods in (("case", BATCHED), ("single_case", PER_CALL)):
-        if name in metafunc.fixturenames:
-            cases = _cases(sw, methods)
-            metafunc.parametrize(name, cases, ids=[f"{m}-{t}{n}-{d}d" for m, n, d, t in cases])
+    batched = metafunc.function.__name__ == "test_inverse_batched"
+    cases = _cases(sw.inverse_n, BATCHED) if batched else _cases(sw.per_call_n, PER_CALL)
+    metafunc.parametrize("method,kernel,n,dim,topology", cases,
+                         ids=[f"{row_name(m, k).replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
+                              for m, k, n, d, t in cases])
 
 
-def _prepare(method: str, mech, sw):
+def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
+    """The ``threads`` of ``pinocchio`` that is fastest on this batch here (best of 3 per count),
+    and the seconds of each count tried (2 up to twice the CPU count)."""
+    cpus = os.cpu_count() or 1
+    times = {}
+    for t in sorted({2, cpus, 2 * cpus}):
+        try:
+            m = prepare(mech, "pinocchio", threads=t)
+        except MemoryError:                  # PinocchioDataTooLarge: one Data per thread does not fit
+            continue
+        m.inverse_dynamics(q[:8], qd[:8], qdd[:8], check=False)
+        best = np.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            m.inverse_dynamics(q, qd, qdd, check=False)
+            best = min(best, time.perf_counter() - t0)
+        times[t] = best
+    return (min(times, key=times.get) if times else 2), times
+
+
+def _prepare(method: str, kernel, mech, sw, batch=None):
     """The prepared model, outside the timing; over budget -> a skip with the reason, remembered."""
-    key = (method, mech)
+    key = (method, kernel, mech)
     if key in _FAILED:
         pytest.skip(_FAILED[key])
     base = {"pinocchio-parallel": "pinocchio", "pin.rnea (bare)": "pinocchio"}.get(method, method)
-    options = {"threads": 2} if method == "pinocchio-parallel" else {}
+    options = {"kernel": kernel} if kernel else {}
+    if method == "pinocchio-parallel":
+        options["threads"] = _fastest_threads(mech, *batch)[0] if batch is not None else 2
     if base == "lagrange":
         options["budget"] = sw.derive_budget
     try:
         return prepare(mech, base, **options)
     except Exception as e:  # noqa: BLE001
-        reason = getattr(e, "skip_reason", None)
+        reason = getattr(e, "skip_reason", None) or (str(e) if isinstance(e, MemoryError) else None)
         if not reason:
             raise
         _FAILED[key] = f"{method}: {reason}"
@@ -102,24 +158,29 @@ def check_error(benchmark, method, mech, q, qd, qdd, tau, subsample):
                                     f"(K={K} * eps * dof={mech.dof} * max|tau|)")
 
 
-def test_inverse_batched(benchmark, sweep, case):
-    method, n, dim, topo = case
+def _info(benchmark, method, kernel, n, dim, topology, mech, **more):
+    benchmark.extra_info.update(method=row_name(method, kernel), base_method=method, kernel=kernel or "", n=n,
+                                dim=dim, topology=topology, mechanism=mech.name, **more)
+
+
+def test_inverse_batched(benchmark, sweep, method, kernel, n, dim, topology):
     benchmark.group = f"inverse-batched-{dim}d"
-    mech = _mechanism(n, dim, topo)
+    mech = _mechanism(n, dim, topology)
     mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, sweep.samples), seed=n)
-    model = _prepare(method, mech, sweep)
     q, qd, qdd = mo.q, mo.qd, mo.qdd
+    model = _prepare(method, kernel, mech, sweep, batch=(q, qd, qdd))
     probe = min(50, sweep.samples)
     model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)    # first-call costs (caches, JIT)
     t0 = time.perf_counter()
     model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)
     projected = (time.perf_counter() - t0) * sweep.samples / probe
     if projected > sweep.inverse_budget:
-        pytest.skip(f"{method} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of "
+        pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of "
                     f"{sweep.samples} > {sweep.inverse_budget:g} s")
-    rounds = max(1, min(20, int(2.0 / max(projected, 1e-9))))
-    benchmark.extra_info.update(method=method, n=n, dim=dim, mechanism=mech.name, samples=sweep.samples,
-                                batched=True)
+    model.inverse_dynamics(q, qd, qdd, check=False)      # the parallel driver's first use (compiled kernels)
+    rounds = max(3, min(20, int(2.0 / max(projected, 1e-9))))
+    _info(benchmark, method, kernel, n, dim, topology, mech, samples=sweep.samples, batched=True,
+          threads=model.options.get("threads", ""))
     tau = benchmark.pedantic(model.inverse_dynamics, args=(q, qd, qdd), kwargs={"check": False}, rounds=rounds,
                              iterations=1, warmup_rounds=1)
     check_error(benchmark, method, mech, q, qd, qdd, np.asarray(tau), sweep.error_subsample)
@@ -135,20 +196,36 @@ def _bare_rnea(model, q, qd, qdd):
     return (lambda: pin.rnea(pm, data, qj, vj, aj)), (lambda tau_joint: tau_joint @ model.G)
 
 
-def test_inverse_per_call(benchmark, sweep, single_case):
-    method, n, dim, topo = single_case
+def _pydy(mech, sw):
+    """PyDy's compiled function of the composed equations; a skip with the reason when it cannot run."""
+    why = peers.missing()
+    if why:
+        print(f"skipped: {why}")
+        pytest.skip(why)
+    if mech.name != "exo5-3d" and mech.nlinks not in sw.pydy_n:
+        pytest.skip(f"pydy-cython: n={mech.nlinks} not generated in the {sw.name} profile (composing and compiling "
+                    f"C grows fast with n: minutes at n = 20 in 3D); profile pydy_n = {sw.pydy_n}")
+    return peers.pydy_cython(mech)
+
+
+def test_inverse_per_call(benchmark, sweep, method, kernel, n, dim, topology):
     benchmark.group = f"inverse-per-call-{dim}d"
-    mech = _mechanism(n, dim, topo)
+    mech = _mechanism(n, dim, topology)
     mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, 8), seed=n)
-    model = _prepare(method, mech, sweep)
     q, qd, qdd = mo.q[0].copy(), mo.qd[0].copy(), mo.qdd[0].copy()
-    benchmark.extra_info.update(method=method, n=n, dim=dim, mechanism=mech.name, samples=1, batched=False)
-    if method == "pin.rnea (bare)":
-        call, to_paper = _bare_rnea(model, q, qd, qdd)
+    out = np.empty(mech.dof)
+    _info(benchmark, method, kernel, n, dim, topology, mech, samples=1, batched=False)
+    if method == "pydy-cython":
+        f = _pydy(mech, sweep)
+        benchmark.extra_info.update(generate_seconds=f.seconds)
+        tau = benchmark(f.call, q, qd, qdd, out).copy()
+    elif method == "pin.rnea (bare)":
+        call, to_paper = _bare_rnea(_prepare(method, kernel, mech, sweep), q, qd, qdd)
         tau = to_paper(benchmark(call))
     else:
-        model.inverse_dynamics(q, qd, qdd, check=False)
-        tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False)
+        model = _prepare(method, kernel, mech, sweep)
+        model.inverse_dynamics(q, qd, qdd, check=False, out=out)
+        tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False, out=out).copy()
     check_error(benchmark, method, mech, q[None], qd[None], qdd[None], np.asarray(tau)[None], 1)
 
 
@@ -185,17 +262,96 @@ def test_wrapper_alone(benchmark, part):
 @pytest.mark.parametrize("part", ["call", "kernel"])
 @pytest.mark.parametrize("method", WRAPPED)
 def test_wrapper_overhead(benchmark, sweep, method, part):
-    """exo5-3d, one sample: the prepared model's call (``check=False``) and the kernel it calls
-    with the same arrays; the report's wrapper cost is the difference of the two medians."""
+    """exo5-3d, one sample: the prepared model's call (``check=False``, ``out=``) and the kernel it
+    calls with the same arrays (the compiled kernel itself for ``kernel="numba"``); the report's
+    wrapper cost is the difference of the two medians."""
     mech = exo5(3)
     benchmark.group = "wrapper-exo5-3d"
     mo = smooth_random_motion(mech, np.linspace(0.0, 1.0, 4), seed=5)
-    model = _prepare(method, mech, sweep)
+    model = _prepare(method, None, mech, sweep)
+    kernel = model.options.get("kernel")
     q, qd, qdd = mo.q[0].copy(), mo.qd[0].copy(), mo.qdd[0].copy()
     Q, QD, QDD = q[None], qd[None], qdd[None]
-    benchmark.extra_info.update(method=method, part=part, mechanism=mech.name, samples=1, batched=False, n=5, dim=3)
+    out = np.empty(mech.dof)
+    benchmark.extra_info.update(method=row_name(method, kernel), part=part, mechanism=mech.name, samples=1,
+                                batched=False, n=5, dim=3)
     if part == "call":
-        tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False)
+        tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False, out=out).copy()
+    elif kernel == "numba":
+        args = model.kernel_args
+        benchmark(model.serial_kernel, *args, q, qd, qdd, out)          # the compiled kernel alone
+        tau = out.copy()
     else:
         tau = benchmark(model._inverse_dynamics, Q, QD, QDD)[0]   # the method's own work on (1, dof)
     check_error(benchmark, method, mech, Q, QD, QDD, np.asarray(tau)[None], 1)
+
+
+_COMPILE_PROBE = """
+import json, sys, time
+t0 = time.perf_counter()
+import numpy as np
+from exo_bench import prepare, presets
+from exo_bench.matrix_method import compiled
+t_import = time.perf_counter() - t0
+out = {"import_seconds": t_import}
+for method in sys.argv[1].split(","):
+    m = prepare(presets.exo5(dim=3), method)
+    q = np.full(m.dof, 0.5)
+    Q = np.full((compiled.PARALLEL_MIN_SAMPLES, m.dof), 0.5)
+    o, O = np.empty(m.dof), np.empty(Q.size)
+    args = {"serial": (*m.kernel_args, q, q, q, o), "parallel": (*m.kernel_args, Q.ravel(), Q.ravel(), Q.ravel(), O)}
+    out[method] = compiled.compile_times({"serial": m.serial_kernel, "parallel": m.parallel_kernel}, args)
+print(json.dumps(out))
+"""
+
+
+def _compile_probe(methods, env) -> dict:
+    r = subprocess.run([sys.executable, "-c", _COMPILE_PROBE, ",".join(methods)], env=env, capture_output=True,
+                       text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def test_compile_time(benchmark, tmp_path):
+    """The first call's compile time of each compiled kernel on exo5-3d (serial and parallel
+    drivers) in a fresh process with an empty numba cache, then the same first calls in a second
+    process that loads them from the cache (timed runs only: compiling every kernel costs half a
+    minute, too much for CI)."""
+    benchmark.group = "compile"
+    if benchmark.disabled:
+        pytest.skip("compile time: measured when the benchmarks are timed (exo-bench bench); numba's cache across "
+                    "processes is tested by tests/test_compiled.py")
+    methods = COMPILED
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    cold = _compile_probe(methods, env)
+    warm = _compile_probe(methods, env)
+    for m in methods:
+        for driver in ("serial", "parallel"):
+            assert cold[m][driver]["cache_misses"] >= 1 and cold[m][driver]["cache_hits"] == 0, (m, driver, cold)
+            assert warm[m][driver]["cache_hits"] >= 1 and warm[m][driver]["cache_misses"] == 0, (m, driver, warm)
+    benchmark.extra_info.update(
+        method="(compile)", mechanism="exo5-3d", samples=1, batched=False, n=5, dim=3,
+        compile={m: {d: {"first_call_s": cold[m][d]["seconds"], "from_cache_s": warm[m][d]["seconds"]}
+                     for d in ("serial", "parallel")} for m in methods},
+        import_seconds=warm["import_seconds"])
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
+
+
+def test_limit(benchmark):
+    """The arithmetic of one exo5-3d sample of the factored kernel, counted from its code, and
+    this CPU's multiply-add and sin rates (bench/limit.py); the report turns them into a time."""
+    benchmark.group = "limit"
+    mech = exo5(3)
+    q, qd, qdd = (x[0].copy() for x in (lambda m: (m.q, m.qd, m.qdd))(
+        smooth_random_motion(mech, np.linspace(0.0, 1.0, 2), seed=5)))
+    count, tau = limit.count_factored(mech, q, qd, qdd)
+    # what was counted is what the compiled kernel computes: the same forces, to the last bit
+    assert np.array_equal(tau, prepare(mech, "matrix-factored").inverse_dynamics(q, qd, qdd, check=False))
+    assert count["trig"] == 4 * mech.nlinks                      # cos, sin of phi_j and of psi_j
+    rates = limit.throughput()
+    import numba
+
+    benchmark.extra_info.update(method="(limit)", mechanism=mech.name, samples=1, batched=False, n=5, dim=3,
+                                count=count, rates=rates, estimate=limit.estimate(count, rates),
+                                numba_threads=numba.get_num_threads())
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)

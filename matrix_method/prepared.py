@@ -11,13 +11,21 @@
   included. **Wrong in 3D by design** (reports/errata.md): kept to expose the misprints.
 * ``recurrence`` (:class:`Recurrence`): the matrices grown link by link by eqs. (22)-(26), then
   the products.
+
+**Kernels.** ``matrix``, ``matrix-factored`` and ``recurrence`` take the option ``kernel``:
+``"numba"`` (the default) runs the compiled loops of :mod:`matrix_method.compiled` (one sample or
+a batch, threads for large batches; compiled on first use and cached on disk), ``"numpy"`` the
+vectorised numpy reference of :mod:`matrix_method.numeric`/:mod:`matrix_method.recurrence`.
+Both compute the same arithmetic and agree to rounding (tests/test_compiled.py). With
+``check=False`` a numba model's call on one sample is the kernel call writing into ``out`` (or a
+new array): nothing else runs.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.matrix_method import numeric
+from exo_bench.matrix_method import compiled, compiled_factored, compiled_matrix, compiled_recurrence, numeric
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, split
@@ -28,6 +36,17 @@ def _block_option(method: str, block) -> int:
     if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
         raise ValueError(f"{method}: option 'block': expected a number of samples >= 1, got {block!r}")
     return int(block)
+
+
+#: The values of the option ``kernel``: compiled loops, or the numpy reference.
+KERNEL_CHOICES = ("numba", "numpy")
+
+
+def _kernel_option(method: str, kernel) -> str:
+    if not isinstance(kernel, str) or kernel not in KERNEL_CHOICES:
+        raise ValueError(f"{method}: option 'kernel': expected one of {', '.join(map(repr, KERNEL_CHOICES))}, "
+                         f"got {kernel!r}")
+    return kernel
 
 
 class _MatrixFamily(PreparedModel):
@@ -59,12 +78,60 @@ class _MatrixFamily(PreparedModel):
         return numeric.generalised_forces(self._mechanism, self.matrices(q), qd, np.zeros_like(q))
 
 
-class MatrixProducts(_MatrixFamily):
+class _Compiled(_MatrixFamily):
+    """A matrix-family model with the option ``kernel`` (``"numba"`` or ``"numpy"``). Subclasses set
+    :attr:`_kernels` (dim -> serial, parallel compiled kernels) and may add per-mechanism kernel
+    arguments in :meth:`_kernel_extra`."""
+
+    _kernels: dict = {}
+
+    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
+        kernel = _kernel_option(self.method, kernel)
+        super().__init__(mechanism, block)
+        self._options["kernel"] = kernel
+        self.kernel = kernel
+        self._numpy = kernel == "numpy"
+        self.serial_kernel, self.parallel_kernel = self._kernels[mechanism.dim]
+        #: the kernel's arguments before the states: ``serial_kernel(*kernel_args, q, qd, qdd)``
+        #: is the compiled call for flat C-ordered states (what a numba model's call runs).
+        self.kernel_args = (compiled.params(self.coupling, self.gravity_coefficients, mechanism.g),
+                            *self._kernel_extra(mechanism))
+
+    def _kernel_extra(self, mechanism: Mechanism) -> tuple:
+        return ()
+
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
+        if check or self._numpy:
+            return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
+        if q.ndim == 1:                         # one sample: the serial kernel on the arrays as given
+            o = np.empty_like(q) if out is None else out
+            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
+            return o
+        if out is None:                         # a batch: the compiled kernel, no chunks (O(n^2) scratch)
+            return self._inverse_dynamics(q, qd, qdd)
+        return self._compiled(q, qd, qdd, out)
+
+    inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
+
+    def _compiled(self, q, qd, qdd, out=None):
+        """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
+        ``out`` (C-ordered) or a new array."""
+        o = np.empty_like(q) if out is None else out
+        compiled.run(self.serial_kernel, self.parallel_kernel,
+                     (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1)), q.shape[0])
+        return o
+
+
+class MatrixProducts(_Compiled):
     """Method ``matrix``: form every matrix of eq. (5)/(17) from the closed forms (3D: the planar
     matrices and those of the straightened model, then the corrected eq. (18)), then the products
     with the rate vectors, in blocks of ``block`` samples."""
 
     method = "matrix"
+    _kernels = compiled_matrix.KERNELS
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        return super()._inverse_dynamics(q, qd, qdd) if self._numpy else self._compiled(q, qd, qdd)
 
     def matrices(self, q):
         mech = self._mechanism
@@ -78,7 +145,7 @@ class MatrixProducts(_MatrixFamily):
         return numeric.spatial_from_planar(psi, l, flat, straight, self.gravity_coefficients)
 
 
-class MatrixFactored(_MatrixFamily):
+class MatrixFactored(_Compiled):
     """Method ``matrix-factored``: eq. (5)/(17) in factored form, no matrix formed.
 
     Every element is ``c_ij`` times a dot product of a vector of link i and one of link j, so the
@@ -88,16 +155,19 @@ class MatrixFactored(_MatrixFamily):
     its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'."""
 
     method = "matrix-factored"
+    _kernels = compiled_factored.KERNELS
 
-    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK):
-        super().__init__(mechanism, block)
+    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
+        super().__init__(mechanism, block, kernel)
         n = mechanism.nlinks
         self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
         self._nu = self.gravity_coefficients[:, None]
         self._n, self._g = n, mechanism.g
-        self._products = MatrixProducts(mechanism, block)
+        self._products = MatrixProducts(mechanism, block, kernel="numpy")
 
     def _inverse_dynamics(self, q, qd, qdd):
+        if not self._numpy:
+            return self._compiled(q, qd, qdd)
         kernel, n, g, c, nu = self._kernel, self._n, self._g, self.coupling, self._nu
         if q.shape[0] <= self.block:
             return kernel(n, g, c, nu, q.T.copy(), qd.T.copy(), qdd.T.copy()).T
@@ -127,12 +197,19 @@ class MatrixPaper(_MatrixFamily):
                                       stacklevel=3)
 
 
-class Recurrence(_MatrixFamily):
+class Recurrence(_Compiled):
     """Method ``recurrence``: the matrices grown link by link by eqs. (22)-(26) (3D: the planar
     recurrence at the configuration and for the straightened model, then eq. (18)), then the
     products with the rate vectors."""
 
     method = "recurrence"
+    _kernels = compiled_recurrence.KERNELS
+
+    def _kernel_extra(self, mechanism):
+        return compiled_recurrence.tables(mechanism)
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        return super()._inverse_dynamics(q, qd, qdd) if self._numpy else self._compiled(q, qd, qdd)
 
     def matrices(self, q):
         return _recurrence.matrices(self._mechanism, q)

@@ -129,6 +129,16 @@ def usable_memory() -> int | None:
     return None if avail is None else int(USABLE_SHARE * avail)
 
 
+def _check_out(out, shape: tuple) -> None:
+    """``out`` of :meth:`PreparedModel.inverse_dynamics`: a writable C-ordered float64 array of ``shape``."""
+    if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == tuple(shape)
+            and out.flags.c_contiguous and out.flags.writeable):
+        got = (f"{type(out).__name__}" if not isinstance(out, np.ndarray) else
+               f"{out.dtype} array of shape {out.shape}" + ("" if out.flags.c_contiguous else ", not C-ordered")
+               + ("" if out.flags.writeable else ", read-only"))
+        raise ValueError(f"field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
+
+
 def _chunks(S: int, size: int):
     for s0 in range(0, S, size):
         yield slice(s0, min(S, s0 + size))
@@ -201,20 +211,29 @@ class PreparedModel:
         return (_rebuild, (type(self), self._mechanism, self._options))
 
     # ------------------------------------------------------------------ calls
-    def inverse_dynamics(self, q, qd, qdd, check: bool = True) -> np.ndarray:
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         """Generalised forces ``tau = [M_phi..., M_psi..., F...]`` of the paper's absolute
         coordinates for states in block order ``[phi..., psi..., l...]``: ``(dof,)`` in gives
-        ``(dof,)`` out, ``(samples, dof)`` gives ``(samples, dof)``."""
+        ``(dof,)`` out, ``(samples, dof)`` gives ``(samples, dof)``. ``out``: a preallocated
+        C-ordered float64 array of the result's shape, written and returned (a loop of calls then
+        allocates nothing: the compiled kernels write into it directly)."""
         if check:
             single = np.ndim(q) == 1
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
+            if out is not None:
+                _check_out(out, q.shape[1:] if single else q.shape)
             tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
-            return tau[0] if single else tau
-        if q.ndim == 1:
-            return self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-        if q.shape[0] <= self._chunk:
-            return self._inverse_dynamics(q, qd, qdd)
-        return self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
+            tau = tau[0] if single else tau
+        elif q.ndim == 1:
+            tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
+        elif q.shape[0] <= self._chunk:
+            tau = self._inverse_dynamics(q, qd, qdd)
+        else:
+            tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
+        if out is None:
+            return tau
+        out[...] = tau
+        return out
 
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""

@@ -17,7 +17,7 @@ def test_crossover_is_where_the_faster_method_stays_faster():
     a = pd.Series({1: 1.0, 2: 2.0, 5: 5.0, 10: 10.0})     # grows like n
     b = pd.Series({1: 3.0, 2: 3.0, 5: 3.0, 10: 3.0})      # constant
     assert crossover(a, b) == "n = 5"
-    assert crossover(b, a).startswith("not within")
+    assert crossover(b, a).startswith("none up to")
 
 
 def _compose_frame():
@@ -42,3 +42,32 @@ def test_readme_table_is_replaced_between_markers_only():
     assert out.startswith("intro\n") and out.endswith("\noutro\n") and "old" not in out
     assert out.count("| 2D, 1 link(s) | 0.59 |") == 1
     assert readme_with_table("no markers", "x", "y") == "no markers"
+
+
+def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float, err: float):
+    """exo5-3d rows of one run: matrix-factored (numba) batched and per call, Pinocchio's paths, PyDy."""
+    base = dict(mechanism="exo5-3d", n=5, dim=3, topology="exo5", iqr=0.0, reference="ref", nonfinite=0,
+                max_abs_err=err, max_rel_err=err)
+    rows = [dict(base, group="inverse-batched-3d", method="matrix-factored (numba)", batched=True, samples=10_000,
+                 median=fast_us * 1e-6 * 10_000, threads=""),
+            dict(base, group="inverse-batched-3d", method="pinocchio-parallel", batched=True, samples=10_000,
+                 median=pin_us * 1e-6 * 10_000, threads=2),
+            dict(base, group="inverse-per-call-3d", method="matrix-factored (numba)", batched=False, samples=1,
+                 median=fast_us * 5e-6, threads=""),
+            dict(base, group="inverse-per-call-3d", method="pin.rnea (bare)", batched=False, samples=1,
+                 median=bare_us * 1e-6, threads=""),
+            dict(base, group="inverse-per-call-3d", method="pydy-cython", batched=False, samples=1,
+                 median=pydy_us * 1e-6, threads="")]
+    return pd.DataFrame(rows)
+
+
+def test_issue12_goals_are_judged_from_the_rows_of_one_run():
+    from exo_bench.bench.bench_reports import _inverse, goals_issue12
+
+    good = "\n".join(goals_issue12(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
+    # per call 0.5 us against bare 3 us (0.17x) and PyDy 1 us; batched 0.1 us, 50x faster than Pinocchio
+    assert "0.17x, goal at most 0.5x: **met**" in good and "0.50x, goal at most 1x: **met**" in good
+    assert "0.1 us/sample, goal at most 0.15 us: **met**" in good and "50x slower than" in good
+    assert "**not met**" not in good
+    bad = "\n".join(goals_issue12(_inverse(_inverse_frame(0.2, 5.0, 3.0, 0.5, 3e-14)), []))
+    assert bad.count("**not met**") == 4      # PyDy faster, 0.2 us/sample, 25x, error above 1e-14
