@@ -569,6 +569,56 @@ def _strip_raw_timings(path: Path) -> None:
     atomic_write(path, json.dumps(data, indent=1))
 
 
+REPORT_FILES = ("paper_table.md", "error_vs_runtime.md", "error_vs_runtime.png", "scaling.md", "scaling.png")
+
+
+def report_names(out: Path, sweep: str) -> dict[str, str]:
+    """The file name each report takes in ``out``. A quick run never replaces what a full run
+    wrote: when ``out``'s runs.json says a report came from ``exo-bench bench --full`` (or ``run
+    --full``), a quick run writes its reports beside them as ``<name>-quick.<ext>`` instead."""
+    from exo_bench.bench.runner import read_manifest
+
+    names = {n: n for n in REPORT_FILES}
+    if sweep == "full":
+        return names
+    manifest = read_manifest(out) if out.is_dir() else {}
+    runs, files = manifest.get("runs", {}), manifest.get("files", {})
+    if any("--full" in runs.get(files.get(n, {}).get("run"), {}).get("command", "") for n in REPORT_FILES):
+        names = {n: f"{Path(n).stem}-quick{Path(n).suffix}" for n in REPORT_FILES}
+    return names
+
+
+def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str, command: str,
+                  update_readme: bool = False) -> list[Path]:
+    """Every report of the benchmark suite from its pytest-benchmark JSON ``bjson`` and the skip
+    reasons ``sjson`` (both in ``staging``), published into ``out`` together; the README's paper
+    table only with ``update_readme``. Used by the serial run and by the Dask sweep alike."""
+    df, skips, _ = load(bjson, sjson)
+    _strip_raw_timings(bjson)
+    names = report_names(out, sweep)
+    if names["scaling.md"] != "scaling.md":
+        print(f"{out}: the benchmark reports there come from a full run; this {sweep} run writes "
+              f"{', '.join(v for v in names.values() if v.endswith('.md'))} beside them", flush=True)
+    st = {n: staging / v for n, v in names.items()}
+    text = paper_table(df, skips, command)
+    atomic_write(st["paper_table.md"], text)
+    inv = _inverse(df)
+    g12 = goals_issue12(inv, skips) if not inv.empty and "topology" in inv else []
+    atomic_write(st["error_vs_runtime.md"], error_vs_runtime(df, skips, command, st["error_vs_runtime.png"])
+                 + "\n" + "\n".join(goals(df)) + "\n\n" + "\n".join(g12) + "\n")
+    atomic_write(st["scaling.md"], scaling(df, skips, command, st["scaling.png"]))
+    published = publish([*st.values(), bjson], out)
+    for p in published:
+        print(f"wrote {p}")
+    if update_readme and names["paper_table.md"] == "paper_table.md" and (REPO / "README.md").exists():
+        readme = (REPO / "README.md").read_text()
+        updated = readme_with_table(readme, text, command)
+        if updated != readme:
+            atomic_write(REPO / "README.md", updated)
+            print(f"updated the paper table in {REPO / 'README.md'}")
+    return published
+
+
 def run(args) -> int:
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
@@ -583,24 +633,5 @@ def run(args) -> int:
         r = subprocess.run(cmd, cwd=REPO)
         if r.returncode not in (0,) or not bjson.exists():
             raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
-        df, skips, _ = load(bjson, sjson)
-        _strip_raw_timings(bjson)
-        files = []
-        text = paper_table(df, skips, command)
-        atomic_write(st / "paper_table.md", text); files.append(st / "paper_table.md")
-        inv = _inverse(df)
-        g12 = goals_issue12(inv, skips) if not inv.empty and "topology" in inv else []
-        atomic_write(st / "error_vs_runtime.md", error_vs_runtime(df, skips, command, st / "error_vs_runtime.png")
-                     + "\n" + "\n".join(goals(df)) + "\n\n" + "\n".join(g12) + "\n")
-        files += [st / "error_vs_runtime.md", st / "error_vs_runtime.png"]
-        atomic_write(st / "scaling.md", scaling(df, skips, command, st / "scaling.png"))
-        files += [st / "scaling.md", st / "scaling.png", bjson]
-        for p in publish(files, out):
-            print(f"wrote {p}")
-        if getattr(args, "update_readme", False) and (REPO / "README.md").exists():
-            readme = (REPO / "README.md").read_text()
-            updated = readme_with_table(readme, text, command)
-            if updated != readme:
-                atomic_write(REPO / "README.md", updated)
-                print(f"updated the paper table in {REPO / 'README.md'}")
+        write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)))
     return 0

@@ -423,7 +423,7 @@ def bench_run(args) -> int:
     :mod:`exo_bench.bench.bench_reports` from the merged JSON (written only once every row is in)."""
     from exo_bench.bench import bench_reports as br
     from exo_bench.bench.reporting import REPORTS
-    from exo_bench.bench.runner import publish, staging_dir
+    from exo_bench.bench.runner import staging_dir
 
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
@@ -438,23 +438,7 @@ def bench_run(args) -> int:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
         atomic_write(bjson, json.dumps(outcome.merged, indent=1))
         atomic_write(sjson, json.dumps(outcome.skips, indent=1))
-        df, skips, _ = br.load(bjson, sjson)
-        files = []
-        text = br.paper_table(df, skips, command)
-        atomic_write(st / "paper_table.md", text); files.append(st / "paper_table.md")
-        atomic_write(st / "error_vs_runtime.md", br.error_vs_runtime(df, skips, command, st / "error_vs_runtime.png")
-                     + "\n" + "\n".join(br.goals(df)) + "\n")
-        files += [st / "error_vs_runtime.md", st / "error_vs_runtime.png"]
-        atomic_write(st / "scaling.md", br.scaling(df, skips, command, st / "scaling.png"))
-        files += [st / "scaling.md", st / "scaling.png", bjson]
-        for p in publish(files, out):
-            print(f"wrote {p}")
-        if getattr(args, "update_readme", False) and (REPO / "README.md").exists():
-            readme = (REPO / "README.md").read_text()
-            updated = br.readme_with_table(readme, text, command)
-            if updated != readme:
-                atomic_write(REPO / "README.md", updated)
-                print(f"updated the paper table in {REPO / 'README.md'}")
+        br.write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)))
     return 0
 
 

@@ -71,3 +71,22 @@ def test_issue12_goals_are_judged_from_the_rows_of_one_run():
     assert "**not met**" not in good
     bad = "\n".join(goals_issue12(_inverse(_inverse_frame(0.2, 5.0, 3.0, 0.5, 3e-14)), []))
     assert bad.count("**not met**") == 4      # PyDy faster, 0.2 us/sample, 25x, error above 1e-14
+
+
+def _manifest(out, command):
+    import json
+    files = {n: {"run": "r1"} for n in ("scaling.md", "paper_table.md")}
+    (out / "runs.json").write_text(json.dumps({"format": 1, "runs": {"r1": {"command": command}}, "files": files}))
+
+
+def test_a_quick_run_never_replaces_the_reports_of_a_full_run(tmp_path):
+    from exo_bench.bench.bench_reports import REPORT_FILES, report_names
+
+    assert report_names(tmp_path, "quick") == {n: n for n in REPORT_FILES}       # nothing there yet
+    _manifest(tmp_path, "exo-bench bench")
+    assert report_names(tmp_path, "quick")["scaling.md"] == "scaling.md"          # quick over quick
+    _manifest(tmp_path, "exo-bench bench --full")
+    quick = report_names(tmp_path, "quick")
+    assert quick["scaling.md"] == "scaling-quick.md" and quick["scaling.png"] == "scaling-quick.png"
+    assert set(quick.values()).isdisjoint(REPORT_FILES)                           # every full report kept
+    assert report_names(tmp_path, "full") == {n: n for n in REPORT_FILES}         # a full run replaces them
