@@ -155,31 +155,13 @@ def cmd_urdf(args) -> int:
 
 
 def reports_folder(value: str | None) -> str | None:
-    """``--reports``: a folder that exists or can be made, refused in words when it names a file
-    (or lies under one) or cannot be written; checked before any work starts."""
-    import os
+    """``--reports``: a usable folder (:func:`reporting.writable_folder`), checked before any work starts."""
+    from exo_bench.bench.reporting import writable_folder
 
     if value is None:
         return None
-    text = str(value)
-    if not text.strip():
-        raise ValueError("--reports: expected a folder, got an empty path")
-    if "\0" in text:
-        raise ValueError(f"--reports {text!r}: expected a folder, got a path with a NUL character")
-    p = Path(text)
-    try:
-        for parent in [p, *p.parents]:
-            if parent.exists():
-                if not parent.is_dir():
-                    where = "is a file" if parent == p else f"lies under {str(parent)!r}, which is a file"
-                    raise ValueError(f"--reports {text!r}: expected a folder, but it {where}")
-                if not os.access(parent, os.W_OK | os.X_OK):
-                    raise ValueError(f"--reports {text!r}: the folder {str(parent)!r} cannot be written "
-                                     "(permission denied)")
-                break
-    except OSError as e:  # a name too long, a loop of links, ...
-        raise ValueError(f"--reports {text!r}: not a usable folder ({e.strerror or e})") from None
-    return text
+    writable_folder(value, "--reports")
+    return str(value)
 
 
 def cmd_run(args) -> int:

@@ -18,7 +18,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from pathlib import Path
@@ -96,27 +95,10 @@ def _budget_arg(text: str) -> float:
 
 
 def output_folder(value, option: str = "-o") -> Path:
-    """``-o`` (or ``--reports``): a folder that exists or can be made and can be written; refused in words otherwise,
-    before any work."""
-    text = str(value)
-    if not text.strip():
-        raise ValueError(f"equations {option}: expected a folder, got an empty path")
-    if "\0" in text:
-        raise ValueError(f"equations {option} {text!r}: expected a folder, got a path with a NUL character")
-    p = Path(text)
-    try:
-        for parent in [p, *p.parents]:
-            if parent.exists():
-                if not parent.is_dir():
-                    where = "is a file" if parent == p else f"lies under {str(parent)!r}, which is a file"
-                    raise ValueError(f"equations {option} {text!r}: expected a folder, but it {where}")
-                if not os.access(parent, os.W_OK | os.X_OK):
-                    raise ValueError(f"equations {option} {text!r}: the folder {str(parent)!r} cannot be written "
-                                     "(permission denied)")
-                break
-    except OSError as e:
-        raise ValueError(f"equations {option} {text!r}: not a usable folder ({e.strerror or e})") from None
-    return p
+    """``-o`` (or ``--reports``) of ``exo-bench equations``: :func:`reporting.writable_folder`."""
+    from exo_bench.bench.reporting import writable_folder
+
+    return writable_folder(value, f"equations {option}")
 
 
 def file_stem(name: str) -> str:

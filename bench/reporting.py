@@ -187,3 +187,29 @@ def provenance(command: str) -> str:
     lines += [f"{RUN_LINE}`{current_run_id()}`"]
     lines += [f"- **{k}**: {v}" for k, v in machine_info().items()]
     return "\n".join(lines) + "\n"
+
+
+def writable_folder(value, label: str) -> Path:
+    """A folder named on the command line (``label`` names the option in the message, e.g.
+    ``--reports`` or ``equations -o``): one that exists or can be made and can be written, refused in
+    words when it is empty, names a file (or lies under one) or cannot be written; checked before
+    any work starts."""
+    text = str(value)
+    if not text.strip():
+        raise ValueError(f"{label}: expected a folder, got an empty path")
+    if "\0" in text:
+        raise ValueError(f"{label} {text!r}: expected a folder, got a path with a NUL character")
+    p = Path(text)
+    try:
+        for parent in [p, *p.parents]:
+            if parent.exists():
+                if not parent.is_dir():
+                    where = "is a file" if parent == p else f"lies under {str(parent)!r}, which is a file"
+                    raise ValueError(f"{label} {text!r}: expected a folder, but it {where}")
+                if not os.access(parent, os.W_OK | os.X_OK):
+                    raise ValueError(f"{label} {text!r}: the folder {str(parent)!r} cannot be written "
+                                     "(permission denied)")
+                break
+    except OSError as e:  # a name too long, a loop of links, ...
+        raise ValueError(f"{label} {text!r}: not a usable folder ({e.strerror or e})") from None
+    return p
