@@ -234,3 +234,20 @@ def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
     gone, alive = psutil.wait_procs(list(seen.values()), timeout=20)
     assert not alive, f"left behind: {[(p.pid, p.cmdline()) for p in alive]}"
     assert not (tmp_path / "reports").exists() or not any((tmp_path / "reports").iterdir())
+
+
+def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_chained():
+    from exo_bench.bench.distributed import _chains
+
+    def row(n, methods):
+        return {"key": f"3d-chain-n{n}", "file": "bench/test_compose.py", "dim": 3, "topology": "chain", "n": n,
+                "nodeids": [f"bench/test_compose.py::test_compose[{m}-chain{n}-3d]" for m in methods]}
+
+    peers = ("matrix", "recurrence", "lagrange-expr", "KanesMethod")
+    rows = [row(1, peers), row(2, peers), row(5, peers), row(10, ("matrix", "recurrence")),
+            row(50, ("matrix", "recurrence")), {"key": "odd", "file": "bench/test_compose.py", "n": 7, "dim": 3,
+                                                "topology": "chain", "nodeids": ["bench/test_compose.py::other"]}]
+    prior = _chains(rows, ("bench/test_compose.py",))
+    # a peer over its budget at n is skipped at every larger n: those rows wait for the one before;
+    # a row of an unknown shape stays in the chain; the rows of matrix and recurrence alone do not wait
+    assert prior == {"3d-chain-n2": "3d-chain-n1", "3d-chain-n5": "3d-chain-n2", "odd": "3d-chain-n5"}
