@@ -110,43 +110,64 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
 
 
 def _log_log_by_dim(png: Path, draw, xlabel: str, ylabel: str, title: str, panel_title: str = "{dim}D",
-                    legend_size: int = 8) -> None:
-    """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel."""
+                    note: str = "") -> None:
+    """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel.
+    One legend for both panels, outside the data (right of them), and ``note`` under the panels."""
     from matplotlib.figure import Figure
 
-    from exo_bench.bench.plots import save_figure
+    from exo_bench.bench.plots import TEXT_PT, TITLE_PT, save_figure
 
-    fig = Figure(figsize=(12, 5))
+    fig = Figure(figsize=(15, 6.5), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     for ax, dim in zip(axes, (2, 3)):
         draw(ax, dim)
         ax.set_xscale("log"); ax.set_yscale("log")
-        ax.set_xlabel(xlabel)
-        ax.set_title(panel_title.format(dim=dim))
+        ax.set_xlabel(xlabel, fontsize=TEXT_PT)
+        ax.set_title(panel_title.format(dim=dim), fontsize=TITLE_PT)
+        ax.tick_params(labelsize=TEXT_PT)
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel(ylabel)
-    axes[1].legend(fontsize=legend_size)
-    fig.suptitle(title)
-    fig.tight_layout()
+    axes[0].set_ylabel(ylabel, fontsize=TEXT_PT)
+    handles: dict = {}
+    for ax in axes:
+        for h, label in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(label, h)
+    fig.legend(list(handles.values()), list(handles), loc="outside right upper", fontsize=TEXT_PT)
+    if note:
+        fig.text(0.01, 0.0, note, fontsize=TEXT_PT, ha="left", va="bottom", wrap=True)
+        fig.get_layout_engine().set(rect=(0, 0.06, 1, 0.94))
+    fig.suptitle(title, fontsize=TITLE_PT + 1)
     save_figure(fig, png)
 
 
+def _style(method: str, methods) -> dict:
+    """Colour from the base method (the same as in every scene figure), line style from the kernel:
+    ``matrix (numba)`` solid, ``matrix (numpy)`` dashed; other rows (pin.rnea, PyDy) dash-dot."""
+    from exo_bench.bench.plots import method_color
+
+    base = method.split(" (")[0]
+    kernel = method[len(base):].strip(" ()")
+    bases = sorted({m.split(" (")[0] for m in methods})
+    return {"color": method_color(base, bases), "ls": {"numba": "-", "numpy": "--", "": "-"}.get(kernel, "-.")}
+
+
 def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
-    markers = dict(zip(sorted(bat["method"].unique()), "osD^v<>p*hH+xX1234"))
     floor = 1e-17
+    methods = sorted(bat["method"].unique())
+    markers = {"numba": "o", "numpy": "s"}
 
     def draw(ax, dim):
         for method, g in bat[bat["dim"] == dim].groupby("method"):
-            ax.scatter(g["us_per_sample"] * 1e-6, np.maximum(g["max_rel_err"], floor), marker=markers[method],
-                       label=method, s=40)
-            for _, r in g.iterrows():
-                ax.annotate(f"n={r['n']}" + (" exo5" if r["mechanism"].startswith("exo5") else ""),
-                            (r["us_per_sample"] * 1e-6, max(r["max_rel_err"], floor)), fontsize=6,
-                            xytext=(3, 3), textcoords="offset points")
+            kernel = method.split(" (")[-1].rstrip(")") if " (" in method else ""
+            ax.scatter(g["us_per_sample"] * 1e-6, np.maximum(g["max_rel_err"], floor), label=method,
+                       marker=markers.get(kernel, "D"), color=_style(method, methods)["color"],
+                       s=12 + 14 * np.log2(g["n"].to_numpy(float) + 1), alpha=0.85, edgecolors="black", linewidths=0.4)
 
     _log_log_by_dim(png, draw, "seconds per sample (batched, median)",
                     f"max relative error vs 50-digit reference (floored at {floor:g})",
-                    "Inverse dynamics: error against run time")
+                    "Inverse dynamics: error against run time",
+                    note=(f"One point per (method, n): the marker's area grows with the number of links n "
+                          f"(n = {int(bat['n'].min())} … {int(bat['n'].max())}); circles: numba kernels, squares: "
+                          "numpy kernels, diamonds: the others. Errors below the floor are drawn at the floor."))
 
 
 # ----------------------------------------------------------------------------- scaling
@@ -384,16 +405,21 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
 
 
 def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
-    colors = {m: f"C{k}" for k, m in enumerate(sorted(chains["method"].unique()))}
+    methods = sorted(chains["method"].unique())
 
     def draw(ax, dim):
         for (method, batched), g in chains[chains["dim"] == dim].groupby(["method", "batched"]):
             g = g.sort_values("n")
-            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o" if batched else "x", ls="-" if batched else ":",
-                    color=colors[method], label=f"{method} ({'batched' if batched else 'per call'})")
+            st = _style(method, methods)
+            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o" if batched else "x",
+                    ls=st["ls"] if batched else ":", color=st["color"], ms=5,
+                    label=f"{method} ({'batched' if batched else 'per call'})")
 
     _log_log_by_dim(png, draw, "number of links n", "seconds per sample (median)",
-                    "Inverse dynamics: cost against n", panel_title="{dim}D serial chains", legend_size=7)
+                    "Inverse dynamics: cost against n", panel_title="{dim}D serial chains",
+                    note="Colour: the method (as in every figure); line: numba kernel solid, numpy kernel dashed, "
+                         "others dash-dot; o = batched (per sample of one batched call), x and dotted = one sample "
+                         "per call.")
 
 
 # ----------------------------------------------------------------------------- paper table

@@ -457,6 +457,34 @@ def bench_run(args) -> int:
     return 0
 
 
+def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: Path | None = None,
+                       repo: Path = REPO) -> list[Path]:
+    """The benchmark reports again, from the rows a sweep measured at ``code`` (its checkpoints),
+    with this process's report code: for a change to how the reports are drawn, without measuring
+    again. Every row of the profile must be there (a ValueError names the missing ones); the reports
+    say at which code the rows were measured and that they were rendered again."""
+    from exo_bench.bench import bench_reports as br
+    from exo_bench.bench.runner import staging_dir
+
+    out = Path(out).resolve()
+    folder = checkpoint_dir(checkpoints or default_checkpoints(out), code)
+    rows = enumerate_rows(["bench"], sweep, repo=repo)
+    records = {r["key"]: _load_checkpoint(folder, r["key"]) for r in rows}
+    missing = [k for k, v in records.items() if v is None]
+    if missing:
+        raise ValueError(f"render: {len(missing)} of {len(rows)} rows have no checkpoint at code {code} in {folder} "
+                         f"(first: {missing[0]}); run the sweep at that code first")
+    merged, skips = _rows.merge([records[r["key"]] for r in rows])
+    merged["sweep"] = {"profile": sweep, "code": code, "rendered_at": code_key(repo), "resumed": len(rows)}
+    command = (f"exo-bench bench {'--full' if sweep == 'full' else ''}".strip()
+               + f" (rows measured at {code}, reports rendered again at {code_key(repo)})")
+    with staging_dir(out) as st:
+        bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
+        atomic_write(bjson, json.dumps(merged, indent=1))
+        atomic_write(sjson, json.dumps(skips, indent=1))
+        return br.write_reports(bjson, sjson, st, out, sweep, command)
+
+
 # ----------------------------------------------------------------------------- exo-bench stability
 def stability_task(part: str, profile_name: str, methods: list[str]):
     """One task of the stability study, run on a worker: a family (``"family:<name>"``) or the

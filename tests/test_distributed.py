@@ -251,3 +251,12 @@ def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_ch
     # a peer over its budget at n is skipped at every larger n: those rows wait for the one before;
     # a row of an unknown shape stays in the chain; the rows of matrix and recurrence alone do not wait
     assert prior == {"3d-chain-n2": "3d-chain-n1", "3d-chain-n5": "3d-chain-n2", "odd": "3d-chain-n5"}
+
+
+def test_reports_are_not_rendered_again_from_a_sweep_with_rows_missing(tmp_path):
+    from exo_bench.bench.distributed import render_checkpoints
+
+    (tmp_path / "cp" / "abc123").mkdir(parents=True)
+    with pytest.raises(ValueError, match=r"render: \d+ of \d+ rows have no checkpoint at code abc123"):
+        render_checkpoints("abc123", tmp_path / "reports", checkpoints=tmp_path / "cp")
+    assert not (tmp_path / "reports").exists() or not any((tmp_path / "reports").iterdir())
