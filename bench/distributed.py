@@ -458,7 +458,7 @@ def bench_run(args) -> int:
 
 
 def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: Path | None = None,
-                       repo: Path = REPO) -> list[Path]:
+                       repo: Path = REPO, update_readme: bool = False) -> list[Path]:
     """The benchmark reports again, from the rows a sweep measured at ``code`` (its checkpoints),
     with this process's report code: for a change to how the reports are drawn, without measuring
     again. Every row of the profile must be there (a ValueError names the missing ones); the reports
@@ -482,7 +482,7 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
         atomic_write(bjson, json.dumps(merged, indent=1))
         atomic_write(sjson, json.dumps(skips, indent=1))
-        return br.write_reports(bjson, sjson, st, out, sweep, command)
+        return br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
 
 
 # ----------------------------------------------------------------------------- exo-bench stability
