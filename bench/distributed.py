@@ -478,11 +478,16 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
     merged["sweep"] = {"profile": sweep, "code": code, "rendered_at": code_key(repo), "resumed": len(rows)}
     command = (f"exo-bench bench {'--full' if sweep == 'full' else ''}".strip()
                + f" (rows measured at {code}, reports rendered again at {code_key(repo)})")
+    from exo_bench.bench.runner import record_files, snapshot
+
+    before = snapshot(out)
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
         atomic_write(bjson, json.dumps(merged, indent=1))
         atomic_write(sjson, json.dumps(skips, indent=1))
-        return br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
+        written = br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
+    record_files(out, before, command)   # runs.json and summary.md say which run made each file
+    return written
 
 
 # ----------------------------------------------------------------------------- exo-bench stability
