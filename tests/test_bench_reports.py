@@ -90,3 +90,17 @@ def test_a_quick_run_never_replaces_the_reports_of_a_full_run(tmp_path):
     assert quick["scaling.md"] == "scaling-quick.md" and quick["scaling.png"] == "scaling-quick.png"
     assert set(quick.values()).isdisjoint(REPORT_FILES)                           # every full report kept
     assert report_names(tmp_path, "full") == {n: n for n in REPORT_FILES}         # a full run replaces them
+
+
+def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
+    import numpy as np
+    import pandas as pd
+
+    from exo_bench.bench.bench_reports import _verdict
+
+    idx = pd.MultiIndex.from_tuples([(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"])
+    piv = pd.DataFrame({"matrix": [0.01, 0.05, 20.0], "lagrange": [0.1, 0.9, np.nan]}, index=idx)
+    lines = _verdict(piv, ["lagrange"])      # n = 50 composed by matrix alone: no peer to compare with
+    assert any("every Lagrange/Kane peer at every n >= 2: met" in x for x in lines)
+    piv.loc[(3, "chain", 5), "lagrange"] = 0.01
+    assert any("**missed**" in x for x in _verdict(piv, ["lagrange"]) if "every Lagrange/Kane peer" in x)
