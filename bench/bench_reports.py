@@ -616,13 +616,15 @@ def report_names(out: Path, sweep: str) -> dict[str, str]:
 
 
 def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str, command: str,
-                  update_readme: bool = False) -> list[Path]:
+                  update_readme: bool = False, published_to: Path | None = None) -> list[Path]:
     """Every report of the benchmark suite from its pytest-benchmark JSON ``bjson`` and the skip
     reasons ``sjson`` (both in ``staging``), published into ``out`` together; the README's paper
-    table only with ``update_readme``. Used by the serial run and by the Dask sweep alike."""
+    table only with ``update_readme``. Used by the serial run and by the Dask sweep alike.
+    ``published_to``: the folder these files finally land in when ``out`` is itself a staging
+    folder (the main job's), whose runs.json decides :func:`report_names`."""
     df, skips, _ = load(bjson, sjson)
     _strip_raw_timings(bjson)
-    names = report_names(out, sweep)
+    names = report_names(Path(published_to) if published_to else out, sweep)
     if names["scaling.md"] != "scaling.md":
         print(f"{out}: the benchmark reports there come from a full run; this {sweep} run writes "
               f"{', '.join(v for v in names.values() if v.endswith('.md'))} beside them", flush=True)
@@ -660,5 +662,6 @@ def run(args) -> int:
         r = subprocess.run(cmd, cwd=REPO)
         if r.returncode not in (0,) or not bjson.exists():
             raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
-        write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)))
+        write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)),
+                      getattr(args, "published_to", None))
     return 0

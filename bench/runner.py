@@ -513,7 +513,7 @@ def run(args) -> int:
             progress.update(task, description=label)
             try:
                 with redirect_stdout(_StagingPaths(sys.stdout, staging, out)):
-                    fn(_argparse.Namespace(full=full, reports=str(staging)))
+                    fn(_argparse.Namespace(full=full, reports=str(staging), published_to=str(out)))
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
