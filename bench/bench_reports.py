@@ -61,6 +61,12 @@ def _base(row_name: str) -> str:
     return str(row_name).split(" (")[0]
 
 
+def _kernel(row_name: str) -> str:
+    """What the row name says in brackets after the method (``"matrix (numba)"`` -> ``"numba"``,
+    ``"pin.rnea (bare)"`` -> ``"bare"``, ``"pinocchio"`` -> ``""``)."""
+    return str(row_name)[len(_base(row_name)):].strip(" ()")
+
+
 def _inverse(df: pd.DataFrame) -> pd.DataFrame:
     if df.empty or "batched" not in df:
         return pd.DataFrame()
@@ -144,10 +150,9 @@ def _style(method: str, methods) -> dict:
     ``matrix (numba)`` solid, ``matrix (numpy)`` dashed; other rows (pin.rnea, PyDy) dash-dot."""
     from exo_bench.bench.plots import method_color
 
-    base = method.split(" (")[0]
-    kernel = method[len(base):].strip(" ()")
-    bases = sorted({m.split(" (")[0] for m in methods})
-    return {"color": method_color(base, bases), "ls": {"numba": "-", "numpy": "--", "": "-"}.get(kernel, "-.")}
+    bases = sorted({_base(m) for m in methods})
+    return {"color": method_color(_base(method), bases),
+            "ls": {"numba": "-", "numpy": "--", "": "-"}.get(_kernel(method), "-.")}
 
 
 def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
@@ -157,9 +162,8 @@ def _plot_error_vs_runtime(bat: pd.DataFrame, png: Path) -> None:
 
     def draw(ax, dim):
         for method, g in bat[bat["dim"] == dim].groupby("method"):
-            kernel = method.split(" (")[-1].rstrip(")") if " (" in method else ""
             ax.scatter(g["us_per_sample"] * 1e-6, np.maximum(g["max_rel_err"], floor), label=method,
-                       marker=markers.get(kernel, "D"), color=_style(method, methods)["color"],
+                       marker=markers.get(_kernel(method), "D"), color=_style(method, methods)["color"],
                        s=12 + 14 * np.log2(g["n"].to_numpy(float) + 1), alpha=0.85, edgecolors="black", linewidths=0.4)
 
     _log_log_by_dim(png, draw, "seconds per sample (batched, median)",

@@ -436,9 +436,7 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
 def bench_run(args) -> int:
     """``exo-bench bench`` on the cluster: the sweep as row tasks, then the reports of
     :mod:`exo_bench.bench.bench_reports` from the merged JSON (written only once every row is in)."""
-    from exo_bench.bench import bench_reports as br
     from exo_bench.bench.reporting import REPORTS
-    from exo_bench.bench.runner import staging_dir
 
     full = bool(getattr(args, "full", False))
     sweep = "full" if full else "quick"
@@ -449,12 +447,21 @@ def bench_run(args) -> int:
                         workers=args.workers)
     print(f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
           f"from checkpoints, {outcome.seconds:.0f} s", flush=True)
+    _write_reports(outcome.merged, outcome.skips, out, sweep, command, bool(getattr(args, "update_readme", False)))
+    return 0
+
+
+def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: str, update_readme: bool) -> list[Path]:
+    """The merged JSON and skips of a sweep into a staging folder, then every benchmark report from
+    them (:func:`bench_reports.write_reports`), published into ``out`` together."""
+    from exo_bench.bench import bench_reports as br
+    from exo_bench.bench.runner import staging_dir
+
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
-        atomic_write(bjson, json.dumps(outcome.merged, indent=1))
-        atomic_write(sjson, json.dumps(outcome.skips, indent=1))
-        br.write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)))
-    return 0
+        atomic_write(bjson, json.dumps(merged, indent=1))
+        atomic_write(sjson, json.dumps(skips, indent=1))
+        return br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
 
 
 def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: Path | None = None,
@@ -463,9 +470,6 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
     with this process's report code: for a change to how the reports are drawn, without measuring
     again. Every row of the profile must be there (a ValueError names the missing ones); the reports
     say at which code the rows were measured and that they were rendered again."""
-    from exo_bench.bench import bench_reports as br
-    from exo_bench.bench.runner import staging_dir
-
     out = Path(out).resolve()
     folder = checkpoint_dir(checkpoints or default_checkpoints(out), code)
     rows = enumerate_rows(["bench"], sweep, repo=repo)
@@ -481,11 +485,7 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
     from exo_bench.bench.runner import record_files, snapshot
 
     before = snapshot(out)
-    with staging_dir(out) as st:
-        bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
-        atomic_write(bjson, json.dumps(merged, indent=1))
-        atomic_write(sjson, json.dumps(skips, indent=1))
-        written = br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
+    written = _write_reports(merged, skips, out, sweep, command, update_readme)
     record_files(out, before, command)   # runs.json and summary.md say which run made each file
     return written
 
