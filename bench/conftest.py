@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from exo_bench.bench import rows as _rows
-from exo_bench.bench import sweep as _sweep
+from exo_bench.bench.perf import rows as _rows
+from exo_bench.bench.perf import profiles as _sweep
 
 _SKIPS: list[dict] = []
 
@@ -42,5 +42,5 @@ def pytest_runtest_logreport(report):
 def pytest_sessionfinish(session, exitstatus):
     path = session.config.getoption("--skips-json")
     if path:
-        from exo_bench.bench.reporting import atomic_write
+        from exo_bench.bench.output.provenance import atomic_write
         atomic_write(path, json.dumps(_SKIPS, indent=1))

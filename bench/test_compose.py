@@ -13,8 +13,8 @@ import random
 import pytest
 import sympy as sp
 
-from exo_bench.bench.rows import OVER_BUDGET, prior_over_budget
-from exo_bench.bench.sweep import current
+from exo_bench.bench.perf.rows import OVER_BUDGET, prior_over_budget
+from exo_bench.bench.perf.profiles import current
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.presets import chain
 
@@ -43,7 +43,7 @@ def _composer(method: str, budget: float):
         kind = "lagrange" if method == "sympy-lagrangesmethod" else "kane"
         return lambda m: peer_equations(m, kind, symbolic_parameters=True, budget=budget)
     if method == "matrix":
-        from exo_bench.matrix_method.symbolic import compose_equations
+        from exo_bench.matrix_method.symbolic.compose import compose_equations
         return lambda m: compose_equations(m, symbolic_parameters=True)
     from exo_bench.matrix_method.recurrence import compose_equations
     return lambda m: compose_equations(m, symbolic_parameters=True)
@@ -51,7 +51,7 @@ def _composer(method: str, budget: float):
 
 def _clear_caches():
     from exo_bench import lagrange
-    from exo_bench.matrix_method import polynomials
+    from exo_bench.matrix_method.symbolic.compose import polynomials
     sp.core.cache.clear_cache()
     lagrange.clear_cache()
     polynomials.clear_caches()
@@ -66,7 +66,7 @@ def _values(eqs) -> dict:
 def _same_equations(mech: Mechanism, eqs) -> float:
     """Largest relative difference from the matrix method's equations at a random point."""
     if mech not in _REFERENCE:
-        from exo_bench.matrix_method.symbolic import compose_equations
+        from exo_bench.matrix_method.symbolic.compose import compose_equations
         ref = compose_equations(mech, symbolic_parameters=True)
         vals = _values(ref)
         _REFERENCE[mech] = (vals, [sp.N(e.xreplace(vals), 25) for e in ref])

@@ -45,10 +45,10 @@ import time
 import numpy as np
 import pytest
 
-from exo_bench.bench import limit, peers
-from exo_bench.bench.methods import METHODS, prepare
-from exo_bench.bench.reference import reference
-from exo_bench.bench.sweep import current
+from exo_bench.bench.perf import roofline as limit, peers
+from exo_bench.api.methods import METHODS, prepare
+from exo_bench.bench.studies.reference_forces import reference
+from exo_bench.bench.perf.profiles import current
 from exo_bench.models.motion import smooth_random_motion
 from exo_bench.models.prepared import PreparedModel
 from exo_bench.models.presets import chain, exo5

@@ -24,7 +24,7 @@ def __getattr__(name: str):
     # Lazy: ``import exo_bench`` stays cheap, and a user who never prepares a Lagrange model never
     # imports sympy.
     if name in ("prepare", "method_names"):
-        from exo_bench.bench import methods
+        from exo_bench.api import methods
 
         return getattr(methods, name)
     if name == "Mechanism":

@@ -25,9 +25,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.matrix_method import compiled, compiled_factored, compiled_matrix, compiled_recurrence, numeric
+from exo_bench.matrix_method.numba_kernels import common as compiled, factored as compiled_factored, matrix as compiled_matrix, recurrence as compiled_recurrence
+from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import recurrence as _recurrence
-from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.prepared import PreparedModel
 

@@ -26,11 +26,11 @@ from typing import Iterator
 import numpy as np
 import sympy as sp
 
-from exo_bench.matrix_method import planar
-from exo_bench.matrix_method import numeric as _numeric
-from exo_bench.matrix_method import symbolic as _symbolic
-from exo_bench.matrix_method.coefficients import generic_recurrence_increments, recurrence_increments
-from exo_bench.matrix_method.polynomials import Generators, generators
+from exo_bench.matrix_method.closed_forms import planar
+from exo_bench.matrix_method.numpy_kernels import matrix as _numeric
+from exo_bench.matrix_method.symbolic import compose as _symbolic
+from exo_bench.matrix_method.closed_forms.coefficients import generic_recurrence_increments, recurrence_increments
+from exo_bench.matrix_method.symbolic.polynomials import Generators, generators
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
 

@@ -1,7 +1,7 @@
 """The bad-input catalogue: every class of bad input, the one line a user sees, exit code 2.
 
 :data:`CASES` is the single source of docs/errors.md: each case builds a command line (and its
-files) in a fresh folder, runs ``exo_bench.bench.cli.main`` in-process, and asserts the exit code,
+files) in a fresh folder, runs ``exo_bench.bench.cli.main.main`` in-process, and asserts the exit code,
 that stdout is empty, that stderr is one line with no traceback, and that the line contains the
 case's key phrase. ``test_errors_md_is_current`` regenerates the catalogue from the same runs and
 compares it with docs/errors.md, so the document cannot go stale; rewrite it with
@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 import pytest
 
-from exo_bench.bench import cli
+from exo_bench.bench.cli import main as cli
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5
 
@@ -107,7 +107,7 @@ class Case:
 
 def _no_preflight(mp):
     """Let the work start (the estimate would refuse first) to reach the error raised inside it."""
-    mp.setattr("exo_bench.bench.resources.check", lambda *a, **k: None)
+    mp.setattr("exo_bench.api.cost_model.check", lambda *a, **k: None)
 
 
 def _method_raises(exc):
@@ -259,7 +259,7 @@ CASES = [
     Case("scheduler-unreachable", "--scheduler where no scheduler answers", lambda d: [
         "bench", "--full", "--scheduler", "tcp://127.0.0.1:1", "--reports", d / "rep"],
          "--scheduler 'tcp://127.0.0.1:1': no Dask scheduler reachable there",
-         patch=lambda mp: mp.setattr("exo_bench.bench.distributed.SCHEDULER_TIMEOUT", 1)),
+         patch=lambda mp: mp.setattr("exo_bench.bench.cluster.cluster.SCHEDULER_TIMEOUT", 1)),
     Case("scheduler-malformed", "--scheduler not an address", lambda d: [
         "stability", "--full", "--scheduler", "tcp://[bad", "--reports", d / "rep"],
          "no Dask scheduler reachable there"),
@@ -364,7 +364,7 @@ def test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work(tm
     that fits, and Pinocchio never builds a model or a Data (the refusal is the estimate alone)."""
     import exo_bench.models.pinocchio_backend as pb
 
-    monkeypatch.setattr("exo_bench.bench.resources.usable_memory", lambda: 16 * 10**9)
+    monkeypatch.setattr("exo_bench.api.cost_model.usable_memory", lambda: 16 * 10**9)
     monkeypatch.setattr(pb, "build_model", lambda mech: pytest.fail("a model was built"))
     monkeypatch.setattr(pb.PinocchioRNEA, "__init__", lambda *a, **k: pytest.fail("the method was prepared"))
     f = _chain_file(tmp_path, 300, 3)
@@ -382,7 +382,7 @@ def test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits(tmp_path
     rc, out, err = run_cli(["inverse", _chain_file(tmp_path, 300, 3), tmp_path / "s.json", "--max-memory", "2G", *MF])
     assert rc == 0 and err == ""
     tau = np.array(json.loads(out)["tau"])
-    from exo_bench.bench.methods import prepare
+    from exo_bench.api.methods import prepare
     ref = prepare(m, "recurrence").inverse_dynamics(q, qd, qdd)
     assert np.abs(tau - ref).max() <= 16 * np.finfo(float).eps * m.dof * np.abs(ref).max()
 

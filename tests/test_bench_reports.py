@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from exo_bench.bench.bench_reports import (PAPER_TABLE, README_END, README_START, crossover, fit_exponent, paper_table,
+from exo_bench.bench.perf.reports.benchmark_reports import (PAPER_TABLE, README_END, README_START, crossover, fit_exponent, paper_table,
                                  readme_with_table)
 
 
@@ -62,7 +62,7 @@ def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float
 
 
 def test_issue12_goals_are_judged_from_the_rows_of_one_run():
-    from exo_bench.bench.bench_reports import _inverse, goals_issue12
+    from exo_bench.bench.perf.reports.benchmark_reports import _inverse, goals_issue12
 
     good = "\n".join(goals_issue12(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
     # per call 0.5 us against bare 3 us (0.17x) and PyDy 1 us; batched 0.1 us, 50x faster than Pinocchio
@@ -80,7 +80,7 @@ def _manifest(out, command):
 
 
 def test_a_quick_run_never_replaces_the_reports_of_a_full_run(tmp_path):
-    from exo_bench.bench.bench_reports import REPORT_FILES, report_names
+    from exo_bench.bench.perf.reports.benchmark_reports import REPORT_FILES, report_names
 
     assert report_names(tmp_path, "quick") == {n: n for n in REPORT_FILES}       # nothing there yet
     _manifest(tmp_path, "exo-bench bench")
@@ -96,7 +96,7 @@ def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
     import numpy as np
     import pandas as pd
 
-    from exo_bench.bench.bench_reports import _verdict
+    from exo_bench.bench.perf.reports.benchmark_reports import _verdict
 
     idx = pd.MultiIndex.from_tuples([(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"])
     piv = pd.DataFrame({"matrix": [0.01, 0.05, 20.0], "lagrange": [0.1, 0.9, np.nan]}, index=idx)

@@ -5,7 +5,7 @@ import pytest
 import sympy as sp
 from conftest import mass_coupling_oracle
 
-from exo_bench.matrix_method import coefficients as co
+from exo_bench.matrix_method.closed_forms import coefficients as co
 from exo_bench.models import aggregates as ag
 from exo_bench.models.kinematics import kinetic_energy, potential_energy, unit_vectors
 from exo_bench.models.mechanism import split

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.matrix_method import compiled
+from exo_bench.matrix_method.numba_kernels import common as compiled
 from exo_bench.models.presets import chain, exo5, random_tree
 
 TOL = 1e-14

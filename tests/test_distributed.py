@@ -21,8 +21,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from exo_bench.bench import rows
-from exo_bench.bench.distributed import run_sweep
+from exo_bench.bench.perf import rows
+from exo_bench.bench.cluster.cluster import run_sweep
 
 PLUGIN = ("-p", "exo_bench.bench.conftest")
 
@@ -41,7 +41,7 @@ CASES = [(m, n, d, "chain") for d in (2, 3) for n in {ns!r} for m in ("alpha", "
 def test_tiny(benchmark, case, request):
     method, n, dim, topology = case
     if CHAIN and method == "beta" and n >= 6:
-        from exo_bench.bench.rows import OVER_BUDGET, prior_over_budget
+        from exo_bench.bench.perf.rows import OVER_BUDGET, prior_over_budget
         known = prior_over_budget(request.config).get((method, dim, topology))
         first = known[0] if known else n
         request.node.user_properties.append((OVER_BUDGET, [method, first, dim, topology, "test-only budget"]))
@@ -189,7 +189,7 @@ def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
     bad_merged = json.loads(json.dumps(merged))
     bad_merged["benchmarks"][3]["extra_info"]["host"] = "alpha"
     path.write_text(json.dumps(bad_merged))
-    from exo_bench.bench.bench_reports import load
+    from exo_bench.bench.perf.reports.benchmark_reports import load
     with pytest.raises(rows.CrossHostRatio):
         load(path)
 
@@ -237,7 +237,7 @@ def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
 
 
 def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_chained():
-    from exo_bench.bench.distributed import _chains
+    from exo_bench.bench.cluster.cluster import _chains
 
     def row(n, methods):
         return {"key": f"3d-chain-n{n}", "file": "bench/test_compose.py", "dim": 3, "topology": "chain", "n": n,
@@ -254,7 +254,7 @@ def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_ch
 
 
 def test_reports_are_not_rendered_again_from_a_sweep_with_rows_missing(tmp_path):
-    from exo_bench.bench.distributed import render_checkpoints
+    from exo_bench.bench.cluster.cluster import render_checkpoints
 
     (tmp_path / "cp" / "abc123").mkdir(parents=True)
     with pytest.raises(ValueError, match=r"render: \d+ of \d+ rows have no checkpoint at code abc123"):

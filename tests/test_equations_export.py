@@ -29,8 +29,8 @@ import pytest
 
 import exo_bench
 from exo_bench import prepare
-from exo_bench.bench import equations as beq
-from exo_bench.matrix_method import export_code, export_latex
+from exo_bench.bench.cli.main import equations as beq
+from exo_bench.matrix_method.export import code as export_code, latex as export_latex
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig2a, fig2b, random_tree
 
@@ -311,7 +311,7 @@ def test_the_element_factors_recompose_the_matrices_exactly():
     """coefficient x geometry (the page's form) equals matrix_method.symbolic.matrices exactly."""
     import sympy as sp
 
-    from exo_bench.matrix_method.symbolic import matrices
+    from exo_bench.matrix_method.symbolic.compose import matrices
 
     mech = random_tree(4, 3, 9)
     parts = export_latex.element_parts(mech, False)
@@ -344,7 +344,7 @@ def test_pages_compile_with_a_tex_engine_where_installed(tmp_path):
 def test_only_scenes_that_declare_equations_get_the_pages(tmp_path):
     import argparse
 
-    import exo_bench.bench.runner as runner
+    import exo_bench.bench.studies.main_job as runner
 
     base = 'mechanism = "fig2a-2d"\nmethods = ["matrix-factored"]\noutputs = [{}]\n[motion]\nkind = "planar-gait"\n' \
            'samples_per_period = 20\n'
@@ -361,7 +361,7 @@ def test_only_scenes_that_declare_equations_get_the_pages(tmp_path):
 
 
 def test_the_shipped_paper_scenes_declare_equations():
-    from exo_bench.bench.scenes import load_scene
+    from exo_bench.bench.studies.scenes import load_scene
 
     for name in ("fig2a-2d", "fig2b-2d", "exo5-3d"):
         assert load_scene(name).wants("equations")

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from exo_bench.bench.cli import main
+from exo_bench.bench.cli.main import main
 from exo_bench.lagrange import BudgetExceeded, extract_matrices
 from exo_bench.lagrange.derivation import parameter_values
 from exo_bench.lagrange.peer import peer_equations
-from exo_bench.bench import errata
+from exo_bench.bench.studies import errata
 from exo_bench.matrix_method import printed
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig2b, random_tree

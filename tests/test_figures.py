@@ -18,11 +18,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.text import Text
 from PIL import Image
 
-from exo_bench.bench import plots, runner
-from exo_bench.bench.plots import FIGURES, METHOD_COLORS, TEXT_PT
-from exo_bench.bench.reporting import PNG_DPI
-from exo_bench.bench.scenes import load_scene, shipped_scene_names
-from exo_bench.bench.study import run_methods
+from exo_bench.bench.output.figures import scene_figures as plots
+from exo_bench.bench.studies import main_job as runner
+from exo_bench.bench.output.figures.scene_figures import FIGURES, METHOD_COLORS, TEXT_PT
+from exo_bench.bench.output.provenance import PNG_DPI
+from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
+from exo_bench.bench.studies.study import run_methods
 from exo_bench.models.motion import smooth_random_motion
 from exo_bench.models.presets import chain
 

@@ -1,6 +1,6 @@
 """No traceback from any command: every subcommand driven with generated bad input (hypothesis).
 
-The property, for every generated command line: ``exo_bench.bench.cli.main`` returns (never
+The property, for every generated command line: ``exo_bench.bench.cli.main.main`` returns (never
 raises); the exit code is 0 (a result), 1 (``run``: a scene failed, reported) or 2 (refused); stderr
 has no traceback and no "internal error"; a refusal is exactly one line on stderr and nothing on
 stdout; a result's stderr lines are warnings. Inputs: JSON values of every kind, mutated mechanism
@@ -302,16 +302,16 @@ TOKENS = ["inverse", "urdf", "run", "bench", "errata", "stability", "presets", "
 @FUZZ
 @given(st.lists(st.sampled_from(TOKENS) | st.text(max_size=8), max_size=6))
 def test_any_argument_list(argv):
-    import exo_bench.bench.bench_reports as bench_reports
-    import exo_bench.bench.errata as errata
-    import exo_bench.bench.runner as runner
-    import exo_bench.bench.stability as stability
+    import exo_bench.bench.perf.reports.benchmark_reports as bench_reports
+    import exo_bench.bench.studies.errata as errata
+    import exo_bench.bench.studies.main_job as runner
+    import exo_bench.bench.studies.stability as stability
 
     with workdir() as d, pytest.MonkeyPatch.context() as mp:
         for mod in (runner, bench_reports, errata, stability):  # the heavy jobs: stubs
             mp.setattr(mod, "run", lambda args: 0)
-        mp.setattr("exo_bench.bench.distributed.bench_run", lambda args: 0)   # bench --full: the Dask sweep
-        mp.setattr("exo_bench.bench.equations.size_report", lambda args: 0)
+        mp.setattr("exo_bench.bench.cluster.cluster.bench_run", lambda args: 0)   # bench --full: the Dask sweep
+        mp.setattr("exo_bench.bench.cli.equations.size_report", lambda args: 0)
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
         (d / "m.json").write_text(fig1(2).to_json())
@@ -336,7 +336,7 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
     (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
     sub = {"BIN": tmp_path / "bin", "CHAIN300": tmp_path / "c.json", "S300": tmp_path / "s.json", "FILE": tmp_path / "file"}
     argv = [str(sub.get(a, a)) for a in args] + (["--max-memory", "2G"] if args[1] == "CHAIN300" else [])
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120,
+    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", *argv], capture_output=True, text=True, timeout=120,
                        cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
@@ -349,7 +349,7 @@ def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
 
     mo = gait(exo5(3), np.array([0.0, 0.3]))
     (tmp_path / "s.json").write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", "inverse", "exo5-3d", str(tmp_path / "s.json"),
+    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", "inverse", "exo5-3d", str(tmp_path / "s.json"),
                         "--method", "matrix-paper"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     lines = r.stderr.strip().splitlines()

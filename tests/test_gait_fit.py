@@ -8,7 +8,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from exo_bench.bench.scenes import load_scene
+from exo_bench.bench.studies.scenes import load_scene
 from exo_bench.models import gait_fit
 from exo_bench.models.gait_fit import CLEARANCE, LATERAL_BOUND, SWING_LINKS, check_gait, describe, sagittal_angles
 from exo_bench.models.kinematics import point_mass_positions

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.bench.study import run_methods
+from exo_bench.bench.studies.study import run_methods
 from exo_bench.lagrange import BudgetExceeded, derive
 from exo_bench.lagrange import derivation as dv
 from exo_bench.lagrange import numeric as ln

@@ -7,7 +7,7 @@ import pytest
 from conftest import assert_forces_agree
 
 from exo_bench.lagrange import numeric as ln
-from exo_bench.lagrange import reference as lr
+from exo_bench.lagrange import high_precision as lr
 from exo_bench.models.motion import gait, random_states
 from exo_bench.models.presets import exo5, fig1, random_tree
 

@@ -10,10 +10,11 @@ from conftest import POWER_BALANCE_TOL, assert_close, assert_forces_agree, power
 import sympy as sp
 
 from exo_bench import prepare
-from exo_bench.bench.cli import main
+from exo_bench.bench.cli.main import main
 from exo_bench.lagrange import numeric as lagrange_numeric
-from exo_bench.bench import errata
-from exo_bench.matrix_method import numeric, printed
+from exo_bench.bench.studies import errata
+from exo_bench.matrix_method.numpy_kernels import matrix as numeric
+from exo_bench.matrix_method import printed
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import gait, random_states
 from exo_bench.models.presets import exo5, fig5, random_tree

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from conftest import assert_matrices_agree
 
-from exo_bench.matrix_method import numeric
-from exo_bench.bench.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.matrix_method.numpy_kernels import matrix as numeric
+from exo_bench.bench.studies.errata import LagrangeWitness, pinocchio_matrices
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig2a, fig2b, random_tree
 

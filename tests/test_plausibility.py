@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.bench.plausibility import markdown, plausibility, text
-from exo_bench.bench.study import MethodResult, Study, run_methods
+from exo_bench.bench.studies.plausibility import markdown, plausibility, text
+from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.mechanism import split
 from exo_bench.models.motion import PAPER_ASSUMED_V1, GaitParams, gait, planar_gait
 from exo_bench.models.normative import WINTER

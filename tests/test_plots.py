@@ -9,10 +9,10 @@ import pytest
 from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 
-from exo_bench.bench import plots
-from exo_bench.bench.plots import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
+from exo_bench.bench.output.figures import scene_figures as plots
+from exo_bench.bench.output.figures.scene_figures import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
                          kinogram_figure, moments_and_forces, moments_figure, save_figure, write_plots)
-from exo_bench.bench.study import MethodResult, Study, run_methods
+from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import split
 from exo_bench.models.motion import GaitParams, gait, planar_gait, random_states
@@ -286,7 +286,7 @@ def test_kinogram_draws_every_rod_of_every_frame_from_start_to_end_and_the_suppo
 
 
 def test_the_shipped_gaits_kinogram_shows_no_swing_leg_point_below_the_floor():
-    from exo_bench.bench.scenes import load_scene
+    from exo_bench.bench.studies.scenes import load_scene
 
     sc = load_scene("exo5-3d")
     study = run_methods(sc.name, sc.mechanism, sc.build_motion(), sc.motion_label(), ["pinocchio"])

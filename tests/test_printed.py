@@ -5,7 +5,7 @@ import pytest
 from conftest import K, assert_close, matrix_scale, term_scale
 
 from exo_bench.matrix_method import printed
-from exo_bench.bench.errata import pinocchio_matrices
+from exo_bench.bench.studies.errata import pinocchio_matrices
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig1, fig5, random_tree

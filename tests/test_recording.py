@@ -17,11 +17,11 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from exo_bench.bench import recording
-from exo_bench.bench.plots import force_labels, moment_labels
-from exo_bench.bench.recording import (TRAIL_SECONDS, rerun_executable, trail_entity, trail_indices, trail_points,
+from exo_bench.bench.output import recording
+from exo_bench.bench.output.figures.scene_figures import force_labels, moment_labels
+from exo_bench.bench.output.recording import (TRAIL_SECONDS, rerun_executable, trail_entity, trail_indices, trail_points,
                                       verify_recording, write_recording)
-from exo_bench.bench.study import MethodResult, Study, run_methods
+from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.motion import GaitParams, gait, planar_gait
 from exo_bench.models.pinocchio_backend import build_model, joint_torques
@@ -290,7 +290,7 @@ def test_meta_records_the_sdk_version_commit_methods_and_conventions(exo):
     assert "over the time budget of 1 s" in text and "RuntimeError: singular matrix" in text
     assert "joint moments" in text and rr.__version__ in text
     # the loads beside level walking, with the same numbers as the scene report's table
-    from exo_bench.bench.plausibility import plausibility
+    from exo_bench.bench.studies.plausibility import plausibility
     p = plausibility(study)
     assert "## Loads" in text and "beside level walking" in text and "Not comparable with walking" in text
     for row in p.joints:

@@ -7,8 +7,10 @@ from conftest import assert_forces_agree
 
 from exo_bench import prepare
 from exo_bench.lagrange import canonical_form, derive
-from exo_bench.matrix_method import numeric, recurrence, symbolic
-from exo_bench.bench.errata import prefix, prefix_states
+from exo_bench.matrix_method.numpy_kernels import matrix as numeric
+from exo_bench.matrix_method import recurrence
+from exo_bench.matrix_method.symbolic import compose as symbolic
+from exo_bench.bench.studies.errata import prefix, prefix_states
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig2b, random_tree
 

@@ -9,9 +9,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from exo_bench.bench import resources
-from exo_bench.bench.methods import METHODS, prepare
-from exo_bench.bench.resources import Limits, ResourceLimit, check, estimate, parse_size
+from exo_bench.api import cost_model as resources
+from exo_bench.api.methods import METHODS, prepare
+from exo_bench.api.cost_model import Limits, ResourceLimit, check, estimate, parse_size
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, random_tree

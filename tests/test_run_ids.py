@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-import exo_bench.bench.runner as runner
-from exo_bench.bench.reporting import run_id_of
+import exo_bench.bench.studies.main_job as runner
+from exo_bench.bench.output.provenance import run_id_of
 from exo_bench.models.presets import random_tree
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -151,11 +151,11 @@ def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
     assert _run(rep, _scene(tmp_path, "a")) == 0
 
     def fake_errata(args):
-        from exo_bench.bench.reporting import atomic_write, provenance
+        from exo_bench.bench.output.provenance import atomic_write, provenance
         atomic_write(Path(args.reports) / "errata.md", "# Errata\n\n" + provenance("exo-bench errata"))
         return 0
 
-    monkeypatch.setattr("exo_bench.bench.errata.run", fake_errata)
+    monkeypatch.setattr("exo_bench.bench.studies.errata.run", fake_errata)
     rc, _, err = run_cli(["errata", "--reports", rep])
     assert rc == 0, err
     manifest = _runs(rep)
@@ -169,7 +169,7 @@ def test_the_run_of_a_png_is_read_back_exactly(tmp_path):
     can look like more hex digits: 32 identifiers read back exactly."""
     from matplotlib.figure import Figure
 
-    from exo_bench.bench import reporting
+    from exo_bench.bench.output import provenance as reporting
 
     keep = reporting.current_run_id()
     try:

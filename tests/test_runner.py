@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-import exo_bench.bench.runner as runner
+import exo_bench.bench.studies.main_job as runner
 from exo_bench.models.prepared import PreparedModel
-from exo_bench.bench import methods
+from exo_bench.api import methods
 from exo_bench.models.presets import random_tree
 
 SCENE = '''
@@ -35,7 +35,7 @@ def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", *map(str, args)], capture_output=True, text=True,
                           timeout=300)
 
 
@@ -65,7 +65,7 @@ def test_unknown_or_malformed_scene_is_one_line_and_exit_2(args, needle, tmp_pat
 def test_undeclared_things_are_never_built(tmp_path):
     """A scene without lagrange never derives; without a recording never imports rerun."""
     p = _user_scene(tmp_path)
-    code = (f"import sys; from exo_bench.bench.runner import run_scene; from exo_bench.bench.scenes import load_scene; "
+    code = (f"import sys; from exo_bench.bench.studies.main_job import run_scene; from exo_bench.bench.studies.scenes import load_scene; "
             f"import pathlib; o = run_scene(load_scene({str(p)!r}), pathlib.Path({str(tmp_path)!r})); "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'lagrange', 'matplotlib')))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -118,7 +118,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
     the scene's methods, including one that failed."""
     from rerun.chunk import RrdReader
 
-    from exo_bench.bench.recording import verify_recording
+    from exo_bench.bench.output.recording import verify_recording
 
     monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_Broken", "always fails"))
     p = tmp_path / "gait.toml"
@@ -143,7 +143,7 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
 
     p = tmp_path / "slow.toml"
     p.write_text('mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n')
-    proc = subprocess.Popen([sys.executable, "-m", "exo_bench.bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
+    proc = subprocess.Popen([sys.executable, "-m", "exo_bench.bench.cli.main", "run", str(p), "--reports", str(tmp_path / "rep")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
     while time.time() < deadline and not any((tmp_path / "rep").glob(".staging-*")):

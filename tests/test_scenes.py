@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from exo_bench.bench.scenes import load_scene, shipped_scene_names
+from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
 from exo_bench.models.presets import random_tree
 
 

@@ -5,8 +5,9 @@ import pytest
 import sympy as sp
 from conftest import assert_matrices_agree
 
-from exo_bench.matrix_method import numeric, planar, spatial
-from exo_bench.bench.errata import LagrangeWitness, pinocchio_matrices
+from exo_bench.matrix_method.numpy_kernels import matrix as numeric
+from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
+from exo_bench.bench.studies.errata import LagrangeWitness, pinocchio_matrices
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig5, random_tree
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_bench.bench import stability as st
-from exo_bench.bench.methods import METHODS, method_names, prepare
+from exo_bench.bench.studies import stability as st
+from exo_bench.api.methods import METHODS, method_names, prepare
 from exo_bench.models.prepared import PreparedModel
 from exo_bench.models import pinocchio_backend as pb
 
@@ -119,8 +119,8 @@ PNGS = ("stability-families.png", "stability-conditioning.png", "stability-work-
 def tiny_run(tmp_path_factory):
     """`exo-bench stability` once on the tiny profile: the output folder, the exit code and the
     figures as they were handed to the PNG writer."""
-    from exo_bench.bench import reporting
-    from exo_bench.bench.cli import main
+    from exo_bench.bench.output import provenance as reporting
+    from exo_bench.bench.cli.main import main
 
     out = tmp_path_factory.mktemp("stability")
     figures = {}

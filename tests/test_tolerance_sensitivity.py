@@ -17,7 +17,7 @@ import pytest
 from conftest import K, assert_forces_agree
 
 from exo_bench import prepare
-from exo_bench.matrix_method import planar, spatial
+from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import random_states
 

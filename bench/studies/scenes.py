@@ -1,0 +1,274 @@
+"""Scenes: a mechanism, a motion, the methods to run and the outputs wanted, declared in TOML.
+
+Shipped scenes live in ``bench/scenes/*.toml``; users pass their own file to ``exo-bench run``.
+Format (every key is checked; an error names the file and the field)::
+
+    description = "the five-link exoskeleton along the gait of eq. (26)"
+    mechanism = "exo5-3d"                 # a preset, or a JSON file relative to the scene file
+    methods = ["pinocchio", "matrix", "recurrence"]
+    reference = "pinocchio"               # optional; the first method by default
+    outputs = ["table", "reference-error", "moments", "forces", "kinogram", "differences", "overview",
+               "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/equations.py)
+
+    [motion]
+    kind = "gait"                         # gait | planar-gait | smooth-random | states
+    periods = 1.0                         # gait, planar-gait
+    samples_per_period = 1000             # gait, planar-gait
+    # duration = 2.0, samples = 400, seed = 0   (smooth-random)
+    # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
+    #                                      t strictly increasing, at least 2 samples)
+
+    gait = "paper-assumed-v1"             # optional: a named gait of models.motion.GAITS
+                                          # (default "winter-fit-v1", the fitted one), or a table:
+    # [motion.gait]                       # overrides of models.motion.GaitParams, and
+    # base = "paper-assumed-v1"           # optionally the named gait they change
+    # T = 1.1
+
+Every motion has at least :data:`MIN_SAMPLES` samples (power balance differentiates along it,
+the figures draw it) and strictly increasing times; the checks name the file and the field.
+
+The runner builds only what a scene declares: a scene without ``lagrange`` never derives, a
+scene without ``recording`` never imports rerun, a 2D scene has no psi anywhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from exo_bench.models.loading import load_mechanism, read_json, read_toml
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.motion import (DEFAULT_GAIT, GAITS, GaitParams, Motion, from_arrays, gait, planar_gait,
+                                     smooth_random_motion)
+
+SHIPPED = Path(__file__).resolve().parent / "scenes"
+OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording",
+           "equations")
+MOTIONS = ("gait", "planar-gait", "smooth-random", "states")
+_TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
+_MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait"}
+#: Fewest samples of a motion: derivatives (power balance) and plots need at least two.
+MIN_SAMPLES = 2
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    path: Path
+    description: str
+    mechanism: Mechanism
+    methods: tuple[str, ...]
+    reference: str
+    outputs: tuple[str, ...]
+    motion: dict = field(hash=False, compare=False)
+
+    def wants(self, output: str) -> bool:
+        return output in self.outputs
+
+    def motion_label(self) -> str:
+        k = self.motion["kind"]
+        if k == "gait":
+            return (f"gait of eq. (26), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
+                    f"{self.motion['samples_per_period']} samples")
+        if k == "planar-gait":
+            return (f"planar gait (eq. 26, sagittal), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
+                    f"{self.motion['samples_per_period']} samples")
+        if k == "smooth-random":
+            return f"smooth random motion (seed {self.motion['seed']}), {self.motion['samples']} samples"
+        return f"states from {self.motion['file']}"
+
+    def motion_function(self):
+        """``t -> Motion`` for analytic motions (used for power balance), None for sampled ones."""
+        k, m = self.motion["kind"], self.mechanism
+        if k == "gait":
+            return lambda t: gait(m, t, self.motion["params"])
+        if k == "planar-gait":
+            return lambda t: planar_gait(m, t, self.motion["params"])
+        if k == "smooth-random":
+            return lambda t: smooth_random_motion(m, t, seed=self.motion["seed"])
+        return None
+
+    def samples(self) -> int:
+        """How many samples :meth:`build_motion` makes (known before building it)."""
+        k = self.motion["kind"]
+        if k in ("gait", "planar-gait"):
+            return int(round(self.motion["samples_per_period"] * self.motion["periods"]))
+        if k == "smooth-random":
+            return int(self.motion["samples"])
+        return len(self.motion["data"]["t"])
+
+    def build_motion(self) -> Motion:
+        k = self.motion["kind"]
+        if k in ("gait", "planar-gait"):
+            p = self.motion["params"]
+            S = int(round(self.motion["samples_per_period"] * self.motion["periods"]))
+            t = np.arange(S) * (p.T / self.motion["samples_per_period"])
+            return self.motion_function()(t)
+        if k == "smooth-random":
+            t = np.linspace(0.0, self.motion["duration"], self.motion["samples"])
+            return self.motion_function()(t)
+        data = self.motion["data"]
+        return from_arrays(self.mechanism, data["t"], data["q"], data["qd"], data["qdd"],
+                           source=f"{self.path}: motion.file {self.motion['file']!r}")
+
+
+def _err(path: Path, field_: str, expected: str, got: Any) -> ValueError:
+    return ValueError(f"{path}: field '{field_}': expected {expected}, got {got!r}")
+
+
+def _number(path, key, value, lo=None, integer=False):
+    ok = isinstance(value, int if integer else (int, float)) and not isinstance(value, bool)
+    if ok and not integer:
+        ok = math.isfinite(value)
+    if not ok or (lo is not None and value <= lo):
+        kind = "an integer" if integer else "a number"
+        raise _err(path, key, f"{kind}" + (f" > {lo}" if lo is not None else ""), value)
+    return value
+
+
+def load_scene(spec: str | Path) -> Scene:
+    """A shipped scene name (``bench/scenes/<name>.toml``) or the path of a TOML file."""
+    from exo_bench.api.methods import METHODS
+
+    path = Path(spec)
+    if not path.suffix and (SHIPPED / f"{spec}.toml").exists():
+        path = SHIPPED / f"{spec}.toml"
+    if not path.exists():
+        known = ", ".join(shipped_scene_names())
+        raise ValueError(f"scene {str(spec)!r}: not a shipped scene ({known}) and no such file")
+    data = read_toml(path, str(path))
+    extra = data.keys() - _TOP
+    if extra:
+        raise _err(path, sorted(extra)[0], f"one of {sorted(_TOP)}", sorted(extra)[0])
+    for key in ("mechanism", "methods", "motion"):
+        if key not in data:
+            raise ValueError(f"{path}: field '{key}': missing (expected keys mechanism, methods, motion)")
+    mech_spec = data["mechanism"]
+    if not isinstance(mech_spec, str):
+        raise _err(path, "mechanism", "a preset name or a JSON file path", mech_spec)
+    from exo_bench.models.presets import PRESETS
+
+    try:
+        mech = load_mechanism(mech_spec if mech_spec in PRESETS else path.parent / mech_spec)
+    except ValueError as e:
+        raise ValueError(f"{path}: field 'mechanism': {e}") from None
+    methods = data["methods"]
+    if not isinstance(methods, list) or not methods or not all(isinstance(m, str) for m in methods):
+        raise _err(path, "methods", "a non-empty list of method names", methods)
+    for m in methods:
+        if m not in METHODS:
+            raise _err(path, "methods", f"names among {', '.join(METHODS)}", m)
+    reference = data.get("reference", methods[0])
+    if reference not in methods:
+        raise _err(path, "reference", f"one of the scene's methods {methods}", reference)
+    outputs = data.get("outputs", ["table"])
+    if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):
+        raise _err(path, "outputs", f"a list of {', '.join(OUTPUTS)}", outputs)
+    for o in outputs:
+        if o not in OUTPUTS:
+            raise _err(path, "outputs", f"names among {', '.join(OUTPUTS)}", o)
+    motion = _load_motion(path, data["motion"], mech)
+    desc = data.get("description", "")
+    if not isinstance(desc, str):
+        raise _err(path, "description", "a string", desc)
+    name = data.get("name", path.stem)
+    if not isinstance(name, str) or not name:
+        raise _err(path, "name", "a non-empty string", name)
+    return Scene(name, path, desc, mech, tuple(methods), reference, tuple(outputs), motion)
+
+
+def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
+    if not isinstance(m, dict):
+        raise _err(path, "motion", "a table with a 'kind'", m)
+    extra = m.keys() - _MOTION_KEYS
+    if extra:
+        raise _err(path, f"motion.{sorted(extra)[0]}", f"one of {sorted(_MOTION_KEYS)}", sorted(extra)[0])
+    kind = m.get("kind")
+    if kind not in MOTIONS:
+        raise _err(path, "motion.kind", f"one of {', '.join(MOTIONS)}", kind)
+    out: dict[str, Any] = {"kind": kind}
+    if kind in ("gait", "planar-gait"):
+        if kind == "gait" and (mech.dim != 3 or mech.nlinks != 5):
+            raise _err(path, "motion.kind", "'gait' only for a 3D five-link mechanism (eq. 26)",
+                       f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism")
+        if kind == "planar-gait" and (mech.dim != 2 or mech.nlinks > 5):
+            raise _err(path, "motion.kind", "'planar-gait' only for a 2D mechanism of at most five links",
+                       f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism")
+        out["periods"] = _number(path, "motion.periods", m.get("periods", 1.0), lo=0)
+        out["samples_per_period"] = _number(path, "motion.samples_per_period", m.get("samples_per_period", 1000),
+                                            lo=1, integer=True)
+        spec = m.get("gait", {})
+        named = isinstance(spec, str)
+        spec = {"base": spec} if named else spec
+        if not isinstance(spec, dict):
+            raise _err(path, "motion.gait", "a gait name or a table of GaitParams fields", spec)
+        overrides = {k: v for k, v in spec.items() if k != "base"}
+        base = spec.get("base", DEFAULT_GAIT)
+        if not isinstance(base, str) or base not in GAITS:
+            raise _err(path, "motion.gait" if named else "motion.gait.base", f"a gait among {', '.join(GAITS)}", base)
+        names = {f.name for f in fields(GaitParams)}
+        for k, v in overrides.items():
+            if k not in names:
+                raise _err(path, f"motion.gait.{k}", f"one of {sorted(names | {'base'})}", k)
+            if isinstance(v, list):
+                default = getattr(GAITS[base], k)
+                if len(v) != len(default) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                    raise _err(path, f"motion.gait.{k}", f"a list of {len(default)} numbers", v)
+                overrides = {**overrides, k: tuple(float(x) for x in v)}
+            else:
+                _number(path, f"motion.gait.{k}", v, lo=0 if k == "T" else None)
+        out["params"] = replace(GAITS[base], **overrides)
+        out["gait_name"] = base + (f" with {', '.join(sorted(overrides))} changed" if overrides else "")
+        S = int(round(out["samples_per_period"] * out["periods"]))
+        if S < MIN_SAMPLES:
+            raise _err(path, "motion.periods", f"periods x samples_per_period >= {MIN_SAMPLES} samples (derivatives "
+                       "and plots need at least two)", f"{out['periods']} x {out['samples_per_period']} = {S} sample(s)")
+    elif kind == "smooth-random":
+        out["duration"] = _number(path, "motion.duration", m.get("duration", 2.0), lo=0)
+        out["samples"] = _number(path, "motion.samples", m.get("samples", 400), lo=1, integer=True)
+        out["seed"] = _number(path, "motion.seed", m.get("seed", 0), lo=-1, integer=True)
+    else:
+        f = m.get("file")
+        if not isinstance(f, str):
+            raise _err(path, "motion.file", "a JSON file with t, q, qd, qdd", f)
+        p = path.parent / f
+        if not p.exists():
+            raise _err(path, "motion.file", "an existing file", str(p))
+        data = read_json(p, f"{path}: field 'motion.file' ({p})")
+        if not isinstance(data, dict) or not {"t", "q", "qd", "qdd"} <= data.keys():
+            raise _err(path, "motion.file", "an object with keys t, q, qd, qdd",
+                       sorted(data) if isinstance(data, dict) else type(data).__name__)
+        out["file"], out["data"] = f, data
+        source = f"{path}: motion.file {f!r}"
+        motion = from_arrays(mech, _times(source, data["t"]), data["q"], data["qd"], data["qdd"], source=source)
+        if motion.q.shape[0] < MIN_SAMPLES:
+            raise ValueError(f"{source}: expected at least {MIN_SAMPLES} samples (derivatives and plots need two), "
+                             f"got {motion.q.shape[0]}")
+    return out
+
+
+def _times(source: str, t: Any) -> np.ndarray:
+    """The times of a sampled motion: a list of finite numbers, strictly increasing."""
+    if not isinstance(t, list):
+        raise ValueError(f"{source}: field 't': expected a list of numbers (seconds), got {type(t).__name__}")
+    for k, x in enumerate(t):
+        if not isinstance(x, (int, float)) or isinstance(x, bool):
+            raise ValueError(f"{source}: field 't' sample {k}: expected a number (seconds), got {x!r}")
+    a = np.asarray(t, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"{source}: field 't' sample {int(bad[0])}: expected a finite time, got {a[bad[0]]}")
+    steps = np.flatnonzero(np.diff(a) <= 0)
+    if steps.size:
+        k = int(steps[0]) + 1
+        raise ValueError(f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {float(a[k - 1])!r} "
+                         f"then t[{k}] = {float(a[k])!r}")
+    return a
+
+
+def shipped_scene_names() -> list[str]:
+    return sorted(p.stem for p in SHIPPED.glob("*.toml"))

@@ -1,0 +1,36 @@
+"""``exo-bench stability``: where each method breaks, and the forward-dynamics round trip.
+
+A benign baseline and six families of extreme cases (:data:`FAMILIES`), each a list of
+:class:`Case` (a mechanism and states). For every case and every method registered in :data:`bench.methods.METHODS` *at run
+time*, the report gives the largest absolute and relative error against the 50-digit reference,
+the number of NaN/Inf values, and the condition number of the mass matrix; a method that is
+missing, over its time budget or raising is recorded as such (one line), never a crash.
+
+Verdicts and their thresholds (justified in the report, see :func:`thresholds_markdown`):
+
+* inverse dynamics of a method on a case is **unusable** when it returns any NaN/Inf or its
+  relative error exceeds :data:`REL_UNUSABLE`, **degraded** above :data:`REL_DEGRADED`; an
+  unusable method raises :class:`UnusableMethodWarning` and a bold line in the report;
+* the mass matrix (forward dynamics) is **singular** where :func:`models.forward_dynamics.
+  singular_reasons` finds an exact cause (vertical rod, zero length, massless link),
+  **numerically singular** when ``cond(M) >= COND_SINGULAR`` and **ill-conditioned** when
+  ``cond(M) >= COND_ILL`` (:class:`IllConditionedWarning`).
+
+The forward-dynamics part (round trip, energy drift, stiff rods, work-precision diagrams) lives
+in the ``forward_*`` modules; :func:`run` writes both into ``reports/stability.md`` with its PNGs.
+
+One responsibility per module: ``cases`` and ``forward_cases`` (what is computed),
+``evaluation`` and ``forward_evaluation`` (computing it), ``figures`` and ``forward_figures``,
+``report`` and ``forward_report`` (the Markdown, and :func:`run`, the ``exo-bench stability`` job).
+This package re-exports their public names.
+"""
+
+from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, TIGHTER, ROUND_TRIP_RULE, RoundTripCase, round_trip_cases, SpringCase, conservative_cases, hanging_chain, stiff_case  # noqa: F401
+from exo_bench.bench.studies.stability.cases import EPS, REL_UNUSABLE, REL_DEGRADED, COND_ILL, COND_SINGULAR, IllConditionedWarning, Profile, QUICK, FULL, Case, BASELINE, family_baseline, family_near_vertical, family_removable, family_lengths, family_masses, family_large_n, family_fast_gaits, FAMILIES  # noqa: F401
+from exo_bench.bench.studies.stability.forward_evaluation import Variational, variational, a_priori_bound, RoundTrip, round_trip_run, round_trip, energy_gradient, energy_bound, EnergyRun, energy_drift, StiffRun, stiff_run, TermsRow, terms_agreement, SingularDemo, singular_demos, ForwardResults, rt_failed, run_forward  # noqa: F401
+from exo_bench.bench.studies.stability.evaluation import reference_forces, MethodRow, CaseResult, evaluate_case, equilibrated_mu_condition, FamilyResult, evaluate_family, method_options, evaluate_families  # noqa: F401
+from exo_bench.bench.studies.stability.forward_figures import work_precision_figure, stiff_figure, forward_figures  # noqa: F401
+from exo_bench.bench.studies.stability.figures import FLOOR, families_figure, conditioning_figure  # noqa: F401
+from exo_bench.bench.studies.stability.forward_report import forward_markdown  # noqa: F401
+from exo_bench.bench.studies.stability.report import baseline_level, thresholds_markdown, family_summary_markdown, family_detail_markdown, findings_markdown, report_markdown, run  # noqa: F401
+from exo_bench.bench.studies.study import StabilityWarning, UnusableMethodWarning  # noqa: F401

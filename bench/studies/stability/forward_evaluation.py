@@ -1,0 +1,480 @@
+"""Forward-dynamics study, the evaluation: the round trip (controls from inverse dynamics drive
+forward dynamics, compared with the motion and an a-priori bound), energy drift against its bound,
+stiff rods, mass matrices and bias forces per method, singular configurations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from dataclasses import field
+import math
+import warnings
+
+import numpy as np
+
+from exo_bench.api.methods import PreparedSet
+from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripCase, SpringCase, TIGHTER, _models, _state0, conservative_cases, round_trip_cases, stiff_case
+from exo_bench.bench.studies.study import UnusableMethodWarning
+from exo_bench.bench.studies.study import one_line
+from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.aggregates import coupling
+from exo_bench.models.kinematics import kinetic_energy
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.presets import exo5
+from exo_bench.models.presets import random_tree
+
+
+@dataclass
+class Variational:
+    """The linearised flow ``Phi(t) = dy(t)/dy(0)`` along a controlled trajectory, from ``2 dof``
+    perturbed copies integrated together with the nominal one (forward differences, ``delta``)."""
+
+    dof: int
+    delta: float
+    solution: object
+    horizon: float
+
+    def phi(self, t) -> np.ndarray:
+        """``(N, m, m)`` for an array of times (``m = 2 dof``)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        m = 2 * self.dof
+        Z = self.solution(t).reshape(m, m + 1, -1)          # (state, copy, time)
+        return np.moveaxis((Z[:, 1:] - Z[:, :1]) / self.delta, -1, 0)
+
+    def growth(self, t) -> np.ndarray:
+        """``||Phi_q(t)||_inf``: how much a state perturbation at 0 can move q at ``t``."""
+        return np.abs(self.phi(t)[:, :self.dof]).sum(-1).max(-1)
+
+    def max_growth(self, samples: int = 41) -> float:
+        return float(self.growth(np.linspace(0, self.horizon, samples)).max())
+
+
+def variational(mech: Mechanism, controls: fd.Controls, q0, qd0, horizon: float, method: str = "pinocchio",
+                delta: float = 1e-7, rtol: float = 1e-12, models: PreparedSet | None = None) -> Variational:
+    """Integrate the nominal state and ``2 dof`` copies perturbed by ``delta`` in one vectorised
+    ODE (DOP853, tight tolerance): each copy is one column of the vectorised right-hand side."""
+    from scipy.integrate import solve_ivp
+
+    d = mech.dof
+    m = 2 * d
+    rhs, _ = fd.make_rhs(_models(models)(mech, method), controls)
+    y0 = np.concatenate([np.asarray(q0, float).ravel(), np.asarray(qd0, float).ravel()])
+    Z0 = y0[:, None] + delta * np.hstack([np.zeros((m, 1)), np.eye(m)])
+    sol = solve_ivp(lambda t, z: rhs(t, z.reshape(m, m + 1)).ravel(), (0.0, horizon), Z0.ravel(),
+                    method="DOP853", rtol=rtol, atol=rtol * 1e-2, dense_output=True)
+    if sol.status != 0:
+        raise RuntimeError(f"variational equations of {mech.name}: {sol.message}")
+    return Variational(d, delta, sol.sol, horizon)
+
+
+def a_priori_bound(var: Variational, sim: fd.Simulation, checkpoints: int = 12) -> float:
+    """First-order worst case of the global error in q, ``max_j sum_{k<=j} |Phi(t_j) Phi(t_k)^-1|_q
+    sqrt(m) (atol + rtol max(|y_k-1|, |y_k|))``: every accepted step's local error passes scipy's RMS
+    test, so each component is below ``sqrt(m)`` times its scale, and is propagated by the
+    linearised flow. Evaluated at ``checkpoints`` step times (the sum is O(N^2) in the steps)."""
+    if sim.steps == 0:
+        return 0.0
+    d, m = var.dof, 2 * var.dof
+    P = var.phi(sim.t)                                              # (N, m, m)
+    inv = np.linalg.inv(P)
+    sc = sim.atol + sim.rtol * np.maximum(np.abs(sim.y[:-1]), np.abs(sim.y[1:]))   # (N-1, m), step k -> k-1
+    w = math.sqrt(m) * sc
+    N = len(sim.t)
+    best = 0.0
+    for j in np.unique(np.linspace(1, N - 1, checkpoints).round().astype(int)):
+        A = np.abs(np.einsum("ab,kbc->kac", P[j, :d], inv[1:j + 1]))   # (j, d, m): Phi(t_j, t_k), q rows
+        best = max(best, float(np.einsum("kac,kc->a", A, w[:j]).max()))
+    return best
+
+
+@dataclass
+class RoundTrip:
+    case: str
+    method: str
+    integrator: str
+    rtol: float
+    sim: fd.Simulation
+    error: float = math.nan           # max over accepted steps of |q - q*| (rad or m)
+    estimate: float = math.nan        # E: max |q_rtol - q_tighter| at the same times
+    floor: float = math.nan           # F: round-off floor
+    bound: float = math.nan           # a priori first-order worst case
+    growth: float = math.nan          # G(H)
+    note: str = ""
+
+    @property
+    def tolerance(self) -> float:
+        return 2.0 * self.estimate + self.floor
+
+    @property
+    def passed(self) -> bool:
+        return self.sim.ok and math.isfinite(self.error) and self.error <= self.tolerance
+
+    @property
+    def verdict(self) -> str:
+        if not self.sim.ok:
+            return self.sim.status
+        if not math.isfinite(self.estimate):
+            return "n/a (no tighter run)"
+        return "pass" if self.passed else "FAIL"
+
+
+def round_trip_run(case: RoundTripCase, integrator: str, rtol: float, method: str = "pinocchio",
+                   control_method: str = "pinocchio", max_seconds: float | None = None,
+                   controls: fd.Controls | None = None, models: PreparedSet | None = None) -> fd.Simulation:
+    """One integration of the round trip (dense output, so that it can serve as the tighter run
+    of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
+    dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
+    state."""
+    mech = case.mechanism
+    models = _models(models)
+    ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
+    q0, qd0 = _state0(case.motion_of_t(np.array([0.0])))
+    return fd.simulate(models(mech, method), q0, qd0, (0.0, case.horizon), ctrl, integrator, rtol, ATOL_FACTOR * rtol,
+                       max_seconds=max_seconds, dense=True)
+
+
+def round_trip(case: RoundTripCase, integrator: str, rtol: float, method: str = "pinocchio",
+               control_method: str = "pinocchio", var: Variational | None = None,
+               sim: fd.Simulation | None = None, tighter: fd.Simulation | None = None,
+               estimate: bool = True, max_seconds: float | None = None,
+               controls: fd.Controls | None = None, models: PreparedSet | None = None) -> RoundTrip:
+    """Drive the forward dynamics of ``method`` with the controls of ``control_method``'s inverse
+    dynamics along ``case``'s motion and compare with the motion (see :data:`ROUND_TRIP_RULE`).
+
+    ``sim`` and ``tighter`` (the same at ``rtol / TIGHTER``) are run when not given (``tighter``
+    only with ``estimate``); ``var`` adds the growth, floor and a priori bound. Without an
+    estimate the pass criterion is not evaluated (``passed`` is False, ``note`` says why).
+    """
+    mech = case.mechanism
+    d = mech.dof
+    if sim is None:
+        sim = round_trip_run(case, integrator, rtol, method, control_method, max_seconds, controls, models)
+    rt = RoundTrip(case.name, method, integrator, rtol, sim)
+    if not sim.ok:
+        return rt
+    rt.error = float(np.abs(sim.q(d) - case.motion_of_t(sim.t).q).max())
+    if tighter is None and estimate:
+        tighter = round_trip_run(case, integrator, rtol / TIGHTER, method, control_method, max_seconds, controls,
+                                 models)
+    if tighter is None:
+        rt.note = "no tighter run: pass criterion not evaluated"
+    elif tighter.ok and tighter.solution is not None:
+        rt.estimate = float(np.abs(sim.q(d) - tighter.solution(sim.t)[:d].T).max())
+    else:
+        rt.note = f"no error estimate: tighter run {tighter.status}"
+    if var is not None:
+        rt.growth = var.max_growth()
+        rt.floor = sim.steps * rt.growth * EPS * float(np.abs(sim.y).max())
+        rt.bound = a_priori_bound(var, sim)
+    else:
+        rt.floor = sim.steps * EPS * float(np.abs(sim.y).max())
+    return rt
+
+
+def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """``dE/dy (N, m)`` by central differences (one batched energy call)."""
+    N, m = y.shape
+    d = m // 2
+    steps = h * np.maximum(1.0, np.abs(y))                             # (N, m)
+    Y = np.repeat(y[:, None, :], 2 * m, axis=1)                        # (N, 2m, m)
+    idx = np.arange(m)
+    Y[:, idx, idx] += steps
+    Y[:, m + idx, idx] -= steps
+    E = case.energy(Y[..., :d].reshape(-1, d), Y[..., d:].reshape(-1, d)).reshape(N, 2 * m)
+    return (E[:, :m] - E[:, m:]) / (2 * steps)
+
+
+def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
+    """First-order bound on ``|E(t) - E(0)|`` from the tolerance: ``sum_k |dE/dy(y_k)| . sqrt(m)
+    (atol + rtol max(|y_k-1|, |y_k|))``. The exact flow conserves E, so ``E(y_k) - E(y_k-1) = E(y_k)
+    - E(flow(y_k-1)) ~ dE/dy . l_k`` with ``l_k`` the local error: the sum telescopes, and nothing
+    amplifies it."""
+    if sim.steps == 0:
+        return 0.0
+    m = sim.y.shape[1]
+    grad = np.abs(energy_gradient(case, sim.y[1:]))
+    sc = sim.atol + sim.rtol * np.maximum(np.abs(sim.y[:-1]), np.abs(sim.y[1:]))
+    return float((grad * sc).sum() * math.sqrt(m))
+
+
+def _simulate_spring(case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None,
+                     **budget) -> fd.Simulation:
+    """A spring case integrated from its initial state over its horizon with ``method``'s ``M`` and
+    ``h`` (atol = ``ATOL_FACTOR`` rtol); ``budget``: ``max_evaluations``, ``max_seconds``."""
+    return fd.simulate(_models(models)(case.mechanism, method), case.q0, case.qd0, (0.0, case.horizon),
+                       case.controls, integrator, rtol, ATOL_FACTOR * rtol, **budget)
+
+
+@dataclass
+class EnergyRun:
+    case: str
+    integrator: str
+    rtol: float
+    sim: fd.Simulation
+    drift: float = math.nan          # max_k |E(t_k) - E(0)|, J
+    scale: float = math.nan          # max kinetic energy reached, J
+    bound: float = math.nan
+
+    @property
+    def passed(self) -> bool:
+        return self.sim.ok and self.drift <= self.bound
+
+
+def energy_drift(case: SpringCase, integrator: str, rtol: float, method: str = "pinocchio",
+                 max_seconds: float | None = None, models: PreparedSet | None = None) -> EnergyRun:
+    mech = case.mechanism
+    d = mech.dof
+    sim = _simulate_spring(case, integrator, rtol, method, models, max_seconds=max_seconds)
+    run = EnergyRun(case.name, integrator, rtol, sim)
+    if sim.steps:
+        E = case.energy(sim.q(d), sim.qd(d))
+        run.drift = float(np.abs(E - E[0]).max())
+        run.scale = float(kinetic_energy(mech, sim.q(d), sim.qd(d)).max())
+        run.bound = energy_bound(case, sim)
+    return run
+
+
+@dataclass
+class StiffRun:
+    case: str
+    integrator: str
+    rtol: float
+    sim: fd.Simulation
+    stiffness: float                 # fastest rod rate sqrt(k / mu_ii), 1/s
+    cond: float = math.nan           # cond(M) at the initial state
+    error: float = math.nan          # |q(H) - q_ref(H)|, against a tight Radau run
+    energy_change: float = math.nan  # max_k E(t_k) - E(0), J: the dampers only dissipate, so <= 0 up to rounding
+
+    @property
+    def solved(self) -> bool:
+        return self.sim.ok
+
+
+def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: int, reference=None,
+              method: str = "pinocchio", max_seconds: float | None = None,
+              models: PreparedSet | None = None) -> StiffRun:
+    mech = case.mechanism
+    sim = _simulate_spring(case, integrator, rtol, method, models, max_evaluations=max_evaluations,
+                           max_seconds=max_seconds)
+    mu = np.diag(coupling(mech))
+    cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
+    run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)
+    d = mech.dof
+    if sim.ok and reference is not None and reference.ok:
+        run.error = float(np.abs(sim.y[-1, :d] - reference.y[-1, :d]).max())
+    if sim.ok:
+        E = case.energy(sim.q(d), sim.qd(d))
+        run.energy_change = float((E - E[0]).max())
+    return run
+
+
+@dataclass
+class TermsRow:
+    mechanism: str
+    method: str
+    source: str                      # "exposed" or "from inverse dynamics"
+    status: str = "ok"
+    m_rel: float = math.nan          # max |M - M_crba| / max |M_crba|
+    h_rel: float = math.nan
+    seconds: float = math.nan
+
+
+def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | None = None) -> list[TermsRow]:
+    """Each method's M and h (exposed or from its inverse dynamics) against Pinocchio's CRBA and
+    ``nonLinearEffects``; Pinocchio itself also through its inverse dynamics (the linearity identity)."""
+    import time
+
+    from exo_bench.models.motion import random_states
+
+    models = _models(models)
+    rows = []
+    for mech in (exo5(3), random_tree(5, 3, 9), exo5(2)):
+        q, qd, _ = random_states(mech, samples, 21)
+        pin_model = models(mech, "pinocchio")
+        M0, h0 = pin_model.mass_matrix(q), pin_model.bias_forces(q, qd)
+        plan = [(m, False) for m in methods] + [("pinocchio", True)]
+        for m, via in plan:
+            try:
+                model = models(mech, m)
+            except ImportError as e:   # a missing module is a row, not a crash
+                rows.append(TermsRow(mech.name, m, "", "missing: " + one_line(e)))
+                continue
+            except Exception as e:  # noqa: BLE001 - over budget or failing to prepare: a row
+                skip = getattr(e, "skip_reason", None)
+                rows.append(TermsRow(mech.name, m, "", f"skipped: {skip}" if skip else "failed: " + one_line(e)))
+                continue
+            exposed = (not via) and model.native_terms
+            row = TermsRow(mech.name, m, "exposed (CRBA, nonLinearEffects)" if m == "pinocchio" and exposed
+                           else "exposed" if exposed else "from inverse dynamics")
+            try:
+                t0 = time.perf_counter()
+                M, h = fd.mass_matrix_and_bias(model, q, qd, via_inverse_dynamics=via)
+                row.seconds = time.perf_counter() - t0
+                row.m_rel = float(np.abs(M - M0).max() / np.abs(M0).max())
+                row.h_rel = float(np.abs(h - h0).max() / np.abs(h0).max())
+            except Exception as e:  # noqa: BLE001
+                skip = getattr(e, "skip_reason", None)
+                row.status = f"skipped: {skip}" if skip else "failed: " + one_line(e)
+            rows.append(row)
+    return rows
+
+
+@dataclass
+class SingularDemo:
+    case: str
+    inverse: str                      # what inverse dynamics gives there
+    forward: str                      # what forward dynamics says
+
+
+def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
+    """Forward dynamics at genuinely singular configurations: refused, with the link named."""
+    from exo_bench.models.motion import gait, random_states
+
+    models = _models(models)
+
+    e3 = exo5(3)
+    g = gait(e3, np.array([0.0]))
+    q, qd, qdd = random_states(e3, 1, 5)
+    q0 = q.copy()
+    q0[0, -4] = 0.0   # l_2 = 0
+    m = list(e3.masses)
+    m[3] = (m[3][0], 0.0, 0.0)
+    massless = e3.replace(masses=tuple(m), name="exo5-3d, massless swing shin")
+    out = []
+    for label, mech, (a, b, c) in (("exo5-3d gait of eq. (26) at t = 0 (trunk at psi5 = pi/2)", e3, (g.q, g.qd, g.qdd)),
+                                   ("exo5-3d, random state with l2 = 0", e3, (q0, qd, qdd)),
+                                   ("exo5-3d with a massless swing shin", massless, (q, qd, qdd))):
+        model = models(mech, "pinocchio")
+        tau = model.inverse_dynamics(a, b, c)
+        inv = "finite" if np.isfinite(tau).all() else "NaN/Inf"
+        try:
+            fd.accelerations(model, a, b, tau)
+            fwd = "accepted (NOT detected)"
+        except fd.SingularConfigurationError as e:
+            fwd = f"refused: {e.reasons[0]}"
+        out.append(SingularDemo(label, inv, fwd))
+    return out
+
+
+@dataclass
+class ForwardResults:
+    profile: object
+    terms: list[TermsRow]
+    singular: list[SingularDemo]
+    growth: dict[str, float]                        # round-trip case -> G(H)
+    round_trips: list[RoundTrip]                    # every integrator x rtol, pinocchio
+    method_trips: list[RoundTrip]                   # per method, DOP853
+    refused: list[tuple[str, str]]                  # round trips refused (case, reason)
+    energy: list[EnergyRun]
+    stiff: list[StiffRun]
+    stiff_wp: list[StiffRun]
+    cases: dict[str, str]                           # name -> description
+    seconds: float = 0.0
+    stiff_notes: list[str] = field(default_factory=list)
+
+
+def _grid(case: RoundTripCase, integrators, rtols, var, method="pinocchio", max_seconds=None,
+          models: PreparedSet | None = None) -> list[RoundTrip]:
+    """Every integrator at every tolerance; the run at rtol / TIGHTER (when in the grid) is the
+    error estimate of the run at rtol."""
+    out = []
+    for integ in integrators:
+        sims = {r: round_trip_run(case, integ, r, method, max_seconds=max_seconds, models=models) for r in rtols}
+        for r in rtols:
+            tighter = next((s for r2, s in sims.items() if math.isclose(r2, r / TIGHTER, rel_tol=1e-6)), None)
+            out.append(round_trip(case, integ, r, method, var=var, sim=sims[r], tighter=tighter, estimate=False,
+                                  models=models))
+        for s in sims.values():
+            s.solution = None          # the dense outputs served as estimates; they are large
+    return out
+
+
+def rt_failed(rt: RoundTrip) -> bool:
+    return rt.verdict == "FAIL"
+
+
+def run_forward(profile, methods: list[str], log=print, models: PreparedSet | None = None) -> ForwardResults:
+    """Every forward-dynamics experiment of the report, at the profile's sizes."""
+    import time
+
+    from exo_bench.models.motion import gait
+
+    t_start = time.perf_counter()
+    log("forward dynamics: mass matrices and bias forces per method")
+    models = _models(models)
+    terms = terms_agreement(methods, models=models)
+    sing = singular_demos(models)
+    cases = [c for c in round_trip_cases(profile.full_cases) if not profile.rt_cases or c.name in profile.rt_cases]
+    growth, trips, mtrips, refused = {}, [], [], []
+    for i, case in enumerate(cases):
+        log(f"forward dynamics: round trip {case.name}")
+        ctrl = fd.prescribed_controls(models(case.mechanism, "pinocchio"), case.motion_of_t)
+        m0 = case.motion_of_t(np.array([0.0]))
+        var = variational(case.mechanism, ctrl, m0.q, m0.qd, case.horizon, models=models)
+        growth[case.name] = var.max_growth()
+        if i == 0:
+            trips += _grid(case, fd.INTEGRATORS, profile.wp_rtols, var, models=models)
+        else:
+            trips += _grid(case, profile.rt_integrators, profile.rt_rtols, var, models=models)
+        if case.name in profile.method_cases:
+            for m in methods:
+                log(f"forward dynamics: round trip {case.name} with {m}'s M and h")
+                try:
+                    sim = round_trip_run(case, "DOP853", profile.method_rtol, m, max_seconds=profile.method_seconds,
+                                         models=models)
+                    tight = (round_trip_run(case, "DOP853", profile.method_rtol / TIGHTER, m,
+                                            max_seconds=profile.method_seconds, models=models) if sim.ok else None)
+                    mtrips.append(round_trip(case, "DOP853", profile.method_rtol, m, var=var, sim=sim, tighter=tight,
+                                             estimate=False, models=models))
+                    sim.solution = None
+                    if tight is not None:
+                        tight.solution = None
+                except Exception as e:  # noqa: BLE001 - a missing/over-budget method is a row
+                    skip = getattr(e, "skip_reason", None)
+                    rt = RoundTrip(case.name, m, "DOP853", profile.method_rtol,
+                                   fd.Simulation("DOP853", profile.method_rtol, 0.0, np.zeros(0), np.zeros((0, 0)),
+                                                 status=(f"skipped: {skip}" if skip else "failed: " + one_line(e))))
+                    mtrips.append(rt)
+                if rt_failed(mtrips[-1]):
+                    warnings.warn(f"forward dynamics from {m!r}'s M and h does not reproduce the motion of "
+                                  f"{case.name}: deviation {mtrips[-1].error:.1e} > tolerance "
+                                  f"{mtrips[-1].tolerance:.1e}", UnusableMethodWarning, stacklevel=2)
+    e3 = exo5(3)
+    try:
+        g = gait(e3, np.array([0.0]))
+        e3_model = models(e3, "pinocchio")
+        fd.simulate(e3_model, g.q, g.qd, (0.0, 0.1), fd.prescribed_controls(e3_model, lambda t: gait(e3, t)))
+        refused.append(("exo5-3d gait of eq. (26)", "accepted (NOT detected)"))
+    except fd.SingularConfigurationError as e:
+        refused.append(("exo5-3d gait of eq. (26)", str(e)))
+    log("forward dynamics: conservative case")
+    springs = [c for c in conservative_cases() if not profile.energy_cases or c.name in profile.energy_cases]
+    energy = [energy_drift(c, integ, r, max_seconds=profile.method_seconds, models=models) for c in springs
+              for integ in fd.INTEGRATORS for r in profile.energy_rtols]
+    log("forward dynamics: stiff rods")
+    stiff, stiff_wp = [], []
+    variants = [stiff_case(k) for k in profile.stiff_k] + [stiff_case(1e4, s) for s in profile.stiff_mass_scales]
+    notes = []
+    secs = profile.stiff_seconds
+    for c in variants:
+        r_ref = profile.stiff_reference_rtol
+        ref = fd.simulate(models(c.mechanism, "pinocchio"), c.q0, c.qd0, (0.0, c.horizon), c.controls,
+                          integrator="Radau", rtol=r_ref,
+                          atol=ATOL_FACTOR * r_ref, max_seconds=secs)
+        if not ref.ok:
+            notes.append(f"{c.name}: the reference (Radau, rtol {r_ref:.0e}) did not finish: {ref.status}")
+        for integ in fd.INTEGRATORS:
+            stiff.append(stiff_run(c, integ, profile.stiff_rtol, profile.stiff_budget, ref, max_seconds=secs,
+                                   models=models))
+        if c.k == 1e6 and c.mechanism.name == "chain3-2d hanging":
+            for integ in fd.INTEGRATORS:
+                for r in (1e-3, 1e-4, 1e-5):
+                    stiff_wp.append(stiff_run(c, integ, r, profile.stiff_budget, ref, max_seconds=secs,
+                                                    models=models))
+            stiff_wp += [s for s in stiff if s.case == c.name]
+    descr = {c.name: c.description for c in cases}
+    descr.update({c.name: c.description for c in springs})
+    descr.update({c.name: c.description for c in variants})
+    return ForwardResults(profile, terms, sing, growth, trips, mtrips, refused, energy, stiff, stiff_wp, descr,
+                          time.perf_counter() - t_start, notes)
+

@@ -1,0 +1,442 @@
+"""Memory and time of a method, estimated before it runs, and the limits that refuse it.
+
+:func:`estimate` gives, for a mechanism, a method and a batch size, the peak memory and the
+seconds of a run through a prepared model: the one-time setup (Pinocchio's ``Data``, Lagrange's
+derivation, the matrix family's coefficients), the batch's arrays (``q, qd, qdd`` and ``tau``)
+and one chunk's temporaries (batches are evaluated in chunks of :func:`chunk_samples`, so the
+temporaries do not grow with the batch). :func:`check` refuses, with one line that names the
+method, the estimate, the limit, how to raise it and a method that fits, when the estimate
+exceeds the memory limit (default: :data:`USABLE_SHARE` of the machine's available memory,
+``--max-memory``) or a time
+limit (``--max-time``, and for ``lagrange`` its derivation budget, ``--budget``).
+
+**The cost model.** Per method, memory is ``setup + arrays + chunk x per-sample bytes`` and time is
+``setup + calls x per-call + samples x per-sample seconds``, each a small formula in ``n`` (links)
+and ``dim``, in :data:`MODELS`. The constants were fitted to measurements taken by
+:func:`bench.calibration.measure` (``python -m exo_bench.bench.perf.calibration``: each point in a fresh process; memory is
+the growth of the peak resident set size, ``VmHWM`` after a reset through /proc/self/clear_refs,
+because Pinocchio allocates in C++ where tracemalloc does not see; time is ``perf_counter``), on
+chains of n = 5, 25 and 100 links (lagrange: 1 to 30) in 2D and 3D with batches of 1 and 2000
+samples, on a 2-core x86-64 machine shared with other jobs (pin 4.1.0, numpy 2.4, sympy 1.14).
+Memory is rounded up (an estimate that is too high refuses a run that would fit; one too low lets
+a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is not
+rounded up, so that a refusal for its budget is a real one.
+
+Measured against estimated by :func:`bench.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
+afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
+
+    | method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |
+    |---|---|---|---|---|---|---|---|
+    | matrix-factored | 2 | 5 | 2000 | 2.2 | 6.2 | 0.00679 | 0.00108 |
+    | matrix-factored | 2 | 25 | 2000 | 6.1 | 26.7 | 0.0105 | 0.00527 |
+    | matrix-factored | 2 | 100 | 200 | 5.5 | 11.9 | 0.0346 | 0.0162 |
+    | matrix-factored | 3 | 5 | 2000 | 2.7 | 7.1 | 0.00675 | 0.00108 |
+    | matrix-factored | 3 | 25 | 2000 | 9.2 | 31.5 | 0.0153 | 0.00527 |
+    | matrix-factored | 3 | 100 | 200 | 7.1 | 13.8 | 0.0811 | 0.0162 |
+    | matrix | 2 | 5 | 2000 | 3.6 | 14.5 | 0.0233 | 0.00713 |
+    | matrix | 2 | 25 | 2000 | 31.6 | 71.4 | 0.218 | 0.128 |
+    | matrix | 2 | 100 | 200 | 32.5 | 69.3 | 0.313 | 0.211 |
+    | matrix | 3 | 5 | 2000 | 9.7 | 21.2 | 0.0549 | 0.0171 |
+    | matrix | 3 | 25 | 2000 | 68.9 | 72.9 | 0.823 | 0.378 |
+    | matrix | 3 | 100 | 200 | 70.7 | 68.2 | 1.14 | 0.611 |
+    | matrix-paper | 2 | 5 | 2000 | 7.3 | 16.1 | 0.0361 | 0.00713 |
+    | matrix-paper | 2 | 25 | 2000 | 31.3 | 71.3 | 0.23 | 0.128 |
+    | matrix-paper | 2 | 100 | 200 | 33.3 | 69.9 | 0.336 | 0.211 |
+    | matrix-paper | 3 | 5 | 2000 | 17.7 | 26.0 | 0.0417 | 0.0171 |
+    | matrix-paper | 3 | 25 | 2000 | 51.3 | 72.9 | 0.4 | 0.378 |
+    | matrix-paper | 3 | 100 | 200 | 54.9 | 69.7 | 0.692 | 0.611 |
+    | recurrence | 2 | 5 | 2000 | 5.5 | 22.5 | 0.0177 | 0.0249 |
+    | recurrence | 2 | 25 | 2000 | 32.5 | 71.3 | 0.799 | 1.21 |
+    | recurrence | 2 | 100 | 200 | 32.9 | 67.9 | 4.34 | 3.96 |
+    | recurrence | 3 | 5 | 2000 | 16.1 | 38.8 | 0.0426 | 0.0247 |
+    | recurrence | 3 | 25 | 2000 | 59.4 | 72.6 | 1.85 | 1.93 |
+    | recurrence | 3 | 100 | 200 | 63.6 | 68.1 | 10.2 | 9.62 |
+    | pinocchio | 2 | 5 | 2000 | 4.7 | 6.0 | 0.0152 | 0.0328 |
+    | pinocchio | 2 | 25 | 2000 | 12.9 | 25.7 | 0.114 | 0.161 |
+    | pinocchio | 2 | 100 | 200 | 281.2 | 305.4 | 0.201 | 0.224 |
+    | pinocchio | 3 | 5 | 2000 | 4.9 | 7.7 | 0.0172 | 0.0581 |
+    | pinocchio | 3 | 25 | 2000 | 26.7 | 44.8 | 0.117 | 0.293 |
+    | pinocchio | 3 | 100 | 200 | 916.6 | 945.5 | 0.428 | 0.593 |
+    | lagrange | 2 | 5 | 200 | 18.9 | 20.8 | 0.651 | 0.871 |
+    | lagrange | 2 | 10 | 200 | 71.1 | 82.8 | 4.18 | 4.15 |
+    | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
+    | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
+
+Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
+and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
+would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
+the matrix family keeps ``n x n`` coefficient matrices, and its compiled kernels (option
+``kernel="numba"``, the default of ``matrix``, ``matrix-factored``, ``recurrence``) add numba's
+runtime on first use and, when numba's on-disk cache lacks them, a one-time compile
+(:data:`NUMBA_BYTES`; :data:`NUMBA_COMPILE_SECONDS`, named in the note); per sample the compiled kernels need less
+time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
+model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
+2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
+17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
+largest n by the power law through the last two points: about n^3.5 in time and n^3.7 in memory).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.prepared import USABLE_SHARE, available_memory, usable_memory  # noqa: F401
+
+F8 = 8  # bytes per float64
+
+#: Memory of the interpreter's own work around a run (imports are already counted in the baseline).
+BASE_BYTES = 16 * 2**20
+
+
+# ------------------------------------------------------------------------------ per-method models
+@dataclass(frozen=True)
+class CostModel:
+    """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample bytes of a chunk's
+    temporaries, per-sample seconds, and a note on what dominates."""
+
+    setup_bytes: Callable[[Mechanism, dict], float]
+    setup_seconds: Callable[[Mechanism, dict], float]
+    sample_bytes: Callable[[int, int], float]
+    sample_seconds: Callable[[int, int], float]
+    note: Callable[[Mechanism, dict], str] = lambda m, o: ""
+    call_seconds: float = 1e-4          # per call (chunk): Python and numpy overhead
+
+
+def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
+    from exo_bench.models.urdf import pinocchio_data_bytes
+
+    threads = int(options.get("threads", 1) or 1)
+    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
+    return pinocchio_data_bytes(mech), count
+
+
+def _pin_setup_bytes(mech, options):
+    one, count = _pin_data(mech, options)
+    return one * count + 120_000 * mech.nlinks + 2 * 2**20   # the model: <= 90 kB per link (3D n = 100: 9 MB)
+
+
+def _pin_setup_seconds(mech, options):
+    one, count = _pin_data(mech, options)
+    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
+
+
+def _pin_note(mech, options):
+    from exo_bench.models.urdf import pinocchio_model_size
+
+    nv, _ = pinocchio_model_size(mech)
+    one, count = _pin_data(mech, options)
+    many = "" if count == 1 else f" x {count}"
+    return f"a pin.Data holds four nv^3 tensors: {_size(one)} at nv = {nv}{many}, docs/pinocchio-memory.md"
+
+
+def _matrix_setup(mech, options):
+    return F8 * 8 * mech.nlinks**2 + 2**20                  # coupling and gravity coefficients, several n x n
+
+
+#: Methods whose default kernel is compiled by numba (option ``kernel="numba"``).
+NUMBA_METHODS = ("matrix-factored", "matrix", "recurrence")
+#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
+#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
+#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
+#: depend on the state of the cache.
+NUMBA_BYTES = 128 * 2**20
+#: Seconds to compile the serial and the parallel kernel of one dimension when numba's cache is
+#: empty, measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
+#: matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up. Paid once per machine (and per edit of a
+#: kernel's file), so it is named in the estimate's note and not added to its seconds: a time
+#: limit guards the run, and the run's time does not depend on the state of the cache.
+NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0}
+
+
+def _numba(options: dict, method: str) -> bool:
+    return method in NUMBA_METHODS and options.get("kernel", "numba") == "numba"
+
+
+def _compiled_setup_bytes(method: str):
+    return lambda mech, options: _matrix_setup(mech, options) + (NUMBA_BYTES if _numba(options, method) else 0)
+
+
+def _compiled_note(method: str, what):
+    def note(mech, options):
+        if not _numba(options, method):
+            return what(mech) + "; numpy kernel"
+        return (what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
+                f"{NUMBA_COMPILE_SECONDS[method]:g} s (then cached on disk)")
+    return note
+
+
+#: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
+LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
+    (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
+    (5, 2): (0.87, 17.5e6), (6, 2): (1.14, 23.0e6), (8, 2): (3.38, 39.7e6), (10, 2): (4.15, 69.9e6),
+    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6), (30, 2): (174.7, 3066.1e6),
+    (1, 3): (0.14, 9.4e6), (2, 3): (0.28, 12.4e6), (3, 3): (0.57, 16.9e6), (4, 3): (1.57, 25.0e6),
+    (5, 3): (2.79, 37.1e6), (6, 3): (3.56, 55.7e6), (8, 3): (8.37, 122.2e6), (10, 3): (17.4, 241.9e6),
+}
+
+
+def _loglog(points: list[tuple[float, float]], x: float) -> float:
+    """Interpolate ``points`` (sorted by x) linearly in log-log; beyond the last point, extend the
+    power law through the last two points (the steepest measured growth)."""
+    if x <= points[0][0]:
+        return points[0][1]
+    for (x0, y0), (x1, y1) in zip(points, points[1:]):
+        if x <= x1 or (x1, y1) == points[-1]:
+            p = math.log(y1 / y0) / math.log(x1 / x0)
+            return y0 * (x / x0) ** p
+    return points[-1][1]
+
+
+def _lagrange(mech: Mechanism, k: int) -> float:
+    pts = sorted((n, v[k]) for (n, d), v in LAGRANGE_POINTS.items() if d == mech.dim)
+    return _loglog(pts, float(mech.nlinks))
+
+
+MODELS: dict[str, CostModel] = {
+    "pinocchio": CostModel(
+        _pin_setup_bytes, _pin_setup_seconds,
+        sample_bytes=lambda n, d: F8 * 10 * d * n,
+        sample_seconds=lambda n, d: (0.6 + (3.0 if d == 2 else 5.5) * n) * 1e-6,
+        note=_pin_note),
+    "lagrange": CostModel(
+        lambda m, o: _lagrange(m, 1), lambda m, o: _lagrange(m, 0),
+        sample_bytes=lambda n, d: F8 * 40 * d * n * n,
+        sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
+        note=lambda m, o: "the sympy derivation"),
+    "matrix": CostModel(
+        _compiled_setup_bytes("matrix"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 44) * n * n + 40 * n),
+        sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
+        note=_compiled_note("matrix", lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})")),
+    "matrix-paper": CostModel(
+        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 48) * n * n + 60 * n),
+        sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
+        note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})"),
+    "recurrence": CostModel(
+        _compiled_setup_bytes("recurrence"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * ((40 if d == 2 else 80) * n * n + 60 * n),
+        sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
+        note=_compiled_note("recurrence", lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})")),
+    "matrix-factored": CostModel(
+        _compiled_setup_bytes("matrix-factored"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
+        sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
+        note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
+}
+
+#: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).
+PREFERENCE = ("matrix-factored", "matrix", "pinocchio", "recurrence", "lagrange")
+
+#: Target bytes of one chunk's temporaries.
+CHUNK_BYTES = 64 * 2**20
+MAX_CHUNK = 65536
+
+
+def chunk_samples(mech: Mechanism, method: str) -> int:
+    """Samples per chunk for ``method``: one chunk's temporaries near :data:`CHUNK_BYTES`."""
+    model = MODELS.get(method)
+    if model is None:
+        from exo_bench.models.prepared import default_chunk_samples
+        return default_chunk_samples(mech.dof)
+    per = max(model.sample_bytes(mech.nlinks, mech.dim), 1.0)
+    return int(max(1, min(MAX_CHUNK, CHUNK_BYTES // per)))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    method: str
+    samples: int
+    setup_bytes: float
+    array_bytes: float          # q, qd, qdd and tau of the whole batch
+    chunk_bytes: float          # one chunk's temporaries
+    seconds: float
+    setup_seconds: float
+    note: str = ""
+
+    @property
+    def memory(self) -> float:
+        return BASE_BYTES + self.setup_bytes + self.array_bytes + self.chunk_bytes
+
+    def describe(self) -> str:
+        return f"about {_size(self.memory)} and {_seconds(self.seconds)}"
+
+
+def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None) -> Estimate:
+    """The estimated peak memory and seconds of ``samples`` samples of ``method`` on ``mech``
+    through a prepared model, including the setup (see the module docstring)."""
+    options = dict(options or {})
+    model = MODELS.get(method)
+    if model is None:  # a method registered without a cost model: its arrays only
+        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, 0.0, 0.0, "no cost model")
+    n, d = mech.nlinks, mech.dim
+    chunk = min(max(samples, 1), chunk_samples(mech, method))
+    calls = math.ceil(max(samples, 1) / chunk)
+    setup_s = model.setup_seconds(mech, options)
+    seconds = setup_s + calls * model.call_seconds + samples * model.sample_seconds(n, d)
+    return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,
+                    float(chunk * model.sample_bytes(n, d)), float(seconds), float(setup_s),
+                    model.note(mech, options))
+
+
+class ResourceLimit(ValueError):
+    """A method's estimated memory or time exceeds a limit. ``skip_reason`` is the one-line
+    message (a study records the method as skipped with it); ``budget`` names the limit."""
+
+    def __init__(self, message: str, budget: str):
+        super().__init__(message)
+        self.skip_reason = message
+        self.budget = budget
+
+
+@dataclass
+class Limits:
+    """The limits a run is held to: ``memory`` in bytes (None: the available memory),
+    ``seconds`` (None: no limit) and ``budget``, Lagrange's derivation budget in seconds."""
+
+    memory: float | None = None
+    seconds: float | None = None
+    budget: float | None = None
+    memory_source: str = field(default="")
+
+    def memory_limit(self) -> tuple[float | None, str]:
+        if self.memory is not None:
+            return float(self.memory), self.memory_source or "--max-memory"
+        usable = usable_memory()
+        return ((None if usable is None else float(usable)),
+                f"{USABLE_SHARE:.0%} of the available memory; set the limit with --max-memory")
+
+
+def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
+    """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
+    ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
+    mem, mem_src = limits.memory_limit()
+    if mem is not None and est.memory > mem:
+        return f"over the memory limit of {_size(mem)} ({mem_src})"
+    if limits.seconds is not None and est.seconds > limits.seconds:
+        return f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
+    if est.method == "lagrange":
+        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
+
+        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
+            return None  # not a budget: the method's constructor says so
+        if est.setup_seconds > budget:
+            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS)")
+    return None
+
+
+def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str = "",
+                   options: dict[str, dict] | None = None) -> Estimate | None:
+    """The first method of :data:`PREFERENCE` whose estimate is within the limits."""
+    for m in PREFERENCE:
+        if m == exclude:
+            continue
+        est = estimate(mech, m, samples, (options or {}).get(m))
+        if _over(est, limits) is None:
+            return est
+    return None
+
+
+def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
+          limits: Limits | None = None) -> Estimate:
+    """The estimate of ``method``, or :class:`ResourceLimit` when it exceeds ``limits``: one line
+    naming the method, the estimate and what dominates it, the limit and how to raise it, and a
+    method that fits (or that none does, and why)."""
+    limits = limits or Limits()
+    est = estimate(mech, method, samples, options)
+    over = _over(est, limits, options)
+    if over is None:
+        return est
+    size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
+    note = f" ({est.note})" if est.note else ""
+    msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
+    alt = fitting_method(mech, samples, limits, exclude=method)
+    if alt is not None:
+        msg += f"; {alt.method} fits: {alt.describe()}"
+    else:
+        arrays = BASE_BYTES + est.array_bytes
+        mem, _ = limits.memory_limit()
+        if mem is not None and arrays > mem:
+            msg += f"; no method fits: the batch's arrays alone take {_size(arrays)}: split the batch"
+        else:
+            msg += "; no method fits these limits"
+    budget = "memory" if "memory limit" in over else ("time" if "time limit" in over else "budget")
+    raise ResourceLimit(msg, budget)
+
+
+#: Arrays a scene's motion and study hold per sample and coordinate: t, q, qd, qdd, and per
+#: method its tau and a difference (the scene's methods, up to six).
+SCENE_ARRAYS = 16
+
+
+def check_samples(mech: Mechanism, samples: int, limits: Limits | None = None, what: str = "motion") -> float:
+    """Refuse (:class:`ResourceLimit`) a motion whose arrays alone would exceed the memory limit,
+    before it is built; return their estimated bytes."""
+    limits = limits or Limits()
+    need = BASE_BYTES + SCENE_ARRAYS * F8 * (mech.dof + 1) * max(samples, 0)
+    mem, src = limits.memory_limit()
+    if mem is not None and need > mem:
+        raise ResourceLimit(f"{what}: {samples} samples of {mech.dof} coordinates need about {_size(need)} of arrays, "
+                            f"over the memory limit of {_size(mem)} ({src}); use fewer samples", "memory")
+    return need
+
+
+def parse_size(text: str) -> int:
+    """``"2G"``, ``"512M"``, ``"1.5GB"``, ``"2GiB"``, ``"1e9"`` -> bytes (K, M, G, T are powers of 1024)."""
+    import re
+
+    t = str(text).strip()
+    m = re.fullmatch(r"(?i)([0-9]*\.?[0-9]+(?:e[+-]?[0-9]+)?)\s*([kmgt]?)(i?b)?", t)
+    if not m:
+        raise ValueError(f"--max-memory: expected a size such as 2G, 512M or 1.5e9 (bytes), got {text!r}")
+    value = float(m.group(1)) * 1024 ** " kmgt".index((m.group(2) or " ").lower())
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"--max-memory: expected a positive size, got {text!r}")
+    return int(value)
+
+
+def parse_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"--max-time: expected a number of seconds, got {text!r}") from None
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"--max-time: expected a positive number of seconds, got {text!r}")
+    return value
+
+
+def _size(x: float) -> str:
+    if x >= 1e9:
+        return f"{x / 1e9:.1f} GB"
+    if x >= 1e6:
+        return f"{x / 1e6:.0f} MB"
+    return f"{x / 1e3:.0f} kB"
+
+
+def _seconds(x: float) -> str:
+    if x >= 3600:
+        return f"{x / 3600:.1f} h"
+    if x >= 1:
+        return f"{x:.0f} s" if x >= 10 else f"{x:.1f} s"
+    return f"{x * 1e3:.0f} ms" if x >= 1e-3 else f"{x * 1e6:.0f} us"
+
+
+#: ``exo-bench equations``: seconds to compose and generate, measured on chains (one run each on
+#: the shared 2-core machine; python and c: three CSEs and the printing, latex: the Markdown page
+#: and the .tex): format -> dim -> ((n, seconds), ...). Interpolated in log-log and extended by the
+#: power law through the last two points (about n^2 for code, n^4 for latex), not rounded up, so
+#: that a refusal for the budget is a real one.
+EQUATIONS_POINTS: dict[str, dict[int, tuple[tuple[int, float], ...]]] = {
+    "python": {2: ((2, 0.05), (5, 0.14), (10, 0.57), (20, 2.4)), 3: ((2, 0.13), (5, 0.95), (10, 3.5), (20, 13.7))},
+    "c": {2: ((2, 0.04), (5, 0.08), (10, 0.53), (20, 3.5)), 3: ((2, 0.05), (5, 1.07), (10, 2.5), (20, 15.7))},
+    "latex": {2: ((2, 0.02), (5, 0.05), (10, 0.3), (20, 4.0)), 3: ((2, 0.07), (5, 0.45), (10, 1.5), (20, 26.0))},
+}
+
+
+def equations_estimate(mech: Mechanism, fmt: str) -> float:
+    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c)."""
+    return _loglog(list(EQUATIONS_POINTS[fmt][mech.dim]), float(mech.nlinks))

@@ -1,0 +1,137 @@
+"""Method ``matrix-factored``, compiled: eq. (5)/(17) in factored form, no matrix formed.
+
+The same arithmetic as the numpy reference :func:`matrix_method.numeric._factored_2d` /
+``_factored_3d`` (the derivation is in :func:`matrix_method.numeric.inverse_dynamics`), written as
+loops over the links of one sample:
+
+    kappa_j = (what link j's rates do to d2/dt2(l_j u_j)),  f_i = sum_j c_ij kappa_j,
+    tau_a,i = r_a,i . f_i + g P_a,i,
+
+per sample ``2n`` (2D) or ``4n`` (3D) sines and cosines, and ``2 n^2`` or ``3 n^2`` multiply-adds.
+The kernels take ``(params, q, qd, qdd)`` with ``params`` of :func:`compiled.params` and flat
+``(samples * dof,)`` states, and return the flat forces (:mod:`matrix_method.compiled`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT
+
+
+@njit(**JIT)
+def _sample_2d(p, x, xd, xdd, o, s0, k):
+    """One planar sample at offset ``s0`` of the flat arrays; ``k`` ``(4, n)`` scratch."""
+    n = p.shape[0]
+    for j in range(n):
+        phi, l = x[s0 + j], x[s0 + n + j]
+        w, ld = xd[s0 + j], xd[s0 + n + j]
+        wdd, ldd = xdd[s0 + j], xdd[s0 + n + j]
+        cf, sf = math.cos(phi), math.sin(phi)
+        radial = ldd - l * w * w                  # along u: l'' and the centripetal l u_phiphi phi'^2
+        tangent = 2.0 * ld * w + l * wdd          # along u_phi: l phi'' and 2 phi' l'
+        k[0, j] = radial * cf - tangent * sf
+        k[1, j] = radial * sf + tangent * cf
+        k[2, j] = cf
+        k[3, j] = sf
+    for i in range(n):
+        f0 = 0.0
+        f1 = 0.0
+        for j in range(n):
+            cij = p[i, j]
+            f0 += cij * k[0, j]
+            f1 += cij * k[1, j]
+        cf, sf, l, gnu = k[2, i], k[3, i], x[s0 + n + i], p[i, n + 1] * p[i, n]
+        o[s0 + i] = l * (cf * f1 - sf * f0 + gnu * cf)         # r_phi . f + g P_phi
+        o[s0 + n + i] = cf * f0 + sf * f1 + gnu * sf           # r_l . f + g P_l
+
+
+@njit(**JIT)
+def _sample_3d(p, x, xd, xdd, o, s0, k):
+    """One spatial sample at offset ``s0`` of the flat arrays; ``k`` ``(7, n)`` scratch."""
+    n = p.shape[0]
+    for j in range(n):
+        phi, psi, l = x[s0 + j], x[s0 + n + j], x[s0 + 2 * n + j]
+        w, v, ld = xd[s0 + j], xd[s0 + n + j], xd[s0 + 2 * n + j]
+        wdd, vdd, ldd = xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j]
+        cf, sf = math.cos(phi), math.sin(phi)
+        cp, sp = math.cos(psi), math.sin(psi)
+        along_u = ldd - l * v * v                  # u l'' and l u_psipsi psi'^2 = -l u psi'^2
+        along_psi = 2.0 * ld * v + l * vdd         # u_psi: l psi'' and 2 psi' l'
+        horizontal = (along_u - l * w * w) * cp - along_psi * sp           # along (cos phi, sin phi, 0)
+        azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp   # along (-sin phi, cos phi, 0)
+        k[0, j] = horizontal * cf - azimuthal * sf
+        k[1, j] = horizontal * sf + azimuthal * cf
+        k[2, j] = along_u * sp + along_psi * cp
+        k[3, j] = cf
+        k[4, j] = sf
+        k[5, j] = cp
+        k[6, j] = sp
+    for i in range(n):
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        for j in range(n):
+            cij = p[i, j]
+            f0 += cij * k[0, j]
+            f1 += cij * k[1, j]
+            f2 += cij * k[2, j]
+        cf, sf, cp, sp, l = k[3, i], k[4, i], k[5, i], k[6, i], x[s0 + 2 * n + i]
+        radial = cf * f0 + sf * f1
+        vertical = f2 + p[i, n + 1] * p[i, n]
+        o[s0 + i] = l * cp * (cf * f1 - sf * f0)                 # r_phi . f (P_phi = 0)
+        o[s0 + n + i] = l * (cp * vertical - sp * radial)        # r_psi . f + g P_psi
+        o[s0 + 2 * n + i] = cp * radial + sp * vertical          # r_l . f + g P_l
+
+
+@njit(**JIT)
+def _samples_2d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat planar states into ``o`` (scratch allocated once)."""
+    n = p.shape[0]
+    k = np.empty((4, n))
+    for s in range(start, stop):
+        _sample_2d(p, q, qd, qdd, o, s * 2 * n, k)
+
+
+@njit(**JIT)
+def _samples_3d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat spatial states into ``o`` (scratch allocated once)."""
+    n = p.shape[0]
+    k = np.empty((7, n))
+    for s in range(start, stop):
+        _sample_3d(p, q, qd, qdd, o, s * 3 * n, k)
+
+
+@njit(**JIT)
+def factored_2d(p, q, qd, qdd, o):
+    """Method ``matrix-factored``, planar: every sample of the flat states, in turn, into ``o``."""
+    _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
+
+
+@njit(parallel=True, **JIT)
+def factored_2d_parallel(p, q, qd, qdd, o):
+    """:func:`factored_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (2 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
+
+
+@njit(**JIT)
+def factored_3d(p, q, qd, qdd, o):
+    """Method ``matrix-factored``, spatial: every sample of the flat states, in turn, into ``o``."""
+    _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
+
+
+@njit(parallel=True, **JIT)
+def factored_3d_parallel(p, q, qd, qdd, o):
+    """:func:`factored_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (3 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
+
+
+#: dim -> (serial kernel, parallel kernel)
+KERNELS = {2: (factored_2d, factored_2d_parallel), 3: (factored_3d, factored_3d_parallel)}

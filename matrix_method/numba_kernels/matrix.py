@@ -1,0 +1,200 @@
+"""Method ``matrix``, compiled: form every matrix of eq. (5)/(17), then the products with the rates.
+
+Per sample, as :class:`matrix_method.prepared.MatrixProducts` does in numpy:
+
+1. the planar matrices of eq. (5) (``A, Lambda, D, H`` of blocks ``phi`` and ``l``, and ``P``) from
+   the closed forms of :mod:`matrix_method.planar` (:func:`planar_matrices`);
+2. in 3D, the same for the straightened model (every ``phi = 0``), then every matrix of eq. (17)
+   by the corrected transitions (18) of :mod:`matrix_method.spatial` (:func:`spatial_matrices`;
+   nothing divides);
+3. eq. (5)/(17): ``tau_k,i = sum_X sum_j X_ij x^X_j + g P_k,i`` with the rate vectors ``x^X`` of
+   :data:`models.equation_form.RATES` (:func:`products`).
+
+The closed forms are the functions of ``planar.py`` and ``spatial.py`` themselves
+(:mod:`matrix_method.compiled` registers them with numba). Kernels: ``(params, q, qd, qdd)`` with
+``params`` of :func:`compiled.params` and flat ``(samples * dof,)`` states.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
+from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition
+
+# The layouts the kernels index by number (checked here, so that a reordering of the closed-form
+# tables cannot silently mismatch): planar matrix m of block b at index 4 b + m.
+assert PLANAR_FIELDS == ("a_phi", "lam_phi", "d_phi", "h_phi", "a_l", "lam_l", "d_l", "h_l")
+assert tuple(spatial.QUOTIENTS.values()) == (("phi", "A"), ("phi", "H"), ("l", "Lambda"), ("l", "D"))
+assert tuple(spatial.PAIRS["phi"]) == ("A", "B", "Lambda", "D", "E", "G", "H", "K")
+
+
+@njit(**JIT)
+def planar_matrices(p, x, s0, dim, straight, pl, pP):
+    """Eq. (5): the planar matrices ``pl`` ``(8, n, n)`` (``A, Lambda, D, H`` of block ``phi``, then of
+    ``l``) and gravity vectors ``pP`` ``(2, n)`` at the angles ``phi`` and lengths ``l`` of the sample
+    at ``s0`` (``straight``: every ``phi = 0``)."""
+    n = p.shape[0]
+    lo = s0 + (dim - 1) * n
+    for i in range(n):
+        li = x[lo + i]
+        for j in range(n):
+            lj = x[lo + j]
+            c = p[i, j]
+            if straight:
+                C, S = 1.0, 0.0
+            else:
+                d = x[s0 + i] - x[s0 + j]
+                C, S = math.cos(d), math.sin(d)
+            pl[0, i, j] = planar.a_phi(c, li, lj, C, S)
+            pl[1, i, j] = planar.lam_phi(c, li, lj, C, S)
+            pl[2, i, j] = planar.d_phi(c, li, lj, C, S)
+            pl[3, i, j] = planar.h_phi(c, li, lj, C, S)
+            pl[4, i, j] = planar.a_l(c, li, lj, C, S)
+            pl[5, i, j] = planar.lam_l(c, li, lj, C, S)
+            pl[6, i, j] = planar.d_l(c, li, lj, C, S)
+            pl[7, i, j] = planar.h_l(c, li, lj, C, S)
+        phi = 0.0 if straight else x[s0 + i]
+        cf, sf = math.cos(phi), math.sin(phi)
+        pP[0, i] = planar.p_phi(p[i, n], li, cf, sf)
+        pP[1, i] = planar.p_l(p[i, n], li, cf, sf)
+
+
+@njit(**JIT)
+def spatial_matrices(p, x, s0, pl, ps, nu_s, m3, P3, cs):
+    """Eq. (18), corrected: every matrix of eq. (17), ``m3`` ``(24, n, n)`` (blocks ``phi, psi, l``, each
+    ``A, B, Lambda, D, E, G, H, K``) and ``P3`` ``(3, n)``, from the planar matrices ``pl`` at the sample
+    and ``ps`` of the straightened model, the gravity coefficients ``nu_s`` and the elevations
+    ``psi`` of the sample at ``s0``; ``cs`` ``(2, n)`` scratch."""
+    n = p.shape[0]
+    for i in range(n):
+        cs[0, i] = math.cos(x[s0 + n + i])
+        cs[1, i] = math.sin(x[s0 + n + i])
+    for i in range(n):
+        li, ci, si = x[s0 + 2 * n + i], cs[0, i], cs[1, i]
+        for j in range(n):
+            t = Transition(pl[0, i, j], pl[1, i, j], pl[2, i, j], pl[3, i, j], pl[4, i, j], pl[5, i, j],
+                           pl[6, i, j], pl[7, i, j], ps[0, i, j], ps[3, i, j], ps[5, i, j], ps[6, i, j],
+                           li, x[s0 + 2 * n + j], ci, si, cs[0, j], cs[1, j])
+            m3[0, i, j] = spatial.a_phi(t)
+            m3[1, i, j] = spatial.b_phi(t)
+            m3[2, i, j] = spatial.lam_phi(t)
+            m3[3, i, j] = spatial.d_phi(t)
+            m3[4, i, j] = spatial.e_phi(t)
+            m3[5, i, j] = spatial.g_phi(t)
+            m3[6, i, j] = spatial.h_phi(t)
+            m3[7, i, j] = spatial.k_phi(t)
+            m3[8, i, j] = spatial.a_psi(t)
+            m3[9, i, j] = spatial.b_psi(t)
+            m3[10, i, j] = spatial.lam_psi(t)
+            m3[11, i, j] = spatial.d_psi(t)
+            m3[12, i, j] = spatial.e_psi(t)
+            m3[13, i, j] = spatial.g_psi(t)
+            m3[14, i, j] = spatial.h_psi(t)
+            m3[15, i, j] = spatial.k_psi(t)
+            m3[16, i, j] = spatial.a_l(t)
+            m3[17, i, j] = spatial.b_l(t)
+            m3[18, i, j] = spatial.lam_l(t)
+            m3[20, i, j] = spatial.e_l(t)
+            m3[21, i, j] = spatial.g_l(t)
+            m3[22, i, j] = spatial.h_l(t)
+            m3[23, i, j] = spatial.k_l(t)
+        P3[0, i] = spatial.p_phi(nu_s[i], li, ci, si)
+        P3[1, i] = spatial.p_psi(nu_s[i], li, ci, si)
+        P3[2, i] = spatial.p_l(nu_s[i], li, ci, si)
+    for i in range(n):
+        for j in range(n):
+            m3[19, i, j] = spatial.d_l(m3[6, j, i])             # D_l = -(H_phi)^T
+
+
+@njit(**JIT)
+def products(p, xd, xdd, o, s0, mats, P, rates, xr):
+    """Eq. (5)/(17): ``tau_k,i = sum_X sum_j X_ij x^X_j + g P_k,i`` into ``o`` at ``s0``, with ``mats``
+    ``(blocks * names, n, n)``, ``P`` ``(blocks, n)`` and the rate table ``rates`` (one row per matrix
+    name: factor, first block, second block or -1); ``xr`` ``(names, n)`` scratch."""
+    n = p.shape[0]
+    nm = rates.shape[0]
+    nb = P.shape[0]
+    g = p[0, n + 1]
+    for k in range(nm):
+        a, b = int(rates[k, 1]), int(rates[k, 2])
+        for j in range(n):
+            if b < 0:
+                xr[k, j] = xdd[s0 + a * n + j]
+            else:
+                xr[k, j] = rates[k, 0] * xd[s0 + a * n + j] * xd[s0 + b * n + j]
+    for blk in range(nb):
+        for i in range(n):
+            acc = g * P[blk, i]
+            for k in range(nm):
+                for j in range(n):
+                    acc += mats[blk * nm + k, i, j] * xr[k, j]
+            o[s0 + blk * n + i] = acc
+
+
+@njit(**JIT)
+def _sample_2d(p, q, qd, qdd, o, s0, pl, pP, xr):
+    planar_matrices(p, q, s0, 2, False, pl, pP)
+    products(p, qd, qdd, o, s0, pl, pP, RATES_2D, xr)
+
+
+@njit(**JIT)
+def _sample_3d(p, q, qd, qdd, o, s0, pl, ps, pP, m3, P3, cs, xr):
+    planar_matrices(p, q, s0, 3, False, pl, pP)
+    planar_matrices(p, q, s0, 3, True, ps, pP)
+    spatial_matrices(p, q, s0, pl, ps, p[:, p.shape[0]], m3, P3, cs)
+    products(p, qd, qdd, o, s0, m3, P3, RATES_3D, xr)
+
+
+@njit(**JIT)
+def _samples_2d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat planar states into ``o`` (scratch allocated once)."""
+    n = p.shape[0]
+    pl, pP, xr = np.empty((8, n, n)), np.empty((2, n)), np.empty((4, n))
+    for s in range(start, stop):
+        _sample_2d(p, q, qd, qdd, o, s * 2 * n, pl, pP, xr)
+
+
+@njit(**JIT)
+def _samples_3d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat spatial states into ``o`` (scratch allocated once)."""
+    n = p.shape[0]
+    pl, ps, pP = np.empty((8, n, n)), np.empty((8, n, n)), np.empty((2, n))
+    m3, P3, cs, xr = np.empty((24, n, n)), np.empty((3, n)), np.empty((2, n)), np.empty((8, n))
+    for s in range(start, stop):
+        _sample_3d(p, q, qd, qdd, o, s * 3 * n, pl, ps, pP, m3, P3, cs, xr)
+
+
+@njit(**JIT)
+def matrix_2d(p, q, qd, qdd, o):
+    """Method ``matrix``, planar: every sample of the flat states, in turn, into ``o``."""
+    _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
+
+
+@njit(parallel=True, **JIT)
+def matrix_2d_parallel(p, q, qd, qdd, o):
+    """:func:`matrix_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (2 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
+
+
+@njit(**JIT)
+def matrix_3d(p, q, qd, qdd, o):
+    """Method ``matrix``, spatial: every sample of the flat states, in turn, into ``o``."""
+    _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
+
+
+@njit(parallel=True, **JIT)
+def matrix_3d_parallel(p, q, qd, qdd, o):
+    """:func:`matrix_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (3 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
+
+
+#: dim -> (serial kernel, parallel kernel)
+KERNELS = {2: (matrix_2d, matrix_2d_parallel), 3: (matrix_3d, matrix_3d_parallel)}

@@ -1,0 +1,154 @@
+"""Method ``recurrence``, compiled: the planar matrices grown link by link by eqs. (22)-(26), then the
+corrected transitions (18) and the products of eq. (5)/(17).
+
+Per sample, as :func:`matrix_method.recurrence.planar_step` does in numpy: the planar matrices start
+at zero (the padding of eq. (24)) and adding link ``k`` adds ``delta X_n`` (eq. 25, generalised to
+trees), the closed form of ``X`` evaluated with the increments of ``c`` of
+:func:`matrix_method.coefficients.recurrence_increments`, on the rows and columns of k's ancestors
+and k; the gravity vector and ``nu_s`` grow the same way. In 3D the recurrence runs for the
+configuration and for the straightened model, then :func:`compiled_matrix.spatial_matrices` and
+:func:`compiled_matrix.products` (eq. 26). The increments are per mechanism, packed once by
+:func:`tables`.
+
+Kernels: ``(params, ints, floats, q, qd, qdd)`` with ``params`` of :func:`compiled.params`,
+``ints, floats`` of :func:`tables` and flat ``(samples * dof,)`` states.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from exo_bench.matrix_method.closed_forms import planar
+from exo_bench.matrix_method.closed_forms.coefficients import recurrence_increments
+from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, RATES_2D, RATES_3D
+from exo_bench.matrix_method.numba_kernels.matrix import products, spatial_matrices
+from exo_bench.models.mechanism import Mechanism
+
+
+def tables(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
+    """The increments of eq. (25) for every link, packed for the kernels.
+
+    ``ints``: ``ptr`` (``n + 1`` offsets), then the concatenated ``idx`` of every step (the ancestors of
+    k, then k), ``idx`` of step k at ``ints[n + 1 + ptr[k] : n + 1 + ptr[k + 1]]``.
+    ``floats``: per step, its ``dc`` (``m x m``, row-major) then its ``dnu_s`` (``m``), one step after
+    the other (``m = ptr[k + 1] - ptr[k]``)."""
+    steps = [recurrence_increments(mech, k) for k in range(mech.nlinks)]
+    ptr = np.cumsum([0] + [len(idx) for idx, _, _ in steps])
+    ints = np.concatenate([ptr, *[idx for idx, _, _ in steps]]).astype(np.int64)
+    floats = np.concatenate([np.concatenate([dc.ravel(), dnu]) for _, dc, dnu in steps]).astype(float)
+    ints.flags.writeable = floats.flags.writeable = False
+    return ints, floats
+
+
+@njit(**JIT)
+def planar_recurrence(p, ints, floats, x, s0, dim, pl, ps, pP, nus, geo):
+    """Eqs. (23)-(25) for trees: the planar matrices ``pl`` ``(8, n, n)`` and gravity ``pP`` ``(2, n)``
+    of the sample at ``s0``, and (3D) ``ps`` of the straightened model, link by link; ``nus`` ``(n,)``
+    accumulates the gravity coefficients; ``geo`` ``(2, n, n)`` and the last rows scratch."""
+    n = p.shape[0]
+    lo = s0 + (dim - 1) * n
+    pl[:] = 0.0
+    pP[:] = 0.0
+    nus[:] = 0.0
+    if dim == 3:
+        ps[:] = 0.0
+    for i in range(n):                                  # C_ij, S_ij once per sample
+        for j in range(n):
+            d = x[s0 + i] - x[s0 + j]
+            geo[0, i, j] = math.cos(d)
+            geo[1, i, j] = math.sin(d)
+    off = 0
+    for k in range(n):
+        a0, m = n + 1 + ints[k], ints[k + 1] - ints[k]
+        for a in range(m):
+            i = ints[a0 + a]
+            li = x[lo + i]
+            for b in range(m):
+                j = ints[a0 + b]
+                lj = x[lo + j]
+                dc = floats[off + a * m + b]
+                C, S = geo[0, i, j], geo[1, i, j]
+                pl[0, i, j] += planar.a_phi(dc, li, lj, C, S)              # delta X_n (25)
+                pl[1, i, j] += planar.lam_phi(dc, li, lj, C, S)
+                pl[2, i, j] += planar.d_phi(dc, li, lj, C, S)
+                pl[3, i, j] += planar.h_phi(dc, li, lj, C, S)
+                pl[4, i, j] += planar.a_l(dc, li, lj, C, S)
+                pl[5, i, j] += planar.lam_l(dc, li, lj, C, S)
+                pl[6, i, j] += planar.d_l(dc, li, lj, C, S)
+                pl[7, i, j] += planar.h_l(dc, li, lj, C, S)
+                if dim == 3:                                                # the straightened model
+                    ps[0, i, j] += planar.a_phi(dc, li, lj, 1.0, 0.0)
+                    ps[1, i, j] += planar.lam_phi(dc, li, lj, 1.0, 0.0)
+                    ps[2, i, j] += planar.d_phi(dc, li, lj, 1.0, 0.0)
+                    ps[3, i, j] += planar.h_phi(dc, li, lj, 1.0, 0.0)
+                    ps[4, i, j] += planar.a_l(dc, li, lj, 1.0, 0.0)
+                    ps[5, i, j] += planar.lam_l(dc, li, lj, 1.0, 0.0)
+                    ps[6, i, j] += planar.d_l(dc, li, lj, 1.0, 0.0)
+                    ps[7, i, j] += planar.h_l(dc, li, lj, 1.0, 0.0)
+            dnu = floats[off + m * m + a]
+            phi = x[s0 + i]
+            pP[0, i] += planar.p_phi(dnu, li, math.cos(phi), math.sin(phi))
+            pP[1, i] += planar.p_l(dnu, li, math.cos(phi), math.sin(phi))
+            nus[i] += dnu
+        off += m * m + m
+
+
+@njit(**JIT)
+def _sample(p, ints, floats, q, qd, qdd, o, s0, dim, pl, ps, pP, nus, geo, m3, P3, cs, xr):
+    planar_recurrence(p, ints, floats, q, s0, dim, pl, ps, pP, nus, geo)
+    if dim == 2:
+        products(p, qd, qdd, o, s0, pl, pP, RATES_2D, xr)
+    else:
+        spatial_matrices(p, q, s0, pl, ps, nus, m3, P3, cs)           # eq. (26): 2D A_n+1 -> 3D A_n+1
+        products(p, qd, qdd, o, s0, m3, P3, RATES_3D, xr)
+
+
+@njit(**JIT)
+def _scratch(n, dim):
+    m3 = np.empty((24 if dim == 3 else 0, n, n))
+    return (np.empty((8, n, n)), np.empty((8, n, n)), np.empty((2, n)), np.empty(n), np.empty((2, n, n)), m3,
+            np.empty((3, n)), np.empty((2, n)), np.empty((8, n)))
+
+
+@njit(**JIT)
+def _samples(p, ints, floats, q, qd, qdd, o, start, stop, dim):
+    """Samples ``start .. stop - 1`` of the flat states into ``o`` (scratch allocated once)."""
+    n = p.shape[0]
+    pl, ps, pP, nus, geo, m3, P3, cs, xr = _scratch(n, dim)
+    for s in range(start, stop):
+        _sample(p, ints, floats, q, qd, qdd, o, s * dim * n, dim, pl, ps, pP, nus, geo, m3, P3, cs, xr)
+
+
+@njit(**JIT)
+def recurrence_2d(p, ints, floats, q, qd, qdd, o):
+    """Method ``recurrence``, planar: every sample of the flat states, in turn, into ``o``."""
+    _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]), 2)
+
+
+@njit(parallel=True, **JIT)
+def recurrence_2d_parallel(p, ints, floats, q, qd, qdd, o):
+    """:func:`recurrence_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (2 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 2)
+
+
+@njit(**JIT)
+def recurrence_3d(p, ints, floats, q, qd, qdd, o):
+    """Method ``recurrence``, spatial: every sample of the flat states, in turn, into ``o``."""
+    _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]), 3)
+
+
+@njit(parallel=True, **JIT)
+def recurrence_3d_parallel(p, ints, floats, q, qd, qdd, o):
+    """:func:`recurrence_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    S = q.shape[0] // (3 * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 3)
+
+
+#: dim -> (serial kernel, parallel kernel)
+KERNELS = {2: (recurrence_2d, recurrence_2d_parallel), 3: (recurrence_3d, recurrence_3d_parallel)}
