@@ -29,7 +29,7 @@ import pytest
 
 import exo_bench
 from exo_bench import prepare
-from exo_bench.bench.cli.main import equations as beq
+from exo_bench.bench.cli import equations as beq
 from exo_bench.matrix_method.export import code as export_code, latex as export_latex
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig2a, fig2b, random_tree
