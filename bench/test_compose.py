@@ -51,7 +51,7 @@ def _composer(method: str, budget: float):
 
 def _clear_caches():
     from exo_bench import lagrange
-    from exo_bench.matrix_method.symbolic.compose import polynomials
+    from exo_bench.matrix_method.symbolic import polynomials
     sp.core.cache.clear_cache()
     lagrange.clear_cache()
     polynomials.clear_caches()

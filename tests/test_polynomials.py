@@ -7,7 +7,7 @@ import pytest
 import sympy as sp
 from sympy.core.basic import Basic
 
-from exo_bench.matrix_method.symbolic.compose import polynomials, compose as symbolic
+from exo_bench.matrix_method.symbolic import polynomials, compose as symbolic
 from exo_bench.matrix_method.symbolic.polynomials import Poly, order_key
 from exo_bench.models.presets import exo5, random_tree
 
