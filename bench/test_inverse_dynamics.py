@@ -46,7 +46,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.perf import roofline as limit, peers
-from exo_bench.api.methods import METHODS, prepare
+from exo_bench.api import METHODS, prepare
 from exo_bench.bench.studies.reference_forces import reference
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.motion import smooth_random_motion

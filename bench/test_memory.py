@@ -29,7 +29,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from exo_bench.api.methods import prepare
+from exo_bench.api import prepare
 from exo_bench.api.cost_model import estimate
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5

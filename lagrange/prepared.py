@@ -33,6 +33,11 @@ class LagrangeModel(PreparedModel):
 
     method = "lagrange"
 
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * (40 * d * n * n)
+
     def __init__(self, mechanism: Mechanism, budget: float = numeric.DEFAULT_BUDGET, interrupt: bool = True):
         if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
             raise ValueError(f"lagrange: option 'budget': expected a positive number of seconds, got {budget!r}")

@@ -29,6 +29,7 @@ from exo_bench.matrix_method.numba_kernels import common as compiled, factored a
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
+from exo_bench.matrix_method.kernel_choice import KERNEL_CHOICES, kernel_option  # noqa: F401 (KERNEL_CHOICES re-exported)
 from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.prepared import PreparedModel
 
@@ -37,17 +38,6 @@ def _block_option(method: str, block) -> int:
     if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
         raise ValueError(f"{method}: option 'block': expected a number of samples >= 1, got {block!r}")
     return int(block)
-
-
-#: The values of the option ``kernel``: compiled loops, or the numpy reference.
-KERNEL_CHOICES = ("numba", "numpy")
-
-
-def _kernel_option(method: str, kernel) -> str:
-    if not isinstance(kernel, str) or kernel not in KERNEL_CHOICES:
-        raise ValueError(f"{method}: option 'kernel': expected one of {', '.join(map(repr, KERNEL_CHOICES))}, "
-                         f"got {kernel!r}")
-    return kernel
 
 
 class _MatrixFamily(PreparedModel):
@@ -87,7 +77,7 @@ class _Compiled(_MatrixFamily):
     _kernels: dict = {}
 
     def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
-        kernel = _kernel_option(self.method, kernel)
+        kernel = kernel_option(self.method, kernel)
         super().__init__(mechanism, block)
         self._options["kernel"] = kernel
         self.kernel = kernel
@@ -129,6 +119,11 @@ class MatrixProducts(_Compiled):
     with the rate vectors, in blocks of ``block`` samples."""
 
     method = "matrix"
+
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * ((24 if d == 2 else 44) * n * n + 40 * n)
     _kernels = compiled_matrix.KERNELS
 
     def _inverse_dynamics(self, q, qd, qdd):
@@ -156,6 +151,11 @@ class MatrixFactored(_Compiled):
     its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'."""
 
     method = "matrix-factored"
+
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * (8 * d * n + 40 * n)
     _kernels = compiled_factored.KERNELS
 
     def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
@@ -190,6 +190,11 @@ class MatrixPaper(_MatrixFamily):
 
     method = "matrix-paper"
 
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * ((24 if d == 2 else 48) * n * n + 60 * n)
+
     def matrices(self, q):
         return numeric.paper_matrices(self._mechanism, q)
 
@@ -204,6 +209,11 @@ class Recurrence(_Compiled):
     products with the rate vectors."""
 
     method = "recurrence"
+
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * ((40 if d == 2 else 80) * n * n + 60 * n)
     _kernels = compiled_recurrence.KERNELS
 
     def _kernel_extra(self, mechanism):

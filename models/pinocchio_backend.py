@@ -261,6 +261,11 @@ class PinocchioRNEA(PreparedModel):
 
     method = "pinocchio"
 
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float:
+        n, d = nlinks, dim
+        return 8.0 * (10 * d * n)
+
     def __init__(self, mechanism: Mechanism, threads: int = 1):
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
             raise ValueError(f"pinocchio: option 'threads': expected an integer >= 1, got {threads!r}")

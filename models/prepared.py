@@ -158,7 +158,13 @@ class PreparedModel:
         self._mechanism = mechanism
         self._options = dict(options)
         self._dof = mechanism.dof
-        self._chunk = default_chunk_samples(mechanism.dof)
+        self._chunk = default_chunk_samples(mechanism.dof, self.sample_bytes(mechanism.nlinks, mechanism.dim))
+
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float | None:
+        """Bytes of one sample's temporaries in a batch, measured (the cost model's figure, which
+        sizes the chunks); None: the bound of :func:`default_chunk_samples`."""
+        return None
 
     # ------------------------------------------------------------------ what it is
     @property

@@ -382,7 +382,7 @@ def test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits(tmp_path
     rc, out, err = run_cli(["inverse", _chain_file(tmp_path, 300, 3), tmp_path / "s.json", "--max-memory", "2G", *MF])
     assert rc == 0 and err == ""
     tau = np.array(json.loads(out)["tau"])
-    from exo_bench.api.methods import prepare
+    from exo_bench.api import prepare
     ref = prepare(m, "recurrence").inverse_dynamics(q, qd, qdd)
     assert np.abs(tau - ref).max() <= 16 * np.finfo(float).eps * m.dof * np.abs(ref).max()
 

@@ -20,7 +20,10 @@ from PIL import Image
 
 from exo_bench.bench.output.figures import scene_figures as plots
 from exo_bench.bench.studies import main_job as runner
-from exo_bench.bench.output.figures.scene_figures import FIGURES, METHOD_COLORS, TEXT_PT
+from exo_bench.api import METHODS
+from exo_bench.bench.output.figures.scene_figures import FIGURES, TEXT_PT
+
+METHOD_COLORS = {name: spec.colour for name, spec in METHODS.items()}
 from exo_bench.bench.output.provenance import PNG_DPI
 from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
 from exo_bench.bench.studies.study import run_methods

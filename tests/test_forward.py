@@ -11,7 +11,7 @@ from exo_bench import prepare
 import pytest
 
 from exo_bench.bench.studies import stability as fw
-from exo_bench.api.methods import METHODS
+from exo_bench.api import METHODS
 from exo_bench.models import forward_dynamics as fd
 
 

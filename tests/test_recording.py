@@ -43,17 +43,25 @@ def _study(mech, motion_fn, samples: int, noisy: bool) -> Study:
     return study
 
 
+def _loads(study):
+    """The loads section as the main job passes it (exo_bench.bench.studies.main_job.run_scene)."""
+    from exo_bench.bench.studies.plausibility import plausibility, text
+
+    p = plausibility(study)
+    return None if p is None else text(p)
+
+
 @pytest.fixture(scope="module")
 def exo(tmp_path_factory):
     study = _study(exo5(3), gait, 150, noisy=True)
-    path = write_recording(study, tmp_path_factory.mktemp("rrd") / "exo5-3d.rrd")
+    path = write_recording(study, tmp_path_factory.mktemp("rrd") / "exo5-3d.rrd", loads=_loads(study))
     return study, path, _read(path)
 
 
 @pytest.fixture(scope="module")
 def planar(tmp_path_factory):
     study = _study(fig5(2), planar_gait, 90, noisy=False)
-    path = write_recording(study, tmp_path_factory.mktemp("rrd") / "fig5-2d.rrd")
+    path = write_recording(study, tmp_path_factory.mktemp("rrd") / "fig5-2d.rrd", loads=_loads(study))
     return study, path, _read(path)
 
 

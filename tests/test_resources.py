@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 from exo_bench.api import cost_model as resources
-from exo_bench.api.methods import METHODS, prepare
+from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import Limits, ResourceLimit, check, estimate, parse_size
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
@@ -85,7 +85,7 @@ def test_pinocchio_refuses_a_data_that_does_not_fit(monkeypatch):
 
 
 def test_estimates_grow_with_n_and_the_batch():
-    for method in resources.MODELS:
+    for method in METHODS:
         for dim in (2, 3):
             a, b = estimate(chain(5, dim), method, 10), estimate(chain(10, dim), method, 10)
             c = estimate(chain(10, dim), method, 10_000)
@@ -98,12 +98,21 @@ def test_pinocchio_estimate_is_its_data():
     assert estimate(chain(300, 3), "pinocchio", 1, {"threads": 2}).setup_bytes >= 3 * 32 * 900**3
 
 
-@pytest.mark.parametrize("method", sorted(resources.MODELS))
+@pytest.mark.parametrize("method", sorted(METHODS))
 def test_a_chunk_keeps_to_its_working_set(method):
     for m in (exo5(3), chain(300, 3), chain(50, 2)):
         k = resources.chunk_samples(m, method)
-        per = resources.MODELS[method].sample_bytes(m.nlinks, m.dim)
+        per = resources.sample_bytes(m, method)
         assert k >= 1 and (k == 1 or k * per <= resources.CHUNK_BYTES)
+
+
+def test_a_class_prepared_directly_chunks_as_prepare_does():
+    """One chunk size per (mechanism, method): the class's own, whoever builds it."""
+    from exo_bench.matrix_method.prepared import MatrixFactored
+
+    m = chain(50, 3)
+    assert MatrixFactored(m).chunk_samples == prepare(m, "matrix-factored").chunk_samples \
+        == resources.chunk_samples(m, "matrix-factored")
 
 
 def test_a_refusal_names_method_estimate_limit_and_a_method_that_fits():

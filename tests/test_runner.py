@@ -81,7 +81,7 @@ class _Broken(PreparedModel):
 
 
 def test_a_failing_method_does_not_lose_other_results(tmp_path, monkeypatch):
-    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_Broken", "always fails"))
+    monkeypatch.setitem(methods.METHODS, "broken", methods.MethodSpec("broken", __name__, "_Broken", "always fails"))
     a = _user_scene(tmp_path, "a", '["pinocchio", "broken"]')
     b = _user_scene(tmp_path, "b")
     rc = runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(tmp_path / "rep")))
@@ -120,7 +120,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
 
     from exo_bench.bench.output.recording import verify_recording
 
-    monkeypatch.setitem(methods.METHODS, "broken", (__name__, "_Broken", "always fails"))
+    monkeypatch.setitem(methods.METHODS, "broken", methods.MethodSpec("broken", __name__, "_Broken", "always fails"))
     p = tmp_path / "gait.toml"
     p.write_text('mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
                  'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
@@ -165,7 +165,7 @@ class _Offset(PreparedModel):
 
 
 def test_a_disagreeing_method_is_reported_with_where(tmp_path, monkeypatch):
-    monkeypatch.setitem(methods.METHODS, "offset", (__name__, "_Offset", "pinocchio plus a known error"))
+    monkeypatch.setitem(methods.METHODS, "offset", methods.MethodSpec("offset", __name__, "_Offset", "pinocchio plus a known error"))
     p = _user_scene(tmp_path, "off", '["pinocchio", "offset"]')
     assert runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
     table = (tmp_path / "rep" / "off.md").read_text()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies import stability as st
-from exo_bench.api.methods import METHODS, method_names, prepare
+from exo_bench.api import METHODS, method_names, prepare
 from exo_bench.models.prepared import PreparedModel
 from exo_bench.models import pinocchio_backend as pb
 

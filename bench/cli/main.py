@@ -98,20 +98,9 @@ def cmd_presets(args) -> int:
     return 0
 
 
-def known_wrong_warning(method: str, dim: int) -> str | None:
-    """The one-line warning that every CLI result of a method known to be wrong carries."""
-    from exo_bench.api.methods import KNOWN_WRONG
-
-    if method not in KNOWN_WRONG:
-        return None
-    if dim == 3:
-        return f"exo-bench: warning: method {method!r}: {KNOWN_WRONG[method]}"
-    return (f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
-            "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")
-
-
 def cmd_inverse(args) -> int:
-    from exo_bench.api.methods import method_class, prepare
+    from exo_bench.api import method_class, prepare
+    from exo_bench.api.methods import known_wrong_warning
     from exo_bench.api.cost_model import check
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.mechanism import force_names
@@ -266,7 +255,7 @@ MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated 
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from exo_bench.api.methods import method_names
+    from exo_bench.api import method_names
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")

@@ -47,6 +47,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from exo_bench.api.methods import composes_within_budget
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO, atomic_write
 
@@ -61,10 +62,6 @@ RETRIES = 1
 #: n, each after the one before, whose skips it receives (``--prior-skips``): a sympy peer over its
 #: budget at n is skipped at every larger n without spending its budget again.
 CHAINED = ("bench/test_compose.py",)
-#: Methods whose composition stays far inside its budget at every n of the sweep (3D n = 50 in about
-#: a minute): a row that runs only these needs no chain, so it starts at once (a chain's tail would
-#: otherwise run alone on one worker at the end of the sweep).
-UNCHAINED_METHODS = frozenset({"matrix", "recurrence"})
 #: Row statuses whose record is final and checkpointed: pytest ran the row to its end (its tests
 #: passed or failed), or the row exceeded its budget (running it again would exceed it again).
 FINAL = ("ok", "failed", "over budget")
@@ -301,7 +298,7 @@ def _chains(rows: list[dict], chained) -> dict[str, str]:
     """``{row key: key of the row before it in its chain}`` for the rows of the ``chained`` files."""
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        if r["file"] in chained and r.get("n") is not None and not _methods(r) <= UNCHAINED_METHODS:
+        if r["file"] in chained and r.get("n") is not None and not _methods(r) <= composes_within_budget():
             groups.setdefault((r["file"], r.get("dim"), r.get("topology")), []).append(r)
     out = {}
     for g in groups.values():
@@ -495,7 +492,7 @@ def stability_task(part: str, profile_name: str, methods: list[str]):
     """One task of the stability study, run on a worker: a family (``"family:<name>"``) or the
     forward-dynamics part (``"forward"``). Returns ``(result, warnings)``, the warnings it raised
     as ``(category name, message)``, re-issued by the client."""
-    from exo_bench.api.methods import PreparedSet
+    from exo_bench.api import PreparedSet
     from exo_bench.bench.studies.stability import cases, evaluation, forward_evaluation
 
     profile = cases.FULL if profile_name == "full" else cases.QUICK

@@ -23,6 +23,8 @@ beside the target and renamed into place when complete.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 import os
 import re
@@ -39,12 +41,12 @@ from matplotlib.colors import to_rgb
 from exo_bench.bench.output.figures.scene_figures import (SCALE_RATIO, trail_points, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
                          group_by_scale, link_color, moment_labels, moments_and_forces, nonfinite_notes,
                          reference_method, scale_caption)
-from exo_bench.bench.studies.plausibility import plausibility
-from exo_bench.bench.studies.plausibility import text as plausibility_text
 from exo_bench.bench.output.provenance import machine_info
-from exo_bench.bench.studies.study import Study
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
+
+if TYPE_CHECKING:
+    from exo_bench.bench.studies.study import Study
 
 APPLICATION_ID = "exo-bench"
 TIMELINE = "time"
@@ -186,7 +188,7 @@ def blueprint(study: Study) -> rrb.Blueprint:
 
 
 # ----------------------------------------------------------------------------- description
-def _describe(study: Study) -> tuple[str, dict]:
+def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
     mech = study.mechanism
     ok = study.ok_methods()
     ref = reference_method(study)
@@ -196,9 +198,8 @@ def _describe(study: Study) -> tuple[str, dict]:
              f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
              f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
              f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`."]
-    plaus = plausibility(study)
-    if plaus is not None:
-        lines += ["", "## Loads", "", plausibility_text(plaus)]
+    if loads:
+        lines += ["", "## Loads", "", loads]
     lines += ["", "## Methods", "", f"Methods: {', '.join(ok) if ok else 'none succeeded'}; reference: {ref}."]
     for m, r in study.results.items():
         if r.skipped:
@@ -304,8 +305,10 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
                  [f"{x} ({ref})" for x in gl], gcol, 2.0)
 
 
-def write_recording(study: Study, path: str | Path) -> Path:
-    """Write the scene's recording with its default blueprint to ``path`` (atomically)."""
+def write_recording(study: Study, path: str | Path, loads: str | None = None) -> Path:
+    """Write the scene's recording with its default blueprint to ``path`` (atomically); ``loads``
+    is the Markdown of the loads beside level walking (:func:`exo_bench.bench.studies.plausibility.text`),
+    its section of the description (none when None)."""
     from exo_bench.bench.output.provenance import atomic_path
 
     with atomic_path(path) as tmp:
@@ -313,7 +316,7 @@ def write_recording(study: Study, path: str | Path) -> Path:
         stream.save(str(tmp), default_blueprint=blueprint(study))
         stream.send_recording_name(study.name)
         times = rr.TimeColumn(TIMELINE, duration=np.asarray(study.motion.t, dtype=float))
-        text, values = _describe(study)
+        text, values = _describe(study, loads)
         stream.log("meta", rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
         stream.log("meta", rr.AnyValues(**values), static=True)
         _log_world(stream, study, times)

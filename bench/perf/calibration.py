@@ -5,13 +5,14 @@ on one model in a fresh process, and the table of measured against estimated val
 
 from __future__ import annotations
 
-from exo_bench.api.cost_model import BASE_BYTES, PREFERENCE, estimate
+from exo_bench.api.cost_model import BASE_BYTES, estimate
+from exo_bench.api.methods import preference
 
 
 # ------------------------------------------------------------------------------ calibration
 _MEASURE = r"""
 import json, sys, time
-from exo_bench.api.methods import prepare
+from exo_bench.api import prepare
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain
 import exo_bench.{module}  # imports outside the measurement
@@ -44,9 +45,9 @@ def measure(method: str, n: int, dim: int, samples: int, options: dict | None = 
     import subprocess
     import sys
 
-    from exo_bench.api.methods import METHODS
+    from exo_bench.api import METHODS
 
-    module = METHODS[method][0].removeprefix("exo_bench.")
+    module = METHODS[method].module.removeprefix("exo_bench.")
     code = _MEASURE.format(module=module, n=n, dim=dim, samples=samples, method=method, options=options or {})
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
     if r.returncode != 0:
@@ -58,7 +59,7 @@ def calibration_table(points=None) -> str:
     """Measured against estimated, as a Markdown table (``python -m exo_bench.bench.perf.calibration``)."""
     from exo_bench.models.presets import chain
 
-    points = points or [(m, n, d, s) for m in PREFERENCE + ("matrix-paper",) if m != "lagrange"
+    points = points or [(m, n, d, s) for m in preference() + ("matrix-paper",) if m != "lagrange"
                         for d in (2, 3) for n in (5, 25, 100) for s in (1, 2000)]
     rows = ["| method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |",
             "|---|---|---|---|---|---|---|---|"]

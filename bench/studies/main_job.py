@@ -87,8 +87,12 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
 
 
 AGREEMENT = 1e-9  # methods are expected to agree to this, relative to the largest |tau|
-WHY = {"matrix-paper": "it evaluates eq. (18) exactly as printed, misprints included: see reports/errata.md "
-                       "(3D g^l and k^l) and reports/stability.md"}
+
+
+def _why_it_disagrees(method: str) -> str | None:
+    from exo_bench.api import METHODS
+
+    return METHODS[method].why_it_disagrees if method in METHODS else None
 
 
 def disagreement_notes(study: Study) -> list[str]:
@@ -102,7 +106,7 @@ def disagreement_notes(study: Study) -> list[str]:
         s_, c = np.unravel_index(int(np.argmax(d)), d.shape)
         notes.append(f"**{m} disagrees with {study.reference}** by {rel:.1e} of the largest |tau| (largest at "
                      f"t = {study.motion.t[s_]:.4g} s, {study.force_names[c]})"
-                     + (f": {WHY[m]}." if m in WHY else "."))
+                     + (f": {why}." if (why := _why_it_disagrees(m)) else "."))
     return notes
 
 
@@ -194,7 +198,11 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         o.files += scene_pages(scene, staging)
     if scene.wants("recording"):
         from exo_bench.bench.output import recording  # rerun only for scenes that ask for a recording
-        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd")
+        from exo_bench.bench.studies.plausibility import plausibility, text
+
+        loads = plausibility(o.study)
+        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd",
+                                      loads=None if loads is None else text(loads))
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
         o.files.append(p)
@@ -531,14 +539,11 @@ def run(args) -> int:
 
 def _warn_known_wrong(scenes: list[Scene]) -> None:
     """One stderr line when a scene runs a method known to be wrong (its results are in the reports)."""
-    from exo_bench.api.methods import KNOWN_WRONG
+    from exo_bench.api.methods import known_wrong_warning
 
-    hits = sorted({(m, sc.mechanism.dim) for sc in scenes for m in sc.methods if m in KNOWN_WRONG})
+    hits = sorted({(m, sc.mechanism.dim) for sc in scenes for m in sc.methods}, key=lambda h: (-h[1], h[0]))
     for m, dim in hits:
-        if dim == 3:
-            print(f"exo-bench: warning: method {m!r}: {KNOWN_WRONG[m]}", file=sys.stderr)
+        line = known_wrong_warning(m, dim)
+        if line:
+            print(line, file=sys.stderr)
             return
-    if hits:
-        m = hits[0][0]
-        print(f"exo-bench: warning: method {m!r} is eq. (18) exactly as printed, kept to expose the paper's misprints: "
-              "wrong in 3D by design (its 2D results here are the closed forms)", file=sys.stderr)

@@ -132,7 +132,7 @@ def _number(path, key, value, lo=None, integer=False):
 
 def load_scene(spec: str | Path) -> Scene:
     """A shipped scene name (``bench/scenes/<name>.toml``) or the path of a TOML file."""
-    from exo_bench.api.methods import METHODS
+    from exo_bench.api import METHODS
 
     path = Path(spec)
     if not path.suffix and (SHIPPED / f"{spec}.toml").exists():

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exo_bench.api.methods import prepare
+from exo_bench.api import prepare
 from exo_bench.models.mechanism import Mechanism, force_names
 from exo_bench.models.motion import Motion
 

@@ -12,7 +12,7 @@ limit (``--max-time``, and for ``lagrange`` its derivation budget, ``--budget``)
 
 **The cost model.** Per method, memory is ``setup + arrays + chunk x per-sample bytes`` and time is
 ``setup + calls x per-call + samples x per-sample seconds``, each a small formula in ``n`` (links)
-and ``dim``, in :data:`MODELS`. The constants were fitted to measurements taken by
+and ``dim``, in :mod:`exo_bench.api.cost_formulas` (one per method, named by its MethodSpec). The constants were fitted to measurements taken by
 :func:`bench.calibration.measure` (``python -m exo_bench.bench.perf.calibration``: each point in a fresh process; memory is
 the growth of the peak resident set size, ``VmHWM`` after a reset through /proc/self/clear_refs,
 because Pinocchio allocates in C++ where tracemalloc does not see; time is ``perf_counter``), on
@@ -68,7 +68,7 @@ would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices, and its compiled kernels (option
 ``kernel="numba"``, the default of ``matrix``, ``matrix-factored``, ``recurrence``) add numba's
 runtime on first use and, when numba's on-disk cache lacks them, a one-time compile
-(:data:`NUMBA_BYTES`; :data:`NUMBA_COMPILE_SECONDS`, named in the note); per sample the compiled kernels need less
+(:data:`~exo_bench.api.cost_formulas.NUMBA_BYTES`; ``CostModel.compile_seconds``, named in the note); per sample the compiled kernels need less
 time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
 model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
@@ -82,168 +82,22 @@ import math
 from dataclasses import dataclass, field
 from typing import Callable
 
+from exo_bench.api.cost_formulas import BASE_BYTES, F8, _loglog, _seconds, _size
+from exo_bench.api.methods import METHODS, method_class, preference
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import USABLE_SHARE, available_memory, usable_memory  # noqa: F401
-
-F8 = 8  # bytes per float64
-
-#: Memory of the interpreter's own work around a run (imports are already counted in the baseline).
-BASE_BYTES = 16 * 2**20
+from exo_bench.models.prepared import CHUNK_BYTES, MAX_CHUNK, USABLE_SHARE, available_memory, default_chunk_samples, usable_memory
 
 
-# ------------------------------------------------------------------------------ per-method models
-@dataclass(frozen=True)
-class CostModel:
-    """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample bytes of a chunk's
-    temporaries, per-sample seconds, and a note on what dominates."""
-
-    setup_bytes: Callable[[Mechanism, dict], float]
-    setup_seconds: Callable[[Mechanism, dict], float]
-    sample_bytes: Callable[[int, int], float]
-    sample_seconds: Callable[[int, int], float]
-    note: Callable[[Mechanism, dict], str] = lambda m, o: ""
-    call_seconds: float = 1e-4          # per call (chunk): Python and numpy overhead
-
-
-def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
-    from exo_bench.models.urdf import pinocchio_data_bytes
-
-    threads = int(options.get("threads", 1) or 1)
-    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
-    return pinocchio_data_bytes(mech), count
-
-
-def _pin_setup_bytes(mech, options):
-    one, count = _pin_data(mech, options)
-    return one * count + 120_000 * mech.nlinks + 2 * 2**20   # the model: <= 90 kB per link (3D n = 100: 9 MB)
-
-
-def _pin_setup_seconds(mech, options):
-    one, count = _pin_data(mech, options)
-    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
-
-
-def _pin_note(mech, options):
-    from exo_bench.models.urdf import pinocchio_model_size
-
-    nv, _ = pinocchio_model_size(mech)
-    one, count = _pin_data(mech, options)
-    many = "" if count == 1 else f" x {count}"
-    return f"a pin.Data holds four nv^3 tensors: {_size(one)} at nv = {nv}{many}, docs/pinocchio-memory.md"
-
-
-def _matrix_setup(mech, options):
-    return F8 * 8 * mech.nlinks**2 + 2**20                  # coupling and gravity coefficients, several n x n
-
-
-#: Methods whose default kernel is compiled by numba (option ``kernel="numba"``).
-NUMBA_METHODS = ("matrix-factored", "matrix", "recurrence")
-#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
-#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
-#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
-#: depend on the state of the cache.
-NUMBA_BYTES = 128 * 2**20
-#: Seconds to compile the serial and the parallel kernel of one dimension when numba's cache is
-#: empty, measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
-#: matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up. Paid once per machine (and per edit of a
-#: kernel's file), so it is named in the estimate's note and not added to its seconds: a time
-#: limit guards the run, and the run's time does not depend on the state of the cache.
-NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0}
-
-
-def _numba(options: dict, method: str) -> bool:
-    return method in NUMBA_METHODS and options.get("kernel", "numba") == "numba"
-
-
-def _compiled_setup_bytes(method: str):
-    return lambda mech, options: _matrix_setup(mech, options) + (NUMBA_BYTES if _numba(options, method) else 0)
-
-
-def _compiled_note(method: str, what):
-    def note(mech, options):
-        if not _numba(options, method):
-            return what(mech) + "; numpy kernel"
-        return (what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
-                f"{NUMBA_COMPILE_SECONDS[method]:g} s (then cached on disk)")
-    return note
-
-
-#: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
-LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
-    (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
-    (5, 2): (0.87, 17.5e6), (6, 2): (1.14, 23.0e6), (8, 2): (3.38, 39.7e6), (10, 2): (4.15, 69.9e6),
-    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6), (30, 2): (174.7, 3066.1e6),
-    (1, 3): (0.14, 9.4e6), (2, 3): (0.28, 12.4e6), (3, 3): (0.57, 16.9e6), (4, 3): (1.57, 25.0e6),
-    (5, 3): (2.79, 37.1e6), (6, 3): (3.56, 55.7e6), (8, 3): (8.37, 122.2e6), (10, 3): (17.4, 241.9e6),
-}
-
-
-def _loglog(points: list[tuple[float, float]], x: float) -> float:
-    """Interpolate ``points`` (sorted by x) linearly in log-log; beyond the last point, extend the
-    power law through the last two points (the steepest measured growth)."""
-    if x <= points[0][0]:
-        return points[0][1]
-    for (x0, y0), (x1, y1) in zip(points, points[1:]):
-        if x <= x1 or (x1, y1) == points[-1]:
-            p = math.log(y1 / y0) / math.log(x1 / x0)
-            return y0 * (x / x0) ** p
-    return points[-1][1]
-
-
-def _lagrange(mech: Mechanism, k: int) -> float:
-    pts = sorted((n, v[k]) for (n, d), v in LAGRANGE_POINTS.items() if d == mech.dim)
-    return _loglog(pts, float(mech.nlinks))
-
-
-MODELS: dict[str, CostModel] = {
-    "pinocchio": CostModel(
-        _pin_setup_bytes, _pin_setup_seconds,
-        sample_bytes=lambda n, d: F8 * 10 * d * n,
-        sample_seconds=lambda n, d: (0.6 + (3.0 if d == 2 else 5.5) * n) * 1e-6,
-        note=_pin_note),
-    "lagrange": CostModel(
-        lambda m, o: _lagrange(m, 1), lambda m, o: _lagrange(m, 0),
-        sample_bytes=lambda n, d: F8 * 40 * d * n * n,
-        sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
-        note=lambda m, o: "the sympy derivation"),
-    "matrix": CostModel(
-        _compiled_setup_bytes("matrix"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 44) * n * n + 40 * n),
-        sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
-        note=_compiled_note("matrix", lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})")),
-    "matrix-paper": CostModel(
-        _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((24 if d == 2 else 48) * n * n + 60 * n),
-        sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
-        note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})"),
-    "recurrence": CostModel(
-        _compiled_setup_bytes("recurrence"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * ((40 if d == 2 else 80) * n * n + 60 * n),
-        sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
-        note=_compiled_note("recurrence", lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})")),
-    "matrix-factored": CostModel(
-        _compiled_setup_bytes("matrix-factored"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-        sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
-        sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
-        note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
-}
-
-#: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).
-PREFERENCE = ("matrix-factored", "matrix", "pinocchio", "recurrence", "lagrange")
-
-#: Target bytes of one chunk's temporaries.
-CHUNK_BYTES = 64 * 2**20
-MAX_CHUNK = 65536
+def sample_bytes(mech: Mechanism, method: str) -> float:
+    """Bytes of one sample's temporaries of ``method`` on ``mech`` (the prepared-model class's figure)."""
+    per = method_class(method).sample_bytes(mech.nlinks, mech.dim)
+    return 8.0 * (mech.dof * mech.dof + 64 * mech.dof) if per is None else float(per)
 
 
 def chunk_samples(mech: Mechanism, method: str) -> int:
-    """Samples per chunk for ``method``: one chunk's temporaries near :data:`CHUNK_BYTES`."""
-    model = MODELS.get(method)
-    if model is None:
-        from exo_bench.models.prepared import default_chunk_samples
-        return default_chunk_samples(mech.dof)
-    per = max(model.sample_bytes(mech.nlinks, mech.dim), 1.0)
-    return int(max(1, min(MAX_CHUNK, CHUNK_BYTES // per)))
+    """Samples per chunk of ``method`` on ``mech``: the chunk its prepared model uses (one chunk's
+    temporaries near :data:`~exo_bench.models.prepared.CHUNK_BYTES`)."""
+    return default_chunk_samples(mech.dof, sample_bytes(mech, method))
 
 
 @dataclass(frozen=True)
@@ -269,7 +123,7 @@ def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | Non
     """The estimated peak memory and seconds of ``samples`` samples of ``method`` on ``mech``
     through a prepared model, including the setup (see the module docstring)."""
     options = dict(options or {})
-    model = MODELS.get(method)
+    model = METHODS[method].cost if method in METHODS else None
     if model is None:  # a method registered without a cost model: its arrays only
         return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, 0.0, 0.0, "no cost model")
     n, d = mech.nlinks, mech.dim
@@ -278,7 +132,7 @@ def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | Non
     setup_s = model.setup_seconds(mech, options)
     seconds = setup_s + calls * model.call_seconds + samples * model.sample_seconds(n, d)
     return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,
-                    float(chunk * model.sample_bytes(n, d)), float(seconds), float(setup_s),
+                    float(chunk * sample_bytes(mech, method)), float(seconds), float(setup_s),
                     model.note(mech, options))
 
 
@@ -331,8 +185,8 @@ def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | N
 
 def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str = "",
                    options: dict[str, dict] | None = None) -> Estimate | None:
-    """The first method of :data:`PREFERENCE` whose estimate is within the limits."""
-    for m in PREFERENCE:
+    """The first method of :func:`~exo_bench.api.methods.preference` whose estimate is within the limits."""
+    for m in preference():
         if m == exclude:
             continue
         est = estimate(mech, m, samples, (options or {}).get(m))
@@ -407,22 +261,6 @@ def parse_seconds(text: str) -> float:
     if not math.isfinite(value) or value <= 0:
         raise ValueError(f"--max-time: expected a positive number of seconds, got {text!r}")
     return value
-
-
-def _size(x: float) -> str:
-    if x >= 1e9:
-        return f"{x / 1e9:.1f} GB"
-    if x >= 1e6:
-        return f"{x / 1e6:.0f} MB"
-    return f"{x / 1e3:.0f} kB"
-
-
-def _seconds(x: float) -> str:
-    if x >= 3600:
-        return f"{x / 3600:.1f} h"
-    if x >= 1:
-        return f"{x:.0f} s" if x >= 10 else f"{x:.1f} s"
-    return f"{x * 1e3:.0f} ms" if x >= 1e-3 else f"{x * 1e6:.0f} us"
 
 
 #: ``exo-bench equations``: seconds to compose and generate, measured on chains (one run each on

@@ -1,96 +1,153 @@
-"""The registry of inverse-dynamics methods and :func:`prepare`, the library's entry point.
+"""The methods of the suite, one :class:`MethodSpec` each: every fact the suite knows about a method.
 
-Each entry names a :class:`~exo_bench.models.prepared.PreparedModel` subclass. ``prepare(mechanism,
-name, **options)`` builds it once (all per-mechanism work); its ``inverse_dynamics(q, qd, qdd)``
-takes batch-first ``(samples, dof)`` (or one ``(dof,)``) arrays in the block order
-``[phi..., psi..., l...]`` and returns ``[M_phi..., M_psi..., F...]``: the generalised forces of
-the paper's absolute coordinates. Modules are imported lazily, so a scene that does not use a
-method never imports (or derives) it.
+Each spec names a :class:`~exo_bench.models.prepared.PreparedModel` subclass (imported lazily, so
+a scene that does not use a method never imports, or derives, it), a one-line text of what runs,
+whether its results are known to be wrong and why, its cost formulas
+(:mod:`exo_bench.api.cost_formulas`), its colour in every figure, the values of its ``kernel``
+option, its place among the methods offered as "a method that fits", and whether its symbolic
+composition stays within budget at every size of the sweep. Everything that needs one of these
+facts reads it from :data:`METHODS` (tests/test_method_table.py checks that no other table is left).
+
+:func:`~exo_bench.api.prepare.prepare` builds a method's prepared model.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from dataclasses import dataclass
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.api import cost_formulas as cost
+from exo_bench.api.cost_formulas import CostModel
+from exo_bench.matrix_method.kernel_choice import KERNEL_CHOICES
 from exo_bench.models.prepared import PreparedModel
 
-#: method name -> (module, PreparedModel subclass, one-line description). The name says what runs.
-METHODS: dict[str, tuple[str, str, str]] = {
-    "pinocchio": ("exo_bench.models.pinocchio_backend", "PinocchioRNEA",
-                  "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)"),
-    "lagrange": ("exo_bench.lagrange.prepared", "LagrangeModel",
-                 "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
-                 "(options: budget, interrupt)"),
-    "matrix": ("exo_bench.matrix_method.prepared", "MatrixProducts",
+#: The values of the ``kernel`` option of the matrix family: compiled loops (the default), or the
+#: numpy kernels (matrix_method's own check of the option reads the same tuple).
+NUMBA_NUMPY = KERNEL_CHOICES
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """What the suite knows about one method. The name says what runs."""
+
+    name: str
+    #: Module and class of its :class:`~exo_bench.models.prepared.PreparedModel` subclass.
+    module: str
+    cls: str
+    #: One line: what runs, and its options.
+    text: str
+    #: Its colour in every figure (Dark2: none is a link colour, none is the grey or black that
+    #: thresholds use).
+    colour: str = ""
+    #: The cost formulas of :mod:`exo_bench.api.cost_formulas` (None: its arrays only).
+    cost: CostModel | None = None
+    #: The values of its ``kernel`` option, the default first (empty: no such option).
+    kernels: tuple[str, ...] = ()
+    #: Why its results are known to be wrong (None: they are not), in one line.
+    known_wrong: str | None = None
+    #: The longer reason a report gives where it disagrees with the other methods.
+    why_it_disagrees: str | None = None
+    #: Its rank among the methods offered as "a method that fits" a limit, best first (None:
+    #: never offered, e.g. a method known to be wrong).
+    fit_rank: int | None = None
+    #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
+    #: about a minute): a benchmark row that composes only such methods needs no chain.
+    composes_within_budget: bool = False
+
+    @property
+    def compiled(self) -> bool:
+        """Its default kernel is compiled by numba."""
+        return bool(self.kernels) and self.kernels[0] == "numba"
+
+    def load(self) -> type[PreparedModel]:
+        """The prepared-model class (imports its module)."""
+        return getattr(importlib.import_module(self.module), self.cls)
+
+
+_WRONG_18 = "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"
+
+#: Every method, by name, in the order reports list them.
+METHODS: dict[str, MethodSpec] = {s.name: s for s in (
+    MethodSpec("pinocchio", "exo_bench.models.pinocchio_backend", "PinocchioRNEA",
+               "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
+               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=2),
+    MethodSpec("lagrange", "exo_bench.lagrange.prepared", "LagrangeModel",
+               "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
+               "(options: budget, interrupt)",
+               colour="#e6ab02", cost=cost.LAGRANGE, fit_rank=4),
+    MethodSpec("matrix", "exo_bench.matrix_method.prepared", "MatrixProducts",
                "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
                "no division), then the products with the rates; compiled loops (option kernel: numba, the "
-               "default, or numpy)"),
-    "matrix-factored": ("exo_bench.matrix_method.prepared", "MatrixFactored",
-                        "the matrix method's equations in factored form (no matrix formed); compiled loops "
-                        "(option kernel: numba, the default, or numpy)"),
-    "matrix-paper": ("exo_bench.matrix_method.prepared", "MatrixPaper",
-                     "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)"),
-    "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
-                   "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
-                   "loops (option kernel: numba, the default, or numpy)"),
-}
-
-#: Methods whose results are known to be wrong (kept to expose the paper's misprints).
-KNOWN_WRONG = {"matrix-paper": "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"}
+               "default, or numpy)",
+               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=1, composes_within_budget=True),
+    MethodSpec("matrix-factored", "exo_bench.matrix_method.prepared", "MatrixFactored",
+               "the matrix method's equations in factored form (no matrix formed); compiled loops "
+               "(option kernel: numba, the default, or numpy)",
+               colour="#7570b3", cost=cost.MATRIX_FACTORED, kernels=NUMBA_NUMPY, fit_rank=0),
+    MethodSpec("matrix-paper", "exo_bench.matrix_method.prepared", "MatrixPaper",
+               "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)",
+               colour="#e7298a", cost=cost.MATRIX_PAPER, known_wrong=_WRONG_18,
+               why_it_disagrees="it evaluates eq. (18) exactly as printed, misprints included: see "
+                                "reports/errata.md (3D g^l and k^l) and reports/stability.md"),
+    MethodSpec("recurrence", "exo_bench.matrix_method.prepared", "Recurrence",
+               "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
+               "loops (option kernel: numba, the default, or numpy)",
+               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=3, composes_within_budget=True),
+)}
 
 
 def method_names() -> list[str]:
+    """The names of every method, in the order reports list them."""
     return list(METHODS)
+
+
+def spec(name: str) -> MethodSpec:
+    """The spec of a method; a clear ValueError for an unknown name."""
+    if name not in METHODS:
+        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {name!r}")
+    return METHODS[name]
 
 
 def method_class(name: str) -> type[PreparedModel]:
     """The prepared-model class of a method; a clear ValueError for an unknown name."""
-    if name not in METHODS:
-        raise ValueError(f"method: expected one of {', '.join(METHODS)}, got {name!r}")
-    module, cls, _ = METHODS[name]
-    return getattr(importlib.import_module(module), cls)
+    return spec(name).load()
 
 
-def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: Any) -> PreparedModel:
-    """Prepare ``mechanism`` for ``method`` once; call the result's ``inverse_dynamics``,
-    ``mass_matrix`` and ``bias_forces`` as often as needed.
-
-    ``options`` are the method's constructor arguments (``threads`` for pinocchio, ``budget`` and
-    ``interrupt`` for lagrange, ``block`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
-    """
-    cls = method_class(method)
-    try:
-        model = cls(mechanism, **options)
-    except TypeError as e:
-        if "unexpected keyword argument" in str(e):
-            import inspect
-
-            known = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "mechanism")]
-            raise ValueError(f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}") from None
-        raise
-    from exo_bench.api.cost_model import chunk_samples  # noqa: PLC0415 - the calibrated chunk of this method
-
-    model.chunk_samples = chunk_samples(mechanism, method)
-    return model
+def preference() -> tuple[str, ...]:
+    """The methods offered as "a method that fits", best first (correct ones only)."""
+    ranked = sorted((s.fit_rank, s.name) for s in METHODS.values() if s.fit_rank is not None)
+    return tuple(name for _, name in ranked)
 
 
-class PreparedSet:
-    """The prepared models of one run: ``models(mechanism, method)`` prepares on first use, with
-    the run's options for that method (``{"lagrange": {"budget": 10.0}}``), and returns the same
-    model afterwards. A study creates one per run and passes it down, so nothing is cached
-    behind the caller's back and a failure to prepare (over budget) is raised where it is used."""
+def known_wrong() -> dict[str, str]:
+    """Methods whose results are known to be wrong, with the reason."""
+    return {s.name: s.known_wrong for s in METHODS.values() if s.known_wrong}
 
-    def __init__(self, options: dict[str, dict] | None = None):
-        self.options = {k: dict(v) for k, v in (options or {}).items()}
-        self._models: dict[tuple, PreparedModel] = {}
 
-    def __call__(self, mechanism: Mechanism, method: str) -> PreparedModel:
-        key = (mechanism, method)
-        if key not in self._models:
-            self._models[key] = prepare(mechanism, method, **self.options.get(method, {}))
-        return self._models[key]
+def compiled_methods() -> tuple[str, ...]:
+    """Methods whose default kernel is compiled by numba (the matrix family), best first."""
+    ranked = sorted((s.fit_rank if s.fit_rank is not None else len(METHODS), i, s.name)
+                    for i, s in enumerate(METHODS.values()) if s.compiled)
+    return tuple(name for _, _, name in ranked)
 
-    def clear(self) -> None:
-        self._models.clear()
+
+def composes_within_budget() -> frozenset[str]:
+    """Methods whose symbolic composition stays within budget at every n of the sweep."""
+    return frozenset(s.name for s in METHODS.values() if s.composes_within_budget)
+
+
+def method_colour(method: str) -> str | None:
+    """The colour of ``method`` in every figure (None: a method not in the table)."""
+    s = METHODS.get(method)
+    return s.colour if s is not None and s.colour else None
+
+
+def known_wrong_warning(method: str, dim: int) -> str | None:
+    """The one-line warning every result of a method known to be wrong carries (None: not wrong)."""
+    s = METHODS.get(method)
+    if s is None or not s.known_wrong:
+        return None
+    if dim == 3:
+        return f"exo-bench: warning: method {method!r}: {s.known_wrong}"
+    return (f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
+            "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")

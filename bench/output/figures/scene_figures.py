@@ -21,6 +21,8 @@ saved atomically by :func:`save_figure`.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import re
 import textwrap
 from dataclasses import dataclass
@@ -31,10 +33,13 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from exo_bench.api.methods import method_colour
 from exo_bench.bench.output.provenance import save_figure  # noqa: F401 (re-exported: the scene figures' writer)
-from exo_bench.bench.studies.study import Study
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
+
+if TYPE_CHECKING:
+    from exo_bench.bench.studies.study import Study
 
 #: Panels of Figs. 7 and 8 span at most this factor between their largest and smallest maximum.
 SCALE_RATIO = 10.0
@@ -43,10 +48,7 @@ ZERO_FRACTION = 1e-9
 
 _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
            "#bcbd22", "#7f7f7f")
-#: One colour per method, the same in every figure (Dark2: none is a link colour, none is the grey or
-#: black that thresholds use); methods not listed take the remaining ones in order.
-METHOD_COLORS = {"pinocchio": "#1b9e77", "matrix": "#d95f02", "matrix-factored": "#7570b3", "matrix-paper": "#e7298a",
-                 "recurrence": "#66a61e", "lagrange": "#e6ab02"}
+#: Colours of methods not in the method table (its MethodSpec.colour), in order of appearance.
 _SPARE_METHOD_COLORS = ("#a6761d", "#1f78b4", "#b15928", "#6a3d9a")
 #: Smallest text in any figure (points): 9 pt at 150 dpi is 19 px high.
 TEXT_PT = 9.0
@@ -62,11 +64,12 @@ def link_color(i: int) -> str:
 
 
 def method_color(method: str, others: list[str] | tuple[str, ...] = ()) -> str:
-    """The colour of ``method`` in every figure: :data:`METHOD_COLORS`, or for a method not listed
-    there the spare colour of its place among the unlisted ``others``."""
-    if method in METHOD_COLORS:
-        return METHOD_COLORS[method]
-    unlisted = [m for m in others if m not in METHOD_COLORS]
+    """The colour of ``method`` in every figure: its :class:`~exo_bench.api.methods.MethodSpec`'s, or
+    for a method not in the table the spare colour of its place among the unlisted ``others``."""
+    listed = method_colour(method)
+    if listed is not None:
+        return listed
+    unlisted = [m for m in others if method_colour(m) is None]
     k = unlisted.index(method) if method in unlisted else 0
     return _SPARE_METHOD_COLORS[k % len(_SPARE_METHOD_COLORS)]
 
@@ -698,7 +701,7 @@ def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, fr
 
 
 __all__ = [
-    "FIGURES", "JointBasis", "METHOD_COLORS", "Projection", "ScaleGroups", "TEXT_PT", "curve_colors",
+    "FIGURES", "JointBasis", "Projection", "ScaleGroups", "TEXT_PT", "curve_colors",
     "differences_figure", "force_labels", "forces_figure", "generalised_moment_labels", "generalised_moments",
     "ground_label", "group_by_scale", "joint_basis", "joint_quantities", "kinogram_figure", "kinogram_frames", "link_color",
     "method_color", "moment_labels", "moments_and_forces", "moments_figure", "nonfinite_notes", "overview_figure",

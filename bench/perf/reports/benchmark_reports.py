@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from exo_bench.api.methods import compiled_methods
+
 from exo_bench.bench.output.provenance import REPO, REPORTS, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
 from exo_bench.bench.studies.main_job import publish, staging_dir
@@ -195,7 +197,6 @@ def crossover(a: pd.Series, b: pd.Series) -> str:
     return f"none up to n = {common[-1]}"
 
 
-MATRIX_FAMILY = ("matrix-factored", "matrix", "recurrence")
 FAST = "matrix-factored (numba)"
 PIN_BARE = "pin.rnea (bare)"
 PYDY = "pydy-cython"
@@ -256,13 +257,13 @@ def goals_issue12(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
         out.append(f"- Batched, exo5-3d: no `{FAST}` row in this run.")
     big = inv[inv["batched"] & (inv["dim"] == 3) & (inv["n"] == 100) & (inv["topology"] == "chain")] \
         if "topology" in inv else inv.iloc[:0]
-    fam = [f"{m} (numba)" for m in MATRIX_FAMILY]
+    fam = [f"{m} (numba)" for m in compiled_methods()]
     if big.empty:
         out.append("- n = 100 in 3D, batched: not in this profile (`exo-bench bench --full`).")
     else:
         done = set(big["method"])
         missing = [m for m in fam if m not in done]
-        slow = sorted(m for m in set(inv["method"]) if _base(m) in MATRIX_FAMILY and m not in fam and m not in done)
+        slow = sorted(m for m in set(inv["method"]) if _base(m) in compiled_methods() and m not in fam and m not in done)
         out.append(f"- n = 100 in 3D, batched: every matrix-family method (compiled, the default kernel) finishes: "
                    f"{_met(not missing)}" + (f" (skipped: {', '.join(missing)})" if missing else f" ({', '.join(fam)})")
                    + (f"; over the time budget: {', '.join(slow)}" if slow else "") + ".")
@@ -395,7 +396,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
         for dim in sorted(chains["dim"].unique()) if not chains.empty else []:
             d = chains[chains["dim"] == dim]
             pin = pin_of(d)
-            for m in sorted({m for m in d["method"] if _base(m) in MATRIX_FAMILY}):
+            for m in sorted({m for m in d["method"] if _base(m) in compiled_methods()}):
                 mm = d[d["method"] == m].set_index("n")[value]
                 if len(mm) and len(pin):
                     lines.append(f"- {dim}D, {label}, `{m}` against Pinocchio: crossover {crossover(mm, pin)}")

@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from exo_bench.api.methods import PreparedSet
+from exo_bench.api import PreparedSet
 from exo_bench.bench.studies.stability.cases import COND_ILL, COND_SINGULAR, Case, FAMILIES, IllConditionedWarning, Profile, REL_DEGRADED, REL_UNUSABLE
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line

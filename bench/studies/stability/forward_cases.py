@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from exo_bench.api.methods import PreparedSet
+from exo_bench.api import PreparedSet
 from exo_bench.models import forward_dynamics as fd
 from exo_bench.models.aggregates import coupling
 from exo_bench.models.kinematics import total_energy

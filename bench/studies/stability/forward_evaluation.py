@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from exo_bench.api.methods import PreparedSet
+from exo_bench.api import PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripCase, SpringCase, TIGHTER, _models, _state0, conservative_cases, round_trip_cases, stiff_case
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line

@@ -9,7 +9,7 @@ import math
 import time
 import warnings
 
-from exo_bench.api.methods import PreparedSet
+from exo_bench.api import PreparedSet
 from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.cases import BASELINE, COND_ILL, COND_SINGULAR, EPS, FULL, Profile, QUICK, REL_DEGRADED, REL_UNUSABLE
 from exo_bench.bench.studies.stability.evaluation import FamilyResult, MethodRow, evaluate_families, method_options
@@ -222,7 +222,7 @@ def run(args) -> int:
     (``bench.distributed.stability_evaluator``: as tasks on a Dask cluster); else this process does."""
     from exo_bench.bench.studies.stability.forward_evaluation import run_forward
     from exo_bench.bench.studies.stability.forward_figures import forward_figures
-    from exo_bench.api.methods import method_names
+    from exo_bench.api import method_names
     from exo_bench.bench.output.provenance import REPORTS, atomic_write, save_figure
 
     profile = FULL if getattr(args, "full", False) else QUICK

@@ -1,0 +1,166 @@
+"""The cost formulas of each method: setup memory and time, seconds per call and per sample, and
+the note naming what dominates (the figures and how they were measured: :mod:`exo_bench.api.cost_model`).
+Each :class:`~exo_bench.api.methods.MethodSpec` names its :class:`CostModel`; the bytes of one
+sample's temporaries belong to the prepared-model class (``sample_bytes``), which sizes its chunks
+from them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from exo_bench.models.mechanism import Mechanism
+
+F8 = 8  # bytes per float64
+
+#: Memory of the interpreter's own work around a run (imports are already counted in the baseline).
+BASE_BYTES = 16 * 2**20
+
+
+# ------------------------------------------------------------------------------ per-method models
+@dataclass(frozen=True)
+class CostModel:
+    """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample seconds, and a note on
+    what dominates (the per-sample bytes are the prepared-model class's ``sample_bytes``)."""
+
+    setup_bytes: Callable[[Mechanism, dict], float]
+    setup_seconds: Callable[[Mechanism, dict], float]
+    sample_seconds: Callable[[int, int], float]
+    note: Callable[[Mechanism, dict], str] = lambda m, o: ""
+    call_seconds: float = 1e-4          # per call (chunk): Python and numpy overhead
+    #: Seconds to compile the serial and the parallel numba kernel of one dimension when numba's
+    #: cache is empty (None: no compiled kernel). Paid once per machine (and per edit of a
+    #: kernel's source), so it is named in the note and not added to the seconds: a time limit
+    #: guards the run, and the run's time does not depend on the state of the cache.
+    compile_seconds: float | None = None
+
+
+def _size(x: float) -> str:
+    if x >= 1e9:
+        return f"{x / 1e9:.1f} GB"
+    if x >= 1e6:
+        return f"{x / 1e6:.0f} MB"
+    return f"{x / 1e3:.0f} kB"
+
+
+def _seconds(x: float) -> str:
+    if x >= 3600:
+        return f"{x / 3600:.1f} h"
+    if x >= 1:
+        return f"{x:.0f} s" if x >= 10 else f"{x:.1f} s"
+    return f"{x * 1e3:.0f} ms" if x >= 1e-3 else f"{x * 1e6:.0f} us"
+
+
+def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
+    from exo_bench.models.urdf import pinocchio_data_bytes
+
+    threads = int(options.get("threads", 1) or 1)
+    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
+    return pinocchio_data_bytes(mech), count
+
+
+def _pin_setup_bytes(mech, options):
+    one, count = _pin_data(mech, options)
+    return one * count + 120_000 * mech.nlinks + 2 * 2**20   # the model: <= 90 kB per link (3D n = 100: 9 MB)
+
+
+def _pin_setup_seconds(mech, options):
+    one, count = _pin_data(mech, options)
+    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
+
+
+def _pin_note(mech, options):
+    from exo_bench.models.urdf import pinocchio_model_size
+
+    nv, _ = pinocchio_model_size(mech)
+    one, count = _pin_data(mech, options)
+    many = "" if count == 1 else f" x {count}"
+    return f"a pin.Data holds four nv^3 tensors: {_size(one)} at nv = {nv}{many}, docs/pinocchio-memory.md"
+
+
+def _matrix_setup(mech, options):
+    return F8 * 8 * mech.nlinks**2 + 2**20                  # coupling and gravity coefficients, several n x n
+
+
+#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
+#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
+#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
+#: depend on the state of the cache.
+NUMBA_BYTES = 128 * 2**20
+def _numba(options: dict) -> bool:
+    return options.get("kernel", "numba") == "numba"
+
+
+def _compiled_setup_bytes(mech, options):
+    return _matrix_setup(mech, options) + (NUMBA_BYTES if _numba(options) else 0)
+
+
+def _compiled_note(compile_seconds: float, what):
+    """The note of a method with a numba kernel: ``what`` dominates, and the first use compiles in
+    up to ``compile_seconds``."""
+    def note(mech, options):
+        if not _numba(options):
+            return what(mech) + "; numpy kernel"
+        return (what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
+                f"{compile_seconds:g} s (then cached on disk)")
+    return note
+
+
+#: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
+LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
+    (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
+    (5, 2): (0.87, 17.5e6), (6, 2): (1.14, 23.0e6), (8, 2): (3.38, 39.7e6), (10, 2): (4.15, 69.9e6),
+    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6), (30, 2): (174.7, 3066.1e6),
+    (1, 3): (0.14, 9.4e6), (2, 3): (0.28, 12.4e6), (3, 3): (0.57, 16.9e6), (4, 3): (1.57, 25.0e6),
+    (5, 3): (2.79, 37.1e6), (6, 3): (3.56, 55.7e6), (8, 3): (8.37, 122.2e6), (10, 3): (17.4, 241.9e6),
+}
+
+
+def _loglog(points: list[tuple[float, float]], x: float) -> float:
+    """Interpolate ``points`` (sorted by x) linearly in log-log; beyond the last point, extend the
+    power law through the last two points (the steepest measured growth)."""
+    if x <= points[0][0]:
+        return points[0][1]
+    for (x0, y0), (x1, y1) in zip(points, points[1:]):
+        if x <= x1 or (x1, y1) == points[-1]:
+            p = math.log(y1 / y0) / math.log(x1 / x0)
+            return y0 * (x / x0) ** p
+    return points[-1][1]
+
+
+def _lagrange(mech: Mechanism, k: int) -> float:
+    pts = sorted((n, v[k]) for (n, d), v in LAGRANGE_POINTS.items() if d == mech.dim)
+    return _loglog(pts, float(mech.nlinks))
+
+
+# Compile times measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
+# matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up.
+PINOCCHIO = CostModel(
+    _pin_setup_bytes, _pin_setup_seconds,
+    sample_seconds=lambda n, d: (0.6 + (3.0 if d == 2 else 5.5) * n) * 1e-6,
+    note=_pin_note)
+LAGRANGE = CostModel(
+    lambda m, o: _lagrange(m, 1), lambda m, o: _lagrange(m, 0),
+    sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
+    note=lambda m, o: "the sympy derivation")
+MATRIX = CostModel(
+    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
+    note=_compiled_note(10.0, lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
+    compile_seconds=10.0)
+MATRIX_PAPER = CostModel(
+    _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
+    note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})")
+RECURRENCE = CostModel(
+    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
+    note=_compiled_note(10.0, lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
+    compile_seconds=10.0)
+MATRIX_FACTORED = CostModel(
+    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
+    note=_compiled_note(4.0, lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
+    compile_seconds=4.0)

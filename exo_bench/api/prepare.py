@@ -1,0 +1,57 @@
+""":func:`prepare`, the library's entry point, and :class:`PreparedSet`, the prepared models of one run.
+
+``prepare(mechanism, name, **options)`` builds a method's
+:class:`~exo_bench.models.prepared.PreparedModel` once (all per-mechanism work); its
+``inverse_dynamics(q, qd, qdd)`` takes batch-first ``(samples, dof)`` (or one ``(dof,)``) arrays in
+the block order ``[phi..., psi..., l...]`` and returns ``[M_phi..., M_psi..., F...]``: the
+generalised forces of the paper's absolute coordinates. The model is the class's own: calling the
+class directly gives the same model (the same chunks, from the class's ``sample_bytes``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from exo_bench.api.methods import method_class
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.prepared import PreparedModel
+
+
+def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: Any) -> PreparedModel:
+    """Prepare ``mechanism`` for ``method`` once; call the result's ``inverse_dynamics``,
+    ``mass_matrix`` and ``bias_forces`` as often as needed.
+
+    ``options`` are the method's constructor arguments (``threads`` for pinocchio, ``budget`` and
+    ``interrupt`` for lagrange, ``block`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
+    """
+    cls = method_class(method)
+    try:
+        model = cls(mechanism, **options)
+    except TypeError as e:
+        if "unexpected keyword argument" in str(e):
+            import inspect
+
+            known = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "mechanism")]
+            raise ValueError(f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}") from None
+        raise
+    return model
+
+
+class PreparedSet:
+    """The prepared models of one run: ``models(mechanism, method)`` prepares on first use, with
+    the run's options for that method (``{"lagrange": {"budget": 10.0}}``), and returns the same
+    model afterwards. A study creates one per run and passes it down, so nothing is cached
+    behind the caller's back and a failure to prepare (over budget) is raised where it is used."""
+
+    def __init__(self, options: dict[str, dict] | None = None) -> None:
+        self.options = {k: dict(v) for k, v in (options or {}).items()}
+        self._models: dict[tuple, PreparedModel] = {}
+
+    def __call__(self, mechanism: Mechanism, method: str) -> PreparedModel:
+        key = (mechanism, method)
+        if key not in self._models:
+            self._models[key] = prepare(mechanism, method, **self.options.get(method, {}))
+        return self._models[key]
+
+    def clear(self) -> None:
+        self._models.clear()
