@@ -31,14 +31,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.bench.methods import METHODS, KNOWN_WRONG
+from exo_bench.api.methods import METHODS, known_wrong
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig2a
 
 #: Every registered method and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
 #: derivation for exo5-3d takes minutes).
-KERNELS = {"matrix": ("numba", "numpy"), "matrix-factored": ("numba", "numpy"), "recurrence": ("numba", "numpy")}
-_CASES = [(m, k) for m in METHODS for k in KERNELS.get(m, (None,))]
+_CASES = [(m, k) for m, s in METHODS.items() for k in (s.kernels or (None,))]
 _MODELS: dict = {}
 
 
@@ -61,8 +60,8 @@ def _call(model, *args, **kw):
 def test_fortran_ordered_states_give_the_forces_of_pinocchio(method, kernel):
     """The reported case: a DataFrame's ``.values`` (Fortran order) gave uninitialised output from
     the compiled kernels. Checked against Pinocchio, an independent implementation."""
-    if method in KNOWN_WRONG:
-        pytest.skip(f"{method}: {KNOWN_WRONG[method]}")
+    if method in known_wrong():
+        pytest.skip(f"{method}: {known_wrong()[method]}")
     model = _model(method, kernel, 3)
     mech = model.mechanism
     q, qd, qdd = random_states(mech, 40, seed=3)
