@@ -19,7 +19,7 @@ from matplotlib.text import Text
 from PIL import Image
 
 from exo_bench.bench.output.figures import scene_figures as plots
-from exo_bench.bench.studies import main_job as runner
+from exo_bench.bench.studies import scene_run as runner
 from exo_bench.api import METHODS
 from exo_bench.bench.output.figures.scene_figures import FIGURES, TEXT_PT
 

@@ -304,14 +304,15 @@ TOKENS = ["inverse", "urdf", "run", "bench", "errata", "stability", "presets", "
 def test_any_argument_list(argv):
     import exo_bench.bench.perf.reports.benchmark_reports as bench_reports
     import exo_bench.bench.studies.errata as errata
-    import exo_bench.bench.studies.main_job as runner
+    import exo_bench.bench.cli.run as runner
     import exo_bench.bench.studies.stability as stability
 
     with workdir() as d, pytest.MonkeyPatch.context() as mp:
-        for mod in (runner, bench_reports, errata, stability):  # the heavy jobs: stubs
-            mp.setattr(mod, "run", lambda args: 0)
-        mp.setattr("exo_bench.bench.cluster.cluster.bench_run", lambda args: 0)   # bench --full: the Dask sweep
-        mp.setattr("exo_bench.bench.cli.equations.size_report", lambda args: 0)
+        for mod in (bench_reports, errata, stability):  # the heavy jobs: stubs
+            mp.setattr(mod, "run", lambda options: 0)
+        mp.setattr(runner, "run_main_job", lambda options: 0)
+        mp.setattr("exo_bench.bench.cluster.cluster.bench_run", lambda options: 0)   # bench --full: the Dask sweep
+        mp.setattr("exo_bench.bench.studies.equations_size.size_report", lambda options: 0)
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
         (d / "m.json").write_text(fig1(2).to_json())

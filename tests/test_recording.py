@@ -44,7 +44,7 @@ def _study(mech, motion_fn, samples: int, noisy: bool) -> Study:
 
 
 def _loads(study):
-    """The loads section as the main job passes it (exo_bench.bench.studies.main_job.run_scene)."""
+    """The loads section as the main job passes it (exo_bench.bench.studies.scene_run.run_scene)."""
     from exo_bench.bench.studies.plausibility import plausibility, text
 
     p = plausibility(study)

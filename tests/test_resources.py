@@ -12,6 +12,7 @@ import pytest
 from exo_bench.api import cost_model as resources
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import Limits, ResourceLimit, check, estimate, parse_size
+from exo_bench.models.prepared import CHUNK_BYTES
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, random_tree
@@ -103,7 +104,7 @@ def test_a_chunk_keeps_to_its_working_set(method):
     for m in (exo5(3), chain(300, 3), chain(50, 2)):
         k = resources.chunk_samples(m, method)
         per = resources.sample_bytes(m, method)
-        assert k >= 1 and (k == 1 or k * per <= resources.CHUNK_BYTES)
+        assert k >= 1 and (k == 1 or k * per <= CHUNK_BYTES)
 
 
 def test_a_class_prepared_directly_chunks_as_prepare_does():

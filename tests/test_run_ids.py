@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-import exo_bench.bench.studies.main_job as runner
+import exo_bench.bench.cli.run as runner
+import exo_bench.bench.output.publish as publishing
+from exo_bench.bench.studies.options import RunOptions
 from exo_bench.bench.output.provenance import run_id_of
 from exo_bench.models.presets import random_tree
 
@@ -37,7 +39,7 @@ def _scene(tmp_path, name, outputs='["table"]'):
 
 
 def _run(rep, *scenes):
-    return runner.run(argparse.Namespace(scenes=[str(s) for s in scenes], reports=str(rep)))
+    return runner.run_main_job(RunOptions(scenes=[str(s) for s in scenes], reports=str(rep)))
 
 
 def _rows(summary: str) -> dict[str, list[str]]:
@@ -113,13 +115,13 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
     rep = tmp_path / "rep"
     assert _run(rep, a) == 0
     old = _runs(rep)["files"]["a.md"]["run"]
-    real = runner.publish
+    real = publishing.publish
 
     def die_after_one(files, out):
         real(files[:1], out)
         raise _Killed
 
-    monkeypatch.setattr(runner, "publish", die_after_one)
+    monkeypatch.setattr(publishing, "publish", die_after_one)
     with pytest.raises(_Killed):
         _run(rep, a)
     manifest = _runs(rep)
@@ -135,7 +137,7 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
         assert f"| {f} | `{new}` if published before the interruption, else `{old}` (the file's own mark says which)" \
             in text, f
     # the next whole run completes the folder and no longer announces an interruption of files it replaced
-    monkeypatch.setattr(runner, "publish", real)
+    monkeypatch.setattr(publishing, "publish", real)
     assert _run(rep, a) == 0
     text = (rep / "summary.md").read_text()
     assert "was interrupted" not in text

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-import exo_bench.bench.studies.main_job as runner
+import exo_bench.bench.cli.run as runner
+from exo_bench.bench.studies.options import RunOptions
 from exo_bench.models.prepared import PreparedModel
 from exo_bench.api import methods
 from exo_bench.models.presets import random_tree
@@ -65,7 +66,7 @@ def test_unknown_or_malformed_scene_is_one_line_and_exit_2(args, needle, tmp_pat
 def test_undeclared_things_are_never_built(tmp_path):
     """A scene without lagrange never derives; without a recording never imports rerun."""
     p = _user_scene(tmp_path)
-    code = (f"import sys; from exo_bench.bench.studies.main_job import run_scene; from exo_bench.bench.studies.scenes import load_scene; "
+    code = (f"import sys; from exo_bench.bench.studies.scene_run import run_scene; from exo_bench.bench.studies.scenes import load_scene; "
             f"import pathlib; o = run_scene(load_scene({str(p)!r}), pathlib.Path({str(tmp_path)!r})); "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'lagrange', 'matplotlib')))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -84,7 +85,7 @@ def test_a_failing_method_does_not_lose_other_results(tmp_path, monkeypatch):
     monkeypatch.setitem(methods.METHODS, "broken", methods.MethodSpec("broken", __name__, "_Broken", "always fails"))
     a = _user_scene(tmp_path, "a", '["pinocchio", "broken"]')
     b = _user_scene(tmp_path, "b")
-    rc = runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(tmp_path / "rep")))
+    rc = runner.run_main_job(RunOptions(scenes=[str(a), str(b)], reports=str(tmp_path / "rep")))
     assert rc == 0
     ta = (tmp_path / "rep" / "a.md").read_text()
     assert "| broken | failed: RuntimeError: solver exploded |" in ta
@@ -96,7 +97,7 @@ def test_interrupted_run_leaves_nothing_half_written(tmp_path, monkeypatch):
     with no staging folder and no partial file."""
     a, b = _user_scene(tmp_path, "a"), _user_scene(tmp_path, "b")
     rep = tmp_path / "rep"
-    assert runner.run(argparse.Namespace(scenes=[str(a)], reports=str(rep))) == 0
+    assert runner.run_main_job(RunOptions(scenes=[str(a)], reports=str(rep))) == 0
     before = {p.name: p.read_bytes() for p in rep.iterdir()}
     real = runner.run_scene
 
@@ -108,7 +109,7 @@ def test_interrupted_run_leaves_nothing_half_written(tmp_path, monkeypatch):
 
     monkeypatch.setattr(runner, "run_scene", interrupt_second)
     with pytest.raises(KeyboardInterrupt):
-        runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep)))
+        runner.run_main_job(RunOptions(scenes=[str(a), str(b)], reports=str(rep)))
     assert {p.name: p.read_bytes() for p in rep.iterdir()} == before  # all old: a.md of the first run, no b.md
     assert "| pinocchio | ok |" in (rep / "a.md").read_text()
 
@@ -125,7 +126,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
     p.write_text('mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
                  'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
                  '[motion]\nkind = "planar-gait"\nsamples_per_period = 40\n')
-    rc = runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep")))
+    rc = runner.run_main_job(RunOptions(scenes=[str(p)], reports=str(tmp_path / "rep")))
     assert rc == 0
     names = sorted(q.name for q in (tmp_path / "rep").iterdir())
     assert names == sorted(["gait.md", "gait-moments.png", "gait-forces.png", "gait-kinogram.png",
@@ -167,7 +168,7 @@ class _Offset(PreparedModel):
 def test_a_disagreeing_method_is_reported_with_where(tmp_path, monkeypatch):
     monkeypatch.setitem(methods.METHODS, "offset", methods.MethodSpec("offset", __name__, "_Offset", "pinocchio plus a known error"))
     p = _user_scene(tmp_path, "off", '["pinocchio", "offset"]')
-    assert runner.run(argparse.Namespace(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
+    assert runner.run_main_job(RunOptions(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
     table = (tmp_path / "rep" / "off.md").read_text()
     line = next(ln for ln in table.splitlines() if "**offset disagrees with pinocchio**" in ln)
     assert "by 1.0e-06 of the largest |tau|" in line and "M_phi2" in line

@@ -1,5 +1,9 @@
 """``exo-bench``: the command line. Errors print one line on stderr and exit with code 2.
 
+One module per subcommand (:data:`SUBCOMMANDS`), each with ``add_parser``; this package is the
+only user of argparse, and builds typed options (:mod:`exo_bench.bench.studies.options`) for the
+studies and report jobs.
+
 No traceback reaches the user from any command: bad input, a file that cannot be read or
 written, a method over a memory, time or derivation budget, running out of memory, a resource
 error of sympy or Pinocchio and anything unforeseen each end in one line on stderr (``main``);
@@ -10,12 +14,7 @@ input to hold this, and docs/errors.md lists the messages (checked against the t
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-
-from pathlib import Path
-
-import numpy as np
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,294 +26,19 @@ class _UsageError(Exception):
     pass
 
 
-def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
-    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file)."""
-    from exo_bench.models.loading import read_json
-    from exo_bench.models.mechanism import as_states
-
-    what = f"states {path!r}"
-    if str(path).endswith(".npz"):
-        data = _read_npz(path, what)
-    else:
-        data = read_json(path, what)
-    if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
-        got = sorted(data) if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
-    return as_states(mech, data["q"], data["qd"], data["qdd"], source=what)
-
-
-def _read_npz(path: str, what: str) -> dict:
-    import zipfile
-
-    from exo_bench.models.loading import regular_file
-    from exo_bench.models.prepared import usable_memory
-
-    p = regular_file(path, what)   # the same checks and messages as every other file we read
-    try:
-        with zipfile.ZipFile(p) as zf:
-            size = sum(i.file_size for i in zf.infolist())
-    except (zipfile.BadZipFile, EOFError, OSError) as e:
-        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
-    limit = usable_memory()
-    if limit is not None and size > limit:
-        raise ValueError(f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
-                         "use (--max-memory does not raise this); split the batch")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            return {k: (z[k] if k in ("q", "qd", "qdd") else None) for k in z.files}
-    except (zipfile.BadZipFile, EOFError) as e:
-        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
-    except ValueError as e:
-        raise ValueError(f"{what}: cannot read the arrays: {str(e).splitlines()[0]}") from None
-    except OSError as e:
-        raise ValueError(f"{what}: cannot read: {e.strerror or e}") from None
-
-
-def _limits(args, method: str):
-    from exo_bench.api.cost_model import Limits
-
-    return Limits(memory=getattr(args, "max_memory", None), seconds=getattr(args, "max_time", None),
-                  budget=getattr(args, "budget", None) if method == "lagrange" else None)
-
-
-def _write_tau(method: str, tau: np.ndarray, out) -> None:
-    """``{"method": ..., "tau": [[...], ...]}`` written row block by row block (no list of the
-    whole batch is built); non-finite values are null (JSON has no NaN)."""
-    out.write(json.dumps({"method": method})[:-1] + ', "tau": [')
-    for s0 in range(0, tau.shape[0], 4096):
-        block = tau[s0:s0 + 4096]
-        rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]
-        text = json.dumps(rows, allow_nan=False)[1:-1]
-        out.write((", " if s0 else "") + text)
-    out.write("]}\n")
-
-
-def cmd_presets(args) -> int:
-    from exo_bench.models.presets import preset_descriptions
-
-    for name, desc in preset_descriptions().items():
-        print(f"{name:10s} {desc}")
-    return 0
-
-
-def cmd_inverse(args) -> int:
-    from exo_bench.api import method_class, prepare
-    from exo_bench.api.methods import known_wrong_warning
-    from exo_bench.api.cost_model import check
-    from exo_bench.models.loading import load_mechanism
-    from exo_bench.models.mechanism import force_names
-
-    method_class(args.method)  # an unknown method fails before any file is read
-    mech = load_mechanism(args.mechanism)
-    q, qd, qdd = _load_states(args.states, mech)
-    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
-    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
-    model = prepare(mech, args.method, **options)
-    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
-    warn = known_wrong_warning(args.method, mech.dim)
-    if warn:
-        print(warn, file=sys.stderr)
-    count, first = 0, None
-    for s0 in range(0, tau.shape[0], 65536):   # in row blocks: no (samples, dof) mask
-        bad = ~np.isfinite(tau[s0:s0 + 65536])
-        if bad.any():
-            count += int(bad.sum())
-            if first is None:
-                s, c = map(int, np.argwhere(bad)[0])
-                first = (s0 + s, c)
-    if count:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
-        print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
-              f"(first: sample {first[0]}, {force_names(mech)[first[1]]})", file=sys.stderr)
-    _write_tau(args.method, tau, sys.stdout)
-    return 0
-
-
-def cmd_urdf(args) -> int:
-    from exo_bench.models.loading import load_mechanism
-    from exo_bench.models.urdf import to_urdf
-
-    text = to_urdf(load_mechanism(args.mechanism))
-    if args.output:
-        from exo_bench.bench.output.provenance import atomic_write
-        atomic_write(args.output, text)
-    else:
-        sys.stdout.write(text)
-    return 0
-
-
-def reports_folder(value: str | None) -> str | None:
-    """``--reports``: a usable folder (:func:`reporting.writable_folder`), checked before any work starts."""
-    from exo_bench.bench.output.provenance import writable_folder
-
-    if value is None:
-        return None
-    writable_folder(value, "--reports")
-    return str(value)
-
-
-def cmd_run(args) -> int:
-    from exo_bench.bench.studies.main_job import run
-
-    args.reports = reports_folder(args.reports)
-    return run(args)
-
-
-def _report_job(run, args, command: str) -> int:
-    """A suite job run on its own: its files are marked with this process's run in the folder's
-    runs.json and summary.md (bench/runner.py), so the summary always says which run made each file."""
-    from exo_bench.bench.output.provenance import REPORTS
-    from exo_bench.bench.studies.main_job import record_files, snapshot
-
-    args.reports = reports_folder(args.reports)
-    out = Path(args.reports) if args.reports else REPORTS
-    before = snapshot(out)
-    try:
-        return run(args)
-    finally:
-        record_files(out, before, command + (" --full" if getattr(args, "full", False) else ""))
-
-
-def _on_cluster(args) -> bool:
-    """The full sweep runs on a Dask cluster (bench/distributed.py); so does the quick one when
-    --workers or --scheduler is given."""
-    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler)
-
-
-def cmd_bench(args) -> int:
-    from exo_bench.bench.perf.reports.benchmark_reports import run
-
-    if _on_cluster(args):
-        from exo_bench.bench.cluster.cluster import bench_run as run
-    return _report_job(run, args, "exo-bench bench")
-
-
-def cmd_errata(args) -> int:
-    from exo_bench.bench.studies.errata import run
-
-    return _report_job(run, args, "exo-bench errata")
-
-
-def cmd_stability(args) -> int:
-    from exo_bench.bench.studies.stability import run
-
-    if _on_cluster(args):
-        from exo_bench.bench.cluster.cluster import stability_evaluator
-        args.evaluate = stability_evaluator(args)
-    return _report_job(run, args, "exo-bench stability")
-
-
-def _size_arg(text: str) -> int:
-    from exo_bench.api.cost_model import parse_size
-
-    try:
-        return parse_size(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-memory: ")) from None
-
-
-def _seconds_arg(text: str) -> float:
-    from exo_bench.api.cost_model import parse_seconds
-
-    try:
-        return parse_seconds(text)
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-time: ")) from None
-
-
-def _budget_arg(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return value
-
-
-def _workers_arg(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected at least 1 worker, got {value}")
-    return value
-
-
-def _cluster_args(s) -> None:
-    s.add_argument("--workers", type=_workers_arg, default=None, metavar="N",
-                   help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
-                        "per core; 1 = serial)")
-    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the sweep on the running Dask cluster at ADDRESS (e.g. tcp://10.0.0.1:8786)")
-
-
-MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
-                   "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
+#: The subcommands, in the order ``exo-bench --help`` lists them: one module each, with its
+#: ``add_parser(subparsers)``.
+SUBCOMMANDS = ("presets", "inverse", "urdf", "run", "bench", "errata", "stability", "equations")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from exo_bench.api import method_names
+    import importlib
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
-    s = sub.add_parser("presets", help="list the preset mechanisms")
-    s.set_defaults(func=cmd_presets)
-
-    s = sub.add_parser("inverse", help="inverse dynamics: generalised forces for given states")
-    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
-    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
-                   "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    s.add_argument("--method", default="pinocchio",
-                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
-                        "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
-    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
-    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
-    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
-                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
-                        "(default: no limit)")
-    s.set_defaults(func=cmd_inverse)
-
-    s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
-    s.add_argument("mechanism")
-    s.add_argument("-o", "--output")
-    s.set_defaults(func=cmd_urdf)
-
-    s = sub.add_parser("run", help="the main job: run every scene and write the reports")
-    s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
-    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE",
-                   help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
-                        "(default: 80%% of the machine's available memory)")
-    s.set_defaults(func=cmd_run)
-
-    s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
-    s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
-    s.add_argument("--update-readme", action="store_true",
-                   help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    _cluster_args(s)
-    s.set_defaults(func=cmd_bench)
-
-    s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
-                       "write errata.md")
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    s.set_defaults(func=cmd_errata)
-
-    s = sub.add_parser("stability", help="where each method breaks (extreme cases vs the 50-digit reference) and the "
-                       "forward-dynamics round trip; write stability.md and its plots")
-    s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    _cluster_args(s)
-    s.set_defaults(func=cmd_stability)
-
-    from exo_bench.bench.cli.equations import add_parser  # exo-bench equations (bench/equations.py)
-    add_parser(sub)
+    for name in SUBCOMMANDS:
+        importlib.import_module(f"exo_bench.bench.cli.{name}").add_parser(sub)
     return p
 
 

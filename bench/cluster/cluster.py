@@ -48,6 +48,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from exo_bench.api.methods import composes_within_budget
+from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import ClusterOptions, Evaluator, StabilityOptions
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO, atomic_write
 
@@ -430,21 +432,21 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
 
 
 # ----------------------------------------------------------------------------- exo-bench bench
-def bench_run(args) -> int:
+def bench_run(options: BenchOptions) -> int:
     """``exo-bench bench`` on the cluster: the sweep as row tasks, then the reports of
     :mod:`exo_bench.bench.perf.reports.benchmark_reports` from the merged JSON (written only once every row is in)."""
-    from exo_bench.bench.output.provenance import REPORTS
 
-    full = bool(getattr(args, "full", False))
+    full = options.full
     sweep = "full" if full else "quick"
-    out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
+    out = options.folder.resolve()
+    where = options.cluster or ClusterOptions()
     command = "exo-bench bench" + (" --full" if full else "")
-    check_scheduler(args.scheduler)
-    outcome = run_sweep(["bench"], sweep, checkpoints=default_checkpoints(out), scheduler=args.scheduler,
-                        workers=args.workers)
+    check_scheduler(where.scheduler)
+    outcome = run_sweep(["bench"], sweep, checkpoints=default_checkpoints(out), scheduler=where.scheduler,
+                        workers=where.workers)
     print(f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
           f"from checkpoints, {outcome.seconds:.0f} s", flush=True)
-    _write_reports(outcome.merged, outcome.skips, out, sweep, command, bool(getattr(args, "update_readme", False)))
+    _write_reports(outcome.merged, outcome.skips, out, sweep, command, options.update_readme)
     return 0
 
 
@@ -515,15 +517,15 @@ def stability_task(part: str, profile_name: str, methods: list[str]):
     return res, [(w.category.__name__, str(w.message)) for w in caught]
 
 
-def stability_evaluator(args):
+def stability_evaluator(options: StabilityOptions) -> Evaluator:
     """The ``evaluate(profile, methods, log)`` of :func:`stability.report.run` that runs the
     families and the forward part as tasks on the cluster, checkpointed per part."""
     from exo_bench.bench.studies import study
-    from exo_bench.bench.output.provenance import REPORTS
     from exo_bench.bench.studies.stability import cases
 
-    out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
-    check_scheduler(args.scheduler)
+    out = options.folder.resolve()
+    where = options.cluster or ClusterOptions()
+    check_scheduler(where.scheduler)
 
     def evaluate(profile, methods, log):
         from distributed import as_completed
@@ -540,7 +542,7 @@ def stability_evaluator(args):
             f"{len(todo)} to run")
         if todo:
             folder.mkdir(parents=True, exist_ok=True)
-            with cluster(args.scheduler, args.workers) as client:
+            with cluster(where.scheduler, where.workers) as client:
                 futures = {client.submit(stability_task, p, profile.name, methods, pure=False, retries=RETRIES,
                                          key=f"exo-bench-stability-{tag(p)}-{uuid.uuid4().hex[:8]}"): p for p in todo}
                 try:

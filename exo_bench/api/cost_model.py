@@ -80,12 +80,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
 
 from exo_bench.api.cost_formulas import BASE_BYTES, F8, _loglog, _seconds, _size
 from exo_bench.api.methods import METHODS, method_class, preference
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import CHUNK_BYTES, MAX_CHUNK, USABLE_SHARE, available_memory, default_chunk_samples, usable_memory
+from exo_bench.models.prepared import USABLE_SHARE, default_chunk_samples, usable_memory
 
 
 def sample_bytes(mech: Mechanism, method: str) -> float:

@@ -24,8 +24,9 @@ import numpy as np
 import pandas as pd
 
 from exo_bench.api.methods import compiled_methods
+from exo_bench.bench.perf.options import BenchOptions
 
-from exo_bench.bench.output.provenance import REPO, REPORTS, atomic_write, provenance
+from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
 from exo_bench.bench.studies.main_job import publish, staging_dir
 
@@ -653,10 +654,11 @@ def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str
     return published
 
 
-def run(args) -> int:
-    full = bool(getattr(args, "full", False))
+def run(options: BenchOptions) -> int:
+    """``exo-bench bench`` in this process: the benchmark suite under pytest, then its reports."""
+    full = options.full
     sweep = "full" if full else "quick"
-    out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
+    out = options.folder.resolve()
     command = "exo-bench bench" + (" --full" if full else "")
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
@@ -667,6 +669,5 @@ def run(args) -> int:
         r = subprocess.run(cmd, cwd=REPO)
         if r.returncode not in (0,) or not bjson.exists():
             raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
-        write_reports(bjson, sjson, st, out, sweep, command, bool(getattr(args, "update_readme", False)),
-                      getattr(args, "published_to", None))
+        write_reports(bjson, sjson, st, out, sweep, command, options.update_readme, options.published_to)
     return 0

@@ -3,8 +3,8 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
+from exo_bench.bench.studies.options import ReportOptions
 from exo_bench.bench.studies.errata import cases
 from exo_bench.bench.studies.errata.evaluation import TOLERANCE, Results, Verdict, compute
 from exo_bench.bench.output import provenance as reporting
@@ -156,9 +156,8 @@ def write_report(path=None, results: Results | None = None):
     return atomic_write(path or reporting.REPORTS / "errata.md", text)
 
 
-def run(args) -> int:
+def run(options: ReportOptions) -> int:
     """``exo-bench errata [--reports DIR]`` (also a suite job of ``exo-bench run``)."""
-    folder = getattr(args, "reports", None)
-    path = write_report(Path(folder) / "errata.md" if folder else None)
+    path = write_report(options.folder / "errata.md")
     print(f"wrote {path}")
     return 0

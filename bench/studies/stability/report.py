@@ -4,11 +4,11 @@ forward-dynamics sections) and :func:`run`, the ``exo-bench stability`` job.
 
 from __future__ import annotations
 
-from pathlib import Path
 import math
 import time
 import warnings
 
+from exo_bench.bench.studies.options import StabilityOptions
 from exo_bench.api import PreparedSet
 from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.cases import BASELINE, COND_ILL, COND_SINGULAR, EPS, FULL, Profile, QUICK, REL_DEGRADED, REL_UNUSABLE
@@ -215,24 +215,25 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
     return "\n".join(L)
 
 
-def run(args) -> int:
+def run(options: StabilityOptions) -> int:
     """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs.
 
-    ``args.evaluate(profile, methods, log) -> (families, forward)``, if set, computes the results
-    (``bench.distributed.stability_evaluator``: as tasks on a Dask cluster); else this process does."""
+    ``options.evaluate(profile, methods, log) -> (families, forward)``, if set, computes the results
+    (:func:`exo_bench.bench.cluster.cluster.stability_evaluator`: as tasks on a Dask cluster); else
+    this process does."""
     from exo_bench.bench.studies.stability.forward_evaluation import run_forward
     from exo_bench.bench.studies.stability.forward_figures import forward_figures
     from exo_bench.api import method_names
-    from exo_bench.bench.output.provenance import REPORTS, atomic_write, save_figure
+    from exo_bench.bench.output.provenance import atomic_write, save_figure
 
-    profile = FULL if getattr(args, "full", False) else QUICK
-    out = Path(args.reports) if getattr(args, "reports", None) else REPORTS
+    profile = FULL if options.full else QUICK
+    out = options.folder
     methods = method_names()
     t0 = time.perf_counter()
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
-        evaluate = getattr(args, "evaluate", None)
+        evaluate = options.evaluate
         if evaluate is not None:
             families, forward = evaluate(profile, methods, log)
         else:

@@ -1,0 +1,96 @@
+"""What the subcommands share: argument types (one line on a bad value), the ``--reports`` folder,
+the cluster options, and how a report job run on its own marks its files."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
+
+from exo_bench.bench.studies.options import ClusterOptions, ReportOptions
+
+MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
+                   "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
+
+
+def reports_folder(value: str | None) -> Path | None:
+    """``--reports``: a usable folder (:func:`~exo_bench.bench.output.provenance.writable_folder`),
+    checked before any work starts."""
+    from exo_bench.bench.output.provenance import writable_folder
+
+    if value is None:
+        return None
+    writable_folder(value, "--reports")
+    return Path(value)
+
+
+O = TypeVar("O", bound=ReportOptions)
+
+
+def report_job(run: Callable[[O], int], options: O, command: str) -> int:
+    """A suite job run on its own: its files are marked with this process's run in the folder's
+    runs.json and summary.md (:mod:`exo_bench.bench.output.publish`), so the summary always says
+    which run made each file."""
+    from exo_bench.bench.output.publish import record_files, snapshot
+
+    out = options.folder
+    before = snapshot(out)
+    try:
+        return run(options)
+    finally:
+        record_files(out, before, command + (" --full" if options.full else ""))
+
+
+def cluster_options(args: argparse.Namespace) -> ClusterOptions | None:
+    """The full sweep runs on a Dask cluster (:mod:`exo_bench.bench.cluster`); so does the quick one
+    when --workers or --scheduler is given. None: serial, in this process."""
+    if args.full or args.workers is not None or args.scheduler:
+        return ClusterOptions(workers=args.workers, scheduler=args.scheduler)
+    return None
+
+
+def size_arg(text: str) -> int:
+    from exo_bench.api.cost_model import parse_size
+
+    try:
+        return parse_size(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-memory: ")) from None
+
+
+def seconds_arg(text: str) -> float:
+    from exo_bench.api.cost_model import parse_seconds
+
+    try:
+        return parse_seconds(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e).removeprefix("--max-time: ")) from None
+
+
+def budget_arg(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+def workers_arg(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1 worker, got {value}")
+    return value
+
+
+def add_cluster_args(s: argparse.ArgumentParser) -> None:
+    s.add_argument("--workers", type=workers_arg, default=None, metavar="N",
+                   help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
+                        "per core; 1 = serial)")
+    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the sweep on the running Dask cluster at ADDRESS (e.g. tcp://10.0.0.1:8786)")

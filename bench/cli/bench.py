@@ -1,0 +1,33 @@
+"""``exo-bench bench [--full] [--update-readme] [--reports DIR] [--workers N | --scheduler ADDRESS]``:
+the benchmark suite and its reports (paper_table, error_vs_runtime, scaling)."""
+
+from __future__ import annotations
+
+import argparse
+
+from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, report_job, reports_folder
+from exo_bench.bench.perf.options import BenchOptions
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
+    s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
+    s.add_argument("--update-readme", action="store_true",
+                   help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    add_cluster_args(s)
+    s.set_defaults(func=cmd_bench)
+
+
+def options(args: argparse.Namespace) -> BenchOptions:
+    return BenchOptions(reports=reports_folder(args.reports), full=args.full, update_readme=args.update_readme,
+                        cluster=cluster_options(args))
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from exo_bench.bench.perf.reports.benchmark_reports import run
+
+    opts = options(args)
+    if opts.cluster is not None:
+        from exo_bench.bench.cluster.cluster import bench_run as run
+    return report_job(run, opts, "exo-bench bench")

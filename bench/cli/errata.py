@@ -1,0 +1,22 @@
+"""``exo-bench errata [--reports DIR]``: every printed formula of the paper against Lagrange and
+Pinocchio; errata.md."""
+
+from __future__ import annotations
+
+import argparse
+
+from exo_bench.bench.cli.arguments import report_job, reports_folder
+from exo_bench.bench.studies.options import ReportOptions
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
+                       "write errata.md")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    s.set_defaults(func=cmd_errata)
+
+
+def cmd_errata(args: argparse.Namespace) -> int:
+    from exo_bench.bench.studies.errata import run
+
+    return report_job(run, ReportOptions(reports=reports_folder(args.reports)), "exo-bench errata")

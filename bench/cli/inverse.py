@@ -1,0 +1,128 @@
+"""``exo-bench inverse MECHANISM STATES``: generalised forces for given states, as JSON on stdout."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import TYPE_CHECKING, TextIO
+
+import numpy as np
+
+from exo_bench.bench.cli.arguments import MAX_MEMORY_HELP, budget_arg, seconds_arg, size_arg
+
+if TYPE_CHECKING:
+    from exo_bench.api.cost_model import Limits
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    from exo_bench.api import method_names
+
+    s = sub.add_parser("inverse", help="inverse dynamics: generalised forces for given states")
+    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
+    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
+                   "one row per sample, coordinates in block order [phi..., psi..., l...]")
+    s.add_argument("--method", default="pinocchio",
+                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
+                        "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
+    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS",
+                   help="seconds for lagrange's symbolic derivation (default 120)")
+    s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
+    s.add_argument("--max-time", type=seconds_arg, default=None, metavar="SECONDS",
+                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
+                        "(default: no limit)")
+    s.set_defaults(func=cmd_inverse)
+
+
+def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
+    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file)."""
+    from exo_bench.models.loading import read_json
+    from exo_bench.models.mechanism import as_states
+
+    what = f"states {path!r}"
+    if str(path).endswith(".npz"):
+        data = _read_npz(path, what)
+    else:
+        data = read_json(path, what)
+    if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
+        got = sorted(data) if isinstance(data, dict) else type(data).__name__
+        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
+    return as_states(mech, data["q"], data["qd"], data["qdd"], source=what)
+
+
+def _read_npz(path: str, what: str) -> dict:
+    import zipfile
+
+    from exo_bench.models.loading import regular_file
+    from exo_bench.models.prepared import usable_memory
+
+    p = regular_file(path, what)   # the same checks and messages as every other file we read
+    try:
+        with zipfile.ZipFile(p) as zf:
+            size = sum(i.file_size for i in zf.infolist())
+    except (zipfile.BadZipFile, EOFError, OSError) as e:
+        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
+    limit = usable_memory()
+    if limit is not None and size > limit:
+        raise ValueError(f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
+                         "use (--max-memory does not raise this); split the batch")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            return {k: (z[k] if k in ("q", "qd", "qdd") else None) for k in z.files}
+    except (zipfile.BadZipFile, EOFError) as e:
+        raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
+    except ValueError as e:
+        raise ValueError(f"{what}: cannot read the arrays: {str(e).splitlines()[0]}") from None
+    except OSError as e:
+        raise ValueError(f"{what}: cannot read: {e.strerror or e}") from None
+
+
+def _limits(args: argparse.Namespace, method: str) -> Limits:
+    from exo_bench.api.cost_model import Limits
+
+    return Limits(memory=args.max_memory, seconds=args.max_time, budget=args.budget if method == "lagrange" else None)
+
+
+def _write_tau(method: str, tau: np.ndarray, out: TextIO) -> None:
+    """``{"method": ..., "tau": [[...], ...]}`` written row block by row block (no list of the
+    whole batch is built); non-finite values are null (JSON has no NaN)."""
+    out.write(json.dumps({"method": method})[:-1] + ', "tau": [')
+    for s0 in range(0, tau.shape[0], 4096):
+        block = tau[s0:s0 + 4096]
+        rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]
+        text = json.dumps(rows, allow_nan=False)[1:-1]
+        out.write((", " if s0 else "") + text)
+    out.write("]}\n")
+
+
+def cmd_inverse(args: argparse.Namespace) -> int:
+    from exo_bench.api import method_class, prepare
+    from exo_bench.api.methods import known_wrong_warning
+    from exo_bench.api.cost_model import check
+    from exo_bench.models.loading import load_mechanism
+    from exo_bench.models.mechanism import force_names
+
+    method_class(args.method)  # an unknown method fails before any file is read
+    mech = load_mechanism(args.mechanism)
+    q, qd, qdd = _load_states(args.states, mech)
+    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
+    model = prepare(mech, args.method, **options)
+    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
+    warn = known_wrong_warning(args.method, mech.dim)
+    if warn:
+        print(warn, file=sys.stderr)
+    count, first = 0, None
+    for s0 in range(0, tau.shape[0], 65536):   # in row blocks: no (samples, dof) mask
+        bad = ~np.isfinite(tau[s0:s0 + 65536])
+        if bad.any():
+            count += int(bad.sum())
+            if first is None:
+                s, c = map(int, np.argwhere(bad)[0])
+                first = (s0 + s, c)
+    if count:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
+        print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
+              f"(first: sample {first[0]}, {force_names(mech)[first[1]]})", file=sys.stderr)
+    _write_tau(args.method, tau, sys.stdout)
+    return 0

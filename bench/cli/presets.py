@@ -1,0 +1,18 @@
+"""``exo-bench presets``: the preset mechanisms."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("presets", help="list the preset mechanisms")
+    s.set_defaults(func=cmd_presets)
+
+
+def cmd_presets(args: argparse.Namespace) -> int:
+    from exo_bench.models.presets import preset_descriptions
+
+    for name, desc in preset_descriptions().items():
+        print(f"{name:10s} {desc}")
+    return 0

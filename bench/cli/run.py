@@ -1,0 +1,156 @@
+"""``exo-bench run [SCENE...] [--full] [--reports DIR] [--max-memory SIZE]``: the main job.
+
+Runs every shipped scene (or the named ones: then only those), writes their reports
+(:mod:`exo_bench.bench.studies.scene_run`), then the suite's reports (errata, benchmarks,
+stability), publishes them together (:mod:`exo_bench.bench.output.publish`) and prints a summary.
+A scene or a suite job that fails is recorded in one line and the others go on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TextIO
+
+from exo_bench.bench.cli.arguments import reports_folder, size_arg
+from exo_bench.bench.output.provenance import new_run_id, set_run_id
+from exo_bench.bench.output.publish import publish_run, read_manifest, staging_dir
+from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import ReportOptions, RunOptions, StabilityOptions
+from exo_bench.bench.studies.scene_run import SceneOutcome, run_scene, scene_rows
+from exo_bench.bench.studies.scenes import Scene, load_scene, shipped_scene_names
+from exo_bench.bench.studies.study import one_line
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    s = sub.add_parser("run", help="the main job: run every scene and write the reports")
+    s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
+    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
+    s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE",
+                   help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
+                        "(default: 80%% of the machine's available memory)")
+    s.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    return run_main_job(RunOptions(scenes=tuple(args.scenes), reports=reports_folder(args.reports), full=args.full,
+                                   max_memory=args.max_memory))
+
+
+def print_summary(outcomes: list[SceneOutcome]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="exo-bench: scene x method")
+    for col in ("scene", "method", "largest error", "us/sample", "power balance"):
+        table.add_column(col, no_wrap=col != "largest error", overflow="fold")
+    for o in outcomes:
+        for row in scene_rows(o):
+            table.add_row(*row)
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=140)
+    console.print(table)
+
+
+def _suite_jobs() -> list[tuple[str, Callable[[Path, Path, bool], int]]]:
+    """Suite-wide reports the main job writes after the scenes: (label, job(staging, out, full)).
+    Every suite job is part of the main job: a missing module is an installation error, raised
+    here, never a report that silently goes missing."""
+    from exo_bench.bench.perf.reports import benchmark_reports
+    from exo_bench.bench.studies import errata, stability
+
+    return [
+        ("errata (exo-bench errata)",
+         lambda st, out, full: errata.run(ReportOptions(reports=st, full=full, published_to=out))),
+        ("benchmarks (exo-bench bench)",
+         lambda st, out, full: benchmark_reports.run(BenchOptions(reports=st, full=full, published_to=out))),
+        ("stability (exo-bench stability)",
+         lambda st, out, full: stability.run(StabilityOptions(reports=st, full=full, published_to=out))),
+    ]
+
+
+class _StagingPaths:
+    """A stdout that shows the final path of files the suite's jobs announce from the staging folder."""
+
+    def __init__(self, stream: TextIO, staging: Path, out: Path) -> None:
+        self.stream, self.staging, self.out = stream, str(staging), str(out)
+
+    def write(self, text: str) -> int:
+        return self.stream.write(text.replace(self.staging + os.sep, self.out + os.sep).replace(self.staging, self.out))
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
+
+
+def run_main_job(options: RunOptions) -> int:
+    """The main job: every scene (or the named ones), then, when no scene is named, the suite's
+    reports; all published together (:mod:`exo_bench.bench.output.publish`)."""
+    from contextlib import redirect_stdout
+
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from exo_bench.api.cost_model import Limits
+
+    out = options.folder
+    full = options.full
+    names = list(options.scenes) or shipped_scene_names()
+    scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
+    jobs = _suite_jobs() if not options.scenes else []  # naming scenes runs just those scenes
+    limits = Limits(memory=options.max_memory)
+    set_run_id(new_run_id())
+    command = "exo-bench run" + (" --full" if full else "") + ("" if not options.scenes else " " + " ".join(options.scenes))
+    _warn_known_wrong(scenes)
+    outcomes: list[SceneOutcome] = []
+    written: list[Path] = []
+    job_errors: list[str] = []
+    with staging_dir(out) as staging, Progress(TextColumn("{task.description}"), BarColumn(),
+                                               TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
+                                               transient=False) as progress:
+        task = progress.add_task("scenes", total=len(scenes) + len(jobs))
+        for sc in scenes:
+            progress.update(task, description=f"scene {sc.name}")
+            try:
+                o = run_scene(sc, staging, limits)
+            except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
+                o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
+            outcomes.append(o)
+            progress.advance(task)
+        for label, fn in jobs:
+            progress.update(task, description=label)
+            try:
+                with redirect_stdout(_StagingPaths(sys.stdout, staging, out)):
+                    fn(staging, out, full)
+            except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
+                job_errors.append(f"{label} failed: {one_line(e)}")
+            progress.advance(task)
+        rows = {o.scene.name: scene_rows(o) for o in outcomes}
+        written = publish_run(staging, out, rows, command, read_manifest(out))
+    print_summary(outcomes)
+    for p in written:
+        print(f"wrote {p}")
+    failed = [o for o in outcomes if o.error]
+    for o in failed:
+        print(f"scene {o.scene.name} failed: {o.error}")
+    for line in job_errors:
+        print(line)
+    return 1 if failed or job_errors else 0
+
+
+def _warn_known_wrong(scenes: list[Scene]) -> None:
+    """One stderr line when a scene runs a method known to be wrong (its results are in the reports)."""
+    from exo_bench.api.methods import known_wrong_warning
+
+    hits = sorted({(m, sc.mechanism.dim) for sc in scenes for m in sc.methods}, key=lambda h: (-h[1], h[0]))
+    for m, dim in hits:
+        line = known_wrong_warning(m, dim)
+        if line:
+            print(line, file=sys.stderr)
+            return

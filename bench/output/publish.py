@@ -1,0 +1,234 @@
+"""Publishing a run's reports: staging, atomic renames, ``runs.json`` and ``summary.md``.
+
+**Nothing half-written, nothing mixed unannounced.** Every output of a run is written into a
+staging folder inside the reports folder (:func:`staging_dir`) and published only when the whole
+run has finished, by atomic renames with SIGINT/SIGTERM held back (:func:`publish_run`). An error or
+Ctrl-C before that leaves the folder exactly as it was (all old); the staging folder is removed on
+every exit path. Publishing writes ``runs.json`` and a ``summary.md`` that say "being published"
+first, then the files, then the final ones, so even a ``kill -9`` in that window leaves each file
+marked by its run and the summary saying so.
+
+**Runs never overwrite results of a wider run.** Each run has an identifier
+(:func:`exo_bench.bench.output.provenance.current_run_id`) that every report carries. ``runs.json``
+keeps, per scene, the summary rows of the run that last ran it and, per file, the run that wrote it;
+``summary.md`` is made from it, so ``exo-bench run SCENE`` replaces that scene's rows and keeps
+every other scene's, and lists which run produced each report file. A report command run on its
+own marks its files the same way (:func:`record_files`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from exo_bench.bench.output.provenance import atomic_write, current_run_id, provenance, run_id_of
+
+
+@contextmanager
+def staging_dir(out: Path) -> Iterator[Path]:
+    out.mkdir(parents=True, exist_ok=True)
+    d = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+    try:
+        yield d
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def publish(files: list[Path], out: Path) -> list[Path]:
+    """Move finished files from staging into ``out`` (an atomic rename each)."""
+    done = []
+    for f in files:
+        target = out / f.name
+        os.replace(f, target)
+        done.append(target)
+    return done
+
+
+SUMMARY_HEADER = ("| scene | method | largest error | us/sample | power balance |", "|---|---|---|---|---|")
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def summary_markdown(command: str, manifest: dict | None = None, folder: Path | None = None) -> str:
+    """``summary.md``: every scene's rows (from ``manifest``: this run's and earlier runs' scenes,
+    each with its run), and which run produced each report file."""
+    manifest = manifest if manifest is not None else new_manifest()
+    scenes = {k: dict(v) for k, v in manifest.get("scenes", {}).items()}
+    lines = ["# Summary: every scene, every method", "", provenance(command), "",
+             "Largest error: against the 50-digit reference (Lagrange in mpmath; d'Alembert in mpmath beyond sympy's "
+             "reach; each scene report names it) on a subsample where the scene asks for it "
+             "(`ref50`), otherwise the largest difference relative to the scene's reference method (`vs <method>`). "
+             "Quantities are generalised forces of the paper's absolute coordinates. `run`: the run that produced "
+             "the row (a run of some scenes replaces only their rows).", ""]
+    pending = [(rid, r) for rid, r in manifest.get("runs", {}).items() if r.get("status") in ("publishing", "interrupted")]
+    for rid, r in pending:
+        lines += [f"**Run `{rid}` (`{r.get('command', '?')}`) was interrupted while its files were being published**: "
+                  f"the files marked `{rid}` below are from it, the others from earlier runs.", ""]
+    lines += [SUMMARY_HEADER[0] + " run |", SUMMARY_HEADER[1] + "---|"]
+    for name in sorted(scenes):
+        for row in scenes[name]["rows"]:
+            rid = scenes[name]["run"]
+            lines.append("| " + " | ".join(_cell(c) for c in row) + " | "
+                         + (f"`{rid}`" if rid != "unknown" else "unknown (before run identifiers)") + " |")
+    files = manifest.get("files", {})
+    names = sorted(set(files) | ({f.name for f in Path(folder).iterdir() if _is_report(f)} if folder else set()))
+    names = [n for n in names if n not in (SUMMARY, MANIFEST)]
+    if names:
+        lines += ["", "## Report files", "",
+                  "Which run produced each file of this folder (`runs.json` holds the same, machine-readable).", "",
+                  "| file | run | command |", "|---|---|---|"]
+        runs = manifest.get("runs", {})
+        for n in names:
+            own = run_id_of(Path(folder) / n) if folder and (Path(folder) / n).exists() else None
+            planned = files.get(n, {}).get("run")
+            rid = own or planned
+            if planned and planned != own and runs.get(planned, {}).get("status") in ("publishing", "interrupted"):
+                earlier = f"`{own}`" if own else "an earlier run"
+                shown = (f"`{planned}` if published before the interruption, else {earlier}"
+                         + (" (the file's own mark says which)" if own or n.endswith((".md", ".png")) else ""))
+                rid = planned
+            elif rid is None:
+                shown = "unknown (written before run identifiers)"
+            else:
+                shown = f"`{rid}`"
+            cmd = runs.get(rid, {}).get("command", "") if rid else ""
+            lines.append(f"| {n} | {shown} | {f'`{cmd}`' if cmd else ''} |")
+    return "\n".join(lines) + "\n"
+
+
+SUMMARY, MANIFEST = "summary.md", "runs.json"
+
+
+def _is_report(p: Path) -> bool:
+    return p.is_file() and not p.name.startswith(".")
+
+
+def new_manifest() -> dict:
+    return {"format": 1, "runs": {}, "scenes": {}, "files": {}}
+
+
+def read_manifest(out: Path) -> dict:
+    """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
+    rows of its ``summary.md`` (marked as of an unknown run)."""
+    p = Path(out) / MANIFEST
+    if p.exists():
+        try:
+            data = json.loads(p.read_text())
+            if isinstance(data, dict) and data.get("format") == 1:
+                return data
+        except (OSError, ValueError):
+            pass
+        print(f"exo-bench: warning: {p} is not a manifest this version can read; its runs are listed as unknown",
+              file=sys.stderr)
+    m = new_manifest()
+    old = Path(out) / SUMMARY
+    if old.exists():
+        try:
+            text = old.read_text(errors="replace")
+        except OSError:
+            return m
+        for line in text.splitlines():
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if line.startswith("| ") and len(cells) >= 5 and cells[0] not in ("scene", "") and not cells[0].startswith("-"):
+                m["scenes"].setdefault(cells[0], {"run": "unknown", "rows": []})["rows"].append(cells[:5])
+        if m["scenes"]:
+            m["runs"]["unknown"] = {"command": "a run before run identifiers", "status": "complete"}
+    return m
+
+
+@contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait until the block ends (publishing is a few renames)."""
+    sigs = {signal.SIGINT, signal.SIGTERM}
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    except (AttributeError, ValueError, OSError):
+        old = None
+    try:
+        yield
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def publish_run(staging: Path, out: Path, scene_rows: dict[str, list[list[str]]], command: str,
+                manifest: dict) -> list[Path]:
+    """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
+    ``summary.md``: first both saying the run is being published, then the files (atomic renames),
+    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile."""
+    run_id = current_run_id()
+    files = sorted(f for f in staging.iterdir() if _is_report(f))
+    manifest = json.loads(json.dumps(manifest))
+    for r in manifest.setdefault("runs", {}).values():   # an earlier run killed while publishing
+        if r.get("status") == "publishing":
+            r["status"] = "interrupted"
+    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "publishing",
+                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    for f in files:
+        manifest.setdefault("files", {})[f.name] = {"run": run_id}
+    for name, rows in scene_rows.items():
+        manifest.setdefault("scenes", {})[name] = {"run": run_id, "rows": rows}
+    _prune(manifest, out)
+    done = []
+    with _signals_held():
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+        atomic_write(out / SUMMARY, summary_markdown(command, manifest, out))
+        done = publish(files, out)
+        manifest["runs"][run_id]["status"] = "complete"
+        atomic_write(out / SUMMARY, summary_markdown(command, manifest, out))
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+    return done + [out / SUMMARY, out / MANIFEST]
+
+
+def _prune(manifest: dict, out: Path) -> None:
+    """Forget files that are no longer in the folder (and are not being published) and runs that
+    no scene row and no file refers to any more."""
+    files = manifest.get("files", {})
+    for name in [n for n, f in files.items() if not (Path(out) / n).exists()
+                 and manifest.get("runs", {}).get(f.get("run"), {}).get("status") != "publishing"]:
+        del files[name]
+    used = {v.get("run") for v in manifest.get("scenes", {}).values()} | {f.get("run") for f in files.values()}
+    runs = manifest.get("runs", {})
+    for rid in [r for r, v in runs.items() if r not in used and v.get("status") != "publishing"]:
+        del runs[rid]
+
+
+def record_files(out: Path, before: dict[str, int], command: str) -> None:
+    """After a standalone report command (``exo-bench errata``/``bench``/``stability``) wrote into
+    ``out``: mark the files it changed (``before``: name -> mtime from :func:`snapshot`) with this
+    process's run in ``runs.json`` and rewrite ``summary.md``, keeping every scene's rows."""
+    out = Path(out)
+    if not out.is_dir():
+        return
+    now = snapshot(out)
+    changed = [n for n, t in now.items() if before.get(n) != t and n not in (SUMMARY, MANIFEST)]
+    if not changed:
+        return
+    manifest = read_manifest(out)
+    run_id = current_run_id()
+    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "complete",
+                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    for n in changed:
+        manifest.setdefault("files", {})[n] = {"run": run_id}
+    _prune(manifest, out)
+    with _signals_held():
+        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+        atomic_write(out / SUMMARY, summary_markdown(command, manifest, out))
+
+
+def snapshot(out: Path) -> dict[str, int]:
+    """``name -> mtime_ns`` of the report files in ``out`` (empty when it does not exist)."""
+    out = Path(out)
+    if not out.is_dir():
+        return {}
+    return {f.name: f.stat().st_mtime_ns for f in out.iterdir() if _is_report(f)}

@@ -1,0 +1,213 @@
+"""One scene of the main job: its study (every method along the motion), its report, figures,
+equations pages and recording, written into the run's staging folder; and its rows of the summary.
+
+The main job that runs the scenes and publishes their files is :mod:`exo_bench.bench.cli.run`;
+publishing is :mod:`exo_bench.bench.output.publish`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from exo_bench.bench.output.provenance import atomic_write, provenance
+from exo_bench.bench.studies.scenes import Scene
+from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
+
+
+@dataclass
+class SceneOutcome:
+    scene: Scene
+    study: Study | None = None
+    files: list[Path] = field(default_factory=list)
+    power_balance: dict[str, float] = field(default_factory=dict)
+    reference_error: dict[str, tuple[float, float]] = field(default_factory=dict)  # method -> (abs, rel)
+    notes: list[str] = field(default_factory=list)
+    error: str | None = None
+    seconds: float = 0.0
+
+
+def power_balance(scene: Scene, study: Study) -> dict[str, float]:
+    """max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt| per method, along an analytic motion."""
+    from exo_bench.models.kinematics import energy_rate
+
+    f = scene.motion_function()
+    if f is None:
+        return {}
+    mo = study.motion
+    rate = energy_rate(scene.mechanism, f, mo.t)
+    scale = max(float(np.abs(rate).max()), 1e-300)
+    return {m: finite_max(np.abs((study.results[m].tau * mo.qd).sum(1) - rate)) / scale
+            for m in study.ok_methods()}
+
+
+REFERENCE_SUBSAMPLE = 16
+
+
+def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict[str, tuple[float, float]]:
+    """Largest absolute and relative error of each method against the 50-digit reference
+    (``bench.reference``: Lagrange in mpmath, or d'Alembert in mpmath beyond sympy's reach) on an
+    evenly spaced subsample."""
+    from exo_bench.bench.studies.reference_forces import reference
+
+    mo = study.motion
+    idx = np.unique(np.linspace(0, mo.q.shape[0] - 1, subsample).round().astype(int))
+    ref, label = reference(study.mechanism, mo.q[idx], mo.qd[idx], mo.qdd[idx])
+    study.reference_label = label
+    scale = max(float(np.abs(ref).max()), 1e-300)
+    out = {}
+    for m in study.ok_methods():
+        err = finite_max(np.abs(study.results[m].tau[idx] - ref))
+        out[m] = (err, err / scale)
+    return out
+
+
+AGREEMENT = 1e-9  # methods are expected to agree to this, relative to the largest |tau|
+
+
+def _why_it_disagrees(method: str) -> str | None:
+    from exo_bench.api import METHODS
+
+    return METHODS[method].why_it_disagrees if method in METHODS else None
+
+
+def disagreement_notes(study: Study) -> list[str]:
+    """Where a method departs from the reference by more than AGREEMENT: by how much, where, and why."""
+    notes = []
+    for m, rel in study.agreement().items():
+        if not rel > AGREEMENT:
+            continue
+        d = np.abs(study.difference(m))
+        d[~np.isfinite(d)] = -1.0
+        s_, c = np.unravel_index(int(np.argmax(d)), d.shape)
+        notes.append(f"**{m} disagrees with {study.reference}** by {rel:.1e} of the largest |tau| (largest at "
+                     f"t = {study.motion.t[s_]:.4g} s, {study.force_names[c]})"
+                     + (f": {why}." if (why := _why_it_disagrees(m)) else "."))
+    return notes
+
+
+def _scene_table(o: SceneOutcome) -> str:
+    sc, st = o.scene, o.study
+    mech = sc.mechanism
+    lines = [f"# Scene `{sc.name}`", "", provenance(f"exo-bench run {sc.name}"), "",
+             sc.description, "",
+             f"- **mechanism**: `{mech.name}`, {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)}, "
+             f"signs {list(mech.sign)}, total mass {mech.total_mass:.4g} kg",
+             f"- **motion**: {sc.motion_label()}",
+             f"- **methods**: {', '.join(sc.methods)}; agreement is measured against `{sc.reference}`",
+             "- **quantities**: generalised forces of the paper's absolute coordinates "
+             "(`M_phi`, `M_psi` in N·m, `F` in N), not joint moments", ""]
+    lines += ["| method | status | setup s | us/sample | max rel. diff vs " + sc.reference +
+              " | power balance | abs. error vs 50-digit | rel. error vs 50-digit |", "|---|---|---|---|---|---|---|---|"]
+    agree = st.agreement()
+    for m in sc.methods:
+        r = st.results[m]
+        if not r.ok:
+            status = f"skipped: {r.skipped}" if r.skipped else f"failed: {r.error}"
+            lines.append(f"| {m} | {status} | | | | | | |")
+            continue
+        nan = st.nonfinite(m)
+        status = "ok" if nan == 0 else f"**{nan} NaN/Inf values** (errors over the finite entries)"
+        pb = o.power_balance.get(m)
+        ae, re_ = o.reference_error.get(m, (None, None))
+        fmt = lambda x: "" if x is None else f"{x:.2e}"
+        lines.append(f"| {m} | {status} | {r.setup_seconds:.3g} | {r.seconds_per_sample * 1e6:.2f} | {fmt(agree.get(m))} | {fmt(pb)} | "
+                     f"{fmt(ae)} | {fmt(re_)} |")
+    lines += ["", "`setup s`: the first call (building the model, deriving, compiling), timed apart from the batch. "
+              "`power balance`: max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|, with T and Pi summed over the "
+              "point masses (models/kinematics.py) and differentiated by a sixth-order central difference.", ""]
+    ref = st.results.get(sc.reference)
+    if ref is not None and ref.ok:
+        lines += [f"Peak values along the motion ({sc.reference}):", "",
+                  "| quantity | min | max | max abs |", "|---|---|---|---|"]
+        for k, name in enumerate(st.force_names):
+            col = ref.tau[:, k]
+            lines.append(f"| {name} | {col.min():.4g} | {col.max():.4g} | {np.abs(col).max():.4g} |")
+    if o.notes:
+        lines += ["", "Notes:", ""] + [f"- {n}" for n in o.notes]
+    if sc.motion["kind"] in ("gait", "planar-gait") and st.ok_methods():
+        from exo_bench.bench.studies.plausibility import markdown, plausibility
+
+        lines += ["", markdown(plausibility(st)).rstrip("\n")]
+    return "\n".join(lines) + "\n"
+
+
+def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
+    """Run one scene, writing its outputs into ``staging``; never raises for a method's failure.
+    ``limits`` (:class:`bench.resources.Limits`): a method estimated beyond them is skipped."""
+    from exo_bench.api.cost_model import check_samples
+
+    o = SceneOutcome(scene)
+    t0 = time.perf_counter()
+    check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
+    motion = scene.build_motion()
+    o.study = run_methods(scene.name, scene.mechanism, motion, scene.motion_label(), list(scene.methods),
+                          reference=scene.reference, limits=limits)
+    for m, r in o.study.results.items():
+        if r.ok and not np.isfinite(r.tau).all():
+            o.notes.append(f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
+                           "(see the stability report for where this method is unusable)")
+    o.notes += disagreement_notes(o.study)
+    o.power_balance = power_balance(scene, o.study)
+    if scene.wants("reference-error"):
+        try:
+            o.reference_error = reference_errors(o.study)
+            o.notes.append(f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples")
+        except Exception as e:  # noqa: BLE001
+            reason = getattr(e, "skip_reason", None) or one_line(e)
+            o.notes.append(f"50-digit reference skipped: {reason}")
+    if scene.wants("table"):
+        p = staging / f"{scene.name}.md"
+        atomic_write(p, _scene_table(o))
+        o.files.append(p)
+    figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
+    if figures and o.study.ok_methods():
+        from exo_bench.bench.output.figures import scene_figures as plots  # matplotlib only for scenes that ask for figures
+        for kind in figures:
+            fig = plots.scene_figure(o.study, kind)
+            if fig is None:  # differences need two methods that ran
+                o.notes.append(f"no {kind} figure: fewer than two methods ran")
+                continue
+            o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
+    if scene.wants("equations"):
+        from exo_bench.bench.output.equation_pages import scene_pages  # only for scenes that ask for it
+        o.files += scene_pages(scene, staging)
+    if scene.wants("recording"):
+        from exo_bench.bench.output import recording  # rerun only for scenes that ask for a recording
+        from exo_bench.bench.studies.plausibility import plausibility, text
+
+        loads = plausibility(o.study)
+        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd",
+                                      loads=None if loads is None else text(loads))
+        if recording.rerun_executable() is not None:
+            recording.verify_recording(p)
+        o.files.append(p)
+    o.seconds = time.perf_counter() - t0
+    return o
+
+
+def scene_rows(o: SceneOutcome) -> list[list[str]]:
+    """The summary rows of one scene's outcome: ``[scene, method, largest error, us/sample, power balance]``."""
+    if o.error:
+        return [[o.scene.name, "(scene failed)", o.error, "", ""]]
+    rows = []
+    agree = o.study.agreement()
+    for m in o.scene.methods:
+        r = o.study.results[m]
+        if not r.ok:
+            rows.append([o.scene.name, m, "skipped: " + r.skipped if r.skipped else "failed: " + r.error, "", ""])
+            continue
+        if m in o.reference_error:
+            err = f"{o.reference_error[m][1]:.1e} (ref50)"
+        else:
+            err = f"{agree.get(m, float('nan')):.1e} (vs {o.scene.reference})"
+        if o.study.nonfinite(m):
+            err += f"; **{o.study.nonfinite(m)} NaN/Inf**"
+        pb = o.power_balance.get(m)
+        rows.append([o.scene.name, m, err, f"{r.seconds_per_sample * 1e6:.2f}", "" if pb is None else f"{pb:.1e}"])
+    return rows
+
+
