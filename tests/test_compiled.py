@@ -23,6 +23,8 @@ import os
 import subprocess
 import sys
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -107,6 +109,8 @@ def test_bad_kernel_option_is_named():
 
 _PROBE = """
 import json, sys, time
+from pathlib import Path
+
 import numpy as np
 from exo_bench import prepare, presets
 m = prepare(presets.exo5(dim=3), "matrix-factored")
@@ -160,3 +164,60 @@ def test_out_receives_the_forces(method):
             assert got is out and np.array_equal(out, want)
     with pytest.raises(ValueError, match=r"field 'out': expected a writable C-ordered float64 array of shape \(15,\), got float32"):
         model.inverse_dynamics(q[0], qd[0], qdd[0], out=np.empty(15, np.float32))
+
+
+_EDIT_PROBE = """
+import json
+from pathlib import Path
+
+import numpy as np
+from exo_bench import prepare, presets
+from exo_bench.matrix_method.closed_forms import planar
+m = prepare(presets.exo5(dim=3), "matrix")
+q = np.linspace(0.1, 0.9, m.dof)
+tau = m.inverse_dynamics(q, q, q, check=False)
+ref = prepare(presets.exo5(dim=3), "matrix", kernel="numpy").inverse_dynamics(q, q, q)
+k = m.serial_kernel
+print(json.dumps({"file": planar.__file__, "tau": tau.tolist(), "numpy": ref.tolist(),
+                  "hits": int(sum(k.stats.cache_hits.values())), "misses": int(sum(k.stats.cache_misses.values()))}))
+"""
+
+
+def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path):
+    """numba keys its cache on the kernel's own file; ours also on every function a kernel inlines
+    (numba_kernels/cache.py). In a copy of the package: run the compiled ``matrix`` kernel (cached),
+    edit the element function p_l of eq. (5) (closed_forms/planar.py, not a kernel file), run it
+    again: the kernel recompiles (a cache miss) and gives the edited forces, those of the numpy
+    kernel of the edited copy, not the stale machine code's. (With numba's own locator alone,
+    NUMBA_CACHE_LOCATOR_CLASSES=InTreeCacheLocator in the probes' environment, the second run loads
+    the stale kernel: a hit, no miss, and this test fails.)"""
+    import shutil
+
+    root = Path(__file__).resolve().parent.parent
+    pkg = tmp_path / "exo_bench"
+    shutil.copytree(root / "exo_bench", pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    for sub in ("models", "matrix_method", "lagrange"):
+        shutil.copytree(root / sub, pkg / sub, ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
+
+    def probe():
+        r = subprocess.run([sys.executable, "-c", _EDIT_PROBE], env=env, cwd=tmp_path, capture_output=True, text=True,
+                           timeout=600)
+        assert r.returncode == 0, r.stderr[-3000:]
+        out = json.loads(r.stdout.strip().splitlines()[-1])
+        assert out["file"].startswith(str(tmp_path)), out["file"]     # the copy, not the installed package
+        return out
+
+    probe()                                       # compiles (or loads) into the copy's cache
+    before = probe()
+    assert before["hits"] >= 1 and before["misses"] == 0, before
+    planar_py = pkg / "matrix_method" / "closed_forms" / "planar.py"
+    text = planar_py.read_text()
+    assert text.count("    return nu_s * sin_i\n") == 1
+    planar_py.write_text(text.replace("    return nu_s * sin_i\n", "    return 2.0 * nu_s * sin_i\n"))
+    after = probe()
+    assert after["misses"] >= 1, after            # recompiled, not served from the stale cache
+    tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
+    assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
+    # the compiled kernel agrees with the edited numpy kernel as it does with the unedited one
+    assert np.abs(tau_after - edited).max() <= 1e-12 * np.abs(edited).max()

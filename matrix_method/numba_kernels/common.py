@@ -33,10 +33,9 @@ sympy); the transitions take their namespace ``t`` as a namedtuple (:data:`Trans
 (``__pycache__``, or numba's user-wide cache folder where that is not writable), so a second
 process loads it instead of compiling. The first call of each kernel in a fresh cache compiles it
 (1 to 10 s each on the 2-core machine, the ``compile`` table of reports/scaling.md, measured by
-:func:`compile_times`). numba's cache is invalidated when the
-kernel's own file changes, not when a closed form in ``planar.py``/``spatial.py`` does: after
-editing those, delete ``matrix_method/__pycache__/*.nbi``/``*.nbc`` (the tests would catch the
-stale kernel: they hold it to the numpy reference).
+:func:`compile_times`). The cache is keyed on the source of every function a kernel inlines, not
+only on the kernel's own file (:mod:`exo_bench.matrix_method.numba_kernels.cache`): an edit to a
+closed form recompiles the kernels that use it.
 
 **Threads.** The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
 the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
@@ -58,9 +57,9 @@ from collections import namedtuple
 import numba
 import numpy as np
 from numba import njit  # noqa: F401 - re-exported for the kernel modules
-from numba.extending import register_jitable
 
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
+from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
 
 def _threading_layer() -> str:
@@ -90,11 +89,8 @@ BLOCK = 64
 #: 8192, 0.07 at 10,000-20,000.
 PARALLEL_MIN_SAMPLES = 4096
 
-for _fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()):
-    for _f in _fns.values():
-        register_jitable(_f)
-for _f in (*planar.GRAVITY.values(), *spatial.GRAVITY.values()):
-    register_jitable(_f)
+inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
+inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
 
 #: The namespace ``t`` of :mod:`matrix_method.spatial` for one pair (i, j), as a namedtuple so
 #: that the compiled kernels can pass it to the same transition functions: the planar elements
