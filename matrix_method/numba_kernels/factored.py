@@ -1,8 +1,8 @@
 """Method ``matrix-factored``, compiled: eq. (5)/(17) in factored form, no matrix formed.
 
-The same arithmetic as the numpy reference :func:`matrix_method.numeric._factored_2d` /
-``_factored_3d`` (the derivation is in :func:`matrix_method.numeric.inverse_dynamics`), written as
-loops over the links of one sample:
+The element functions of :mod:`exo_bench.matrix_method.closed_forms.factored` (which the numpy
+kernel :func:`exo_bench.matrix_method.numpy_kernels.matrix._factored_2d` / ``_factored_3d`` calls on
+arrays), called in loops over the links of one sample:
 
     kappa_j = (what link j's rates do to d2/dt2(l_j u_j)),  f_i = sum_j c_ij kappa_j,
     tau_a,i = r_a,i . f_i + g P_a,i,
@@ -19,7 +19,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from exo_bench.matrix_method.closed_forms.factored import planar_forces, planar_kappa, spatial_forces, spatial_kappa
+from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT
+
+inline((planar_kappa, planar_forces, spatial_kappa, spatial_forces))   # one copy of the physics: closed_forms/factored.py
 
 
 @njit(**JIT)
@@ -27,14 +31,9 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
     """One planar sample at offset ``s0`` of the flat arrays; ``k`` ``(4, n)`` scratch."""
     n = p.shape[0]
     for j in range(n):
-        phi, l = x[s0 + j], x[s0 + n + j]
-        w, ld = xd[s0 + j], xd[s0 + n + j]
-        wdd, ldd = xdd[s0 + j], xdd[s0 + n + j]
-        cf, sf = math.cos(phi), math.sin(phi)
-        radial = ldd - l * w * w                  # along u: l'' and the centripetal l u_phiphi phi'^2
-        tangent = 2.0 * ld * w + l * wdd          # along u_phi: l phi'' and 2 phi' l'
-        k[0, j] = radial * cf - tangent * sf
-        k[1, j] = radial * sf + tangent * cf
+        cf, sf = math.cos(x[s0 + j]), math.sin(x[s0 + j])
+        k[0, j], k[1, j] = planar_kappa(x[s0 + n + j], xd[s0 + j], xd[s0 + n + j], xdd[s0 + j], xdd[s0 + n + j],
+                                        cf, sf)
         k[2, j] = cf
         k[3, j] = sf
     for i in range(n):
@@ -44,9 +43,7 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
             cij = p[i, j]
             f0 += cij * k[0, j]
             f1 += cij * k[1, j]
-        cf, sf, l, gnu = k[2, i], k[3, i], x[s0 + n + i], p[i, n + 1] * p[i, n]
-        o[s0 + i] = l * (cf * f1 - sf * f0 + gnu * cf)         # r_phi . f + g P_phi
-        o[s0 + n + i] = cf * f0 + sf * f1 + gnu * sf           # r_l . f + g P_l
+        o[s0 + i], o[s0 + n + i] = planar_forces(x[s0 + n + i], k[2, i], k[3, i], f0, f1, p[i, n + 1] * p[i, n])
 
 
 @njit(**JIT)
@@ -54,18 +51,10 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
     """One spatial sample at offset ``s0`` of the flat arrays; ``k`` ``(7, n)`` scratch."""
     n = p.shape[0]
     for j in range(n):
-        phi, psi, l = x[s0 + j], x[s0 + n + j], x[s0 + 2 * n + j]
-        w, v, ld = xd[s0 + j], xd[s0 + n + j], xd[s0 + 2 * n + j]
-        wdd, vdd, ldd = xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j]
-        cf, sf = math.cos(phi), math.sin(phi)
-        cp, sp = math.cos(psi), math.sin(psi)
-        along_u = ldd - l * v * v                  # u l'' and l u_psipsi psi'^2 = -l u psi'^2
-        along_psi = 2.0 * ld * v + l * vdd         # u_psi: l psi'' and 2 psi' l'
-        horizontal = (along_u - l * w * w) * cp - along_psi * sp           # along (cos phi, sin phi, 0)
-        azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp   # along (-sin phi, cos phi, 0)
-        k[0, j] = horizontal * cf - azimuthal * sf
-        k[1, j] = horizontal * sf + azimuthal * cf
-        k[2, j] = along_u * sp + along_psi * cp
+        cf, sf = math.cos(x[s0 + j]), math.sin(x[s0 + j])
+        cp, sp = math.cos(x[s0 + n + j]), math.sin(x[s0 + n + j])
+        k[0, j], k[1, j], k[2, j] = spatial_kappa(x[s0 + 2 * n + j], xd[s0 + j], xd[s0 + n + j], xd[s0 + 2 * n + j],
+                                                  xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j], cf, sf, cp, sp)
         k[3, j] = cf
         k[4, j] = sf
         k[5, j] = cp
@@ -79,12 +68,8 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
             f0 += cij * k[0, j]
             f1 += cij * k[1, j]
             f2 += cij * k[2, j]
-        cf, sf, cp, sp, l = k[3, i], k[4, i], k[5, i], k[6, i], x[s0 + 2 * n + i]
-        radial = cf * f0 + sf * f1
-        vertical = f2 + p[i, n + 1] * p[i, n]
-        o[s0 + i] = l * cp * (cf * f1 - sf * f0)                 # r_phi . f (P_phi = 0)
-        o[s0 + n + i] = l * (cp * vertical - sp * radial)        # r_psi . f + g P_psi
-        o[s0 + 2 * n + i] = cp * radial + sp * vertical          # r_l . f + g P_l
+        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = spatial_forces(
+            x[s0 + 2 * n + i], k[3, i], k[4, i], k[5, i], k[6, i], f0, f1, f2, p[i, n + 1] * p[i, n])
 
 
 @njit(**JIT)

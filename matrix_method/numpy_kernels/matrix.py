@@ -22,6 +22,7 @@ import warnings
 
 import numpy as np
 
+from exo_bench.matrix_method.closed_forms import factored
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.models import equation_form
@@ -187,40 +188,29 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
 
 
 def _factored_2d(n, g, c, nu_s, x, xd, xdd):
-    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks."""
+    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (the element functions
+    of :mod:`exo_bench.matrix_method.closed_forms.factored` on ``(n, B)`` rows)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
     cf, sf = _cos_sin(phi)
-    radial = ldd - l * w * w                       # along u: l'' and the centripetal l u_phiphi phi'^2
-    tangent = 2.0 * ld * w + l * wdd               # along u_phi: l phi'' and 2 phi' l'
-    kappa = np.stack([radial * cf - tangent * sf, radial * sf + tangent * cf])   # (2, n, B)
+    kappa = np.stack(factored.planar_kappa(l, w, ld, wdd, ldd, cf, sf))    # (2, n, B)
     f = c @ kappa                                  # sum_j c_ij kappa_j
     out = np.empty((2 * n, x.shape[1]))
-    out[:n] = l * (cf * f[1] - sf * f[0] + g * nu_s * cf)     # r_phi . f + g P_phi
-    out[n:] = cf * f[0] + sf * f[1] + g * nu_s * sf           # r_l . f + g P_l
+    out[:n], out[n:] = factored.planar_forces(l, cf, sf, f[0], f[1], g * nu_s)
     return out
 
 
 def _factored_3d(n, g, c, nu_s, x, xd, xdd):
-    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks."""
+    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (the element functions
+    of :mod:`exo_bench.matrix_method.closed_forms.factored` on ``(n, B)`` rows)."""
     phi, psi, l = x[:n], x[n:2 * n], x[2 * n:]
     w, v, ld = xd[:n], xd[n:2 * n], xd[2 * n:]
     wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
     cf, sf = _cos_sin(phi)
     cp, sp = _cos_sin(psi)
-    along_u = ldd - l * v * v                      # u l'' and l u_psipsi psi'^2 = -l u psi'^2
-    along_psi = 2.0 * ld * v + l * vdd             # u_psi: l psi'' and 2 psi' l'
-    # u_phiphi = -cos psi (cos phi, sin phi, 0), u_phipsi = -sin psi (-sin phi, cos phi, 0)
-    horizontal = (along_u - l * w * w) * cp - along_psi * sp                # along (cos phi, sin phi, 0)
-    azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp        # along (-sin phi, cos phi, 0)
-    kappa = np.stack([horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf,
-                      along_u * sp + along_psi * cp])                        # (3, n, B)
+    kappa = np.stack(factored.spatial_kappa(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp))   # (3, n, B)
     f = c @ kappa
-    radial = cf * f[0] + sf * f[1]
-    vertical = f[2] + g * nu_s
     out = np.empty((3 * n, x.shape[1]))
-    out[:n] = l * cp * (cf * f[1] - sf * f[0])                              # r_phi . f (P_phi = 0)
-    out[n:2 * n] = l * (cp * vertical - sp * radial)                        # r_psi . f + g P_psi
-    out[2 * n:] = cp * radial + sp * vertical                               # r_l . f + g P_l
+    out[:n], out[n:2 * n], out[2 * n:] = factored.spatial_forces(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)
     return out
 
 
