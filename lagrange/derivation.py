@@ -60,7 +60,7 @@ class Derivation:
     symbolic_parameters: bool
     engine: str
     seconds: dict[str, float] = field(default_factory=dict)
-    ring_form: "RingForm | None" = field(default=None, repr=False)   # internal: the ring elements
+    ring_form: RingForm | None = field(default=None, repr=False)   # internal: the ring elements
     values: dict = field(default_factory=dict, repr=False)   # the substituted parameter values ({} if symbolic)
 
     @property

@@ -68,7 +68,7 @@ class TrigRing:
                 continue
             e = list(monom)
             factor = R.one
-            for k, (s, c) in enumerate(self.trig_index):
+            for k, (_s, c) in enumerate(self.trig_index):
                 if e[c] >= 2:
                     half = e[c] // 2
                     e[c] -= 2 * half

@@ -21,7 +21,7 @@ The planar recurrence runs twice, at the configuration and for the straightened 
 
 from __future__ import annotations
 
-from typing import Iterator
+from collections.abc import Iterator
 
 import numpy as np
 import sympy as sp

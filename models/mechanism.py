@@ -171,7 +171,7 @@ class Mechanism:
         return json.dumps(self.to_dict(), indent=indent)
 
     @classmethod
-    def from_dict(cls, data: Any, source: str = "mechanism") -> "Mechanism":
+    def from_dict(cls, data: Any, source: str = "mechanism") -> Mechanism:
         """Build from the JSON format, validating every field with a message that
         names the link, the field, and the expected and actual values."""
         if not isinstance(data, dict):
@@ -225,14 +225,14 @@ class Mechanism:
             raise ValueError(f"{source}:" + str(e)[len(name) + 1:]) from None
 
     @classmethod
-    def from_json(cls, text: str, source: str = "mechanism") -> "Mechanism":
+    def from_json(cls, text: str, source: str = "mechanism") -> Mechanism:
         try:
             data = json.loads(text)
         except json.JSONDecodeError as e:
             raise ValueError(f"{source}: invalid JSON: {e}") from None
         return cls.from_dict(data, source)
 
-    def replace(self, **changes: Any) -> "Mechanism":
+    def replace(self, **changes: Any) -> Mechanism:
         d = {f: getattr(self, f) for f in ("dim", "g", "parent", "sign", "masses", "n", "names", "name")}
         d.update(changes)
         return Mechanism(**d)
@@ -247,7 +247,7 @@ _NEGATIVE_G = ("expected g >= 0: g is the magnitude of gravity, which acts along
 MAX_FORCE_SCALE = 1e300
 
 
-def force_scale_log10(mech: "Mechanism", length: float = 1.0, rate: float = 1.0, acceleration: float = 1.0) -> float:
+def force_scale_log10(mech: Mechanism, length: float = 1.0, rate: float = 1.0, acceleration: float = 1.0) -> float:
     """``log10`` of a bound on the generalised forces of ``mech`` at rod lengths up to ``length``,
     rates up to ``rate`` and accelerations up to ``acceleration``:
     ``total mass * n^2 * (1 + length)^2 * (1 + acceleration + rate^2 + g)``.

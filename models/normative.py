@@ -189,7 +189,7 @@ def winter_appendix(path: str | Path) -> WinterStride:
     a3 = _by_frame(sheet("A3"), {"t": 3, "leg": 14, "thigh": 24})
     a5 = _by_frame(sheet("A5"), {"ankle_m": 9, "knee_m": 16, "hip_m": 24, "ankle_x": 6, "ankle_y": 7,
                                  "knee_x": 13, "knee_y": 14, "hip_x": 21, "hip_y": 22})
-    hc, to, hc2 = HEEL_CONTACT, TOE_OFF, NEXT_HEEL_CONTACT
+    hc, hc2 = HEEL_CONTACT, NEXT_HEEL_CONTACT
     stride = a3[hc2]["t"] - a3[hc]["t"]
     speed = (a2[hc2]["rib_x"] - a2[hc]["rib_x"]) / (a2[hc2]["t"] - a2[hc]["t"])
     phases = {k: range(a, b + 1) for k, (a, b) in PHASES.items()}

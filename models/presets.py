@@ -16,7 +16,7 @@ like the stance leg's), and 5 the trunk up from the hip.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

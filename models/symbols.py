@@ -8,7 +8,7 @@ Coordinates, rates and accelerations are plain symbols (not functions of time):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -53,7 +53,7 @@ class Symbols:
         return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def symbols_for(nlinks: int, dim: int) -> Symbols:
     """The shared symbols of an ``nlinks``-link model in ``dim`` dimensions (real-valued)."""
     k = range(1, nlinks + 1)

@@ -11,7 +11,6 @@ suite (``-p exo_bench.bench.conftest``) gives them ``--sweep``, ``--row``, ``--r
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys

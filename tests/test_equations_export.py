@@ -208,7 +208,7 @@ _TOKENS = [(r"C^{\psi}_{", r"\gamma_{"), (r"S^{\psi}_{", r"\sigma_{"), (r"\ddot{
            (r"\ddot{l}_{", r"\rho_{"), (r"\dot{l}_{", r"\nu_{")]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def parse(text: str):
     """sympy's LaTeX parser (ANTLR; about 0.1 s a call, so each element is parsed once)."""
     from sympy.parsing.latex import parse_latex
@@ -342,7 +342,6 @@ def test_pages_compile_with_a_tex_engine_where_installed(tmp_path):
 
 # ------------------------------------------------------------------------------ scenes and the size study
 def test_only_scenes_that_declare_equations_get_the_pages(tmp_path):
-    import argparse
 
     import exo_bench.bench.cli.run as runner
     from exo_bench.bench.studies.options import RunOptions
@@ -369,7 +368,6 @@ def test_the_shipped_paper_scenes_declare_equations():
 
 
 def test_size_report_is_generated_with_provenance(tmp_path, monkeypatch):
-    import argparse
 
     from exo_bench.bench.studies import equations_size as es
     from exo_bench.bench.studies.options import ReportOptions

@@ -22,13 +22,13 @@ from exo_bench.bench.output.figures import scene_figures as plots
 from exo_bench.bench.studies import scene_run as runner
 from exo_bench.api import METHODS
 from exo_bench.bench.output.figures.scene_figures import FIGURES, TEXT_PT
-
-METHOD_COLORS = {name: spec.colour for name, spec in METHODS.items()}
 from exo_bench.bench.output.provenance import PNG_DPI
 from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
 from exo_bench.bench.studies.study import run_methods
 from exo_bench.models.motion import smooth_random_motion
 from exo_bench.models.presets import chain
+
+METHOD_COLORS = {name: spec.colour for name, spec in METHODS.items()}
 
 REPORTS = Path(__file__).resolve().parents[1] / "reports"
 #: Every method, as in the shipped scenes: the notes are as long as theirs (matrix-paper's NaN at

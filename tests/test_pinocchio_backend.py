@@ -3,7 +3,7 @@ eq. (4), the kinetic energy of the point masses, and power balance on random tre
 
 import numpy as np
 import pytest
-from conftest import EPS, K, POWER_BALANCE_TOL, assert_close, assert_forces_agree, mass_matrix_scale, power_balance_residual
+from conftest import K, POWER_BALANCE_TOL, assert_close, assert_forces_agree, mass_matrix_scale, power_balance_residual
 
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.kinematics import kinetic_energy, point_mass_positions

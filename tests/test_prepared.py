@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import assert_close, assert_forces_agree, assert_mass_matrices_agree, mass_matrix_scale, term_scale
+from conftest import assert_close, assert_forces_agree, mass_matrix_scale, term_scale
 
 from exo_bench import load_mechanism, method_names, prepare, presets
 from exo_bench.models.motion import random_states

@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from conftest import (EPS, K, assert_close, assert_forces_agree, mass_coupling_oracle, mass_matrix_scale,
                       term_scale)
 from hypothesis import HealthCheck, event, example, given, settings

@@ -4,7 +4,6 @@ Issue 16: ``exo-bench run fig2a-2d`` overwrote summary.md with that scene alone 
 6), and an interrupted run left old and new reports side by side with nothing saying which is which.
 """
 
-import argparse
 import json
 import re
 import shutil

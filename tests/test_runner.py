@@ -1,7 +1,5 @@
 """The main job: user scenes run, reports appear whole or not at all, failures stay local."""
 
-import argparse
-import json
 import re
 import subprocess
 import sys

@@ -8,7 +8,7 @@ from conftest import EPS, assert_forces_agree
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models import virtual_work as vw
 from exo_bench.models.kinematics import energy_rate
-from exo_bench.models.motion import random_states, smooth_random_motion
+from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, random_tree
 
 

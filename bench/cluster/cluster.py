@@ -454,7 +454,7 @@ def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: st
     """The merged JSON and skips of a sweep into a staging folder, then every benchmark report from
     them (:func:`bench_reports.write_reports`), published into ``out`` together."""
     from exo_bench.bench.perf.reports import benchmark_reports as br
-    from exo_bench.bench.studies.main_job import staging_dir
+    from exo_bench.bench.output.publish import staging_dir
 
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
@@ -481,7 +481,7 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
     merged["sweep"] = {"profile": sweep, "code": code, "rendered_at": code_key(repo), "resumed": len(rows)}
     command = (f"exo-bench bench {'--full' if sweep == 'full' else ''}".strip()
                + f" (rows measured at {code}, reports rendered again at {code_key(repo)})")
-    from exo_bench.bench.studies.main_job import record_files, snapshot
+    from exo_bench.bench.output.publish import record_files, snapshot
 
     before = snapshot(out)
     written = _write_reports(merged, skips, out, sweep, command, update_readme)

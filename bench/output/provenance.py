@@ -96,7 +96,7 @@ def new_run_id() -> str:
     """A fresh identifier: the UTC time and 4 random hex digits (``20260101T120000Z-3fa2``)."""
     import secrets
 
-    return _dt.datetime.now(_dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ") + "-" + secrets.token_hex(2)
+    return _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ") + "-" + secrets.token_hex(2)
 
 
 def set_run_id(run_id: str) -> str:
@@ -171,7 +171,7 @@ def _cpu_model() -> str:
 
 def machine_info() -> dict[str, str]:
     return {
-        "date (UTC)": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S"),
+        "date (UTC)": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S"),
         "host": platform.node(),
         "cpu": f"{_cpu_model()}, {os.cpu_count()} logical cores",
         "os": platform.platform(),

@@ -16,7 +16,7 @@ import importlib.util
 import shutil
 import time
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

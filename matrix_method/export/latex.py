@@ -313,7 +313,7 @@ def legend(mech: Mechanism, symbolic_parameters: bool) -> list[str]:
     n = mech.nlinks
     defs = aggregate_definitions(mech)
     lines = []
-    for i, (z, e, t) in enumerate(zip(*aggregate_symbols(n))):
+    for _i, (z, e, t) in enumerate(zip(*aggregate_symbols(n))):
         vals = []
         for sym in (z, e, t):
             value = defs[sym].xreplace(symbols_for(n, mech.dim).parameter_values(mech))

@@ -26,12 +26,12 @@ from pathlib import Path
 from typing import Any
 
 from numba.core import caching
+from numba.extending import register_jitable
 
 _CacheLocator = caching._CacheLocator
 #: numba's cache implementation, whose ``_locator_classes`` lists the locators tried in order
 #: (``CacheImpl`` in numba 0.68; ``_CacheImpl`` before).
 _CacheImpl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
-from numba.extending import register_jitable
 
 #: Where the kernels live: a kernel defined in a file of this folder uses :class:`KernelSourceLocator`.
 KERNELS_DIR = Path(__file__).resolve().parent

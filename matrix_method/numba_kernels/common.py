@@ -52,6 +52,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from typing import Any
 from collections import namedtuple
 
 import numba
@@ -79,7 +80,7 @@ THREADING_LAYER = _threading_layer()
 
 #: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
 #: fastmath: the kernels are held to the numpy reference at 1e-14).
-JIT = dict(cache=True, nogil=True)
+JIT: dict[str, Any] = dict(cache=True, nogil=True)
 #: Samples per block of the parallel driver (each block allocates its scratch once).
 BLOCK = 64
 #: Batches of at least this many samples run the parallel driver (below it, launching numba's

@@ -21,7 +21,7 @@ several terms stays one factor, ``rational * (m... + ...)``. ``Add(*e.args) == e
 from __future__ import annotations
 
 from fractions import Fraction
-from functools import lru_cache
+from functools import lru_cache, cache
 from math import gcd
 
 import sympy as sp
@@ -34,7 +34,7 @@ from exo_bench.models.symbols import symbols_for
 
 
 # ------------------------------------------------------------------ sympy's canonical order
-@lru_cache(maxsize=None)
+@cache
 def _class_key(cls: type) -> tuple:
     """The order of ``sympy.core.basic._cmp_name``: listed classes by position, then by name."""
     try:

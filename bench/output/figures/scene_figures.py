@@ -384,7 +384,7 @@ def differences_figure(study: Study) -> Figure | None:
     fig = Figure(figsize=(11.5, 5.6 + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, 2, len(notes))
     for ax, part, unit in ((axes[0], 0, "N·m"), (axes[1], 1, "N")):
-        for k, m in enumerate(others):
+        for m in others:
             d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
             dmax = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
             scale = float(np.nanmax(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]))) or 1.0
@@ -511,8 +511,8 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
         ax.tick_params(labelsize=TEXT_PT)
         ax.locator_params(axis="x", nbins=4)
     note.set_axis_off()
-    how = [f"How to read: every frame is drawn where it is. The support point O (▲) stays at the origin and no "
-           f"frame is shifted, so the model does not walk away: link 1 stays on O for the whole motion.",
+    how = ["How to read: every frame is drawn where it is. The support point O (▲) stays at the origin and no "
+           "frame is shifted, so the model does not walk away: link 1 stays on O for the whole motion.",
            "", f"Left: all {F} frames overlaid in each projection; the first frame is the palest "
            f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
            "", "Below: the same frames one per panel, left to right in time, at one common scale.",

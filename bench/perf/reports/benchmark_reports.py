@@ -28,7 +28,7 @@ from exo_bench.bench.perf.options import BenchOptions
 
 from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
-from exo_bench.bench.studies.main_job import publish, staging_dir
+from exo_bench.bench.output.publish import publish, staging_dir
 
 # The paper's table (section 7), seconds in Mathematica to compose the equations.
 PAPER_TABLE = [
@@ -609,7 +609,7 @@ def report_names(out: Path, sweep: str) -> dict[str, str]:
     """The file name each report takes in ``out``. A quick run never replaces what a full run
     wrote: when ``out``'s runs.json says a report came from ``exo-bench bench --full`` (or ``run
     --full``), a quick run writes its reports beside them as ``<name>-quick.<ext>`` instead."""
-    from exo_bench.bench.studies.main_job import read_manifest
+    from exo_bench.bench.output.publish import read_manifest
 
     names = {n: n for n in REPORT_FILES}
     if sweep == "full":

@@ -5,7 +5,7 @@ variants, the tolerance rules, and the run's prepared models.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 import math
 
 import numpy as np
