@@ -1,5 +1,5 @@
 """pytest-benchmark configuration: the sweep profile, a record of skipped rows with reasons, and the
-rows of the distributed sweep (``--row KEY``, ``--rows-json PATH``: bench/rows.py)."""
+rows of the distributed sweep (``--row KEY``, ``--rows-json PATH``: bench/perf/rows.py)."""
 
 from __future__ import annotations
 

@@ -14,13 +14,13 @@ Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readabl
 * ``pin.rnea (bare)``: per call, ``pin.rnea`` on preallocated joint-coordinate arrays of the same
   Pinocchio model, without our G maps: Pinocchio's own cost;
 * ``pydy-cython``: per call, PyDy's Cython code generator on the same composed equations
-  (:mod:`bench.peers`; skipped with the reason when pydy/cython are not installed);
+  (:mod:`exo_bench.bench.perf.peers`; skipped with the reason when pydy/cython are not installed);
 * group ``wrapper``: on exo5-3d, a prepared model's call with ``check=False`` next to the kernel
   it calls, so the report gives the wrapper's own per-call cost (call minus kernel);
 * group ``compile``: the first call's compile time of each compiled kernel (a fresh numba cache
   in a subprocess) and its load time from numba's cache in a second process;
 * group ``limit``: the flops and transcendental calls of one exo5-3d sample of the factored
-  kernel and this CPU's measured scalar/SIMD rates (:mod:`bench.limit`).
+  kernel and this CPU's measured scalar/SIMD rates (:mod:`exo_bench.bench.perf.roofline`).
 
 Per call, every prepared model and PyDy write into a preallocated ``out`` (``check=False``): what a
 controller's loop does.
@@ -339,7 +339,7 @@ def test_compile_time(benchmark, tmp_path):
 
 def test_limit(benchmark):
     """The arithmetic of one exo5-3d sample of the factored kernel, counted from its code, and
-    this CPU's multiply-add and sin rates (bench/limit.py); the report turns them into a time."""
+    this CPU's multiply-add and sin rates (bench/perf/roofline.py); the report turns them into a time."""
     benchmark.group = "limit"
     mech = exo5(3)
     q, qd, qdd = (x[0].copy() for x in (lambda m: (m.q, m.qd, m.qdd))(

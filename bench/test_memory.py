@@ -1,7 +1,7 @@
 """Peak memory of a large batch: 10^6 samples need a fixed working set, not one growing with the batch.
 
 A prepared model evaluates a batch in chunks of ``chunk_samples`` (set by ``prepare`` from the
-method's cost model, bench/resources.py) into one preallocated result, so beyond its inputs and its
+method's cost model, exo_bench/api/cost_model.py) into one preallocated result, so beyond its inputs and its
 result a batch of any length needs one chunk's temporaries. Measured here with ``tracemalloc``
 (numpy's arrays are traced; Pinocchio's ``Data`` is C++, is not, and is fixed per model) as the
 growth of the traced peak during ``model.inverse_dynamics(q, qd, qdd)`` with validation on
@@ -53,7 +53,7 @@ def test_peak_memory_of_a_batch(benchmark, sweep, method, samples):
     mech = exo5(3)
     if samples >= 10**6 and sweep.name == "quick" and method not in QUICK_1E6:
         est = estimate(mech, method, samples)
-        pytest.skip(f"{method}: 10^6 samples take about {est.seconds:.0f} s (bench/resources.py), too slow for "
+        pytest.skip(f"{method}: 10^6 samples take about {est.seconds:.0f} s (exo_bench/api/cost_model.py), too slow for "
                     "the quick profile; run with --sweep=full")
     benchmark.group = "memory-exo5-3d"
     q, qd, qdd = _states(mech, samples)

@@ -1,9 +1,9 @@
 """Lagrange's equations of the second kind for the rod models, derived with sympy.
 
 The suite's independent symbolic check of the matrix method: :func:`derive` builds T and Pi from
-the point masses' geometry and differentiates them; :mod:`lagrange.numeric` evaluates the result
-with numpy, :mod:`lagrange.reference` at 50 significant digits with mpmath, and
-:mod:`lagrange.peer` builds the same equations with ``sympy.physics.mechanics`` as a peer.
+the point masses' geometry and differentiates them; :mod:`exo_bench.lagrange.numeric` evaluates the result
+with numpy, :mod:`exo_bench.lagrange.high_precision` at 50 significant digits with mpmath, and
+:mod:`exo_bench.lagrange.peer` builds the same equations with ``sympy.physics.mechanics`` as a peer.
 """
 
 from exo_bench.lagrange.budget import BudgetExceeded

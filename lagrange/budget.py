@@ -13,7 +13,7 @@ Every entry point of :mod:`lagrange` takes ``budget`` (seconds) and runs its wor
   overrun the budget until it returns; the check right after it then raises.
 
 Either way the caller gets :class:`BudgetExceeded`, whose ``skip_reason`` names the work, the
-model size (``n``, ``dim``) and the budget, so :func:`bench.study.run_methods` records a skip.
+model size (``n``, ``dim``) and the budget, so :func:`exo_bench.bench.studies.study.run_methods` records a skip.
 Nested budgets (``inverse_dynamics`` calling ``derive``) share the tighter end.
 """
 

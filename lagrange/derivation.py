@@ -3,10 +3,10 @@
 This is the suite's independent symbolic check of the paper's matrix method: it never uses the
 closed forms (mu, nu, eq. 6). One responsibility per module:
 
-* :mod:`lagrange.energies`: T and Pi from the geometry, and Lagrange II, term by term;
-* :mod:`lagrange.ring`: the polynomial ring it is done in, and the normal form modulo
+* :mod:`exo_bench.lagrange.energies`: T and Pi from the geometry, and Lagrange II, term by term;
+* :mod:`exo_bench.lagrange.ring`: the polynomial ring it is done in, and the normal form modulo
   ``sin^2 + cos^2 = 1`` (:func:`canonical_form`);
-* :mod:`lagrange.matrix_form`: the paper's matrices (eqs. 5 and 17) read off the equations
+* :mod:`exo_bench.lagrange.matrix_form`: the paper's matrices (eqs. 5 and 17) read off the equations
   (:func:`extract_matrices`, :class:`FormViolation`) and written back (:func:`rebuild_equations`);
 * this module: :func:`derive`, the entry point, its result :class:`Derivation`, the time budget
   and the caches.
@@ -20,7 +20,7 @@ benchmark can time the plain computer-algebra derivation the paper timed in Math
 sign and which masses are zero; zero masses are structural zeros) with masses ``m{i}_{b}``,
 fractions ``n{i}`` and ``g`` as symbols. ``symbolic_parameters=False`` then substitutes the
 mechanism's numbers as **exact sympy Rationals** equal to the float64 values (so the 50-digit
-reference of :mod:`lagrange.reference` sees exactly the float model).
+reference of :mod:`exo_bench.lagrange.high_precision` sees exactly the float model).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Lagrange II from the point masses' T and Pi, built from the geometry alone.
 
-Positions are built link by link down the tree (:mod:`models.mechanism`): link ``i`` starts at the
+Positions are built link by link down the tree (:mod:`exo_bench.models.mechanism`): link ``i`` starts at the
 end of its parent and its masses sit at fractions ``0, n_i, 1`` of ``w_i = sign_i l_i u_i``. Then
 
 * ``T = 1/2 sum_ib m_ib |v_ib|^2`` with ``v_ib = sum_a (d r_ib / d q_a) qd_a``,
@@ -9,7 +9,7 @@ end of its parent and its masses sit at fractions ``0, n_i, 1`` of ``w_i = sign_
   - dT/dq_a + dPi/dq_a``.
 
 Two engines: :func:`energies_poly` and :func:`lagrange_poly` do every step in the ring of
-:mod:`lagrange.ring`; :func:`derive_expr` is the textbook route (sympy expressions, ``sympy.diff``,
+:mod:`exo_bench.lagrange.ring`; :func:`derive_expr` is the textbook route (sympy expressions, ``sympy.diff``,
 ``sympy.expand``), identical equations about a hundred times slower. What the result depends on is
 the :class:`Structure` (tree, signs, zero masses), never the numbers.
 """

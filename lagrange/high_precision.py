@@ -1,6 +1,6 @@
 """The suite's high-precision reference: the Lagrange II equations evaluated with mpmath.
 
-The equations of :func:`lagrange.derive` hold the mechanism's parameters as exact Rationals equal
+The equations of :func:`exo_bench.lagrange.derive` hold the mechanism's parameters as exact Rationals equal
 to their float64 values; here they are lambdified to mpmath (with common-subexpression
 elimination) and evaluated at ``dps`` significant decimal digits (50 by default). Float64 inputs
 are converted to ``mpf`` exactly, so the only rounding left is mpmath's at ``dps`` digits: the

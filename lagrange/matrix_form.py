@@ -148,7 +148,7 @@ def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = No
 def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols, g: sp.Expr | None = None
                       ) -> tuple[sp.Expr, ...]:
     """The equations written back from the matrix form (the inverse of :func:`extract_matrices`);
-    ``g`` defaults to the symbol (pass :attr:`Derivation.g` for substituted parameters)."""
+    ``g`` defaults to the symbol (pass :attr:`exo_bench.lagrange.derivation.Derivation.g` for substituted parameters)."""
     S = symbols
     g = S.g if g is None else g
     dim = 3 if S.psi else 2

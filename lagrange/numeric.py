@@ -2,11 +2,11 @@
 elimination, batched over samples.
 
 Every function takes states as batch-first ``(samples, dof)`` arrays in block order (validated by
-:func:`models.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
+:func:`exo_bench.models.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
 (derivation plus ``lambdify``) the first time a mechanism is seen; the compiled functions are
-cached per mechanism. Over budget, :class:`lagrange.BudgetExceeded` carries a ``skip_reason``.
+cached per mechanism. Over budget, :class:`exo_bench.lagrange.BudgetExceeded` carries a ``skip_reason``.
 ``budget=None`` means :data:`DEFAULT_BUDGET` (120 s). The prepared model
-(:class:`lagrange.prepared.LagrangeModel`) takes the budget as a constructor option.
+(:class:`exo_bench.lagrange.prepared.LagrangeModel`) takes the budget as a constructor option.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """A peer derivation with ``sympy.physics.mechanics``: the same mechanism, built independently from
 reference frames, points and particles, run through ``LagrangesMethod`` or ``KanesMethod``.
 
-Nothing here shares code with :mod:`lagrange.derivation` except the output symbols. Each rod gets
+Nothing here shares code with :mod:`exo_bench.lagrange.derivation` except the output symbols. Each rod gets
 its own frame: in 2D ``A_i`` is ``N`` turned by ``phi_i`` about ``N.z``; in 3D ``B_i`` is ``N``
 turned by the azimuth ``phi_i`` about ``N.z`` and ``A_i`` is ``B_i`` turned by ``-psi_i`` about
 ``B_i.y``, so that ``A_i.x = (cos psi cos phi, cos psi sin phi, sin psi)`` (eq. 7). Rod ``i``
@@ -77,8 +77,8 @@ def peer_equations(mech: Mechanism, kind: str = "lagrange", symbolic_parameters:
 
     ``kind`` is ``"lagrange"`` (``LagrangesMethod``) or ``"kane"`` (``KanesMethod``). Parameters
     stay symbols with ``symbolic_parameters=True``; otherwise the mechanism's values are
-    substituted as the same exact Rationals :func:`lagrange.derive` uses. Particles of zero mass
-    are kept (their terms vanish). Raises :class:`lagrange.BudgetExceeded` past ``budget`` s.
+    substituted as the same exact Rationals :func:`exo_bench.lagrange.derive` uses. Particles of zero mass
+    are kept (their terms vanish). Raises :class:`exo_bench.lagrange.BudgetExceeded` past ``budget`` s.
     """
     if kind not in KINDS:
         raise ValueError(f"peer_equations: field 'kind': expected one of {', '.join(KINDS)}, got {kind!r}")

@@ -1,7 +1,7 @@
 """Lagrange II as a prepared model: derive and lambdify once, then evaluate numpy code.
 
 :class:`LagrangeModel` (method ``lagrange``) derives the equations of a mechanism with sympy
-(:func:`lagrange.derive`) and lambdifies them to numpy with common-subexpression elimination in
+(:func:`exo_bench.lagrange.derive`) and lambdifies them to numpy with common-subexpression elimination in
 its constructor, within a time budget. The mass matrix and the bias forces are native: the
 Jacobian ``d tau / d qdd`` and ``tau(q, qd, 0)`` of the same derivation, lambdified on first use
 within the same budget.
@@ -9,7 +9,7 @@ within the same budget.
 Options (constructor arguments; nothing is read from the environment):
 
 * ``budget`` (seconds, default 120): for the symbolic work. Over budget the constructor raises
-  :class:`lagrange.BudgetExceeded`, whose ``skip_reason`` names the work, the model size and the
+  :class:`exo_bench.lagrange.BudgetExceeded`, whose ``skip_reason`` names the work, the model size and the
   budget.
 * ``interrupt`` (default True): in the main thread, a SIGALRM timer interrupts a long sympy
   call when the budget runs out (the previous handler is restored afterwards). False uses only

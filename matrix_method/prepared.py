@@ -5,7 +5,7 @@
   the rate vectors. Mass matrix and bias forces are native (the ``A, B, Lambda`` blocks; the
   products with ``qdd = 0``).
 * ``matrix-factored`` (:class:`MatrixFactored`): the same equations in factored form, no matrix
-  formed (:func:`matrix_method.numeric.inverse_dynamics` says how the factorisation follows from
+  formed (:func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics` says how the factorisation follows from
   the closed forms). The fast path.
 * ``matrix-paper`` (:class:`MatrixPaper`): eq. (18) exactly as printed, misprints and divisions
   included. **Wrong in 3D by design** (reports/errata.md): kept to expose the misprints.
@@ -13,9 +13,9 @@
   the products.
 
 **Kernels.** ``matrix``, ``matrix-factored`` and ``recurrence`` take the option ``kernel``:
-``"numba"`` (the default) runs the compiled loops of :mod:`matrix_method.compiled` (one sample or
+``"numba"`` (the default) runs the compiled loops of :mod:`exo_bench.matrix_method.numba_kernels.common` (one sample or
 a batch, threads for large batches; compiled on first use and cached on disk), ``"numpy"`` the
-vectorised numpy reference of :mod:`matrix_method.numeric`/:mod:`matrix_method.recurrence`.
+vectorised numpy reference of :mod:`exo_bench.matrix_method.numpy_kernels.matrix`/:mod:`exo_bench.matrix_method.recurrence`.
 Both compute the same arithmetic and agree to rounding (tests/test_compiled.py). With
 ``check=False`` a numba model's call on one sample is the kernel call writing into ``out`` (or a
 new array): nothing else runs.
@@ -147,7 +147,7 @@ class MatrixFactored(_Compiled):
 
     Every element is ``c_ij`` times a dot product of a vector of link i and one of link j, so the
     sum over the matrices of a block is ``r_a,i . sum_j c_ij kappa_j`` (the derivation is in
-    :func:`matrix_method.numeric.inverse_dynamics`). Samples go on the fast axis in blocks of
+    :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`). Samples go on the fast axis in blocks of
     ``block``. The kernel forms no matrix, so the mass matrix and the bias forces are derived from
     its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'."""
 

@@ -5,9 +5,9 @@ Eq. (23), ``A_{n+1} = A_n + delta A_n``, with ``A_n`` padded by a zero row and c
 ``eta_{n+1} l_i l_{n+1} C_{i,n+1}`` in the new row and column, ``zeta_{n+1} l_{n+1}^2`` in the corner.
 
 **Generalised to trees and to every matrix.** Every planar element is ``c_ij`` times a geometric
-factor of links i and j (:mod:`matrix_method.planar`), and adding link ``k`` (parent among the
+factor of links i and j (:mod:`exo_bench.matrix_method.closed_forms.planar`), and adding link ``k`` (parent among the
 earlier links) changes ``c`` only where it changes the masses riding on two rods
-(:func:`matrix_method.coefficients.recurrence_increments`): ``theta_k s_i s_j`` on pairs of
+(:func:`exo_bench.matrix_method.closed_forms.coefficients.recurrence_increments`): ``theta_k s_i s_j`` on pairs of
 ancestors of ``k`` (its mass joins ``Theta`` of each), ``eta_k s_i s_k`` between an ancestor and
 ``k``, ``zeta_k`` in the corner, and nothing on any other row or column. So ``delta X_n`` is the
 closed form of ``X`` evaluated with those increments, on the rows and columns of k's ancestors and
@@ -153,6 +153,6 @@ def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dic
 
 def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tuple[sp.Expr, ...]:
     """The equations of motion composed by the recurrence (23)-(26) and eq. (5)/(17); the same
-    expressions as :func:`matrix_method.symbolic.compose_equations`."""
+    expressions as :func:`exo_bench.matrix_method.symbolic.compose.compose_equations`."""
     G = generators(mech.nlinks, mech.dim, symbolic_parameters)
     return _symbolic.equations_from_entries(G, mech, *_symbolic_form(mech, G))

@@ -23,8 +23,8 @@ with the mass coupling
 * ``nu_k = eta_k + Theta(k)``.
 
 For a chain ``mu`` is exactly the bracket of eq. (6). The matrix method multiplies ``mu`` by the
-branch signs (:mod:`matrix_method.coefficients`), forward dynamics uses it to find where ``M`` is
-singular (:mod:`models.forward_dynamics`). The functions :func:`aggregates` and
+branch signs (:mod:`exo_bench.matrix_method.closed_forms.coefficients`), forward dynamics uses it to find where ``M`` is
+singular (:mod:`exo_bench.models.forward_dynamics`). The functions :func:`aggregates` and
 :func:`coupling_entries` are written for any arithmetic (floats, numpy arrays, sympy expressions,
 polynomial-ring elements), so the numeric and the symbolic coefficients are the same definition.
 """

@@ -3,20 +3,20 @@
 The equations of motion of every method have the form ``M(q) qdd + h(q, qd) = tau``. Forward
 dynamics solves them for ``qdd``:
 
-Every function takes a prepared model (:func:`exo_bench.prepare`, :mod:`models.prepared`):
+Every function takes a prepared model (:func:`exo_bench.prepare`, :mod:`exo_bench.models.prepared`):
 
 * **Pinocchio** exposes ``M`` (CRBA) and ``h`` (``nonLinearEffects``) directly. Its ABA would be
   faster, but it refuses the mimic joints of the generated URDF, so the suite uses CRBA and a
   solve.
 * **Any method** ``tau = ID(q, qd, qdd)`` gives them exactly, because inverse dynamics is
   linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``
-  (:func:`models.prepared.terms_from_inverse_dynamics`, one batched call per evaluation); a
+  (:func:`exo_bench.models.prepared.terms_from_inverse_dynamics`, one batched call per evaluation); a
   prepared model uses its own terms where it has them (``native_terms``).
 
 **Singular configurations.** ``M = J^T (mu (x) I) J``, where ``J`` maps ``qd`` to the rod
 vectors' rates ``d/dt(s_i l_i u_i)`` (per link the columns ``l_i du_i/dphi_i``,
 ``l_i du_i/dpsi_i``, ``u_i``) and ``mu`` is the mass coupling of eq. (6), the mass distribution
-matrix (:func:`models.aggregates.coupling`). ``M`` is singular exactly when ``mu`` is singular or
+matrix (:func:`exo_bench.models.aggregates.coupling`). ``M`` is singular exactly when ``mu`` is singular or
 a link's columns are dependent: a rod of length zero (its angles move no mass) or, in 3D, a vertical rod
 (``cos psi_i = 0``: the azimuth column ``l_i cos psi_i (-sin phi_i, cos phi_i, 0)`` vanishes).
 Inverse dynamics is still defined there; forward dynamics is not, and
@@ -75,7 +75,7 @@ def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, vi
     The model's own terms where it has them (``model.native_terms``: Pinocchio's CRBA and
     ``nonLinearEffects``, Lagrange's lambdified ``d tau / d qdd`` and ``tau(qdd = 0)``, the matrix
     method's ``A, B, Lambda`` blocks), else, or with ``via_inverse_dynamics=True``, from its inverse
-    dynamics (:func:`models.prepared.terms_from_inverse_dynamics`, one batched call).
+    dynamics (:func:`exo_bench.models.prepared.terms_from_inverse_dynamics`, one batched call).
     """
     if via_inverse_dynamics:
         return terms_from_inverse_dynamics(lambda a, b, c: model.inverse_dynamics(a, b, c, check=False),
@@ -180,7 +180,7 @@ def accelerations(model: PreparedModel, q, qd, tau, check: bool = True) -> np.nd
 def prescribed_controls(model: PreparedModel, motion_of_t) -> Controls:
     """``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` on the fly along an analytic motion (any ``t``,
     no interpolation), by a prepared model: the controls that should reproduce the motion.
-    ``motion_of_t(t)`` returns a :class:`models.motion.Motion` for an array of times."""
+    ``motion_of_t(t)`` returns a :class:`exo_bench.models.motion.Motion` for an array of times."""
 
     def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         m = motion_of_t(np.array([t]))

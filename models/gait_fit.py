@@ -1,7 +1,7 @@
 """The fit of the gait parameters of eq. (26) to normative level walking (run offline).
 
 ``python -m exo_bench.models.gait_fit`` reruns the fit (about half a minute) and prints the
-constants to store in :class:`models.motion.GaitParams`; :func:`check_gait` measures what any
+constants to store in :class:`exo_bench.models.motion.GaitParams`; :func:`check_gait` measures what any
 parameters achieve (the tests call it on the stored constants, not the optimiser).
 
 **The model's roles.** Eq. (26) keeps link 1 on the support point O for the whole period: the
@@ -12,7 +12,7 @@ run back along the same path (eq. 26 is symmetric in time about T/2). So the tar
 
 1. **Segment angles over the phase** (sagittal, x-z projection; x is the direction the hip moves
    in the first half period): the angle of each of links 1-4 at every frame of Winter's walk
-   (:mod:`models.normative`, 1.41 m/s), time-normalised onto the first half period: the stance
+   (:mod:`exo_bench.models.normative`, 1.41 m/s), time-normalised onto the first half period: the stance
    leg's shank and thigh over single support, the swing leg's thigh and shank over the swing phase.
    The angle of a link is that of its direction ``u`` (distal to proximal joint for every link of
    the exoskeleton, as in Winter's tables), counter-clockwise from +x. Residuals in degrees, each

@@ -11,7 +11,7 @@ net (intersegmental) joint moment and force; every point mass moves by eq. (7), 
 accelerations are exact (:func:`point_mass_accelerations`).
 
 **How they relate to Pinocchio's joint torques.** ``tau_joint = G^-T tau``
-(:func:`models.pinocchio_backend.joint_torques`) is the generalised force of Pinocchio's joint
+(:func:`exo_bench.models.pinocchio_backend.joint_torques`) is the generalised force of Pinocchio's joint
 coordinates ``[phi_k - phi_parent, psi_k, l_k]``. Its azimuth rows are the vertical component
 ``M_k . e_z`` (a relative azimuth turns the whole subtree about the vertical through ``r_k``). Its
 elevation rows are not the physical moment about the elevation axis when link k has children:
@@ -21,7 +21,7 @@ URDF's "undo" mimic joints). Only for a leaf link is ``tau_joint[psi_k]`` the mo
 ``tests/test_joint_loads.py`` checks both statements against Pinocchio.
 
 Arrays are batch-first: accelerations ``(S, n, 3, dim)`` like
-:func:`models.kinematics.point_mass_positions`; moments ``(S, n, 3)`` in 3D and ``(S, n)`` (the
+:func:`exo_bench.models.kinematics.point_mass_positions`; moments ``(S, n, 3)`` in 3D and ``(S, n)`` (the
 z component) in 2D; forces ``(S, n, dim)``.
 """
 

@@ -106,7 +106,7 @@ _FD6 = np.array([-1 / 60, 3 / 20, -3 / 4, 0.0, 3 / 4, -3 / 20, 1 / 60])
 def energy_rate(mech: Mechanism, motion_of_t, t: np.ndarray, h: float = 1e-3) -> np.ndarray:
     """``d(T + Pi)/dt`` along a motion, by a sixth-order central difference of the energy
     computed from the point masses' positions and velocities. ``motion_of_t(t)`` returns a
-    :class:`models.motion.Motion`. The truncation error is ``O(h^6)``; with ``h = 1e-3`` and a
+    :class:`exo_bench.models.motion.Motion`. The truncation error is ``O(h^6)``; with ``h = 1e-3`` and a
     smooth motion it sits far below 1e-8 relative."""
     t = np.asarray(t, dtype=float)
     rate = np.zeros_like(t)

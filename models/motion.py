@@ -31,13 +31,13 @@ class Motion:
 @dataclass(frozen=True)
 class GaitParams:
     """Parameters of eq. (26), which the paper does not print. The defaults are the shipped gait,
-    ``winter-fit-v1``: fitted to normative level walking by :mod:`models.gait_fit` (rerun it with
+    ``winter-fit-v1``: fitted to normative level walking by :mod:`exo_bench.models.gait_fit` (rerun it with
     ``python -m exo_bench.models.gait_fit``; ``tests/test_gait_fit.py`` re-checks the constraints).
 
     Values (radians, metres, seconds):
 
     * ``T = 0.987 s``: one stride of Winter's walk (121.6 steps/min at 1.41 m/s, Winter 2009,
-      Appendix A; :mod:`models.normative`). No other target depends on T, so it is not searched.
+      Appendix A; :mod:`exo_bench.models.normative`). No other target depends on T, so it is not searched.
     * ``j``, ``f``: amplitudes and phases of links 1-4, fitted so that each link's sagittal angle over
       the first half period follows Winter's curve of the segment it plays: the stance shank and
       thigh over single support, the swing thigh and shank over the swing phase.

@@ -1,6 +1,6 @@
 """Pinocchio backend: inverse dynamics, mass matrix and point positions in the paper's coordinates.
 
-The model is built once per mechanism from :func:`models.urdf.to_urdf` with mimic
+The model is built once per mechanism from :func:`exo_bench.models.urdf.to_urdf` with mimic
 joints (``buildModelFromXML(xml, mimic=True)``), and kept apart from the scratch
 ``Data``, as Pinocchio itself does.
 
@@ -101,7 +101,7 @@ def _gb(x: float) -> str:
 
 def check_data_fits(mech: Mechanism, count: int = 1, limit: int | None = None) -> int:
     """Raise :class:`PinocchioDataTooLarge` unless ``count`` Data of the mechanism fit in ``limit``
-    bytes (default: :func:`models.prepared.usable_memory`, a share of the available memory); return
+    bytes (default: :func:`exo_bench.models.prepared.usable_memory`, a share of the available memory); return
     the bytes of one Data."""
     need = mechanism_data_bytes(mech)
     limit = usable_memory() if limit is None else limit

@@ -11,9 +11,9 @@ where a method overrides ``_mass_matrix``/``_bias_forces`` (``native_terms`` say
 otherwise derived from inverse dynamics, which is linear in ``qdd``: ``h = ID(q, qd, 0)`` and
 ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)`` (:func:`terms_from_inverse_dynamics`).
 
-**Validation.** The mechanism is validated when it is built (:class:`~models.mechanism.Mechanism`
+**Validation.** The mechanism is validated when it is built (:class:`~exo_bench.models.mechanism.Mechanism`
 is frozen and checks itself). ``check=True`` (the default) validates the states with
-:func:`~models.mechanism.as_states`: shapes, finiteness, non-negative lengths, each with a
+:func:`~exo_bench.models.mechanism.as_states`: shapes, finiteness, non-negative lengths, each with a
 message that names the array, the sample and the coordinate. ``check=False`` is the fast path
 for trusted hot loops (an ODE right-hand side, a controller): it checks no value, only what
 memory safety needs (:func:`unchecked_states`: C-ordered float64 arrays of one shape ``(dof,)``
@@ -25,7 +25,7 @@ preallocated result, so that a batch of any length needs the inputs, the result 
 working set (one chunk's temporaries): 10^6 samples take no more scratch memory than one chunk
 (bench/test_memory.py measures it). The default chunk keeps the working set near
 :data:`CHUNK_BYTES` for the largest per-sample temporaries of any method (``n x n`` matrices);
-``exo_bench.prepare`` sets it from the method's calibrated cost model (bench/resources.py).
+``exo_bench.prepare`` sets it from the method's calibrated cost model (exo_bench/api/cost_model.py).
 
 **Threads and processes.** A prepared model holds no mutable state shared between calls other
 than per-thread scratch space, so one model can serve several threads. It pickles by

@@ -48,7 +48,7 @@ K = 8
 
 def mass_coupling_oracle(mech) -> tuple[np.ndarray, np.ndarray]:
     """``mu (n, n)`` and ``nu (n,)`` of ``T = 1/2 sum_ij mu_ij w_i' . w_j'``, ``Pi = g sum_i nu_i w_i . up``
-    straight from the point masses, not from :mod:`models.aggregates`: mass ``m`` of link ``k`` at
+    straight from the point masses, not from :mod:`exo_bench.models.aggregates`: mass ``m`` of link ``k`` at
     fraction ``f`` sits at ``sum_{a in anc(k)} w_a + f w_k``, so it adds ``m c_i c_j`` to ``mu_ij``
     and ``m c_i`` to ``nu_i`` with ``c_a = 1`` on the ancestors and ``c_k = f``."""
     n = len(mech.parent)
@@ -114,7 +114,7 @@ def term_scale(mech, q, qd=None, qdd=None, gravity: bool = True) -> np.ndarray:
     (times ``max(1, |angles|)``, the rounding of large angles), ``(S, dof)``.
 
     Row ``a`` of link ``i`` is ``r_a . (sum_j mu_ij s_i s_j kappa_j + g nu_i s_i up)`` (the
-    derivation in :mod:`matrix_method.planar`) with ``kappa_j = d2/dt2(l_j u_j)``, whose eight terms
+    derivation in :mod:`exo_bench.matrix_method.closed_forms.planar`) with ``kappa_j = d2/dt2(l_j u_j)``, whose eight terms
     are bounded by ``l (|phi''| + |psi''| + phi'^2 + psi'^2 + 2 |phi' psi'|) + |l''| + 2 |l'| (|phi'| + |psi'|)``
     (every derivative of ``u`` has norm at most 1). ``mu, nu`` come from
     :func:`mass_coupling_oracle`, so no implementation under test sets its own tolerance."""
@@ -149,7 +149,7 @@ def mass_matrix_scale(mech, q, derived: bool = False) -> np.ndarray:
     the magnitude of the one term of each entry, times ``max(1, |angles|)``.
 
     ``derived``: ``M`` obtained from inverse dynamics as ``ID(q, 0, e_b) - ID(q, 0, 0)``
-    (:func:`models.prepared.terms_from_inverse_dynamics`), whose column ``b`` also carries the
+    (:func:`exo_bench.models.prepared.terms_from_inverse_dynamics`), whose column ``b`` also carries the
     rounding of the gravity forces it subtracts: the term scale of ``ID(q, 0, e_b)`` is added."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     mu, _ = mass_coupling_oracle(mech)

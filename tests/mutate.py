@@ -41,15 +41,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 #: module -> (file, functions to mutate or None for the whole module, test selection)
 TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
-    "planar": ("matrix_method/planar.py", None,
+    "planar": ("matrix_method/closed_forms/planar.py", None,
                ["tests/test_tolerance_sensitivity.py", "tests/test_planar.py",
                 "tests/test_spatial.py::test_planar_closed_forms_are_the_dot_products_of_their_definition"]),
-    "spatial": ("matrix_method/spatial.py", None,
+    "spatial": ("matrix_method/closed_forms/transitions.py", None,
                 ["tests/test_tolerance_sensitivity.py",
                  "tests/test_spatial.py::test_every_transition_gives_pinocchios_3d_matrix",
                  "tests/test_spatial.py::test_a_link_that_carries_no_mass_has_finite_zero_gravity_terms",
                  "tests/test_spatial.py::test_corrected_transitions_are_the_dot_products_of_their_definition"]),
-    "coefficients": ("matrix_method/coefficients.py", None,
+    "coefficients": ("matrix_method/closed_forms/coefficients.py", None,
                      ["tests/test_coefficients.py", "tests/test_recurrence.py", "tests/test_planar.py",
                       "tests/test_symbolic.py"]),
     "aggregates": ("models/aggregates.py", None,

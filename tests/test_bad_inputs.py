@@ -249,7 +249,7 @@ CASES = [
          issue="--reports naming a file"),
     Case("reports-under-file", "--reports under a file", lambda d: [
         "stability", "--reports", _text(d, "x", "afile") / "sub"], "lies under '<dir>/afile', which is a file"),
-    # ---------------------------------------------------------------- the distributed sweep (bench/distributed.py)
+    # ---------------------------------------------------------------- the distributed sweep (bench/cluster/cluster.py)
     Case("workers-zero", "--workers 0", lambda d: ["bench", "--full", "--workers", "0", "--reports", d / "rep"],
          "argument --workers: expected at least 1 worker, got 0"),
     Case("workers-not-a-number", "--workers not a number", lambda d: [
@@ -446,7 +446,7 @@ def render(tmp: Path) -> str:
              "-z in 3D); `-0.0` is accepted as 0. A motion needs at least 2 samples and strictly increasing times. "
              "Masses, lengths and rates whose forces could overflow float64 (a bound above 1e300, "
              "`models.mechanism.force_scale_log10`) are refused. Memory and time are estimated before any work "
-             "(bench/resources.py); the memory limit is 80 % of the available memory unless `--max-memory` says "
+             "(exo_bench/api/cost_model.py); the memory limit is 80 % of the available memory unless `--max-memory` says "
              "otherwise.", "",
              "| input | exit | what the user sees | example | test |", "|---|---|---|---|---|"]
     for case in CASES:

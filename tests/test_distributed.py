@@ -1,4 +1,4 @@
-"""The distributed sweep (bench/distributed.py, bench/rows.py) on a tiny test-only benchmark file.
+"""The distributed sweep (bench/cluster/cluster.py, bench/perf/rows.py) on a tiny test-only benchmark file.
 
 The benchmark file is written by :func:`tiny_bench` into a fresh folder: rows of trivial
 benchmarks parametrized like bench/test_inverse_dynamics.py (``(method, n, dim, topology)``), so

@@ -1,4 +1,4 @@
-"""The forward-dynamics experiments (bench/stability/forward_*.py): the round trip recovers the prescribed
+"""The forward-dynamics experiments (bench/studies/stability/forward_*.py): the round trip recovers the prescribed
 motion within its stated tolerance (and a wrong control does not), the conservative case keeps
 its energy within the bound derived from rtol, stiff rods are solved by the implicit
 integrators while the explicit ones hit the stability limit."""

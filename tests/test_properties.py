@@ -13,7 +13,7 @@ Properties:
   point masses' velocities and accelerations computed here from the unit vectors' derivatives
   (no difference stencil);
 * **M**: symmetric; ``D^-1/2 M D^-1/2`` (``D = diag M``) has the eigenvalues of the equilibrated
-  mass coupling ``mu`` (each ``dim`` times) wherever :func:`models.forward_dynamics.singular_reasons`
+  mass coupling ``mu`` (each ``dim`` times) wherever :func:`exo_bench.models.forward_dynamics.singular_reasons`
   finds nothing (positive definite, the null space empty), and where it names a link, the
   columns it names are zero (the null space is there).
 

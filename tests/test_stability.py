@@ -1,4 +1,4 @@
-"""The stability suite's verdicts (bench/stability/): one representative of each family, the
+"""The stability suite's verdicts (bench/studies/stability/): one representative of each family, the
 warnings, the bookkeeping of missing/skipped/failing methods, and the report end to end on a tiny
 profile. Physics, not timing: every verdict is checked against what the configuration implies."""
 
@@ -167,7 +167,7 @@ _GREY_OR_BLACK = {"#7f7f7f", "#000000", "#808080"}
 
 
 def _figure_problems(fig) -> list[str]:
-    """What breaks the figure rules (bench/stability/figures.py), measured on the drawn figure."""
+    """What breaks the figure rules (bench/studies/stability/figures.py), measured on the drawn figure."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import to_hex
     from matplotlib.text import Text

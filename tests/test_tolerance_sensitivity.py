@@ -1,8 +1,8 @@
 """The agreement bound of tests/conftest.py is tight enough to catch a 1e-12 relative error in any
 single closed-form element.
 
-Each element ``(i, j)`` of each closed form of :mod:`matrix_method.planar` (2D) and each corrected
-transition of :mod:`matrix_method.spatial` (3D) is multiplied by ``1 + 1e-12`` in turn (through the
+Each element ``(i, j)`` of each closed form of :mod:`exo_bench.matrix_method.closed_forms.planar` (2D) and each corrected
+transition of :mod:`exo_bench.matrix_method.closed_forms.transitions` (3D) is multiplied by ``1 + 1e-12`` in turn (through the
 tables ``PAIRS`` / ``GRAVITY`` that the matrix method reads), and the forces of method ``matrix``
 must then fail the agreement check against Pinocchio that the unperturbed forces pass. Elements that
 are zero at every state (on the diagonal, the dot products of orthogonal derivatives of ``u_i``,

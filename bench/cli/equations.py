@@ -5,11 +5,11 @@
 * ``exo-bench equations MECHANISM --format latex|python|c [-o DIR] [--symbolic-parameters]``
   writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python) or ``<name>.h`` and
   ``<name>.c`` (c) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
-  of the set half-written). The work is estimated first (:func:`bench.resources.equations_estimate`)
+  of the set half-written). The work is estimated first (:func:`exo_bench.api.cost_model.equations_estimate`)
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.
 * A scene listing ``equations`` in its outputs gets ``equations-<scene>.md`` and ``.tex`` in the
-  reports (:func:`bench.equation_pages.scene_pages`); a two-link planar scene's page writes eq. (4) with both signs.
+  reports (:func:`exo_bench.bench.output.equation_pages.scene_pages`); a two-link planar scene's page writes eq. (4) with both signs.
 * ``exo-bench equations --size-report [--full]`` measures, for chains and random trees of
   n = 1..20 (quick: 1..4) in 2D and 3D, the operation count after CSE, the lines of generated C and
   the seconds to compose and to generate, for the matrix method, our Lagrange II derivation and
@@ -79,7 +79,7 @@ def cmd_equations(args: argparse.Namespace) -> int:
 
 
 def output_folder(value, option: str = "-o") -> Path:
-    """``-o`` (or ``--reports``) of ``exo-bench equations``: :func:`reporting.writable_folder`."""
+    """``-o`` (or ``--reports``) of ``exo-bench equations``: :func:`exo_bench.bench.output.provenance.writable_folder`."""
     from exo_bench.bench.output.provenance import writable_folder
 
     return writable_folder(value, f"equations {option}")

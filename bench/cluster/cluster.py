@@ -6,7 +6,7 @@
   model, every method of it). A task runs ``python -m pytest <file> --row KEY --benchmark-enable
   --benchmark-json=... --sweep=...`` in a subprocess on its worker, so every method of a row is
   timed back to back on one host, and returns the pytest-benchmark JSON with the worker's host and
-  CPU. The rows merge into ``reports/benchmarks-<profile>.json`` (:func:`rows.merge`).
+  CPU. The rows merge into ``reports/benchmarks-<profile>.json`` (:func:`exo_bench.bench.perf.rows.merge`).
 * **stability**: one task per family of extreme cases and one for the forward-dynamics part.
 
 The cluster is, by default, a :class:`distributed.LocalCluster` of single-threaded worker
@@ -20,7 +20,7 @@ Faults:
 * a worker that dies mid-task (killed, out of memory) is restarted by its nanny and the scheduler
   runs the task again elsewhere (up to ``distributed.scheduler.allowed-failures`` times); the
   task's pytest subprocess dies with its worker (``PR_SET_PDEATHSIG``), so no orphan keeps timing;
-* a row whose pytest fails or that exceeds its budget (:attr:`Sweep.row_budget`, the subprocess is
+* a row whose pytest fails or that exceeds its budget (:attr:`exo_bench.bench.perf.profiles.Sweep.row_budget`, the subprocess is
   killed) is recorded with its reason (in ``rows`` of the merged JSON and as skips in the reports),
   and the sweep goes on;
 * every finished row is checkpointed (:func:`checkpoint_dir`: a folder per code commit, a file per
@@ -139,7 +139,7 @@ def _failure_lines(output: str) -> str:
 
 def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytest_args: tuple = (),
             repo: str | None = None, prior: dict | None = None) -> dict:
-    """Run one row (every benchmark of it) in a pytest subprocess; its record (see :func:`rows.merge`).
+    """Run one row (every benchmark of it) in a pytest subprocess; its record (see :func:`exo_bench.bench.perf.rows.merge`).
 
     Runs on a worker. ``code`` is the client's :func:`code_key`: a worker running other code refuses
     the row (timings of other code would be merged silently otherwise). ``prior``: the record of the
@@ -320,7 +320,7 @@ def _methods(row: dict) -> set[str]:
 
 
 def _priority(row: dict) -> int:
-    """Larger rows first (n, then 3D before 2D: :func:`rows.schedule_order`)."""
+    """Larger rows first (n, then 3D before 2D: :func:`exo_bench.bench.perf.rows.schedule_order`)."""
     return 10 * (row.get("n") or 0) + (row.get("dim") or 0)
 
 
@@ -331,7 +331,7 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
     """Run every row of the benchmark ``files`` on a Dask cluster (see the module docstring).
 
     ``checkpoints``: the base folder of the checkpoints (a subfolder per :func:`code_key`);
-    ``budget``: seconds per row (default: the profile's :attr:`Sweep.row_budget`); ``pytest_args``:
+    ``budget``: seconds per row (default: the profile's :attr:`exo_bench.bench.perf.profiles.Sweep.row_budget`); ``pytest_args``:
     appended to every pytest command; ``repo``: the folder pytest runs in (the checkout, on every
     worker too: each resolves its own copy unless it is given); ``only``: row keys to keep (the
     others are left out, as if not collected); ``chained``: files whose rows run as chains
@@ -452,7 +452,7 @@ def bench_run(options: BenchOptions) -> int:
 
 def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: str, update_readme: bool) -> list[Path]:
     """The merged JSON and skips of a sweep into a staging folder, then every benchmark report from
-    them (:func:`bench_reports.write_reports`), published into ``out`` together."""
+    them (:func:`exo_bench.bench.perf.reports.benchmark_reports.write_reports`), published into ``out`` together."""
     from exo_bench.bench.perf.reports import benchmark_reports as br
     from exo_bench.bench.output.publish import staging_dir
 
@@ -518,7 +518,7 @@ def stability_task(part: str, profile_name: str, methods: list[str]):
 
 
 def stability_evaluator(options: StabilityOptions) -> Evaluator:
-    """The ``evaluate(profile, methods, log)`` of :func:`stability.report.run` that runs the
+    """The ``evaluate(profile, methods, log)`` of :func:`exo_bench.bench.studies.stability.report.run` that runs the
     families and the forward part as tasks on the cluster, checkpointed per part."""
     from exo_bench.bench.studies import study
     from exo_bench.bench.studies.stability import cases

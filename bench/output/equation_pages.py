@@ -1,6 +1,6 @@
 """The equations pages of eq. (5)/(17) (the ``equations`` output of a scene) and the time budget of
-``exo-bench equations`` (bench/equations.py, which holds the command): kept apart so that the runner
-(bench/runner.py) imports only this.
+``exo-bench equations`` (bench/cli/equations.py, which holds the command): kept apart so that the runner
+(bench/cli/run.py) imports only this.
 
 A scene listing ``equations`` in its outputs gets ``equations-<scene>.md`` and ``.tex``
 (:func:`scene_pages`), with the aggregates of eq. (6) as symbols; a two-link planar scene's page writes

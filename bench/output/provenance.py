@@ -4,7 +4,7 @@ Every process that writes reports has one **run identifier** (:func:`current_run
 start time and a random suffix, e.g. ``20260101T120000Z-3fa2``); the main job sets a new one per
 run (:func:`set_run_id`). :func:`provenance` writes it into every Markdown report, :func:`save_figure`
 into every PNG's metadata, and ``exo-bench run`` records it per file in ``runs.json`` and
-``summary.md`` (bench/runner.py), so that every file in a reports folder says which run made it.
+``summary.md`` (bench/cli/run.py), so that every file in a reports folder says which run made it.
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
-"""A rerun recording (``.rrd``) of a :class:`bench.study.Study`, with its viewer layout.
+"""A rerun recording (``.rrd``) of a :class:`exo_bench.bench.studies.study.Study`, with its viewer layout.
 
 One recording per scene holds, on the timeline ``time`` (seconds since the start of the motion):
 
 * ``world/...`` - the model in 3D: ``world/rods`` (one line strip per rod), ``world/masses``
   (point masses as spheres of radius proportional to mass^(1/3)), ``world/support`` (the support
   point O, static) and ``world/trails/<point>`` (the last 0.2 s of the points
-  :func:`bench.plots.trail_points` names after the mechanism's links, e.g. the hip and the swing ankle).
+  :func:`exo_bench.bench.output.figures.scene_figures.trail_points` names after the mechanism's links, e.g. the hip and the swing ankle).
   Planar models are drawn in the x-z plane with z up, so one viewer layout serves both.
 * ``moments/<scale group>/<method>`` - the joint moments ``tau_joint = G^-T tau`` (N·m), grouped
   by the scale of their maxima like the paper's Fig. 7;
@@ -13,7 +13,7 @@ One recording per scene holds, on the timeline ``time`` (seconds since the start
   ``generalised/<reference method>`` - the paper's generalised moments of the absolute angles (N·m);
   ``differences/moments/<method>``, ``differences/forces/<method>`` - method minus reference.
 * ``meta`` - what the recording holds and how it was made (rerun-sdk version, exo-bench commit,
-  methods, quantity conventions) and the loads beside level walking (:mod:`bench.plausibility`),
+  methods, quantity conventions) and the loads beside level walking (:mod:`exo_bench.bench.studies.plausibility`),
   as a Markdown document and as plain values.
 
 Every time series is sent with ``send_columns`` (one call per entity, all samples at once); the

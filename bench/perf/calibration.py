@@ -1,4 +1,4 @@
-"""Calibration of the cost model of :mod:`bench.resources`: measure memory and time of one method
+"""Calibration of the cost model of :mod:`exo_bench.api.cost_model`: measure memory and time of one method
 on one model in a fresh process, and the table of measured against estimated values
 (``python -m exo_bench.bench.perf.calibration``). A development tool: nothing else imports it.
 """

@@ -24,7 +24,7 @@ class Sweep:
     inverse_budget: float              # projected seconds per batched call before a row is skipped
     error_subsample: int               # samples checked against the 50-digit reference
     compose_3d_fast: tuple[int, ...] = ()   # more n for composing in 3D, matrix and recurrence only
-    row_budget: float = 1800.0         # seconds for one row of the distributed sweep (bench/rows.py) before it is killed
+    row_budget: float = 1800.0         # seconds for one row of the distributed sweep (bench/perf/rows.py) before it is killed
 
 
 QUICK = Sweep("quick", compose_2d=(1, 2, 3), compose_3d=(1, 2), compose_budget=20.0, derive_budget=10.0,

@@ -1,7 +1,7 @@
 """Where the limit is: the arithmetic of one sample of the factored kernel, and this CPU's speed at it.
 
 **Counting** (:func:`count_factored`). The compiled kernel's per-sample function
-(:func:`matrix_method.compiled_factored._sample_2d`/``_sample_3d``) is run as plain Python (its
+(:func:`exo_bench.matrix_method.numba_kernels.factored._sample_2d`/``_sample_3d``) is run as plain Python (its
 ``py_func``) on arrays of :class:`Counted` numbers, with ``math`` replaced by a namespace whose
 ``cos``/``sin`` count their calls: every ``+``, ``-`` and ``*`` of the real code is counted, nothing
 is typed by hand, and an edit of the kernel changes the count. (The compiled code does the same

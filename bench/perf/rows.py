@@ -74,7 +74,7 @@ OVER_BUDGET = "over_budget"
 
 def prior_over_budget(config) -> dict[tuple, tuple]:
     """``{(method, dim, topology): (n, reason)}`` from ``--prior-skips``: what the rows before this
-    one in its chain (smaller n, bench/distributed.py) found over budget."""
+    one in its chain (smaller n, bench/cluster/cluster.py) found over budget."""
     path = config.getoption("--prior-skips")
     if not path:
         return {}
@@ -151,7 +151,7 @@ def safe_name(key: str) -> str:
 
 # ----------------------------------------------------------------------------- merging
 def merge(results: list[dict]) -> tuple[dict, list[dict]]:
-    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`distributed.run_row`
+    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`exo_bench.bench.cluster.cluster.run_row`
     records) and the list of skipped or failed benchmarks with their reasons.
 
     Each benchmark keeps its row's host and CPU in ``extra_info`` (``host``, ``cpu``, ``row``); the

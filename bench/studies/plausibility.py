@@ -4,7 +4,7 @@ For every joint of the model: the peak |net joint moment| (``models.joint_loads`
 parent side exerts on the subtree, about the joint) per kg of the model's mass, its sagittal
 component, and the peak rod force ``F_k`` (the reference method's tau) in body weights, each
 beside the normative peak of the joint or segment it plays in level walking
-(:data:`models.normative.WINTER`, one subject). The joint a link's start plays is read from the
+(:data:`exo_bench.models.normative.WINTER`, one subject). The joint a link's start plays is read from the
 link's name (the presets of the exoskeleton: ``stance_shin``, ``stance_thigh``, ``swing_thigh``,
 ``swing_shin``, ``trunk``); other links get no normative value.
 

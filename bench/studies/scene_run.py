@@ -137,7 +137,7 @@ def _scene_table(o: SceneOutcome) -> str:
 
 def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     """Run one scene, writing its outputs into ``staging``; never raises for a method's failure.
-    ``limits`` (:class:`bench.resources.Limits`): a method estimated beyond them is skipped."""
+    ``limits`` (:class:`exo_bench.api.cost_model.Limits`): a method estimated beyond them is skipped."""
     from exo_bench.api.cost_model import check_samples
 
     o = SceneOutcome(scene)

@@ -1,6 +1,6 @@
 """Scenes: a mechanism, a motion, the methods to run and the outputs wanted, declared in TOML.
 
-Shipped scenes live in ``bench/scenes/*.toml``; users pass their own file to ``exo-bench run``.
+Shipped scenes live in ``bench/studies/scenes/*.toml``; users pass their own file to ``exo-bench run``.
 Format (every key is checked; an error names the file and the field)::
 
     description = "the five-link exoskeleton along the gait of eq. (26)"
@@ -8,7 +8,7 @@ Format (every key is checked; an error names the file and the field)::
     methods = ["pinocchio", "matrix", "recurrence"]
     reference = "pinocchio"               # optional; the first method by default
     outputs = ["table", "reference-error", "moments", "forces", "kinogram", "differences", "overview",
-               "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/equations.py)
+               "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/cli/equations.py)
 
     [motion]
     kind = "gait"                         # gait | planar-gait | smooth-random | states
@@ -131,7 +131,7 @@ def _number(path, key, value, lo=None, integer=False):
 
 
 def load_scene(spec: str | Path) -> Scene:
-    """A shipped scene name (``bench/scenes/<name>.toml``) or the path of a TOML file."""
+    """A shipped scene name (``bench/studies/scenes/<name>.toml``) or the path of a TOML file."""
     from exo_bench.api import METHODS
 
     path = Path(spec)

@@ -90,7 +90,7 @@ def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, m
                 reference: str = "pinocchio", options: dict[str, dict] | None = None, limits=None) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and
     does not stop the others. ``options``: method -> its :func:`prepare` options. A method whose
-    estimated memory or time exceeds ``limits`` (:class:`bench.resources.Limits`; default: a share
+    estimated memory or time exceeds ``limits`` (:class:`exo_bench.api.cost_model.Limits`; default: a share
     of the available memory) is recorded as skipped with the estimate, before it runs."""
     from exo_bench.api.cost_model import check
     study = Study(name, mech, motion, motion_label, reference=reference)

@@ -13,7 +13,7 @@ limit (``--max-time``, and for ``lagrange`` its derivation budget, ``--budget``)
 **The cost model.** Per method, memory is ``setup + arrays + chunk x per-sample bytes`` and time is
 ``setup + calls x per-call + samples x per-sample seconds``, each a small formula in ``n`` (links)
 and ``dim``, in :mod:`exo_bench.api.cost_formulas` (one per method, named by its MethodSpec). The constants were fitted to measurements taken by
-:func:`bench.calibration.measure` (``python -m exo_bench.bench.perf.calibration``: each point in a fresh process; memory is
+:func:`exo_bench.bench.perf.calibration.measure` (``python -m exo_bench.bench.perf.calibration``: each point in a fresh process; memory is
 the growth of the peak resident set size, ``VmHWM`` after a reset through /proc/self/clear_refs,
 because Pinocchio allocates in C++ where tracemalloc does not see; time is ``perf_counter``), on
 chains of n = 5, 25 and 100 links (lagrange: 1 to 30) in 2D and 3D with batches of 1 and 2000
@@ -22,7 +22,7 @@ Memory is rounded up (an estimate that is too high refuses a run that would fit;
 a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is not
 rounded up, so that a refusal for its budget is a real one.
 
-Measured against estimated by :func:`bench.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
+Measured against estimated by :func:`exo_bench.bench.perf.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
 afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
 
     | method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |

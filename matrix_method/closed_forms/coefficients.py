@@ -2,14 +2,14 @@
 
 The aggregates ``zeta, eta, theta`` of eq. (6), the descendant masses ``Theta`` and the mass
 coupling ``mu_ij`` / gravity coefficients ``nu_k`` of ``T = 1/2 sum_ij mu_ij w_i' . w_j'`` and
-``Pi = g sum_k nu_k (w_k . up)`` are defined once, in :mod:`models.aggregates` (derivation there).
+``Pi = g sum_k nu_k (w_k . up)`` are defined once, in :mod:`exo_bench.models.aggregates` (derivation there).
 Every matrix element of eqs. (5) and (17) is ``c_ij = mu_ij s_i s_j`` times a geometric factor of
-links i and j (:mod:`matrix_method.planar`), so the sign products of a branched model ("reversed
+links i and j (:mod:`exo_bench.matrix_method.closed_forms.planar`), so the sign products of a branched model ("reversed
 links contribute sign products") live in ``c`` alone; this module adds them.
 
 Each function exists in a numeric form (floats from the mechanism) and a symbolic form
-(expressions in the shared mass symbols of :func:`models.symbols.symbols_for`), both built on
-:func:`models.aggregates.aggregates` and :func:`models.aggregates.coupling_entries`.
+(expressions in the shared mass symbols of :func:`exo_bench.models.symbols.symbols_for`), both built on
+:func:`exo_bench.models.aggregates.aggregates` and :func:`exo_bench.models.aggregates.coupling_entries`.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarr
 # ---------------------------------------------------------------- symbolic
 def _parameters(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
     """Per link ``(m0, m1, m2, n)``: the shared symbols, or exact Rationals equal to the floats
-    (so that expressions compare exactly with :func:`lagrange.derive`'s, which does the same)."""
+    (so that expressions compare exactly with :func:`exo_bench.lagrange.derive`'s, which does the same)."""
     if symbolic_parameters:
         return [(*S.m[i], S.n[i]) for i in range(mech.nlinks)]
     return [tuple(sp.Rational(x) for x in (*mech.masses[i], mech.n[i])) for i in range(mech.nlinks)]
@@ -73,7 +73,7 @@ def _parameters(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 
 def generic_aggregates(params):
     """Eq. (6), definitions, in any arithmetic (sympy, ring elements): ``zeta, eta, theta`` per link
-    from ``params = [(m0, m1, m2, n), ...]`` (:func:`models.aggregates.aggregates`)."""
+    from ``params = [(m0, m1, m2, n), ...]`` (:func:`exo_bench.models.aggregates.aggregates`)."""
     per_link = [aggregates(*p) for p in params]
     return [a[0] for a in per_link], [a[1] for a in per_link], [a[2] for a in per_link]
 
@@ -86,7 +86,7 @@ def symbolic_aggregates(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
     different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
-    :func:`models.aggregates.coupling_entries`."""
+    :func:`exo_bench.models.aggregates.coupling_entries`."""
     n = mech.nlinks
     mu, nu = coupling_entries(mech, *generic_aggregates(params), zero=zero)
     s = mech.sign

@@ -2,7 +2,7 @@
 
 Derivation (verified by the tests against Lagrange's equations and Pinocchio). With
 ``T = 1/2 sum_ij c_ij d/dt(l_i u_i) . d/dt(l_j u_j)``, ``c_ij = mu_ij s_i s_j``
-(:mod:`matrix_method.coefficients`) and ``Pi = g sum_i nu_i s_i l_i (u_i . up)``, the rod vector
+(:mod:`exo_bench.matrix_method.closed_forms.coefficients`) and ``Pi = g sum_i nu_i s_i l_i (u_i . up)``, the rod vector
 ``l_i u_i`` depends on link i's own coordinates only, so Lagrange's equation of coordinate ``a`` of
 link ``i`` is
 
@@ -23,7 +23,7 @@ sign product ``s_i s_j`` (both inside ``c_ij``). For Fig. 2a/2b they are the ent
 
 Every function is written once for both backends: numpy arrays that broadcast (``c`` of shape
 ``(n, n)``, ``li`` ``(S, n, 1)``, ``lj`` ``(S, 1, n)``, ``C, S`` ``(S, n, n)``) or sympy scalars of
-one entry. The recurrence (:mod:`matrix_method.recurrence`) calls them with increments of ``c``.
+one entry. The recurrence (:mod:`exo_bench.matrix_method.recurrence`) calls them with increments of ``c``.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Eq. (5) / (17) as code to take away: a standalone numpy module and C99 source, with CSE.
 
-The equations are the matrix method's own (:func:`matrix_method.symbolic.compose_equations` and
-:func:`matrix_method.symbolic.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
+The equations are the matrix method's own (:func:`exo_bench.matrix_method.symbolic.compose.compose_equations` and
+:func:`exo_bench.matrix_method.symbolic.compose.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
 block ``k``, column block ``c`` is the matrix multiplying the second derivatives of block ``c``,
-:data:`models.equation_form.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
+:data:`exo_bench.models.equation_form.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
 is one common-subexpression elimination (``sympy.cse``) of its outputs, printed
 
 * :func:`python_module`: one module importing numpy only, ``inverse_dynamics(q, qd, qdd)``,

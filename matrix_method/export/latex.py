@@ -1,8 +1,8 @@
 """Eq. (5) / (17) in print: every matrix element in the paper's notation, as LaTeX.
 
 Each element of eq. (5)/(17) is ``c_ij`` times a geometric factor of links ``i`` and ``j``
-(:mod:`matrix_method.planar`, :mod:`matrix_method.spatial`: the closed forms are linear in ``c``),
-with ``c_ij = s_i s_j mu_ij`` (:mod:`matrix_method.coefficients`, :mod:`models.aggregates`), and each
+(:mod:`exo_bench.matrix_method.closed_forms.planar`, :mod:`exo_bench.matrix_method.closed_forms.transitions`: the closed forms are linear in ``c``),
+with ``c_ij = s_i s_j mu_ij`` (:mod:`exo_bench.matrix_method.closed_forms.coefficients`, :mod:`exo_bench.models.aggregates`), and each
 gravity element ``P_i`` is ``nu_i s_i`` times one. :func:`element_parts` builds the geometric factors
 with ``c = 1`` on related links, so an element prints as
 

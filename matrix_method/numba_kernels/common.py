@@ -2,15 +2,15 @@
 
 The kernels themselves, one algorithm per file:
 
-* :mod:`matrix_method.compiled_factored` (method ``matrix-factored``): eq. (5)/(17) in factored
-  form, no matrix formed (the derivation is in :func:`matrix_method.numeric.inverse_dynamics`);
-* :mod:`matrix_method.compiled_matrix` (method ``matrix``): every matrix of eq. (5)/(17) formed
-  from the closed forms of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial`, then the
-  products with the rates of :data:`models.equation_form.RATES`;
-* :mod:`matrix_method.compiled_recurrence` (method ``recurrence``): the planar matrices grown link
+* :mod:`exo_bench.matrix_method.numba_kernels.factored` (method ``matrix-factored``): eq. (5)/(17) in factored
+  form, no matrix formed (the derivation is in :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`);
+* :mod:`exo_bench.matrix_method.numba_kernels.matrix` (method ``matrix``): every matrix of eq. (5)/(17) formed
+  from the closed forms of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions`, then the
+  products with the rates of :data:`exo_bench.models.equation_form.RATES`;
+* :mod:`exo_bench.matrix_method.numba_kernels.recurrence` (method ``recurrence``): the planar matrices grown link
   by link by eqs. (22)-(26), then the same transitions and products.
 
-The pure-numpy kernels (:mod:`matrix_method.numeric`, :mod:`matrix_method.recurrence`) stay the
+The pure-numpy kernels (:mod:`exo_bench.matrix_method.numpy_kernels.matrix`, :mod:`exo_bench.matrix_method.recurrence`) stay the
 reference implementation; tests/test_compiled.py holds these to them at 1e-14 relative.
 
 **One kernel, one sample or a batch.** Each algorithm is a per-sample function, a block function
@@ -25,7 +25,7 @@ only (returning a new array cost about as much as the arithmetic of exo5-3d): th
 preallocate it (``inverse_dynamics(..., out=)``).
 
 **Closed forms written once.** The compiled ``matrix`` and ``recurrence`` kernels call the very
-functions of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial` (registered here with
+functions of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions` (registered here with
 ``numba.extending.register_jitable``, which leaves them plain Python functions for numpy and
 sympy); the transitions take their namespace ``t`` as a namedtuple (:data:`Transition`).
 
@@ -93,17 +93,17 @@ PARALLEL_MIN_SAMPLES = 4096
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
 
-#: The namespace ``t`` of :mod:`matrix_method.spatial` for one pair (i, j), as a namedtuple so
+#: The namespace ``t`` of :mod:`exo_bench.matrix_method.closed_forms.transitions` for one pair (i, j), as a namedtuple so
 #: that the compiled kernels can pass it to the same transition functions: the planar elements
-#: (named as :func:`spatial.transition_inputs` names them), their ``*_par`` quotients, the lengths
+#: (named as :func:`exo_bench.matrix_method.closed_forms.transitions.transition_inputs` names them), their ``*_par`` quotients, the lengths
 #: and the cos/sin of ``psi_i``, ``psi_j``.
 PLANAR_FIELDS = tuple(f.__name__ for fns in planar.PAIRS.values() for f in fns.values())
 Transition = namedtuple("Transition", (*PLANAR_FIELDS, *spatial.QUOTIENTS, "li", "lj", "ci", "si", "cj", "sj"))
 
 
 def _rate_table(dim: int) -> np.ndarray:
-    """:data:`models.equation_form.RATES` as numbers for the compiled products: one row per matrix
-    of :func:`equation_form.matrix_names` (in that order), ``(factor, first block, second block)``
+    """:data:`exo_bench.models.equation_form.RATES` as numbers for the compiled products: one row per matrix
+    of :func:`exo_bench.models.equation_form.matrix_names` (in that order), ``(factor, first block, second block)``
     with blocks numbered in the order of ``q`` and ``-1`` where a matrix multiplies a second
     derivative (one block)."""
     bl = equation_form.blocks(dim)

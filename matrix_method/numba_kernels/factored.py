@@ -8,8 +8,8 @@ arrays), called in loops over the links of one sample:
     tau_a,i = r_a,i . f_i + g P_a,i,
 
 per sample ``2n`` (2D) or ``4n`` (3D) sines and cosines, and ``2 n^2`` or ``3 n^2`` multiply-adds.
-The kernels take ``(params, q, qd, qdd)`` with ``params`` of :func:`compiled.params` and flat
-``(samples * dof,)`` states, and return the flat forces (:mod:`matrix_method.compiled`).
+The kernels take ``(params, q, qd, qdd)`` with ``params`` of :func:`exo_bench.matrix_method.numba_kernels.common.params` and flat
+``(samples * dof,)`` states, and return the flat forces (:mod:`exo_bench.matrix_method.numba_kernels.common`).
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def factored_2d(p, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def factored_2d_parallel(p, q, qd, qdd, o):
-    """:func:`factored_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`factored_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
@@ -112,7 +112,7 @@ def factored_3d(p, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def factored_3d_parallel(p, q, qd, qdd, o):
-    """:func:`factored_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`factored_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))

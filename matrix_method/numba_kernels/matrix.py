@@ -1,18 +1,18 @@
 """Method ``matrix``, compiled: form every matrix of eq. (5)/(17), then the products with the rates.
 
-Per sample, as :class:`matrix_method.prepared.MatrixProducts` does in numpy:
+Per sample, as :class:`exo_bench.matrix_method.prepared.MatrixProducts` does in numpy:
 
 1. the planar matrices of eq. (5) (``A, Lambda, D, H`` of blocks ``phi`` and ``l``, and ``P``) from
-   the closed forms of :mod:`matrix_method.planar` (:func:`planar_matrices`);
+   the closed forms of :mod:`exo_bench.matrix_method.closed_forms.planar` (:func:`planar_matrices`);
 2. in 3D, the same for the straightened model (every ``phi = 0``), then every matrix of eq. (17)
-   by the corrected transitions (18) of :mod:`matrix_method.spatial` (:func:`spatial_matrices`;
+   by the corrected transitions (18) of :mod:`exo_bench.matrix_method.closed_forms.transitions` (:func:`spatial_matrices`;
    nothing divides);
 3. eq. (5)/(17): ``tau_k,i = sum_X sum_j X_ij x^X_j + g P_k,i`` with the rate vectors ``x^X`` of
-   :data:`models.equation_form.RATES` (:func:`products`).
+   :data:`exo_bench.models.equation_form.RATES` (:func:`products`).
 
 The closed forms are the functions of ``planar.py`` and ``spatial.py`` themselves
-(:mod:`matrix_method.compiled` registers them with numba). Kernels: ``(params, q, qd, qdd)`` with
-``params`` of :func:`compiled.params` and flat ``(samples * dof,)`` states.
+(:mod:`exo_bench.matrix_method.numba_kernels.common` registers them with numba). Kernels: ``(params, q, qd, qdd)`` with
+``params`` of :func:`exo_bench.matrix_method.numba_kernels.common.params` and flat ``(samples * dof,)`` states.
 """
 
 from __future__ import annotations
@@ -176,7 +176,7 @@ def matrix_2d(p, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def matrix_2d_parallel(p, q, qd, qdd, o):
-    """:func:`matrix_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`matrix_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
@@ -190,7 +190,7 @@ def matrix_3d(p, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def matrix_3d_parallel(p, q, qd, qdd, o):
-    """:func:`matrix_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`matrix_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))

@@ -1,16 +1,16 @@
 """Method ``recurrence``, compiled: the planar matrices grown link by link by eqs. (22)-(26), then the
 corrected transitions (18) and the products of eq. (5)/(17).
 
-Per sample, as :func:`matrix_method.recurrence.planar_step` does in numpy: the planar matrices start
+Per sample, as :func:`exo_bench.matrix_method.recurrence.planar_step` does in numpy: the planar matrices start
 at zero (the padding of eq. (24)) and adding link ``k`` adds ``delta X_n`` (eq. 25, generalised to
 trees), the closed form of ``X`` evaluated with the increments of ``c`` of
-:func:`matrix_method.coefficients.recurrence_increments`, on the rows and columns of k's ancestors
+:func:`exo_bench.matrix_method.closed_forms.coefficients.recurrence_increments`, on the rows and columns of k's ancestors
 and k; the gravity vector and ``nu_s`` grow the same way. In 3D the recurrence runs for the
-configuration and for the straightened model, then :func:`compiled_matrix.spatial_matrices` and
-:func:`compiled_matrix.products` (eq. 26). The increments are per mechanism, packed once by
+configuration and for the straightened model, then :func:`exo_bench.matrix_method.numba_kernels.matrix.spatial_matrices` and
+:func:`exo_bench.matrix_method.numba_kernels.matrix.products` (eq. 26). The increments are per mechanism, packed once by
 :func:`tables`.
 
-Kernels: ``(params, ints, floats, q, qd, qdd)`` with ``params`` of :func:`compiled.params`,
+Kernels: ``(params, ints, floats, q, qd, qdd)`` with ``params`` of :func:`exo_bench.matrix_method.numba_kernels.common.params`,
 ``ints, floats`` of :func:`tables` and flat ``(samples * dof,)`` states.
 """
 
@@ -130,7 +130,7 @@ def recurrence_2d(p, ints, floats, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def recurrence_2d_parallel(p, ints, floats, q, qd, qdd, o):
-    """:func:`recurrence_2d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`recurrence_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (2 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 2)
@@ -144,7 +144,7 @@ def recurrence_3d(p, ints, floats, q, qd, qdd, o):
 
 @njit(parallel=True, **JIT)
 def recurrence_3d_parallel(p, ints, floats, q, qd, qdd, o):
-    """:func:`recurrence_3d` with blocks of :data:`compiled.BLOCK` samples over numba's threads."""
+    """:func:`recurrence_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
     S = q.shape[0] // (3 * p.shape[0])
     for b in prange((S + BLOCK - 1) // BLOCK):
         _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 3)

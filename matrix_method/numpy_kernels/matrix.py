@@ -1,14 +1,14 @@
 """The matrix method in numpy, batched over samples: ``(samples, dof)`` in, ``(samples, dof)`` out.
 
 * :func:`planar_matrices`: every matrix of eq. (5) from the closed forms of
-  :mod:`matrix_method.planar`, ``(S, n, n)`` per matrix and ``(S, n)`` for ``P``.
+  :mod:`exo_bench.matrix_method.closed_forms.planar`, ``(S, n, n)`` per matrix and ``(S, n)`` for ``P``.
 * :func:`matrices`: in 3D, every matrix of eq. (17) from the planar ones of the same structure by
-  the corrected transition formulas (18) of :mod:`matrix_method.spatial` (nothing divides).
+  the corrected transition formulas (18) of :mod:`exo_bench.matrix_method.closed_forms.transitions` (nothing divides).
 * :func:`generalised_forces`: eq. (5)/(17), the products of the matrices with the rate vectors.
 * :func:`inverse_dynamics` (method ``matrix``): the same equations evaluated in factored form,
   the fast path (see its docstring).
 * :func:`paper_matrices`, :func:`inverse_dynamics_paper` (method ``matrix-paper``): eq. (18)
-  exactly as printed (:data:`matrix_method.printed.TRANSITIONS`), divisions included.
+  exactly as printed (:data:`exo_bench.matrix_method.printed.TRANSITIONS`), divisions included.
 
 Matrices are dicts ``block -> name -> array`` with blocks ``phi, l`` (+ ``psi`` in 3D) and names
 ``A, Lambda, D, H, P`` (+ ``B, E, G, K``), the convention of :mod:`lagrange`: row i of block k is
@@ -48,7 +48,7 @@ def planar_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np.nd
 
 
 def _planar(mech: Mechanism, phi, l, cos, sin, c, nu_s) -> dict[str, dict[str, np.ndarray]]:
-    """The closed forms of :mod:`matrix_method.planar` on ``(S, n)`` arrays of any dtype."""
+    """The closed forms of :mod:`exo_bench.matrix_method.closed_forms.planar` on ``(S, n)`` arrays of any dtype."""
     d = phi[:, :, None] - phi[:, None, :]
     li, lj, C, S = l[:, :, None], l[:, None, :], cos(d), sin(d)
     out = {}
@@ -84,7 +84,7 @@ def spatial_from_planar(psi: np.ndarray, l: np.ndarray, flat: dict, straight: di
     and lengths ``l``) and those of the straightened model (``straight``, every ``phi = 0``), for
     the elevations ``psi`` ``(S, n)``.
     ``nu_s``: the gravity coefficients of the planar ``P`` (``2D p^phi_i = nu_s_i l_i cos phi_i``),
-    which :data:`spatial.GRAVITY` evaluates at ``phi_i -> psi_i``."""
+    which :data:`exo_bench.matrix_method.closed_forms.transitions.GRAVITY` evaluates at ``phi_i -> psi_i``."""
     cp, sp = np.cos(psi), np.sin(psi)
     t = spatial.transition_inputs(flat, straight, l[:, :, None], l[:, None, :],
                                   cp[:, :, None], sp[:, :, None], cp[:, None, :], sp[:, None, :])
@@ -120,7 +120,7 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
 
 def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
     """Eq. (5) / (17): the mass matrix ``(S, dof, dof)`` assembled from the matrices multiplying the
-    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`equation_form.ACCELERATION`)."""
+    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.equation_form.ACCELERATION`)."""
     bl = blocks(mech)
     return np.concatenate([np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2)
                            for r in bl], axis=1)
@@ -163,7 +163,7 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
 
     Every element of every matrix is ``c_ij`` times a dot product of a row vector of link i and a
     column vector of link j (``3D a^phi_ij = c_ij (l_i u_phi_i) . (l_j u_phi_j)``, ...): the closed
-    forms of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial` are these dot products
+    forms of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions` are these dot products
     written out in sines and cosines. Summing eq. (17) over the matrices of a block first,
 
         tau_a,i = r_a,i . sum_j c_ij kappa_j,   kappa_j = sum_X (column of X at j) x^X_j
@@ -225,7 +225,7 @@ def paper_matrices(mech: Mechanism, q, table=None, exact: bool = False) -> dict[
     vanish); ``exact=True`` evaluates with exact arithmetic instead, as a computer-algebra system
     would: ``q`` is then an array of sympy numbers (e.g. ``pi/2``) and the result an object array
     of sympy numbers (``nan`` for 0/0).
-    ``table`` (default :data:`matrix_method.printed.TRANSITIONS`) lets a test swap printed lines for
+    ``table`` (default :data:`exo_bench.matrix_method.printed.TRANSITIONS`) lets a test swap printed lines for
     corrected ones. A 2D model has no transitions: its matrices are the planar closed forms.
     """
     from exo_bench.matrix_method import printed

@@ -1,18 +1,18 @@
 """The matrix method in sympy: the explicit equations of motion, composed from the closed forms.
 
-* :func:`planar_matrices`: the matrices of eq. (5) from :mod:`matrix_method.planar`;
+* :func:`planar_matrices`: the matrices of eq. (5) from :mod:`exo_bench.matrix_method.closed_forms.planar`;
 * :func:`matrices`: in 3D, those of eq. (17) by the corrected transitions (18) of
-  :mod:`matrix_method.spatial` from the planar ones of the same structure;
+  :mod:`exo_bench.matrix_method.closed_forms.transitions` from the planar ones of the same structure;
 * :func:`compose_equations`: eq. (5) / (17), the matrices times the rate vectors: the equations
   the paper composes "bypassing Lagrange's equations" (its timing table), equal to
-  :func:`lagrange.derive`'s (tested with :func:`lagrange.canonical_form`).
+  :func:`exo_bench.lagrange.derive`'s (tested with :func:`exo_bench.lagrange.canonical_form`).
 
-Expressions use the shared symbols of :func:`models.symbols.symbols_for`. With
+Expressions use the shared symbols of :func:`exo_bench.models.symbols.symbols_for`. With
 ``symbolic_parameters=True`` masses, fractions and ``g`` stay symbols (each coefficient is one
 factor, e.g. ``(m2_0 + m2_1 + m2_2 + m1_1*n1**2 + m1_2)*l1**2*ddphi1``); otherwise they are the
 mechanism's values as exact Rationals equal to the floats, as :mod:`lagrange` does, so the two
 compare exactly. Entries are built directly from the closed forms in a sparse polynomial ring
-(:mod:`matrix_method.polynomials`), with no simplification pass; ``cos(phi_i - phi_j)`` and
+(:mod:`exo_bench.matrix_method.symbolic.polynomials`), with no simplification pass; ``cos(phi_i - phi_j)`` and
 ``sin(phi_i - phi_j)`` appear as such (``sympy.expand_trig`` expands them).
 """
 
@@ -113,7 +113,7 @@ def matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, di
 
 def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
     """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j, from the rate
-    table :data:`models.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
+    table :data:`exo_bench.models.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
     def rate(name: str, j: int):
         factor, r = RATES[name]
         if len(r) == 1:

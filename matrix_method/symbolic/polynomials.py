@@ -8,7 +8,7 @@ the state symbols and the sines and cosines the closed forms use (``l_i``, rates
 ``cos/sin phi_i``, ``cos/sin psi_i``, ``cos/sin(phi_i - phi_j)``); coefficients are
 :class:`fractions.Fraction` (numeric parameters, the exact values of the floats) or, with symbolic
 parameters, :class:`Poly` in the masses ``m_ib``, fractions ``n_i`` and ``g``. The element
-functions of :mod:`matrix_method.planar` and :mod:`matrix_method.spatial` run unchanged on them
+functions of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions` run unchanged on them
 and like terms merge as they are added.
 
 :meth:`Generators.expr` turns a Poly into the sympy expression that sympy's own constructors give
@@ -332,7 +332,7 @@ class Generators:
 
 @lru_cache(maxsize=64)
 def generators(nlinks: int, dim: int, symbolic_parameters: bool) -> Generators:
-    """The generators of a model size (cached, like :func:`models.symbols.symbols_for`)."""
+    """The generators of a model size (cached, like :func:`exo_bench.models.symbols.symbols_for`)."""
     return Generators(nlinks, dim, symbolic_parameters)
 
 

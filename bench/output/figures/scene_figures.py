@@ -1,4 +1,4 @@
-"""Figures of a :class:`bench.study.Study`: the paper's Figs. 7-9 and the differences between methods.
+"""Figures of a :class:`exo_bench.bench.studies.study.Study`: the paper's Figs. 7-9 and the differences between methods.
 
 * :func:`moments_figure` - the control moments in the joints (Fig. 7),
 * :func:`forces_figure` - the longitudinal forces along the rods (Fig. 8),
@@ -9,7 +9,7 @@
 **Which moments.** A study's ``tau`` are the generalised forces of the paper's *absolute*
 angles (eq. 4 has ``M1 - M2`` on ``phi_1``). The physical moments in the joints (what Fig. 7
 shows) are ``tau_joint = G^-T tau`` with ``G`` the constant map ``q_joint = G q`` of
-:func:`models.pinocchio_backend.build_model`: each joint turns link k relative to its parent
+:func:`exo_bench.models.pinocchio_backend.build_model`: each joint turns link k relative to its parent
 (azimuth ``phi_k - phi_parent``; in 3D also the elevation ``psi_k``; the prismatic joint
 ``l_k``). The rod forces ``F_k`` are the same in both sets, because the column of ``G`` of
 ``l_k`` is a unit vector (``l_k`` maps to itself), so ``F_k = tau_joint[len_k] = tau[l_k]``.

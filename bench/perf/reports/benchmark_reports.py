@@ -55,7 +55,7 @@ def load(json_path: Path, skips_path: Path | None = None) -> tuple[pd.DataFrame,
                     rounds=st["rounds"], iqr=st.get("iqr", float("nan")))
         rows.append(info)
     skips = json.loads(Path(skips_path).read_text()) if skips_path and Path(skips_path).exists() else []
-    check_ratio_groups(pd.DataFrame(rows))   # never a ratio of timings from two hosts (bench/rows.py)
+    check_ratio_groups(pd.DataFrame(rows))   # never a ratio of timings from two hosts (bench/perf/rows.py)
     return pd.DataFrame(rows), skips, data.get("machine_info", {})
 
 
@@ -323,12 +323,12 @@ def limit_section(df: pd.DataFrame, inv: pd.DataFrame) -> list[str]:
     r = lim.iloc[0]
     count, rates, est, threads = r["count"], r["rates"], r["estimate"], int(r["numba_threads"])
     out = ["## Where the limit is", "",
-           "One exo5-3d sample of the factored kernel (`matrix_method/compiled_factored.py`), counted by running the "
-           "kernel's own per-sample function on counting floats (`bench/limit.py`; the counting run gives the "
+           "One exo5-3d sample of the factored kernel (`matrix_method/numba_kernels/factored.py`), counted by running the "
+           "kernel's own per-sample function on counting floats (`bench/perf/roofline.py`; the counting run gives the "
            "compiled kernel's forces bit for bit):", "",
            f"- {count['add']} additions/subtractions and {count['mul']} multiplications ({count['flops']} flops), "
            f"{count['trig']} transcendental calls (cos, sin).",
-           f"- This CPU, one core, measured with numba loops compiled like the kernels (`bench/limit.py`): "
+           f"- This CPU, one core, measured with numba loops compiled like the kernels (`bench/perf/roofline.py`): "
            f"{rates['scalar_flops_per_s'] / 1e9:.3g} Gflop/s scalar, {rates['simd_flops_per_s'] / 1e9:.3g} Gflop/s "
            f"SIMD (multiply-adds), {rates['sincos_per_s'] / 1e6:.3g} M angles/s for `cos` and `sin` of one angle "
            f"({1e9 / rates['sincos_per_s']:.3g} ns each pair).",

@@ -1,16 +1,16 @@
 """Errata of the paper's formulas, found by computation: ``exo-bench errata`` -> ``reports/errata.md``.
 
-Every formula of :mod:`matrix_method.printed` (encoded once, exactly as printed) is evaluated on
+Every formula of :mod:`exo_bench.matrix_method.printed` (encoded once, exactly as printed) is evaluated on
 seeded random states of the models it speaks about and compared with two independent witnesses:
 
-* **Lagrange**: :func:`lagrange.derive` (sympy, from the point masses' T and Pi), its matrices
+* **Lagrange**: :func:`exo_bench.lagrange.derive` (sympy, from the point masses' T and Pi), its matrices
   and equations lambdified;
 * **Pinocchio**: the mass matrix (CRBA) and bias forces (RNEA) of the generated URDF, from which
   every matrix of eq. (5)/(17) is read off column by column (:func:`pinocchio_matrices`).
 
 A formula *holds* when its largest error, relative to the largest magnitude of what it is compared
 with, is at most :data:`TOLERANCE` for both witnesses on every model; otherwise it *fails*, and the
-report gives the corrected form (a hypothesis encoded in :mod:`matrix_method.printed`) with its own
+report gives the corrected form (a hypothesis encoded in :mod:`exo_bench.matrix_method.printed`) with its own
 error. Nothing in the report is typed by hand: verdicts, errors and evidence come from this package.
 
 One responsibility per module: ``cases`` (the models and states each formula is checked on),

@@ -65,7 +65,7 @@ def render(r: Results) -> str:
           "## Summary", "",
           f"{len(checked)} formulas checked: {len(checked) - len(fails)} hold, {len(fails)} fail. "
           "The largest error is relative (see Method); `corrected` is the error of the corrected form "
-          "and `matrix` that of the matrix method's element (`matrix_method/spatial.py`, division-free) "
+          "and `matrix` that of the matrix method's element (`matrix_method/closed_forms/transitions.py`, division-free) "
           "on the same states.", "",
           "| formula | left side | verdict | largest error | corrected | matrix | models |",
           "|---|---|---|---|---|---|---|"]

@@ -1,7 +1,7 @@
 """``exo-bench stability``: where each method breaks, and the forward-dynamics round trip.
 
 A benign baseline and six families of extreme cases (:data:`FAMILIES`), each a list of
-:class:`Case` (a mechanism and states). For every case and every method registered in :data:`bench.methods.METHODS` *at run
+:class:`Case` (a mechanism and states). For every case and every method registered in :data:`exo_bench.api.methods.METHODS` *at run
 time*, the report gives the largest absolute and relative error against the 50-digit reference,
 the number of NaN/Inf values, and the condition number of the mass matrix; a method that is
 missing, over its time budget or raising is recorded as such (one line), never a crash.

@@ -169,7 +169,7 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
 
 def equilibrated_mu_condition(mech: Mechanism) -> float:
     """``cond(D^-1/2 mu D^-1/2)``, ``D = diag(mu)``: the equilibrated condition number of M at every
-    configuration where M is regular (see :func:`models.forward_dynamics.condition_numbers`)."""
+    configuration where M is regular (see :func:`exo_bench.models.forward_dynamics.condition_numbers`)."""
     mu = coupling(mech)
     dg = np.diag(mu)
     if (dg <= 0).any():
