@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # what IDEs and type checkers see; at run time the names load lazily (__getattr__)
     from exo_bench.api.methods import MethodSpec, method_names
-    from exo_bench.api.prepare import prepare
+    from exo_bench.api.preparation import prepare
     from exo_bench.models import presets
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.mechanism import Mechanism
@@ -31,7 +31,7 @@ __all__ = ["Mechanism", "MethodSpec", "load_mechanism", "method_names", "prepare
 
 #: name -> (module, attribute or None for the module itself), imported on first use.
 _LAZY: dict[str, tuple[str, str | None]] = {
-    "prepare": ("exo_bench.api.prepare", "prepare"),
+    "prepare": ("exo_bench.api.preparation", "prepare"),
     "method_names": ("exo_bench.api.methods", "method_names"),
     "MethodSpec": ("exo_bench.api.methods", "MethodSpec"),
     "Mechanism": ("exo_bench.models.mechanism", "Mechanism"),

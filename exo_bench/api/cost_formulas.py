@@ -131,7 +131,7 @@ def _loglog(points: list[tuple[float, float]], x: float) -> float:
 
 
 def _lagrange(mech: Mechanism, k: int) -> float:
-    pts = sorted((n, v[k]) for (n, d), v in LAGRANGE_POINTS.items() if d == mech.dim)
+    pts = sorted((float(n), v[k]) for (n, d), v in LAGRANGE_POINTS.items() if d == mech.dim)
     return _loglog(pts, float(mech.nlinks))
 
 

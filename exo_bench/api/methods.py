@@ -8,7 +8,7 @@ option, its place among the methods offered as "a method that fits", and whether
 composition stays within budget at every size of the sweep. Everything that needs one of these
 facts reads it from :data:`METHODS` (tests/test_method_table.py checks that no other table is left).
 
-:func:`~exo_bench.api.prepare.prepare` builds a method's prepared model.
+:func:`~exo_bench.api.preparation.prepare` builds a method's prepared model.
 """
 
 from __future__ import annotations

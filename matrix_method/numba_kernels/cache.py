@@ -31,7 +31,7 @@ from numba.extending import register_jitable
 _CacheLocator = caching._CacheLocator
 #: numba's cache implementation, whose ``_locator_classes`` lists the locators tried in order
 #: (``CacheImpl`` in numba 0.68; ``_CacheImpl`` before).
-_CacheImpl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+_CacheImpl: Any = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")  # noqa: B009
 
 #: Where the kernels live: a kernel defined in a file of this folder uses :class:`KernelSourceLocator`.
 KERNELS_DIR = Path(__file__).resolve().parent
