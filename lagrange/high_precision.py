@@ -15,40 +15,23 @@ reference is meant for subsamples (hundreds, not millions, of states).
 
 from __future__ import annotations
 
-import time
-from dataclasses import dataclass
-from collections.abc import Callable
-
 import mpmath
 import numpy as np
-import sympy as sp
 
-from exo_bench.lagrange.budget import time_budget
-from exo_bench.lagrange.derivation import derive
-from exo_bench.lagrange.numeric import default_budget
+from exo_bench.lagrange.derivation import Derivation
+from exo_bench.lagrange.numeric import _Compiled, lambdify_within_budget
+from exo_bench.lagrange.numeric import clear_cache as numeric_clear_cache
 from exo_bench.models.mechanism import Mechanism, as_states
 
 
-@dataclass(frozen=True)
-class _Compiled:
-    fn: Callable
-    seconds: float   # wall time of the lambdify call
-
-
-_CACHE: dict[Mechanism, _Compiled] = {}
+def _equations(d: Derivation) -> tuple[list, list]:
+    S = d.symbols
+    return list(S.q + S.qd + S.qdd), list(d.equations)
 
 
 def compile_reference(mech: Mechanism, budget: float | None = None) -> _Compiled:
     """The equations lambdified to mpmath (cached per mechanism; precision is set at call time)."""
-    if mech not in _CACHE:
-        budget = default_budget() if budget is None else budget
-        with time_budget(budget, "Lagrange II mpmath reference (derivation and lambdify)", mech.nlinks, mech.dim):
-            d = derive(mech, symbolic_parameters=False, budget=budget)
-            S = d.symbols
-            t0 = time.perf_counter()
-            fn = sp.lambdify(list(S.q + S.qd + S.qdd), list(d.equations), modules="mpmath", cse=True)
-            _CACHE[mech] = _Compiled(fn, time.perf_counter() - t0)
-    return _CACHE[mech]
+    return lambdify_within_budget(mech, "mpmath reference", budget, _equations, modules="mpmath")
 
 
 def inverse_dynamics_mpf(mech: Mechanism, q, qd, qdd, dps: int = 50,
@@ -75,4 +58,5 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd, dps: int = 50, budget: float |
 
 
 def clear_cache() -> None:
-    _CACHE.clear()
+    """Forget the lambdified equations (numpy's and mpmath's: one cache, :mod:`exo_bench.lagrange.numeric`)."""
+    numeric_clear_cache()

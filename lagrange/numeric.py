@@ -19,7 +19,7 @@ import numpy as np
 import sympy as sp
 
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
-from exo_bench.lagrange.derivation import derive
+from exo_bench.lagrange.derivation import Derivation, derive
 from exo_bench.models.mechanism import Mechanism, as_states
 
 DEFAULT_BUDGET = 120.0
@@ -48,7 +48,13 @@ def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> 
     return out
 
 
-def _compile(mech: Mechanism, what: str, budget: float, build) -> _Compiled:
+def lambdify_within_budget(mech: Mechanism, what: str, budget: float | None,
+                           build: Callable[[Derivation], tuple[list, list]], modules: str = "numpy") -> _Compiled:
+    """``sympy.lambdify(*build(derive(mech)), modules=modules, cse=True)``, the derivation and the
+    lambdify together within ``budget`` seconds (None: :func:`default_budget`), cached per
+    ``(mech, what)``; an attempt that ran out of budget is remembered, so that a second call with no
+    more budget than it spent fails at once. The one place the suite turns Lagrange's equations
+    into a function (numpy here, mpmath for :mod:`exo_bench.lagrange.high_precision`)."""
     key = (mech, what)
     if key not in _CACHE:
         budget = default_budget() if budget is None else budget
@@ -59,7 +65,7 @@ def _compile(mech: Mechanism, what: str, budget: float, build) -> _Compiled:
                 d = derive(mech, symbolic_parameters=False, budget=budget)
                 args, exprs = build(d)
                 t0 = time.perf_counter()
-                fn = sp.lambdify(args, exprs, modules="numpy", cse=True)
+                fn = sp.lambdify(args, exprs, modules=modules, cse=True)
             except (BudgetExceeded, BudgetAlarm):
                 _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - dl.start)
                 raise
@@ -70,7 +76,7 @@ def _compile(mech: Mechanism, what: str, budget: float, build) -> _Compiled:
 def compile_equations(mech: Mechanism, budget: float | None = None) -> _Compiled:
     """The lambdified equations ``tau(q..., qd..., qdd...)`` of a mechanism (cached); call once
     outside a timed loop to separate the symbolic cost from the evaluation."""
-    return _compile(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),
+    return lambdify_within_budget(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),
                                                            list(d.equations)))
 
 
@@ -89,7 +95,7 @@ def _mass_matrix_build(d):
 def mass_matrix(mech: Mechanism, q, budget: float | None = None) -> np.ndarray:
     """The mass matrix ``d tau / d qdd`` (row block k: ``[A_k, B_k, Lambda_k]``), ``(samples, dof, dof)``."""
     q, _, _ = as_states(mech, q)
-    c = _compile(mech, "mass matrix", budget, _mass_matrix_build)
+    c = lambdify_within_budget(mech, "mass matrix", budget, _mass_matrix_build)
     return _columns(c.fn, list(q.T), q.shape[0], mech.dof ** 2).reshape(-1, mech.dof, mech.dof)
 
 
@@ -102,7 +108,7 @@ def _bias_build(d):
 def bias_forces(mech: Mechanism, q, qd, budget: float | None = None) -> np.ndarray:
     """Velocity and gravity terms ``tau(q, qd, 0)`` (the ``D, E, G, H, K, P`` part), ``(samples, dof)``."""
     q, qd, _ = as_states(mech, q, qd)
-    c = _compile(mech, "bias forces", budget, _bias_build)
+    c = lambdify_within_budget(mech, "bias forces", budget, _bias_build)
     return _columns(c.fn, [*q.T, *qd.T], q.shape[0], mech.dof)
 
 

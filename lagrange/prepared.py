@@ -56,7 +56,7 @@ class LagrangeModel(PreparedModel):
     def _mass_matrix(self, q):
         if self._mass is None:
             with self._signals():
-                self._mass = numeric._compile(self._mechanism, "mass matrix", self.budget,
+                self._mass = numeric.lambdify_within_budget(self._mechanism, "mass matrix", self.budget,
                                               numeric._mass_matrix_build).fn
         d = self._dof
         return numeric._columns(self._mass, list(q.T), q.shape[0], d * d).reshape(-1, d, d)
@@ -64,5 +64,5 @@ class LagrangeModel(PreparedModel):
     def _bias_forces(self, q, qd):
         if self._bias is None:
             with self._signals():
-                self._bias = numeric._compile(self._mechanism, "bias forces", self.budget, numeric._bias_build).fn
+                self._bias = numeric.lambdify_within_budget(self._mechanism, "bias forces", self.budget, numeric._bias_build).fn
         return numeric._columns(self._bias, [*q.T, *qd.T], q.shape[0], self._dof)
