@@ -1,6 +1,6 @@
 """The form of the equations of motion, eq. (5) (2D) and eq. (17) (3D), defined once.
 
-Row ``i`` of block ``k`` (``k`` in :func:`blocks`) reads
+Row ``i`` of block ``k`` (``k`` in :func:`blocks`) reads::
 
     sum_j ( A phi''_j + B psi''_j + Lambda l''_j
           + D phi'_j^2 + E psi'_j^2 + 2 G phi'_j psi'_j + 2 H phi'_j l'_j + 2 K psi'_j l'_j ) + g P_i

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.kinematics import point_mass_positions, unit_vectors
+from exo_bench.models.kinematics import place_down_the_tree, point_mass_positions, unit_vectors
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
 
@@ -58,15 +58,7 @@ def _rod_accelerations(mech: Mechanism, q: np.ndarray, qd: np.ndarray, qdd: np.n
 def point_mass_accelerations(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """World accelerations of every point mass, ``(S, n, 3, dim)``, exact from eq. (7)."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    wdd = _rod_accelerations(mech, q, qd, qdd)
-    S, n, d = wdd.shape
-    start = np.zeros((S, n, d))
-    end = np.zeros((S, n, d))
-    for i in range(n):          # parents come first
-        p = mech.parent[i]
-        start[:, i] = end[:, p] if p >= 0 else 0.0
-        end[:, i] = start[:, i] + wdd[:, i]
-    return start[:, :, None, :] + mech.fractions[None, :, :, None] * wdd[:, :, None, :]
+    return place_down_the_tree(mech, _rod_accelerations(mech, q, qd, qdd))
 
 
 def subtree(mech: Mechanism, k: int) -> tuple[int, ...]:

@@ -52,8 +52,10 @@ def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None):
     return w, wd
 
 
-def _place(mech: Mechanism, w: np.ndarray) -> np.ndarray:
-    """Positions ``(S, n, 3, dim)``: mass beta of link i sits at ``end(parent) + n_beta w_i``."""
+def place_down_the_tree(mech: Mechanism, w: np.ndarray) -> np.ndarray:
+    """Point masses from rod vectors, ``(S, n, 3, dim)``: mass beta of link i sits at
+    ``end(parent) + n_beta w_i``. Linear in ``w``, so it places positions from ``w``, velocities from
+    ``w'`` and accelerations from ``w''`` alike."""
     S, n, d = w.shape
     start = np.zeros((S, n, d))
     ends = np.zeros((S, n, d))
@@ -67,13 +69,13 @@ def _place(mech: Mechanism, w: np.ndarray) -> np.ndarray:
 def point_mass_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
     """World positions of every point mass, ``(S, n, 3, dim)``."""
     w, _ = _rod_vectors(mech, q, None)
-    return _place(mech, w)
+    return place_down_the_tree(mech, w)
 
 
 def point_mass_velocities(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """World velocities of every point mass, ``(S, n, 3, dim)`` (the same sums, differentiated)."""
     _, wd = _rod_vectors(mech, q, qd)
-    return _place(mech, wd)
+    return place_down_the_tree(mech, wd)
 
 
 def kinetic_energy(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> np.ndarray:

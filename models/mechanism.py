@@ -242,7 +242,7 @@ class Mechanism:
 _NEGATIVE_G = ("expected g >= 0: g is the magnitude of gravity, which acts along -y in 2D and -z in 3D by convention "
                "(a model that hangs from its support is described by its angles, not by reversing gravity)")
 
-#: The largest force scale accepted: a bound on |tau| of ``1e300`` leaves float64 (largest 1.8e308)
+#: The largest force scale accepted: a bound on ``|tau|`` of ``1e300`` leaves float64 (largest 1.8e308)
 #: a margin of 1e8 for the sums and products inside every method.
 MAX_FORCE_SCALE = 1e300
 

@@ -71,9 +71,9 @@ class WinterStride:
     #: segment angle (degrees, ccw from the walking direction, distal -> proximal joint) of every
     #: frame from HEEL_CONTACT to NEXT_HEEL_CONTACT: "leg" (Table A.3(b)), "thigh" (Table A.3(c))
     theta: dict[str, tuple[float, ...]]
-    #: peak |net joint moment| per kg of body mass, by joint and phase
+    #: peak ``|net joint moment|`` per kg of body mass, by joint and phase
     moments: dict[str, Normative]
-    #: peak |intersegmental joint force| in body weights, by joint and phase
+    #: peak ``|intersegmental joint force|`` in body weights, by joint and phase
     forces: dict[str, Normative]
 
     @property

@@ -40,7 +40,7 @@ from exo_bench.models.mechanism import Mechanism
 
 
 class Counted(float):
-    """A float whose arithmetic counts itself in :attr:`tally` (``add`` for + and -, ``mul`` for *)."""
+    """A float whose arithmetic counts itself in :attr:`tally` (``add`` for ``+`` and ``-``, ``mul`` for ``*``)."""
 
     tally = {"add": 0, "mul": 0, "trig": 0}
 

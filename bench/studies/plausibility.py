@@ -1,6 +1,6 @@
 """Are a scene's loads those of walking? Peak joint moments and rod forces beside Winter's.
 
-For every joint of the model: the peak |net joint moment| (``models.joint_loads``: the moment the
+For every joint of the model: the peak ``|net joint moment|`` (``models.joint_loads``: the moment the
 parent side exerts on the subtree, about the joint) per kg of the model's mass, its sagittal
 component, and the peak rod force ``F_k`` (the reference method's tau) in body weights, each
 beside the normative peak of the joint or segment it plays in level walking

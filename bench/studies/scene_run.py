@@ -31,7 +31,7 @@ class SceneOutcome:
 
 
 def power_balance(scene: Scene, study: Study) -> dict[str, float]:
-    """max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt| per method, along an analytic motion."""
+    """``max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|`` per method, along an analytic motion."""
     from exo_bench.models.kinematics import energy_rate
 
     f = scene.motion_function()

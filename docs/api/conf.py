@@ -13,3 +13,4 @@ napoleon_numpy_docstring = False
 default_role = "literal"
 html_theme = "alabaster"
 exclude_patterns = ["_build"]
+templates_path = ["_templates"]

@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
 #: Panels of Figs. 7 and 8 span at most this factor between their largest and smallest maximum.
 SCALE_RATIO = 10.0
-#: A curve whose max |value| is below this fraction of the largest one is reported as zero.
+#: A curve whose ``max |value|`` is below this fraction of the largest one is reported as zero.
 ZERO_FRACTION = 1e-9
 
 _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",

@@ -24,7 +24,7 @@ from exo_bench.models.presets import random_tree
 EPS = float(np.finfo(float).eps)
 
 
-#: Relative error (max |tau - ref| / max |ref|) above which a method is unusable on a case.
+#: Relative error (``max |tau - ref| / max |ref|``) above which a method is unusable on a case.
 REL_UNUSABLE = 1e-6
 
 

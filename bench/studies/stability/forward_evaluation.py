@@ -185,8 +185,9 @@ def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndar
 
 
 def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
-    """First-order bound on ``|E(t) - E(0)|`` from the tolerance: ``sum_k |dE/dy(y_k)| . sqrt(m)
-    (atol + rtol max(|y_k-1|, |y_k|))``. The exact flow conserves E, so ``E(y_k) - E(y_k-1) = E(y_k)
+    """First-order bound on ``|E(t) - E(0)|`` from the tolerance.
+
+    It is ``sum_k |dE/dy(y_k)| . sqrt(m) (atol + rtol max(|y_k-1|, |y_k|))``. The exact flow conserves E, so ``E(y_k) - E(y_k-1) = E(y_k)
     - E(flow(y_k-1)) ~ dE/dy . l_k`` with ``l_k`` the local error: the sum telescopes, and nothing
     amplifies it."""
     if sim.steps == 0:
