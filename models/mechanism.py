@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from exo_bench.models import equation_form
+
 _LINK_KEYS = {"parent", "sign", "masses", "n"}
 _LINK_OPTIONAL = {"name"}
 _TOP_KEYS = {"dim", "g", "links"}
@@ -312,8 +314,7 @@ def _validate(m: Mechanism) -> None:
 def coordinate_names(mech: Mechanism) -> list[str]:
     """Labels in block order: ``phi1..phin, psi1..psin, l1..ln`` (no psi in 2D)."""
     k = range(1, mech.nlinks + 1)
-    blocks = ["phi", "psi", "l"] if mech.dim == 3 else ["phi", "l"]
-    return [f"{b}{i}" for b in blocks for i in k]
+    return [f"{b}{i}" for b in equation_form.blocks(mech.dim) for i in k]
 
 
 def force_names(mech: Mechanism) -> list[str]:

@@ -10,11 +10,18 @@ import sympy as sp
 
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models import equation_form
 from exo_bench.models.mechanism import Mechanism
 
 
-def _blocks(mech: Mechanism):
-    return ("phi", "psi", "l") if mech.dim == 3 else ("phi", "l")
+def _blocks(mech: Mechanism) -> tuple[str, ...]:
+    return equation_form.blocks(mech.dim)
+
+
+#: The matrices multiplying a block's rate squared (D: phi'^2, E: psi'^2) and a product of two
+#: blocks' rates (G, H, K), from the form of the equations (equation_form.RATES).
+_SQUARED = {r[0]: name for name, (_, r) in equation_form.RATES.items() if len(r) == 2 and r[0] == r[1]}
+_MIXED = {r: name for name, (_, r) in equation_form.RATES.items() if len(r) == 2 and r[0] != r[1]}
 
 
 def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
@@ -43,8 +50,7 @@ def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np
     idx = {v: k for k, v in enumerate(variants)}
     out: dict[str, dict[str, np.ndarray]] = {}
     rows = lambda b: slice(off[b], off[b] + n)
-    single = {"phi": "D", "psi": "E"}
-    mixed = {("phi", "psi"): "G", ("phi", "l"): "H", ("psi", "l"): "K"}
+    single, mixed = _SQUARED, _MIXED
     for b in _blocks(mech):
         m = {"A": M[:, rows(b), rows("phi")], "Lambda": M[:, rows(b), rows("l")], "P": h0[:, rows(b)] / mech.g}
         if mech.dim == 3:
@@ -60,8 +66,8 @@ def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np
     return out
 
 
-def _pairs(mech: Mechanism):
-    return [("phi", "psi"), ("phi", "l"), ("psi", "l")] if mech.dim == 3 else [("phi", "l")]
+def _pairs(mech: Mechanism) -> list[tuple[str, ...]]:
+    return [pair for pair in _MIXED if set(pair) <= set(_blocks(mech))]
 
 
 def form_residual(mech: Mechanism, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> float:
