@@ -19,7 +19,7 @@ import mpmath
 import numpy as np
 
 from exo_bench.lagrange.derivation import Derivation
-from exo_bench.lagrange.numeric import _Compiled, lambdify_within_budget
+from exo_bench.lagrange.numeric import Lambdified, lambdify_within_budget
 from exo_bench.lagrange.numeric import clear_cache as numeric_clear_cache
 from exo_bench.models.mechanism import Mechanism, as_states
 
@@ -29,7 +29,7 @@ def _equations(d: Derivation) -> tuple[list, list]:
     return list(S.q + S.qd + S.qdd), list(d.equations)
 
 
-def compile_reference(mech: Mechanism, budget: float | None = None) -> _Compiled:
+def compile_reference(mech: Mechanism, budget: float | None = None) -> Lambdified:
     """The equations lambdified to mpmath (cached per mechanism; precision is set at call time)."""
     return lambdify_within_budget(mech, "mpmath reference", budget, _equations, modules="mpmath")
 

@@ -31,12 +31,12 @@ def default_budget() -> float:
 
 
 @dataclass(frozen=True)
-class _Compiled:
+class Lambdified:
     fn: Callable
     seconds: float   # wall time of the lambdify call
 
 
-_CACHE: dict[tuple[Mechanism, str], _Compiled] = {}
+_CACHE: dict[tuple[Mechanism, str], Lambdified] = {}
 _FAILED: dict[tuple[Mechanism, str], float] = {}   # seconds an unfinished compilation ran
 
 
@@ -49,7 +49,7 @@ def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> 
 
 
 def lambdify_within_budget(mech: Mechanism, what: str, budget: float | None,
-                           build: Callable[[Derivation], tuple[list, list]], modules: str = "numpy") -> _Compiled:
+                           build: Callable[[Derivation], tuple[list, list]], modules: str = "numpy") -> Lambdified:
     """``sympy.lambdify(*build(derive(mech)), modules=modules, cse=True)``, the derivation and the
     lambdify together within ``budget`` seconds (None: :func:`default_budget`), cached per
     ``(mech, what)``; an attempt that ran out of budget is remembered, so that a second call with no
@@ -69,11 +69,11 @@ def lambdify_within_budget(mech: Mechanism, what: str, budget: float | None,
             except (BudgetExceeded, BudgetAlarm):
                 _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - dl.start)
                 raise
-            _CACHE[key] = _Compiled(fn, time.perf_counter() - t0)
+            _CACHE[key] = Lambdified(fn, time.perf_counter() - t0)
     return _CACHE[key]
 
 
-def compile_equations(mech: Mechanism, budget: float | None = None) -> _Compiled:
+def compile_equations(mech: Mechanism, budget: float | None = None) -> Lambdified:
     """The lambdified equations ``tau(q..., qd..., qdd...)`` of a mechanism (cached); call once
     outside a timed loop to separate the symbolic cost from the evaluation."""
     return lambdify_within_budget(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),

@@ -69,7 +69,7 @@ class _MatrixFamily(PreparedModel):
         return numeric.generalised_forces(self._mechanism, self.matrices(q), qd, np.zeros_like(q))
 
 
-class _Compiled(_MatrixFamily):
+class _WithNumbaKernel(_MatrixFamily):
     """A matrix-family model with the option ``kernel`` (``"numba"`` or ``"numpy"``). Subclasses set
     :attr:`_kernels` (dim -> serial, parallel compiled kernels) and may add per-mechanism kernel
     arguments in :meth:`_kernel_extra`."""
@@ -114,7 +114,7 @@ class _Compiled(_MatrixFamily):
         return o
 
 
-class MatrixProducts(_Compiled):
+class MatrixProducts(_WithNumbaKernel):
     """Method ``matrix``: form every matrix of eq. (5)/(17) from the closed forms (3D: the planar
     matrices and those of the straightened model, then the corrected eq. (18)), then the products
     with the rate vectors, in blocks of ``block`` samples."""
@@ -142,7 +142,7 @@ class MatrixProducts(_Compiled):
         return numeric.spatial_from_planar(psi, l, flat, straight, self.gravity_coefficients)
 
 
-class MatrixFactored(_Compiled):
+class MatrixFactored(_WithNumbaKernel):
     """Method ``matrix-factored``: eq. (5)/(17) in factored form, no matrix formed.
 
     Every element is ``c_ij`` times a dot product of a vector of link i and one of link j, so the
@@ -204,7 +204,7 @@ class MatrixPaper(_MatrixFamily):
                                       stacklevel=3)
 
 
-class Recurrence(_Compiled):
+class Recurrence(_WithNumbaKernel):
     """Method ``recurrence``: the matrices grown link by link by eqs. (22)-(26) (3D: the planar
     recurrence at the configuration and for the straightened model, then eq. (18)), then the
     products with the rate vectors."""

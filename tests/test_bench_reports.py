@@ -61,15 +61,15 @@ def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float
     return pd.DataFrame(rows)
 
 
-def test_issue12_goals_are_judged_from_the_rows_of_one_run():
-    from exo_bench.bench.perf.reports.benchmark_reports import _inverse, goals_issue12
+def test_speed_goals_are_judged_from_the_rows_of_one_run():
+    from exo_bench.bench.perf.reports.benchmark_reports import _inverse, speed_goals
 
-    good = "\n".join(goals_issue12(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
+    good = "\n".join(speed_goals(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
     # per call 0.5 us against bare 3 us (0.17x) and PyDy 1 us; batched 0.1 us, 50x faster than Pinocchio
     assert "0.17x, goal at most 0.5x: **met**" in good and "0.50x, goal at most 1x: **met**" in good
     assert "0.1 us/sample, goal at most 0.15 us: **met**" in good and "50x slower than" in good
     assert "**not met**" not in good
-    bad = "\n".join(goals_issue12(_inverse(_inverse_frame(0.2, 5.0, 3.0, 0.5, 3e-14)), []))
+    bad = "\n".join(speed_goals(_inverse(_inverse_frame(0.2, 5.0, 3.0, 0.5, 3e-14)), []))
     assert bad.count("**not met**") == 4      # PyDy faster, 0.2 us/sample, 25x, error above 1e-14
 
 

@@ -218,7 +218,7 @@ def _pin_best_batched(d: pd.DataFrame) -> pd.Series:
     return pin.groupby("n")["us_per_sample"].min()
 
 
-def goals_issue12(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
+def speed_goals(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
     """Issue 12's goals, each met or not met with the measured ratio (rows of this run only)."""
     out = ["## Goals (issue 12)", "", "Ratios compare rows of this one run on this one machine "
            "(indicative where the machine was shared).", ""]
@@ -359,7 +359,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
         return "\n".join(lines + ["No numeric inverse-dynamics rows in this run."]) + "\n"
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
-    lines += goals_issue12(inv, skips)
+    lines += speed_goals(inv, skips)
     per = inv[~inv["batched"]].copy()
     per["us_per_call"] = per["median"] * 1e6
     if not per.empty:
@@ -638,7 +638,7 @@ def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str
     text = paper_table(df, skips, command)
     atomic_write(st["paper_table.md"], text)
     inv = _inverse(df)
-    g12 = goals_issue12(inv, skips) if not inv.empty and "topology" in inv else []
+    g12 = speed_goals(inv, skips) if not inv.empty and "topology" in inv else []
     atomic_write(st["error_vs_runtime.md"], error_vs_runtime(df, skips, command, st["error_vs_runtime.png"])
                  + "\n" + "\n".join(goals(df)) + "\n\n" + "\n".join(g12) + "\n")
     atomic_write(st["scaling.md"], scaling(df, skips, command, st["scaling.png"]))
