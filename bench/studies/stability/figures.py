@@ -12,13 +12,15 @@ import math
 
 import numpy as np
 
+from exo_bench.bench.output.figures.palette import method_color
 from exo_bench.bench.studies.stability.cases import COND_ILL, COND_SINGULAR, REL_DEGRADED, REL_UNUSABLE
 from exo_bench.bench.studies.stability.evaluation import FamilyResult
 
 #: The smallest text on a figure, in points (9 pt at 150 dpi is 19 px).
 FONT_MIN = 9.0
-#: Method colours; grey and black are kept for the thresholds.
-_MCOLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#17becf", "#bcbd22")
+#: Colours of the conditioning figure's series (methods take their own colour, palette.method_color);
+#: grey and black are kept for the thresholds.
+_SERIES_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#17becf", "#bcbd22")
 #: Thresholds: the lower (degraded, ill-conditioned) grey, the upper (unusable, singular) black.
 THRESHOLD_LOW = {"color": "#7f7f7f", "ls": "--", "lw": 1.2}
 THRESHOLD_HIGH = {"color": "black", "ls": "--", "lw": 1.2}
@@ -108,8 +110,8 @@ def families_figure(families: list[FamilyResult], methods: list[str]):
     one marker per sub-series; cases with NaN/Inf are crosses at 1 (no line point)."""
     fig, panels = _family_panels(families)
     for ax, fr, cases, series, xmap in panels:
-        for mi, m in enumerate(methods):
-            color = _MCOLORS[mi % len(_MCOLORS)]
+        for m in methods:
+            color = method_color(m, methods)
             for si, s in enumerate(series):
                 crs = sorted([cr for cr in cases if cr.case.series == s and m in cr.rows and cr.rows[m].status == "ok"],
                              key=lambda cr: xmap[id(cr)])
@@ -144,8 +146,8 @@ def conditioning_figure(families: list[FamilyResult]):
             crs = sorted([cr for cr in cases if cr.case.series == s], key=lambda cr: xmap[id(cr)])
             xs = np.array([xmap[id(cr)] for cr in crs])
             marker = _SERIES_MARKERS[si % len(_SERIES_MARKERS)]
-            for attr, color, lab in (("cond_raw", _MCOLORS[0], "cond(M), SI units"),
-                                     ("cond_eq", _MCOLORS[2], "equilibrated cond(D^-1/2 M D^-1/2), D = diag M")):
+            for attr, color, lab in (("cond_raw", _SERIES_COLOURS[0], "cond(M), SI units"),
+                                     ("cond_eq", _SERIES_COLOURS[2], "equilibrated cond(D^-1/2 M D^-1/2), D = diag M")):
                 v = np.array([getattr(cr, attr) for cr in crs])
                 ax.loglog(xs, np.where(np.isfinite(v), v, np.nan), color=color, ls="-", marker=marker, ms=4, lw=1,
                           label=lab)
@@ -156,7 +158,7 @@ def conditioning_figure(families: list[FamilyResult]):
             sing = [i for i, cr in enumerate(crs) if cr.singular_samples]
             if sing:
                 ys = [crs[i].cond_raw if math.isfinite(crs[i].cond_raw) else top for i in sing]
-                ax.scatter(xs[sing], ys, marker="o", facecolors="none", edgecolors=_MCOLORS[1], s=70, zorder=6,
+                ax.scatter(xs[sing], ys, marker="o", facecolors="none", edgecolors=_SERIES_COLOURS[1], s=70, zorder=6,
                            label="singular (exact cause)")
         ax.axhline(COND_SINGULAR, **THRESHOLD_HIGH, label=f"numerically singular from {COND_SINGULAR:.0e}")
         ax.axhline(COND_ILL, **THRESHOLD_LOW, label=f"ill-conditioned from {COND_ILL:.0e}")
