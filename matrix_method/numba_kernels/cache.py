@@ -38,11 +38,15 @@ KERNELS_DIR = Path(__file__).resolve().parent
 _INLINED: dict[str, None] = {}   # the source files of the functions registered with :func:`inline` (ordered)
 
 
-def inline(functions: Iterable[Callable[..., Any]]) -> None:
+def inline(functions: Iterable[Callable[..., Any]], always: bool = False) -> None:
     """Register ``functions`` with numba (``register_jitable``: callable from a kernel, and still plain
-    Python for numpy and sympy) and key the kernels' cache on their source files."""
+    Python for numpy and sympy) and key the kernels' cache on their source files; ``always``: inline
+    them in numba's IR (the generated call lists, which must compile as if written out)."""
     for f in functions:
-        register_jitable(f)
+        if always:
+            register_jitable(inline="always")(f)
+        else:
+            register_jitable(f)
         _INLINED[str(Path(inspect.getfile(f)).resolve())] = None
     inlined_sources_hash.cache_clear()
 

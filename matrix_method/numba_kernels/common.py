@@ -93,6 +93,54 @@ PARALLEL_MIN_SAMPLES = 4096
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
 
+
+# ------------------------------------------------------------------ call lists generated from PAIRS
+#: The planar elements of eq. (5) in the kernels' layout: matrix m of block b at index 4 b + m.
+PLANAR_ELEMENTS = tuple(f for fns in planar.PAIRS.values() for f in fns.values())
+#: The spatial elements of eq. (17) in the kernels' layout (blocks phi, psi, l, each A, B, Lambda, D,
+#: E, G, H, K: index 8 b + m). ``D`` of block l (index 19) takes the transposed 3D ``H_phi``, not the
+#: namespace: the kernels set it after the others.
+SPATIAL_ELEMENTS = tuple(f for fns in spatial.PAIRS.values() for f in fns.values())
+
+
+def _generate(name: str, params: str, lines: list[str], functions: dict[str, Any]) -> Any:
+    """A function ``name(params)`` whose body is ``lines``, calling ``functions`` by name, registered
+    for the kernels (:func:`~exo_bench.matrix_method.numba_kernels.cache.inline`). Its code object
+    names this file, so numba's cache is keyed on it and on the modules of ``functions``."""
+    src = f"def {name}({params}):\n" + "".join(f"    {line}\n" for line in lines)
+    namespace = dict(functions)
+    exec(compile(src, __file__, "exec"), namespace)   # noqa: S102 - the call list of PAIRS, generated
+    fn = namespace[name]
+    fn.__module__ = __name__
+    fn.__doc__ = f"Generated from the closed forms' tables: ``{params}``; " + "; ".join(lines)
+    inline([fn], always=True)
+    return fn
+
+
+def _element_writer(name: str, op: str, prefix: str, elements: tuple, params: str, args: str,
+                    skip: tuple = ()) -> Any:
+    fns = {f"{prefix}_{f.__name__}": f for f in elements}
+    lines = [f"out[{m}, i, j] {op} {prefix}_{f.__name__}({args})" for m, f in enumerate(elements) if f not in skip]
+    return _generate(name, f"out, i, j, {params}", lines, fns)
+
+
+def _gravity_writer(name: str, op: str, prefix: str, gravity: dict) -> Any:
+    fns = {f"{prefix}_{f.__name__}": f for f in gravity.values()}
+    lines = [f"out[{b}, i] {op} {prefix}_{f.__name__}(nu_s, li, c, s)" for b, f in enumerate(gravity.values())]
+    return _generate(name, "out, i, nu_s, li, c, s", lines, fns)
+
+
+#: ``out[4 b + m, i, j] = (or +=) planar.PAIRS[b][m](c, li, lj, C, S)`` for every planar element.
+set_planar = _element_writer("set_planar", "=", "planar", PLANAR_ELEMENTS, "c, li, lj, C, S", "c, li, lj, C, S")
+add_planar = _element_writer("add_planar", "+=", "planar", PLANAR_ELEMENTS, "c, li, lj, C, S", "c, li, lj, C, S")
+#: ``out[b, i] = (or +=) planar.GRAVITY[b](nu_s, li, cos, sin)``.
+set_planar_gravity = _gravity_writer("set_planar_gravity", "=", "planar", planar.GRAVITY)
+add_planar_gravity = _gravity_writer("add_planar_gravity", "+=", "planar", planar.GRAVITY)
+#: ``out[8 b + m, i, j] = spatial.PAIRS[b][m](t)`` for every spatial element but ``D_l``.
+set_spatial = _element_writer("set_spatial", "=", "spatial", SPATIAL_ELEMENTS, "t", "t", skip=(spatial.d_l,))
+#: ``out[b, i] = spatial.GRAVITY[b](nu_s, li, cos psi_i, sin psi_i)``.
+set_spatial_gravity = _gravity_writer("set_spatial_gravity", "=", "spatial", spatial.GRAVITY)
+
 #: The namespace ``t`` of :mod:`exo_bench.matrix_method.closed_forms.transitions` for one pair (i, j), as a namedtuple so
 #: that the compiled kernels can pass it to the same transition functions: the planar elements
 #: (named as :func:`exo_bench.matrix_method.closed_forms.transitions.transition_inputs` names them), their ``*_par`` quotients, the lengths

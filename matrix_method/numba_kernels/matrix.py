@@ -22,8 +22,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
-from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition
+from exo_bench.matrix_method.closed_forms import transitions as spatial
+from exo_bench.matrix_method.numba_kernels.common import (BLOCK, JIT, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition,
+                                                           set_planar, set_planar_gravity, set_spatial,
+                                                           set_spatial_gravity)
 
 # The layouts the kernels index by number (checked here, so that a reordering of the closed-form
 # tables cannot silently mismatch): planar matrix m of block b at index 4 b + m.
@@ -49,18 +51,9 @@ def planar_matrices(p, x, s0, dim, straight, pl, pP):
             else:
                 d = x[s0 + i] - x[s0 + j]
                 C, S = math.cos(d), math.sin(d)
-            pl[0, i, j] = planar.a_phi(c, li, lj, C, S)
-            pl[1, i, j] = planar.lam_phi(c, li, lj, C, S)
-            pl[2, i, j] = planar.d_phi(c, li, lj, C, S)
-            pl[3, i, j] = planar.h_phi(c, li, lj, C, S)
-            pl[4, i, j] = planar.a_l(c, li, lj, C, S)
-            pl[5, i, j] = planar.lam_l(c, li, lj, C, S)
-            pl[6, i, j] = planar.d_l(c, li, lj, C, S)
-            pl[7, i, j] = planar.h_l(c, li, lj, C, S)
+            set_planar(pl, i, j, c, li, lj, C, S)
         phi = 0.0 if straight else x[s0 + i]
-        cf, sf = math.cos(phi), math.sin(phi)
-        pP[0, i] = planar.p_phi(p[i, n], li, cf, sf)
-        pP[1, i] = planar.p_l(p[i, n], li, cf, sf)
+        set_planar_gravity(pP, i, p[i, n], li, math.cos(phi), math.sin(phi))
 
 
 @njit(**JIT)
@@ -79,32 +72,8 @@ def spatial_matrices(p, x, s0, pl, ps, nu_s, m3, P3, cs):
             t = Transition(pl[0, i, j], pl[1, i, j], pl[2, i, j], pl[3, i, j], pl[4, i, j], pl[5, i, j],
                            pl[6, i, j], pl[7, i, j], ps[0, i, j], ps[3, i, j], ps[5, i, j], ps[6, i, j],
                            li, x[s0 + 2 * n + j], ci, si, cs[0, j], cs[1, j])
-            m3[0, i, j] = spatial.a_phi(t)
-            m3[1, i, j] = spatial.b_phi(t)
-            m3[2, i, j] = spatial.lam_phi(t)
-            m3[3, i, j] = spatial.d_phi(t)
-            m3[4, i, j] = spatial.e_phi(t)
-            m3[5, i, j] = spatial.g_phi(t)
-            m3[6, i, j] = spatial.h_phi(t)
-            m3[7, i, j] = spatial.k_phi(t)
-            m3[8, i, j] = spatial.a_psi(t)
-            m3[9, i, j] = spatial.b_psi(t)
-            m3[10, i, j] = spatial.lam_psi(t)
-            m3[11, i, j] = spatial.d_psi(t)
-            m3[12, i, j] = spatial.e_psi(t)
-            m3[13, i, j] = spatial.g_psi(t)
-            m3[14, i, j] = spatial.h_psi(t)
-            m3[15, i, j] = spatial.k_psi(t)
-            m3[16, i, j] = spatial.a_l(t)
-            m3[17, i, j] = spatial.b_l(t)
-            m3[18, i, j] = spatial.lam_l(t)
-            m3[20, i, j] = spatial.e_l(t)
-            m3[21, i, j] = spatial.g_l(t)
-            m3[22, i, j] = spatial.h_l(t)
-            m3[23, i, j] = spatial.k_l(t)
-        P3[0, i] = spatial.p_phi(nu_s[i], li, ci, si)
-        P3[1, i] = spatial.p_psi(nu_s[i], li, ci, si)
-        P3[2, i] = spatial.p_l(nu_s[i], li, ci, si)
+            set_spatial(m3, i, j, t)
+        set_spatial_gravity(P3, i, nu_s[i], li, ci, si)
     for i in range(n):
         for j in range(n):
             m3[19, i, j] = spatial.d_l(m3[6, j, i])             # D_l = -(H_phi)^T

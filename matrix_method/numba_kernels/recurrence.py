@@ -21,9 +21,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.matrix_method.closed_forms import planar
 from exo_bench.matrix_method.closed_forms.coefficients import recurrence_increments
-from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, RATES_2D, RATES_3D
+from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, RATES_2D, RATES_3D, add_planar, add_planar_gravity
 from exo_bench.matrix_method.numba_kernels.matrix import products, spatial_matrices
 from exo_bench.models.mechanism import Mechanism
 
@@ -71,27 +70,12 @@ def planar_recurrence(p, ints, floats, x, s0, dim, pl, ps, pP, nus, geo):
                 lj = x[lo + j]
                 dc = floats[off + a * m + b]
                 C, S = geo[0, i, j], geo[1, i, j]
-                pl[0, i, j] += planar.a_phi(dc, li, lj, C, S)              # delta X_n (25)
-                pl[1, i, j] += planar.lam_phi(dc, li, lj, C, S)
-                pl[2, i, j] += planar.d_phi(dc, li, lj, C, S)
-                pl[3, i, j] += planar.h_phi(dc, li, lj, C, S)
-                pl[4, i, j] += planar.a_l(dc, li, lj, C, S)
-                pl[5, i, j] += planar.lam_l(dc, li, lj, C, S)
-                pl[6, i, j] += planar.d_l(dc, li, lj, C, S)
-                pl[7, i, j] += planar.h_l(dc, li, lj, C, S)
+                add_planar(pl, i, j, dc, li, lj, C, S)                      # delta X_n (25)
                 if dim == 3:                                                # the straightened model
-                    ps[0, i, j] += planar.a_phi(dc, li, lj, 1.0, 0.0)
-                    ps[1, i, j] += planar.lam_phi(dc, li, lj, 1.0, 0.0)
-                    ps[2, i, j] += planar.d_phi(dc, li, lj, 1.0, 0.0)
-                    ps[3, i, j] += planar.h_phi(dc, li, lj, 1.0, 0.0)
-                    ps[4, i, j] += planar.a_l(dc, li, lj, 1.0, 0.0)
-                    ps[5, i, j] += planar.lam_l(dc, li, lj, 1.0, 0.0)
-                    ps[6, i, j] += planar.d_l(dc, li, lj, 1.0, 0.0)
-                    ps[7, i, j] += planar.h_l(dc, li, lj, 1.0, 0.0)
+                    add_planar(ps, i, j, dc, li, lj, 1.0, 0.0)
             dnu = floats[off + m * m + a]
             phi = x[s0 + i]
-            pP[0, i] += planar.p_phi(dnu, li, math.cos(phi), math.sin(phi))
-            pP[1, i] += planar.p_l(dnu, li, math.cos(phi), math.sin(phi))
+            add_planar_gravity(pP, i, dnu, li, math.cos(phi), math.sin(phi))
             nus[i] += dnu
         off += m * m + m
 
