@@ -79,8 +79,15 @@ def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
     different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
     :func:`exo_bench.models.aggregates.coupling_entries`."""
+    return signed_coupling_entries(mech, *generic_aggregates(params), zero=zero)
+
+
+def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):
+    """``(c, nu_s)`` from the per-link aggregates of eq. (6), in any arithmetic (symbols for the
+    aggregates themselves: the LaTeX export): the branch signs added to
+    :func:`exo_bench.models.aggregates.coupling_entries`."""
     n = mech.nlinks
-    mu, nu = coupling_entries(mech, *generic_aggregates(params), zero=zero)
+    mu, nu = coupling_entries(mech, zeta, eta, theta, zero=zero)
     s = mech.sign
     related = mech.ancestor_or_self
     c = [[(s[i] * s[j]) * mu[i][j] if i != j and (related[i, j] or related[j, i]) else mu[i][j]

@@ -29,7 +29,8 @@ from sympy.printing.latex import LatexPrinter
 from exo_bench.matrix_method.symbolic.polynomials import generators
 from exo_bench.matrix_method.symbolic.compose import (planar_entries, planar_gravity, spatial_entries, spatial_gravity,
                                               to_matrices)
-from exo_bench.models.aggregates import aggregates, coupling_entries
+from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries, symbolic_aggregates
+from exo_bench.models.aggregates import aggregates
 from exo_bench.models.equation_form import RATES, blocks, matrix_names
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import symbols_for
@@ -86,12 +87,9 @@ def element_parts(mech: Mechanism, symbolic_parameters: bool = False) -> Element
     if symbolic_parameters:
         zeta, eta, theta = aggregate_symbols(n)
     else:
-        per = [aggregates(*(sp.Rational(x) for x in (*mech.masses[i], mech.n[i]))) for i in range(n)]
-        zeta, eta, theta = ([p[k] for p in per] for k in range(3))
-    mu, nu = coupling_entries(mech, zeta, eta, theta, zero=sp.S.Zero)
-    s = mech.sign
-    coef = [[(s[i] * s[j]) * mu[i][j] if _related(mech, i, j) else sp.S.Zero for j in range(n)] for i in range(n)]
-    return ElementParts(mech, geometry, coef, [s[k] * nu[k] for k in range(n)], symbolic_parameters)
+        zeta, eta, theta = symbolic_aggregates(mech, symbols_for(n, mech.dim), False)
+    coef, grav_coef = signed_coupling_entries(mech, zeta, eta, theta, zero=sp.S.Zero)   # c_ij and nu_i s_i, once
+    return ElementParts(mech, geometry, coef, grav_coef, symbolic_parameters)
 
 
 def aggregate_definitions(mech: Mechanism) -> dict[sp.Symbol, sp.Expr]:
