@@ -35,6 +35,12 @@ METHODS: dict[str, tuple[str, str, str]] = {
     "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
                    "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                    "loops (option kernel: numba, the default, or numpy)"),
+    "mujoco": ("exo_bench.models.mujoco_backend", "MujocoRNE",
+               "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
+               "a Python loop over the samples (optional extra [peers])"),
+    "drake": ("exo_bench.models.drake_backend", "DrakeID",
+              "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
+              "a Python loop over the samples (optional extra [peers])"),
 }
 
 #: Methods whose results are known to be wrong (kept to expose the paper's misprints).
