@@ -51,7 +51,7 @@ def import_drake():
     try:
         from pydrake.multibody import plant, tree
     except ImportError as e:
-        raise ValueError(f"drake: Drake is not installed ({e.name or e}): {EXTRA} to use method 'drake'") from None
+        raise ValueError(f"drake: Drake is not installed (no module {e.name or e}): {EXTRA} to use method 'drake'") from None
     return plant, tree
 
 

@@ -51,8 +51,19 @@ its forward dynamics factorises ``M``, which zero masses can make singular.)
 (the file's ``<option gravity>`` says so). Contacts, limits, armature, damping, stiffness and
 friction loss are zero or disabled in the file; geoms (spheres at the point masses, a
 telescopic pair of capsules per rod) are visual only (``contype = conaffinity = 0``, and
-``inertiafromgeom="false"``: they add no mass). A keyframe ``rest`` gives a pose to open the viewer
-at (every length 0.5 m; the default ``qpos0`` has every length zero).
+``inertiafromgeom="false"``: they add no mass).
+
+**For a user's simulation and viewer.** MuJoCo's reference configuration ``qpos0`` (where the viewer
+opens, and where the compiler evaluates the model) has every rod :data:`REST_LENGTH` long: each
+slide has ``ref`` = its rest value and its body sits there, so the joint's value is still the length
+(MuJoCo moves a slide's body by ``qpos - ref`` from its place). With zero lengths every mass would
+sit on the hinges' axes and the mass matrix be singular (MuJoCo then warns, and writes
+MUJOCO_LOG.TXT into the working directory). In 3D a child's undo hinge and its elevation hinge turn
+about one axis wherever the two azimuths are equal (``qpos0`` among them), which makes MuJoCo's
+joint-space mass matrix singular for its forward dynamics; the file gives the undo hinges an
+armature of :data:`UNDO_ARMATURE` (1e-6 kg m^2, a millionth of a 1 kg mass at 1 m) so that
+``mj_step`` can run, and the backends set every armature to zero. A keyframe ``rest`` has the
+rods at 0.5 m and, in 3D, raised by 0.3 rad.
 """
 
 from __future__ import annotations
@@ -68,8 +79,12 @@ from exo_bench.models.urdf import link_prefix
 
 #: The compiler's ``boundmass`` and ``boundinertia`` (see the module docstring).
 BOUND = 1e-12
-#: Length of every rod in the ``rest`` keyframe (m).
+#: Length of every rod in MuJoCo's reference configuration ``qpos0`` (m): each slide's ``ref``, with
+#: its body placed there, so that the joint's value is still the length itself.
 REST_LENGTH = 0.5
+#: Armature of the 3D undo hinges in the file (kg m^2), for simulation only (the backends set every
+#: armature to 0): see the module docstring.
+UNDO_ARMATURE = 1e-6
 
 
 def _safe(name: str) -> str:
@@ -171,15 +186,15 @@ def to_mjcf(mech: Mechanism) -> str:
                    f"sign {s:+d}, n = {float(mech.n[i])!r} -->")
         out.append(f'{pad}<body name="{k}">')
         if mech.dim == 3 and p >= 0:
-            out.append(f'{pad}  <joint name="{k}_undo" type="hinge" axis="0 -1 0"/>')
+            out.append(f'{pad}  <joint name="{k}_undo" type="hinge" axis="0 -1 0" armature="{UNDO_ARMATURE:g}"/>')
         out.append(f'{pad}  <joint name="{k}_phi" type="hinge" axis="0 0 1"/>')
         if mech.dim == 3:
             out.append(f'{pad}  <joint name="{k}_psi" type="hinge" axis="0 -1 0"/>')
         out.append(f"{pad}  {_inertial(m0)}<!-- start mass m0 -->")
         out.append(f'{pad}  <geom type="capsule" fromto="0 0 0 {s * half!r} 0 0" size="0.012" rgba="0.5 0.5 0.6 1"/>'
                    + _sphere(m0, "0.85 0.4 0.1 1"))
-        out.append(f'{pad}  <body name="{k}_end">')
-        out.append(f'{pad}    <joint name="{k}_len" type="slide" axis="{s} 0 0"/>')
+        out.append(f'{pad}  <body name="{k}_end" pos="{s * REST_LENGTH!r} 0 0">')
+        out.append(f'{pad}    <joint name="{k}_len" type="slide" axis="{s} 0 0" ref="{REST_LENGTH!r}"/>')
         out.append(f"{pad}    {_inertial(m2)}<!-- end mass m2 -->")
         out.append(f'{pad}    <geom type="capsule" fromto="0 0 0 {-s * half!r} 0 0" size="0.008" rgba="0.7 0.7 0.8 1"/>'
                    + _sphere(m2, "0.85 0.4 0.1 1"))
@@ -187,8 +202,9 @@ def to_mjcf(mech: Mechanism) -> str:
             body(c, depth + 2)
         out.append(f"{pad}  </body>")
         if m1 > 0.0:
-            out.append(f'{pad}  <body name="{k}_mid">')
-            out.append(f'{pad}    <joint name="{k}_mid" type="slide" axis="{s} 0 0"/>')
+            ref = float(mech.n[i]) * REST_LENGTH
+            out.append(f'{pad}  <body name="{k}_mid" pos="{s * ref!r} 0 0">')
+            out.append(f'{pad}    <joint name="{k}_mid" type="slide" axis="{s} 0 0" ref="{ref!r}"/>')
             out.append(f"{pad}    {_inertial(m1)}<!-- sliding middle mass m1, at n l -->" + _sphere(m1, "0.1 0.5 0.8 1"))
             out.append(f"{pad}  </body>")
         out.append(f"{pad}</body>")
@@ -215,6 +231,6 @@ def to_mjcf(mech: Mechanism) -> str:
     if mech.dim == 3:
         rest[mech.nlinks:2 * mech.nlinks] = 0.3
     qpos = jm.G @ rest
-    out += ["  <keyframe>", f'    <key name="rest" qpos="{" ".join(f"{x:.6g}" for x in qpos)}"/>', "  </keyframe>",
+    out += ["  <keyframe>", f'    <key name="rest" qpos="{" ".join(repr(float(x)) for x in qpos)}"/>', "  </keyframe>",
             "</mujoco>"]
     return "\n".join(out) + "\n"

@@ -40,7 +40,7 @@ def import_mujoco():
     try:
         import mujoco
     except ImportError as e:
-        raise ValueError(f"mujoco: MuJoCo is not installed ({e.name or e}): {EXTRA} to use method 'mujoco' "
+        raise ValueError(f"mujoco: MuJoCo is not installed (no module {e.name or e}): {EXTRA} to use method 'mujoco' "
                          "and to check exported MJCF files") from None
     return mujoco
 
