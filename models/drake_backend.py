@@ -40,18 +40,18 @@ from functools import lru_cache
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.prepared import MissingExtra, PreparedModel
 from exo_bench.models.urdf import link_prefix
 
 EXTRA = "pip install 'exo-bench[peers]'"
 
 
 def import_drake():
-    """``(MultibodyPlant, tree module)`` of pydrake, or a ValueError that names the extra."""
+    """``(MultibodyPlant, tree module)`` of pydrake, or :class:`MissingExtra` (a ValueError) that names the extra."""
     try:
         from pydrake.multibody import plant, tree
     except ImportError as e:
-        raise ValueError(f"drake: Drake is not installed (no module {e.name or e}): {EXTRA} to use method 'drake'") from None
+        raise MissingExtra(f"drake: Drake is not installed (no module {e.name or e}): {EXTRA} to use method 'drake'") from None
     return plant, tree
 
 

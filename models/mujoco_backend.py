@@ -30,17 +30,17 @@ import numpy as np
 
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.mjcf import JointMap, joint_map, to_mjcf
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.prepared import MissingExtra, PreparedModel
 
 EXTRA = "pip install 'exo-bench[peers]'"
 
 
 def import_mujoco():
-    """The ``mujoco`` module, or a ValueError that names the extra to install."""
+    """The ``mujoco`` module, or :class:`MissingExtra` (a ValueError) that names the extra to install."""
     try:
         import mujoco
     except ImportError as e:
-        raise ValueError(f"mujoco: MuJoCo is not installed (no module {e.name or e}): {EXTRA} to use method 'mujoco' "
+        raise MissingExtra(f"mujoco: MuJoCo is not installed (no module {e.name or e}): {EXTRA} to use method 'mujoco' "
                          "and to check exported MJCF files") from None
     return mujoco
 
