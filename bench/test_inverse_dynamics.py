@@ -15,6 +15,12 @@ Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readabl
   Pinocchio model, without our G maps: Pinocchio's own cost;
 * ``pydy-cython``: per call, PyDy's Cython code generator on the same composed equations
   (:mod:`bench.peers`; skipped with the reason when pydy/cython are not installed);
+* ``mujoco`` and ``drake`` (registered methods, extra ``[peers]``): a Python loop over samples into
+  the engine, four binding calls per sample (MuJoCo: ``mj_kinematics``, ``mj_comPos``,
+  ``mj_comVel``, ``mj_rne``; Drake: ``SetPositions``, ``SetVelocities``, ``CalcInverseDynamics``,
+  ``CalcGravityGeneralizedForces``), so their per-call and batched costs are mostly that overhead
+  at small n; batched up to the n where the projected batch fits ``inverse_budget``; skipped with the
+  reason (printed) when the engine is not installed (:class:`models.prepared.MissingExtra`);
 * group ``wrapper``: on exo5-3d, a prepared model's call with ``check=False`` next to the kernel
   it calls, so the report gives the wrapper's own per-call cost (call minus kernel);
 * group ``compile``: the first call's compile time of each compiled kernel (a fresh numba cache
@@ -132,6 +138,7 @@ def _prepare(method: str, kernel, mech, sw, batch=None):
         if not reason:
             raise
         _FAILED[key] = f"{method}: {reason}"
+        print(f"skipped: {_FAILED[key]}")
         pytest.skip(_FAILED[key])
 
 
