@@ -1,9 +1,10 @@
 """Drake backend (method ``drake``): ``MultibodyPlant.CalcInverseDynamics`` on the mechanism.
 
 **The plant is built in code**, joint by joint, not parsed from the generated URDF: Drake's URDF
-parser turns a ``<mimic>`` tag into a *coupler constraint*, which only a discrete plant with the
-SAP solver honours, and which ``CalcInverseDynamics`` (an unconstrained RNE) ignores in every
-case. So, as for MuJoCo (models/mjcf.py), the joints that the URDF makes mimics (the 3D "undo"
+parser turns each ``<mimic>`` tag into a *coupler constraint* (checked with Drake 1.51: the URDF of
+fig2a-3d gives 3 constraints, and a floating base unless the support is welded), which Drake's
+constraint solvers enforce in simulation and ``CalcInverseDynamics`` (an unconstrained RNE on the
+tree) ignores. So, as for MuJoCo (models/mjcf.py), the joints that the URDF makes mimics (the 3D "undo"
 hinge that levels a child's frame, the middle mass's slide) are joints of their own here, and
 Drake's coordinates are linear in the paper's, ``q_dk = G q_paper``; on a motion in the image of
 ``G``, virtual work gives ``tau_paper = G^T tau_dk`` and ``M_paper = G^T M_dk G`` exactly (the
