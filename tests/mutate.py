@@ -60,6 +60,13 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
              ["tests/test_urdf.py", "tests/test_pinocchio_backend.py"]),
     "G": ("models/pinocchio_backend.py", ("build_model", "_joint_states"),
           ["tests/test_pinocchio_backend.py", "tests/test_urdf.py"]),
+    "mjcf": ("models/mjcf.py", ("_joint_rows", "joint_map"),
+             ["tests/test_mujoco_drake.py::test_mjcf_ties_and_map_are_what_the_paper_coordinates_say",
+              "tests/test_mujoco_drake.py::test_exported_mjcf_bodies_are_the_point_masses",
+              "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method"]),
+    "drake": ("models/drake_backend.py", ("build_plant",),
+              ["tests/test_mujoco_drake.py::test_drake_bodies_are_the_point_masses",
+               "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method"]),
     "mechanism": ("models/mechanism.py", ("_is_number", "_finite", "_validate", "from_dict", "__post_init__"),
                   ["tests/test_mechanism.py", "tests/test_bad_inputs.py"]),
 }
