@@ -262,3 +262,40 @@ def test_mujocos_com_frame_term_is_needed_and_enough(n, dim, seed, sample_seed):
     assert_close(M, ref, mass_matrix_scale(mech, q) + com_frame_scale(mech, q, matrix=True), K)
     if importlib.util.find_spec("pydrake") is not None:
         assert_close(prepare(mech, "drake").mass_matrix(q), ref, mass_matrix_scale(mech, q), K)
+
+
+def _with_zero_masses(mech):
+    """Zero start, middle and end masses on some links (links 1, 3, 4, 5, and link 6 a leaf with its
+    start mass alone): MuJoCo's compiler floors them at 1e-12 (models/mjcf.py), the backend puts the
+    zeros back; a zero middle mass has no body or joint."""
+    masses = [list(m) for m in mech.masses]
+    masses[0][0] = 0.0
+    masses[2][1] = 0.0
+    masses[3][2] = 0.0
+    masses[4][1] = 0.0
+    masses[5][1] = masses[5][2] = 0.0     # a leaf rod with its start mass only: its length force is exactly 0
+    return mech.replace(masses=tuple(tuple(m) for m in masses), name=mech.name + "-zeros")
+
+
+@pytest.mark.parametrize("method", list(ENGINES))
+@pytest.mark.parametrize("dim", [2, 3])
+def test_zero_point_masses_are_exactly_zero(method, dim):
+    """A 1e-12 kg floor left in place would move the forces by about 1e-12 relative, thousands of
+    eps * scale: agreement within K shows the zeros are exact, and the joint map has no middle slide
+    where the middle mass is zero."""
+    _need(method)
+    mech = _with_zero_masses(random_tree(6, dim, 70 + dim))
+    q, qd, qdd = random_states(mech, 6, 3)
+    tau = prepare(mech, method).inverse_dynamics(q, qd, qdd)
+    for other in ("pinocchio", "matrix-factored"):
+        assert_forces_agree(tau, prepare(mech, other).inverse_dynamics(q, qd, qdd), mech, q, qd, qdd,
+                            com_frame=method == "mujoco", what=f"{method} vs {other}")
+    assert np.array_equal(tau[:, -1], np.zeros(len(q)))   # the massless leaf rod: no force along it, exactly
+    jm = joint_map(mech)
+    assert "L3_mid" not in jm.joints and "L5_mid" not in jm.joints and "L2_mid" in jm.joints
+    assert jm.bodies[2][1] is None and jm.bodies[1][1] == "L2_mid"
+
+
+def test_exported_mjcf_with_zero_masses_loads_and_places_its_bodies(tmp_path):
+    _need("mujoco")
+    test_exported_mjcf_bodies_are_the_point_masses(_with_zero_masses(random_tree(6, 3, 73)), tmp_path)
