@@ -147,6 +147,8 @@ def test_exported_mjcf_bodies_are_the_point_masses(mech, tmp_path):
     assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)] == list(jm.joints)
     assert model.nv == jm.G.shape[0] and model.nq == model.nv
     body = lambda name: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+    named = {x for names in jm.bodies for x in names if x is not None}
+    assert named == {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(1, model.nbody)}
     for i, names in enumerate(jm.bodies):
         for name, m in zip(names, mech.masses[i]):
             if name is not None:
