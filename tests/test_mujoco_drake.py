@@ -293,6 +293,16 @@ def test_zero_point_masses_are_exactly_zero(method, dim):
         assert_forces_agree(tau, prepare(mech, other).inverse_dynamics(q, qd, qdd), mech, q, qd, qdd,
                             com_frame=method == "mujoco", what=f"{method} vs {other}")
     assert np.array_equal(tau[:, -1], np.zeros(len(q)))   # the massless leaf rod: no force along it, exactly
+    if method == "drake":    # its bodies: each point mass where eq. (7) puts it, each with its mass
+        from exo_bench.models.drake_backend import body_positions, build_plant
+
+        assert np.abs(body_positions(mech, q) - point_mass_positions(mech, q)).max() <= 1e-12
+        dp = build_plant(mech)
+        for i, names in enumerate(dp.bodies):
+            assert names == (f"L{i + 1}_frame", f"L{i + 1}_mid" if mech.masses[i][1] > 0 else None, f"L{i + 1}_end")
+            for name, m in zip(names, mech.masses[i]):
+                if name is not None:
+                    assert dp.plant.GetBodyByName(name).default_mass() == m
     jm = joint_map(mech)
     assert "L3_mid" not in jm.joints and "L5_mid" not in jm.joints and "L2_mid" in jm.joints
     assert jm.bodies[2][1] is None and jm.bodies[1][1] == "L2_mid"
