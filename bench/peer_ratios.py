@@ -24,6 +24,8 @@ ENGINES = {
              "`CalcGravityGeneralizedForces` per sample (four calls through pybind11, each checking and "
              "invalidating the context's cache), on a plant built in code; the G maps one matmul over the batch",
 }
+#: Per call, each engine's own calls without the G maps and the wrapper (bench/test_inverse_dynamics.py).
+BARE = {"pinocchio": "pin.rnea (bare)", "mujoco": "mj_rne (bare)", "drake": "CalcInverseDynamics (bare)"}
 #: The denominators of the ratios: the suite's fastest method, and (from another branch) O(n) Newton-Euler.
 REFERENCES = ("matrix-factored", "newton-euler")
 
@@ -53,6 +55,9 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
     refs = [r for r in REFERENCES if r in set(inv["method"].map(_base))]
     out = ["## The rigid-body engines as peers", "",
            "What each engine's row times:", ""] + [f"- `{e}`: {ENGINES[e]}." for e in present]
+    out += ["", "Per call, `bare engine` is the engine's own calls on preallocated joint coordinates (`pin.rnea "
+            "(bare)`, `mj_rne (bare)`, `CalcInverseDynamics (bare)`: no G maps, no wrapper) and `overhead` the "
+            "method's time beyond them (the G maps, the prepared model's call, the per-sample loop)."]
     out += ["", "Each row's time as a multiple of the fastest row of " + " and of ".join(f"`{r}`" for r in refs)
             + " on the same model in this run (that row named); above 1: the engine is slower."
             + ("" if "newton-euler" in refs else " (No `newton-euler` rows in this run.)"), ""]
@@ -63,8 +68,10 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
         sub = inv[inv["batched"] == is_batched]
         if sub.empty:
             continue
-        head = f"| {label} | model | us | " + " | ".join(f"x {r}" for r in refs) + " |"
-        lines = [head, "|---|---|---|" + "---|" * len(refs)]
+        bare = not is_batched and bool(set(BARE.values()) & set(sub["method"]))
+        head = (f"| {label} | model | us | " + ("bare engine us | overhead us | " if bare else "")
+                + " | ".join(f"x {r}" for r in refs) + " |")
+        lines = [head, "|---|---|---|" + ("---|---|" if bare else "") + "---|" * len(refs)]
         for mech in sorted(sub["mechanism"].unique(), key=lambda m: (m != "exo5-3d", m)):
             at = sub[sub["mechanism"] == mech]
             for e in present:
@@ -76,7 +83,12 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
                     for ref in refs:
                         f = _fastest(at, ref, value)
                         cells.append("-" if f is None else f"{r[value] / f[0]:.3g} (`{f[1]}`)")
-                    lines.append(f"| `{r['method']}` | {mech} | {r[value]:.3g} | " + " | ".join(cells) + " |")
+                    extra = ""
+                    if bare:
+                        b_row = at[at["method"] == BARE[e]]
+                        b_us = float(b_row[value].iloc[0]) if not b_row.empty else np.nan
+                        extra = ("- | - | " if np.isnan(b_us) else f"{b_us:.3g} | {r[value] - b_us:.3g} | ")
+                    lines.append(f"| `{r['method']}` | {mech} | {r[value]:.3g} | " + extra + " | ".join(cells) + " |")
         if len(lines) > 2:
             out += [f"### {label.capitalize()}", ""] + lines + [""]
     return out

@@ -19,6 +19,7 @@ def _rows(with_newton: bool):
     for m, t in us.items():
         rows.append(dict(base, group="inverse-batched-3d", method=m, batched=True, samples=1000, median=t * 1e-3))
         rows.append(dict(base, group="inverse-per-call-3d", method=m, batched=False, samples=1, median=2 * t * 1e-6))
+    rows.append(dict(base, group="inverse-per-call-3d", method="mj_rne (bare)", batched=False, samples=1, median=30e-6))
     df = pd.DataFrame(rows)
     df["us_per_sample"] = df["median"] / df["samples"] * 1e6
     return df
@@ -30,6 +31,9 @@ def test_ratios_are_to_the_fastest_row_of_each_reference():
     assert np.isclose(ratios(df, "drake", "newton-euler", False)["exo5-3d"], 120.0 / 0.5)
     text = "\n".join(engine_section(df))
     assert "| `mujoco` | exo5-3d | 40 | 200 (`matrix-factored (numba)`) | 80 (`newton-euler (numba)`) |" in text
+    # per call: the bare engine's time and the method's overhead over it (drake: no bare row here)
+    assert "| `mujoco` | exo5-3d | 80 | 30 | 50 | 200 (`matrix-factored (numba)`) | 80 (`newton-euler (numba)`) |" in text
+    assert "| `drake` | exo5-3d | 240 | - | - |" in text
     assert "Python loop over MuJoCo's `mj_kinematics`" in text and "CalcInverseDynamics" in text
 
 
