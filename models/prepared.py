@@ -44,6 +44,16 @@ import numpy as np
 from exo_bench.models.mechanism import Mechanism, as_states
 
 
+class MissingExtra(ValueError):
+    """A method's optional engine is not installed (e.g. MuJoCo or Drake, extra ``[peers]``): a
+    ValueError whose message names the extra; ``skip_reason`` (the same line) makes studies and
+    benchmarks skip the method with it instead of failing."""
+
+    def __init__(self, message: str):
+        super().__init__(message)
+        self.skip_reason = message
+
+
 def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray):
     """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics ``(q, qd, qdd) -> tau`` on
     ``(samples, dof)`` arrays, in ONE batched call.

@@ -1,7 +1,7 @@
 """The bad-input catalogue: every class of bad input, the one line a user sees, exit code 2.
 
 :data:`CASES` is the single source of docs/errors.md: each case builds a command line (and its
-files) in a fresh folder, runs ``exo_bench.bench.cli.main.main`` in-process, and asserts the exit code,
+files) in a fresh folder, runs ``exo_bench.bench.cli.main`` in-process, and asserts the exit code,
 that stdout is empty, that stderr is one line with no traceback, and that the line contains the
 case's key phrase. ``test_errors_md_is_current`` regenerates the catalogue from the same runs and
 compares it with docs/errors.md, so the document cannot go stale; rewrite it with
@@ -16,6 +16,7 @@ import contextlib
 import io
 import json
 import os
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from collections.abc import Callable
@@ -23,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from exo_bench.bench.cli import main as cli
+from exo_bench.bench.cli import app as cli
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5
 
@@ -266,6 +267,18 @@ CASES = [
          "<dir>: expected a file to write, got a folder"),
     Case("urdf-output-under-file", "urdf -o under a file", lambda d: ["urdf", "fig1-2d", "-o", _text(d, "x", "f") / "u"],
          "<dir>/f/u: cannot make its folder '<dir>/f'"),
+    Case("mjcf-unknown-mechanism", "mjcf: an unknown mechanism", lambda d: ["mjcf", "exo7-3d", "-o", d / "m.xml"],
+         "mechanism 'exo7-3d': not a preset"),
+    Case("mjcf-output-folder", "mjcf -o naming a folder", lambda d: ["mjcf", "fig1-2d", "-o", d],
+         "<dir>: expected a file to write, got a folder"),
+    Case("mjcf-output-under-file", "mjcf -o under a file", lambda d: ["mjcf", "fig1-2d", "-o", _text(d, "x", "f") / "m.xml"],
+         "-o '<dir>/f': expected a folder, but it is a file"),
+    Case("mjcf-no-mujoco", "mjcf without MuJoCo installed (extra [peers])", lambda d: ["mjcf", "exo5-3d", "-o", d / "m.xml"],
+         "pip install 'exo-bench[peers]'", patch=lambda mp: mp.setitem(sys.modules, "mujoco", None)),
+    Case("method-no-drake", "a method whose engine is not installed (drake, extra [peers])",
+         lambda d: ["inverse", "exo5-3d", _s5(d), "--method", "drake"], "drake: Drake is not installed",
+         patch=lambda mp: [mp.setitem(sys.modules, m, None) for m in ("pydrake", "pydrake.multibody",
+                                                                          "pydrake.multibody.plant", "pydrake.multibody.tree")]),
     Case("unknown-command", "an unknown command", lambda d: ["frobnicate"], "invalid choice"),
     Case("missing-argument", "a missing argument", lambda d: ["inverse", "exo5-3d"], "required"),
     Case("unknown-method", "an unknown method", lambda d: ["inverse", "exo5-3d", _s5(d), "--method", "newton"],

@@ -13,7 +13,7 @@ from exo_bench.models.presets import exo5, random_tree
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
                           cwd=cwd, timeout=120)
 
 

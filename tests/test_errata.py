@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from exo_bench.bench.cli.main import main
+from exo_bench.bench.cli import main
 from exo_bench.lagrange import BudgetExceeded, extract_matrices
 from exo_bench.lagrange.derivation import parameter_values
 from exo_bench.lagrange.peer import peer_equations

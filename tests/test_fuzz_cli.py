@@ -1,6 +1,6 @@
 """No traceback from any command: every subcommand driven with generated bad input (hypothesis).
 
-The property, for every generated command line: ``exo_bench.bench.cli.main.main`` returns (never
+The property, for every generated command line: ``exo_bench.bench.cli.main`` returns (never
 raises); the exit code is 0 (a result), 1 (``run``: a scene failed, reported) or 2 (refused); stderr
 has no traceback and no "internal error"; a refusal is exactly one line on stderr and nothing on
 stdout; a result's stderr lines are warnings. Inputs: JSON values of every kind, mutated mechanism
@@ -210,9 +210,9 @@ KINDS = ["missing", "folder", "binary", "empty", "bom", "device", "fifo", "nul",
          "under-file"]
 
 
-@settings(max_examples=len(KINDS) * 3, deadline=None, derandomize=True, database=None)
+@settings(max_examples=len(KINDS) * 4, deadline=None, derandomize=True, database=None)
 @given(st.sampled_from(KINDS), st.sampled_from(["mechanism", "states", "scene", "urdf-out", "urdf-mechanism",
-                                                "equations-out", "equations-mechanism"]))
+                                                "equations-out", "equations-mechanism", "mjcf-out", "mjcf-mechanism"]))
 def test_every_kind_of_file_in_every_role(kind, role):
     with workdir() as d:
         bad = _make(kind, d)
@@ -228,6 +228,10 @@ def test_every_kind_of_file_in_every_role(kind, role):
             holds(["equations", "fig1-2d", "--format", "c", "-o", bad])
         elif role == "equations-mechanism":
             holds(["equations", bad, "--format", "python"])
+        elif role == "mjcf-out":
+            holds(["mjcf", "fig1-2d", "--no-check", "-o", bad])
+        elif role == "mjcf-mechanism":
+            holds(["mjcf", bad, "--no-check"])
         else:
             holds(["urdf", bad])
 
@@ -293,7 +297,7 @@ def test_run_with_generated_scenes(values, present):
 
 
 # ------------------------------------------------------------------------------ free-form argument lists
-TOKENS = ["inverse", "urdf", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
+TOKENS = ["inverse", "urdf", "mjcf", "--no-check", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
           "--max-time", "--reports", "--full", "-o", "--output", "--update-readme", "-h", "fig1-2d", "exo5-3d",
           "matrix", "2G", "-1", "nan", "s.json", "m.json", "x", "", "--", "-", "\0",
           "equations", "--format", "latex", "python", "c", "--symbolic-parameters", "--size-report"]
@@ -337,7 +341,7 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
     (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
     sub = {"BIN": tmp_path / "bin", "CHAIN300": tmp_path / "c.json", "S300": tmp_path / "s.json", "FILE": tmp_path / "file"}
     argv = [str(sub.get(a, a)) for a in args] + (["--max-memory", "2G"] if args[1] == "CHAIN300" else [])
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", *argv], capture_output=True, text=True, timeout=120,
+    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120,
                        cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
@@ -350,7 +354,7 @@ def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
 
     mo = gait(exo5(3), np.array([0.0, 0.3]))
     (tmp_path / "s.json").write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", "inverse", "exo5-3d", str(tmp_path / "s.json"),
+    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", "inverse", "exo5-3d", str(tmp_path / "s.json"),
                         "--method", "matrix-paper"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0
     lines = r.stderr.strip().splitlines()

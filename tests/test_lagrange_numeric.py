@@ -8,7 +8,7 @@ import pytest
 from conftest import POWER_BALANCE_TOL, assert_forces_agree, assert_mass_matrices_agree, power_balance_residual
 
 from exo_bench import prepare
-from exo_bench.bench.cli.main import main
+from exo_bench.bench.cli import main
 from exo_bench.lagrange import numeric as ln
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import gait, random_states

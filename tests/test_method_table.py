@@ -23,8 +23,8 @@ CHOICES = {"bench/test_inverse_dynamics.py", "bench/test_memory.py", "bench/test
 #: Single literals that choose what a report shows: (module, the method names in the literal).
 CHOSEN = {
     ("bench/studies/equations_size.py", ("lagrange", "matrix")),     # the size study's routes and their styles
-    ("bench/perf/reports/benchmark_reports.py", ("lagrange", "matrix", "recurrence")),  # the paper table's columns
-    ("bench/perf/reports/benchmark_reports.py", ("matrix", "matrix-factored")),          # the exo5-3d ratio's rows
+    ("bench/perf/reports/paper_table.py", ("lagrange", "matrix", "recurrence")),  # the paper table's columns
+    ("bench/perf/reports/paper_table.py", ("matrix", "matrix-factored")),          # the exo5-3d ratio's rows
     ("bench/studies/errata/report.py", ("lagrange", "pinocchio")),   # the errata study's witnesses
 }
 

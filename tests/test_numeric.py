@@ -10,7 +10,7 @@ from conftest import POWER_BALANCE_TOL, assert_close, assert_forces_agree, power
 import sympy as sp
 
 from exo_bench import prepare
-from exo_bench.bench.cli.main import main
+from exo_bench.bench.cli import main
 from exo_bench.lagrange import numeric as lagrange_numeric
 from exo_bench.bench.studies import errata
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric

@@ -34,7 +34,7 @@ def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli.main", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
                           timeout=300)
 
 
@@ -142,7 +142,7 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
 
     p = tmp_path / "slow.toml"
     p.write_text('mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n')
-    proc = subprocess.Popen([sys.executable, "-m", "exo_bench.bench.cli.main", "run", str(p), "--reports", str(tmp_path / "rep")],
+    proc = subprocess.Popen([sys.executable, "-m", "exo_bench.bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
     while time.time() < deadline and not any((tmp_path / "rep").glob(".staging-*")):

@@ -120,7 +120,7 @@ def tiny_run(tmp_path_factory):
     """`exo-bench stability` once on the tiny profile: the output folder, the exit code and the
     figures as they were handed to the PNG writer."""
     from exo_bench.bench.output import provenance as reporting
-    from exo_bench.bench.cli.main import main
+    from exo_bench.bench.cli import main
 
     out = tmp_path_factory.mktemp("stability")
     figures = {}

@@ -53,6 +53,10 @@ class MethodSpec:
     #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
     #: about a minute): a benchmark row that composes only such methods needs no chain.
     composes_within_budget: bool = False
+    #: For an engine (a rigid-body library beside ours): what one of its benchmark rows times.
+    engine_row: str | None = None
+    #: For an engine: the name of its bare per-call benchmark row (its own calls, no G maps, no wrapper).
+    bare_row: str | None = None
 
     @property
     def compiled(self) -> bool:
@@ -70,7 +74,10 @@ _WRONG_18 = "eq. (18) as printed has misprints: 3D results are wrong by design (
 METHODS: dict[str, MethodSpec] = {s.name: s for s in (
     MethodSpec("pinocchio", "exo_bench.models.pinocchio_backend", "PinocchioRNEA",
                "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
-               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=2),
+               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=2,
+               engine_row="a Python loop over `pin.rnea` per sample (the G maps one matmul over the batch; "
+                          "`pinocchio-parallel`: `rneaInParallel` on a ModelPool)",
+               bare_row="pin.rnea (bare)"),
     MethodSpec("lagrange", "exo_bench.lagrange.prepared", "LagrangeModel",
                "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
                "(options: budget, interrupt)",
@@ -93,6 +100,23 @@ METHODS: dict[str, MethodSpec] = {s.name: s for s in (
                "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                "loops (option kernel: numba, the default, or numpy)",
                colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=3, composes_within_budget=True),
+    MethodSpec("mujoco", "exo_bench.models.mujoco_backend", "MujocoRNE",
+               "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
+               "a Python loop over the samples (optional extra [peers])",
+               colour="#a6761d", cost=cost.MUJOCO,
+               engine_row="a Python loop over MuJoCo's `mj_kinematics`, `mj_comPos`, `mj_comVel` and `mj_rne` per "
+                          "sample (four calls through the bindings each), on the exported MJCF with every constraint "
+                          "off; the G maps one matmul over the batch",
+               bare_row="mj_rne (bare)"),
+    MethodSpec("drake", "exo_bench.models.drake_backend", "DrakeID",
+               "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
+               "a Python loop over the samples (optional extra [peers])",
+               colour="#1f78b4", cost=cost.DRAKE,
+               engine_row="a Python loop over Drake's `SetPositions`, `SetVelocities`, `CalcInverseDynamics` and "
+                          "`CalcGravityGeneralizedForces` per sample (four calls through pybind11, each checking and "
+                          "invalidating the context's cache), on a plant built in code; the G maps one matmul over "
+                          "the batch",
+               bare_row="CalcInverseDynamics (bare)"),
 )}
 
 

@@ -38,6 +38,9 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
         for _, r in per.iterrows():
             lines.append(f"| {r['dim']}D | {r['method']} | {r['mechanism']} | {r['median'] * 1e6:.3g} | "
                          f"{r['max_abs_err']:.1e} | {r['max_rel_err']:.1e} | {r['nonfinite']} | {r['reference']} |")
+    from exo_bench.bench.perf.peer_ratios import engine_section  # the engines' rows and their ratios
+
+    lines += [""] + engine_section(inv)
     lines += _skips_md(skips, "test_inverse_batched")
     _plot_error_vs_runtime(bat, png)
     lines += ["", f"![error against run time]({png.name})"]
