@@ -25,7 +25,7 @@ from pathlib import Path
 from exo_bench.bench.equation_pages import (DEFAULT_BUDGET, EquationsBudget, _Clock, eq4_pair,  # noqa: F401
                                             md_matrices, scene_pages)
 
-FORMATS = ("latex", "python", "c")
+FORMATS = ("latex", "python", "c", "casadi")
 
 
 # ------------------------------------------------------------------------------ the command
@@ -35,8 +35,8 @@ def add_parser(sub) -> None:
                        "module or C99 source (eq. (5)/(17) composed by the matrix method)")
     s.add_argument("mechanism", nargs="?", help="a preset name or a mechanism JSON file")
     s.add_argument("--format", choices=None, default=None, metavar="FORMAT",
-                   help="latex (a Markdown page and a standalone .tex), python (imports numpy only) or c (C99 "
-                        ".h and .c)")
+                   help="latex (a Markdown page and a standalone .tex), python (imports numpy only), c (C99 "
+                        ".h and .c) or casadi (casadi.Function files .casadi and a note; the extra 'casadi')")
     s.add_argument("-o", "--output", default=".", metavar="DIR", help="output folder (default: the current folder)")
     s.add_argument("--symbolic-parameters", action="store_true",
                    help="keep masses, fractions and g as symbols (latex: the aggregates of eq. (6); python and c: "
@@ -124,6 +124,8 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
         tex = export_latex.document(mech, symbolic_parameters, "tex", "", parts=parts, eq4=eq4_pair(mech))
         clock.check("the LaTeX file")
         return {f"equations-{stem}.md": md, f"equations-{stem}.tex": tex}
+    if fmt == "casadi":
+        return _casadi_files(mech, stem, symbolic_parameters, clock)
     es = export_code.equation_set(mech, symbolic_parameters)
     clock.check("composing")
     if fmt == "python":
@@ -151,6 +153,22 @@ def write_equations(mech, fmt: str, out: Path, symbolic_parameters: bool = False
             tmp.write_text(text)
             paths.append(out / name)
     return paths
+
+
+def _casadi_files(mech, stem: str, symbolic_parameters: bool, clock) -> dict[str, str]:
+    """``--format casadi``: ``<stem>_<function>.casadi`` files and the note ``<stem>_casadi.md``."""
+    import exo_bench
+    from exo_bench.bench.reporting import provenance
+    from exo_bench.matrix_method import export_casadi
+
+    if symbolic_parameters:
+        raise ValueError("equations --symbolic-parameters: not available with --format casadi (the functions "
+                         "take the mechanism's numbers)")
+    export_casadi.require_casadi()
+    files = export_casadi.export_files(mech, stem, exo_bench.__version__,
+                                       provenance(f"exo-bench equations {mech.name} --format casadi"))
+    clock.check("building and serialising the CasADi functions")
+    return files
 
 
 def _latex_header(mech, symbolic_parameters: bool) -> str:
