@@ -176,9 +176,13 @@ class CasadiEquations:
 
     # ------------------------------------------------------------------ files
     def serialized(self) -> dict[str, str]:
-        """``file name -> text`` of every function as a ``.casadi`` file (``Function.serialize``:
-        ``casadi.Function.load(path)`` reads one back)."""
-        return {f"{name}.casadi": f.serialize() for name, f in self.functions().items()}
+        """``file name -> text`` of every function's ``.casadi`` file, exactly as ``Function.save``
+        writes it (ASCII; ``casadi.Function.load(path)`` reads it back). ``Function.serialize``
+        gives another header, which ``load`` refuses, so each is saved to a scratch folder and read."""
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="exo-bench-casadi-") as tmp:
+            return {p.name: p.read_text(encoding="ascii") for p in self.save(tmp)}
 
     def save(self, folder) -> list[Path]:
         """Every function into ``folder/<name>.casadi`` (``Function.save``); returns the paths."""
