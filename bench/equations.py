@@ -1,9 +1,11 @@
 """``exo-bench equations``: the equations of a mechanism taken away as LaTeX, Python or C; the
 ``equations`` output of a scene; and the size study ``reports/equations_size.md``.
 
-* ``exo-bench equations MECHANISM --format latex|python|c [-o DIR] [--symbolic-parameters]``
-  writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python) or ``<name>.h`` and
-  ``<name>.c`` (c) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
+* ``exo-bench equations MECHANISM --format latex|python|c|casadi [-o DIR] [--symbolic-parameters]``
+  writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python), ``<name>.h`` and
+  ``<name>.c`` (c) or ``<name>_<function>.casadi`` and ``<name>_casadi.md`` (casadi: the
+  ``casadi.Function`` files of :mod:`matrix_method.export_casadi`, the optional extra ``casadi``)
+  into ``DIR`` (default: the current folder), atomically (a failure leaves no file
   of the set half-written). The work is estimated first (:func:`bench.resources.equations_estimate`)
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.

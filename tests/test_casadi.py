@@ -340,3 +340,22 @@ def test_symbolic_parameters_refused(tmp_path):
     rc, _, err = run_cli(["equations", "exo5-2d", "--format", "casadi", "--symbolic-parameters", "-o", tmp_path])
     assert rc == 2 and "not available with --format casadi" in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_readme_example_runs_and_checks_itself(tmp_path):
+    """The README's "Derivatives and CasADi" example, run as a user would run it (its asserts compare
+    the derivatives with the model's own terms and with CasADi's Jacobian of the function)."""
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    section = text.split("## Derivatives and CasADi", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"```python\n(.*?)\n```", section, re.S)
+    assert len(blocks) == 1
+    script = tmp_path / "example.py"
+    script.write_text(blocks[0])
+    r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "CasADi" in r.stdout
