@@ -345,17 +345,6 @@ def test_symbolic_parameters_refused(tmp_path):
 def test_the_readme_example_runs_and_checks_itself(tmp_path):
     """The README's "Derivatives and CasADi" example, run as a user would run it (its asserts compare
     the derivatives with the model's own terms and with CasADi's Jacobian of the function)."""
-    import re
-    import subprocess
-    import sys
-    from pathlib import Path
+    from test_readme import run_example
 
-    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
-    section = text.split("## Derivatives and CasADi", 1)[1].split("\n## ", 1)[0]
-    blocks = re.findall(r"```python\n(.*?)\n```", section, re.S)
-    assert len(blocks) == 1
-    script = tmp_path / "example.py"
-    script.write_text(blocks[0])
-    r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr[-3000:]
-    assert "CasADi" in r.stdout
+    assert "CasADi" in run_example("Derivatives and CasADi", tmp_path).stdout
