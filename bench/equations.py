@@ -158,17 +158,17 @@ def write_equations(mech, fmt: str, out: Path, symbolic_parameters: bool = False
 
 
 def _casadi_files(mech, stem: str, symbolic_parameters: bool, clock) -> dict[str, str]:
-    """``--format casadi``: ``<stem>_<function>.casadi`` files and the note ``<stem>_casadi.md``."""
+    """``--format casadi``: ``<stem>_<function>.casadi`` files and the note ``<stem>_casadi.md``; with
+    ``--symbolic-parameters`` every function takes the masses, fractions and g as ``params``."""
     import exo_bench
     from exo_bench.bench.reporting import provenance
     from exo_bench.matrix_method import export_casadi
 
-    if symbolic_parameters:
-        raise ValueError("equations --symbolic-parameters: not available with --format casadi (the functions "
-                         "take the mechanism's numbers)")
     export_casadi.require_casadi()
+    flag = " --symbolic-parameters" if symbolic_parameters else ""
     files = export_casadi.export_files(mech, stem, exo_bench.__version__,
-                                       provenance(f"exo-bench equations {mech.name} --format casadi"))
+                                       provenance(f"exo-bench equations {mech.name} --format casadi{flag}"),
+                                       symbolic_parameters)
     clock.check("building and serialising the CasADi functions")
     return files
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from exo_bench.matrix_method import numeric
-from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.matrix_method.coefficients import generic_coupling, signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, coordinate_names, force_names
 
 #: The optional extra that installs CasADi, named in every error about it.
@@ -81,14 +81,35 @@ class CasadiOps:
         return self.ca.vertcat(*parts)
 
 
-def symbolic_inverse_dynamics(mech: Mechanism, q, qd, qdd, ca=None):
+def symbolic_inverse_dynamics(mech: Mechanism, q, qd, qdd, ca=None, params=None):
     """``tau`` of ``mech`` as a CasADi expression of the column vectors ``q, qd, qdd`` ``(dof, 1)``
-    (SX or MX): the factored kernel of method ``matrix-factored`` run on them."""
+    (SX or MX): the factored kernel of method ``matrix-factored`` run on them. ``params``: a symbol
+    ``(4 n + 1, 1)`` of the masses, fractions and g (:func:`parameter_names`) instead of the
+    mechanism's numbers; the coupling is then :func:`coefficients.generic_coupling` of them."""
     ca = ca or require_casadi()
     kernel = numeric._factored_2d if mech.dim == 2 else numeric._factored_3d
-    c = ca.sparsify(ca.DM(np.asarray(signed_coupling(mech))))   # links on different branches: no term
-    nu_s = ca.DM(np.asarray(signed_gravity(mech)))
-    return kernel(mech.nlinks, float(mech.g), c, nu_s, q, qd, qdd, CasadiOps(ca))
+    if params is None:
+        c = ca.sparsify(ca.DM(np.asarray(signed_coupling(mech))))   # links on different branches: no term
+        nu_s, g = ca.DM(np.asarray(signed_gravity(mech))), float(mech.g)
+    else:
+        n = mech.nlinks
+        per_link = [(params[3 * i], params[3 * i + 1], params[3 * i + 2], params[3 * n + i]) for i in range(n)]
+        cc, nn = generic_coupling(mech, per_link, zero=ca.SX(0) if isinstance(params, ca.SX) else ca.MX(0))
+        c = ca.vertcat(*[ca.horzcat(*row) for row in cc])
+        nu_s, g = ca.vertcat(*nn), params[4 * n]
+    return kernel(mech.nlinks, g, c, nu_s, q, qd, qdd, CasadiOps(ca))
+
+
+def parameter_names(mech: Mechanism) -> list[str]:
+    """The entries of ``params`` (``parameters=True``): ``m1_0, m1_1, m1_2, m2_0, ..., n1, ..., nN, g``,
+    the order of ``exo-bench equations --symbolic-parameters`` (:func:`export_code.parameter_symbols`)."""
+    n = mech.nlinks
+    return [f"m{i + 1}_{b}" for i in range(n) for b in range(3)] + [f"n{i + 1}" for i in range(n)] + ["g"]
+
+
+def parameter_values(mech: Mechanism) -> np.ndarray:
+    """The mechanism's values in the order of :func:`parameter_names`."""
+    return np.array([x for ms in mech.masses for x in ms] + list(mech.n) + [mech.g], dtype=float)
 
 
 class CasadiEquations:
@@ -96,10 +117,13 @@ class CasadiEquations:
 
     Built once in the constructor (like sympy's ``LagrangesMethod``); each function is a property
     (:data:`FUNCTIONS` lists inputs and outputs). Column vectors in block order; ``q, qd, qdd`` and
-    ``tau`` are also available as the SX symbols the functions were built on.
+    ``tau`` are also available as the SX symbols the functions were built on. With
+    ``parameters=True`` every function takes one more input, ``params`` (masses, fractions and g,
+    :func:`parameter_names`; the mechanism's values: :attr:`parameter_values`), for design
+    optimisation; the tree, its signs and dimension stay fixed.
     """
 
-    def __init__(self, mechanism: Mechanism):
+    def __init__(self, mechanism: Mechanism, parameters: bool = False):
         if not isinstance(mechanism, Mechanism):
             raise ValueError(f"casadi functions: expected a Mechanism (exo_bench.Mechanism or "
                              f"exo_bench.load_mechanism), got {type(mechanism).__name__}")
@@ -109,15 +133,33 @@ class CasadiEquations:
         d = mechanism.dof
         self.dof = d
         self.q, self.qd, self.qdd = ca.SX.sym("q", d), ca.SX.sym("qd", d), ca.SX.sym("qdd", d)
+        self.parameters = bool(parameters)
+        #: the symbol of the parameters (None without ``parameters``) and the mechanism's values of them
+        self.params = ca.SX.sym("params", 4 * mechanism.nlinks + 1) if parameters else None
+        self.parameter_values = parameter_values(mechanism)
+        self._p = [self.params] if parameters else []
         #: tau(q, qd, qdd) as an SX expression
-        self.tau = symbolic_inverse_dynamics(mechanism, self.q, self.qd, self.qdd, ca)
+        self.tau = symbolic_inverse_dynamics(mechanism, self.q, self.qd, self.qdd, ca, self.params)
         self.M = ca.jacobian(self.tau, self.qdd)
         self.h = ca.substitute(self.tau, self.qdd, ca.SX.zeros(d))
         self._names = dict(q=coordinate_names(mechanism), tau=force_names(mechanism))
 
     def _function(self, name: str, inputs: list, outputs: list):
         ins, outs = FUNCTIONS[name]
-        return self._ca.Function(name, inputs, outputs, list(ins), list(outs))
+        names = list(ins) + (["params"] if self.parameters else [])
+        return self._ca.Function(name, inputs + self._p_of(inputs[0]), outputs, names, list(outs))
+
+    def _p_of(self, x) -> list:
+        """``[params]`` as the symbol type of ``x`` (the SX symbol, or the MX one of an MX function)."""
+        if not self.parameters:
+            return []
+        if isinstance(x, self._ca.SX):
+            return [self.params]
+        return [self._mx_params]
+
+    @cached_property
+    def _mx_params(self):
+        return self._ca.MX.sym("params", self.params.numel())
 
     # ------------------------------------------------------------------ the functions
     @cached_property
@@ -144,7 +186,8 @@ class CasadiEquations:
         tau`` as a constraint needs no solve at all."""
         ca = self._ca
         q, qd, tau = (ca.MX.sym(x, self.dof) for x in ("q", "qd", "tau"))
-        qdd = ca.solve(self.mass_matrix(q), tau - self.bias_forces(q, qd), "qr")
+        p = self._p_of(q)
+        qdd = ca.solve(self.mass_matrix(q, *p), tau - self.bias_forces(q, qd, *p), "qr")
         return self._function("forward_dynamics", [q, qd, tau], [qdd])
 
     @cached_property
@@ -163,9 +206,10 @@ class CasadiEquations:
         ca = self._ca
         d = self.dof
         q, qd, tau = ca.MX.sym("q", d), ca.MX.sym("qd", d), ca.MX.sym("tau", d)
-        M = self.mass_matrix(q)
-        a = ca.solve(M, tau - self.bias_forces(q, qd), "qr")
-        jq, jqd, _ = self.inverse_dynamics_derivatives(q, qd, a)
+        p = self._p_of(q)
+        M = self.mass_matrix(q, *p)
+        a = ca.solve(M, tau - self.bias_forces(q, qd, *p), "qr")
+        jq, jqd, _ = self.inverse_dynamics_derivatives(q, qd, a, *p)
         sol = ca.solve(M, ca.horzcat(jq, jqd, ca.MX.eye(d)), "qr")
         return self._function("forward_dynamics_derivatives", [q, qd, tau],
                               [a, -sol[:, :d], -sol[:, d:2 * d], sol[:, 2 * d:]])
@@ -195,14 +239,19 @@ class CasadiEquations:
         return paths
 
     # ------------------------------------------------------------------ numbers, batch-first
-    def evaluate(self, name: str, *arrays) -> tuple[np.ndarray, ...]:
+    def evaluate(self, name: str, *arrays, params=None) -> tuple[np.ndarray, ...]:
         """Function ``name`` on batch-first float arrays ``(samples, dof)`` (or one ``(dof,)``):
         vectors come back ``(samples, dof)``, matrices ``(samples, dof, dof)`` (or without the
-        sample axis for one sample). One mapped CasADi call, no Python loop over samples."""
+        sample axis for one sample). One mapped CasADi call, no Python loop over samples.
+        ``params`` (with ``parameters=True``): one vector for every sample, default the mechanism's."""
         f = getattr(self, name)
         single = np.ndim(arrays[0]) == 1
         cols = [np.atleast_2d(np.asarray(a, dtype=float)).T for a in arrays]
         S = cols[0].shape[1]
+        if self.parameters:
+            cols.append(np.asarray(self.parameter_values if params is None else params, dtype=float).reshape(-1, 1))
+        elif params is not None:
+            raise ValueError("casadi functions: params given, but the functions were built without parameters")
         res = f(*cols)
         res = res if isinstance(res, (list, tuple)) else [res]
         d = self.dof
@@ -218,21 +267,23 @@ class CasadiEquations:
 
 
 @lru_cache(maxsize=32)
-def casadi_functions(mechanism: Mechanism) -> CasadiEquations:
+def casadi_functions(mechanism: Mechanism, parameters: bool = False) -> CasadiEquations:
     """The CasADi functions of ``mechanism``'s equations of motion (built once per mechanism):
-    :class:`CasadiEquations`. A ValueError names the optional extra when CasADi is missing."""
-    return CasadiEquations(mechanism)
+    :class:`CasadiEquations`; ``parameters=True``: masses, fractions and g as one more input.
+    A ValueError names the optional extra when CasADi is missing."""
+    return CasadiEquations(mechanism, parameters)
 
 
-def export_files(mech: Mechanism, stem: str, version: str, header: str = "") -> dict[str, str]:
-    """``file name -> text`` of ``exo-bench equations MECH --format casadi``: every function as
-    ``<stem>_<function>.casadi`` and the loader note ``<stem>_casadi.md`` (nothing written)."""
-    files = {f"{stem}_{name}": text for name, text in casadi_functions(mech).serialized().items()}
-    files[f"{stem}_casadi.md"] = loader_note(mech, stem, version, header)
+def export_files(mech: Mechanism, stem: str, version: str, header: str = "", parameters: bool = False) -> dict[str, str]:
+    """``file name -> text`` of ``exo-bench equations MECH --format casadi [--symbolic-parameters]``:
+    every function as ``<stem>_<function>.casadi`` and the loader note ``<stem>_casadi.md``
+    (nothing written)."""
+    files = {f"{stem}_{name}": text for name, text in casadi_functions(mech, parameters).serialized().items()}
+    files[f"{stem}_casadi.md"] = loader_note(mech, stem, version, header, parameters)
     return files
 
 
-def loader_note(mech: Mechanism, stem: str, version: str, header: str = "") -> str:
+def loader_note(mech: Mechanism, stem: str, version: str, header: str = "", parameters: bool = False) -> str:
     """The Markdown note written beside the ``.casadi`` files: what each holds and how to load it."""
     names = coordinate_names(mech)
     forces = force_names(mech)
@@ -249,11 +300,15 @@ def loader_note(mech: Mechanism, stem: str, version: str, header: str = "") -> s
         "tau = ID(q, qd, qdd)            # numbers, or SX/MX symbols in an optimal-control problem",
         "tau_batch = ID(Q, QD, QDD)      # (dof, samples) columns: CasADi maps the function", "```", "",
         "| file | inputs | outputs |", "|---|---|---|"]
+    extra = ", params" if parameters else ""
     for name, (ins, outs) in FUNCTIONS.items():
-        lines.append(f"| `{stem}_{name}.casadi` | {', '.join(ins)} | {', '.join(outs)} |")
+        lines.append(f"| `{stem}_{name}.casadi` | {', '.join(ins)}{extra} | {', '.join(outs)} |")
     lines += ["", f"Vectors are columns of {mech.dof} in block order: q = [{', '.join(names)}] "
               "(rad and m; the paper's absolute angles), qd and qdd their rates, "
               f"tau = [{', '.join(forces)}] (N m and N). Matrices are (dof, dof): `dtau_dq[i, j] = d tau_i / d q_j`.",
+              *(["", f"`params` ({4 * mech.nlinks + 1}): [{', '.join(parameter_names(mech))}] (kg, fractions of the "
+                  f"length, m/s^2); this mechanism's values: [{', '.join(f'{x:.17g}' for x in parameter_values(mech))}]. "
+                  "The tree, its signs and the dimension are fixed."] if parameters else []),
               "", "`inverse_dynamics`, `mass_matrix`, `bias_forces` and `inverse_dynamics_derivatives` are SX "
               "functions (`Function.expand`-able, e.g. for IPOPT); `forward_dynamics` and "
               "`forward_dynamics_derivatives` are MX functions that factorise M at run time (CasADi's sparse QR). "

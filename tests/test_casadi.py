@@ -336,10 +336,36 @@ def test_missing_extra_is_named(monkeypatch, tmp_path):
         casadi_functions.cache_clear()
 
 
-def test_symbolic_parameters_refused(tmp_path):
-    rc, _, err = run_cli(["equations", "exo5-2d", "--format", "casadi", "--symbolic-parameters", "-o", tmp_path])
-    assert rc == 2 and "not available with --format casadi" in err and len(err.strip().splitlines()) == 1
-    assert list(tmp_path.iterdir()) == []
+@pytest.mark.parametrize("mech", TREES[:2], ids=IDS[:2])
+def test_parameters_are_an_input(mech, tmp_path):
+    """``parameters=True``: at other masses, fractions and g the functions are those of the mechanism
+    with these values (the numeric kernel of ``mech.replace(...)``, to the error model); the export
+    with ``--symbolic-parameters`` takes ``params`` and its note lists their order and values."""
+    from exo_bench.matrix_method.export_casadi import parameter_names, parameter_values
+
+    E = casadi_functions(mech, parameters=True)
+    other = mech.replace(masses=tuple(tuple(1.3 * x + 0.1 for x in m) for m in mech.masses),
+                         n=tuple(0.5 for _ in mech.n), g=1.62)
+    q, qd, qdd = _states(mech)
+    ref = prepare(other, "matrix-factored", kernel="numpy")
+    (tau,) = E.evaluate("inverse_dynamics", q, qd, qdd, params=parameter_values(other))
+    assert_forces_agree(tau, ref.inverse_dynamics(q, qd, qdd), other, q, qd, qdd, what="tau(params)")
+    (M,) = E.evaluate("mass_matrix", q, params=parameter_values(other))
+    assert_mass_matrices_agree(M, prepare(other, "matrix", kernel="numpy").mass_matrix(q), other, q)
+    (same,) = E.evaluate("inverse_dynamics", q, qd, qdd)          # default: the mechanism's own values
+    assert_forces_agree(same, prepare(mech, "matrix-factored", kernel="numpy").inverse_dynamics(q, qd, qdd),
+                        mech, q, qd, qdd)
+    assert len(parameter_names(mech)) == E.params.numel() == 4 * mech.nlinks + 1
+    rc, _, err = run_cli(["equations", _json(mech, tmp_path), "--format", "casadi", "--symbolic-parameters",
+                          "-o", tmp_path / "out"])
+    assert rc == 0, err
+    f = ca.Function.load(str(tmp_path / "out" / f"{mech.name}_inverse_dynamics.casadi"))
+    assert f.name_in() == ["q", "qd", "qdd", "params"]
+    np.testing.assert_array_equal(np.asarray(f(q[0], qd[0], qdd[0], parameter_values(other))).ravel(), tau[0])
+    note = (tmp_path / "out" / f"{mech.name}_casadi.md").read_text()
+    assert ", ".join(parameter_names(mech)) in note and "--symbolic-parameters" in note
+    with pytest.raises(ValueError, match="without parameters"):
+        casadi_functions(mech).evaluate("inverse_dynamics", q, qd, qdd, params=parameter_values(other))
 
 
 def test_the_readme_example_runs_and_checks_itself(tmp_path):
