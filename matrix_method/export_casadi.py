@@ -3,9 +3,11 @@
 The functions are built from the factored closed forms that method ``matrix-factored`` runs
 (:func:`matrix_method.numeric._factored_2d` / ``_factored_3d``, derivation in
 :func:`matrix_method.numeric.inverse_dynamics`): the same kernel, called once on CasADi's SX
-symbols instead of numpy arrays (:data:`CASADI_OPS` supplies ``cos``/``sin`` and the product with
-the signed coupling ``c``; everything else is the kernel's own elementwise arithmetic). Nothing of
-the physics is written here.
+symbols instead of numpy arrays (:class:`CasadiOps` supplies ``cos``/``sin``, the product with the
+signed coupling ``c`` and the stacking; everything else is the kernel's own elementwise
+arithmetic). Nothing of the physics is written here. With ``parameters=True`` the masses,
+fractions and g are one more input, ``params``, and ``c`` is :func:`coefficients.generic_coupling`
+of them (the same function the symbolic export uses).
 
 * ``inverse_dynamics(q, qd, qdd) -> tau``: the kernel on symbols;
 * ``mass_matrix(q) -> M``: ``d tau / d qdd`` (exact: tau is linear in qdd);
@@ -142,7 +144,6 @@ class CasadiEquations:
         self.tau = symbolic_inverse_dynamics(mechanism, self.q, self.qd, self.qdd, ca, self.params)
         self.M = ca.jacobian(self.tau, self.qdd)
         self.h = ca.substitute(self.tau, self.qdd, ca.SX.zeros(d))
-        self._names = dict(q=coordinate_names(mechanism), tau=force_names(mechanism))
 
     def _function(self, name: str, inputs: list, outputs: list):
         ins, outs = FUNCTIONS[name]
