@@ -13,8 +13,18 @@ from __future__ import annotations
 from typing import Any
 
 from exo_bench.api.methods import method_class
+from exo_bench.models import prepared
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import PreparedModel
+
+
+def _derivatives(mechanism: Mechanism, method: str) -> Any:
+    from exo_bench.matrix_method.derivatives import derivatives_of  # noqa: PLC0415 - CasADi only when asked
+
+    return derivatives_of(mechanism, method)
+
+
+prepared.derivative_provider = _derivatives   # every prepared model's .derivatives (models.prepared)
 
 
 def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: Any) -> PreparedModel:

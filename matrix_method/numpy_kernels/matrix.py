@@ -187,31 +187,48 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     return out
 
 
-def _factored_2d(n, g, c, nu_s, x, xd, xdd):
-    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (the element functions
-    of :mod:`exo_bench.matrix_method.closed_forms.factored` on ``(n, B)`` rows)."""
+class NumpyOps:
+    """What the factored kernels need beyond elementwise arithmetic, for numpy ``(n, B)`` arrays:
+    ``cos_sin`` (:func:`_cos_sin`), ``couple(c, parts)`` (``sum_j c_ij part_j`` per Cartesian axis,
+    one product with ``c``) and ``rows(parts)`` (the blocks of tau stacked). The same kernels run on
+    CasADi's symbols with another namespace (:mod:`exo_bench.matrix_method.export.casadi_functions`)."""
+
+    cos_sin = staticmethod(_cos_sin)
+
+    @staticmethod
+    def couple(c, parts):
+        return c @ np.stack(parts)
+
+    @staticmethod
+    def rows(parts):
+        return np.concatenate(parts)
+
+
+NUMPY_OPS = NumpyOps()
+
+
+def _factored_2d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
+    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks: the element functions of
+    :mod:`exo_bench.matrix_method.closed_forms.factored` on ``(n, B)`` rows (``ops``: numpy by default,
+    :class:`NumpyOps`; any namespace with the same three functions, e.g. CasADi's)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
-    cf, sf = _cos_sin(phi)
-    kappa = np.stack(factored.planar_kappa(l, w, ld, wdd, ldd, cf, sf))    # (2, n, B)
-    f = c @ kappa                                  # sum_j c_ij kappa_j
-    out = np.empty((2 * n, x.shape[1]))
-    out[:n], out[n:] = factored.planar_forces(l, cf, sf, f[0], f[1], g * nu_s)
-    return out
+    cf, sf = ops.cos_sin(phi)
+    f = ops.couple(c, list(factored.planar_kappa(l, w, ld, wdd, ldd, cf, sf)))      # sum_j c_ij kappa_j
+    return ops.rows(list(factored.planar_forces(l, cf, sf, f[0], f[1], g * nu_s)))
 
 
-def _factored_3d(n, g, c, nu_s, x, xd, xdd):
-    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (the element functions
-    of :mod:`exo_bench.matrix_method.closed_forms.factored` on ``(n, B)`` rows)."""
+def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
+    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (``ops`` as in
+    :func:`_factored_2d`)."""
     phi, psi, l = x[:n], x[n:2 * n], x[2 * n:]
     w, v, ld = xd[:n], xd[n:2 * n], xd[2 * n:]
     wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
-    cf, sf = _cos_sin(phi)
-    cp, sp = _cos_sin(psi)
-    kappa = np.stack(factored.spatial_kappa(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp))   # (3, n, B)
-    f = c @ kappa
-    out = np.empty((3 * n, x.shape[1]))
-    out[:n], out[n:2 * n], out[2 * n:] = factored.spatial_forces(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)
-    return out
+    cf, sf = ops.cos_sin(phi)
+    cp, sp = ops.cos_sin(psi)
+    f = ops.couple(c, list(factored.spatial_kappa(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))   # per axis
+    return ops.rows(list(factored.spatial_forces(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)))
+
+
 
 
 # ----------------------------------------------------------------- as printed
