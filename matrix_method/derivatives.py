@@ -31,15 +31,18 @@ from exo_bench.models.mechanism import Mechanism, as_states
 
 #: What computes the derivatives, per method family (:attr:`Derivatives.source`).
 SOURCE = ("CasADi algorithmic differentiation of the matrix method's factored closed forms of eq. (5)/(17) "
-          "(matrix_method/export_casadi.py)")
+          "(matrix_method/export/casadi_functions.py)")
 
 
-def _source(method: str) -> str:
-    if method in ("matrix", "matrix-factored", "recurrence"):
-        return f"{SOURCE}: the same equations that {method} evaluates"
-    if method == "matrix-paper":
-        return (f"{SOURCE}: the CORRECT equations, not matrix-paper's eq. (18) as printed (its 3D misprints "
+def source_text(method: str, evaluates_these: bool, known_wrong: bool) -> str:
+    """What computes the derivatives for ``method``: its own equations (``evaluates_these``, the matrix
+    family), the correct ones for a method known to be wrong, or the unique equations of motion that
+    every other method agrees with (the facts come from the method's MethodSpec, exo_bench.api)."""
+    if known_wrong:
+        return (f"{SOURCE}: the CORRECT equations, not {method}'s eq. (18) as printed (its 3D misprints "
                 "have no derivative worth having)")
+    if evaluates_these:
+        return f"{SOURCE}: the same equations that {method} evaluates"
     return (f"{SOURCE}: the equations of motion are unique, so these are {method}'s equations' derivatives to "
             "rounding (the suite checks that every method's inverse dynamics agree)")
 
@@ -56,11 +59,11 @@ class Derivatives:
     """The derivatives of one mechanism's equations of motion, for a prepared model of ``method``.
     Built by :func:`derivatives_of` (CasADi functions compiled once per mechanism)."""
 
-    def __init__(self, mechanism: Mechanism, method: str = "matrix-factored"):
+    def __init__(self, mechanism: Mechanism, method: str = "matrix-factored", source: str | None = None):
         self.mechanism = mechanism
         self.method = method
         #: which physics computes these derivatives (module docstring)
-        self.source = _source(method)
+        self.source = source if source is not None else source_text(method, True, False)
         self.equations = casadi_functions(mechanism)      # a ValueError naming the extra without CasADi
 
     def __repr__(self) -> str:
@@ -100,7 +103,7 @@ class Derivatives:
         return tuple(x[0] for x in out) if single else out
 
 
-def derivatives_of(mechanism: Mechanism, method: str) -> Derivatives:
+def derivatives_of(mechanism: Mechanism, method: str, source: str | None = None) -> Derivatives:
     """The provider that ``exo_bench.prepare`` attaches to a prepared model (registered in
-    :data:`models.prepared.derivative_provider`)."""
-    return Derivatives(mechanism, method)
+    :data:`exo_bench.models.prepared.derivative_provider` by :mod:`exo_bench.api.preparation`)."""
+    return Derivatives(mechanism, method, source)

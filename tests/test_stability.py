@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies import stability as st
-from exo_bench.api import METHODS, method_names, prepare
+from exo_bench.api import METHODS, MethodSpec, method_names, prepare
 from exo_bench.models.prepared import PreparedModel
 from exo_bench.models import pinocchio_backend as pb
 
@@ -94,8 +94,8 @@ def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatc
     mod.over, mod.boom, mod.nan = over, boom, nan
     monkeypatch.setitem(sys.modules, "fake_methods", mod)
     for name in ("over", "boom", "nan"):
-        monkeypatch.setitem(METHODS, f"fake-{name}", ("fake_methods", name, "test"))
-    monkeypatch.setitem(METHODS, "fake-missing", ("no_such_module_xyz", "f", "test"))
+        monkeypatch.setitem(METHODS, f"fake-{name}", MethodSpec(f"fake-{name}", "fake_methods", name, "test"))
+    monkeypatch.setitem(METHODS, "fake-missing", MethodSpec("fake-missing", "no_such_module_xyz", "f", "test"))
     names = ["pinocchio", "fake-over", "fake-boom", "fake-nan", "fake-missing"]
     with pytest.warns(st.UnusableMethodWarning, match="fake-nan"):
         fam = st.evaluate_family(st.BASELINE, st.family_baseline(TINY)[:2], names)
@@ -251,7 +251,7 @@ def test_a_known_error_is_measured_against_the_reference_and_judged_by_the_thres
     only an unusable method warns."""
     fake = type("_Known", (_KnownError,), {"RELATIVE": relative})
     monkeypatch.setattr(sys.modules[__name__], "_Known", fake, raising=False)
-    monkeypatch.setitem(METHODS, "known-error", (__name__, "_Known", "pinocchio plus a known error"))
+    monkeypatch.setitem(METHODS, "known-error", MethodSpec("known-error", __name__, "_Known", "pinocchio plus a known error"))
     case = st.family_baseline(TINY)[1]                      # exo5-2d, benign
     with warnings.catch_warnings():
         warnings.simplefilter("error", st.UnusableMethodWarning)

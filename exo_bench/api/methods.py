@@ -53,6 +53,9 @@ class MethodSpec:
     #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
     #: about a minute): a benchmark row that composes only such methods needs no chain.
     composes_within_budget: bool = False
+    #: Its ``derivatives`` (CasADi's, of the factored closed forms) differentiate the very equations it
+    #: evaluates (the matrix family), not merely equations it agrees with to rounding.
+    derivatives_are_its_own: bool = False
     #: For an engine (a rigid-body library beside ours): what one of its benchmark rows times.
     engine_row: str | None = None
     #: For an engine: the name of its bare per-call benchmark row (its own calls, no G maps, no wrapper).
@@ -86,11 +89,13 @@ METHODS: dict[str, MethodSpec] = {s.name: s for s in (
                "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
                "no division), then the products with the rates; compiled loops (option kernel: numba, the "
                "default, or numpy)",
-               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=1, composes_within_budget=True),
+               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=1, composes_within_budget=True,
+               derivatives_are_its_own=True),
     MethodSpec("matrix-factored", "exo_bench.matrix_method.prepared", "MatrixFactored",
                "the matrix method's equations in factored form (no matrix formed); compiled loops "
                "(option kernel: numba, the default, or numpy)",
-               colour="#7570b3", cost=cost.MATRIX_FACTORED, kernels=NUMBA_NUMPY, fit_rank=0),
+               colour="#7570b3", cost=cost.MATRIX_FACTORED, kernels=NUMBA_NUMPY, fit_rank=0,
+               derivatives_are_its_own=True),
     MethodSpec("matrix-paper", "exo_bench.matrix_method.prepared", "MatrixPaper",
                "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)",
                colour="#e7298a", cost=cost.MATRIX_PAPER, known_wrong=_WRONG_18,
@@ -99,7 +104,8 @@ METHODS: dict[str, MethodSpec] = {s.name: s for s in (
     MethodSpec("recurrence", "exo_bench.matrix_method.prepared", "Recurrence",
                "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                "loops (option kernel: numba, the default, or numpy)",
-               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=3, composes_within_budget=True),
+               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=3, composes_within_budget=True,
+               derivatives_are_its_own=True),
     MethodSpec("mujoco", "exo_bench.models.mujoco_backend", "MujocoRNE",
                "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
                "a Python loop over the samples (optional extra [peers])",

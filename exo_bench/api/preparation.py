@@ -19,9 +19,13 @@ from exo_bench.models.prepared import PreparedModel
 
 
 def _derivatives(mechanism: Mechanism, method: str) -> Any:
-    from exo_bench.matrix_method.derivatives import derivatives_of  # noqa: PLC0415 - CasADi only when asked
+    from exo_bench.api.methods import METHODS
+    from exo_bench.matrix_method.derivatives import derivatives_of, source_text  # CasADi only when asked
 
-    return derivatives_of(mechanism, method)
+    spec = METHODS.get(method)
+    source = source_text(method, evaluates_these=spec is not None and spec.derivatives_are_its_own,
+                         known_wrong=spec is not None and spec.known_wrong is not None)
+    return derivatives_of(mechanism, method, source)
 
 
 prepared.derivative_provider = _derivatives   # every prepared model's .derivatives (models.prepared)
