@@ -1,0 +1,56 @@
+"""Method ``matrix-factored``, one sample per call with nothing but the arithmetic around it.
+
+A call of a numba kernel through its dispatcher types every argument and looks the signature up
+(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). The lean path resolves
+the compiled entry point of :func:`lean_2d`/:func:`lean_3d` for one signature once
+(:func:`entry`) and calls it directly: the arguments are unboxed as that signature says, without
+being typed. Unboxing trusts the dimension count and the dtype, so the caller checks those two in
+Python (``ndim == 1``, ``dtype is float64``, ``out`` writable: what unboxing cannot see); these
+functions check the rest in compiled code, in nanoseconds: every array has ``dof`` elements at a
+stride of 8 bytes (contiguous). They return False, having touched nothing, when a check fails;
+the caller then takes the checked path, which names the field.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import types
+
+from exo_bench.matrix_method.compiled import JIT, njit
+from exo_bench.matrix_method.compiled_factored import factored_2d, factored_3d
+
+
+@njit(**JIT)
+def _fits(q, qd, qdd, o, dof):
+    return (q.shape[0] == dof and qd.shape[0] == dof and qdd.shape[0] == dof and o.shape[0] == dof
+            and q.strides[0] == 8 and qd.strides[0] == 8 and qdd.strides[0] == 8 and o.strides[0] == 8)
+
+
+@njit(**JIT)
+def lean_2d(p, q, qd, qdd, o):
+    """One planar sample into ``o`` if every array has ``2n`` contiguous elements; else False."""
+    if not _fits(q, qd, qdd, o, 2 * p.shape[0]):
+        return False
+    factored_2d(p, q, qd, qdd, o)
+    return True
+
+
+@njit(**JIT)
+def lean_3d(p, q, qd, qdd, o):
+    """One spatial sample into ``o`` if every array has ``3n`` contiguous elements; else False."""
+    if not _fits(q, qd, qdd, o, 3 * p.shape[0]):
+        return False
+    factored_3d(p, q, qd, qdd, o)
+    return True
+
+
+KERNELS = {2: lean_2d, 3: lean_3d}
+
+_VECTOR = types.Array(types.float64, 1, "A")
+
+
+def entry(dim: int, params: np.ndarray):
+    """The compiled entry point of the lean kernel for ``params`` and four 1-D float64 arrays of any
+    stride (loaded from numba's on-disk cache, or compiled, on first use)."""
+    return KERNELS[dim].compile((numba.typeof(params), _VECTOR, _VECTOR, _VECTOR, _VECTOR))

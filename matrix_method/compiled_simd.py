@@ -1,0 +1,236 @@
+"""Method ``matrix-factored``, compiled to vectorise across samples: the batched path.
+
+The per-sample kernel (:mod:`matrix_method.compiled_factored`) computes each sample whole, with
+libm's ``sin`` and ``cos`` per angle: nothing is vectorised. This kernel computes :data:`LANES`
+samples at once, each step a loop over the samples that LLVM turns into SIMD instructions:
+
+1. **transpose in**: a block of the user's ``(samples, dof)`` states (flat, C-ordered: they go in
+   unchanged) into per-link rows of :data:`LANES` samples, ``W[(j * ROWS + r) * LANES + s]``;
+2. **per link j**: ``sin``/``cos`` of its angles in branch-free arithmetic
+   (:func:`matrix_method.fast_trig.sincos_reduced`; the angles beyond its range, and NaN, are
+   redone with libm by a scalar loop that only they enter) and ``kappa_j``
+   (:func:`matrix_method.factored_terms.kappa_3d`);
+3. ``f_i = sum_j c_ij kappa_j``: one multiply-add per sample per (i, j, axis), summed in the same
+   order as the per-sample kernel;
+4. **per link i**: the forces (:func:`matrix_method.factored_terms.forces_3d`), then **transpose
+   out** into the user's ``(samples, dof)`` result.
+
+The physics is the element functions the other kernels call; this file only arranges the loops.
+The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
+so LLVM proves that a loop's stores do not overlap its loads without being told (no ``prange``
+needed for the no-aliasing knowledge); steps 3 and 4 read one scratch array and write another,
+which LLVM checks once per loop at run time. Unit stride everywhere but in the two transposes.
+
+Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at most one ulp
+each, :mod:`matrix_method.fast_trig`): the same operations in the same order otherwise.
+
+**Threads.** :func:`run` splits a batch of at least :data:`compiled.PARALLEL_MIN_SAMPLES` samples
+over ``numba.get_num_threads()`` Python threads of one pool, each calling the serial kernel (it
+releases the GIL) on its share: numba's threading layer is never entered, so the batch path runs
+at the same speed whichever layer numba picked or the user started first (OpenMP's spinning
+threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started them).
+
+numba's on-disk cache is keyed on this file: after editing :mod:`factored_terms` or
+:mod:`fast_trig`, delete ``matrix_method/__pycache__/compiled_simd*.nb?`` (the tests would
+catch the stale kernel).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
+import numpy as np
+
+from exo_bench.matrix_method.compiled import JIT, PARALLEL_MIN_SAMPLES, njit
+from exo_bench.matrix_method.factored_terms import forces_2d, forces_3d, kappa_2d, kappa_3d
+from exo_bench.matrix_method.fast_trig import RANGE, sincos_reduced
+
+#: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
+LANES = 32
+
+# Rows of one link in the scratch W (2D: phi l w l' w'' l'' cos sin kappa0 kappa1; 3D: + psi, psi',
+# psi'', cos psi, sin psi, kappa2) and in the scratch F (f, then the forces).
+PHI, PSI, LEN, W1, V1, L1, W2, V2, L2, CF, SF, CP, SP, K0, K1, K2 = range(16)
+ROWS_3D = 16
+ROWS_2D = 16             # the same row numbers in 2D (the psi rows unused): one layout to read
+F0, F1, F2, O0, O1, O2 = range(6)
+FROWS = 6
+
+
+@njit(**JIT)
+def _block_3d(p, q, qd, qdd, o, s0, m, W, F):
+    """Samples ``s0 .. s0 + m - 1`` (``m <= LANES``) of the flat spatial states into ``o``."""
+    n = p.shape[0]
+    dof = 3 * n
+    B = LANES
+    for s in range(m):                                   # 1. transpose in
+        b = (s0 + s) * dof
+        for j in range(n):
+            w = j * ROWS_3D * B + s
+            W[w + PHI * B], W[w + PSI * B], W[w + LEN * B] = q[b + j], q[b + n + j], q[b + 2 * n + j]
+            W[w + W1 * B], W[w + V1 * B], W[w + L1 * B] = qd[b + j], qd[b + n + j], qd[b + 2 * n + j]
+            W[w + W2 * B], W[w + V2 * B], W[w + L2 * B] = qdd[b + j], qdd[b + n + j], qdd[b + 2 * n + j]
+    outside = 0
+    for j in range(n):                                   # 2. sin, cos, kappa_j
+        w = j * ROWS_3D * B
+        for s in range(m):
+            phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
+            okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
+            sf, cf = sincos_reduced(phi if okf else 0.0)
+            sp, cp = sincos_reduced(psi if okp else 0.0)
+            outside += (0 if okf else 1) + (0 if okp else 1)
+            W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
+                W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
+                W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s], cf, sf, cp, sp)
+    if outside:                                          #    libm for the angles beyond RANGE (and NaN)
+        for j in range(n):
+            w = j * ROWS_3D * B
+            for s in range(m):
+                phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
+                if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
+                    cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
+                    W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+                    W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
+                        W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
+                        W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s], cf, sf, cp, sp)
+    for i in range(n):                                   # 3. f_i = sum_j c_ij kappa_j
+        f = i * FROWS * B
+        for s in range(m):
+            F[f + F0 * B + s] = 0.0
+            F[f + F1 * B + s] = 0.0
+            F[f + F2 * B + s] = 0.0
+        for j in range(n):
+            c = p[i, j]
+            w = j * ROWS_3D * B
+            for s in range(m):
+                F[f + F0 * B + s] += c * W[w + K0 * B + s]
+                F[f + F1 * B + s] += c * W[w + K1 * B + s]
+                F[f + F2 * B + s] += c * W[w + K2 * B + s]
+    for i in range(n):                                   # 4. the forces of link i
+        f, w, gnu = i * FROWS * B, i * ROWS_3D * B, p[i, n + 1] * p[i, n]
+        for s in range(m):
+            F[f + O0 * B + s], F[f + O1 * B + s], F[f + O2 * B + s] = forces_3d(
+                W[w + LEN * B + s], W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s],
+                F[f + F0 * B + s], F[f + F1 * B + s], F[f + F2 * B + s], gnu)
+    for s in range(m):                                   #    transpose out
+        b = (s0 + s) * dof
+        for i in range(n):
+            f = i * FROWS * B + s
+            o[b + i], o[b + n + i], o[b + 2 * n + i] = F[f + O0 * B], F[f + O1 * B], F[f + O2 * B]
+
+
+@njit(**JIT)
+def _block_2d(p, q, qd, qdd, o, s0, m, W, F):
+    """Samples ``s0 .. s0 + m - 1`` (``m <= LANES``) of the flat planar states into ``o``."""
+    n = p.shape[0]
+    dof = 2 * n
+    B = LANES
+    for s in range(m):                                   # 1. transpose in
+        b = (s0 + s) * dof
+        for j in range(n):
+            w = j * ROWS_2D * B + s
+            W[w + PHI * B], W[w + LEN * B] = q[b + j], q[b + n + j]
+            W[w + W1 * B], W[w + L1 * B] = qd[b + j], qd[b + n + j]
+            W[w + W2 * B], W[w + L2 * B] = qdd[b + j], qdd[b + n + j]
+    outside = 0
+    for j in range(n):                                   # 2. sin, cos, kappa_j
+        w = j * ROWS_2D * B
+        for s in range(m):
+            phi = W[w + PHI * B + s]
+            okf = abs(phi) <= RANGE
+            sf, cf = sincos_reduced(phi if okf else 0.0)
+            outside += 0 if okf else 1
+            W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+            W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
+                W[w + LEN * B + s], W[w + W1 * B + s], W[w + L1 * B + s], W[w + W2 * B + s], W[w + L2 * B + s],
+                cf, sf)
+    if outside:                                          #    libm for the angles beyond RANGE (and NaN)
+        for j in range(n):
+            w = j * ROWS_2D * B
+            for s in range(m):
+                phi = W[w + PHI * B + s]
+                if not abs(phi) <= RANGE:
+                    cf, sf = math.cos(phi), math.sin(phi)
+                    W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+                    W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
+                        W[w + LEN * B + s], W[w + W1 * B + s], W[w + L1 * B + s], W[w + W2 * B + s],
+                        W[w + L2 * B + s], cf, sf)
+    for i in range(n):                                   # 3. f_i = sum_j c_ij kappa_j
+        f = i * FROWS * B
+        for s in range(m):
+            F[f + F0 * B + s] = 0.0
+            F[f + F1 * B + s] = 0.0
+        for j in range(n):
+            c = p[i, j]
+            w = j * ROWS_2D * B
+            for s in range(m):
+                F[f + F0 * B + s] += c * W[w + K0 * B + s]
+                F[f + F1 * B + s] += c * W[w + K1 * B + s]
+    for i in range(n):                                   # 4. the forces of link i
+        f, w, gnu = i * FROWS * B, i * ROWS_2D * B, p[i, n + 1] * p[i, n]
+        for s in range(m):
+            F[f + O0 * B + s], F[f + O1 * B + s] = forces_2d(
+                W[w + LEN * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu)
+    for s in range(m):                                   #    transpose out
+        b = (s0 + s) * dof
+        for i in range(n):
+            f = i * FROWS * B + s
+            o[b + i], o[b + n + i] = F[f + O0 * B], F[f + O1 * B]
+
+
+@njit(**JIT)
+def simd_3d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat spatial states into ``o``, :data:`LANES` at a time."""
+    n = p.shape[0]
+    W = np.empty(n * ROWS_3D * LANES)
+    F = np.empty(n * FROWS * LANES)
+    for s0 in range(start, stop, LANES):
+        _block_3d(p, q, qd, qdd, o, s0, min(LANES, stop - s0), W, F)
+
+
+@njit(**JIT)
+def simd_2d(p, q, qd, qdd, o, start, stop):
+    """Samples ``start .. stop - 1`` of the flat planar states into ``o``, :data:`LANES` at a time."""
+    n = p.shape[0]
+    W = np.empty(n * ROWS_2D * LANES)
+    F = np.empty(n * FROWS * LANES)
+    for s0 in range(start, stop, LANES):
+        _block_2d(p, q, qd, qdd, o, s0, min(LANES, stop - s0), W, F)
+
+
+#: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states
+KERNELS = {2: simd_2d, 3: simd_3d}
+
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None or _POOL._max_workers < workers:
+            _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="exo-bench-simd")
+        return _POOL
+
+
+def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None) -> None:
+    """``kernel`` over a batch of flat states into ``o``: in the calling thread, or for at least
+    :data:`compiled.PARALLEL_MIN_SAMPLES` samples split into ``threads`` (default
+    ``numba.get_num_threads()``) contiguous shares of whole blocks, one per Python thread (the
+    kernel releases the GIL), the calling thread taking the first."""
+    if threads is None:
+        threads = numba.get_num_threads() if samples >= PARALLEL_MIN_SAMPLES else 1
+    if threads <= 1 or samples < PARALLEL_MIN_SAMPLES:
+        kernel(params, q, qd, qdd, o, 0, samples)
+        return
+    blocks = -(-samples // LANES)
+    cuts = [min(samples, (blocks * k // threads) * LANES) for k in range(threads + 1)]
+    pool = _pool(threads - 1)
+    futures = [pool.submit(kernel, params, q, qd, qdd, o, cuts[k], cuts[k + 1]) for k in range(1, threads)]
+    kernel(params, q, qd, qdd, o, cuts[0], cuts[1])
+    for f in futures:
+        f.result()
