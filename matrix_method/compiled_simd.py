@@ -25,8 +25,8 @@ Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at
 each, :mod:`matrix_method.fast_trig`): the same operations in the same order otherwise.
 
 **Threads.** :func:`run` splits a batch of at least :data:`compiled.PARALLEL_MIN_SAMPLES` samples
-over ``numba.get_num_threads()`` Python threads of one pool, each calling the serial kernel (it
-releases the GIL) on its share: numba's threading layer is never entered, so the batch path runs
+over ``numba.get_num_threads()`` threads (the caller's and a pool's), which pull shares of it and
+call the serial kernel on each (it releases the GIL): numba's threading layer is never entered, so the batch path runs
 at the same speed whichever layer numba picked or the user started first (OpenMP's spinning
 threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started them).
 
@@ -217,20 +217,52 @@ def _pool(workers: int) -> ThreadPoolExecutor:
         return _POOL
 
 
+#: Shares per thread of a split batch: the threads pull shares until none is left.
+SHARES_PER_THREAD = 8
+
+
 def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None) -> None:
     """``kernel`` over a batch of flat states into ``o``: in the calling thread, or for at least
-    :data:`compiled.PARALLEL_MIN_SAMPLES` samples split into ``threads`` (default
-    ``numba.get_num_threads()``) contiguous shares of whole blocks, one per Python thread (the
-    kernel releases the GIL), the calling thread taking the first."""
+    :data:`compiled.PARALLEL_MIN_SAMPLES` samples over ``threads`` (default
+    ``numba.get_num_threads()``) threads: the calling thread and ``threads - 1`` of a pool pull
+    shares of whole blocks (:data:`SHARES_PER_THREAD` per thread) until none is left, each share
+    computed by one thread (the kernel releases the GIL). The calling thread waits only for shares
+    already started: a pool thread that the OS has not scheduled yet (a machine shared with other
+    jobs) finds nothing left and costs nothing, so a split batch is never much slower than the
+    serial one."""
     if threads is None:
         threads = numba.get_num_threads() if samples >= PARALLEL_MIN_SAMPLES else 1
     if threads <= 1 or samples < PARALLEL_MIN_SAMPLES:
         kernel(params, q, qd, qdd, o, 0, samples)
         return
-    blocks = -(-samples // LANES)
-    cuts = [min(samples, (blocks * k // threads) * LANES) for k in range(threads + 1)]
+    size = -(-samples // (threads * SHARES_PER_THREAD * LANES)) * LANES
+    starts = iter(range(0, samples, size))
+    cond = threading.Condition()
+    busy = [0]
+    errors = []
+
+    def work():
+        while True:
+            with cond:
+                s0 = next(starts, None)
+                if s0 is None:
+                    return
+                busy[0] += 1
+            try:
+                kernel(params, q, qd, qdd, o, s0, min(samples, s0 + size))
+            except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
+                errors.append(e)
+            finally:
+                with cond:
+                    busy[0] -= 1
+                    cond.notify_all()
+
     pool = _pool(threads - 1)
-    futures = [pool.submit(kernel, params, q, qd, qdd, o, cuts[k], cuts[k + 1]) for k in range(1, threads)]
-    kernel(params, q, qd, qdd, o, cuts[0], cuts[1])
-    for f in futures:
-        f.result()
+    for _ in range(threads - 1):
+        pool.submit(work)
+    work()
+    with cond:
+        while busy[0]:
+            cond.wait()
+    if errors:
+        raise errors[0]
