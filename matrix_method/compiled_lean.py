@@ -54,3 +54,30 @@ def entry(dim: int, params: np.ndarray):
     """The compiled entry point of the lean kernel for ``params`` and four 1-D float64 arrays of any
     stride (loaded from numba's on-disk cache, or compiled, on first use)."""
     return KERNELS[dim].compile((numba.typeof(params), _VECTOR, _VECTOR, _VECTOR, _VECTOR))
+
+
+def c_call(dim: int, params: np.ndarray, fallback, dof: int):
+    """The compiled wrapper (matrix_method/_lean_call.c) around the kernel's cfunc: a callable with
+    the arguments of ``inverse_dynamics(q, qd, qdd, check=True, out=None)`` that runs one sample with
+    ``check=False, out=`` in C and passes every other call to ``fallback`` unchanged; None where the
+    extension was not built (no C compiler at install) or reads numpy's arrays differently from
+    what numpy reports (checked here on probe arrays, before any use)."""
+    try:
+        from exo_bench.matrix_method import _lean_call
+    except ImportError:
+        return None
+    from exo_bench.matrix_method import compiled_lean_c
+
+    f8 = np.dtype(np.float64)
+    if not (params.dtype is f8 and params.flags.c_contiguous and params.shape == (params.shape[0], params.shape[0] + 2)):
+        return None
+    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, compiled_lean_c.CFUNCS[dim].address,
+                               params.ctypes.data, dof, params.shape[0])
+    ro = np.zeros(dof)
+    ro.flags.writeable = False
+    probes = [(np.zeros(dof), (1, dof, 8, True, True, True)), (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
+              (ro, (1, dof, 8, False, True, True)), (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
+              (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)), (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True))]
+    if any(call.probe(a) != want for a, want in probes):
+        return None
+    return call

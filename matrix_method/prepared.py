@@ -192,6 +192,12 @@ class MatrixFactored(_Compiled):
     def _resolve_lean(self):
         self._params = self.kernel_args[0]
         self._lean = compiled_lean.entry(self._mechanism.dim, self._params)
+        # the compiled wrapper, where it was built: from the next call on, model.inverse_dynamics is
+        # it, and it passes every call it does not take (check=True, no out, batches) to this method
+        fast = compiled_lean.c_call(self._mechanism.dim, self._params,
+                                    type(self).inverse_dynamics.__get__(self, type(self)), self._dof)
+        if fast is not None:
+            self.inverse_dynamics = fast
         return self._lean
 
     def _compiled(self, q, qd, qdd, out=None):

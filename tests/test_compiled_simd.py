@@ -147,3 +147,74 @@ def test_lean_path_refuses_what_is_not_memory_safe():
     with pytest.raises(ValueError, match="field 'qd'.*\\(q: \\(1, 15\\)\\)"):     # a batch of one against 1-D arrays
         model.inverse_dynamics(np.full((1, d), 0.3), q, q, check=False, out=good)
     assert np.isfinite(model.inverse_dynamics(q, q, q, check=False, out=good)).all()
+
+
+def _c_wrapper_built() -> bool:
+    try:
+        from exo_bench.matrix_method import _lean_call  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def test_after_the_first_lean_call_the_compiled_wrapper_takes_every_form_of_the_call():
+    """Where setup.py built matrix_method/_lean_call.c, the model's inverse_dynamics becomes the
+    compiled wrapper after the first check=False call: it computes check=False with out= itself and
+    passes every other form to the Python method; each form gives the same forces, and misuse the
+    same errors as the method."""
+    if not _c_wrapper_built():
+        pytest.skip("matrix_method/_lean_call.c was not built here (no C compiler at install): the Python lean path runs")
+    from exo_bench.matrix_method import _lean_call
+
+    mech = exo5(3)
+    model = prepare(mech, "matrix-factored")
+    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=11))
+    want = model.inverse_dynamics(q, qd, qdd)
+    out = np.empty(mech.dof)
+    model.inverse_dynamics(q, qd, qdd, check=False, out=out)
+    assert isinstance(model.inverse_dynamics, _lean_call.LeanCall)
+    forms = [((q, qd, qdd), {"check": False, "out": out}), ((q, qd, qdd, False, out), {}),
+             ((q, qd, qdd, False), {"out": out}), ((q, qd, qdd), {"out": out, "check": False}),
+             ((q, qd, qdd), {}), ((q, qd, qdd), {"check": False}), ((q, qd, qdd), {"out": out}),
+             ((q, qd, qdd), {"check": 0, "out": out})]
+    for args, kw in forms:
+        out[:] = np.nan
+        got = model.inverse_dynamics(*args, **kw)
+        assert np.abs(got - want).max() <= TOL * np.abs(want).max(), (len(args), kw)
+    Q = np.stack([q, q])
+    assert model.inverse_dynamics(Q, Q, Q, check=False).shape == (2, mech.dof)          # a batch: the method
+    with pytest.raises(TypeError):
+        model.inverse_dynamics(q, qd, qdd, check=False, out=out, extra=1)
+    with pytest.raises(TypeError):
+        model.inverse_dynamics(q, qd, qdd, False, out, check=False)
+    with pytest.raises(ValueError, match="field 'out'"):
+        model.inverse_dynamics(q, qd, qdd, check=False, out=np.empty(mech.dof + 1))
+    twin = __import__("pickle").loads(__import__("pickle").dumps(model))                # pickles by reconstruction
+    assert np.array_equal(twin.inverse_dynamics(q, qd, qdd), want)
+
+
+def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
+    """A machine without a C compiler at install has no _lean_call: c_call says None and the model
+    keeps its Python method (the entry-point path), with the same forces."""
+    import builtins
+
+    from exo_bench.matrix_method import compiled_lean
+
+    real = builtins.__import__
+
+    def no_extension(name, globals=None, locals=None, fromlist=(), level=0):
+        if fromlist and "_lean_call" in fromlist:
+            raise ImportError("no _lean_call here")
+        return real(name, globals, locals, fromlist, level)
+
+    monkeypatch.setattr(builtins, "__import__", no_extension)
+    mech = exo5(3)
+    model = prepare(mech, "matrix-factored")
+    assert compiled_lean.c_call(3, model.kernel_args[0], print, mech.dof) is None
+    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=12))
+    out = np.empty(mech.dof)
+    model.inverse_dynamics(q, qd, qdd, check=False, out=out)
+    assert "inverse_dynamics" not in vars(model)
+    want = np.empty(mech.dof)
+    model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
+    assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), want)
