@@ -74,18 +74,27 @@ def _with_threads(fn, threads: int):
     return run
 
 
+#: What a user's script may do before importing exo-bench: start numba's threads on the OpenMP
+#: layer with a ``prange`` of its own (tests/test_threading_layer.py runs it too).
+OMP_FIRST = r"""
+import numba, numpy as np
+numba.config.THREADING_LAYER = "omp"
+from numba import njit, prange
+
+@njit(parallel=True)
+def users_own(x):
+    s = 0.0
+    for i in prange(x.shape[0]):
+        s += x[i]
+    return s
+
+users_own(np.ones(10_000))
+"""
+
 _TRAP = r"""
 import json, sys, time, numba, numpy as np
 if sys.argv[1] == "omp-first":
-    numba.config.THREADING_LAYER = "omp"
-    from numba import njit, prange
-    @njit(parallel=True)
-    def users_own(x):
-        s = 0.0
-        for i in prange(x.shape[0]):
-            s += x[i]
-        return s
-    users_own(np.ones(10_000))
+    exec(sys.argv[4])
 from exo_bench.bench.simd_goals import _states
 from exo_bench import prepare
 mech, q, qd, qdd = _states(int(sys.argv[2]))
@@ -102,7 +111,7 @@ print(json.dumps({"seconds": float(np.median(t)), "layer": numba.threading_layer
 def _trap(samples: int, rounds: int) -> dict:
     res = {}
     for mode in ("normal", "omp-first"):
-        r = subprocess.run([sys.executable, "-c", _TRAP, mode, str(samples), str(rounds)], capture_output=True,
+        r = subprocess.run([sys.executable, "-c", _TRAP, mode, str(samples), str(rounds), OMP_FIRST], capture_output=True,
                            text=True, timeout=600)
         if r.returncode != 0:
             return {"error": (r.stderr.strip().splitlines() or ["?"])[-1]}

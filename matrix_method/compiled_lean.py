@@ -1,14 +1,21 @@
 """Method ``matrix-factored``, one sample per call with nothing but the arithmetic around it.
 
 A call of a numba kernel through its dispatcher types every argument and looks the signature up
-(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). The lean path resolves
-the compiled entry point of :func:`lean_2d`/:func:`lean_3d` for one signature once
-(:func:`entry`) and calls it directly: the arguments are unboxed as that signature says, without
-being typed. Unboxing trusts the dimension count and the dtype, so the caller checks those two in
-Python (``ndim == 1``, ``dtype is float64``, ``out`` writable: what unboxing cannot see); these
-functions check the rest in compiled code, in nanoseconds: every array has ``dof`` elements at a
-stride of 8 bytes (contiguous). They return False, having touched nothing, when a check fails;
-the caller then takes the checked path, which names the field.
+(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). Two lean paths, for a
+call with ``check=False`` and ``out=`` on 1-D arrays:
+
+* **compiled** (:func:`c_call`, where setup.py built matrix_method/_lean_call.c): after the model's
+  first such call its ``inverse_dynamics`` is a small C callable that checks what memory safety
+  needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out`` writable) and calls the
+  kernel's numba ``cfunc`` (matrix_method/compiled_lean_c.py) with the raw pointers; every other
+  form of the call goes to the Python method unchanged;
+* **Python** (:func:`entry`, everywhere): the compiled entry point of :func:`lean_2d`/:func:`lean_3d`
+  for one signature, resolved once and called directly: the arguments are unboxed as that
+  signature says, without being typed. Unboxing trusts the dimension count and the dtype, so the
+  caller checks those two in Python (``ndim == 1``, ``dtype is float64``, ``out`` writable: what
+  unboxing cannot see); these functions check the rest in compiled code, in nanoseconds: every
+  array has ``dof`` elements at a stride of 8 bytes (contiguous). They return False, having touched
+  nothing, when a check fails; the caller then takes the checked path, which names the field.
 """
 
 from __future__ import annotations

@@ -19,21 +19,11 @@ import sys
 
 import pytest
 
-_PROBE = r"""
-import json, numba, numpy as np
-numba.config.THREADING_LAYER = "omp"
-from numba import njit, prange
+from exo_bench.bench.simd_goals import OMP_FIRST
 
-@njit(parallel=True)
-def users_own(x):
-    s = 0.0
-    for i in prange(x.shape[0]):
-        s += x[i]
-    return s
-
-users_own(np.ones(10_000))                      # the user's code starts numba's threads first
+_PROBE = OMP_FIRST + r"""
 layer_before = numba.threading_layer()
-
+import json
 from exo_bench import prepare, presets
 from exo_bench.matrix_method import compiled, compiled_simd
 mech = presets.exo5(dim=3)
