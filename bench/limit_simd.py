@@ -1,7 +1,7 @@
 """Where the limit is for the kernel that vectorises across samples (matrix_method/compiled_simd.py).
 
-Counted like :func:`bench.limit.count_factored`: the kernel's own block function (its ``py_func``)
-runs one sample on arrays of :class:`bench.limit.Counted` numbers, with the element functions and
+Counted like :func:`bench.limit.count_factored`: the kernel's own steps (their ``py_func``) run one
+sample on arrays of :class:`bench.limit.Counted` numbers, with the element functions and
 the branch-free ``sin``/``cos`` (:func:`matrix_method.fast_trig.sincos_reduced`, whose ``floor`` is
 counted as one flop) as they are: every ``+``, ``-``, ``*`` and ``floor`` of the code that runs is
 counted, the arithmetic sine and cosine included; nothing is typed by hand. Not counted: the
@@ -37,18 +37,20 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     trig = fast_trig.sincos_reduced
     counted_trig = types.FunctionType(trig.__code__, {**trig.__globals__,
                                                       "math": types.SimpleNamespace(floor=_floor)}, trig.__name__)
-    block = (compiled_simd._block_2d if mech.dim == 2 else compiled_simd._block_3d).py_func
-    counted_block = types.FunctionType(block.__code__, {**block.__globals__, "sincos_reduced": counted_trig},
-                                       block.__name__)
+    compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
+    counted_compute = types.FunctionType(compute.__code__, {**compute.__globals__, "sincos_reduced": counted_trig},
+                                         compute.__name__)
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
     p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))
     x, xd, xdd = (as_counted(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
     o = np.empty(mech.dof, dtype=object)
-    W = np.empty(n * compiled_simd.ROWS_3D * compiled_simd.LANES, dtype=object)
+    W = np.empty(n * compiled_simd.ROWS * compiled_simd.LANES, dtype=object)
     F = np.empty(n * compiled_simd.FROWS * compiled_simd.LANES, dtype=object)
     Counted.tally = {"add": 0, "mul": 0, "trig": 0}
-    counted_block(p, x, xd, xdd, o, 0, 1, W, F)
+    compiled_simd._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)        # moves only
+    counted_compute(p, 1, W, F)
+    compiled_simd._rows_out.py_func(o, 0, 1, n, mech.dim, F)
     tally = dict(Counted.tally)
     tally["flops"] = tally["add"] + tally["mul"]
     tally["angles"] = (mech.dim - 1) * n

@@ -15,6 +15,9 @@ samples at once, each step a loop over the samples that LLVM turns into SIMD ins
 4. **per link i**: the forces (:func:`matrix_method.factored_terms.forces_3d`), then **transpose
    out** into the user's ``(samples, dof)`` result.
 
+Callers that keep their states as ``(dof, samples)`` arrays skip the transposes:
+:data:`COLUMN_KERNELS` (``MatrixFactored.inverse_dynamics_columns``) copy rows with unit stride.
+
 The physics is the element functions the other kernels call; this file only arranges the loops.
 The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
 so LLVM proves that a loop's stores do not overlap its loads without being told (no ``prange``
@@ -51,31 +54,82 @@ from exo_bench.matrix_method.fast_trig import RANGE, sincos_reduced
 #: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
 LANES = 32
 
-# Rows of one link in the scratch W (2D: phi l w l' w'' l'' cos sin kappa0 kappa1; 3D: + psi, psi',
-# psi'', cos psi, sin psi, kappa2) and in the scratch F (f, then the forces).
+# Rows of one link in the scratch W (row numbers of the states: block k of q, qd, qdd in rows k,
+# 3 + k, 6 + k; then cos and sin of phi and psi, kappa) and in the scratch F (f, then the forces).
 PHI, PSI, LEN, W1, V1, L1, W2, V2, L2, CF, SF, CP, SP, K0, K1, K2 = range(16)
-ROWS_3D = 16
-ROWS_2D = 16             # the same row numbers in 2D (the psi rows unused): one layout to read
+LEN2, L1_2, L2_2 = 1, 4, 7          # planar: l, l', l'' (block 1 of q, qd, qdd)
+ROWS = 16
 F0, F1, F2, O0, O1, O2 = range(6)
 FROWS = 6
+# Index arithmetic on unsigned integers (U) in the scalar transposes: numba wraps negative signed
+# indices around (a compare and a select per access), which these loops cannot need.
+U = np.uintp
 
 
 @njit(**JIT)
-def _block_3d(p, q, qd, qdd, o, s0, m, W, F):
-    """Samples ``s0 .. s0 + m - 1`` (``m <= LANES``) of the flat spatial states into ``o``."""
-    n = p.shape[0]
-    dof = 3 * n
+def _rows_in(q, qd, qdd, s0, m, n, blocks, W):
+    """1. Samples ``s0 .. s0 + m - 1`` of flat ``(samples, blocks * n)`` states into the per-link rows
+    of ``W`` (block ``k`` of link ``j``: rows ``k``, ``3 + k``, ``6 + k`` for ``q, qd, qdd``)."""
+    dof = blocks * n
     B = LANES
-    for s in range(m):                                   # 1. transpose in
+    for s in range(m):
         b = (s0 + s) * dof
+        for k in range(blocks):
+            for j in range(n):
+                w = (j * ROWS + k) * B + s
+                W[U(w)] = q[U(b + k * n + j)]
+                W[U(w + 3 * B)] = qd[U(b + k * n + j)]
+                W[U(w + 6 * B)] = qdd[U(b + k * n + j)]
+
+
+@njit(**JIT)
+def _cols_in(qT, qdT, qddT, S, s0, m, n, blocks, W):
+    """1. The same from ``(blocks * n, samples)`` states (flat, row ``r`` at ``r * S``): unit-stride copies."""
+    B = LANES
+    for k in range(blocks):
         for j in range(n):
-            w = j * ROWS_3D * B + s
-            W[w + PHI * B], W[w + PSI * B], W[w + LEN * B] = q[b + j], q[b + n + j], q[b + 2 * n + j]
-            W[w + W1 * B], W[w + V1 * B], W[w + L1 * B] = qd[b + j], qd[b + n + j], qd[b + 2 * n + j]
-            W[w + W2 * B], W[w + V2 * B], W[w + L2 * B] = qdd[b + j], qdd[b + n + j], qdd[b + 2 * n + j]
+            w = (j * ROWS + k) * B
+            r = (k * n + j) * S + s0
+            for s in range(m):
+                W[w + s] = qT[r + s]
+            for s in range(m):
+                W[w + 3 * B + s] = qdT[r + s]
+            for s in range(m):
+                W[w + 6 * B + s] = qddT[r + s]
+
+
+@njit(**JIT)
+def _rows_out(o, s0, m, n, blocks, F):
+    """4'. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of the flat ``(samples, dof)`` ``o``."""
+    dof = blocks * n
+    B = LANES
+    for s in range(m):
+        b = (s0 + s) * dof
+        for k in range(blocks):
+            for i in range(n):
+                o[U(b + k * n + i)] = F[U((i * FROWS + O0 + k) * B + s)]
+
+
+@njit(**JIT)
+def _cols_out(oT, S, s0, m, n, blocks, F):
+    """4'. The same into a flat ``(dof, samples)`` ``oT``."""
+    B = LANES
+    for k in range(blocks):
+        for i in range(n):
+            f = (i * FROWS + O0 + k) * B
+            r = (k * n + i) * S + s0
+            for s in range(m):
+                oT[r + s] = F[f + s]
+
+
+@njit(**JIT)
+def _compute_3d(p, m, W, F):
+    """2-4. From the rows of ``W`` (``m`` samples) to the forces in ``F``, spatial."""
+    n = p.shape[0]
+    B = LANES
     outside = 0
     for j in range(n):                                   # 2. sin, cos, kappa_j
-        w = j * ROWS_3D * B
+        w = j * ROWS * B
         for s in range(m):
             phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
             okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
@@ -88,7 +142,7 @@ def _block_3d(p, q, qd, qdd, o, s0, m, W, F):
                 W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s], cf, sf, cp, sp)
     if outside:                                          #    libm for the angles beyond RANGE (and NaN)
         for j in range(n):
-            w = j * ROWS_3D * B
+            w = j * ROWS * B
             for s in range(m):
                 phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
                 if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
@@ -105,40 +159,28 @@ def _block_3d(p, q, qd, qdd, o, s0, m, W, F):
             F[f + F2 * B + s] = 0.0
         for j in range(n):
             c = p[i, j]
-            w = j * ROWS_3D * B
+            w = j * ROWS * B
             for s in range(m):
                 F[f + F0 * B + s] += c * W[w + K0 * B + s]
                 F[f + F1 * B + s] += c * W[w + K1 * B + s]
                 F[f + F2 * B + s] += c * W[w + K2 * B + s]
     for i in range(n):                                   # 4. the forces of link i
-        f, w, gnu = i * FROWS * B, i * ROWS_3D * B, p[i, n + 1] * p[i, n]
+        f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
         for s in range(m):
             F[f + O0 * B + s], F[f + O1 * B + s], F[f + O2 * B + s] = forces_3d(
                 W[w + LEN * B + s], W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s],
                 F[f + F0 * B + s], F[f + F1 * B + s], F[f + F2 * B + s], gnu)
-    for s in range(m):                                   #    transpose out
-        b = (s0 + s) * dof
-        for i in range(n):
-            f = i * FROWS * B + s
-            o[b + i], o[b + n + i], o[b + 2 * n + i] = F[f + O0 * B], F[f + O1 * B], F[f + O2 * B]
 
 
 @njit(**JIT)
-def _block_2d(p, q, qd, qdd, o, s0, m, W, F):
-    """Samples ``s0 .. s0 + m - 1`` (``m <= LANES``) of the flat planar states into ``o``."""
+def _compute_2d(p, m, W, F):
+    """2-4. From the rows of ``W`` (``m`` samples) to the forces in ``F``, planar (the rows of the
+    planar blocks: phi in row 0, l in row 1; the forces ``M_phi, F`` in ``O0, O1``)."""
     n = p.shape[0]
-    dof = 2 * n
     B = LANES
-    for s in range(m):                                   # 1. transpose in
-        b = (s0 + s) * dof
-        for j in range(n):
-            w = j * ROWS_2D * B + s
-            W[w + PHI * B], W[w + LEN * B] = q[b + j], q[b + n + j]
-            W[w + W1 * B], W[w + L1 * B] = qd[b + j], qd[b + n + j]
-            W[w + W2 * B], W[w + L2 * B] = qdd[b + j], qdd[b + n + j]
     outside = 0
     for j in range(n):                                   # 2. sin, cos, kappa_j
-        w = j * ROWS_2D * B
+        w = j * ROWS * B
         for s in range(m):
             phi = W[w + PHI * B + s]
             okf = abs(phi) <= RANGE
@@ -146,19 +188,19 @@ def _block_2d(p, q, qd, qdd, o, s0, m, W, F):
             outside += 0 if okf else 1
             W[w + CF * B + s], W[w + SF * B + s] = cf, sf
             W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                W[w + LEN * B + s], W[w + W1 * B + s], W[w + L1 * B + s], W[w + W2 * B + s], W[w + L2 * B + s],
-                cf, sf)
+                W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s], W[w + W2 * B + s],
+                W[w + L2_2 * B + s], cf, sf)
     if outside:                                          #    libm for the angles beyond RANGE (and NaN)
         for j in range(n):
-            w = j * ROWS_2D * B
+            w = j * ROWS * B
             for s in range(m):
                 phi = W[w + PHI * B + s]
                 if not abs(phi) <= RANGE:
                     cf, sf = math.cos(phi), math.sin(phi)
                     W[w + CF * B + s], W[w + SF * B + s] = cf, sf
                     W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                        W[w + LEN * B + s], W[w + W1 * B + s], W[w + L1 * B + s], W[w + W2 * B + s],
-                        W[w + L2 * B + s], cf, sf)
+                        W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s], W[w + W2 * B + s],
+                        W[w + L2_2 * B + s], cf, sf)
     for i in range(n):                                   # 3. f_i = sum_j c_ij kappa_j
         f = i * FROWS * B
         for s in range(m):
@@ -166,44 +208,85 @@ def _block_2d(p, q, qd, qdd, o, s0, m, W, F):
             F[f + F1 * B + s] = 0.0
         for j in range(n):
             c = p[i, j]
-            w = j * ROWS_2D * B
+            w = j * ROWS * B
             for s in range(m):
                 F[f + F0 * B + s] += c * W[w + K0 * B + s]
                 F[f + F1 * B + s] += c * W[w + K1 * B + s]
     for i in range(n):                                   # 4. the forces of link i
-        f, w, gnu = i * FROWS * B, i * ROWS_2D * B, p[i, n + 1] * p[i, n]
+        f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
         for s in range(m):
             F[f + O0 * B + s], F[f + O1 * B + s] = forces_2d(
-                W[w + LEN * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu)
-    for s in range(m):                                   #    transpose out
-        b = (s0 + s) * dof
-        for i in range(n):
-            f = i * FROWS * B + s
-            o[b + i], o[b + n + i] = F[f + O0 * B], F[f + O1 * B]
+                W[w + LEN2 * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu)
+
+
+@njit(**JIT)
+def _compute(p, m, W, F, blocks):
+    if blocks == 3:
+        _compute_3d(p, m, W, F)
+    else:
+        _compute_2d(p, m, W, F)
+
+
+@njit(**JIT)
+def _scratch(n):
+    return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
 
 
 @njit(**JIT)
 def simd_3d(p, q, qd, qdd, o, start, stop):
-    """Samples ``start .. stop - 1`` of the flat spatial states into ``o``, :data:`LANES` at a time."""
+    """Samples ``start .. stop - 1`` of the flat spatial ``(samples, dof)`` states into ``o``,
+    :data:`LANES` at a time."""
     n = p.shape[0]
-    W = np.empty(n * ROWS_3D * LANES)
-    F = np.empty(n * FROWS * LANES)
+    W, F = _scratch(n)
     for s0 in range(start, stop, LANES):
-        _block_3d(p, q, qd, qdd, o, s0, min(LANES, stop - s0), W, F)
+        m = min(LANES, stop - s0)
+        _rows_in(q, qd, qdd, s0, m, n, 3, W)
+        _compute_3d(p, m, W, F)
+        _rows_out(o, s0, m, n, 3, F)
 
 
 @njit(**JIT)
 def simd_2d(p, q, qd, qdd, o, start, stop):
-    """Samples ``start .. stop - 1`` of the flat planar states into ``o``, :data:`LANES` at a time."""
+    """Samples ``start .. stop - 1`` of the flat planar ``(samples, dof)`` states into ``o``,
+    :data:`LANES` at a time."""
     n = p.shape[0]
-    W = np.empty(n * ROWS_2D * LANES)
-    F = np.empty(n * FROWS * LANES)
+    W, F = _scratch(n)
     for s0 in range(start, stop, LANES):
-        _block_2d(p, q, qd, qdd, o, s0, min(LANES, stop - s0), W, F)
+        m = min(LANES, stop - s0)
+        _rows_in(q, qd, qdd, s0, m, n, 2, W)
+        _compute_2d(p, m, W, F)
+        _rows_out(o, s0, m, n, 2, F)
+
+
+@njit(**JIT)
+def _simd_cols(p, qT, qdT, qddT, oT, start, stop, blocks):
+    n = p.shape[0]
+    S = qT.shape[0] // (blocks * n)
+    W, F = _scratch(n)
+    for s0 in range(start, stop, LANES):
+        m = min(LANES, stop - s0)
+        _cols_in(qT, qdT, qddT, S, s0, m, n, blocks, W)
+        _compute(p, m, W, F, blocks)
+        _cols_out(oT, S, s0, m, n, blocks, F)
+
+
+@njit(**JIT)
+def simd_cols_3d(p, qT, qdT, qddT, oT, start, stop):
+    """Samples ``start .. stop - 1`` of flat ``(dof, samples)`` spatial states into the flat
+    ``(dof, samples)`` ``oT``: no transposes, unit-stride copies in and out."""
+    _simd_cols(p, qT, qdT, qddT, oT, start, stop, 3)
+
+
+@njit(**JIT)
+def simd_cols_2d(p, qT, qdT, qddT, oT, start, stop):
+    """:func:`simd_cols_3d`, planar."""
+    _simd_cols(p, qT, qdT, qddT, oT, start, stop, 2)
 
 
 #: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states
 KERNELS = {2: simd_2d, 3: simd_3d}
+#: dim -> the same on flat ``(dof, samples)`` states (``inverse_dynamics_columns``)
+COLUMN_KERNELS = {2: simd_cols_2d, 3: simd_cols_3d}
 
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
@@ -266,3 +349,24 @@ def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None)
             cond.wait()
     if errors:
         raise errors[0]
+
+
+def columns_memory_safe(method: str, dof: int, arrays: tuple, out=None) -> None:
+    """What ``check=False`` checks of ``(dof, samples)`` states: C-ordered float64 ndarrays of one
+    shape ``(dof, samples)``, ``out`` (if given) a writable one of that shape; a ValueError naming the
+    field otherwise (the kernel reads and writes ``dof * samples`` numbers through raw pointers)."""
+    shape = getattr(arrays[0], "shape", None)
+    for name, a in zip(("qT", "qdT", "qddT", "out"), (*arrays, out)):
+        if a is None and name == "out":
+            continue
+        ok = (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.dtype.isnative and a.ndim == 2
+              and a.shape[0] == dof and a.shape == shape and a.flags.c_contiguous
+              and (name != "out" or a.flags.writeable))
+        if not ok:
+            got = (type(a).__name__ if not isinstance(a, np.ndarray) else
+                   f"{a.dtype} array of shape {a.shape}" + ("" if a.flags.c_contiguous else ", not C-ordered")
+                   + ("" if a.flags.writeable else ", read-only"))
+            raise ValueError(f"{method}: field '{name}': expected C-ordered float64 arrays of one shape (dof, samples) "
+                             f"with dof = {dof}" + (", writable" if name == "out" else "")
+                             + f" (check=False checks memory safety only), got {got}"
+                             + ("" if name == "qT" else f" (qT: {shape})"))

@@ -218,3 +218,41 @@ def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
     want = np.empty(mech.dof)
     model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
     assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), want)
+
+
+@pytest.mark.parametrize("kernel", ["numba", "numpy"])
+@pytest.mark.parametrize("mech", [exo5(3), random_tree(8, 3, seed=1), random_tree(6, 2, seed=0)], ids=lambda m: m.name)
+def test_columns_entry_equals_the_rows_entry(mech, kernel):
+    """(dof, samples) states (one column per sample) give the transposed forces of the (samples, dof)
+    call, at sizes around the block and the thread split, checked or not, into out or not."""
+    model = prepare(mech, "matrix-factored", kernel=kernel)
+    ref = prepare(mech, "matrix-factored", kernel="numpy")
+    for S in (1, L - 1, L + 1, P + L + 3):
+        q, qd, qdd = _states(mech, S, seed=S)
+        want = ref.inverse_dynamics(q, qd, qdd)
+        cols = [np.ascontiguousarray(a.T) for a in (q, qd, qdd)]
+        for check in (True, False):
+            got = model.inverse_dynamics_columns(*cols, check=check)
+            assert got.shape == (mech.dof, S) and got.flags.c_contiguous
+            _close(got.T, want, f"columns {kernel} S={S} check={check}")
+            out = np.full((mech.dof, S), np.nan)
+            assert model.inverse_dynamics_columns(*cols, check=check, out=out) is out
+            _close(out.T, want, f"columns out= {kernel} S={S} check={check}")
+
+
+def test_columns_entry_refuses_what_is_not_memory_safe():
+    mech = exo5(3)
+    model = prepare(mech, "matrix-factored")
+    good = np.full((mech.dof, 40), 0.5)
+    bad = {"qT": [good.T.copy(), np.asfortranarray(good), good.astype(np.float32), good[:, ::2]],
+           "qdT": [np.full((mech.dof, 41), 0.5)], "out": [np.empty((mech.dof, 39)), np.empty_like(good, np.float32)]}
+    ro = np.empty_like(good)
+    ro.flags.writeable = False
+    bad["out"].append(ro)
+    for field, arrays in bad.items():
+        for a in arrays:
+            args = {"qT": good, "qdT": good, "qddT": good, "out": np.empty_like(good), field: a}
+            with pytest.raises(ValueError, match=f"field '{field}'"):
+                model.inverse_dynamics_columns(args["qT"], args["qdT"], args["qddT"], check=False, out=args["out"])
+    with pytest.raises(ValueError, match="non-negative|length|finite|l_"):
+        model.inverse_dynamics_columns(-good, good, good)                    # check=True validates the values
