@@ -13,8 +13,6 @@ What is timed (exo5-3d, states along a smooth random motion):
   out=out)`` on ``(samples, dof)`` arrays, with ``numba.set_num_threads(1)`` and ``(2)``;
 * ``per_sample_kernel_1t``: the per-sample compiled kernel (compiled_factored) on the same batch,
   the path the SIMD kernel replaced;
-* ``columns_1t``: the SIMD kernel on ``(dof, samples)`` arrays (``inverse_dynamics_columns``), one
-  thread: the cost of the transposes is the difference;
 * ``pinocchio_best``: Pinocchio's fastest batched path here: the prepared ``pinocchio`` model
   (``pin.rnea`` per sample) and ``rneaInParallel`` at 2, cpus and 2 x cpus threads;
 * ``per_call``: one sample, 1-D arrays, ``check=False``, ``out=``, through the public call;
@@ -106,7 +104,11 @@ m.inverse_dynamics(q, qd, qdd, check=False, out=out)
 t = []
 for _ in range(int(sys.argv[3])):
     t0 = time.perf_counter(); m.inverse_dynamics(q, qd, qdd, check=False, out=out); t.append(time.perf_counter() - t0)
-print(json.dumps({"seconds": float(np.median(t)), "layer": numba.threading_layer(), "threads": numba.get_num_threads()}))
+try:
+    layer = numba.threading_layer()
+except ValueError:                              # numba's threads never started in this process
+    layer = "none started"
+print(json.dumps({"seconds": float(np.median(t)), "layer": layer, "threads": numba.get_num_threads()}))
 """
 
 
@@ -134,8 +136,6 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     p = model.kernel_args[0]
     flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
     ref_out = np.empty(q.size)
-    cols = [np.ascontiguousarray(a.T) for a in (q, qd, qdd)]
-    cols_out = np.empty_like(cols[0])
     cpus = os.cpu_count() or 1
     pins = {1: prepare(mech, "pinocchio")}
     for t in sorted({2, cpus, 2 * cpus}):
@@ -154,7 +154,6 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
         "batched_1t": _with_threads(lambda: model.inverse_dynamics(q, qd, qdd, check=False, out=out), 1),
         "batched_2t": _with_threads(lambda: model.inverse_dynamics(q, qd, qdd, check=False, out=out), 2),
         "per_sample_kernel_1t": lambda: model.serial_kernel(p, *flat, ref_out),
-        "columns_1t": _with_threads(lambda: model.inverse_dynamics_columns(*cols, check=False, out=cols_out), 1),
     }
     for fn in batched.values():
         fn()                                     # compile or load, first-use costs
@@ -235,11 +234,6 @@ def goals_lines(r: dict) -> list[str]:
                f"{r['rates']['simd_flops_per_s'] / 1e9:.3g} Gflop/s SIMD: {r['limit_1t_us'] * 1e3:.3g} ns), goal at "
                f"most {GOAL_X_LIMIT}x: {_met(us1 <= GOAL_X_LIMIT * r['limit_1t_us'])}. The per-sample kernel it "
                f"replaced: {r['per_sample_kernel_1t']:.3g} us ({r['per_sample_kernel_1t'] / us1:.2g}x slower).")
-    if "columns_1t" in r:
-        out.append(f"- The same on (dof, samples) arrays (`inverse_dynamics_columns`, no transposes), one thread: "
-                   f"{r['columns_1t']:.3g} us per sample, {r['columns_1t'] / r['limit_1t_us']:.2f}x the counted limit "
-                   f"(the transposes of the (samples, dof) path cost the difference; memory traffic is "
-                   f"{4 * 8 * 15} bytes per sample either way, not in the limit).")
     out.append(f"- Batched, two threads: {us2:.3g} us per sample, {us2 / r['limit_2t_us']:.2f}x the limit on two "
                f"cores ({r['limit_2t_us'] * 1e3:.3g} ns).")
     x = r["pinocchio_best_us"] / us1

@@ -15,8 +15,9 @@ samples at once, each step a loop over the samples that LLVM turns into SIMD ins
 4. **per link i**: the forces (:func:`matrix_method.factored_terms.forces_3d`), then **transpose
    out** into the user's ``(samples, dof)`` result.
 
-Callers that keep their states as ``(dof, samples)`` arrays skip the transposes:
-:data:`COLUMN_KERNELS` (``MatrixFactored.inverse_dynamics_columns``) copy rows with unit stride.
+A ``(dof, samples)`` entry (copying rows of the caller's arrays instead of transposing) was tried
+and measured 3x slower here: a block then reads 45 rows of exo5-3d at once (and writes 15), more
+streams than the hardware prefetchers follow, each row on its own page.
 
 The physics is the element functions the other kernels call; this file only arranges the loops.
 The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
@@ -83,24 +84,8 @@ def _rows_in(q, qd, qdd, s0, m, n, blocks, W):
 
 
 @njit(**JIT)
-def _cols_in(qT, qdT, qddT, S, s0, m, n, blocks, W):
-    """1. The same from ``(blocks * n, samples)`` states (flat, row ``r`` at ``r * S``): unit-stride copies."""
-    B = LANES
-    for k in range(blocks):
-        for j in range(n):
-            w = (j * ROWS + k) * B
-            r = (k * n + j) * S + s0
-            for s in range(m):
-                W[w + s] = qT[r + s]
-            for s in range(m):
-                W[w + 3 * B + s] = qdT[r + s]
-            for s in range(m):
-                W[w + 6 * B + s] = qddT[r + s]
-
-
-@njit(**JIT)
 def _rows_out(o, s0, m, n, blocks, F):
-    """4'. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of the flat ``(samples, dof)`` ``o``."""
+    """5. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of the flat ``(samples, dof)`` ``o``."""
     dof = blocks * n
     B = LANES
     for s in range(m):
@@ -108,18 +93,6 @@ def _rows_out(o, s0, m, n, blocks, F):
         for k in range(blocks):
             for i in range(n):
                 o[U(b + k * n + i)] = F[U((i * FROWS + O0 + k) * B + s)]
-
-
-@njit(**JIT)
-def _cols_out(oT, S, s0, m, n, blocks, F):
-    """4'. The same into a flat ``(dof, samples)`` ``oT``."""
-    B = LANES
-    for k in range(blocks):
-        for i in range(n):
-            f = (i * FROWS + O0 + k) * B
-            r = (k * n + i) * S + s0
-            for s in range(m):
-                oT[r + s] = F[f + s]
 
 
 @njit(**JIT)
@@ -220,14 +193,6 @@ def _compute_2d(p, m, W, F):
 
 
 @njit(**JIT)
-def _compute(p, m, W, F, blocks):
-    if blocks == 3:
-        _compute_3d(p, m, W, F)
-    else:
-        _compute_2d(p, m, W, F)
-
-
-@njit(**JIT)
 def _scratch(n):
     return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
 
@@ -258,35 +223,8 @@ def simd_2d(p, q, qd, qdd, o, start, stop):
         _rows_out(o, s0, m, n, 2, F)
 
 
-@njit(**JIT)
-def _simd_cols(p, qT, qdT, qddT, oT, start, stop, blocks):
-    n = p.shape[0]
-    S = qT.shape[0] // (blocks * n)
-    W, F = _scratch(n)
-    for s0 in range(start, stop, LANES):
-        m = min(LANES, stop - s0)
-        _cols_in(qT, qdT, qddT, S, s0, m, n, blocks, W)
-        _compute(p, m, W, F, blocks)
-        _cols_out(oT, S, s0, m, n, blocks, F)
-
-
-@njit(**JIT)
-def simd_cols_3d(p, qT, qdT, qddT, oT, start, stop):
-    """Samples ``start .. stop - 1`` of flat ``(dof, samples)`` spatial states into the flat
-    ``(dof, samples)`` ``oT``: no transposes, unit-stride copies in and out."""
-    _simd_cols(p, qT, qdT, qddT, oT, start, stop, 3)
-
-
-@njit(**JIT)
-def simd_cols_2d(p, qT, qdT, qddT, oT, start, stop):
-    """:func:`simd_cols_3d`, planar."""
-    _simd_cols(p, qT, qdT, qddT, oT, start, stop, 2)
-
-
 #: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states
 KERNELS = {2: simd_2d, 3: simd_3d}
-#: dim -> the same on flat ``(dof, samples)`` states (``inverse_dynamics_columns``)
-COLUMN_KERNELS = {2: simd_cols_2d, 3: simd_cols_3d}
 
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()
@@ -350,23 +288,3 @@ def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None)
     if errors:
         raise errors[0]
 
-
-def columns_memory_safe(method: str, dof: int, arrays: tuple, out=None) -> None:
-    """What ``check=False`` checks of ``(dof, samples)`` states: C-ordered float64 ndarrays of one
-    shape ``(dof, samples)``, ``out`` (if given) a writable one of that shape; a ValueError naming the
-    field otherwise (the kernel reads and writes ``dof * samples`` numbers through raw pointers)."""
-    shape = getattr(arrays[0], "shape", None)
-    for name, a in zip(("qT", "qdT", "qddT", "out"), (*arrays, out)):
-        if a is None and name == "out":
-            continue
-        ok = (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.dtype.isnative and a.ndim == 2
-              and a.shape[0] == dof and a.shape == shape and a.flags.c_contiguous
-              and (name != "out" or a.flags.writeable))
-        if not ok:
-            got = (type(a).__name__ if not isinstance(a, np.ndarray) else
-                   f"{a.dtype} array of shape {a.shape}" + ("" if a.flags.c_contiguous else ", not C-ordered")
-                   + ("" if a.flags.writeable else ", read-only"))
-            raise ValueError(f"{method}: field '{name}': expected C-ordered float64 arrays of one shape (dof, samples) "
-                             f"with dof = {dof}" + (", writable" if name == "out" else "")
-                             + f" (check=False checks memory safety only), got {got}"
-                             + ("" if name == "qT" else f" (qT: {shape})"))

@@ -30,8 +30,7 @@ from exo_bench.matrix_method import compiled_lean, compiled_simd
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.prepared import PreparedModel, _check_out, unchecked_states
-from exo_bench.matrix_method.compiled_simd import columns_memory_safe
+from exo_bench.models.prepared import PreparedModel, unchecked_states
 
 _F8 = np.dtype(np.float64)
 
@@ -200,31 +199,6 @@ class MatrixFactored(_Compiled):
         if fast is not None:
             self.inverse_dynamics = fast
         return self._lean
-
-    def inverse_dynamics_columns(self, qT, qdT, qddT, check: bool = True, out=None) -> np.ndarray:
-        """:meth:`inverse_dynamics` for callers that keep their states as ``(dof, samples)`` arrays
-        (one column per sample): the forces ``(dof, samples)``, into ``out`` if given. With
-        ``kernel="numba"`` and C-ordered float64 arrays the SIMD kernel reads and writes them with
-        unit stride, without the transposes of the ``(samples, dof)`` path; ``check=True`` validates
-        the values as :meth:`inverse_dynamics` does, ``check=False`` only what memory safety needs."""
-        if check:
-            if out is not None:
-                _check_out(out, np.shape(qT), self.method)
-            tau = PreparedModel.inverse_dynamics(self, *(None if a is None else np.asarray(a).T
-                                                         for a in (qT, qdT, qddT))).T
-        else:
-            columns_memory_safe(self.method, self._dof, (qT, qdT, qddT), out)
-            if not self._numpy:
-                o = np.empty(qT.shape) if out is None else out
-                compiled_simd.run(compiled_simd.COLUMN_KERNELS[self._mechanism.dim], self.kernel_args[0],
-                                  qT.reshape(-1), qdT.reshape(-1), qddT.reshape(-1), o.reshape(-1), qT.shape[1])
-                return o
-            tau = PreparedModel.inverse_dynamics(self, *(np.ascontiguousarray(a.T) for a in (qT, qdT, qddT)),
-                                                 check=False).T
-        if out is None:
-            return np.ascontiguousarray(tau)
-        out[...] = tau
-        return out
 
     def _compiled(self, q, qd, qdd, out=None):
         """The batched path: :attr:`batch_kernel` over ``(samples, dof)`` states (flat views), into
