@@ -1,15 +1,15 @@
 """Derivatives of the equations of motion for a prepared model of any method, batch-first.
 
-``model.derivatives`` (:attr:`models.prepared.PreparedModel.derivatives`, attached by
+``model.derivatives`` (:attr:`exo_bench.models.prepared.PreparedModel.derivatives`, attached by
 ``exo_bench.prepare``) is a :class:`Derivatives`:
 
 * :meth:`Derivatives.inverse_dynamics` ``(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: CasADi's
-  algorithmic differentiation of the factored closed forms (:mod:`matrix_method.export_casadi`);
+  algorithmic differentiation of the factored closed forms (:mod:`exo_bench.matrix_method.export.casadi_functions`);
 * :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
   implicit-function theorem on ``ID(q, qd, qdd) = tau``, as Pinocchio's ABA derivatives do:
   ``dqdd/dq = -M^-1 dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with the
   inverse-dynamics Jacobians at the accelerations ``qdd = M^-1 (tau - h)`` and an LU solve of
-  ``M`` equilibrated by ``diag(M)`` (:func:`models.forward_dynamics.solve_mass_matrix`).
+  ``M`` equilibrated by ``diag(M)`` (:func:`exo_bench.models.forward_dynamics.solve_mass_matrix`).
 
 Arrays are ``(samples, dof)`` in and ``(samples, dof, dof)`` Jacobians out (``(dof,)`` and
 ``(dof, dof)`` for one sample); ``J[s, i, j] = d out_i / d in_j``.
@@ -49,7 +49,7 @@ def source_text(method: str, evaluates_these: bool, known_wrong: bool) -> str:
 
 def solve_mass_matrix_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
     """``M^-1 B`` for batches ``M (S, d, d)``, ``B (S, d, k)``, equilibrated by ``D = diag(M)`` as
-    :func:`models.forward_dynamics.solve_mass_matrix` does for one right-hand side."""
+    :func:`exo_bench.models.forward_dynamics.solve_mass_matrix` does for one right-hand side."""
     r = 1.0 / np.sqrt(np.diagonal(M, axis1=1, axis2=2))
     Ms = M * r[:, :, None] * r[:, None, :]
     return r[:, :, None] * np.linalg.solve(Ms, r[:, :, None] * B)
@@ -84,8 +84,8 @@ class Derivatives:
         ``(S, dof, dof)`` (no sample axis for one ``(dof,)`` sample). ``Minv = dqdd/dtau``.
 
         With ``check`` (the default) the states are validated and a singular mass matrix raises
-        :class:`models.forward_dynamics.SingularConfigurationError` naming the link, as
-        :func:`models.forward_dynamics.accelerations` does."""
+        :class:`exo_bench.models.forward_dynamics.SingularConfigurationError` naming the link, as
+        :func:`exo_bench.models.forward_dynamics.accelerations` does."""
         single = np.ndim(q) == 1
         if check:
             q, qd, tau = as_states(self.mechanism, q, qd, tau, source="forward-dynamics derivatives")

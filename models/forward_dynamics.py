@@ -317,7 +317,7 @@ JACOBIANS = ("finite-difference", "analytic")
 def make_jacobian(model: PreparedModel, controls: Controls):
     """The analytic Jacobian ``df/dy`` of the right-hand side ``f = [qd, qdd]`` of :func:`make_rhs`:
     ``[[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]]`` with the forward-dynamics
-    derivatives of ``model.derivatives`` (:mod:`matrix_method.derivatives`) and the controls' own
+    derivatives of ``model.derivatives`` (:mod:`exo_bench.matrix_method.derivatives`) and the controls' own
     ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)`` (:func:`prescribed_controls` and
     :func:`rod_spring_damper` have one). A ValueError when the controls have none, or when the
     derivatives are not available (the optional extra ``casadi``)."""

@@ -1,7 +1,7 @@
 """MJCF (MuJoCo's XML) export of any mechanism, and the linear map ``G`` to MuJoCo's joints.
 
 **Bodies and joints.** Every link ``k`` (1-based, prefix ``Lk`` as in the URDF,
-:func:`models.urdf.link_prefix`) becomes three bodies:
+:func:`exo_bench.models.urdf.link_prefix`) becomes three bodies:
 
 * ``Lk`` at the parent's end (the origin for a root), carrying the start mass ``m_k0``, with the
   hinges, applied in this order (MuJoCo composes the joints of one body in the order written,

@@ -1,6 +1,6 @@
 """MuJoCo backend (method ``mujoco``): MuJoCo's recursive Newton-Euler on the exported MJCF.
 
-The model is the file of :func:`models.mjcf.to_mjcf`, compiled once per mechanism by
+The model is the file of :func:`exo_bench.models.mjcf.to_mjcf`, compiled once per mechanism by
 :func:`load_model`, which then puts the exact point masses back (zero masses and every rotational
 inertia to 0, after the compiler's ``boundmass``/``boundinertia`` floors: models/mjcf.py) and
 disables everything that is not the rigid model: contacts, limits, equality constraints (the
@@ -75,7 +75,7 @@ class MujocoModel:
 
 
 def exact_model(mech: Mechanism, model) -> None:
-    """Put the exact point masses back into a compiled model of :func:`models.mjcf.to_mjcf` and
+    """Put the exact point masses back into a compiled model of :func:`exo_bench.models.mjcf.to_mjcf` and
     disable everything but the rigid model (in place)."""
     mujoco = import_mujoco()
     jm = joint_map(mech)

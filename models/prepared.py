@@ -293,7 +293,7 @@ class PreparedModel:
         """The derivatives of this model's equations of motion, built on first use:
         ``.inverse_dynamics(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``, ``.forward_dynamics(q, qd, tau)
         -> (qdd, dqdd_dq, dqdd_dqd, Minv)``, batch-first, and ``.source`` (which physics computes
-        them): :mod:`matrix_method.derivatives`. Needs the optional extra ``casadi``."""
+        them): :mod:`exo_bench.matrix_method.derivatives`. Needs the optional extra ``casadi``."""
         if getattr(self, "_derivatives", None) is None:
             if derivative_provider is None:
                 raise ValueError(f"{self.method}: derivatives: prepare the model with exo_bench.prepare "

@@ -56,7 +56,7 @@ def test_every_dotted_cross_reference_imports():
     bad = []
     for top in LIBRARY:
         for path in sorted((ROOT / top).rglob("*.py")):
-            if ".venv" in path.parts:
+            if ".venv" in path.parts or path.name == "__main__.py":
                 continue
             module = importlib.import_module(_module_name(path))
             for m in ROLE.finditer(path.read_text()):

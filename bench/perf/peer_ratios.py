@@ -1,7 +1,7 @@
 """The rigid-body engines as peers in the benchmark reports: what their rows time, and their time as
 a multiple of ``matrix-factored`` and of ``newton-euler`` (where a run has that method's rows).
 
-Used by :func:`bench.bench_reports.scaling` and :func:`bench.bench_reports.error_vs_runtime`: one
+Used by :func:`exo_bench.bench.perf.reports.benchmark_reports.scaling` and :func:`exo_bench.bench.perf.reports.benchmark_reports.error_vs_runtime`: one
 section each, from the rows of the same run (ratios of timings from one run on one host only).
 A ratio's denominator is the fastest row of the base method on the same mechanism, batched or per
 call alike (``matrix-factored (numba)`` or ``(numpy)``, any ``newton-euler`` kernel), and the row

@@ -1,12 +1,12 @@
 """Eq. (5) / (17) as CasADi functions: inverse and forward dynamics, M, h and their derivatives.
 
 The functions are built from the factored closed forms that method ``matrix-factored`` runs
-(:func:`matrix_method.numeric._factored_2d` / ``_factored_3d``, derivation in
-:func:`matrix_method.numeric.inverse_dynamics`): the same kernel, called once on CasADi's SX
+(:func:`exo_bench.matrix_method.numpy_kernels.matrix._factored_2d` / ``_factored_3d``, derivation in
+:func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`): the same kernel, called once on CasADi's SX
 symbols instead of numpy arrays (:class:`CasadiOps` supplies ``cos``/``sin``, the product with the
 signed coupling ``c`` and the stacking; everything else is the kernel's own elementwise
 arithmetic). Nothing of the physics is written here. With ``parameters=True`` the masses,
-fractions and g are one more input, ``params``, and ``c`` is :func:`coefficients.generic_coupling`
+fractions and g are one more input, ``params``, and ``c`` is :func:`exo_bench.matrix_method.closed_forms.coefficients.generic_coupling`
 of them (the same function the symbolic export uses).
 
 * ``inverse_dynamics(q, qd, qdd) -> tau``: the kernel on symbols;
@@ -14,7 +14,7 @@ of them (the same function the symbolic export uses).
 * ``bias_forces(q, qd) -> h``: ``tau(q, qd, 0)``;
 * ``forward_dynamics(q, qd, tau) -> qdd``: ``M^-1 (tau - h)`` by CasADi's ``solve`` with its sparse
   QR (an MX function; M is symmetric positive definite away from the singular configurations of
-  :func:`models.forward_dynamics.singular_reasons`, where the factorisation fails or the result is
+  :func:`exo_bench.models.forward_dynamics.singular_reasons`, where the factorisation fails or the result is
   Inf/NaN, never hidden);
 * ``inverse_dynamics_derivatives(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: CasADi's algorithmic
   differentiation of the kernel;
@@ -66,7 +66,7 @@ def require_casadi():
 
 
 class CasadiOps:
-    """The namespace of :func:`numeric._factored_2d` for CasADi column vectors ``(n, 1)``:
+    """The namespace of :func:`exo_bench.matrix_method.numpy_kernels.matrix._factored_2d` for CasADi column vectors ``(n, 1)``:
     ``cos``/``sin`` (not numpy's half-angle tangent, whose derivative is singular at pi), the
     product with the constant coupling (``mtimes``) and the blocks stacked (``vertcat``)."""
 
@@ -87,7 +87,7 @@ def symbolic_inverse_dynamics(mech: Mechanism, q, qd, qdd, ca=None, params=None)
     """``tau`` of ``mech`` as a CasADi expression of the column vectors ``q, qd, qdd`` ``(dof, 1)``
     (SX or MX): the factored kernel of method ``matrix-factored`` run on them. ``params``: a symbol
     ``(4 n + 1, 1)`` of the masses, fractions and g (:func:`parameter_names`) instead of the
-    mechanism's numbers; the coupling is then :func:`coefficients.generic_coupling` of them."""
+    mechanism's numbers; the coupling is then :func:`exo_bench.matrix_method.closed_forms.coefficients.generic_coupling` of them."""
     ca = ca or require_casadi()
     kernel = numeric._factored_2d if mech.dim == 2 else numeric._factored_3d
     if params is None:
@@ -104,7 +104,7 @@ def symbolic_inverse_dynamics(mech: Mechanism, q, qd, qdd, ca=None, params=None)
 
 def parameter_names(mech: Mechanism) -> list[str]:
     """The entries of ``params`` (``parameters=True``): ``m1_0, m1_1, m1_2, m2_0, ..., n1, ..., nN, g``,
-    the order of ``exo-bench equations --symbolic-parameters`` (:func:`export_code.parameter_symbols`)."""
+    the order of ``exo-bench equations --symbolic-parameters`` (:func:`exo_bench.matrix_method.export.code.parameter_symbols`)."""
     n = mech.nlinks
     return [f"m{i + 1}_{b}" for i in range(n) for b in range(3)] + [f"n{i + 1}" for i in range(n)] + ["g"]
 
@@ -294,7 +294,7 @@ def loader_note(mech: Mechanism, stem: str, version: str, header: str = "", para
     lines += [
         f"Eq. (5)/(17) of the matrix method for `{mech.name}` ({mech.dim}D, {mech.nlinks} links, {mech.dof} "
         f"coordinates), written by exo-bench {version} from the factored closed forms that its method "
-        "`matrix-factored` runs (`matrix_method/export_casadi.py`). Each file is one `casadi.Function` "
+        "`matrix-factored` runs (`matrix_method/export/casadi_functions.py`). Each file is one `casadi.Function` "
         "(`Function.save`); CasADi alone reads it back, exo-bench is not needed:", "",
         "```python", "import casadi as ca", "",
         f"ID = ca.Function.load('{stem}_inverse_dynamics.casadi')   # (q, qd, qdd) -> tau",

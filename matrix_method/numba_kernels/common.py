@@ -37,7 +37,8 @@ process loads it instead of compiling. The first call of each kernel in a fresh 
 only on the kernel's own file (:mod:`exo_bench.matrix_method.numba_kernels.cache`): an edit to a
 closed form recompiles the kernels that use it.
 
-**Threads.** The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
+**Threads.** (``matrix-factored``'s batches run :mod:`exo_bench.matrix_method.numba_kernels.simd` instead, on a
+Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
 the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
 otherwise take OpenMP where libgomp is loaded (Pinocchio brings it), and on the shared 2-core
 machine OpenMP's statically scheduled, spin-waiting threads made the parallel driver 4 to 150 times
@@ -59,7 +60,7 @@ import numba
 import numpy as np
 from numba import njit  # noqa: F401 - re-exported for the kernel modules
 
-from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
+from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
 from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
 
@@ -92,6 +93,7 @@ PARALLEL_MIN_SAMPLES = 4096
 
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
+inline((factored.kappa_2d, factored.forces_2d, factored.kappa_3d, factored.forces_3d))
 
 
 # ------------------------------------------------------------------ call lists generated from PAIRS

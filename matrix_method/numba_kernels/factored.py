@@ -8,8 +8,10 @@ arrays), called in loops over the links of one sample:
     tau_a,i = r_a,i . f_i + g P_a,i,
 
 per sample ``2n`` (2D) or ``4n`` (3D) sines and cosines, and ``2 n^2`` or ``3 n^2`` multiply-adds.
-The kernels take ``(params, q, qd, qdd)`` with ``params`` of :func:`exo_bench.matrix_method.numba_kernels.common.params` and flat
-``(samples * dof,)`` states, and return the flat forces (:mod:`exo_bench.matrix_method.numba_kernels.common`).
+The kernels take ``(params, q, qd, qdd)`` with ``params`` of
+:func:`exo_bench.matrix_method.numba_kernels.common.params` and flat ``(samples * dof,)`` states, and
+return the flat forces. The physics of a link is :mod:`exo_bench.matrix_method.closed_forms.factored`
+(shared with the SIMD kernel and the numpy one).
 """
 
 from __future__ import annotations
@@ -19,11 +21,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.matrix_method.closed_forms.factored import planar_forces, planar_kappa, spatial_forces, spatial_kappa
-from exo_bench.matrix_method.numba_kernels.cache import inline
+from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT
-
-inline((planar_kappa, planar_forces, spatial_kappa, spatial_forces))   # one copy of the physics: closed_forms/factored.py
 
 
 @njit(**JIT)
@@ -31,9 +30,11 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
     """One planar sample at offset ``s0`` of the flat arrays; ``k`` ``(4, n)`` scratch."""
     n = p.shape[0]
     for j in range(n):
-        cf, sf = math.cos(x[s0 + j]), math.sin(x[s0 + j])
-        k[0, j], k[1, j] = planar_kappa(x[s0 + n + j], xd[s0 + j], xd[s0 + n + j], xdd[s0 + j], xdd[s0 + n + j],
-                                        cf, sf)
+        phi, l = x[s0 + j], x[s0 + n + j]
+        w, ld = xd[s0 + j], xd[s0 + n + j]
+        wdd, ldd = xdd[s0 + j], xdd[s0 + n + j]
+        cf, sf = math.cos(phi), math.sin(phi)
+        k[0, j], k[1, j] = kappa_2d(l, w, ld, wdd, ldd, cf, sf)
         k[2, j] = cf
         k[3, j] = sf
     for i in range(n):
@@ -43,7 +44,8 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
             cij = p[i, j]
             f0 += cij * k[0, j]
             f1 += cij * k[1, j]
-        o[s0 + i], o[s0 + n + i] = planar_forces(x[s0 + n + i], k[2, i], k[3, i], f0, f1, p[i, n + 1] * p[i, n])
+        cf, sf, l, gnu = k[2, i], k[3, i], x[s0 + n + i], p[i, n + 1] * p[i, n]
+        o[s0 + i], o[s0 + n + i] = forces_2d(l, cf, sf, f0, f1, gnu)
 
 
 @njit(**JIT)
@@ -51,10 +53,12 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
     """One spatial sample at offset ``s0`` of the flat arrays; ``k`` ``(7, n)`` scratch."""
     n = p.shape[0]
     for j in range(n):
-        cf, sf = math.cos(x[s0 + j]), math.sin(x[s0 + j])
-        cp, sp = math.cos(x[s0 + n + j]), math.sin(x[s0 + n + j])
-        k[0, j], k[1, j], k[2, j] = spatial_kappa(x[s0 + 2 * n + j], xd[s0 + j], xd[s0 + n + j], xd[s0 + 2 * n + j],
-                                                  xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j], cf, sf, cp, sp)
+        phi, psi, l = x[s0 + j], x[s0 + n + j], x[s0 + 2 * n + j]
+        w, v, ld = xd[s0 + j], xd[s0 + n + j], xd[s0 + 2 * n + j]
+        wdd, vdd, ldd = xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j]
+        cf, sf = math.cos(phi), math.sin(phi)
+        cp, sp = math.cos(psi), math.sin(psi)
+        k[0, j], k[1, j], k[2, j] = kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)
         k[3, j] = cf
         k[4, j] = sf
         k[5, j] = cp
@@ -68,8 +72,9 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
             f0 += cij * k[0, j]
             f1 += cij * k[1, j]
             f2 += cij * k[2, j]
-        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = spatial_forces(
-            x[s0 + 2 * n + i], k[3, i], k[4, i], k[5, i], k[6, i], f0, f1, f2, p[i, n + 1] * p[i, n])
+        cf, sf, cp, sp, l = k[3, i], k[4, i], k[5, i], k[6, i], x[s0 + 2 * n + i]
+        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = forces_3d(l, cf, sf, cp, sp, f0, f1, f2,
+                                                                p[i, n + 1] * p[i, n])
 
 
 @njit(**JIT)

@@ -22,9 +22,9 @@ import warnings
 
 import numpy as np
 
-from exo_bench.matrix_method.closed_forms import factored
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
+from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.models import equation_form
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
@@ -213,8 +213,8 @@ def _factored_2d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     :class:`NumpyOps`; any namespace with the same three functions, e.g. CasADi's)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
     cf, sf = ops.cos_sin(phi)
-    f = ops.couple(c, list(factored.planar_kappa(l, w, ld, wdd, ldd, cf, sf)))      # sum_j c_ij kappa_j
-    return ops.rows(list(factored.planar_forces(l, cf, sf, f[0], f[1], g * nu_s)))
+    f = ops.couple(c, list(kappa_2d(l, w, ld, wdd, ldd, cf, sf)))       # sum_j c_ij kappa_j
+    return ops.rows(list(forces_2d(l, cf, sf, f[0], f[1], g * nu_s)))
 
 
 def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
@@ -225,10 +225,8 @@ def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
     cf, sf = ops.cos_sin(phi)
     cp, sp = ops.cos_sin(psi)
-    f = ops.couple(c, list(factored.spatial_kappa(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))   # per axis
-    return ops.rows(list(factored.spatial_forces(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)))
-
-
+    f = ops.couple(c, list(kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))   # sum_j c_ij kappa_j, per axis
+    return ops.rows(list(forces_3d(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)))
 
 
 # ----------------------------------------------------------------- as printed

@@ -12,6 +12,7 @@ import pandas as pd
 from exo_bench.api.methods import compiled_methods
 from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
+from exo_bench.bench.perf.reports import simd_goals
 from exo_bench.bench.perf.reports.loading import _base, _inverse, _skips_md
 from exo_bench.bench.perf.reports.plotting import _log_log_by_dim, _style
 
@@ -259,6 +260,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     lines += engine_section(inv)
     lines += compile_section(df)
     lines += limit_section(df, inv)
+    lines += simd_goals.report_lines(df)         # issue 23 (bench/test_simd.py)
     lines += _skips_md(skips, "test_inverse")
     _plot_scaling(inv[inv["topology"] == "chain"], png)
     lines += ["", f"![scaling]({png.name})"]

@@ -125,7 +125,7 @@ def round_trip_run(case: RoundTripCase, integrator: str, rtol: float, method: st
     """One integration of the round trip (dense output, so that it can serve as the tighter run
     of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
     dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
-    state; ``jacobian`` of the implicit integrators (:data:`models.forward_dynamics.JACOBIANS`)."""
+    state; ``jacobian`` of the implicit integrators (:data:`exo_bench.models.forward_dynamics.JACOBIANS`)."""
     mech = case.mechanism
     models = _models(models)
     ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
@@ -374,7 +374,7 @@ class ForwardResults:
     seconds: float = 0.0
     stiff_notes: list[str] = field(default_factory=list)
     # the implicit integrators with the analytic Jacobian (models.forward_dynamics.make_jacobian): the
-    # work-precision round trip and the stiff work-precision case again (bench/stability/forward_jacobian.py)
+    # work-precision round trip and the stiff work-precision case again (bench/studies/stability/forward_jacobian.py)
     analytic_trips: list[RoundTrip] = field(default_factory=list)
     analytic_stiff: list[StiffRun] = field(default_factory=list)
     analytic_notes: list[str] = field(default_factory=list)

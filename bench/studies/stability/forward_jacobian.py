@@ -4,9 +4,9 @@ finite differences, the report section.
 Radau and BDF need ``df/dy`` of the right-hand side ``f = [qd, qdd]``. scipy estimates it by finite
 differences of the vectorised right-hand side: ``2 dof`` more evaluations per Jacobian (counted in
 ``RHS evals``, which counts columns). The analytic Jacobian
-(:func:`models.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
+(:func:`exo_bench.models.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
 ``model.derivatives`` (CasADi's differentiation of the factored closed forms,
-:mod:`matrix_method.derivatives`) and the controls' own derivatives, and costs no right-hand-side
+:mod:`exo_bench.matrix_method.derivatives`) and the controls' own derivatives, and costs no right-hand-side
 evaluation. Each analytic run is paired with the finite-difference run of the same case,
 integrator and tolerance (:func:`pairs`), and the report says whether it reached the same
 tolerance in fewer evaluations (:func:`verdict`).
