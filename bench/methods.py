@@ -35,6 +35,10 @@ METHODS: dict[str, tuple[str, str, str]] = {
     "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
                    "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                    "loops (option kernel: numba, the default, or numpy)"),
+    "newton-euler": ("exo_bench.models.newton_euler.prepared", "NewtonEuler",
+                     "O(n) passes over the tree in the rod vectors r_i = s_i l_i u_i (M = J^T M_r J, M_r constant), "
+                     "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, "
+                     "or numpy)"),
 }
 
 #: Methods whose results are known to be wrong (kept to expose the paper's misprints).

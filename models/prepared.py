@@ -40,6 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 
 
 def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray):
@@ -274,6 +275,39 @@ class PreparedModel:
             M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
         return M, h
 
+    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
+        """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
+        and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
+        validated and a singular configuration raises
+        :class:`~models.singularity.SingularConfigurationError` (a ValueError) naming the sample, the
+        link and the reason (zero length, vertical rod, zero mass), never NaN. Every method solves
+        ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h``; ``newton-euler`` overrides it
+        with its O(n) passes."""
+        single = np.ndim(q) == 1
+        if check:
+            try:
+                q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
+            except ValueError as e:        # the third array of as_states is called qdd: here it is tau
+                raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
+            if out is not None:
+                _check_out(out, q.shape[1:] if single else q.shape)
+            self._check_regular(q)
+        elif single:
+            q, qd, tau = q[None], qd[None], tau[None]
+        qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
+        qdd = qdd[0] if single else qdd
+        if out is None:
+            return qdd
+        out[...] = qdd
+        return out
+
+    def _check_regular(self, q: np.ndarray) -> None:
+        """Raise :class:`SingularConfigurationError` where ``M(q)`` is exactly singular
+        (:func:`models.singularity.singular_reasons`)."""
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
+        if reasons:
+            raise SingularConfigurationError(reasons)
+
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -290,3 +324,28 @@ class PreparedModel:
 
     def _bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
+
+    def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        M, h = self.mass_matrix_and_bias(q, qd, check=False)
+        return cholesky_solve(M, tau - h)
+
+
+def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``M^-1 b`` for symmetric positive definite batches ``(S, d, d)``, ``(S, d)``: Cholesky of
+    ``M`` equilibrated by ``D = diag(M)`` (units and coordinate scales drop out), then two
+    triangular solves. A matrix that is not positive definite in floating point raises
+    :class:`SingularConfigurationError` with its sample (never NaN)."""
+    dg = np.diagonal(M, axis1=1, axis2=2)
+    bad = ~(dg > 0).all(axis=1)
+    if bad.any():
+        s = int(np.argmax(bad))
+        raise SingularConfigurationError([f"sample {s}: a diagonal entry of M is not positive "
+                                          f"(coordinate {int(np.argmin(dg[s])) + 1}: {float(dg[s].min())!r}): zero mass"])
+    r = 1.0 / np.sqrt(dg)
+    try:
+        L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])
+    except np.linalg.LinAlgError:
+        raise SingularConfigurationError(["M is not positive definite in floating point (numerically singular: "
+                                          "a rod nearly vertical or nearly of length zero)"]) from None
+    y = np.linalg.solve(L, (r * b)[..., None])
+    return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]
