@@ -291,7 +291,7 @@ class PreparedModel:
                 raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
             if out is not None:
                 _check_out(out, q.shape[1:] if single else q.shape)
-            self._check_regular(q)
+            self.check_regular(q)
         elif single:
             q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
@@ -301,7 +301,7 @@ class PreparedModel:
         out[...] = qdd
         return out
 
-    def _check_regular(self, q: np.ndarray) -> None:
+    def check_regular(self, q: np.ndarray) -> None:
         """Raise :class:`SingularConfigurationError` where ``M(q)`` is exactly singular
         (:func:`models.singularity.singular_reasons`)."""
         reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]

@@ -43,7 +43,6 @@ class NewtonEuler(PreparedModel):
         self._numpy = kernel == "numpy"
         self.tree = prepare_tree(mechanism)
         self.table = self.tree.table()
-        self.mu = coupling(mechanism)
         self._g, self._dim = float(mechanism.g), int(mechanism.dim)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (None if self.tree.singular < 0
@@ -68,7 +67,7 @@ class NewtonEuler(PreparedModel):
         return self._compiled(q, qd, tau, True)
 
     def _mass_matrix(self, q):
-        return passes.mass_matrix(self.tree, self._dim, self.mu, q)
+        return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)   # n x n: the output's order
 
     def _bias_forces(self, q, qd):
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
@@ -88,7 +87,7 @@ class NewtonEuler(PreparedModel):
 
     forward_dynamics.__doc__ = PreparedModel.forward_dynamics.__doc__
 
-    def _check_regular(self, q: np.ndarray) -> None:
+    def check_regular(self, q: np.ndarray) -> None:
         """O(n) per sample: ``M_r`` singular (found at prepare time), a rod of length zero, or (3D) a
         vertical rod, in the words of :mod:`models.singularity`."""
         mech = self._mechanism

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exo_bench.models.aggregates import gravity_coupling, link_aggregates
+from exo_bench.models.aggregates import link_aggregates
 from exo_bench.models.mechanism import Mechanism
 
 #: A pivot ``d_k`` of ``M_e`` at or below this share of its diagonal entry counts as zero: the
@@ -106,17 +106,24 @@ def singular_mass_reason(mech: Mechanism, k: int) -> str:
     from exo_bench.models.singularity import massless_reason  # noqa: PLC0415 - the shared wording
 
     return (massless_reason(mech, k) if (mech.masses[k][1] == 0 and mech.masses[k][2] == 0
-                                         and all(mech.parent[c] != k for c in range(mech.nlinks)))
+                                         and k not in mech.parent)
             else f"link {k + 1} ({mech.names[k]}): zero mass: no mass moves with its end point while the other "
                  "end points are held (M_r is singular)")
 
 
 def prepare_tree(mech: Mechanism) -> Tree:
-    """All per-mechanism numbers of the Newton-Euler method, O(n)."""
+    """All per-mechanism numbers of the Newton-Euler method, O(n) time and memory (no ``n x n``
+    array: ``nu_k = eta_k + Theta(k)`` of :mod:`models.aggregates` with the descendant masses
+    ``Theta`` summed leaves first)."""
     zeta, eta, theta = link_aggregates(mech)
+    below = np.zeros(mech.nlinks)                # Theta(k): the mass of k's strict descendants
+    for k in range(mech.nlinks - 1, -1, -1):
+        p = mech.parent[k]
+        if p >= 0:
+            below[p] += theta[k] + below[k]
     pivot, mult, singular = factor_end_point_mass(mech)
     return Tree(np.asarray(mech.parent, dtype=np.int64), mech.sign_array.copy(), zeta, eta, theta,
-                np.asarray(gravity_coupling(mech), dtype=float), pivot, mult, singular)
+                eta + below, pivot, mult, singular)
 
 
 def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
