@@ -339,8 +339,9 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
     bad = ~(dg > 0).all(axis=1)
     if bad.any():
         s = int(np.argmax(bad))
-        raise SingularConfigurationError([f"sample {s}: a diagonal entry of M is not positive "
-                                          f"(coordinate {int(np.argmin(dg[s])) + 1}: {float(dg[s].min())!r}): zero mass"])
+        c = int(np.argmin(dg[s]))
+        raise SingularConfigurationError([f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
+                                          f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"])
     r = 1.0 / np.sqrt(dg)
     try:
         L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])

@@ -100,8 +100,7 @@ class NewtonEuler(PreparedModel):
             return
         out = [f"sample 0: {r}" for r in reasons]
         for s in rows[:16]:                       # enough to name; the count says the rest
-            for i in np.flatnonzero(bad[s]):
-                out.append(f"sample {s}: {zero_length_reason(mech, int(i))}")
-            for i in np.flatnonzero(vertical[s]):
-                out.append(f"sample {s}: {vertical_reason(mech, int(i), psi[s, i])}")
+            for i in np.flatnonzero(bad[s] | vertical[s]):     # link by link, as singular_reasons orders them
+                out.append(f"sample {s}: " + (zero_length_reason(mech, int(i)) if bad[s, i]
+                                              else vertical_reason(mech, int(i), psi[s, i])))
         raise SingularConfigurationError(out)
