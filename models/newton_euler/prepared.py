@@ -44,6 +44,10 @@ class NewtonEuler(PreparedModel):
         self.tree = prepare_tree(mechanism)
         self.table = self.tree.table()
         self._g, self._dim = float(mechanism.g), int(mechanism.dim)
+        #: The compiled drivers and their arguments before the states, as the matrix family has them:
+        #: ``serial_kernel(*kernel_args, q, qd, qdd, out)`` is inverse dynamics on flat C-ordered states.
+        self.serial_kernel, self.parallel_kernel = compiled.newton_euler, compiled.newton_euler_parallel
+        self.kernel_args = (self.table, float(mechanism.g), int(mechanism.dim), False)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (None if self.tree.singular < 0
                               else singular_mass_reason(mechanism, int(self.tree.singular)))
