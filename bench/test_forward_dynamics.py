@@ -67,6 +67,10 @@ def pytest_generate_tests(metafunc):
     if "topology" not in metafunc.fixturenames:
         return
     sw = current(metafunc.config.getoption("--sweep"))
+    if metafunc.function.__name__ == "test_newton_euler_memory":
+        mem = _memory_cases(sw)
+        metafunc.parametrize("n,dim,topology", mem, ids=[f"chain{c[0]}-3d" for c in mem])
+        return
     cases = _cases(sw)
     metafunc.parametrize("method,kernel,n,dim,topology", cases,
                          ids=[f"{m.replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
@@ -120,3 +124,46 @@ def test_forward_batched(benchmark, sweep, method, kernel, n, dim, topology):
     assert np.isfinite(got).all(), f"{method}: NaN/Inf in the accelerations"
     assert np.abs(residual).max() <= bound, (f"{method} on {mech.name}: backward error {np.abs(residual).max():.3e} "
                                              f"> bound {bound:.3e}")
+
+
+_MEMORY_PROBE = """
+import json, resource, sys
+import numpy as np
+from exo_bench import prepare
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import chain
+n, samples = int(sys.argv[1]), int(sys.argv[2])
+mech = chain(n, 3)
+q, qd, qdd = random_states(mech, samples, seed=n)
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+model = prepare(mech, "newton-euler")
+tau = model.inverse_dynamics(q, qd, qdd)
+back = model.forward_dynamics(q, qd, tau)
+print(json.dumps({"peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "before_model_mb": before / 1024, "finite": bool(np.isfinite(back).all())}))
+"""
+
+
+def _memory_cases(sw):
+    return [(n, 3, "chain") for n in (sw.newton_euler_n or (200,))]
+
+
+def test_newton_euler_memory(benchmark, sweep, n, dim, topology):
+    """The whole process's peak resident set (``ru_maxrss``: Python, numpy, numba and its compiled
+    kernels, the states, the model) when newton-euler runs inverse and then forward dynamics, with
+    validation, on a 3D chain of n links in a fresh process (n = 10,000 in the full profile: the
+    goal is under 1 GB). ``n`` of the quick profile: 200."""
+    import json
+    import subprocess
+    import sys
+
+    benchmark.group = "memory-newton-euler"
+    samples = int(max(1, min(SAMPLES[sweep.name], sweep.array_bytes // (4 * 8 * 3 * n))))
+    r = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(n), str(samples)], capture_output=True, text=True,
+                       timeout=1800)
+    assert r.returncode == 0, r.stderr
+    got = json.loads(r.stdout.strip().splitlines()[-1])
+    assert got["finite"]
+    benchmark.extra_info.update(method="newton-euler (numba)", n=n, dim=dim, topology=topology,
+                                mechanism=f"chain{n}-{dim}d", samples=samples, batched=True, **got)
+    benchmark.pedantic(lambda: None, rounds=1, iterations=1)
