@@ -201,6 +201,14 @@ def _chunks(S: int, size: int):
         yield slice(s0, min(S, s0 + size))
 
 
+def _unchecked_forward(method: str, dof: int, q, qd, tau, out) -> None:
+    """:func:`unchecked_states` for forward dynamics (its third array is ``tau``)."""
+    try:
+        unchecked_states(method, dof, (q, qd, tau), out)
+    except ValueError as e:
+        raise ValueError(str(e).replace("field 'qdd'", "field 'tau'")) from None
+
+
 class PreparedModel:
     """A mechanism prepared for one method. Subclasses set :attr:`method` and implement
     :meth:`_inverse_dynamics`; they may override ``_mass_matrix`` and ``_bias_forces``."""
@@ -355,15 +363,18 @@ class PreparedModel:
         with its O(n) passes."""
         single = np.ndim(q) == 1
         if check:
+            _require_rates(self.method, qd, tau)
             try:
                 q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
             except ValueError as e:        # the third array of as_states is called qdd: here it is tau
                 raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
             if out is not None:
-                _check_out(out, q.shape[1:] if single else q.shape)
+                _check_out(out, q.shape[1:] if single else q.shape, self.method)
             self.check_regular(q)
-        elif single:
-            q, qd, tau = q[None], qd[None], tau[None]
+        else:
+            _unchecked_forward(self.method, self._dof, q, qd, tau, out)
+            if single:
+                q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
         qdd = qdd[0] if single else qdd
         if out is None:

@@ -191,3 +191,23 @@ def test_cli_forward_at_a_vertical_rod_is_one_line_and_exit_2(tmp_path, capsys):
     nan.write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": tau.tolist()}))
     assert main(["forward", "exo5-3d", str(nan)]) == 2
     assert "expected an object with keys ['q', 'qd', 'tau']" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("method,kernel", [("newton-euler", "numba"), ("newton-euler", "numpy"),
+                                           ("matrix-factored", "numba"), ("pinocchio", None)])
+def test_forward_dynamics_any_layout_with_check_and_memory_safety_without(method, kernel):
+    """``check=True`` converts a Fortran-ordered batch (same accelerations); ``check=False`` refuses
+    what is not memory safe (a Fortran-ordered tau, an out too small), naming the field."""
+    m = exo5(3)
+    q, qd, qdd = random_states(m, 5, 2)
+    model = prepare(m, method, **({"kernel": kernel} if kernel else {}))
+    tau = model.inverse_dynamics(q, qd, qdd)
+    a = model.forward_dynamics(q, qd, tau)
+    b = model.forward_dynamics(np.asfortranarray(q), np.asfortranarray(qd), np.asfortranarray(tau))
+    assert np.array_equal(a, b)
+    with pytest.raises(ValueError, match="field 'tau'"):
+        model.forward_dynamics(q, qd, np.asfortranarray(tau), check=False)
+    with pytest.raises(ValueError, match="field 'out'"):
+        model.forward_dynamics(q, qd, tau, check=False, out=np.empty((1, m.dof)))
+    out = np.empty_like(q)
+    assert model.forward_dynamics(q, qd, tau, check=False, out=out) is out and np.array_equal(out, a)

@@ -19,7 +19,7 @@ from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.newton_euler import compiled, passes
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
 from exo_bench.models.numba_threads import run
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.prepared import PreparedModel, _unchecked_forward, unchecked_states
 from exo_bench.models.singularity import (COS_VERTICAL, SingularConfigurationError, vertical_reason,
                                           zero_length_reason)
 
@@ -54,7 +54,7 @@ class NewtonEuler(PreparedModel):
 
     # ------------------------------------------------------------------ the kernels
     def _compiled(self, q, qd, y, forward: bool, out=None):
-        o = np.empty_like(q) if out is None else out
+        o = np.empty(q.shape) if out is None else out          # C-ordered whatever q is: reshape(-1) is a view
         run(compiled.newton_euler, compiled.newton_euler_parallel,
             (self.table, self._g, self._dim, forward, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1)),
             q.shape[0] if q.ndim == 2 else 1)
@@ -80,6 +80,7 @@ class NewtonEuler(PreparedModel):
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
+        unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
         return self._compiled(q, qd, qdd, False, out)   # O(n) scratch: no chunks needed
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
@@ -87,6 +88,7 @@ class NewtonEuler(PreparedModel):
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
+        _unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
         return self._compiled(q, qd, tau, True, out)
 
     forward_dynamics.__doc__ = PreparedModel.forward_dynamics.__doc__
