@@ -217,7 +217,8 @@ def _report_job(run, args, command: str) -> int:
 def _on_cluster(args) -> bool:
     """The full sweep runs on a Dask cluster (bench/distributed.py); so does the quick one when
     --workers or --scheduler is given."""
-    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler)
+    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler
+                or getattr(args, "rows", None))
 
 
 def cmd_bench(args) -> int:
@@ -350,6 +351,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--update-readme", action="store_true",
                    help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    s.add_argument("--rows", action="append", default=None, metavar="PATTERN",
+                   help="run only the sweep's rows whose key matches PATTERN (shell-style, repeatable; e.g. "
+                        "'*test_forward_dynamics.py:3d-chain-*'); their reports go to REPORTS/selected-rows, never over "
+                        "a whole sweep's, and their checkpoints are resumed by a later whole sweep")
     _cluster_args(s)
     s.set_defaults(func=cmd_bench)
 
