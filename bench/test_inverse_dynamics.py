@@ -177,6 +177,14 @@ def test_inverse_batched(benchmark, sweep, method, kernel, n, dim, topology):
     benchmark.group = f"inverse-batched-{dim}d"
     mech = _mechanism(n, dim, topology)
     samples = batch_samples(sweep, mech)
+    if n > max(sweep.inverse_n):             # the scaling rows: the cost model first (a probe of an O(n^3) method takes minutes)
+        from exo_bench.bench.resources import estimate
+
+        base = {"pinocchio-parallel": "pinocchio"}.get(method, method)
+        est = estimate(mech, base, samples, {"kernel": kernel} if kernel else {}).seconds
+        if est > 10 * sweep.inverse_budget:
+            pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected by the cost model "
+                        f"(bench/resources.py) {est:.0f} s per batch of {samples} > 10 x {sweep.inverse_budget:g} s")
     mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, samples), seed=n)
     q, qd, qdd = mo.q, mo.qd, mo.qdd
     model = _prepare(method, kernel, mech, sweep, batch=(q, qd, qdd))
