@@ -238,7 +238,7 @@ MODELS: dict[str, CostModel] = {
 }
 
 #: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).
-PREFERENCE = ("matrix-factored", "matrix", "pinocchio", "recurrence", "lagrange")
+PREFERENCE = ("matrix-factored", "newton-euler", "matrix", "pinocchio", "recurrence", "lagrange")
 
 #: Target bytes of one chunk's temporaries.
 CHUNK_BYTES = 64 * 2**20
