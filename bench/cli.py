@@ -282,6 +282,16 @@ def _workers_arg(text: str) -> int:
     return value
 
 
+def _limit_args(s) -> None:
+    """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
+    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
+                   help="seconds for lagrange's symbolic derivation (default 120)")
+    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
+    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
+                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
+                        "(default: no limit)")
+
+
 def _cluster_args(s) -> None:
     s.add_argument("--workers", type=_workers_arg, default=None, metavar="N",
                    help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
@@ -311,12 +321,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="pinocchio",
                    help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
-    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
-    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
-    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
-                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
-                        "(default: no limit)")
+    _limit_args(s)
     s.set_defaults(func=cmd_inverse)
 
     s = sub.add_parser("forward", help="forward dynamics: accelerations for given states and forces")
@@ -324,12 +329,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
                    "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]")
     s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
-    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
-    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
-    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
-                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
-                        "(default: no limit)")
+    _limit_args(s)
     s.set_defaults(func=cmd_forward)
 
     s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")

@@ -70,15 +70,21 @@ def rod_forces(tree: Tree, dim: int, g: float, kappa: np.ndarray) -> np.ndarray:
     return F
 
 
-def _project(tree, dim, trig, l, F) -> np.ndarray:
-    """``tau_k = J_k^T F_k`` of every rod, ``(S, dof)``."""
+def _per_rod(tree, dim, trig, l, V, planar, spatial) -> np.ndarray:
+    """``s_k * element(trig_k, l_k, V_k)`` of every rod as ``(S, dof)`` in block order, with the
+    element function ``planar`` or ``spatial`` of :mod:`.elements` (``V``: ``(n, dim, S)``)."""
     cf, sf, cp, sp = trig
     s = tree.sign[:, None]
     if dim == 2:
-        parts = el.project_2d(cf, sf, l, F[:, 0], F[:, 1])
+        parts = planar(cf, sf, l, V[:, 0], V[:, 1])
     else:
-        parts = el.project_3d(cf, sf, cp, sp, l, F[:, 0], F[:, 1], F[:, 2])
+        parts = spatial(cf, sf, cp, sp, l, V[:, 0], V[:, 1], V[:, 2])
     return np.concatenate([s * x for x in parts], axis=0).T
+
+
+def _project(tree, dim, trig, l, F) -> np.ndarray:
+    """``tau_k = J_k^T F_k`` of every rod, ``(S, dof)``."""
+    return _per_rod(tree, dim, trig, l, F, el.project_2d, el.project_3d)
 
 
 def inverse_dynamics(tree: Tree, dim: int, g: float, q, qd, qdd) -> np.ndarray:
@@ -113,14 +119,7 @@ def rod_vector_accelerations(tree: Tree, dim: int, g: float, f) -> np.ndarray:
 def coordinate_rates(tree: Tree, dim: int, q, v) -> np.ndarray:
     """``J^-1 v``, ``(S, dof)``: coordinate rates (or accelerations) of rod-vector rates ``v`` ``(n, dim, S)``."""
     n = tree.parent.shape[0]
-    cf, sf, cp, sp = _trig(dim, n, q)
-    l = q[:, -n:].T
-    s = tree.sign[:, None]
-    if dim == 2:
-        parts = el.rates_2d(cf, sf, l, v[:, 0], v[:, 1])
-    else:
-        parts = el.rates_3d(cf, sf, cp, sp, l, v[:, 0], v[:, 1], v[:, 2])
-    return np.concatenate([s * x for x in parts], axis=0).T
+    return _per_rod(tree, dim, _trig(dim, n, q), q[:, -n:].T, v, el.rates_2d, el.rates_3d)
 
 
 def forward_dynamics(tree: Tree, dim: int, g: float, q, qd, tau) -> np.ndarray:

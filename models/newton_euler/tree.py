@@ -29,6 +29,7 @@ import numpy as np
 
 from exo_bench.models.aggregates import link_aggregates
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.singularity import massless_reason
 
 #: A pivot ``d_k`` of ``M_e`` at or below this share of its diagonal entry counts as zero: the
 #: elimination subtracted everything (an end point that carries no mass of its own). A few
@@ -103,8 +104,6 @@ def factor_end_point_mass(mech: Mechanism) -> tuple[np.ndarray, np.ndarray, int]
 
 def singular_mass_reason(mech: Mechanism, k: int) -> str:
     """Why ``M_r`` is singular at link ``k`` (0-based), in the words of :mod:`models.singularity`."""
-    from exo_bench.models.singularity import massless_reason  # noqa: PLC0415 - the shared wording
-
     return (massless_reason(mech, k) if (mech.masses[k][1] == 0 and mech.masses[k][2] == 0
                                          and k not in mech.parent)
             else f"link {k + 1} ({mech.names[k]}): zero mass: no mass moves with its end point while the other "
