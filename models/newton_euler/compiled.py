@@ -28,136 +28,161 @@ for _f in el.ELEMENTS:
     register_jitable(_f)
 
 _PARENT, _SIGN, _ZETA, _ETA, _THETA, _NU, _PIVOT, _MULT = range(8)
+#: Columns of the per-link scratch row ``W[k]``: cos/sin of phi and psi, ``kappa`` (or ``J' q'``),
+#: ``A`` (start-point acceleration with g; forward: the load ``b``), ``D`` (subtree sums; forward: the
+#: tree solve's ``z``, then ``y``). One row per link keeps a link's numbers in one cache line.
+_TRIG, _KAPPA, _A, _D = 0, 4, 7, 10
+WIDTH = 16
 
 
 @njit(**JIT)
-def _trig(t, dim, x, s0, C):
-    """cos/sin of every rod's angles into ``C`` (4, n)."""
+def _rod(t, dim, x, xd, xdd, s0, k, w, with_qdd):
+    """Link ``k``: cos/sin of its angles and ``kappa_k = r_k''`` (``J' q'`` without ``qdd``) into ``w``."""
     n = t.shape[1]
-    for k in range(n):
-        phi = x[s0 + k]
-        C[0, k] = math.cos(phi)
-        C[1, k] = math.sin(phi)
-        if dim == 3:
-            psi = x[s0 + n + k]
-            C[2, k] = math.cos(psi)
-            C[3, k] = math.sin(psi)
-
-
-@njit(**JIT)
-def _kappa(t, dim, x, xd, xdd, s0, C, K, with_qdd):
-    """``kappa_k = r_k''`` (or ``J' q'`` when not ``with_qdd``) into ``K`` (3, n)."""
-    n = t.shape[1]
-    for k in range(n):
-        s = t[_SIGN, k]
-        if dim == 2:
-            l, w, ld = x[s0 + n + k], xd[s0 + k], xd[s0 + n + k]
-            wdd, ldd = (xdd[s0 + k], xdd[s0 + n + k]) if with_qdd else (0.0, 0.0)
-            a0, a1 = el.rod_acceleration_2d(C[0, k], C[1, k], l, w, ld, wdd, ldd)
-            K[0, k], K[1, k] = s * a0, s * a1
+    s = t[_SIGN, k]
+    cf = math.cos(x[s0 + k])
+    sf = math.sin(x[s0 + k])
+    w[0] = cf
+    w[1] = sf
+    if dim == 2:
+        l = x[s0 + n + k]
+        wdd, ldd = (xdd[s0 + k], xdd[s0 + n + k]) if with_qdd else (0.0, 0.0)
+        a0, a1 = el.rod_acceleration_2d(cf, sf, l, xd[s0 + k], xd[s0 + n + k], wdd, ldd)
+        a2 = 0.0
+    else:
+        cp = math.cos(x[s0 + n + k])
+        sp = math.sin(x[s0 + n + k])
+        w[2] = cp
+        w[3] = sp
+        l = x[s0 + 2 * n + k]
+        if with_qdd:
+            wdd, vdd, ldd = xdd[s0 + k], xdd[s0 + n + k], xdd[s0 + 2 * n + k]
         else:
-            l, w, v, ld = x[s0 + 2 * n + k], xd[s0 + k], xd[s0 + n + k], xd[s0 + 2 * n + k]
-            if with_qdd:
-                wdd, vdd, ldd = xdd[s0 + k], xdd[s0 + n + k], xdd[s0 + 2 * n + k]
-            else:
-                wdd, vdd, ldd = 0.0, 0.0, 0.0
-            a0, a1, a2 = el.rod_acceleration_3d(C[0, k], C[1, k], C[2, k], C[3, k], l, w, v, ld, wdd, vdd, ldd)
-            K[0, k], K[1, k], K[2, k] = s * a0, s * a1, s * a2
+            wdd, vdd, ldd = 0.0, 0.0, 0.0
+        a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, xd[s0 + k], xd[s0 + n + k], xd[s0 + 2 * n + k],
+                                            wdd, vdd, ldd)
+    w[_KAPPA] = s * a0
+    w[_KAPPA + 1] = s * a1
+    w[_KAPPA + 2] = s * a2
 
 
 @njit(**JIT)
-def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, C, K, A, D):
-    """Inverse dynamics of one sample at offset ``s0``: the forward pass (start-point
-    accelerations), the backward pass (subtree sums), ``tau_k = J_k^T F_k``."""
+def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
+    """Inverse dynamics of one sample at offset ``s0``: the forward pass (each rod's ``kappa`` and
+    its start point's acceleration ``A_k = A_p + kappa_p``, with ``g up``), the backward pass (subtree
+    sums ``D``), ``tau_k = J_k^T F_k``."""
     n = t.shape[1]
-    _trig(t, dim, x, s0, C)
-    _kappa(t, dim, x, xd, xdd, s0, C, K, True)
-    for k in range(n):                         # forward pass, roots first: A_k = A_p + kappa_p, with g up
+    for k in range(n):                         # forward pass, roots first
+        w = W[k]
+        _rod(t, dim, x, xd, xdd, s0, k, w, True)
         p = int(t[_PARENT, k])
-        for c in range(dim):
-            A[c, k] = A[c, p] + K[c, p] if p >= 0 else (g if c == dim - 1 else 0.0)
-            D[c, k] = 0.0
+        if p >= 0:
+            wp = W[p]
+            w[_A] = wp[_A] + wp[_KAPPA]
+            w[_A + 1] = wp[_A + 1] + wp[_KAPPA + 1]
+            w[_A + 2] = wp[_A + 2] + wp[_KAPPA + 2]
+        else:
+            w[_A] = 0.0
+            w[_A + 1] = g if dim == 2 else 0.0
+            w[_A + 2] = g if dim == 3 else 0.0
+        w[_D] = 0.0
+        w[_D + 1] = 0.0
+        w[_D + 2] = 0.0
     for k in range(n - 1, -1, -1):             # backward pass, leaves first
-        p = int(t[_PARENT, k])
+        w = W[k]
         zeta, eta, theta = t[_ZETA, k], t[_ETA, k], t[_THETA, k]
-        f0 = eta * A[0, k] + zeta * K[0, k] + D[0, k]
-        f1 = eta * A[1, k] + zeta * K[1, k] + D[1, k]
-        f2 = eta * A[2, k] + zeta * K[2, k] + D[2, k] if dim == 3 else 0.0
+        f0 = eta * w[_A] + zeta * w[_KAPPA] + w[_D]
+        f1 = eta * w[_A + 1] + zeta * w[_KAPPA + 1] + w[_D + 1]
+        f2 = eta * w[_A + 2] + zeta * w[_KAPPA + 2] + w[_D + 2]
+        p = int(t[_PARENT, k])
         if p >= 0:
-            for c in range(dim):
-                D[c, p] += theta * A[c, k] + eta * K[c, k] + D[c, k]
+            wp = W[p]
+            wp[_D] += theta * w[_A] + eta * w[_KAPPA] + w[_D]
+            wp[_D + 1] += theta * w[_A + 1] + eta * w[_KAPPA + 1] + w[_D + 1]
+            wp[_D + 2] += theta * w[_A + 2] + eta * w[_KAPPA + 2] + w[_D + 2]
         s = t[_SIGN, k]
         if dim == 2:
-            m0, m1 = el.project_2d(C[0, k], C[1, k], x[s0 + n + k], f0, f1)
-            o[s0 + k], o[s0 + n + k] = s * m0, s * m1
+            m0, m1 = el.project_2d(w[0], w[1], x[s0 + n + k], f0, f1)
+            o[s0 + k] = s * m0
+            o[s0 + n + k] = s * m1
         else:
-            m0, m1, m2 = el.project_3d(C[0, k], C[1, k], C[2, k], C[3, k], x[s0 + 2 * n + k], f0, f1, f2)
-            o[s0 + k], o[s0 + n + k], o[s0 + 2 * n + k] = s * m0, s * m1, s * m2
+            m0, m1, m2 = el.project_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], f0, f1, f2)
+            o[s0 + k] = s * m0
+            o[s0 + n + k] = s * m1
+            o[s0 + 2 * n + k] = s * m2
 
 
 @njit(**JIT)
-def _forward_sample(t, g, dim, x, xd, tau, o, s0, C, K, A, D):
-    """Forward dynamics of one sample at offset ``s0``: ``b = J^-T tau - g_r``, ``r'' = mu^-1 b`` by
-    the tree factor (``T^-T``, ``L^-1`` leaves first, ``D^-1 L^-T`` roots first, ``T^-1``),
-    ``q'' = J^-1 (r'' - J' q')``."""
+def _forward_sample(t, g, dim, x, xd, tau, o, s0, W):
+    """Forward dynamics of one sample at offset ``s0``: ``b = J^-T tau - g_r`` and ``J' q'`` per rod;
+    ``T^-T`` and ``L^-1`` in one pass leaves first (``z_p -= b_k + l_k z_k``); ``D^-1 L^-T`` roots
+    first, where ``r_k'' = y_k - y_p`` (``T^-1``) is ready at once, and ``q_k'' = J_k^-1 (r_k'' - J_k' q_k')``."""
     n = t.shape[1]
-    _trig(t, dim, x, s0, C)
-    _kappa(t, dim, x, xd, xd, s0, C, K, False)
-    for k in range(n):                         # A <- b = J^-T tau - g nu up
+    for k in range(n):
+        w = W[k]
+        _rod(t, dim, x, xd, xd, s0, k, w, False)          # kappa <- J' q'
         s = t[_SIGN, k]
         if dim == 2:
-            b0, b1 = el.unproject_2d(C[0, k], C[1, k], x[s0 + n + k], tau[s0 + k], tau[s0 + n + k])
-            A[0, k], A[1, k] = s * b0, s * b1
+            b0, b1 = el.unproject_2d(w[0], w[1], x[s0 + n + k], tau[s0 + k], tau[s0 + n + k])
+            b2 = 0.0
         else:
-            b0, b1, b2 = el.unproject_3d(C[0, k], C[1, k], C[2, k], C[3, k], x[s0 + 2 * n + k],
+            b0, b1, b2 = el.unproject_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k],
                                          tau[s0 + k], tau[s0 + n + k], tau[s0 + 2 * n + k])
-            A[0, k], A[1, k], A[2, k] = s * b0, s * b1, s * b2
-        A[dim - 1, k] -= g * t[_NU, k]
-        for c in range(dim):
-            D[c, k] = A[c, k]
-    for k in range(n - 1, -1, -1):             # D <- T^-T b, then L^-1 (leaves first)
+        w[_A] = s * b0
+        w[_A + 1] = s * b1
+        w[_A + 2] = s * b2
+        w[_A + dim - 1] -= g * t[_NU, k]        # - g_r: gravity along up
+        w[_D] = w[_A]
+        w[_D + 1] = w[_A + 1]
+        w[_D + 2] = w[_A + 2]
+    for k in range(n - 1, -1, -1):             # z <- L^-1 T^-T b, leaves first
         p = int(t[_PARENT, k])
         if p >= 0:
-            for c in range(dim):
-                D[c, p] -= A[c, k]
-    for k in range(n - 1, -1, -1):
-        p = int(t[_PARENT, k])
-        if p >= 0:
-            lk = t[_MULT, k]
-            for c in range(dim):
-                D[c, p] -= lk * D[c, k]
-    for k in range(n):                         # D^-1 L^-T, roots first (in place: the parent is done)
+            w, wp, lk = W[k], W[p], t[_MULT, k]
+            wp[_D] -= w[_A] + lk * w[_D]
+            wp[_D + 1] -= w[_A + 1] + lk * w[_D + 1]
+            wp[_D + 2] -= w[_A + 2] + lk * w[_D + 2]
+    for k in range(n):                         # y <- D^-1 z - L^T y, roots first; then r'' and q''
+        w = W[k]
         p = int(t[_PARENT, k])
         d, lk = t[_PIVOT, k], t[_MULT, k]
-        for c in range(dim):
-            D[c, k] = D[c, k] / d - (lk * D[c, p] if p >= 0 else 0.0)
-    for k in range(n - 1, -1, -1):             # T^-1, leaves first (the parent is still y_p)
-        p = int(t[_PARENT, k])
-        s = t[_SIGN, k]
-        v0 = D[0, k] - (D[0, p] if p >= 0 else 0.0) - K[0, k]
-        v1 = D[1, k] - (D[1, p] if p >= 0 else 0.0) - K[1, k]
-        if dim == 2:
-            a0, a1 = el.rates_2d(C[0, k], C[1, k], x[s0 + n + k], v0, v1)
-            o[s0 + k], o[s0 + n + k] = s * a0, s * a1
+        if p >= 0:
+            wp = W[p]
+            w[_D] = w[_D] / d - lk * wp[_D]
+            w[_D + 1] = w[_D + 1] / d - lk * wp[_D + 1]
+            w[_D + 2] = w[_D + 2] / d - lk * wp[_D + 2]
+            v0 = w[_D] - wp[_D] - w[_KAPPA]
+            v1 = w[_D + 1] - wp[_D + 1] - w[_KAPPA + 1]
+            v2 = w[_D + 2] - wp[_D + 2] - w[_KAPPA + 2]
         else:
-            v2 = D[2, k] - (D[2, p] if p >= 0 else 0.0) - K[2, k]
-            a0, a1, a2 = el.rates_3d(C[0, k], C[1, k], C[2, k], C[3, k], x[s0 + 2 * n + k], v0, v1, v2)
-            o[s0 + k], o[s0 + n + k], o[s0 + 2 * n + k] = s * a0, s * a1, s * a2
+            w[_D] = w[_D] / d
+            w[_D + 1] = w[_D + 1] / d
+            w[_D + 2] = w[_D + 2] / d
+            v0 = w[_D] - w[_KAPPA]
+            v1 = w[_D + 1] - w[_KAPPA + 1]
+            v2 = w[_D + 2] - w[_KAPPA + 2]
+        s = t[_SIGN, k]
+        if dim == 2:
+            a0, a1 = el.rates_2d(w[0], w[1], x[s0 + n + k], v0, v1)
+            o[s0 + k] = s * a0
+            o[s0 + n + k] = s * a1
+        else:
+            a0, a1, a2 = el.rates_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], v0, v1, v2)
+            o[s0 + k] = s * a0
+            o[s0 + n + k] = s * a1
+            o[s0 + 2 * n + k] = s * a2
 
 
 @njit(**JIT)
 def _block(t, g, dim, x, xd, y, o, start, stop, forward):
     """Samples ``start .. stop - 1`` into ``o`` (scratch allocated once)."""
     n = t.shape[1]
-    C = np.zeros((4, n))
-    K = np.zeros((3, n))
-    A = np.zeros((3, n))
-    D = np.zeros((3, n))
+    W = np.zeros((n, WIDTH))
     for s in range(start, stop):
         if forward:
-            _forward_sample(t, g, dim, x, xd, y, o, s * dim * n, C, K, A, D)
+            _forward_sample(t, g, dim, x, xd, y, o, s * dim * n, W)
         else:
-            _inverse_sample(t, g, dim, x, xd, y, o, s * dim * n, C, K, A, D)
+            _inverse_sample(t, g, dim, x, xd, y, o, s * dim * n, W)
 
 
 @njit(**JIT)
