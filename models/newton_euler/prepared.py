@@ -48,6 +48,7 @@ class NewtonEuler(PreparedModel):
         #: ``serial_kernel(*kernel_args, q, qd, qdd, out)`` is inverse dynamics on flat C-ordered states.
         self.serial_kernel, self.parallel_kernel = compiled.newton_euler, compiled.newton_euler_parallel
         self.kernel_args = (self.table, float(mechanism.g), int(mechanism.dim), False)
+        self._forward_args = (self.table, float(mechanism.g), int(mechanism.dim), True)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (None if self.tree.singular < 0
                               else singular_mass_reason(mechanism, int(self.tree.singular)))
@@ -81,6 +82,10 @@ class NewtonEuler(PreparedModel):
         if check or self._numpy:
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
         unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
+        if q.ndim == 1:                            # one sample: the serial kernel on the arrays as given
+            o = np.empty(q.shape) if out is None else out
+            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
+            return o
         return self._compiled(q, qd, qdd, False, out)   # O(n) scratch: no chunks needed
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
@@ -89,6 +94,10 @@ class NewtonEuler(PreparedModel):
         if check or self._numpy:
             return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
         _unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
+        if q.ndim == 1:
+            o = np.empty(q.shape) if out is None else out
+            self.serial_kernel(*self._forward_args, q, qd, tau, o)
+            return o
         return self._compiled(q, qd, tau, True, out)
 
     forward_dynamics.__doc__ = PreparedModel.forward_dynamics.__doc__
