@@ -97,7 +97,8 @@ def goals_issue22(df: pd.DataFrame) -> list[str]:
         out += ["### Forward dynamics per sample", "",
                 "Microseconds per sample of one batched `forward_dynamics(q, qd, tau, check=False)` on 3D chains "
                 "(bench/test_forward_dynamics.py; backward error asserted); last column: bytes per sample traced "
-                "during the call (numpy's arrays) at the largest n of the row.", "",
+                "during the call (numpy's arrays, the result's 8 dof bytes included; numba's O(n) scratch per block "
+                "is not traced) at the largest n of the row.", "",
                 "| method | " + " | ".join(f"n={n}" for n in ns) + " | exponent p | bytes/sample |",
                 "|---|" + "---|" * (len(ns) + 2)]
         for m, g in fwd.groupby("method"):

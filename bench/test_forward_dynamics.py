@@ -25,9 +25,12 @@ held to the 50-digit reference by tests/test_newton_euler.py):
 accelerations that produced ``tau`` depends on ``cond(M)`` (tests/test_forward_property.py) and is
 recorded, not asserted.
 
-**Memory per sample**: the growth of the traced peak (``tracemalloc``: numpy's arrays; numba's
-per-block scratch, O(n), is not traced) during one untimed call, divided by the samples, and the
-process's peak resident set (``ru_maxrss``) after the row.
+**Memory per sample**: the growth of the traced peak (``tracemalloc``: numpy's arrays, the result's
+``8 dof`` bytes per sample included; numba's per-block scratch, O(n), is not traced) during one
+untimed call, divided by the samples, and the process's peak resident set (``ru_maxrss``) after
+the row. Measured on the shared machine at n = 10,000 (139 samples): newton-euler (numba) 249 kB
+per sample, of which the result is 240 kB; a fresh process running inverse and forward dynamics
+peaks at 420 MB (``test_newton_euler_memory``).
 """
 
 from __future__ import annotations
