@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from exo_bench.bench import simd_goals
 from exo_bench.bench.reporting import REPO, REPORTS, atomic_write, provenance
 from exo_bench.bench.rows import check_ratio_groups
 from exo_bench.bench.runner import publish, staging_dir
@@ -411,6 +412,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     lines += engine_section(inv)
     lines += compile_section(df)
     lines += limit_section(df, inv)
+    lines += simd_goals.report_lines(df)         # issue 23 (bench/test_simd.py)
     lines += _skips_md(skips, "test_inverse")
     _plot_scaling(inv[inv["topology"] == "chain"], png)
     lines += ["", f"![scaling]({png.name})"]

@@ -38,7 +38,8 @@ kernel's own file changes, not when a closed form in ``planar.py``/``spatial.py`
 editing those, delete ``matrix_method/__pycache__/*.nbi``/``*.nbc`` (the tests would catch the
 stale kernel: they hold it to the numpy reference).
 
-**Threads.** The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
+**Threads.** (``matrix-factored``'s batches run :mod:`matrix_method.compiled_simd` instead, on a
+Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
 the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
 otherwise take OpenMP where libgomp is loaded (Pinocchio brings it), and on the shared 2-core
 machine OpenMP's statically scheduled, spin-waiting threads made the parallel driver 4 to 150 times

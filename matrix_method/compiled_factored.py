@@ -9,7 +9,8 @@ loops over the links of one sample:
 
 per sample ``2n`` (2D) or ``4n`` (3D) sines and cosines, and ``2 n^2`` or ``3 n^2`` multiply-adds.
 The kernels take ``(params, q, qd, qdd)`` with ``params`` of :func:`compiled.params` and flat
-``(samples * dof,)`` states, and return the flat forces (:mod:`matrix_method.compiled`).
+``(samples * dof,)`` states, and return the flat forces (:mod:`matrix_method.compiled`). The physics
+of a link is :mod:`matrix_method.factored_terms` (shared with the SIMD kernel and the numpy one).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from exo_bench.matrix_method.compiled import BLOCK, JIT
+from exo_bench.matrix_method.factored_terms import forces_2d, forces_3d, kappa_2d, kappa_3d
 
 
 @njit(**JIT)
@@ -31,10 +33,7 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
         w, ld = xd[s0 + j], xd[s0 + n + j]
         wdd, ldd = xdd[s0 + j], xdd[s0 + n + j]
         cf, sf = math.cos(phi), math.sin(phi)
-        radial = ldd - l * w * w                  # along u: l'' and the centripetal l u_phiphi phi'^2
-        tangent = 2.0 * ld * w + l * wdd          # along u_phi: l phi'' and 2 phi' l'
-        k[0, j] = radial * cf - tangent * sf
-        k[1, j] = radial * sf + tangent * cf
+        k[0, j], k[1, j] = kappa_2d(l, w, ld, wdd, ldd, cf, sf)
         k[2, j] = cf
         k[3, j] = sf
     for i in range(n):
@@ -45,8 +44,7 @@ def _sample_2d(p, x, xd, xdd, o, s0, k):
             f0 += cij * k[0, j]
             f1 += cij * k[1, j]
         cf, sf, l, gnu = k[2, i], k[3, i], x[s0 + n + i], p[i, n + 1] * p[i, n]
-        o[s0 + i] = l * (cf * f1 - sf * f0 + gnu * cf)         # r_phi . f + g P_phi
-        o[s0 + n + i] = cf * f0 + sf * f1 + gnu * sf           # r_l . f + g P_l
+        o[s0 + i], o[s0 + n + i] = forces_2d(l, cf, sf, f0, f1, gnu)
 
 
 @njit(**JIT)
@@ -59,13 +57,7 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
         wdd, vdd, ldd = xdd[s0 + j], xdd[s0 + n + j], xdd[s0 + 2 * n + j]
         cf, sf = math.cos(phi), math.sin(phi)
         cp, sp = math.cos(psi), math.sin(psi)
-        along_u = ldd - l * v * v                  # u l'' and l u_psipsi psi'^2 = -l u psi'^2
-        along_psi = 2.0 * ld * v + l * vdd         # u_psi: l psi'' and 2 psi' l'
-        horizontal = (along_u - l * w * w) * cp - along_psi * sp           # along (cos phi, sin phi, 0)
-        azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp   # along (-sin phi, cos phi, 0)
-        k[0, j] = horizontal * cf - azimuthal * sf
-        k[1, j] = horizontal * sf + azimuthal * cf
-        k[2, j] = along_u * sp + along_psi * cp
+        k[0, j], k[1, j], k[2, j] = kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)
         k[3, j] = cf
         k[4, j] = sf
         k[5, j] = cp
@@ -80,11 +72,8 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
             f1 += cij * k[1, j]
             f2 += cij * k[2, j]
         cf, sf, cp, sp, l = k[3, i], k[4, i], k[5, i], k[6, i], x[s0 + 2 * n + i]
-        radial = cf * f0 + sf * f1
-        vertical = f2 + p[i, n + 1] * p[i, n]
-        o[s0 + i] = l * cp * (cf * f1 - sf * f0)                 # r_phi . f (P_phi = 0)
-        o[s0 + n + i] = l * (cp * vertical - sp * radial)        # r_psi . f + g P_psi
-        o[s0 + 2 * n + i] = cp * radial + sp * vertical          # r_l . f + g P_l
+        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = forces_3d(l, cf, sf, cp, sp, f0, f1, f2,
+                                                                p[i, n + 1] * p[i, n])
 
 
 @njit(**JIT)

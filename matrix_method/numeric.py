@@ -24,6 +24,7 @@ import numpy as np
 
 from exo_bench.matrix_method import planar, spatial
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
+from exo_bench.matrix_method.factored_terms import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.models import equation_form
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
@@ -211,11 +212,8 @@ def _factored_2d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     :class:`NumpyOps`; any namespace with the same three functions, e.g. CasADi's)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
     cf, sf = ops.cos_sin(phi)
-    radial = ldd - l * w * w                       # along u: l'' and the centripetal l u_phiphi phi'^2
-    tangent = 2.0 * ld * w + l * wdd               # along u_phi: l phi'' and 2 phi' l'
-    f = ops.couple(c, [radial * cf - tangent * sf, radial * sf + tangent * cf])   # sum_j c_ij kappa_j
-    return ops.rows([l * (cf * f[1] - sf * f[0] + g * nu_s * cf),      # r_phi . f + g P_phi
-                     cf * f[0] + sf * f[1] + g * nu_s * sf])           # r_l . f + g P_l
+    f = ops.couple(c, list(kappa_2d(l, w, ld, wdd, ldd, cf, sf)))       # sum_j c_ij kappa_j
+    return ops.rows(list(forces_2d(l, cf, sf, f[0], f[1], g * nu_s)))
 
 
 def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
@@ -226,18 +224,8 @@ def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
     cf, sf = ops.cos_sin(phi)
     cp, sp = ops.cos_sin(psi)
-    along_u = ldd - l * v * v                      # u l'' and l u_psipsi psi'^2 = -l u psi'^2
-    along_psi = 2.0 * ld * v + l * vdd             # u_psi: l psi'' and 2 psi' l'
-    # u_phiphi = -cos psi (cos phi, sin phi, 0), u_phipsi = -sin psi (-sin phi, cos phi, 0)
-    horizontal = (along_u - l * w * w) * cp - along_psi * sp                # along (cos phi, sin phi, 0)
-    azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp        # along (-sin phi, cos phi, 0)
-    f = ops.couple(c, [horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf,
-                       along_u * sp + along_psi * cp])                       # sum_j c_ij kappa_j, per axis
-    radial = cf * f[0] + sf * f[1]
-    vertical = f[2] + g * nu_s
-    return ops.rows([l * cp * (cf * f[1] - sf * f[0]),                       # r_phi . f (P_phi = 0)
-                     l * (cp * vertical - sp * radial),                      # r_psi . f + g P_psi
-                     cp * radial + sp * vertical])                           # r_l . f + g P_l
+    f = ops.couple(c, list(kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))   # sum_j c_ij kappa_j, per axis
+    return ops.rows(list(forces_3d(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)))
 
 
 # ----------------------------------------------------------------- as printed

@@ -26,10 +26,13 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.matrix_method import compiled, compiled_factored, compiled_matrix, compiled_recurrence, numeric
+from exo_bench.matrix_method import compiled_lean, compiled_simd
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.prepared import PreparedModel, unchecked_states
+
+_F8 = np.dtype(np.float64)
 
 
 def _block_option(method: str, block) -> int:
@@ -160,11 +163,50 @@ class MatrixFactored(_Compiled):
 
     def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
         super().__init__(mechanism, block, kernel)
+        #: the batched path of ``kernel="numba"``: the kernel that vectorises across samples
+        #: (:mod:`matrix_method.compiled_simd`); one sample runs :attr:`serial_kernel`
+        self.batch_kernel = compiled_simd.KERNELS[mechanism.dim]
+        self._lean = None                       # the lean one-sample entry, resolved on first use
         n = mechanism.nlinks
         self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
         self._nu = self.gravity_coefficients[:, None]
         self._n, self._g = n, mechanism.g
         self._products = MatrixProducts(mechanism, block, kernel="numpy")
+
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
+        if not check and out is not None and not self._numpy:
+            # the lean path (matrix_method/compiled_lean.py): one sample into out; what unboxing
+            # trusts is checked here, the shapes and strides in compiled code
+            lean = self._lean or self._resolve_lean()
+            try:
+                if (q.ndim == 1 and qd.ndim == 1 and qdd.ndim == 1 and out.ndim == 1 and q.dtype is _F8
+                        and qd.dtype is _F8 and qdd.dtype is _F8 and out.dtype is _F8 and out.flags.writeable
+                        and lean(self._params, q, qd, qdd, out)):
+                    return out
+            except AttributeError:
+                pass
+        return _Compiled.inverse_dynamics(self, q, qd, qdd, check, out)
+
+    inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
+
+    def _resolve_lean(self):
+        self._params = self.kernel_args[0]
+        self._lean = compiled_lean.entry(self._mechanism.dim, self._params)
+        # the compiled wrapper, where it was built: from the next call on, model.inverse_dynamics is
+        # it, and it passes every call it does not take (check=True, no out, batches) to this method
+        fast = compiled_lean.c_call(self._mechanism.dim, self._params,
+                                    type(self).inverse_dynamics.__get__(self, type(self)), self._dof)
+        if fast is not None:
+            self.inverse_dynamics = fast
+        return self._lean
+
+    def _compiled(self, q, qd, qdd, out=None):
+        """The batched path: :attr:`batch_kernel` over ``(samples, dof)`` states (flat views), into
+        ``out`` or a new C-ordered array, split over threads for large batches (:func:`compiled_simd.run`)."""
+        o = np.empty(q.shape) if out is None else out
+        compiled_simd.run(self.batch_kernel, self.kernel_args[0], q.reshape(-1), qd.reshape(-1), qdd.reshape(-1),
+                          o.reshape(-1), q.shape[0])
+        return o
 
     def _inverse_dynamics(self, q, qd, qdd):
         if not self._numpy:

@@ -1,0 +1,159 @@
+/* The lean one-sample call of matrix-factored (numba): a callable that takes exactly the arguments of
+ * PreparedModel.inverse_dynamics(q, qd, qdd, check=True, out=None) and, for check=False with out=,
+ * checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw pointers;
+ * every other call (check=True, no out, a batch, any layout it does not take) goes to the Python
+ * method unchanged, which validates and names the field. See matrix_method/compiled_lean.py.
+ *
+ * What is checked here, on each of q, qd, qdd and out: an instance of numpy.ndarray (or a subclass),
+ * one dimension of dof elements, a stride of 8 bytes, the float64 dtype object numpy uses for native
+ * doubles; out writable. The ndarray fields are read through numpy's public struct layout
+ * (PyArrayObject_fields, unchanged since numpy 1.7 and in numpy 2); compiled_lean.py checks at run time
+ * that this layout reads what numpy reports before using this module. Built by setup.py (optional:
+ * without a C compiler the package installs without it and the Python lean path runs). */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stddef.h>
+#include <stdint.h>
+
+typedef struct {
+    PyObject_HEAD
+    char *data;
+    int nd;
+    Py_ssize_t *dimensions;
+    Py_ssize_t *strides;
+    PyObject *base;
+    PyObject *descr;
+    int flags;
+} ArrayFields;
+
+#define WRITEABLE 0x0400
+
+typedef void (*kernel_t)(double *, double *, double *, double *, double *, long long);
+
+typedef struct {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    PyObject *fallback;      /* the Python method: every call it does not take */
+    PyObject *params;        /* keeps the parameter array alive */
+    PyTypeObject *ndarray;   /* numpy.ndarray */
+    PyObject *f8;            /* numpy.dtype(numpy.float64) */
+    double *p;
+    kernel_t kernel;
+    Py_ssize_t dof;
+    long long n;
+} LeanCall;
+
+static PyObject *str_check, *str_out;
+
+static inline int usable(LeanCall *self, PyObject *a, int writable) {
+    if (!PyObject_TypeCheck(a, self->ndarray)) return 0;
+    ArrayFields *f = (ArrayFields *)a;
+    return f->nd == 1 && f->dimensions[0] == self->dof && f->strides[0] == 8 && f->descr == self->f8
+           && (!writable || (f->flags & WRITEABLE));
+}
+
+static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    LeanCall *self = (LeanCall *)callable;
+    Py_ssize_t np_ = PyVectorcall_NARGS(nargsf);
+    PyObject *check = np_ > 3 ? args[3] : NULL, *out = np_ > 4 ? args[4] : NULL;
+    int plain = np_ >= 3 && np_ <= 5;
+    if (plain && kwnames) {
+        Py_ssize_t nk = PyTuple_GET_SIZE(kwnames);
+        for (Py_ssize_t k = 0; k < nk && plain; k++) {
+            PyObject *name = PyTuple_GET_ITEM(kwnames, k);
+            if (name == str_check || (name != str_out && PyUnicode_Compare(name, str_check) == 0)) {
+                if (check) plain = 0; else check = args[np_ + k];
+            } else if (name == str_out || PyUnicode_Compare(name, str_out) == 0) {
+                if (out) plain = 0; else out = args[np_ + k];
+            } else {
+                plain = 0;
+            }
+        }
+        if (PyErr_Occurred()) PyErr_Clear();
+    }
+    if (plain && check == Py_False && out && out != Py_None && usable(self, args[0], 0) && usable(self, args[1], 0)
+        && usable(self, args[2], 0) && usable(self, out, 1)) {
+        self->kernel(self->p, (double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
+                     (double *)((ArrayFields *)args[2])->data, (double *)((ArrayFields *)out)->data, self->n);
+        Py_INCREF(out);
+        return out;
+    }
+    return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+}
+
+static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
+    PyObject *fallback, *params, *ndarray, *f8;
+    unsigned long long kernel, p;
+    Py_ssize_t dof;
+    long long n;
+    if (!PyArg_ParseTuple(args, "OOOOKKnL", &fallback, &params, &ndarray, &f8, &kernel, &p, &dof, &n)) return NULL;
+    if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p) {
+        PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n)");
+        return NULL;
+    }
+    LeanCall *self = (LeanCall *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8);
+    self->fallback = fallback; self->params = params; self->ndarray = (PyTypeObject *)ndarray; self->f8 = f8;
+    self->kernel = (kernel_t)(uintptr_t)kernel; self->p = (double *)(uintptr_t)p; self->dof = dof; self->n = n;
+    self->vectorcall = lean_vectorcall;
+    return (PyObject *)self;
+}
+
+static int lean_traverse(LeanCall *self, visitproc visit, void *arg) {
+    Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8);
+    return 0;
+}
+
+static int lean_clear(LeanCall *self) {
+    Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8);
+    return 0;
+}
+
+static void lean_dealloc(LeanCall *self) {
+    PyObject_GC_UnTrack(self);
+    lean_clear(self);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+/* probe(a) -> (nd, dim0, stride0, writable, descr is f8, is ndarray): what this module reads of a. */
+static PyObject *lean_probe(LeanCall *self, PyObject *a) {
+    if (!PyObject_TypeCheck(a, self->ndarray)) return Py_BuildValue("(iiiiii)", -1, -1, -1, 0, 0, 0);
+    ArrayFields *f = (ArrayFields *)a;
+    return Py_BuildValue("(innNNN)", f->nd, f->nd > 0 ? f->dimensions[0] : -1, f->nd > 0 ? f->strides[0] : -1,
+                         PyBool_FromLong(f->flags & WRITEABLE), PyBool_FromLong(f->descr == self->f8), PyBool_FromLong(1));
+}
+
+static PyMethodDef lean_methods[] = {
+    {"probe", (PyCFunction)lean_probe, METH_O, "what the lean call reads of an array"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject LeanCallType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "exo_bench.matrix_method._lean_call.LeanCall",
+    .tp_basicsize = sizeof(LeanCall),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL,
+    .tp_new = lean_new,
+    .tp_dealloc = (destructor)lean_dealloc,
+    .tp_traverse = (traverseproc)lean_traverse,
+    .tp_clear = (inquiry)lean_clear,
+    .tp_call = PyVectorcall_Call,
+    .tp_vectorcall_offset = offsetof(LeanCall, vectorcall),
+    .tp_methods = lean_methods,
+    .tp_doc = "the lean one-sample call of matrix-factored (numba); see matrix_method/compiled_lean.py",
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_lean_call", NULL, -1, NULL};
+
+PyMODINIT_FUNC PyInit__lean_call(void) {
+    if (PyType_Ready(&LeanCallType) < 0) return NULL;
+    str_check = PyUnicode_InternFromString("check");
+    str_out = PyUnicode_InternFromString("out");
+    if (!str_check || !str_out) return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (!m) return NULL;
+    Py_INCREF(&LeanCallType);
+    if (PyModule_AddObject(m, "LeanCall", (PyObject *)&LeanCallType) < 0) return NULL;
+    return m;
+}

@@ -1,0 +1,90 @@
+"""Method ``matrix-factored``, one sample per call with nothing but the arithmetic around it.
+
+A call of a numba kernel through its dispatcher types every argument and looks the signature up
+(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). Two lean paths, for a
+call with ``check=False`` and ``out=`` on 1-D arrays:
+
+* **compiled** (:func:`c_call`, where setup.py built matrix_method/_lean_call.c): after the model's
+  first such call its ``inverse_dynamics`` is a small C callable that checks what memory safety
+  needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out`` writable) and calls the
+  kernel's numba ``cfunc`` (matrix_method/compiled_lean_c.py) with the raw pointers; every other
+  form of the call goes to the Python method unchanged;
+* **Python** (:func:`entry`, everywhere): the compiled entry point of :func:`lean_2d`/:func:`lean_3d`
+  for one signature, resolved once and called directly: the arguments are unboxed as that
+  signature says, without being typed. Unboxing trusts the dimension count and the dtype, so the
+  caller checks those two in Python (``ndim == 1``, ``dtype is float64``, ``out`` writable: what
+  unboxing cannot see); these functions check the rest in compiled code, in nanoseconds: every
+  array has ``dof`` elements at a stride of 8 bytes (contiguous). They return False, having touched
+  nothing, when a check fails; the caller then takes the checked path, which names the field.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import types
+
+from exo_bench.matrix_method.compiled import JIT, njit
+from exo_bench.matrix_method.compiled_factored import factored_2d, factored_3d
+
+
+@njit(**JIT)
+def _fits(q, qd, qdd, o, dof):
+    return (q.shape[0] == dof and qd.shape[0] == dof and qdd.shape[0] == dof and o.shape[0] == dof
+            and q.strides[0] == 8 and qd.strides[0] == 8 and qdd.strides[0] == 8 and o.strides[0] == 8)
+
+
+@njit(**JIT)
+def lean_2d(p, q, qd, qdd, o):
+    """One planar sample into ``o`` if every array has ``2n`` contiguous elements; else False."""
+    if not _fits(q, qd, qdd, o, 2 * p.shape[0]):
+        return False
+    factored_2d(p, q, qd, qdd, o)
+    return True
+
+
+@njit(**JIT)
+def lean_3d(p, q, qd, qdd, o):
+    """One spatial sample into ``o`` if every array has ``3n`` contiguous elements; else False."""
+    if not _fits(q, qd, qdd, o, 3 * p.shape[0]):
+        return False
+    factored_3d(p, q, qd, qdd, o)
+    return True
+
+
+KERNELS = {2: lean_2d, 3: lean_3d}
+
+_VECTOR = types.Array(types.float64, 1, "A")
+
+
+def entry(dim: int, params: np.ndarray):
+    """The compiled entry point of the lean kernel for ``params`` and four 1-D float64 arrays of any
+    stride (loaded from numba's on-disk cache, or compiled, on first use)."""
+    return KERNELS[dim].compile((numba.typeof(params), _VECTOR, _VECTOR, _VECTOR, _VECTOR))
+
+
+def c_call(dim: int, params: np.ndarray, fallback, dof: int):
+    """The compiled wrapper (matrix_method/_lean_call.c) around the kernel's cfunc: a callable with
+    the arguments of ``inverse_dynamics(q, qd, qdd, check=True, out=None)`` that runs one sample with
+    ``check=False, out=`` in C and passes every other call to ``fallback`` unchanged; None where the
+    extension was not built (no C compiler at install) or reads numpy's arrays differently from
+    what numpy reports (checked here on probe arrays, before any use)."""
+    try:
+        from exo_bench.matrix_method import _lean_call
+    except ImportError:
+        return None
+    from exo_bench.matrix_method import compiled_lean_c
+
+    f8 = np.dtype(np.float64)
+    if not (params.dtype is f8 and params.flags.c_contiguous and params.shape == (params.shape[0], params.shape[0] + 2)):
+        return None
+    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, compiled_lean_c.CFUNCS[dim].address,
+                               params.ctypes.data, dof, params.shape[0])
+    ro = np.zeros(dof)
+    ro.flags.writeable = False
+    probes = [(np.zeros(dof), (1, dof, 8, True, True, True)), (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
+              (ro, (1, dof, 8, False, True, True)), (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
+              (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)), (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True))]
+    if any(call.probe(a) != want for a, want in probes):
+        return None
+    return call
