@@ -25,18 +25,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--method", default="pinocchio",
                    help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
+    add_limit_args(s)
+    s.set_defaults(func=cmd_inverse)
+
+
+def add_limit_args(s: argparse.ArgumentParser) -> None:
+    """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
     s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS",
                    help="seconds for lagrange's symbolic derivation (default 120)")
     s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
     s.add_argument("--max-time", type=seconds_arg, default=None, metavar="SECONDS",
                    help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
                         "(default: no limit)")
-    s.set_defaults(func=cmd_inverse)
 
 
-def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
-    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file)."""
+    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file).
+    ``third="tau"``: forward dynamics' states ``q``, ``qd``, ``tau``."""
     from exo_bench.models.loading import read_json
     from exo_bench.models.mechanism import as_states
 
@@ -45,10 +51,13 @@ def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         data = _read_npz(path, what)
     else:
         data = read_json(path, what)
-    if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
+    if not isinstance(data, dict) or not {"q", "qd", third} <= data.keys():
         got = sorted(data) if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
-    return as_states(mech, data["q"], data["qd"], data["qdd"], source=what)
+        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', '{third}'], got {got}")
+    try:
+        return as_states(mech, data["q"], data["qd"], data[third], source=what)
+    except ValueError as e:   # as_states calls its third array qdd
+        raise ValueError(str(e).replace("field 'qdd'", f"field '{third}'").replace("qdd must", f"{third} must")) from None
 
 
 def _read_npz(path: str, what: str) -> dict:
@@ -69,7 +78,7 @@ def _read_npz(path: str, what: str) -> dict:
                          "use (--max-memory does not raise this); split the batch")
     try:
         with np.load(p, allow_pickle=False) as z:
-            return {k: (z[k] if k in ("q", "qd", "qdd") else None) for k in z.files}
+            return {k: (z[k] if k in ("q", "qd", "qdd", "tau") else None) for k in z.files}
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     except ValueError as e:
@@ -84,10 +93,10 @@ def _limits(args: argparse.Namespace, method: str) -> Limits:
     return Limits(memory=args.max_memory, seconds=args.max_time, budget=args.budget if method == "lagrange" else None)
 
 
-def _write_tau(method: str, tau: np.ndarray, out: TextIO) -> None:
-    """``{"method": ..., "tau": [[...], ...]}`` written row block by row block (no list of the
-    whole batch is built); non-finite values are null (JSON has no NaN)."""
-    out.write(json.dumps({"method": method})[:-1] + ', "tau": [')
+def _write_tau(method: str, tau: np.ndarray, out: TextIO, key: str = "tau") -> None:
+    """``{"method": ..., "tau": [[...], ...]}`` (or ``key``) written row block by row block (no list of
+    the whole batch is built); non-finite values are null (JSON has no NaN)."""
+    out.write(json.dumps({"method": method})[:-1] + f', "{key}": [')
     for s0 in range(0, tau.shape[0], 4096):
         block = tau[s0:s0 + 4096]
         rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]

@@ -15,3 +15,5 @@ class BenchOptions(ReportOptions):
     update_readme: bool = False
     #: Run the sweep as tasks on a Dask cluster (None: serial in this process).
     cluster: ClusterOptions | None = None
+    #: Only the sweep's rows whose key matches one of these shell-style patterns (empty: every row).
+    rows: tuple[str, ...] = ()

@@ -176,3 +176,12 @@ DRAKE = CostModel(
     lambda m, o: 20 * 2**20 + 450_000 * m.nlinks, lambda m, o: 0.8 + 2e-3 * m.nlinks,
     sample_seconds=lambda n, d: (40.0 + (20.0 if d == 2 else 40.0) * n) * 1e-6,
     note=lambda m, o: "a Python loop over CalcInverseDynamics, one Context")
+# newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample; its numpy kernel
+# holds a few dozen (n, dim, samples) arrays. Not calibrated yet: rounded-up bounds. Compile time
+# 11.7 s (serial and parallel, one dim) on the busy machine, rounded up.
+NEWTON_EULER = CostModel(
+    lambda m, o: F8 * 16 * m.nlinks + 2**20 + (NUMBA_BYTES if _numba(o) else 0),
+    lambda m, o: 0.01 + 2e-6 * m.nlinks,
+    sample_seconds=lambda n, d: (1.0 + 0.05 * d * n) * 1e-6,
+    note=_compiled_note(15.0, lambda m: f"O(n) per sample, two passes over the tree (n = {m.nlinks})"),
+    compile_seconds=15.0)

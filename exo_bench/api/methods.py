@@ -77,19 +77,19 @@ _WRONG_18 = "eq. (18) as printed has misprints: 3D results are wrong by design (
 METHODS: dict[str, MethodSpec] = {s.name: s for s in (
     MethodSpec("pinocchio", "exo_bench.models.pinocchio_backend", "PinocchioRNEA",
                "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
-               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=2,
+               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=3,
                engine_row="a Python loop over `pin.rnea` per sample (the G maps one matmul over the batch; "
                           "`pinocchio-parallel`: `rneaInParallel` on a ModelPool)",
                bare_row="pin.rnea (bare)"),
     MethodSpec("lagrange", "exo_bench.lagrange.prepared", "LagrangeModel",
                "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
                "(options: budget, interrupt)",
-               colour="#e6ab02", cost=cost.LAGRANGE, fit_rank=4),
+               colour="#e6ab02", cost=cost.LAGRANGE, fit_rank=5),
     MethodSpec("matrix", "exo_bench.matrix_method.prepared", "MatrixProducts",
                "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
                "no division), then the products with the rates; compiled loops (option kernel: numba, the "
                "default, or numpy)",
-               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=1, composes_within_budget=True,
+               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=2, composes_within_budget=True,
                derivatives_are_its_own=True),
     MethodSpec("matrix-factored", "exo_bench.matrix_method.prepared", "MatrixFactored",
                "the matrix method's equations in factored form (no matrix formed); compiled loops "
@@ -104,8 +104,12 @@ METHODS: dict[str, MethodSpec] = {s.name: s for s in (
     MethodSpec("recurrence", "exo_bench.matrix_method.prepared", "Recurrence",
                "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                "loops (option kernel: numba, the default, or numpy)",
-               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=3, composes_within_budget=True,
+               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=4, composes_within_budget=True,
                derivatives_are_its_own=True),
+    MethodSpec("newton-euler", "exo_bench.models.newton_euler.prepared", "NewtonEuler",
+               "O(n) passes over the tree in the rod vectors r_i = s_i l_i u_i (M = J^T M_r J, M_r constant), "
+               "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, or numpy)",
+               colour="#b15928", cost=cost.NEWTON_EULER, kernels=NUMBA_NUMPY, fit_rank=1),
     MethodSpec("mujoco", "exo_bench.models.mujoco_backend", "MujocoRNE",
                "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
                "a Python loop over the samples (optional extra [peers])",
@@ -159,6 +163,12 @@ def compiled_methods() -> tuple[str, ...]:
     ranked = sorted((s.fit_rank if s.fit_rank is not None else len(METHODS), i, s.name)
                     for i, s in enumerate(METHODS.values()) if s.compiled)
     return tuple(name for _, _, name in ranked)
+
+
+def matrix_family() -> tuple[str, ...]:
+    """The matrix method's compiled methods (the paper's method, its factored form and the
+    recurrence; not matrix-paper), best first: the family the scaling report holds to its goals."""
+    return tuple(m for m in compiled_methods() if METHODS[m].module == "exo_bench.matrix_method.prepared")
 
 
 def composes_within_budget() -> frozenset[str]:

@@ -16,7 +16,7 @@ LINK_COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b",
 
 
 #: Colours of methods not in the method table (its MethodSpec.colour), in order of appearance.
-_SPARE_METHOD_COLORS = ("#b15928", "#6a3d9a", "#882255", "#999933")
+_SPARE_METHOD_COLORS = ("#6a3d9a", "#882255", "#999933")
 
 
 #: Smallest text in any figure (points): 9 pt at 150 dpi is 19 px high.

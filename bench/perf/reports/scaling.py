@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from exo_bench.api.methods import compiled_methods
+from exo_bench.api.methods import matrix_family
 from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
 from exo_bench.bench.perf.reports import simd_goals
@@ -110,13 +110,13 @@ def speed_goals(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
         out.append(f"- Batched, exo5-3d: no `{FAST}` row in this run.")
     big = inv[inv["batched"] & (inv["dim"] == 3) & (inv["n"] == 100) & (inv["topology"] == "chain")] \
         if "topology" in inv else inv.iloc[:0]
-    fam = [f"{m} (numba)" for m in compiled_methods()]
+    fam = [f"{m} (numba)" for m in matrix_family()]
     if big.empty:
         out.append("- n = 100 in 3D, batched: not in this profile (`exo-bench bench --full`).")
     else:
         done = set(big["method"])
         missing = [m for m in fam if m not in done]
-        slow = sorted(m for m in set(inv["method"]) if _base(m) in compiled_methods() and m not in fam and m not in done)
+        slow = sorted(m for m in set(inv["method"]) if _base(m) in matrix_family() and m not in fam and m not in done)
         out.append(f"- n = 100 in 3D, batched: every matrix-family method (compiled, the default kernel) finishes: "
                    f"{_met(not missing)}" + (f" (skipped: {', '.join(missing)})" if missing else f" ({', '.join(fam)})")
                    + (f"; over the time budget: {', '.join(slow)}" if slow else "") + ".")
@@ -212,6 +212,8 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
     lines += speed_goals(inv, skips)
+    from exo_bench.bench.perf.reports.goals_newton_euler import goals_issue22   # newton-euler's goals and forward table
+    lines += goals_issue22(df)
     per = inv[~inv["batched"]].copy()
     per["us_per_call"] = per["median"] * 1e6
     if not per.empty:
@@ -250,7 +252,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
         for dim in sorted(chains["dim"].unique()) if not chains.empty else []:
             d = chains[chains["dim"] == dim]
             pin = pin_of(d)
-            for m in sorted({m for m in d["method"] if _base(m) in compiled_methods()}):
+            for m in sorted({m for m in d["method"] if _base(m) in matrix_family()}):
                 mm = d[d["method"] == m].set_index("n")[value]
                 if len(mm) and len(pin):
                     lines.append(f"- {dim}D, {label}, `{m}` against Pinocchio: crossover {crossover(mm, pin)}")

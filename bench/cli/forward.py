@@ -1,0 +1,48 @@
+"""``exo-bench forward MECHANISM STATES``: forward dynamics, the accelerations for given states and
+forces, as JSON on stdout; a singular configuration is one line naming the sample, the link and the
+reason (exit 2), never NaN."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from exo_bench.bench.cli.inverse import _limits, _load_states, _write_tau, add_limit_args
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    from exo_bench.api import method_names
+
+    s = sub.add_parser("forward", help="forward dynamics: accelerations for given states and forces")
+    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
+    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
+                   "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]")
+    s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
+    add_limit_args(s)
+    s.set_defaults(func=cmd_forward)
+
+
+def cmd_forward(args: argparse.Namespace) -> int:
+    """Forward dynamics: the accelerations ``qdd`` of states ``q, qd, tau``."""
+    from exo_bench.api import method_class, prepare
+    from exo_bench.api.cost_model import check
+    from exo_bench.api.methods import known_wrong_warning
+    from exo_bench.models.loading import load_mechanism
+
+    method_class(args.method)  # an unknown method fails before any file is read
+    mech = load_mechanism(args.mechanism)
+    q, qd, tau = _load_states(args.states, mech, third="tau")
+    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    # forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own
+    rows = q.shape[0] * (1 if args.method == "newton-euler" else mech.dof + 2)
+    check(mech, args.method, rows, options, _limits(args, args.method))   # refuse before any work
+    model = prepare(mech, args.method, **options)
+    warn = known_wrong_warning(args.method, mech.dim)
+    if warn:
+        print(warn, file=sys.stderr)
+    model.check_regular(q)                    # singular configurations: named, before any work
+    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)   # validated above
+    _write_tau(args.method, qdd, sys.stdout, key="qdd")
+    return 0
