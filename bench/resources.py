@@ -434,9 +434,11 @@ EQUATIONS_POINTS: dict[str, dict[int, tuple[tuple[int, float], ...]]] = {
     "python": {2: ((2, 0.05), (5, 0.14), (10, 0.57), (20, 2.4)), 3: ((2, 0.13), (5, 0.95), (10, 3.5), (20, 13.7))},
     "c": {2: ((2, 0.04), (5, 0.08), (10, 0.53), (20, 3.5)), 3: ((2, 0.05), (5, 1.07), (10, 2.5), (20, 15.7))},
     "latex": {2: ((2, 0.02), (5, 0.05), (10, 0.3), (20, 4.0)), 3: ((2, 0.07), (5, 0.45), (10, 1.5), (20, 26.0))},
+    # building and serialising the six CasADi functions of chains (matrix_method/export_casadi.py), 2026-11-23
+    "casadi": {2: ((2, 0.07), (5, 0.04), (10, 0.11), (20, 0.28)), 3: ((2, 0.02), (5, 0.06), (10, 0.17), (20, 0.84))},
 }
 
 
 def equations_estimate(mech: Mechanism, fmt: str) -> float:
-    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c)."""
+    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c, casadi)."""
     return _loglog(list(EQUATIONS_POINTS[fmt][mech.dim]), float(mech.nlinks))
