@@ -149,6 +149,9 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.plausibility import markdown, plausibility
 
         lines += ["", markdown(plausibility(st)).rstrip("\n")]
+    if sc.motion["kind"] == "step" and st.ok_methods():
+        from exo_bench.bench.step.report import markdown as step_markdown  # the predicted step's own section
+        lines += ["", step_markdown(sc, st).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 

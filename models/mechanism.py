@@ -365,7 +365,7 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
     Accepts one sample ``(dof,)`` or a batch ``(samples, dof)``. Rejects wrong shapes, ragged
     rows, entries that are not numbers, NaN/Inf, negative rod lengths (each with a message naming
     the array, sample and coordinate) and states whose forces would overflow float64
-    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). Float64 arrays are not copied; the
+    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). C-ordered float64 arrays are not copied; the
     checks run :data:`CHECK_ROWS` rows at a time.
     """
     names = coordinate_names(mech)
@@ -379,8 +379,8 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
         if isinstance(arr, np.ndarray) and arr.dtype.kind not in "iuf":
             raise ValueError(f"{source}: field '{label}': expected an array of real numbers, got dtype {arr.dtype}")
         try:
-            a = np.asarray(arr, dtype=float)
-        except (TypeError, ValueError, OverflowError):
+            a = np.ascontiguousarray(arr, dtype=float)   # the compiled kernels index C order: a transposed
+        except (TypeError, ValueError, OverflowError):  # (Fortran-ordered) batch gave wrong forces, silently
             raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
         if a.ndim == 1:
             a = a[None, :]

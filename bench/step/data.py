@@ -93,7 +93,7 @@ def load(mechanism: str | Path) -> StoredStep:
                          "solve one with exo-bench gait --solve)")
     with np.load(p, allow_pickle=False) as z:
         meta = json.loads(str(z["meta"]))
-        arrays = {k: np.asarray(z[k], dtype=float) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")}
+        arrays = {k: np.ascontiguousarray(z[k], dtype=float) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")}
     return StoredStep(meta["mechanism"], StepSettings.from_dict(meta["settings"]), meta=meta, **arrays)
 
 

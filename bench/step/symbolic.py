@@ -1,8 +1,8 @@
 """The CasADi functions the step optimisation calls.
 
 * :func:`inverse_dynamics_function` - ``tau = ID(q, qd, qdd)`` of the mechanism as a ``casadi.Function``,
-  taken from the equations' CasADi export (one source of the physics: the same closed forms as the
-  numeric kernels). Everything else here is kinematics.
+  the equations' CasADi export (one source of the physics: the closed forms of the numeric kernels).
+  Everything else here is kinematics.
 * :func:`kinematics_function` - the point masses' positions, velocities and accelerations by CasADi's
   forward differentiation of the positions ``p(q)`` of eq. (7) (no dynamics).
 * :func:`net_loads_function` - the net joint moments and forces of :mod:`models.joint_loads`
@@ -25,17 +25,12 @@ from exo_bench.models.mechanism import Mechanism
 
 
 def inverse_dynamics_function(mech: Mechanism) -> ca.Function:
-    """``tau = ID(q, qd, qdd)``: generalised forces of the paper's coordinates, as a ``casadi.Function``.
+    """``tau = ID(q, qd, qdd)``: generalised forces of the paper's coordinates, as a ``casadi.Function``:
+    the equations' CasADi export (:mod:`matrix_method.export_casadi`, the factored closed forms of
+    ``matrix-factored`` run on CasADi symbols)."""
+    from exo_bench.matrix_method.export_casadi import casadi_functions
 
-    Until the equations' CasADi export is merged this is d'Alembert's principle on the point masses,
-    ``tau = (dp/dq)^T m (a - g)`` (the definition the project's 50-digit reference
-    :mod:`models.virtual_work` evaluates), with the accelerations of :func:`kinematics_function`."""
-    q, qd, qdd = (ca.SX.sym(s, mech.dof) for s in ("q", "qd", "qdd"))
-    p, _, a = _kinematics(mech, q, qd, qdd)
-    f = _mass_forces(mech, a)
-    tau = ca.mtimes(ca.jacobian(ca.vertcat(*p), q).T, ca.vertcat(*f))
-    return ca.Function(f"{_ident(mech)}_inverse_dynamics", [q, qd, qdd], [tau],
-                       ["q", "qd", "qdd"], ["tau"])
+    return casadi_functions(mech).inverse_dynamics
 
 
 def _ident(mech: Mechanism) -> str:
