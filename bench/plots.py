@@ -680,9 +680,6 @@ def scene_figure(study: Study, kind: str) -> Figure | None:
             "differences": differences_figure, "overview": overview_figure}
     if kind not in make:
         raise ValueError(f"scene figure: field 'kind': expected one of {', '.join(FIGURES)}, got {kind!r}")
-    if kind == "kinogram" and getattr(study.motion, "origin", None) is not None:   # a walking motion
-        from exo_bench.bench.step.figures import walking_kinogram
-        return walking_kinogram(study)
     return make[kind](study)
 
 

@@ -11,10 +11,11 @@ Format (every key is checked; an error names the file and the field)::
                "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/equations.py)
 
     [motion]
-    kind = "gait"                         # gait | planar-gait | smooth-random | states
+    kind = "gait"                         # gait | planar-gait | smooth-random | states | step
     periods = 1.0                         # gait, planar-gait
     samples_per_period = 1000             # gait, planar-gait
     # duration = 2.0, samples = 400, seed = 0   (smooth-random)
+    # steps = 2                           (step: the stored predicted step of the mechanism, bench/step/scene.py)
     # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
     #                                      t strictly increasing, at least 2 samples)
 
