@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import sys
 
 import numpy as np
 
@@ -83,7 +84,11 @@ def cmd_gait(args) -> int:
         from exo_bench.bench.step.problem import StepSettings
 
         stored, settings = None, StepSettings(dim=args.dim)
-    sol = solve(mech, settings, verbose=args.verbose)
+    try:
+        sol = solve(mech, settings, verbose=args.verbose)
+    except RuntimeError as e:        # IPOPT did not converge: one line, exit 2, nothing written
+        print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
+        return 2
     st = sol.stats
     print(f"{mech.name}: IPOPT {st['status']} in {st['iterations']} iterations, {st['solve_seconds']:.2f} s "
           f"(this host, now); constraint violation {st['constraint_violation']:.1e} (CasADi); objective {st['objective']:.8g}; "

@@ -213,23 +213,34 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
 
     opti = ca.Opti()
     T = opti.variable()
-    Q, V, A = opti.variable(dof, K), opti.variable(dof, K), opti.variable(dof, K)
+    # 3D with the azimuths fixed at 0: they are no variables (as equality constraints they would repeat the
+    # leg swap's and the landing's azimuth rows, and IPOPT's KKT matrix would be singular)
+    planar3d = dim == 3 and s.azimuth == 0
+    free = slice(n, dof) if planar3d else slice(0, dof)
+    nf = dof - n if planar3d else dof
+    Xq, Xv, Xa = opti.variable(nf, K), opti.variable(nf, K), opti.variable(nf, K)
+    if planar3d:
+        Q, V, A = (ca.vertcat(ca.MX.zeros(n, K), X) for X in (Xq, Xv, Xa))
+    else:
+        Q, V, A = Xq, Xv, Xa
     h = T / N
     # Hermite-Simpson, separated form
     e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)      # interval starts, midpoints, ends
-    opti.subject_to(Q[:, m_] == (Q[:, e] + Q[:, o]) / 2 + h / 8 * (V[:, e] - V[:, o]))
-    opti.subject_to(V[:, m_] == (V[:, e] + V[:, o]) / 2 + h / 8 * (A[:, e] - A[:, o]))
-    opti.subject_to(Q[:, o] - Q[:, e] == h / 6 * (V[:, e] + 4 * V[:, m_] + V[:, o]))
-    opti.subject_to(V[:, o] - V[:, e] == h / 6 * (A[:, e] + 4 * A[:, m_] + A[:, o]))
+    opti.subject_to(Xq[:, m_] == (Xq[:, e] + Xq[:, o]) / 2 + h / 8 * (Xv[:, e] - Xv[:, o]))
+    opti.subject_to(Xv[:, m_] == (Xv[:, e] + Xv[:, o]) / 2 + h / 8 * (Xa[:, e] - Xa[:, o]))
+    opti.subject_to(Xq[:, o] - Xq[:, e] == h / 6 * (Xv[:, e] + 4 * Xv[:, m_] + Xv[:, o]))
+    opti.subject_to(Xv[:, o] - Xv[:, e] == h / 6 * (Xa[:, e] + 4 * Xa[:, m_] + Xa[:, o]))
     tau, M, F, P, Pd = point.map(K)(Q, V, A)
     # leg swap, landing point and no impact
     S = swap_matrix(mech)
-    opti.subject_to(Q[:, 0] == ca.mtimes(S, Q[:, K - 1]))
-    opti.subject_to(V[:, 0] == ca.mtimes(S, V[:, K - 1]))
+    Sf = S[free, free]
+    opti.subject_to(Xq[:, 0] == ca.mtimes(Sf, Xq[:, K - 1]))
+    opti.subject_to(Xv[:, 0] == ca.mtimes(Sf, Xv[:, K - 1]))
     ankle = lambda X, j: X[(3 * 3 + 2) * dim: (3 * 3 + 3) * dim, j]     # link 4, end mass
     target = [s.speed * T] + [0.0] * (dim - 1)
-    opti.subject_to(ankle(P, K - 1) == ca.vertcat(*target))
-    opti.subject_to(ankle(Pd, K - 1) == 0)
+    axes = [0, dim - 1] if planar3d else list(range(dim))     # planar 3D: y is 0 identically
+    opti.subject_to(ankle(P, K - 1)[axes] == ca.vertcat(*target)[axes])
+    opti.subject_to(ankle(Pd, K - 1)[axes] == 0)
     # swing foot clearance: every swing-leg point mass (links 3 and 4), vertical axis
     lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
     for i in (2, 3):
@@ -242,7 +253,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     # ground reaction at O: pushes, in the friction cone
     Fx, Fz = F[0, :], F[dim - 1, :]
     opti.subject_to(Fz >= s.min_support * bw)
-    if dim == 2:
+    if dim == 2 or planar3d:   # the lateral force is 0 identically in a planar step: a linear cone
         opti.subject_to(opti.bounded(-s.friction * Fz, Fx, s.friction * Fz))
     else:
         opti.subject_to(Fx ** 2 + F[1, :] ** 2 <= (s.friction * Fz) ** 2)
@@ -259,7 +270,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     a, b, l5 = s.rest_lengths
     for i, L in enumerate((a, b, b, a, l5)):
         opti.subject_to(opti.bounded(L - s.stroke, Q[dof - n + i, :], L + s.stroke))
-    if dim == 3:
+    if dim == 3 and not planar3d:
         for i in range(n):
             if s.azimuth == 0:
                 opti.subject_to(Q[i, :] == 0)
@@ -276,9 +287,9 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     # initial guess
     t0, q0, qd0, qdd0 = initial_guess(mech, s)
     opti.set_initial(T, float(t0[-1]))
-    opti.set_initial(Q, q0.T)
-    opti.set_initial(V, qd0.T)
-    opti.set_initial(A, qdd0.T)
+    opti.set_initial(Xq, q0[:, free].T)
+    opti.set_initial(Xv, qd0[:, free].T)
+    opti.set_initial(Xa, qdd0[:, free].T)
     opts = {"ipopt.tol": s.tol, "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_iter": 0,
             "ipopt.bound_relax_factor": 0.0, "ipopt.max_iter": 3000, "ipopt.mu_strategy": "adaptive",
             "ipopt.print_level": 5 if verbose else 0, "print_time": verbose, "ipopt.sb": "yes"}
