@@ -253,6 +253,7 @@ class Simulation:
     outside: int = 0                  # trial stages outside the domain (l < 0): NaN, step rejected
     solution: object | None = field(default=None, repr=False)   # dense output when asked for
     jacobian: str = "finite-difference"   # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
+    jacobian_columns: int = 0             # of nfev, the columns spent on scipy's finite-difference Jacobians
 
     @property
     def ok(self) -> bool:
@@ -277,11 +278,13 @@ def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | No
     :class:`IntegrationBudgetExceeded`."""
     mech = model.mechanism
     d = mech.dof
-    count = {"columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
+    count = {"columns": 0, "jacobian_columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         Y = y.reshape(2 * d, -1).T                 # (k, 2d): one row per column of y
         count["columns"] += Y.shape[0]
+        if Y.shape[0] > 1:                         # only scipy's finite-difference Jacobian asks for several
+            count["jacobian_columns"] += Y.shape[0]
         if max_evaluations is not None and count["columns"] > max_evaluations:
             raise IntegrationBudgetExceeded(f"gave up after {max_evaluations} right-hand-side evaluations "
                                             f"(t = {t:.4g} s)")
@@ -395,4 +398,5 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
         njev, nlu = 0, 0
     seconds = time.perf_counter() - t0
     return Simulation(integrator, rtol, atol, np.asarray(steps_t), np.asarray(steps_y), count["columns"],
-                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol, jacobian)
+                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol, jacobian,
+                      count["jacobian_columns"])

@@ -273,9 +273,9 @@ CASES = [
          "method: expected one of"),
     # ---------------------------------------------------------------- exo-bench equations
     Case("equations-format", "equations: an unknown format", lambda d: ["equations", "fig2a-2d", "--format", "pdf",
-                                                                          "-o", d], "expected one of latex, python, c"),
+                                                                          "-o", d], "expected one of latex, python, c, casadi"),
     Case("equations-no-format", "equations: no format", lambda d: ["equations", "fig2a-2d", "-o", d],
-         "expected one of latex, python, c, got nothing"),
+         "expected one of latex, python, c, casadi, got nothing"),
     Case("equations-mechanism", "equations: an unknown mechanism", lambda d: ["equations", "fig9-2d", "--format", "c",
                                                                               "-o", d], "not a preset"),
     Case("equations-output-file", "equations: -o naming a file", lambda d: [

@@ -125,12 +125,19 @@ def _central(f, x, k, h):
 
 @pytest.mark.parametrize("mech", TREES, ids=IDS)
 def test_inverse_dynamics_derivatives_against_central_differences(mech):
-    """d tau/d q and d tau/d qd of ``model.derivatives`` against central differences of the numeric
-    kernel, within the truncation + rounding bound of the module docstring."""
+    """d tau/d q and d tau/d qd of ``model.derivatives`` against central differences of inverse
+    dynamics computed independently, by Pinocchio's RNEA (and of the numeric kernel), within the
+    truncation + rounding bound of the module docstring (conftest's term scale covers Pinocchio's
+    rounding)."""
     model = prepare(mech, "matrix-factored", kernel="numpy")
     q, qd, qdd = _states(mech, samples=6, seed=5)
     jq, jqd, M = model.derivatives.inverse_dynamics(q, qd, qdd)
-    ID = lambda a, b, c: model.inverse_dynamics(a, b, c, check=False)
+    for ref in (prepare(mech, "pinocchio"), model):
+        _against_central_differences(mech, ref, q, qd, qdd, jq, jqd)
+
+
+def _against_central_differences(mech, ref, q, qd, qdd, jq, jqd):
+    ID = lambda a, b, c: ref.inverse_dynamics(a, b, c, check=False)
     h = 1e-5
     n = mech.nlinks
     grow = h * np.maximum(1.0, np.abs(q)).max() * 2
