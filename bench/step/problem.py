@@ -292,7 +292,8 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     opti.set_initial(Xa, qdd0[:, free].T)
     opts = {"ipopt.tol": s.tol, "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_iter": 0,
             "ipopt.bound_relax_factor": 0.0, "ipopt.max_iter": 3000, "ipopt.mu_strategy": "adaptive",
-            "ipopt.print_level": 5 if verbose else 0, "print_time": verbose, "ipopt.sb": "yes"}
+            "ipopt.print_level": 5 if verbose else 0, "print_time": verbose, "ipopt.sb": "yes",
+            "expand": True}   # SX: the exact Hessian costs half of the MX one here
     opti.solver("ipopt", opts)
     t_start = time.perf_counter()
     try:
