@@ -2,8 +2,8 @@
 every method against the optimiser's loads (error model of tests/conftest.py); the walk it makes; the leg
 swap's relabelling derived from the rod vectors; the report's plausibility table; and ``exo-bench gait --solve``.
 
-The last (:func:`test_gait_solve_reproduces_the_stored_step`) solves the 2D step with IPOPT: about 20 s of CPU,
-45 s on a loaded 2-core host; it is marked ``slow`` (deselect with ``-m 'not slow'``).
+The last (:func:`test_gait_solve_reproduces_the_stored_step`) solves the 2D step with IPOPT: about 30 s on a
+loaded 2-core host; it is marked ``slow`` (deselect with ``-m 'not slow'``).
 """
 
 import re
