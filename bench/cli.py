@@ -355,6 +355,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     from exo_bench.bench.equations import add_parser  # exo-bench equations (bench/equations.py)
     add_parser(sub)
+    from exo_bench.bench.step.command import add_parser as add_gait  # exo-bench gait (bench/step/command.py)
+    add_gait(sub)
     return p
 
 

@@ -197,7 +197,10 @@ def _describe(study: Study) -> tuple[str, dict]:
              f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
              f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`."]
     plaus = plausibility(study)
-    if plaus is not None:
+    if plaus is not None and getattr(study.motion, "origin", None) is not None:   # the predicted step
+        from exo_bench.bench.step.report import text as step_text
+        lines += ["", "## Loads", "", step_text(study)]
+    elif plaus is not None:
         lines += ["", "## Loads", "", plausibility_text(plaus)]
     lines += ["", "## Methods", "", f"Methods: {', '.join(ok) if ok else 'none succeeded'}; reference: {ref}."]
     for m, r in study.results.items():
@@ -243,7 +246,11 @@ def _send_series(stream: rr.RecordingStream, entity: str, times: rr.TimeColumn, 
 def _log_world(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) -> None:
     mech = study.mechanism
     S, n = study.motion.t.shape[0], mech.nlinks
-    P = world_positions(mech, study.motion.q).astype(np.float32)      # (S, n, 3, 3)
+    P = world_positions(mech, study.motion.q)                         # (S, n, 3, 3)
+    origin = getattr(study.motion, "origin", None)                    # a walking motion: where O stands
+    if origin is not None:
+        P = P + (origin if mech.dim == 3 else np.stack([origin[:, 0], 0 * origin[:, 0], origin[:, 1]], -1))[:, None, None]
+    P = P.astype(np.float32)
     link_rgb = [_rgb(link_color(i)) for i in range(n)]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     stream.log("world/support", rr.Points3D([[0.0, 0.0, 0.0]], radii=0.03, colors=[(0, 0, 0)],

@@ -149,6 +149,9 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.plausibility import markdown, plausibility
 
         lines += ["", markdown(plausibility(st)).rstrip("\n")]
+    if sc.motion["kind"] == "step" and st.ok_methods():
+        from exo_bench.bench.step.report import markdown as step_markdown  # the predicted step's own section
+        lines += ["", step_markdown(sc, st).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
@@ -184,7 +187,11 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     if figures and o.study.ok_methods():
         from exo_bench.bench import plots  # matplotlib only for scenes that ask for figures
         for kind in figures:
-            fig = plots.scene_figure(o.study, kind)
+            if kind == "kinogram" and getattr(o.study.motion, "origin", None) is not None:   # a walking motion
+                from exo_bench.bench.step.figures import walking_kinogram
+                fig = walking_kinogram(o.study)
+            else:
+                fig = plots.scene_figure(o.study, kind)
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
