@@ -362,6 +362,8 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
     lines += goals_issue12(inv, skips)
+    from exo_bench.bench.goals_newton_euler import goals_issue22   # newton-euler's goals and forward table
+    lines += goals_issue22(df)
     per = inv[~inv["batched"]].copy()
     per["us_per_call"] = per["median"] * 1e6
     if not per.empty:

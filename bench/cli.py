@@ -27,9 +27,10 @@ class _UsageError(Exception):
     pass
 
 
-def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
-    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file)."""
+    NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file).
+    ``third="tau"``: forward dynamics' states ``q``, ``qd``, ``tau``."""
     from exo_bench.models.loading import read_json
     from exo_bench.models.mechanism import as_states
 
@@ -38,10 +39,13 @@ def _load_states(path: str, mech) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         data = _read_npz(path, what)
     else:
         data = read_json(path, what)
-    if not isinstance(data, dict) or not {"q", "qd", "qdd"} <= data.keys():
+    if not isinstance(data, dict) or not {"q", "qd", third} <= data.keys():
         got = sorted(data) if isinstance(data, dict) else type(data).__name__
-        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {got}")
-    return as_states(mech, data["q"], data["qd"], data["qdd"], source=what)
+        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', '{third}'], got {got}")
+    try:
+        return as_states(mech, data["q"], data["qd"], data[third], source=what)
+    except ValueError as e:   # as_states calls its third array qdd
+        raise ValueError(str(e).replace("field 'qdd'", f"field '{third}'").replace("qdd must", f"{third} must")) from None
 
 
 def _read_npz(path: str, what: str) -> dict:
@@ -62,7 +66,7 @@ def _read_npz(path: str, what: str) -> dict:
                          "use (--max-memory does not raise this); split the batch")
     try:
         with np.load(p, allow_pickle=False) as z:
-            return {k: (z[k] if k in ("q", "qd", "qdd") else None) for k in z.files}
+            return {k: (z[k] if k in ("q", "qd", "qdd", "tau") else None) for k in z.files}
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     except ValueError as e:
@@ -78,10 +82,10 @@ def _limits(args, method: str):
                   budget=getattr(args, "budget", None) if method == "lagrange" else None)
 
 
-def _write_tau(method: str, tau: np.ndarray, out) -> None:
-    """``{"method": ..., "tau": [[...], ...]}`` written row block by row block (no list of the
-    whole batch is built); non-finite values are null (JSON has no NaN)."""
-    out.write(json.dumps({"method": method})[:-1] + ', "tau": [')
+def _write_tau(method: str, tau: np.ndarray, out, key: str = "tau") -> None:
+    """``{"method": ..., "tau": [[...], ...]}`` (or ``key``) written row block by row block (no list of
+    the whole batch is built); non-finite values are null (JSON has no NaN)."""
+    out.write(json.dumps({"method": method})[:-1] + f', "{key}": [')
     for s0 in range(0, tau.shape[0], 4096):
         block = tau[s0:s0 + 4096]
         rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]
@@ -108,6 +112,30 @@ def known_wrong_warning(method: str, dim: int) -> str | None:
         return f"exo-bench: warning: method {method!r}: {KNOWN_WRONG[method]}"
     return (f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
             "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")
+
+
+def cmd_forward(args) -> int:
+    """Forward dynamics: the accelerations ``qdd`` of states ``q, qd, tau``; a singular configuration
+    is one line naming the sample, the link and the reason (exit 2), never NaN."""
+    from exo_bench.bench.methods import method_class, prepare
+    from exo_bench.bench.resources import check
+    from exo_bench.models.loading import load_mechanism
+
+    method_class(args.method)  # an unknown method fails before any file is read
+    mech = load_mechanism(args.mechanism)
+    q, qd, tau = _load_states(args.states, mech, third="tau")
+    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    # forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own
+    rows = q.shape[0] * (1 if args.method == "newton-euler" else mech.dof + 2)
+    check(mech, args.method, rows, options, _limits(args, args.method))   # refuse before any work
+    model = prepare(mech, args.method, **options)
+    warn = known_wrong_warning(args.method, mech.dim)
+    if warn:
+        print(warn, file=sys.stderr)
+    model.check_regular(q)                    # singular configurations: named, before any work
+    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)   # validated above
+    _write_tau(args.method, qdd, sys.stdout, key="qdd")
+    return 0
 
 
 def cmd_inverse(args) -> int:
@@ -211,7 +239,8 @@ def _report_job(run, args, command: str) -> int:
 def _on_cluster(args) -> bool:
     """The full sweep runs on a Dask cluster (bench/distributed.py); so does the quick one when
     --workers or --scheduler is given."""
-    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler)
+    return bool(getattr(args, "full", False) or args.workers is not None or args.scheduler
+                or getattr(args, "rows", None))
 
 
 def cmd_bench(args) -> int:
@@ -275,6 +304,16 @@ def _workers_arg(text: str) -> int:
     return value
 
 
+def _limit_args(s) -> None:
+    """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
+    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
+                   help="seconds for lagrange's symbolic derivation (default 120)")
+    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
+    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
+                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
+                        "(default: no limit)")
+
+
 def _cluster_args(s) -> None:
     s.add_argument("--workers", type=_workers_arg, default=None, metavar="N",
                    help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
@@ -304,13 +343,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--method", default="pinocchio",
                    help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
-    s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
-    s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
-    s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
-                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
-                        "(default: no limit)")
+    _limit_args(s)
     s.set_defaults(func=cmd_inverse)
+
+    s = sub.add_parser("forward", help="forward dynamics: accelerations for given states and forces")
+    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
+    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
+                   "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]")
+    s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
+    _limit_args(s)
+    s.set_defaults(func=cmd_forward)
 
     s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
     s.add_argument("mechanism")
@@ -338,6 +380,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--update-readme", action="store_true",
                    help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    s.add_argument("--rows", action="append", default=None, metavar="PATTERN",
+                   help="run only the sweep's rows whose key matches PATTERN (shell-style, repeatable; e.g. "
+                        "'*test_forward_dynamics.py:3d-chain-*'); their reports go to REPORTS/selected-rows, never over "
+                        "a whole sweep's, and their checkpoints are resumed by a later whole sweep")
     _cluster_args(s)
     s.set_defaults(func=cmd_bench)
 

@@ -443,12 +443,31 @@ def bench_run(args) -> int:
     out = (Path(args.reports) if getattr(args, "reports", None) else REPORTS).resolve()
     command = "exo-bench bench" + (" --full" if full else "")
     check_scheduler(args.scheduler)
+    only = None
+    if getattr(args, "rows", None):       # a selection: its own report folder, the same checkpoints
+        only = selected_rows(sweep, args.rows)
+        command += "".join(f" --rows '{p}'" for p in args.rows)
     outcome = run_sweep(["bench"], sweep, checkpoints=default_checkpoints(out), scheduler=args.scheduler,
-                        workers=args.workers)
+                        workers=args.workers, only=only)
+    if only is not None:
+        out = out / "selected-rows"
     print(f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
           f"from checkpoints, {outcome.seconds:.0f} s", flush=True)
     _write_reports(outcome.merged, outcome.skips, out, sweep, command, bool(getattr(args, "update_readme", False)))
     return 0
+
+
+def selected_rows(sweep: str, patterns: list[str]) -> list[str]:
+    """The keys of the benchmark rows that match any of the shell-style ``patterns``; a ValueError
+    naming some keys when none does."""
+    from fnmatch import fnmatchcase
+
+    keys = [r["key"] for r in enumerate_rows(["bench"], sweep)]
+    only = [k for k in keys if any(fnmatchcase(k, p) for p in patterns)]
+    if not only:
+        raise ValueError(f"--rows: no row of the {sweep} sweep matches {', '.join(map(repr, patterns))}; "
+                         f"rows look like {', '.join(keys[:3])} ({len(keys)} rows)")
+    return only
 
 
 def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: str, update_readme: bool) -> list[Path]:

@@ -36,6 +36,10 @@ METHODS: dict[str, tuple[str, str, str]] = {
     "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
                    "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                    "loops (option kernel: numba, the default, or numpy)"),
+    "newton-euler": ("exo_bench.models.newton_euler.prepared", "NewtonEuler",
+                     "O(n) passes over the tree in the rod vectors r_i = s_i l_i u_i (M = J^T M_r J, M_r constant), "
+                     "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, "
+                     "or numpy)"),
     "mujoco": ("exo_bench.models.mujoco_backend", "MujocoRNE",
                "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
                "a Python loop over the samples (optional extra [peers])"),

@@ -137,7 +137,7 @@ def _matrix_setup(mech, options):
 
 
 #: Methods whose default kernel is compiled by numba (option ``kernel="numba"``).
-NUMBA_METHODS = ("matrix-factored", "matrix", "recurrence")
+NUMBA_METHODS = ("matrix-factored", "matrix", "recurrence", "newton-euler")
 #: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
 #: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
 #: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
@@ -148,7 +148,8 @@ NUMBA_BYTES = 128 * 2**20
 #: matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up. Paid once per machine (and per edit of a
 #: kernel's file), so it is named in the estimate's note and not added to its seconds: a time
 #: limit guards the run, and the run's time does not depend on the state of the cache.
-NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0}
+NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0,
+                         "newton-euler": 15.0}   # newton-euler: 11.7 s (serial and parallel, one dim), busy machine
 
 
 def _numba(options: dict, method: str) -> bool:
@@ -226,6 +227,14 @@ MODELS: dict[str, CostModel] = {
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
         sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
         note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
+    # newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample; its numpy
+    # kernel holds a few dozen (n, dim, samples) arrays. Not calibrated yet: rounded-up bounds.
+    "newton-euler": CostModel(
+        lambda m, o: F8 * 16 * m.nlinks + 2**20 + (NUMBA_BYTES if _numba(o, "newton-euler") else 0),
+        lambda m, o: 0.01 + 2e-6 * m.nlinks,
+        sample_bytes=lambda n, d: F8 * 40 * d * n,
+        sample_seconds=lambda n, d: (1.0 + 0.05 * d * n) * 1e-6,
+        note=_compiled_note("newton-euler", lambda m: f"O(n) per sample, two passes over the tree (n = {m.nlinks})")),
     # The peers (extra [peers]): a Python loop over samples into MuJoCo / Drake. Peak RSS growth of
     # prepare + one call on 3D chains of 10 and 100 links: MuJoCo 12 / 33 MB, Drake 16 / 50 MB; per
     # sample on the shared 2-core machine (noisy, rounded up): MuJoCo 27-70 us at n = 5, ~1.1 ms at
@@ -243,7 +252,7 @@ MODELS: dict[str, CostModel] = {
 }
 
 #: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).
-PREFERENCE = ("matrix-factored", "matrix", "pinocchio", "recurrence", "lagrange")
+PREFERENCE = ("matrix-factored", "newton-euler", "matrix", "pinocchio", "recurrence", "lagrange")
 
 #: Target bytes of one chunk's temporaries.
 CHUNK_BYTES = 64 * 2**20

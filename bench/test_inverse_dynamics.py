@@ -66,7 +66,7 @@ K = 16
 EPS = float(np.finfo(float).eps)
 PAPER_WRONG_3D = 1e-3            # the printed eq. (18) is off by far more than this in 3D (reports/errata.md)
 #: Methods with the option ``kernel``: each is a row per kernel.
-COMPILED = ("matrix-factored", "matrix", "recurrence")
+COMPILED = ("matrix-factored", "matrix", "recurrence", "newton-euler")
 KERNELS = ("numba", "numpy")
 BATCHED = (*METHODS, "pinocchio-parallel")
 #: Per call, each engine's own calls on preallocated joint-coordinate arrays (no G maps, no wrapper):
@@ -89,10 +89,20 @@ def _variants(methods):
     return [(m, k) for m in methods for k in (KERNELS if m in COMPILED else (None,))]
 
 
-def _cases(ns, methods):
+def _cases(ns, methods, sw=None):
     cases = [(m, k, n, d, "chain") for d in (2, 3) for n in ns for m, k in _variants(methods)]
     cases += [(m, k, 5, 3, "exo5") for m, k in _variants(methods)]  # the paper's five-link model: the goal rows
+    if sw is not None:   # batched: the scaling rows (3D chains), every method within its budget, then newton-euler alone
+        cases += [(m, k, n, 3, "chain") for n in sw.scaling_n for m, k in _variants(methods)]
+        cases += [(m, k, n, 3, "chain") for n in sw.newton_euler_n for m, k in _variants(["newton-euler"])]
     return cases
+
+
+def batch_samples(sw, mech) -> int:
+    """Samples of a batched row: the profile's, capped so that q, qd, qdd and tau take at most
+    ``sw.array_bytes`` (n = 10,000 in 3D: 139 samples of 30,000 coordinates); per-sample costs are
+    compared, so the cap changes no ratio beyond the per-call overhead it amortises less."""
+    return int(max(1, min(sw.samples, sw.array_bytes // (4 * 8 * mech.dof))))
 
 
 def pytest_generate_tests(metafunc):
@@ -100,7 +110,7 @@ def pytest_generate_tests(metafunc):
         return
     sw = current(metafunc.config.getoption("--sweep"))
     batched = metafunc.function.__name__ == "test_inverse_batched"
-    cases = _cases(sw.inverse_n, BATCHED) if batched else _cases(sw.per_call_n, PER_CALL)
+    cases = _cases(sw.inverse_n, BATCHED, sw) if batched else _cases(sw.per_call_n, PER_CALL)
     metafunc.parametrize("method,kernel,n,dim,topology", cases,
                          ids=[f"{row_name(m, k).replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
                               for m, k, n, d, t in cases])
@@ -179,20 +189,38 @@ def _info(benchmark, method, kernel, n, dim, topology, mech, **more):
 def test_inverse_batched(benchmark, sweep, method, kernel, n, dim, topology):
     benchmark.group = f"inverse-batched-{dim}d"
     mech = _mechanism(n, dim, topology)
-    mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, sweep.samples), seed=n)
+    samples = batch_samples(sweep, mech)
+    if n > max(sweep.inverse_n):             # the scaling rows: the cost model first (a probe of an O(n^3) method takes minutes)
+        from exo_bench.bench.resources import estimate
+
+        base = {"pinocchio-parallel": "pinocchio"}.get(method, method)
+        est = estimate(mech, base, samples, {"kernel": kernel} if kernel else {}).seconds
+        if est > 10 * sweep.inverse_budget:
+            pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected by the cost model "
+                        f"(bench/resources.py) {est:.0f} s per batch of {samples} > 10 x {sweep.inverse_budget:g} s")
+    mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, samples), seed=n)
     q, qd, qdd = mo.q, mo.qd, mo.qdd
     model = _prepare(method, kernel, mech, sweep, batch=(q, qd, qdd))
-    probe = min(50, sweep.samples)
+    # one sample first (twice: the first call pays caches and JIT): at n = 1000 a 50-sample probe of
+    # an O(n^3) method would take minutes
+    model.inverse_dynamics(q[:1], qd[:1], qdd[:1], check=False)
+    t0 = time.perf_counter()
+    model.inverse_dynamics(q[:1], qd[:1], qdd[:1], check=False)
+    one = time.perf_counter() - t0
+    if one * samples > 10 * sweep.inverse_budget:
+        pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected from one sample "
+                    f"{one * samples:.1f} s per batch of {samples} > {sweep.inverse_budget:g} s")
+    probe = min(50, samples)
     model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)    # first-call costs (caches, JIT)
     t0 = time.perf_counter()
     model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)
-    projected = (time.perf_counter() - t0) * sweep.samples / probe
+    projected = (time.perf_counter() - t0) * samples / probe
     if projected > sweep.inverse_budget:
         pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of "
-                    f"{sweep.samples} > {sweep.inverse_budget:g} s")
+                    f"{samples} > {sweep.inverse_budget:g} s")
     model.inverse_dynamics(q, qd, qdd, check=False)      # the parallel driver's first use (compiled kernels)
     rounds = max(3, min(20, int(2.0 / max(projected, 1e-9))))
-    _info(benchmark, method, kernel, n, dim, topology, mech, samples=sweep.samples, batched=True,
+    _info(benchmark, method, kernel, n, dim, topology, mech, samples=samples, batched=True,
           threads=model.options.get("threads", ""))
     tau = benchmark.pedantic(model.inverse_dynamics, args=(q, qd, qdd), kwargs={"check": False}, rounds=rounds,
                              iterations=1, warmup_rounds=1)

@@ -51,45 +51,17 @@ model called from several threads at once runs the serial driver in the others (
 
 from __future__ import annotations
 
-import os
-import threading
 import time
 from collections import namedtuple
 
-import numba
 import numpy as np
 from numba import njit  # noqa: F401 - re-exported for the kernel modules
 from numba.extending import register_jitable
 
 from exo_bench.matrix_method import planar, spatial
 from exo_bench.models import equation_form
-
-def _threading_layer() -> str:
-    """Choose numba's ``workqueue`` threading layer (module docstring) when nobody chose one yet;
-    return the layer numba will use (or uses)."""
-    try:
-        from numba.np.ufunc import parallel
-        started = bool(parallel._is_initialized)
-    except (ImportError, AttributeError):
-        started = True
-    if not started and "NUMBA_THREADING_LAYER" not in os.environ:
-        numba.config.THREADING_LAYER = "workqueue"
-    return numba.config.THREADING_LAYER
-
-
-THREADING_LAYER = _threading_layer()
-
-#: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
-#: fastmath: the kernels are held to the numpy reference at 1e-14).
-JIT = dict(cache=True, nogil=True)
-#: Samples per block of the parallel driver (each block allocates its scratch once).
-BLOCK = 64
-#: Batches of at least this many samples run the parallel driver (below it, launching numba's
-#: Batches of at least this many samples run the parallel driver. Below it, waking numba's threads
-#: costs more than it saves: on the 2-core machine (quiet) exo5-3d took 0.12 us/sample serial at
-#: every size, and in parallel 0.20-0.34 us/sample at 600-2048 samples, 0.09-0.17 at 4096, 0.08 at
-#: 8192, 0.07 at 10,000-20,000.
-PARALLEL_MIN_SAMPLES = 4096
+from exo_bench.models.numba_threads import (  # noqa: F401 - shared with models.newton_euler, re-exported
+    BLOCK, JIT, PARALLEL_MIN_SAMPLES, THREADING_LAYER, _PARALLEL, _threading_layer, run)
 
 for _fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()):
     for _f in _fns.values():
@@ -131,20 +103,6 @@ def params(c: np.ndarray, nu_s: np.ndarray, g: float) -> np.ndarray:
     p[:, :n], p[:, n], p[:, n + 1] = c, nu_s, g
     p.flags.writeable = False
     return p
-
-
-_PARALLEL = threading.Lock()
-
-
-def run(serial, parallel, args: tuple, samples: int):
-    """``serial(*args)``, or ``parallel(*args)`` for a batch of at least :data:`PARALLEL_MIN_SAMPLES`
-    samples when no other thread is in a parallel driver (then the serial one: same result)."""
-    if samples >= PARALLEL_MIN_SAMPLES and _PARALLEL.acquire(blocking=False):
-        try:
-            return parallel(*args)
-        finally:
-            _PARALLEL.release()
-    return serial(*args)
 
 
 def compile_times(kernels: dict, args: dict) -> dict[str, dict]:

@@ -41,14 +41,9 @@ from typing import Callable
 
 import numpy as np
 
-from exo_bench.models.aggregates import coupling
 from exo_bench.models.mechanism import Mechanism, as_states, split
 from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
-
-#: ``|cos psi|`` at or below which a rod counts as vertical to working precision. The float
-#: nearest pi/2 has ``cos = 6.1e-17``; angles within two units in the last place of pi/2
-#: (ulp = 2.2e-16) stay below 5e-16. 1e-15 covers them with a margin and no more.
-COS_VERTICAL = 1e-15
+from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
 
 #: The explicit and implicit integrators of ``scipy.integrate.solve_ivp`` that the suite uses.
 EXPLICIT = ("RK45", "DOP853")
@@ -56,18 +51,6 @@ IMPLICIT = ("Radau", "BDF")
 INTEGRATORS = EXPLICIT + IMPLICIT
 
 Controls = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
-
-
-class SingularConfigurationError(ValueError):
-    """The mass matrix is singular: forward dynamics is not defined at this state.
-
-    ``reasons`` lists, per offending sample, what makes it singular (link, coordinate, why).
-    """
-
-    def __init__(self, reasons: list[str]):
-        self.reasons = reasons
-        more = f" (and {len(reasons) - 1} more)" if len(reasons) > 1 else ""
-        super().__init__(f"forward dynamics is not defined: singular mass matrix: {reasons[0]}{more}")
 
 
 # --------------------------------------------------------------------------- mass matrix and bias
@@ -83,41 +66,6 @@ def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, vi
         return terms_from_inverse_dynamics(lambda a, b, c: model.inverse_dynamics(a, b, c, check=False),
                                            model.dof, q, qd)
     return model.mass_matrix_and_bias(q, qd, check=False)
-
-
-def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
-    """Per sample, why the mass matrix is exactly singular there (an empty list: it is not).
-
-    Three causes, each exact (see the module docstring): the mass distribution ``mu`` is
-    singular (some rod motion moves no mass), a rod has length zero, or (3D) a rod is vertical
-    to working precision (``|cos psi| <= COS_VERTICAL``).
-    """
-    q, _, _ = as_states(mech, q)
-    _, psi, l = split(mech, q)
-    names = mech.names
-    always: list[str] = []
-    mu = coupling(mech)
-    for i in range(mech.nlinks):
-        if mu[i, i] == 0:
-            always.append(f"link {i + 1} ({names[i]}): no mass moves with its coordinates "
-                          "(no middle or end mass, nothing hanging from it)")
-    if not always:
-        ev = np.linalg.eigvalsh(mu)
-        if ev[0] <= mech.nlinks * np.finfo(float).eps * ev[-1]:
-            always.append("the mass distribution leaves a combination of rod motions without inertia "
-                          f"(smallest eigenvalue of mu {ev[0]:.3g} kg, largest {ev[-1]:.3g} kg)")
-    out = []
-    for s in range(q.shape[0]):
-        r = list(always)
-        for i in range(mech.nlinks):
-            if l[s, i] == 0:
-                r.append(f"link {i + 1} ({names[i]}): rod length l{i + 1} = 0, its angles move no mass")
-            elif psi is not None and abs(np.cos(psi[s, i])) <= COS_VERTICAL:
-                r.append(f"link {i + 1} ({names[i]}): vertical rod (psi{i + 1} = {float(psi[s, i])!r}, "
-                         f"|cos psi{i + 1}| = {abs(np.cos(psi[s, i])):.2g}): its azimuth phi{i + 1} is undefined "
-                         "and its column of M vanishes")
-        out.append(r)
-    return out
 
 
 def condition_numbers(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

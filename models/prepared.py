@@ -42,6 +42,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 
 
 class MissingExtra(ValueError):
@@ -210,6 +211,14 @@ def _chunks(S: int, size: int):
         yield slice(s0, min(S, s0 + size))
 
 
+def _unchecked_forward(method: str, dof: int, q, qd, tau, out) -> None:
+    """:func:`unchecked_states` for forward dynamics (its third array is ``tau``)."""
+    try:
+        unchecked_states(method, dof, (q, qd, tau), out)
+    except ValueError as e:
+        raise ValueError(str(e).replace("field 'qdd'", "field 'tau'")) from None
+
+
 #: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
 #: by ``exo_bench.bench.methods`` (``matrix_method.derivatives.derivatives_of``; this layer cannot
 #: import matrix_method). None until then.
@@ -373,6 +382,42 @@ class PreparedModel:
             M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
         return M, h
 
+    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
+        """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
+        and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
+        validated and a singular configuration raises
+        :class:`~models.singularity.SingularConfigurationError` (a ValueError) naming the sample, the
+        link and the reason (zero length, vertical rod, zero mass), never NaN. Every method solves
+        ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h``; ``newton-euler`` overrides it
+        with its O(n) passes."""
+        single = np.ndim(q) == 1
+        if check:
+            _require_rates(self.method, qd, tau)
+            try:
+                q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
+            except ValueError as e:        # the third array of as_states is called qdd: here it is tau
+                raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
+            if out is not None:
+                _check_out(out, q.shape[1:] if single else q.shape, self.method)
+            self.check_regular(q)
+        else:
+            _unchecked_forward(self.method, self._dof, q, qd, tau, out)
+            if single:
+                q, qd, tau = q[None], qd[None], tau[None]
+        qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
+        qdd = qdd[0] if single else qdd
+        if out is None:
+            return qdd
+        out[...] = qdd
+        return out
+
+    def check_regular(self, q: np.ndarray) -> None:
+        """Raise :class:`SingularConfigurationError` where ``M(q)`` is exactly singular
+        (:func:`models.singularity.singular_reasons`)."""
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
+        if reasons:
+            raise SingularConfigurationError(reasons)
+
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -389,3 +434,29 @@ class PreparedModel:
 
     def _bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
+
+    def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        M, h = self.mass_matrix_and_bias(q, qd, check=False)
+        return cholesky_solve(M, tau - h)
+
+
+def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``M^-1 b`` for symmetric positive definite batches ``(S, d, d)``, ``(S, d)``: Cholesky of
+    ``M`` equilibrated by ``D = diag(M)`` (units and coordinate scales drop out), then two
+    triangular solves. A matrix that is not positive definite in floating point raises
+    :class:`SingularConfigurationError` with its sample (never NaN)."""
+    dg = np.diagonal(M, axis1=1, axis2=2)
+    bad = ~(dg > 0).all(axis=1)
+    if bad.any():
+        s = int(np.argmax(bad))
+        c = int(np.argmin(dg[s]))
+        raise SingularConfigurationError([f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
+                                          f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"])
+    r = 1.0 / np.sqrt(dg)
+    try:
+        L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])
+    except np.linalg.LinAlgError:
+        raise SingularConfigurationError(["M is not positive definite in floating point (numerically singular: "
+                                          "a rod nearly vertical or nearly of length zero)"]) from None
+    y = np.linalg.solve(L, (r * b)[..., None])
+    return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -301,6 +302,15 @@ CASES = [
          "raise it with --budget SECONDS"),
     Case("equations-budget-value", "equations: --budget not a positive number", lambda d: [
         "equations", "fig2a-2d", "--format", "c", "--budget", "0"], "expected a positive number of seconds"),
+    # ---------------------------------------------------------------- forward dynamics
+    Case("forward-vertical", "forward: a vertical rod (M singular)", lambda d: [
+        "forward", "exo5-3d", _forward_states(d, psi=(2, math.pi / 2))],
+         "sample 0: link 3 (swing_thigh): vertical rod"),
+    Case("forward-zero-length", "forward: a rod of length zero (M singular)", lambda d: [
+        "forward", "exo5-3d", _forward_states(d, l=(4, 0.0)), "--method", "pinocchio"],
+         "link 5 (trunk): rod length l5 = 0"),
+    Case("forward-qdd-given", "forward: states with qdd instead of tau", lambda d: ["forward", "exo5-3d", _s5(d)],
+         "expected an object with keys ['q', 'qd', 'tau']"),
     # ---------------------------------------------------------------- warnings and accepted edges (exit 0)
     Case("matrix-paper-3d", "matrix-paper on a 3D model (a result with a warning)", lambda d: [
         "inverse", "exo5-3d", _s5(d), "--method", "matrix-paper"], "3D results are wrong by design", rc=0,
@@ -319,6 +329,18 @@ CASES = [
 def _bin(d: Path) -> Path:
     (d / "bin.json").write_bytes(bytes(range(256)))
     return d / "bin.json"
+
+
+def _forward_states(d: Path, psi=None, l=None) -> Path:
+    """``{"q", "qd", "tau"}`` of exo5-3d with rod ``psi[0]`` at elevation ``psi[1]`` or rod ``l[0]`` of
+    length ``l[1]`` (0-based rods) in sample 0."""
+    q, qd, qdd = random_states(exo5(3), 2, 0)
+    if psi is not None:
+        q[0, 5 + psi[0]] = psi[1]
+    if l is not None:
+        q[0, 10 + l[0]] = l[1]
+    (d / "f.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "tau": qdd.tolist()}))
+    return d / "f.json"
 
 
 def _text(d: Path, text: str, name: str = "t.json") -> Path:

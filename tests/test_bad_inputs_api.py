@@ -37,7 +37,8 @@ from exo_bench.models.presets import exo5, fig2a
 
 #: Every registered method and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
 #: derivation for exo5-3d takes minutes).
-KERNELS = {"matrix": ("numba", "numpy"), "matrix-factored": ("numba", "numpy"), "recurrence": ("numba", "numpy")}
+KERNELS = {"matrix": ("numba", "numpy"), "matrix-factored": ("numba", "numpy"), "recurrence": ("numba", "numpy"),
+           "newton-euler": ("numba", "numpy")}
 _CASES = [(m, k) for m in METHODS for k in KERNELS.get(m, (None,))]
 _MODELS: dict = {}
 

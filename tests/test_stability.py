@@ -161,6 +161,10 @@ def test_the_report_has_rows_for_every_family_and_method(tiny_run):
     assert "**Tolerance.**" in text and "FAIL" not in text.split("### Round trip")[1].split("Per method")[0]
     assert "rtol = 1e-k" in text                      # the work-precision labels are explained
     assert not list(out.glob(".*.tmp"))             # nothing half-written
+    chart_free = text.split("## Chart-free dynamics")[1]   # the gait at psi5 = pi/2, and cond(M) against cond(M_r)
+    assert "**Verdict: met.**" in chart_free and "psi5 = 1.5707963267948966" in chart_free
+    for fam in st.FAMILIES:
+        assert f"| {fam} | " in chart_free.split("cond(M_r), per family")[1], fam
 
 
 _GREY_OR_BLACK = {"#7f7f7f", "#000000", "#808080"}

@@ -212,6 +212,8 @@ def report_markdown(profile: Profile, methods: list[str], families: list[FamilyR
           f"![stiff rods]({figures[3]})", "",
           "Stiff rods: right-hand-side evaluations for one horizon against the fastest rod rate; "
           "black crosses mark runs that gave up at the evaluation budget.", ""]
+    from exo_bench.bench.stability.chart_free_report import chart_free_markdown, chart_free_results
+    L += [chart_free_markdown(chart_free_results(families))]
     return "\n".join(L)
 
 

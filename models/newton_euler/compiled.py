@@ -1,0 +1,200 @@
+"""The Newton-Euler method, compiled (numba): the same passes as :mod:`models.newton_euler.passes`,
+as loops over the links of one sample.
+
+Per sample the kernels call the very element functions of :mod:`models.newton_euler.elements`
+(registered with ``register_jitable``), so nothing physical is written twice; tests/test_newton_euler.py
+holds them to the numpy reference. The layout follows the matrix family
+(:mod:`matrix_method.compiled`): flat C-ordered ``(samples * dof,)`` states and result, a serial
+driver, and a parallel driver over blocks of :data:`models.numba_threads.BLOCK` samples for large
+batches (:func:`models.numba_threads.run`). The per-mechanism numbers come as one ``(8, n)`` table
+(:meth:`models.newton_euler.tree.Tree.table`) and ``g``.
+
+Per sample: ``2n`` (2D) or ``4n`` (3D) sines and cosines and O(n) arithmetic, for inverse and
+forward dynamics alike.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+from numba.extending import register_jitable
+
+from exo_bench.models.newton_euler import elements as el
+from exo_bench.models.numba_threads import BLOCK, JIT
+
+for _f in el.ELEMENTS:
+    register_jitable(_f)
+
+_PARENT, _SIGN, _ZETA, _ETA, _THETA, _NU, _PIVOT, _MULT = range(8)
+#: Columns of the per-link scratch row ``W[k]``: cos/sin of phi and psi, ``kappa`` (or ``J' q'``),
+#: ``A`` (start-point acceleration with g; forward: the load ``b``), ``D`` (subtree sums; forward: the
+#: tree solve's ``z``, then ``y``). One row per link keeps a link's numbers in one cache line.
+_TRIG, _KAPPA, _A, _D = 0, 4, 7, 10
+WIDTH = 16
+
+
+@njit(**JIT)
+def _rod(t, dim, x, xd, xdd, s0, k, w, with_qdd):
+    """Link ``k``: cos/sin of its angles and ``kappa_k = r_k''`` (``J' q'`` without ``qdd``) into ``w``."""
+    n = t.shape[1]
+    s = t[_SIGN, k]
+    cf = math.cos(x[s0 + k])
+    sf = math.sin(x[s0 + k])
+    w[0] = cf
+    w[1] = sf
+    if dim == 2:
+        l = x[s0 + n + k]
+        wdd, ldd = (xdd[s0 + k], xdd[s0 + n + k]) if with_qdd else (0.0, 0.0)
+        a0, a1 = el.rod_acceleration_2d(cf, sf, l, xd[s0 + k], xd[s0 + n + k], wdd, ldd)
+        a2 = 0.0
+    else:
+        cp = math.cos(x[s0 + n + k])
+        sp = math.sin(x[s0 + n + k])
+        w[2] = cp
+        w[3] = sp
+        l = x[s0 + 2 * n + k]
+        if with_qdd:
+            wdd, vdd, ldd = xdd[s0 + k], xdd[s0 + n + k], xdd[s0 + 2 * n + k]
+        else:
+            wdd, vdd, ldd = 0.0, 0.0, 0.0
+        a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, xd[s0 + k], xd[s0 + n + k], xd[s0 + 2 * n + k],
+                                            wdd, vdd, ldd)
+    w[_KAPPA] = s * a0
+    w[_KAPPA + 1] = s * a1
+    w[_KAPPA + 2] = s * a2
+
+
+@njit(**JIT)
+def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
+    """Inverse dynamics of one sample at offset ``s0``: the forward pass (each rod's ``kappa`` and
+    its start point's acceleration ``A_k = A_p + kappa_p``, with ``g up``), the backward pass (subtree
+    sums ``D``), ``tau_k = J_k^T F_k``."""
+    n = t.shape[1]
+    for k in range(n):                         # forward pass, roots first
+        w = W[k]
+        _rod(t, dim, x, xd, xdd, s0, k, w, True)
+        p = int(t[_PARENT, k])
+        if p >= 0:
+            wp = W[p]
+            w[_A] = wp[_A] + wp[_KAPPA]
+            w[_A + 1] = wp[_A + 1] + wp[_KAPPA + 1]
+            w[_A + 2] = wp[_A + 2] + wp[_KAPPA + 2]
+        else:
+            w[_A] = 0.0
+            w[_A + 1] = g if dim == 2 else 0.0
+            w[_A + 2] = g if dim == 3 else 0.0
+        w[_D] = 0.0
+        w[_D + 1] = 0.0
+        w[_D + 2] = 0.0
+    for k in range(n - 1, -1, -1):             # backward pass, leaves first
+        w = W[k]
+        zeta, eta, theta = t[_ZETA, k], t[_ETA, k], t[_THETA, k]
+        f0 = eta * w[_A] + zeta * w[_KAPPA] + w[_D]
+        f1 = eta * w[_A + 1] + zeta * w[_KAPPA + 1] + w[_D + 1]
+        f2 = eta * w[_A + 2] + zeta * w[_KAPPA + 2] + w[_D + 2]
+        p = int(t[_PARENT, k])
+        if p >= 0:
+            wp = W[p]
+            wp[_D] += theta * w[_A] + eta * w[_KAPPA] + w[_D]
+            wp[_D + 1] += theta * w[_A + 1] + eta * w[_KAPPA + 1] + w[_D + 1]
+            wp[_D + 2] += theta * w[_A + 2] + eta * w[_KAPPA + 2] + w[_D + 2]
+        s = t[_SIGN, k]
+        if dim == 2:
+            m0, m1 = el.project_2d(w[0], w[1], x[s0 + n + k], f0, f1)
+            o[s0 + k] = s * m0
+            o[s0 + n + k] = s * m1
+        else:
+            m0, m1, m2 = el.project_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], f0, f1, f2)
+            o[s0 + k] = s * m0
+            o[s0 + n + k] = s * m1
+            o[s0 + 2 * n + k] = s * m2
+
+
+@njit(**JIT)
+def _forward_sample(t, g, dim, x, xd, tau, o, s0, W):
+    """Forward dynamics of one sample at offset ``s0``: ``b = J^-T tau - g_r`` and ``J' q'`` per rod;
+    ``T^-T`` and ``L^-1`` in one pass leaves first (``z_p -= b_k + l_k z_k``); ``D^-1 L^-T`` roots
+    first, where ``r_k'' = y_k - y_p`` (``T^-1``) is ready at once, and ``q_k'' = J_k^-1 (r_k'' - J_k' q_k')``."""
+    n = t.shape[1]
+    for k in range(n):
+        w = W[k]
+        _rod(t, dim, x, xd, xd, s0, k, w, False)          # kappa <- J' q'
+        s = t[_SIGN, k]
+        if dim == 2:
+            b0, b1 = el.unproject_2d(w[0], w[1], x[s0 + n + k], tau[s0 + k], tau[s0 + n + k])
+            b2 = 0.0
+        else:
+            b0, b1, b2 = el.unproject_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k],
+                                         tau[s0 + k], tau[s0 + n + k], tau[s0 + 2 * n + k])
+        w[_A] = s * b0
+        w[_A + 1] = s * b1
+        w[_A + 2] = s * b2
+        w[_A + dim - 1] -= g * t[_NU, k]        # - g_r: gravity along up
+        w[_D] = w[_A]
+        w[_D + 1] = w[_A + 1]
+        w[_D + 2] = w[_A + 2]
+    for k in range(n - 1, -1, -1):             # z <- L^-1 T^-T b, leaves first
+        p = int(t[_PARENT, k])
+        if p >= 0:
+            w, wp, lk = W[k], W[p], t[_MULT, k]
+            wp[_D] -= w[_A] + lk * w[_D]
+            wp[_D + 1] -= w[_A + 1] + lk * w[_D + 1]
+            wp[_D + 2] -= w[_A + 2] + lk * w[_D + 2]
+    for k in range(n):                         # y <- D^-1 z - L^T y, roots first; then r'' and q''
+        w = W[k]
+        p = int(t[_PARENT, k])
+        d, lk = t[_PIVOT, k], t[_MULT, k]
+        if p >= 0:
+            wp = W[p]
+            w[_D] = w[_D] / d - lk * wp[_D]
+            w[_D + 1] = w[_D + 1] / d - lk * wp[_D + 1]
+            w[_D + 2] = w[_D + 2] / d - lk * wp[_D + 2]
+            v0 = w[_D] - wp[_D] - w[_KAPPA]
+            v1 = w[_D + 1] - wp[_D + 1] - w[_KAPPA + 1]
+            v2 = w[_D + 2] - wp[_D + 2] - w[_KAPPA + 2]
+        else:
+            w[_D] = w[_D] / d
+            w[_D + 1] = w[_D + 1] / d
+            w[_D + 2] = w[_D + 2] / d
+            v0 = w[_D] - w[_KAPPA]
+            v1 = w[_D + 1] - w[_KAPPA + 1]
+            v2 = w[_D + 2] - w[_KAPPA + 2]
+        s = t[_SIGN, k]
+        if dim == 2:
+            a0, a1 = el.rates_2d(w[0], w[1], x[s0 + n + k], v0, v1)
+            o[s0 + k] = s * a0
+            o[s0 + n + k] = s * a1
+        else:
+            a0, a1, a2 = el.rates_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], v0, v1, v2)
+            o[s0 + k] = s * a0
+            o[s0 + n + k] = s * a1
+            o[s0 + 2 * n + k] = s * a2
+
+
+@njit(**JIT)
+def _block(t, g, dim, x, xd, y, o, start, stop, forward):
+    """Samples ``start .. stop - 1`` into ``o`` (scratch allocated once)."""
+    n = t.shape[1]
+    W = np.zeros((n, WIDTH))
+    for s in range(start, stop):
+        if forward:
+            _forward_sample(t, g, dim, x, xd, y, o, s * dim * n, W)
+        else:
+            _inverse_sample(t, g, dim, x, xd, y, o, s * dim * n, W)
+
+
+@njit(**JIT)
+def newton_euler(t, g, dim, forward, x, xd, y, o):
+    """Every sample of the flat states, in turn, into ``o``: inverse dynamics (``y = qdd``, ``o = tau``)
+    or, with ``forward``, forward dynamics (``y = tau``, ``o = qdd``)."""
+    _block(t, g, dim, x, xd, y, o, 0, x.shape[0] // (dim * t.shape[1]), forward)
+
+
+@njit(parallel=True, **JIT)
+def newton_euler_parallel(t, g, dim, forward, x, xd, y, o):
+    """:func:`newton_euler` with blocks of :data:`models.numba_threads.BLOCK` samples over numba's threads."""
+    S = x.shape[0] // (dim * t.shape[1])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        _block(t, g, dim, x, xd, y, o, b * BLOCK, min(S, (b + 1) * BLOCK), forward)

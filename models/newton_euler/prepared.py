@@ -1,0 +1,121 @@
+"""Method ``newton-euler`` as a prepared model: O(n) inverse and forward dynamics from the
+constant mass matrix of the rod vectors (``M(q) = J^T M_r J``, docs/paper.md).
+
+Prepare time computes the per-link mass sums and factors ``M_r`` once
+(:func:`models.newton_euler.tree.prepare_tree`); a singular ``M_r`` (a link and its subtree carry
+no mass where its end point moves) is found there and named by :meth:`forward_dynamics`, while
+inverse dynamics stays defined. The option ``kernel`` selects the compiled loops
+(``"numba"``, the default; :mod:`models.newton_euler.compiled`) or the numpy reference
+(:mod:`models.newton_euler.passes`). The mass matrix ``J^T (mu (x) I) J`` is native (O(n^2) for
+the output only, numpy for both kernels); the bias forces are inverse dynamics at ``qdd = 0``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from exo_bench.models.aggregates import coupling
+from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.newton_euler import compiled, passes
+from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
+from exo_bench.models.numba_threads import run
+from exo_bench.models.prepared import PreparedModel, _unchecked_forward, unchecked_states
+from exo_bench.models.singularity import (COS_VERTICAL, SingularConfigurationError, vertical_reason,
+                                          zero_length_reason)
+
+#: The values of the option ``kernel``: compiled loops, or the numpy reference.
+KERNEL_CHOICES = ("numba", "numpy")
+
+
+class NewtonEuler(PreparedModel):
+    """Method ``newton-euler``: a forward pass of the point masses' accelerations and a backward
+    pass of the subtree sums of ``m (a + g up)``, O(n) per sample; forward dynamics by the tree
+    factor of ``M_r``, O(n) per sample."""
+
+    method = "newton-euler"
+
+    def __init__(self, mechanism: Mechanism, kernel: str = "numba"):
+        if not isinstance(kernel, str) or kernel not in KERNEL_CHOICES:
+            raise ValueError(f"{self.method}: option 'kernel': expected one of "
+                             f"{', '.join(map(repr, KERNEL_CHOICES))}, got {kernel!r}")
+        super().__init__(mechanism, kernel=kernel)
+        self.kernel = kernel
+        self._numpy = kernel == "numpy"
+        self.tree = prepare_tree(mechanism)
+        self.table = self.tree.table()
+        self._g, self._dim = float(mechanism.g), int(mechanism.dim)
+        #: The compiled drivers and their arguments before the states, as the matrix family has them:
+        #: ``serial_kernel(*kernel_args, q, qd, qdd, out)`` is inverse dynamics on flat C-ordered states.
+        self.serial_kernel, self.parallel_kernel = compiled.newton_euler, compiled.newton_euler_parallel
+        self.kernel_args = (self.table, float(mechanism.g), int(mechanism.dim), False)
+        self._forward_args = (self.table, float(mechanism.g), int(mechanism.dim), True)
+        #: Why ``M_r`` is singular (every configuration), or None.
+        self.singular_mass = (None if self.tree.singular < 0
+                              else singular_mass_reason(mechanism, int(self.tree.singular)))
+
+    # ------------------------------------------------------------------ the kernels
+    def _compiled(self, q, qd, y, forward: bool, out=None):
+        o = np.empty(q.shape) if out is None else out          # C-ordered whatever q is: reshape(-1) is a view
+        run(compiled.newton_euler, compiled.newton_euler_parallel,
+            (self.table, self._g, self._dim, forward, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1)),
+            q.shape[0] if q.ndim == 2 else 1)
+        return o
+
+    def _inverse_dynamics(self, q, qd, qdd):
+        if self._numpy:
+            return passes.inverse_dynamics(self.tree, self._dim, self._g, q, qd, qdd)
+        return self._compiled(q, qd, qdd, False)
+
+    def _forward_dynamics(self, q, qd, tau):
+        if self._numpy:
+            return passes.forward_dynamics(self.tree, self._dim, self._g, q, qd, tau)
+        return self._compiled(q, qd, tau, True)
+
+    def _mass_matrix(self, q):
+        return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)   # n x n: the output's order
+
+    def _bias_forces(self, q, qd):
+        return self._inverse_dynamics(q, qd, np.zeros_like(q))
+
+    # ------------------------------------------------------------------ calls
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
+        if check or self._numpy:
+            return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
+        unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
+        if q.ndim == 1:                            # one sample: the serial kernel on the arrays as given
+            o = np.empty(q.shape) if out is None else out
+            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
+            return o
+        return self._compiled(q, qd, qdd, False, out)   # O(n) scratch: no chunks needed
+
+    inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
+
+    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
+        if check or self._numpy:
+            return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
+        _unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
+        if q.ndim == 1:
+            o = np.empty(q.shape) if out is None else out
+            self.serial_kernel(*self._forward_args, q, qd, tau, o)
+            return o
+        return self._compiled(q, qd, tau, True, out)
+
+    forward_dynamics.__doc__ = PreparedModel.forward_dynamics.__doc__
+
+    def check_regular(self, q: np.ndarray) -> None:
+        """O(n) per sample: ``M_r`` singular (found at prepare time), a rod of length zero, or (3D) a
+        vertical rod, in the words of :mod:`models.singularity`."""
+        mech = self._mechanism
+        reasons = [] if self.singular_mass is None else [self.singular_mass]
+        _, psi, l = split(mech, q)
+        bad = l == 0
+        vertical = np.zeros_like(bad) if psi is None else (np.abs(np.cos(psi)) <= COS_VERTICAL) & ~bad
+        rows = np.flatnonzero(bad.any(axis=1) | vertical.any(axis=1))
+        if rows.size == 0 and not reasons:
+            return
+        out = [f"sample 0: {r}" for r in reasons]
+        for s in rows[:16]:                       # enough to name; the count says the rest
+            for i in np.flatnonzero(bad[s] | vertical[s]):     # link by link, as singular_reasons orders them
+                out.append(f"sample {s}: " + (zero_length_reason(mech, int(i)) if bad[s, i]
+                                              else vertical_reason(mech, int(i), psi[s, i])))
+        raise SingularConfigurationError(out)

@@ -1,0 +1,56 @@
+"""numba's threads, shared by every compiled kernel of the suite: the layer, the jit options and
+the one driver lock.
+
+Kept in the lowest layer (``models``) so that the matrix family (:mod:`matrix_method.compiled`)
+and the Newton-Euler kernels (:mod:`models.newton_euler.compiled`) choose the same threading layer
+before either starts numba's threads, and share one lock: ``workqueue`` aborts the process on
+concurrent parallel launches, whichever kernel makes them. Why ``workqueue`` and why
+:data:`PARALLEL_MIN_SAMPLES`: :mod:`matrix_method.compiled`.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+import numba
+
+
+def _threading_layer() -> str:
+    """Choose numba's ``workqueue`` threading layer (module docstring) when nobody chose one yet;
+    return the layer numba will use (or uses)."""
+    try:
+        from numba.np.ufunc import parallel
+        started = bool(parallel._is_initialized)
+    except (ImportError, AttributeError):
+        started = True
+    if not started and "NUMBA_THREADING_LAYER" not in os.environ:
+        numba.config.THREADING_LAYER = "workqueue"
+    return numba.config.THREADING_LAYER
+
+
+THREADING_LAYER = _threading_layer()
+
+#: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
+#: fastmath: the kernels are held to the numpy reference at 1e-14).
+JIT = dict(cache=True, nogil=True)
+#: Samples per block of the parallel driver (each block allocates its scratch once).
+BLOCK = 64
+#: Batches of at least this many samples run the parallel driver. Below it, waking numba's threads
+#: costs more than it saves: on the 2-core machine (quiet) exo5-3d took 0.12 us/sample serial at
+#: every size, and in parallel 0.20-0.34 us/sample at 600-2048 samples, 0.09-0.17 at 4096, 0.08 at
+#: 8192, 0.07 at 10,000-20,000.
+PARALLEL_MIN_SAMPLES = 4096
+
+_PARALLEL = threading.Lock()
+
+
+def run(serial, parallel, args: tuple, samples: int):
+    """``serial(*args)``, or ``parallel(*args)`` for a batch of at least :data:`PARALLEL_MIN_SAMPLES`
+    samples when no other thread is in a parallel driver (then the serial one: same result)."""
+    if samples >= PARALLEL_MIN_SAMPLES and _PARALLEL.acquire(blocking=False):
+        try:
+            return parallel(*args)
+        finally:
+            _PARALLEL.release()
+    return serial(*args)
