@@ -8,7 +8,7 @@ one host (bench/perf/rows.py):
 * ``newton-euler (numba)`` / ``newton-euler (numpy)``: ``forward_dynamics``: ``r'' = M_r^-1 (J^-T tau
   - g_r)`` with ``M_r`` factored once, then ``J^-1``; O(n) per sample;
 * ``pinocchio (CRBA + Cholesky)``: Pinocchio's CRBA and ``nonLinearEffects``, then the Cholesky
-  solve of :meth:`PreparedModel.forward_dynamics` (its ABA refuses mimic joints);
+  solve of :meth:`exo_bench.models.prepared.PreparedModel.forward_dynamics` (its ABA refuses mimic joints);
 * ``matrix-factored (numba) + solve``: ``M`` and ``h`` derived from the compiled inverse dynamics
   (``dof + 2`` rows per sample), then the same Cholesky solve;
 * ``matrix (numba) + solve``: the matrix method's own ``A, B, Lambda`` blocks, then the solve.

@@ -28,7 +28,8 @@ class _UsageError(Exception):
 
 #: The subcommands, in the order ``exo-bench --help`` lists them: one module each, with its
 #: ``add_parser(subparsers)``.
-SUBCOMMANDS = ("presets", "inverse", "forward", "urdf", "mjcf", "run", "bench", "errata", "stability", "equations")
+SUBCOMMANDS = ("presets", "inverse", "forward", "urdf", "mjcf", "run", "bench", "errata", "stability", "equations",
+               "gait")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -244,7 +244,11 @@ def _send_series(stream: rr.RecordingStream, entity: str, times: rr.TimeColumn, 
 def _log_world(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) -> None:
     mech = study.mechanism
     S, n = study.motion.t.shape[0], mech.nlinks
-    P = world_positions(mech, study.motion.q).astype(np.float32)      # (S, n, 3, 3)
+    P = world_positions(mech, study.motion.q)                         # (S, n, 3, 3)
+    origin = getattr(study.motion, "origin", None)                    # a walking motion: where O stands
+    if origin is not None:
+        P = P + (origin if mech.dim == 3 else np.stack([origin[:, 0], 0 * origin[:, 0], origin[:, 1]], -1))[:, None, None]
+    P = P.astype(np.float32)
     link_rgb = [_rgb(link_color(i)) for i in range(n)]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     stream.log("world/support", rr.Points3D([[0.0, 0.0, 0.0]], radii=0.03, colors=[(0, 0, 0)],

@@ -132,6 +132,9 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.studies.plausibility import markdown, plausibility
 
         lines += ["", markdown(plausibility(st)).rstrip("\n")]
+    if sc.motion["kind"] == "step" and st.ok_methods():
+        from exo_bench.bench.studies.step.report import markdown as step_markdown  # the predicted step's own section
+        lines += ["", step_markdown(sc, st).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
@@ -167,7 +170,11 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     if figures and o.study.ok_methods():
         from exo_bench.bench.output.figures import scene_figures as plots  # matplotlib only for scenes that ask for figures
         for kind in figures:
-            fig = plots.scene_figure(o.study, kind)
+            if kind == "kinogram" and getattr(o.study.motion, "origin", None) is not None:   # a walking motion
+                from exo_bench.bench.studies.step.figures import walking_kinogram
+                fig = walking_kinogram(o.study)
+            else:
+                fig = plots.scene_figure(o.study, kind)
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
@@ -180,8 +187,12 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         from exo_bench.bench.studies.plausibility import plausibility, text
 
         loads = plausibility(o.study)
-        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd",
-                                      loads=None if loads is None else text(loads))
+        if loads is not None and getattr(o.study.motion, "origin", None) is not None:   # the predicted step: its own loads text
+            from exo_bench.bench.studies.step.report import text as step_text
+            loads_text = step_text(o.study)
+        else:
+            loads_text = None if loads is None else text(loads)
+        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd", loads=loads_text)
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
         o.files.append(p)

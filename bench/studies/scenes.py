@@ -11,10 +11,11 @@ Format (every key is checked; an error names the file and the field)::
                "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/cli/equations.py)
 
     [motion]
-    kind = "gait"                         # gait | planar-gait | smooth-random | states
+    kind = "gait"                         # gait | planar-gait | smooth-random | states | step
     periods = 1.0                         # gait, planar-gait
     samples_per_period = 1000             # gait, planar-gait
     # duration = 2.0, samples = 400, seed = 0   (smooth-random)
+    # steps = 2                           (step: the stored predicted step of the mechanism, bench/studies/step/scene.py)
     # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
     #                                      t strictly increasing, at least 2 samples)
 
@@ -48,9 +49,9 @@ from exo_bench.models.motion import (DEFAULT_GAIT, GAITS, GaitParams, Motion, fr
 SHIPPED = Path(__file__).resolve().parent / "scenes"
 OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording",
            "equations")
-MOTIONS = ("gait", "planar-gait", "smooth-random", "states")
+MOTIONS = ("gait", "planar-gait", "smooth-random", "states", "step")  # step: bench/studies/step/scene.py
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
-_MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait"}
+_MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait", "steps"}
 #: Fewest samples of a motion: derivatives (power balance) and plots need at least two.
 MIN_SAMPLES = 2
 
@@ -79,6 +80,9 @@ class Scene:
                     f"{self.motion['samples_per_period']} samples")
         if k == "smooth-random":
             return f"smooth random motion (seed {self.motion['seed']}), {self.motion['samples']} samples"
+        if k == "step":
+            from exo_bench.bench.studies.step.scene import label
+            return label(self.motion)
         return f"states from {self.motion['file']}"
 
     def motion_function(self):
@@ -99,6 +103,9 @@ class Scene:
             return int(round(self.motion["samples_per_period"] * self.motion["periods"]))
         if k == "smooth-random":
             return int(self.motion["samples"])
+        if k == "step":
+            from exo_bench.bench.studies.step.scene import samples
+            return samples(self.motion)
         return len(self.motion["data"]["t"])
 
     def build_motion(self) -> Motion:
@@ -111,6 +118,9 @@ class Scene:
         if k == "smooth-random":
             t = np.linspace(0.0, self.motion["duration"], self.motion["samples"])
             return self.motion_function()(t)
+        if k == "step":
+            from exo_bench.bench.studies.step.scene import build
+            return build(self.motion, self.mechanism)
         data = self.motion["data"]
         return from_arrays(self.mechanism, data["t"], data["q"], data["qd"], data["qdd"],
                            source=f"{self.path}: motion.file {self.motion['file']!r}")
@@ -191,6 +201,9 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
     if kind not in MOTIONS:
         raise _err(path, "motion.kind", f"one of {', '.join(MOTIONS)}", kind)
     out: dict[str, Any] = {"kind": kind}
+    if kind == "step":
+        from exo_bench.bench.studies.step.scene import load_motion
+        return load_motion(path, m, mech)
     if kind in ("gait", "planar-gait"):
         if kind == "gait" and (mech.dim != 3 or mech.nlinks != 5):
             raise _err(path, "motion.kind", "'gait' only for a 3D five-link mechanism (eq. 26)",

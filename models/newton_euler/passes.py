@@ -1,7 +1,7 @@
 """The Newton-Euler method, numpy reference: two passes over the tree, vectorised over samples.
 
 **Inverse dynamics (forward pass, backward pass).** Per rod ``kappa_i = r_i'' = J_i q_i'' + J_i' q_i'``
-(:func:`elements.rod_acceleration_3d`, times the sign). Going down the tree, a rod's start point
+(:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`, times the sign). Going down the tree, a rod's start point
 accelerates with ``A_k = A_parent + kappa_parent`` (a root's start is the support O, ``A = 0``).
 Going up, ``D_k`` collects ``m (a + g up)`` of every point mass below link ``k``; link ``k``'s own
 masses at fractions ``0, n_k, 1`` accelerate with ``A_k + f kappa_k``, so the force conjugate to
@@ -10,10 +10,10 @@ masses at fractions ``0, n_k, 1`` accelerate with ``A_k + f kappa_k``, so the fo
     F_k = sum_b m_kb f_b (A_k + f_b kappa_k + g up) + D_k = eta_k (A_k + g up) + zeta_k kappa_k + D_k,
     D_parent += theta_k (A_k + g up) + eta_k kappa_k + D_k,
 
-and ``tau_k = J_k^T F_k`` (:func:`elements.project_3d`). O(n) per sample, no matrix.
+and ``tau_k = J_k^T F_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`). O(n) per sample, no matrix.
 
 **Forward dynamics.** ``tau = J^T (M_r r'' + g_r)`` with ``g_r = g nu (x) up``: ``r'' = mu^-1 (J^-T tau -
-g_r)`` by the tree solve (:func:`tree.solve_coupling`, ``M_r`` factored at prepare time), then
+g_r)`` by the tree solve (:func:`exo_bench.models.newton_euler.tree.solve_coupling`, ``M_r`` factored at prepare time), then
 ``q_i'' = J_i^-1 (r_i'' - J_i' q_i')``. O(n) per sample.
 
 Arrays are batch-first ``(samples, dof)`` in block order ``[phi..., psi..., l...]``; the loops run

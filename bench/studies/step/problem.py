@@ -1,0 +1,344 @@
+"""One walking step of the five-link exoskeleton by direct collocation (Hermite-Simpson, IPOPT).
+
+**The model walks on a point foot.** Link 1 (stance shin) stands on the support point O; its joint there
+is the stance ankle, actuated like every other joint, and every rod is actuated along its length. The
+system is therefore fully actuated: every trajectory is dynamically possible, and the loads along it are
+its inverse dynamics. The optimiser chooses the trajectory; the loads are ``tau = ID(q, qd, qdd)`` from the
+equations' CasADi export (:func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`) and the net joint loads
+of :mod:`exo_bench.models.joint_loads` (:func:`exo_bench.bench.studies.step.symbolic.net_loads_function`). Like OpenSim Moco's
+example2DWalking, opty's gait2d and Ackermann & van den Bogert (2010), it solves for one step with
+left/right swap periodicity, a prescribed average speed and an effort objective.
+
+**Transcription.** Hermite-Simpson collocation in separated form on ``N`` intervals of equal length
+``h = T / N`` (free duration ``T``): the states ``x = (q, qd)`` and the accelerations ``qdd`` (the
+controls) at the ``2N + 1`` nodes and interval midpoints, with for each interval::
+
+    q_m  = (q_0 + q_1) / 2 + h/8 (qd_0 - qd_1)      q_1 - q_0   = h/6 (qd_0 + 4 qd_m + qd_1)
+    qd_m = (qd_0 + qd_1) / 2 + h/8 (qdd_0 - qdd_1)  qd_1 - qd_0 = h/6 (qdd_0 + 4 qdd_m + qdd_1)
+
+and Simpson's rule for the objective.
+
+**Leg swap.** At the end the swing foot (end of link 4) lands one step length ``D = v T`` ahead of O
+with zero velocity (no impact), and the state is the start's with stance and swing exchanged and the
+origin moved to the new foot. With rod vectors ``r_i = sign_i l_i u_i`` the new stance shin is the old
+swing shin reversed, ``r'_1 = -r_4``; likewise ``r'_2 = -r_3``, ``r'_3 = -r_2``, ``r'_4 = -r_1`` and the
+trunk stays, ``r'_5 = r_5``. Links 3 and 4 have ``sign = -1`` and links 1 and 2 ``sign = +1``, so the
+minus signs are absorbed by the signs and the map is a relabelling of coordinates: ``phi`` (2D), ``psi``
+and ``l`` of links (1, 2, 3, 4, 5) take the values of links (4, 3, 2, 1, 5); in 3D the other leg is the
+mirror image (``y -> -y``), so the azimuths also change sign (:func:`swap_matrix`). Positions
+are relative to O, so the origin's move needs no coordinate: it is the condition on the landing point.
+
+**What is free and what is bounded** is :class:`StepSettings`, stored with the solution.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from exo_bench.models.mechanism import Mechanism
+
+DEG = math.pi / 180
+
+
+@dataclass(frozen=True)
+class StepSettings:
+    """The step problem's settings (SI units, angles in radians). Every value is stored with the solution.
+
+    * ``speed``: the prescribed average speed, the step length over the step's duration (Winter's walk:
+      1.41 m/s; :mod:`exo_bench.models.normative`).
+    * ``duration``: the range of the free duration of one step (Winter's step, half his 0.987 s stride, is
+      0.49 s; his single support is 0.37 s of it).
+    * ``clearance``: the lowest swing-leg point mass stays at least this high between lift-off and
+      touch-down. The foot leaves the floor at t = 0 and lands at t = T with zero velocity, so it cannot
+      be 1 cm high at those instants: lift-off and touch-down are the first and last ``window`` of the
+      step (10 % of 0.49 s is 49 ms, less than each of Winter's double supports, 107 ms), where it only
+      stays above the floor.
+    * ``rest_lengths``: shin, thigh and trunk rods (Winter's anthropometric fractions of a 1.75 m
+      stature, as :class:`exo_bench.models.motion.GaitParams` states); ``stroke``: each rod may change its length
+      by at most this much either way.
+    * ``knee``: knee flexion, thigh angle minus shin angle, both legs: 0 means straight, and no
+      hyperextension. ``hip``: thigh angle minus trunk angle (positive flexes the hip). ``segment``:
+      every leg segment's angle from the walking direction; ``trunk``: the trunk's.
+    * ``friction``: the ground reaction at O (the net joint force of link 1) pushes (vertical component
+      at least ``min_support`` body weights) and stays in this friction cone.
+    * ``azimuth``: 3D only: the bound on every azimuth. The step is in the sagittal plane (step width 0),
+      and the azimuths are fixed at 0 when ``azimuth == 0``: every leg rod passes the vertical, where the
+      chart of eq. (7) is singular and an azimuth moves nothing.
+    * Objective, per second of walking: ``w_moment`` times the sum over joints of |net joint moment|^2 in
+      (N·m/kg)^2, ``w_force`` times the sum over rods of the rod force^2 in body weights^2, and
+      ``w_accel`` times the sum of qdd^2 (a small regulariser), each averaged over the step (Simpson).
+    """
+
+    dim: int = 2
+    intervals: int = 50
+    speed: float = 1.41
+    duration: tuple[float, float] = (0.35, 0.65)
+    clearance: float = 0.01
+    window: float = 0.1
+    rest_lengths: tuple[float, float, float] = (0.4305, 0.4287, 0.504)
+    stroke: float = 0.02
+    knee: tuple[float, float] = (0.0, 70 * DEG)
+    hip: tuple[float, float] = (-30 * DEG, 60 * DEG)
+    segment: tuple[float, float] = (20 * DEG, 160 * DEG)
+    trunk: tuple[float, float] = (60 * DEG, 120 * DEG)
+    friction: float = 1.0
+    min_support: float = 0.0
+    azimuth: float = 0.0
+    w_moment: float = 1.0
+    w_force: float = 1.0
+    w_accel: float = 1e-5
+    tol: float = 1e-8
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @staticmethod
+    def from_dict(d: dict) -> StepSettings:
+        return StepSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+@dataclass
+class Solution:
+    """A solved step: the collocation points and the optimiser's loads there."""
+
+    settings: StepSettings
+    t: np.ndarray            # (2N + 1,) nodes and midpoints
+    q: np.ndarray            # (2N + 1, dof)
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray          # (2N + 1, dof) the optimiser's inverse dynamics
+    moments: np.ndarray      # (2N + 1, n) in 2D, (2N + 1, n, 3) in 3D: net joint moments
+    forces: np.ndarray       # (2N + 1, n, dim): net joint forces
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def step_length(self) -> float:
+        return self.settings.speed * self.duration
+
+
+# ----------------------------------------------------------------------------- coordinates
+def angle_rows(mech: Mechanism) -> np.ndarray:
+    """Indices of the sagittal angles of links 1..n: ``phi`` in 2D, ``psi`` in 3D."""
+    n = mech.nlinks
+    return np.arange(n) if mech.dim == 2 else np.arange(n, 2 * n)
+
+
+def swap_matrix(mech: Mechanism) -> np.ndarray:
+    """``S`` with ``x_start = S x_end``: links (1, 2, 3, 4, 5) take the coordinates of (4, 3, 2, 1, 5);
+    3D azimuths change sign (the other leg is the mirror image)."""
+    n = mech.nlinks
+    perm = [3, 2, 1, 0, 4]
+    blocks = 2 if mech.dim == 2 else 3
+    S = np.zeros((mech.dof, mech.dof))
+    for b in range(blocks):
+        sgn = -1.0 if (mech.dim == 3 and b == 0) else 1.0
+        for i, j in enumerate(perm):
+            S[b * n + i, b * n + j] = sgn
+    return S
+
+
+def _check(mech: Mechanism, settings: StepSettings) -> None:
+    if mech.nlinks != 5 or mech.dim != settings.dim or mech.names[:5] != (
+            "stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk"):
+        raise ValueError(f"step: mechanism {mech.name!r}: expected the five-link exoskeleton exo5-{settings.dim}d "
+                         f"(stance shin, stance thigh, swing thigh, swing shin, trunk), got {mech.dim}D with links "
+                         f"{list(mech.names)}")
+    if settings.intervals < 50:
+        raise ValueError(f"step: field 'intervals': expected >= 50, got {settings.intervals}")
+
+
+# ----------------------------------------------------------------------------- initial guess
+def _two_link(foot: np.ndarray, hip: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sagittal angles (shin, thigh) of a leg from its foot to the hip, knee forward (x ahead)."""
+    d = hip - foot
+    r = np.minimum(np.hypot(d[:, 0], d[:, 1]), 0.999 * (a + b))
+    th = np.arctan2(d[:, 1], d[:, 0])
+    alpha = np.arccos(np.clip((a * a + r * r - b * b) / (2 * a * r), -1, 1))
+    shin = th - alpha
+    knee = foot + a * np.stack([np.cos(shin), np.sin(shin)], axis=-1)
+    e = hip - knee
+    return shin, np.arctan2(e[:, 1], e[:, 0])
+
+
+def initial_guess(mech: Mechanism, s: StepSettings, T: float = 0.5):
+    """An inverted-pendulum step: the hip moves forward over O at constant speed on a circle of 97 % of
+    the leg's length, the swing foot travels from ``-D`` to ``D`` on a 6 cm arch, trunk upright; both legs
+    by two-link inverse kinematics, knees forward. ``(t, q, qd, qdd)`` at the ``2N + 1`` points."""
+    N = s.intervals
+    t = np.linspace(0.0, T, 2 * N + 1)
+    x = t / T
+    D = s.speed * T
+    a, b, l5 = s.rest_lengths
+    L = 0.97 * (a + b)
+    hx = -D / 2 + D * x
+    hip = np.stack([hx, np.sqrt(L * L - hx * hx)], axis=-1)
+    foot = np.stack([-D + 2 * D * x, 0.06 * np.sin(math.pi * x)], axis=-1)
+    sh1, th1 = _two_link(np.zeros_like(hip), hip, a, b)
+    sh2, th2 = _two_link(foot, hip, a, b)
+    ang = np.stack([sh1, th1, th2, sh2, np.full_like(x, math.pi / 2)], axis=-1)
+    lengths = np.tile([a, b, b, a, l5], (len(t), 1))
+    if mech.dim == 2:
+        q = np.concatenate([ang, lengths], axis=1)
+    else:
+        q = np.concatenate([np.zeros_like(ang), ang, lengths], axis=1)
+    qd = np.gradient(q, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
+    return t, q, qd, qdd
+
+
+# ----------------------------------------------------------------------------- the problem
+def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbose: bool = False) -> Solution:
+    """Build and solve the collocation problem; raise ``RuntimeError`` (one line) when IPOPT fails.
+
+    ``inverse_dynamics``: a function ``mech -> casadi.Function tau = ID(q, qd, qdd)``, by default
+    :func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`."""
+    import casadi as ca
+
+    from exo_bench.bench.studies.step import symbolic
+
+    _check(mech, settings)
+    s = settings
+    point = _point_function(mech, (inverse_dynamics or symbolic.inverse_dynamics_function)(mech))
+    n, dof, dim, N = mech.nlinks, mech.dof, mech.dim, s.intervals
+    K = 2 * N + 1
+    mass, bw = mech.total_mass, mech.total_mass * mech.g
+
+    opti = ca.Opti()
+    T = opti.variable()
+    # 3D with the azimuths fixed at 0: they are no variables (as equality constraints they would repeat the
+    # leg swap's and the landing's azimuth rows, and IPOPT's KKT matrix would be singular)
+    planar3d = dim == 3 and s.azimuth == 0
+    free = slice(n, dof) if planar3d else slice(0, dof)
+    nf = dof - n if planar3d else dof
+    Xq, Xv, Xa = opti.variable(nf, K), opti.variable(nf, K), opti.variable(nf, K)
+    if planar3d:
+        Q, V, A = (ca.vertcat(ca.MX.zeros(n, K), X) for X in (Xq, Xv, Xa))
+    else:
+        Q, V, A = Xq, Xv, Xa
+    h = T / N
+    # Hermite-Simpson, separated form
+    e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)      # interval starts, midpoints, ends
+    opti.subject_to(Xq[:, m_] == (Xq[:, e] + Xq[:, o]) / 2 + h / 8 * (Xv[:, e] - Xv[:, o]))
+    opti.subject_to(Xv[:, m_] == (Xv[:, e] + Xv[:, o]) / 2 + h / 8 * (Xa[:, e] - Xa[:, o]))
+    opti.subject_to(Xq[:, o] - Xq[:, e] == h / 6 * (Xv[:, e] + 4 * Xv[:, m_] + Xv[:, o]))
+    opti.subject_to(Xv[:, o] - Xv[:, e] == h / 6 * (Xa[:, e] + 4 * Xa[:, m_] + Xa[:, o]))
+    tau, M, F, P, Pd = point.map(K)(Q, V, A)
+    # leg swap, landing point and no impact
+    S = swap_matrix(mech)
+    Sf = S[free, free]
+    opti.subject_to(Xq[:, 0] == ca.mtimes(Sf, Xq[:, K - 1]))
+    opti.subject_to(Xv[:, 0] == ca.mtimes(Sf, Xv[:, K - 1]))
+    ankle = lambda X, j: X[(3 * 3 + 2) * dim: (3 * 3 + 3) * dim, j]     # link 4, end mass
+    target = [s.speed * T] + [0.0] * (dim - 1)
+    axes = [0, dim - 1] if planar3d else list(range(dim))     # planar 3D: y is 0 identically
+    opti.subject_to(ankle(P, K - 1)[axes] == ca.vertcat(*target)[axes])
+    opti.subject_to(ankle(Pd, K - 1)[axes] == 0)
+    # swing foot clearance: every swing-leg point mass (links 3 and 4), vertical axis
+    lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
+    for i in (2, 3):
+        for b in range(3):
+            z = P[(3 * i + b) * dim + dim - 1, :]
+            opti.subject_to(z[1:K - 1] >= 0)     # at 0 and T the landing conditions fix the foot's height
+            opti.subject_to(z[lo:hi + 1] >= s.clearance)
+    # the hip (end of link 2) moves forward
+    opti.subject_to(Pd[(3 * 1 + 2) * dim, :] >= 0)
+    # ground reaction at O: pushes, in the friction cone
+    Fx, Fz = F[0, :], F[dim - 1, :]
+    opti.subject_to(Fz >= s.min_support * bw)
+    if dim == 2 or planar3d:   # the lateral force is 0 identically in a planar step: a linear cone
+        opti.subject_to(opti.bounded(-s.friction * Fz, Fx, s.friction * Fz))
+    else:
+        opti.subject_to(Fx ** 2 + F[1, :] ** 2 <= (s.friction * Fz) ** 2)
+    # joint ranges and rod strokes
+    ang = angle_rows(mech)
+    th = [Q[int(r), :] for r in ang]
+    opti.subject_to(opti.bounded(s.knee[0], th[1] - th[0], s.knee[1]))
+    opti.subject_to(opti.bounded(s.knee[0], th[2] - th[3], s.knee[1]))
+    opti.subject_to(opti.bounded(s.hip[0], th[2] - th[4], s.hip[1]))
+    opti.subject_to(opti.bounded(s.hip[0], th[1] - th[4], s.hip[1]))
+    for i in range(4):
+        opti.subject_to(opti.bounded(s.segment[0], th[i], s.segment[1]))
+    opti.subject_to(opti.bounded(s.trunk[0], th[4], s.trunk[1]))
+    a, b, l5 = s.rest_lengths
+    for i, L in enumerate((a, b, b, a, l5)):
+        opti.subject_to(opti.bounded(L - s.stroke, Q[dof - n + i, :], L + s.stroke))
+    if dim == 3 and not planar3d:
+        for i in range(n):
+            if s.azimuth == 0:
+                opti.subject_to(Q[i, :] == 0)
+            else:
+                opti.subject_to(opti.bounded(-s.azimuth, Q[i, :], s.azimuth))
+    opti.subject_to(opti.bounded(s.duration[0], T, s.duration[1]))
+    # objective: Simpson average of the effort
+    L_ = s.w_moment * ca.sum1((M / mass) ** 2) + s.w_force * ca.sum1((tau[dof - n:, :] / bw) ** 2) \
+        + s.w_accel * ca.sum1(A ** 2)
+    wts = np.ones(K)
+    wts[1::2] = 4.0
+    wts[2:-1:2] = 2.0
+    opti.minimize(ca.mtimes(L_, ca.DM(wts / (6 * N))))
+    # initial guess
+    t0, q0, qd0, qdd0 = initial_guess(mech, s)
+    opti.set_initial(T, float(t0[-1]))
+    opti.set_initial(Xq, q0[:, free].T)
+    opti.set_initial(Xv, qd0[:, free].T)
+    opti.set_initial(Xa, qdd0[:, free].T)
+    opts = {"ipopt.tol": s.tol, "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_iter": 0,
+            "ipopt.bound_relax_factor": 0.0, "ipopt.max_iter": 3000, "ipopt.mu_strategy": "adaptive",
+            "ipopt.print_level": 5 if verbose else 0, "print_time": verbose, "ipopt.sb": "yes",
+            "expand": True}   # SX: the exact Hessian costs half of the MX one here
+    opti.solver("ipopt", opts)
+    t_start = time.perf_counter()
+    try:
+        sol = opti.solve()
+        ok = True
+    except RuntimeError:
+        sol, ok = opti.debug, False
+    seconds = time.perf_counter() - t_start
+    st = opti.stats()
+    if not ok:
+        raise RuntimeError(f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
+                           f"{st.get('iter_count')} iterations ({seconds:.1f} s)")
+    Tv = float(sol.value(T))
+    t = np.linspace(0.0, Tv, K)
+    q, qd, qdd = (np.atleast_2d(sol.value(X)).T for X in (Q, V, A))
+    tau_v = np.asarray(sol.value(tau)).T
+    Mv = np.asarray(sol.value(M)).T
+    Fv = np.asarray(sol.value(F)).T.reshape(K, n, dim)
+    Mv = Mv.reshape(K, n, 3) if dim == 3 else Mv.reshape(K, n)
+    stats = {"status": st.get("return_status"), "success": bool(st.get("success")),
+             "iterations": int(st.get("iter_count")), "solve_seconds": seconds,
+             "objective": float(sol.value(opti.f)), "casadi": ca.__version__,
+             "constraint_violation": _ipopt_violation(opti, sol)}
+    return Solution(s, t, q, qd, qdd, tau_v, Mv, Fv, stats)
+
+
+def _point_function(mech: Mechanism, ID):
+    """Everything the problem needs at one collocation point, as one SX function (one derivative for all):
+    ``(tau, M, F, p, v)`` (:mod:`exo_bench.bench.studies.step.symbolic`)."""
+    import casadi as ca
+
+    from exo_bench.bench.studies.step import symbolic
+
+    q, qd, qdd = (ca.SX.sym(x, mech.dof) for x in ("q", "qd", "qdd"))
+    M, F = symbolic.net_loads_function(mech)(q, qd, qdd)
+    p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
+    return ca.Function("step_point", [q, qd, qdd], [ID(q, qd, qdd), M, F, p, v])
+
+
+def _ipopt_violation(opti, sol) -> float:
+    """The largest violation of the problem's constraints at the solution, as CasADi evaluates them."""
+    g = np.atleast_1d(np.asarray(sol.value(opti.g), dtype=float)).ravel()
+    lb = np.atleast_1d(np.asarray(sol.value(opti.lbg), dtype=float)).ravel()
+    ub = np.atleast_1d(np.asarray(sol.value(opti.ubg), dtype=float)).ravel()
+    return float(max(np.maximum(lb - g, 0).max(initial=0.0), np.maximum(g - ub, 0).max(initial=0.0)))
+
+
+__all__ = ["Solution", "StepSettings", "angle_rows", "initial_guess", "solve", "swap_matrix"]
