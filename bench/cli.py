@@ -117,6 +117,9 @@ def cmd_inverse(args) -> int:
     from exo_bench.models.mechanism import force_names
 
     method_class(args.method)  # an unknown method fails before any file is read
+    if args.budget is not None and args.method != "lagrange":
+        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
+                         "nothing (limit its time with --max-time)")
     mech = load_mechanism(args.mechanism)
     q, qd, qdd = _load_states(args.states, mech)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
@@ -145,6 +148,9 @@ def cmd_urdf(args) -> int:
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.urdf import to_urdf
 
+    if args.output:   # refused before any work when it names a FIFO, a device, a socket (bench/output_files.py)
+        from exo_bench.bench.output_files import output_target
+        output_target(args.output, "urdf -o")
     text = to_urdf(load_mechanism(args.mechanism))
     if args.output:
         from exo_bench.bench.reporting import atomic_write
@@ -265,11 +271,27 @@ MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated 
                    "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
 
 
+def _version() -> str:
+    import exo_bench
+
+    return exo_bench.__version__
+
+
+def _default_method() -> str:
+    """The default method of ``exo-bench inverse``: the one ``prepare()`` takes when none is named."""
+    import inspect
+
+    from exo_bench.bench.methods import prepare
+
+    return inspect.signature(prepare).parameters["method"].default
+
+
 def build_parser() -> argparse.ArgumentParser:
     from exo_bench.bench.methods import method_names
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")
+    p.add_argument("--version", action="version", version=f"exo-bench {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     s = sub.add_parser("presets", help="list the preset mechanisms")
@@ -279,11 +301,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
                    "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    s.add_argument("--method", default="pinocchio",
-                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
+    default_method = _default_method()   # the same as the library's prepare()
+    s.add_argument("--method", default=default_method,
+                   help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
     s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
+                   help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
     s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
     s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
                    help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "

@@ -313,19 +313,20 @@ class Limits:
 def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
     """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
     ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
+    # lagrange's derivation budget first: the most specific reason (prepare() names it)
+    if est.method == "lagrange":
+        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
+
+        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
+        valid = not isinstance(budget, bool) and isinstance(budget, (int, float)) and budget > 0
+        if valid and est.setup_seconds > budget:   # (not a budget: the method's constructor says so)
+            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS, "
+                    "or prepare()'s option budget)")
     mem, mem_src = limits.memory_limit()
     if mem is not None and est.memory > mem:
         return f"over the memory limit of {_size(mem)} ({mem_src})"
     if limits.seconds is not None and est.seconds > limits.seconds:
         return f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
-    if est.method == "lagrange":
-        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
-
-        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
-        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
-            return None  # not a budget: the method's constructor says so
-        if est.setup_seconds > budget:
-            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS)")
     return None
 
 

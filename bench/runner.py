@@ -204,16 +204,25 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
 
 @contextmanager
 def staging_dir(out: Path):
+    from exo_bench.bench.output_files import clean_stale_staging, mark_owner
+
     out.mkdir(parents=True, exist_ok=True)
+    clean_stale_staging(out)   # what a killed run left (bench/output_files.py)
     d = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:
+        mark_owner(d)
         yield d
     finally:
         shutil.rmtree(d, ignore_errors=True)
 
 
 def publish(files: list[Path], out: Path) -> list[Path]:
-    """Move finished files from staging into ``out`` (an atomic rename each)."""
+    """Move finished files from staging into ``out`` (an atomic rename each); each target is
+    checked first (nothing but a regular file is ever replaced: bench/output_files.py)."""
+    from exo_bench.bench.output_files import output_target
+
+    for f in files:
+        output_target(out / f.name)
     done = []
     for f in files:
         target = out / f.name
