@@ -12,8 +12,9 @@ with SIGINT/SIGTERM held back. An error or Ctrl-C before that leaves the folder 
 (:func:`bench.reporting.current_run_id`) that every report carries. ``runs.json`` keeps, per scene,
 the summary rows of the run that last ran it and, per file, the run that wrote it; ``summary.md``
 is made from it, so ``exo-bench run SCENE`` replaces that scene's rows and keeps every other
-scene's, and lists which run produced each report file. A scene or method that fails is
-recorded (one line) and the other scenes go on.
+scene's, and lists which run produced each report file. A method that fails is recorded (one
+line) and the other methods and scenes go on; a scene that fails or is refused keeps its earlier
+rows and files, says why in one line on stderr, and the run exits 2.
 """
 
 from __future__ import annotations
@@ -381,6 +382,8 @@ def publish_run(staging: Path, out: Path, outcomes: list[SceneOutcome], command:
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for o in outcomes:
+        if o.error and manifest.get("scenes", {}).get(o.scene.name, {}).get("rows"):
+            continue   # a refused or failed scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[o.scene.name] = {"run": run_id, "rows": scene_rows(o)}
     _prune(manifest, out)
     done = []
@@ -512,10 +515,14 @@ def run(args) -> int:
         task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
+            staged = {f.name for f in staging.iterdir()}
             try:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
                 o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
+                for f in staging.iterdir():   # its partial files never replace the earlier run's
+                    if f.name not in staged and f.is_file():
+                        f.unlink(missing_ok=True)
             outcomes.append(o)
             progress.advance(task)
         for label, fn in jobs:
@@ -526,16 +533,18 @@ def run(args) -> int:
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
-        written = publish_run(staging, out, outcomes, command, read_manifest(out))
+        if jobs or any(not o.error for o in outcomes):   # nothing ran: the folder is left exactly as it was
+            written = publish_run(staging, out, outcomes, command, read_manifest(out))
     print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
-    for o in failed:
-        print(f"scene {o.scene.name} failed: {o.error}")
+    for o in failed:   # one line each on stderr; summary.md keeps the scene's earlier rows
+        print(f"exo-bench: error: scene {o.scene.name!r} failed: {o.error} (its earlier rows and files in "
+              f"{str(out)!r} are kept)", file=sys.stderr)
     for line in job_errors:
-        print(line)
-    return 1 if failed or job_errors else 0
+        print(f"exo-bench: error: {line}", file=sys.stderr)
+    return 2 if failed else 1 if job_errors else 0
 
 
 def _warn_known_wrong(scenes: list[Scene]) -> None:
