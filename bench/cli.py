@@ -121,9 +121,18 @@ def cmd_inverse(args) -> int:
         raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
                          "nothing (limit its time with --max-time)")
     mech = load_mechanism(args.mechanism)
-    q, qd, qdd = _load_states(args.states, mech)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
-    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
+    limits = _limits(args, args.method)
+    # reading and writing count in the estimate; a .npz by its uncompressed arrays, from its headers
+    from exo_bench.bench.resources import check_reading
+    from exo_bench.bench.states_input import peek_states
+    peek = peek_states(args.states, mech.dof)
+    if peek.samples is not None:
+        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))   # before decompressing
+    else:
+        check_reading(args.states, peek.read_bytes, peek.read_seconds, limits)
+    q, qd, qdd = _load_states(args.states, mech)
+    check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))   # before any work
     model = prepare(mech, args.method, **options)
     tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
     warn = known_wrong_warning(args.method, mech.dim)
