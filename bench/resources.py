@@ -120,7 +120,11 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
+    # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400), and the first call touches its pages again;
+    # building the model from the URDF costs ~2 ms per link. Measured in a fresh process (prepare and
+    # the first call): 0.35 s at 3D n = 50 (108 MB), 0.79 s at 3D n = 70 (296 MB); in a warm one
+    # 0.54 s at 2D n = 120 (469 MB) (tests/test_estimate_vs_measured.py holds these within 2x).
+    return one * count / 0.6e9 + 2e-3 * mech.nlinks
 
 
 def _pin_note(mech, options):

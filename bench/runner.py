@@ -535,7 +535,8 @@ def run(args) -> int:
             progress.advance(task)
         if jobs or any(not o.error for o in outcomes):   # nothing ran: the folder is left exactly as it was
             written = publish_run(staging, out, outcomes, command, read_manifest(out))
-    print_summary(outcomes)
+    if written:   # nothing ran (every scene refused or failed): the error lines below say it all
+        print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
