@@ -119,6 +119,8 @@ def run_id_of(path: str | Path) -> str | None:
 
     path = Path(path)
     try:
+        if not path.is_file():   # a FIFO or a device would block or never end
+            return None
         if path.suffix == ".md":
             with open(path, encoding="utf-8", errors="replace") as f:
                 for _, line in zip(range(40), f):

@@ -327,7 +327,7 @@ def read_manifest(out: Path) -> dict:
     """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
     rows of its ``summary.md`` (marked as of an unknown run)."""
     p = Path(out) / MANIFEST
-    if p.exists():
+    if p.is_file():   # never open a FIFO or a device (it would block or never end)
         try:
             data = json.loads(p.read_text())
             if isinstance(data, dict) and data.get("format") == 1:
@@ -338,7 +338,7 @@ def read_manifest(out: Path) -> dict:
               file=sys.stderr)
     m = new_manifest()
     old = Path(out) / SUMMARY
-    if old.exists():
+    if old.is_file():
         try:
             text = old.read_text(errors="replace")
         except OSError:

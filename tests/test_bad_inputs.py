@@ -476,6 +476,200 @@ def test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits(tmp_path
     assert np.abs(tau - ref).max() <= 16 * np.finfo(float).eps * m.dof * np.abs(ref).max()
 
 
+# ------------------------------------------------------------------------------ issue 26
+def _is_fifo(p: Path) -> bool:
+    import stat
+
+    return stat.S_ISFIFO(os.lstat(p).st_mode)
+
+
+def test_nothing_replaces_a_fifo_for_any_command_that_writes(tmp_path, monkeypatch):
+    """urdf -o, equations -o, equations --size-report, run --reports: a FIFO in a temporary folder
+    where a file would go is refused in one line (exit 2) and is still a FIFO afterwards."""
+    import exo_bench.bench.equations as eq
+
+    monkeypatch.setattr(eq, "size_point", lambda mech, route, budget: {"compose": 0.1, "generate": 0.1, "ops": 10,
+                                                                        "c_lines": 5})
+    runs = []
+    for name, argv in [("u.urdf", lambda f: ["urdf", "fig1-2d", "-o", f]),
+                       ("fig2a_2d.c", lambda f: ["equations", "fig2a-2d", "--format", "c", "-o", f.parent]),
+                       ("equations_size.md", lambda f: ["equations", "--size-report", "--reports", f.parent]),
+                       ("summary.md", lambda f: ["run", _scene(f.parent, 'kind = "planar-gait"\nsamples_per_period = 40'),
+                                                 "--reports", f.parent])]:
+        d = tmp_path / name.replace(".", "_")
+        d.mkdir()
+        fifo = _fifo(d, name)
+        rc, out, err = run_cli(argv(fifo))
+        runs.append((name, rc, err))
+        assert rc == 2 and "Traceback" not in err, (name, err)
+        assert [ln for ln in err.splitlines() if "error" in ln] == [
+            f"exo-bench: error: {'urdf -o ' + repr(str(fifo)) if name == 'u.urdf' else fifo}: is a FIFO; only a regular "
+            "file or nothing is ever replaced"], (name, err)
+        assert _is_fifo(fifo), name
+        assert not list(d.glob(".staging-*")) and not list(d.glob(f".{name}.*")), name   # nothing half-written
+
+
+def test_a_symlink_to_a_regular_file_is_written_through_and_kept(tmp_path):
+    target = _text(tmp_path, "old", "real.urdf")
+    link = _link(tmp_path, target)
+    rc, out, err = run_cli(["urdf", "fig1-2d", "-o", link])
+    assert rc == 0 and err == ""
+    assert link.is_symlink() and target.read_text().startswith("<?xml")
+
+
+def test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte(tmp_path):
+    sc = _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40')
+    rep = tmp_path / "rep"
+    assert run_cli(["run", sc, "--reports", rep])[0] == 0
+    before = {p.name: p.read_bytes() for p in rep.iterdir()}
+    assert "| sc | pinocchio |" in before["summary.md"].decode()
+    rc, out, err = run_cli(["run", sc, "--reports", rep, "--max-memory", "1K"])
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "scene 'sc' failed" in err, err
+    assert {p.name: p.read_bytes() for p in rep.iterdir()} == before
+
+
+def test_a_scene_failing_midway_keeps_its_rows_while_the_others_are_updated(tmp_path, monkeypatch):
+    import argparse
+
+    from exo_bench.bench import runner
+
+    a = _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40')
+    b = (tmp_path / "b.toml")
+    b.write_text(a.read_text())
+    rep = tmp_path / "rep"
+    assert runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep))) == 0
+    old_b = (rep / "b.md").read_bytes()
+    real = runner.run_scene
+
+    def half_then_fail(scene, staging, limits=None):
+        if scene.name == "b":
+            (staging / "b.md").write_text("half")
+            raise RuntimeError("solver exploded")
+        return real(scene, staging, limits)
+
+    monkeypatch.setattr(runner, "run_scene", half_then_fail)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep)))
+    assert rc == 2 and "scene 'b' failed: RuntimeError: solver exploded" in err.getvalue()
+    assert (rep / "b.md").read_bytes() == old_b
+    summary = (rep / "summary.md").read_text()
+    assert "(scene failed)" not in summary and "| b | pinocchio |" in summary
+
+
+def test_stale_staging_folders_are_removed_by_the_next_run_and_live_ones_reported(tmp_path):
+    import socket
+    import subprocess
+
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (rep / ".staging-killed").mkdir()
+    (rep / ".staging-killed" / "x.md").write_text("half")
+    (rep / ".staging-killed" / ".owner").write_text(f"{dead.stdout.strip()} 1 {socket.gethostname()}\n")
+    (rep / ".staging-elsewhere").mkdir()
+    (rep / ".staging-elsewhere" / ".owner").write_text("1 1 another-host\n")
+    rc, out, err = run_cli(["run", _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40'), "--reports", rep])
+    assert rc == 0, err
+    assert not (rep / ".staging-killed").exists() and (rep / ".staging-elsewhere").exists()
+    assert "removed 1 staging folder(s)" in err and "left 1 staging folder(s)" in err and ".staging-elsewhere" in err
+
+
+def test_a_quick_size_report_never_replaces_a_full_one(tmp_path, monkeypatch):
+    import exo_bench.bench.equations as eq
+
+    monkeypatch.setattr(eq, "size_point", lambda mech, route, budget: {"compose": 0.1, "generate": 0.1, "ops": 10,
+                                                                        "c_lines": 5})
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    full = "# sizes\n\n_Generated by `exo-bench equations --size-report --full`; do not edit by hand._\n"
+    (rep / "equations_size.md").write_text(full)
+    rc, out, err = run_cli(["equations", "--size-report", "--reports", rep])
+    assert rc == 0, err
+    assert (rep / "equations_size.md").read_text() == full
+    quick = (rep / "equations_size-quick.md").read_text()
+    assert "equations_size-quick.png" in quick and (rep / "equations_size-quick.png").exists()
+
+
+@pytest.mark.parametrize("how", ["runs.json", "provenance"])
+def test_stability_reports_of_a_full_run_get_quick_names_beside_them(tmp_path, how):
+    from exo_bench.bench.output_files import narrower_names
+
+    names = ["stability-families.png", "stability.md"]
+    if how == "runs.json":
+        (tmp_path / "runs.json").write_text(json.dumps({"format": 1, "runs": {"r1": {"command": "exo-bench stability --full"}},
+                                                         "files": {"stability.md": {"run": "r1"}}}))
+    else:
+        (tmp_path / "stability.md").write_text("# x\n\n_Generated by `exo-bench run --full`; do not edit by hand._\n")
+    assert narrower_names(tmp_path, names, full=False) == {n: n.replace(".", "-quick.") for n in names}
+    assert narrower_names(tmp_path, names, full=True) == {n: n for n in names}
+    assert narrower_names(tmp_path / "empty", names, full=False) == {n: n for n in names}
+
+
+def test_a_compressed_npz_is_judged_before_it_is_inflated(tmp_path, monkeypatch):
+    f = _npz_zeros(tmp_path, 2_000_000, 15)
+    assert f.stat().st_size < 10e6                                  # 720 MB of arrays
+    monkeypatch.setattr(np, "load", lambda *a, **k: pytest.fail("the archive was inflated"))
+    rc, out, err = run_cli(["inverse", "exo5-3d", f, "--max-memory", "500M"])
+    assert rc == 2 and "2000000 sample(s)" in err and "over the memory limit" in err, err
+
+
+def test_prepare_lagrange_on_50_links_refuses_up_front_as_a_value_error():
+    import time
+
+    from exo_bench import prepare
+    from exo_bench.lagrange import BudgetExceeded
+
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"needs about .* and 1034 s .*its derivation alone over the budget of 120 s"):
+        prepare(chain(50, 2), "lagrange")
+    assert time.perf_counter() - t0 < 10      # the estimate alone (was 120 s and 3.5 GB)
+    assert issubclass(BudgetExceeded, ValueError)
+
+
+@pytest.mark.parametrize("options,needle", [({"interrupt": "x"}, "option 'interrupt': expected True or False, got 'x'"),
+                                            ({"budget": float("inf")}, "option 'budget': expected a positive, finite"),
+                                            ({"budget": True}, "option 'budget'")])
+def test_lagrange_options_are_checked(options, needle):
+    from exo_bench import prepare
+
+    with pytest.raises(ValueError, match=needle.replace("(", r"\(").replace(")", r"\)")):
+        prepare(chain(1, 2), "lagrange", **options)
+
+
+def test_the_cli_default_method_is_prepares_and_the_help_names_it():
+    import inspect
+
+    from exo_bench import prepare
+
+    default = inspect.signature(prepare).parameters["method"].default
+    assert default == "matrix-factored"
+    args = cli.build_parser().parse_args(["inverse", "exo5-3d", "s.json"])
+    assert args.method == default
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+        cli.main(["inverse", "--help"])
+    assert f"(default: {default}, as prepare()'s;" in " ".join(buf.getvalue().split())
+
+
+def test_version():
+    import exo_bench
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit) as info:
+        cli.main(["--version"])
+    assert info.value.code == 0 and buf.getvalue().strip() == f"exo-bench {exo_bench.__version__}"
+
+
+def test_dashes_in_a_link_name_keep_the_urdf_valid(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    rc, out, err = run_cli(["urdf", _mech(tmp_path, link2_name="thigh--left-")])
+    assert rc == 0 and err == ""
+    ET.fromstring(out)                       # parses: no "--" inside a comment
+    assert "thigh- -left- ," in out
+
+
 # ------------------------------------------------------------------------------ docs/errors.md
 ISSUE_ROWS = {
     "300-link 3D chain": "a 300-link 3D chain with the default method: killed for memory, or a raw MemoryError",
