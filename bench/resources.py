@@ -62,6 +62,13 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
     | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
     | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
 
+Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`recurrence_table_floats`:
+sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain; four copies at the peak
+of building them: 11.2 GB at 2D n = 1000, measured 10.6 GB), ``pinocchio``'s setup time the first
+touch of its Data and the model build, and ``io`` (bench/states_input.py) the reading of the states
+and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
+of measurement across n.
+
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
 would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
