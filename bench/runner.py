@@ -503,6 +503,9 @@ def run(args) -> int:
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
     jobs = _suite_jobs() if not args.scenes else []  # naming scenes runs just those scenes
     limits = Limits(memory=getattr(args, "max_memory", None))
+    from exo_bench.bench.output_files import output_target
+    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):   # before any work: no FIFO there
+        output_target(out / name)
     set_run_id(new_run_id())
     command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
     _warn_known_wrong(scenes)
