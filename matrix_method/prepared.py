@@ -29,7 +29,7 @@ from exo_bench.matrix_method import compiled, compiled_factored, compiled_matrix
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.coefficients import signed_coupling, signed_gravity
 from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.prepared import PreparedModel, unchecked_states
 
 
 def _block_option(method: str, block) -> int:
@@ -103,8 +103,9 @@ class _Compiled(_MatrixFamily):
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
+        unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
         if q.ndim == 1:                         # one sample: the serial kernel on the arrays as given
-            o = np.empty_like(q) if out is None else out
+            o = np.empty(q.shape) if out is None else out
             self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
             return o
         if out is None:                         # a batch: the compiled kernel, no chunks (O(n^2) scratch)
@@ -116,7 +117,7 @@ class _Compiled(_MatrixFamily):
     def _compiled(self, q, qd, qdd, out=None):
         """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
         ``out`` (C-ordered) or a new array."""
-        o = np.empty_like(q) if out is None else out
+        o = np.empty(q.shape) if out is None else out     # C-ordered whatever q is: reshape(-1) is a view
         compiled.run(self.serial_kernel, self.parallel_kernel,
                      (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1)), q.shape[0])
         return o

@@ -397,12 +397,12 @@ def _first_bool(arr) -> tuple[bool, str] | None:
 
 
 def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
-    """Validate state arrays at the edge and return them as float ``(samples, dof)`` arrays.
+    """Validate state arrays at the edge and return them as C-ordered float64 ``(samples, dof)`` arrays.
 
     Accepts one sample ``(dof,)`` or a batch ``(samples, dof)``. Rejects wrong shapes, ragged
     rows, entries that are not numbers, NaN/Inf, negative rod lengths (each with a message naming
     the array, sample and coordinate) and states whose forces would overflow float64
-    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). Float64 arrays are not copied; the
+    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). C-ordered float64 arrays are not copied (others are: any layout or stride is accepted); the
     checks run :data:`CHECK_ROWS` rows at a time.
     """
     names = coordinate_names(mech)
@@ -426,6 +426,8 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
                                  f"{where[1]}")
         if a.ndim == 1:
             a = a[None, :]
+        if a.ndim == 2 and not a.flags.c_contiguous:
+            a = np.ascontiguousarray(a)     # a DataFrame's values, a transpose, an .npz of asfortranarray
         if a.ndim != 2 or a.shape[1] != mech.dof:
             raise ValueError(
                 f"{source}: field '{label}': expected shape (samples, {mech.dof}) in the order "

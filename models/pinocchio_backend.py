@@ -315,4 +315,7 @@ class PinocchioRNEA(PreparedModel):
     def _bias_forces(self, q, qd):
         qj, vj = q @ self.GT, qd @ self.GT
         model, data = self.pin_model, self.data
-        return np.stack([pin.nonLinearEffects(model, data, qj[s], vj[s]) for s in range(q.shape[0])]) @ self.G
+        out = np.empty((q.shape[0], self.pin_model.nv))     # (0, nv) for no samples
+        for s in range(q.shape[0]):
+            out[s] = pin.nonLinearEffects(model, data, qj[s], vj[s])
+        return out @ self.G

@@ -15,8 +15,10 @@ otherwise derived from inverse dynamics, which is linear in ``qdd``: ``h = ID(q,
 is frozen and checks itself). ``check=True`` (the default) validates the states with
 :func:`~models.mechanism.as_states`: shapes, finiteness, non-negative lengths, each with a
 message that names the array, the sample and the coordinate. ``check=False`` is the fast path
-for trusted hot loops (an ODE right-hand side, a controller): the arrays must already be float64
-``(dof,)`` or ``(samples, dof)`` and nothing is checked.
+for trusted hot loops (an ODE right-hand side, a controller): it checks no value, only what
+memory safety needs (:func:`unchecked_states`: C-ordered float64 arrays of one shape ``(dof,)``
+or ``(samples, dof)``, and ``out`` of that shape), so a wrong layout is a ValueError, never a
+read or write past an array.
 
 **Chunks.** A batch is evaluated :attr:`PreparedModel.chunk_samples` samples at a time into a
 preallocated result, so that a batch of any length needs the inputs, the result and a fixed
@@ -129,14 +131,68 @@ def usable_memory() -> int | None:
     return None if avail is None else int(USABLE_SHARE * avail)
 
 
-def _check_out(out, shape: tuple) -> None:
+def _check_out(out, shape: tuple, method: str = "") -> None:
     """``out`` of :meth:`PreparedModel.inverse_dynamics`: a writable C-ordered float64 array of ``shape``."""
     if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == tuple(shape)
             and out.flags.c_contiguous and out.flags.writeable):
         got = (f"{type(out).__name__}" if not isinstance(out, np.ndarray) else
                f"{out.dtype} array of shape {out.shape}" + ("" if out.flags.c_contiguous else ", not C-ordered")
                + ("" if out.flags.writeable else ", read-only"))
-        raise ValueError(f"field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
+        raise ValueError(f"{method + ': ' if method else ''}field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
+
+
+_F8 = np.dtype(np.float64)
+
+
+def _describe(a) -> str:
+    if not isinstance(a, np.ndarray):
+        return "None" if a is None else type(a).__name__
+    return (f"{a.dtype.str if a.dtype.byteorder == '>' else a.dtype} array of shape {a.shape}" + ("" if a.flags.c_contiguous else ", not C-ordered")
+            + ("" if a.flags.writeable else ", read-only"))
+
+
+def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
+    """What ``check=False`` still checks: memory safety, never values.
+
+    The kernels read ``samples * dof`` float64 numbers from each state array and write as many
+    into ``out``, through raw pointers (numba does not check bounds). So every array must be a
+    C-ordered float64 ndarray of one shape, ``(dof,)`` or ``(samples, dof)``, and ``out`` (if given)
+    a writable one of that shape. One comparison per property; a ValueError naming the field,
+    the expected and the actual array otherwise (a Fortran-ordered batch from a DataFrame would
+    otherwise be read in the wrong order, an ``out`` too small written past its end).
+    """
+    q = arrays[0]
+    try:                                     # straight-line: about 0.15 us on the quiet 2-core machine
+        s = q.shape
+        ok = len(s) < 3 and s[-1] == dof and q.dtype is _F8 and q.flags.c_contiguous
+        for a in arrays[1:]:
+            ok = ok and a.shape == s and a.dtype is _F8 and a.flags.c_contiguous
+        if ok and out is not None:
+            ok = out.shape == s and out.dtype is _F8 and out.flags.c_contiguous and out.flags.writeable
+    except (AttributeError, IndexError):
+        ok = False
+    if ok:
+        return
+    names = ("q", "qd", "qdd")[:len(arrays)]
+    expected = (f"C-ordered float64 arrays of one shape, (dof,) or (samples, dof) with dof = {dof} "
+                "(check=False checks memory safety only; check=True converts any layout and dtype)")
+    for name, a in zip(names, arrays):
+        good = (isinstance(a, np.ndarray) and a.dtype == _F8 and a.flags.c_contiguous and a.ndim in (1, 2)
+                and a.shape[-1:] == (dof,) and a.shape == getattr(q, "shape", None))
+        if not good:
+            raise ValueError(f"{method}: field '{name}': expected {expected}, got {_describe(a)}"
+                             + ("" if name == "q" or not isinstance(q, np.ndarray) else f" (q: {q.shape})"))
+    if out is not None:
+        _check_out(out, q.shape, method)
+    # here: safe after all (a float64 dtype object that is not numpy's own, as some libraries make)
+
+
+def _require_rates(method: str, *rates) -> None:
+    """``qd`` (and ``qdd``) are required where the call needs them: None is not "zero"."""
+    for name, a in zip(("qd", "qdd"), rates):
+        if a is None:
+            raise ValueError(f"{method}: field '{name}': expected an array of shape (dof,) or (samples, dof), "
+                             "got None (pass zeros for a state at rest)")
 
 
 def _chunks(S: int, size: int):
@@ -219,17 +275,20 @@ class PreparedModel:
         allocates nothing: the compiled kernels write into it directly)."""
         if check:
             single = np.ndim(q) == 1
+            _require_rates(self.method, qd, qdd)
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
             if out is not None:
-                _check_out(out, q.shape[1:] if single else q.shape)
+                _check_out(out, q.shape[1:] if single else q.shape, self.method)
             tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
             tau = tau[0] if single else tau
-        elif q.ndim == 1:
-            tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-        elif q.shape[0] <= self._chunk:
-            tau = self._inverse_dynamics(q, qd, qdd)
         else:
-            tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
+            unchecked_states(self.method, self._dof, (q, qd, qdd), out)
+            if q.ndim == 1:
+                tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
+            elif q.shape[0] <= self._chunk:
+                tau = self._inverse_dynamics(q, qd, qdd)
+            else:
+                tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         if out is None:
             return tau
         out[...] = tau
@@ -240,8 +299,10 @@ class PreparedModel:
         single = np.ndim(q) == 1
         if check:
             q, _, _ = as_states(self._mechanism, q)
-        elif single:
-            q = q[None]
+        else:
+            unchecked_states(self.method, self._dof, (q,))
+            if single:
+                q = q[None]
         d = self._dof
         M = self._chunked(self._mass_matrix, (q,), (d, d))
         return M[0] if single else M
@@ -250,9 +311,12 @@ class PreparedModel:
         """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
         single = np.ndim(q) == 1
         if check:
+            _require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
-        elif single:
-            q, qd = q[None], qd[None]
+        else:
+            unchecked_states(self.method, self._dof, (q, qd))
+            if single:
+                q, qd = q[None], qd[None]
         h = self._chunked(self._bias_forces, (q, qd), (self._dof,))
         return h[0] if single else h
 
@@ -260,7 +324,13 @@ class PreparedModel:
         """Both terms of ``M qdd + h = tau`` at once, ``(S, dof, dof)`` and ``(S, dof)`` (batch only):
         one batched inverse-dynamics call where the terms are derived."""
         if check:
+            _require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
+        else:
+            unchecked_states(self.method, self._dof, (q, qd))
+        if q.ndim != 2:
+            raise ValueError(f"{self.method}: mass_matrix_and_bias takes a batch: expected q of shape (samples, "
+                             f"{self._dof}), got {q.shape}")
         d = self._dof
         if self.native_terms:
             return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
