@@ -398,7 +398,7 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
         return est
     size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
     note = f" ({est.note})" if est.note else ""
-    if io[1] > 0:
+    if io[1] > 0.05 * est.seconds:   # named where it matters
         note += f" (reading the states and writing tau: {_seconds(io[1])} of it)"
     msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
     alt = fitting_method(mech, samples, limits, exclude=method, io=io)
