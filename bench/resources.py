@@ -64,7 +64,7 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
 
 Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`recurrence_table_floats`:
 sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain; four copies at the peak
-of building them: 11.2 GB at 2D n = 1000, measured 10.6 GB), ``pinocchio``'s setup time the first
+of building them: 11.2 GB and 30 s at 2D n = 1000, measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
 touch of its Data and the model build, and ``io`` (bench/states_input.py) the reading of the states
 and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
 of measurement across n.
@@ -86,7 +86,6 @@ largest n by the power law through the last two points: about n^3.5 in time and 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -236,7 +235,7 @@ def _recurrence_setup_bytes(mech, options):
 
 
 def _recurrence_setup_seconds(mech, options):
-    return 0.01 + 5e-6 * mech.nlinks**2 + RECURRENCE_TABLE_SECONDS * recurrence_table_floats(mech)
+    return 0.01 + RECURRENCE_TABLE_SECONDS * recurrence_table_floats(mech)
 
 
 MODELS: dict[str, CostModel] = {
@@ -268,7 +267,7 @@ MODELS: dict[str, CostModel] = {
     "matrix-factored": CostModel(
         _compiled_setup_bytes("matrix-factored"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
-        sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
+        sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,   # 3D n = 20, 50 at 40,000 samples (issue 26)
         note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
 }
 
@@ -329,10 +328,8 @@ def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | Non
     per_sample = samples * model.sample_seconds(n, d)
     chunk_bytes = chunk * model.sample_bytes(n, d)
     if _numba(options, method):
-        # compiled kernels keep one sample's scratch per thread, not a chunk's temporaries (issue 26:
-        # matrix 3D n = 100 measured 6 MB against 93 MB of chunk), and matrix's run at about half the
-        # numpy figures (tests/test_estimate_vs_measured.py)
-        chunk_bytes = min(chunk, os.cpu_count() or 1) * model.sample_bytes(n, d)
+        # matrix's compiled kernel runs at about half the numpy figures (measured, issue 26); the chunk's
+        # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
         per_sample *= NUMBA_SPEED.get(method, 1.0)
     seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
     return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,

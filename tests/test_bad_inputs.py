@@ -718,7 +718,7 @@ ISSUE_26_ROWS = [
      "test_bad_input[scene-refused], test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte, "
      "test_a_scene_failing_midway_keeps_its_rows_while_the_others_are_updated"),
     ("5. recurrence on a 1000-link 2D chain: estimated 537 MB, measured 10.6 GB",
-     "its increment tables are in the cost model: about 11.2 GB and 35 s, refused under --max-memory 1G",
+     "its increment tables are in the cost model: about 11.2 GB and 30 s, refused under --max-memory 1G",
      "test_bad_input[recurrence-1000-2d], tests/test_estimate_vs_measured.py"),
     ("5. a 7 MB compressed .npz decompressed to 7.2 GB before any check",
      "judged by its arrays' uncompressed size from the zip directory and .npy headers, before anything is inflated",

@@ -10,16 +10,20 @@ the clock starts (their generation is not the method's work). Memory is the grow
 resident set (``VmHWM`` after a reset through /proc/self/clear_refs, as
 ``bench.calibration.measure`` does: Pinocchio allocates in C++ where tracemalloc does not see).
 
-Error model: memory estimates are upper bounds rounded up (measured/estimated in [0.5, 1] here,
-0.57 to 0.94 when fitted); times are the fitted constants of the shared 2-core reference machine,
-so a host more than about 1.5x slower or faster than it, or a heavily loaded one, can leave the 2x
-band: a point outside it is measured once more before the test fails, and the failure names the
-point (recalibrate with ``python -m exo_bench.bench.calibration``).
+Error model: memory estimates are upper bounds rounded up (measured/estimated 0.6 to 0.95 when
+fitted), held within [0.5, 2] as they are. Times are constants fitted on the shared 2-core reference
+machine, whose own times vary 2-5x with its load (recurrence 2D n = 280: 0.33 s quiet, 1.6 s
+loaded), so the time of each point is held within 2x of the estimate once divided by this host's
+speed factor (the geometric mean of the points' measured/estimated times, which must lie within
+[0.2, 5]): the test holds the shape of the model across n and methods, and its scale within 5x.
+Points outside are measured once more before the test fails; the failure names them (recalibrate
+with ``python -m exo_bench.bench.calibration``).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 
@@ -64,7 +68,7 @@ print(json.dumps(out))
 #: Pinocchio's Data) or the batch's arrays (matrix-factored) dominate: 100-650 MB, 0.3-3 s each on
 #: the reference machine. ``matrix`` is left out: with its compiled kernel its peak grows by 2-6 MB
 #: (below BASE_BYTES, where the estimate is a floor), and compiling its kernels would cost CI 10 s.
-POINTS = {("recurrence", 2, 1): (280, 340), ("pinocchio", 3, 1): (50, 70), ("matrix-factored", 3, 40000): (20, 50)}
+POINTS = {("recurrence", 2, 1): (280, 340), ("pinocchio", 3, 1): (50, 70), ("matrix-factored", 3, 40000): (30, 50)}
 
 
 def _measure(method, dim, samples, ns) -> list[dict]:
@@ -74,26 +78,36 @@ def _measure(method, dim, samples, ns) -> list[dict]:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def _outside(key, ns) -> list[tuple[int, float, float, dict, object]]:
-    """The points of ``ns`` outside the 2x band: (n, memory ratio, time ratio, measured, estimate)."""
-    method, dim, samples = key
-    bad = []
-    for got in _measure(method, dim, samples, ns):
-        est = estimate(chain(got["n"], dim), method, samples)
-        memory = est.memory - (NUMBA_BYTES if _numba({}, method) else 0)   # loaded before the measurement
-        mem, sec = got["bytes"] / memory, got["seconds"] / est.seconds
-        if not (0.5 <= mem <= 2 and 0.5 <= sec <= 2):
-            bad.append((got["n"], mem, sec, got, est))
+def _points() -> list[tuple[tuple, int, float, float, dict, object]]:
+    """Every point: (key, n, memory ratio, time ratio, measured, estimate); ratios measured / estimated."""
+    out = []
+    for key, ns in POINTS.items():
+        method, dim, samples = key
+        for got in _measure(method, dim, samples, ns):
+            est = estimate(chain(got["n"], dim), method, samples)
+            memory = est.memory - (NUMBA_BYTES if _numba({}, method) else 0)   # loaded before the measurement
+            out.append((key, got["n"], got["bytes"] / memory, got["seconds"] / est.seconds, got, est))
+    return out
+
+
+def _outside(points) -> list[str]:
+    """The points outside the bands, in words: memory within 2x; time within 2x once divided by this
+    host's speed against the reference machine (the geometric mean of the time ratios, itself
+    within 5x)."""
+    speed = math.exp(sum(math.log(p[3]) for p in points) / len(points))
+    bad = [f"{k[0]} {k[1]}D n={n}: measured {g['bytes'] / 1e6:.0f} MB and {g['seconds']:.2f} s, estimated "
+           f"{e.memory / 1e6:.0f} MB and {e.seconds:.2f} s (host speed factor {speed:.2f})"
+           for k, n, mem, sec, g, e in points if not (0.5 <= mem <= 2 and 0.5 <= sec / speed <= 2)]
+    if not 0.2 <= speed <= 5:
+        bad.append(f"this host runs the methods {speed:.2f}x the reference machine's times")
     return bad
 
 
-@pytest.mark.parametrize("key", POINTS, ids=[f"{m}-{d}d" for m, d, _ in POINTS])
-def test_the_estimate_is_within_2x_of_the_measured_memory_and_time(key):
-    bad = _outside(key, POINTS[key])
-    if bad:   # a noisy neighbour: those points once more
-        bad = _outside(key, [b[0] for b in bad])
-    assert not bad, "; ".join(f"{key[0]} {key[1]}D n={n}: measured {g['bytes'] / 1e6:.0f} MB and {g['seconds']:.2f} s, "
-                              f"estimated {e.memory / 1e6:.0f} MB and {e.seconds:.2f} s" for n, _, _, g, e in bad)
+def test_the_estimate_is_within_2x_of_the_measured_memory_and_time():
+    bad = _outside(_points())
+    if bad:   # a noisy neighbour: once more
+        bad = _outside(_points())
+    assert not bad, "; ".join(bad)
 
 
 def test_the_recurrence_on_1000_links_is_estimated_near_its_measured_10_6_gb():
