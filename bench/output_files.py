@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
@@ -45,7 +46,7 @@ def output_target(path: str | Path, label: str = "") -> Path:
     except FileNotFoundError:
         return p
     except OSError as e:   # a name too long, a loop of links, a component that is a file
-        if getattr(e, "errno", None) == 20:   # ENOTDIR: handled where the folder is made
+        if getattr(e, "errno", None) == errno.ENOTDIR:   # handled where the folder is made
             return p
         raise ValueError(f"{who}: not a usable path to write ({e.strerror or e})") from None
     if stat.S_ISLNK(lst.st_mode):
