@@ -109,6 +109,9 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
         for _, r in per.iterrows():
             lines.append(f"| {r['dim']}D | {r['method']} | {r['mechanism']} | {r['median'] * 1e6:.3g} | "
                          f"{r['max_abs_err']:.1e} | {r['max_rel_err']:.1e} | {r['nonfinite']} | {r['reference']} |")
+    from exo_bench.bench.peer_ratios import engine_section  # the engines' rows and their ratios
+
+    lines += [""] + engine_section(inv)
     lines += _skips_md(skips, "test_inverse_batched")
     _plot_error_vs_runtime(bat, png)
     lines += ["", f"![error against run time]({png.name})"]
@@ -365,7 +368,8 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
                                             for n in sorted(per[per["topology"] == "chain"]["n"].unique())]
         lines += ["## Per call", "", "Microseconds per call, one sample, `check=False`, into a preallocated `out` "
                   "(`pin.rnea (bare)`: Pinocchio's own cost on preallocated joint coordinates; `pydy-cython`: PyDy's "
-                  "Cython code of the same composed equations). Models: exo5-3d and serial chains of n links.", ""]
+                  "Cython code of the same composed equations; `mujoco`, `drake`: the engines, what their rows time "
+                  "below). Models: exo5-3d and serial chains of n links.", ""]
         lines += _table(per, "us_per_call", cols)
         if PIN_BARE in set(per["method"]):
             lines += ["", "The same, as a multiple of bare `pin.rnea` on the same model:", ""]
@@ -400,6 +404,9 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
                 if len(mm) and len(pin):
                     lines.append(f"- {dim}D, {label}, `{m}` against Pinocchio: crossover {crossover(mm, pin)}")
     lines.append("")
+    from exo_bench.bench.peer_ratios import engine_section  # the engines' rows and their ratios
+
+    lines += engine_section(inv)
     lines += compile_section(df)
     lines += limit_section(df, inv)
     lines += _skips_md(skips, "test_inverse")

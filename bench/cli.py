@@ -169,6 +169,28 @@ def cmd_urdf(args) -> int:
     return 0
 
 
+def cmd_mjcf(args) -> int:
+    """The MJCF of a mechanism, compiled by MuJoCo before it is written (so that a file written loads
+    in MuJoCo); ``--no-check`` writes it without MuJoCo."""
+    from exo_bench.models.loading import load_mechanism
+    from exo_bench.models.mjcf import to_mjcf
+
+    mech = load_mechanism(args.mechanism)
+    if args.output:
+        from exo_bench.bench.reporting import writable_folder
+        writable_folder(Path(args.output).resolve().parent, "-o")
+    text = to_mjcf(mech)
+    if not args.no_check:
+        from exo_bench.models.mujoco_backend import compile_mjcf
+        compile_mjcf(text, f"MJCF of {mech.name!r}")     # ValueError: MuJoCo missing, or refusing the file
+    if args.output:
+        from exo_bench.bench.reporting import atomic_write
+        atomic_write(args.output, text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
 def reports_folder(value: str | None) -> str | None:
     """``--reports``: a usable folder (:func:`reporting.writable_folder`), checked before any work starts."""
     from exo_bench.bench.reporting import writable_folder
@@ -326,6 +348,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("mechanism")
     s.add_argument("-o", "--output")
     s.set_defaults(func=cmd_urdf)
+
+    s = sub.add_parser("mjcf", help="print (or write) the MJCF (MuJoCo XML) of a mechanism, checked by compiling it "
+                                    "with MuJoCo (extra [peers])")
+    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
+    s.add_argument("-o", "--output", help="the .xml file to write (default: stdout)")
+    s.add_argument("--no-check", action="store_true", help="write it without compiling it in MuJoCo (MuJoCo not needed)")
+    s.set_defaults(func=cmd_mjcf)
 
     s = sub.add_parser("run", help="the main job: run every scene and write the reports")
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")

@@ -1,9 +1,11 @@
 """``exo-bench equations``: the equations of a mechanism taken away as LaTeX, Python or C; the
 ``equations`` output of a scene; and the size study ``reports/equations_size.md``.
 
-* ``exo-bench equations MECHANISM --format latex|python|c [-o DIR] [--symbolic-parameters]``
-  writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python) or ``<name>.h`` and
-  ``<name>.c`` (c) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
+* ``exo-bench equations MECHANISM --format latex|python|c|casadi [-o DIR] [--symbolic-parameters]``
+  writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python), ``<name>.h`` and
+  ``<name>.c`` (c) or ``<name>_<function>.casadi`` and ``<name>_casadi.md`` (casadi: the
+  ``casadi.Function`` files of :mod:`matrix_method.export_casadi`, the optional extra ``casadi``)
+  into ``DIR`` (default: the current folder), atomically (a failure leaves no file
   of the set half-written). The work is estimated first (:func:`bench.resources.equations_estimate`)
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.
@@ -25,7 +27,7 @@ from pathlib import Path
 from exo_bench.bench.equation_pages import (DEFAULT_BUDGET, EquationsBudget, _Clock, eq4_pair,  # noqa: F401
                                             md_matrices, scene_pages)
 
-FORMATS = ("latex", "python", "c")
+FORMATS = ("latex", "python", "c", "casadi")
 
 
 # ------------------------------------------------------------------------------ the command
@@ -35,8 +37,8 @@ def add_parser(sub) -> None:
                        "module or C99 source (eq. (5)/(17) composed by the matrix method)")
     s.add_argument("mechanism", nargs="?", help="a preset name or a mechanism JSON file")
     s.add_argument("--format", choices=None, default=None, metavar="FORMAT",
-                   help="latex (a Markdown page and a standalone .tex), python (imports numpy only) or c (C99 "
-                        ".h and .c)")
+                   help="latex (a Markdown page and a standalone .tex), python (imports numpy only), c (C99 "
+                        ".h and .c) or casadi (casadi.Function files .casadi and a note; the extra 'casadi')")
     s.add_argument("-o", "--output", default=".", metavar="DIR", help="output folder (default: the current folder)")
     s.add_argument("--symbolic-parameters", action="store_true",
                    help="keep masses, fractions and g as symbols (latex: the aggregates of eq. (6); python and c: "
@@ -124,6 +126,8 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
         tex = export_latex.document(mech, symbolic_parameters, "tex", "", parts=parts, eq4=eq4_pair(mech))
         clock.check("the LaTeX file")
         return {f"equations-{stem}.md": md, f"equations-{stem}.tex": tex}
+    if fmt == "casadi":
+        return _casadi_files(mech, stem, symbolic_parameters, clock)
     es = export_code.equation_set(mech, symbolic_parameters)
     clock.check("composing")
     if fmt == "python":
@@ -151,6 +155,22 @@ def write_equations(mech, fmt: str, out: Path, symbolic_parameters: bool = False
             tmp.write_text(text)
             paths.append(out / name)
     return paths
+
+
+def _casadi_files(mech, stem: str, symbolic_parameters: bool, clock) -> dict[str, str]:
+    """``--format casadi``: ``<stem>_<function>.casadi`` files and the note ``<stem>_casadi.md``; with
+    ``--symbolic-parameters`` every function takes the masses, fractions and g as ``params``."""
+    import exo_bench
+    from exo_bench.bench.reporting import provenance
+    from exo_bench.matrix_method import export_casadi
+
+    export_casadi.require_casadi()
+    flag = " --symbolic-parameters" if symbolic_parameters else ""
+    files = export_casadi.export_files(mech, stem, exo_bench.__version__,
+                                       provenance(f"exo-bench equations {mech.name} --format casadi{flag}"),
+                                       symbolic_parameters)
+    clock.check("building and serialising the CasADi functions")
+    return files
 
 
 def _latex_header(mech, symbolic_parameters: bool) -> str:

@@ -14,6 +14,7 @@ import importlib
 from typing import Any
 
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models import prepared
 from exo_bench.models.prepared import PreparedModel
 
 #: method name -> (module, PreparedModel subclass, one-line description). The name says what runs.
@@ -35,7 +36,23 @@ METHODS: dict[str, tuple[str, str, str]] = {
     "recurrence": ("exo_bench.matrix_method.prepared", "Recurrence",
                    "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
                    "loops (option kernel: numba, the default, or numpy)"),
+    "mujoco": ("exo_bench.models.mujoco_backend", "MujocoRNE",
+               "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
+               "a Python loop over the samples (optional extra [peers])"),
+    "drake": ("exo_bench.models.drake_backend", "DrakeID",
+              "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
+              "a Python loop over the samples (optional extra [peers])"),
 }
+
+
+def _derivatives(mechanism: Mechanism, method: str):
+    from exo_bench.matrix_method.derivatives import derivatives_of  # noqa: PLC0415 - CasADi only when asked
+
+    return derivatives_of(mechanism, method)
+
+
+prepared.derivative_provider = _derivatives   # every prepared model's .derivatives (models.prepared)
+
 
 #: Methods whose results are known to be wrong (kept to expose the paper's misprints).
 KNOWN_WRONG = {"matrix-paper": "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"}

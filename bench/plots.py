@@ -46,8 +46,8 @@ _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e
 #: One colour per method, the same in every figure (Dark2: none is a link colour, none is the grey or
 #: black that thresholds use); methods not listed take the remaining ones in order.
 METHOD_COLORS = {"pinocchio": "#1b9e77", "matrix": "#d95f02", "matrix-factored": "#7570b3", "matrix-paper": "#e7298a",
-                 "recurrence": "#66a61e", "lagrange": "#e6ab02"}
-_SPARE_METHOD_COLORS = ("#a6761d", "#1f78b4", "#b15928", "#6a3d9a")
+                 "recurrence": "#66a61e", "lagrange": "#e6ab02", "mujoco": "#a6761d", "drake": "#1f78b4"}
+_SPARE_METHOD_COLORS = ("#b15928", "#6a3d9a", "#882255", "#999933")
 #: Smallest text in any figure (points): 9 pt at 150 dpi is 19 px high.
 TEXT_PT = 9.0
 TITLE_PT = 10.0

@@ -269,6 +269,20 @@ MODELS: dict[str, CostModel] = {
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
         sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,   # 3D n = 20, 50 at 40,000 samples (issue 26)
         note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
+    # The peers (extra [peers]): a Python loop over samples into MuJoCo / Drake. Peak RSS growth of
+    # prepare + one call on 3D chains of 10 and 100 links: MuJoCo 12 / 33 MB, Drake 16 / 50 MB; per
+    # sample on the shared 2-core machine (noisy, rounded up): MuJoCo 27-70 us at n = 5, ~1.1 ms at
+    # n = 100; Drake 40-170 us at n = 5, 2-4 ms at n = 100.
+    "mujoco": CostModel(
+        lambda m, o: 16 * 2**20 + 300_000 * m.nlinks, lambda m, o: 0.6 + 5e-3 * m.nlinks,
+        sample_bytes=lambda n, d: F8 * 20 * d * n,
+        sample_seconds=lambda n, d: (20.0 + 12.0 * n) * 1e-6,
+        note=lambda m, o: "a Python loop over mj_rne, one MjData"),
+    "drake": CostModel(
+        lambda m, o: 20 * 2**20 + 450_000 * m.nlinks, lambda m, o: 0.8 + 2e-3 * m.nlinks,
+        sample_bytes=lambda n, d: F8 * 20 * d * n,
+        sample_seconds=lambda n, d: (40.0 + (20.0 if d == 2 else 40.0) * n) * 1e-6,
+        note=lambda m, o: "a Python loop over CalcInverseDynamics, one Context"),
 }
 
 #: Methods offered as "a method that fits", best first (correct ones only: no matrix-paper).
@@ -506,9 +520,11 @@ EQUATIONS_POINTS: dict[str, dict[int, tuple[tuple[int, float], ...]]] = {
     "python": {2: ((2, 0.05), (5, 0.14), (10, 0.57), (20, 2.4)), 3: ((2, 0.13), (5, 0.95), (10, 3.5), (20, 13.7))},
     "c": {2: ((2, 0.04), (5, 0.08), (10, 0.53), (20, 3.5)), 3: ((2, 0.05), (5, 1.07), (10, 2.5), (20, 15.7))},
     "latex": {2: ((2, 0.02), (5, 0.05), (10, 0.3), (20, 4.0)), 3: ((2, 0.07), (5, 0.45), (10, 1.5), (20, 26.0))},
+    # building and serialising the six CasADi functions of chains (matrix_method/export_casadi.py), 2026-11-23
+    "casadi": {2: ((2, 0.07), (5, 0.04), (10, 0.11), (20, 0.28)), 3: ((2, 0.02), (5, 0.06), (10, 0.17), (20, 0.84))},
 }
 
 
 def equations_estimate(mech: Mechanism, fmt: str) -> float:
-    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c)."""
+    """Estimated seconds of ``exo-bench equations`` for ``mech`` in ``fmt`` (latex, python, c, casadi)."""
     return _loglog(list(EQUATIONS_POINTS[fmt][mech.dim]), float(mech.nlinks))

@@ -443,6 +443,7 @@ def snapshot(out: Path) -> dict[str, int]:
 
 def print_summary(outcomes: list[SceneOutcome]) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     table = Table(title="exo-bench: scene x method")
@@ -450,7 +451,7 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
         table.add_column(col, no_wrap=col != "largest error", overflow="fold")
     for o in outcomes:
         for row in scene_rows(o):
-            table.add_row(*row)
+            table.add_row(*(escape(str(c)) for c in row))   # a reason's "[peers]" is text, not rich markup
     console = Console()
     if not console.is_terminal:
         console = Console(width=140)

@@ -13,8 +13,17 @@ Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readabl
   the batch), batched only; the thread count is in ``extra_info``;
 * ``pin.rnea (bare)``: per call, ``pin.rnea`` on preallocated joint-coordinate arrays of the same
   Pinocchio model, without our G maps: Pinocchio's own cost;
+* ``mj_rne (bare)`` and ``CalcInverseDynamics (bare)``: per call, the engine's own calls on
+  preallocated joint-coordinate arrays (no G maps, no wrapper), as ``pin.rnea (bare)`` is for
+  Pinocchio: the report gives each engine method's overhead over them;
 * ``pydy-cython``: per call, PyDy's Cython code generator on the same composed equations
   (:mod:`bench.peers`; skipped with the reason when pydy/cython are not installed);
+* ``mujoco`` and ``drake`` (registered methods, extra ``[peers]``): a Python loop over samples into
+  the engine, four binding calls per sample (MuJoCo: ``mj_kinematics``, ``mj_comPos``,
+  ``mj_comVel``, ``mj_rne``; Drake: ``SetPositions``, ``SetVelocities``, ``CalcInverseDynamics``,
+  ``CalcGravityGeneralizedForces``), so their per-call and batched costs are mostly that overhead
+  at small n; batched up to the n where the projected batch fits ``inverse_budget``; skipped with the
+  reason (printed) when the engine is not installed (:class:`models.prepared.MissingExtra`);
 * group ``wrapper``: on exo5-3d, a prepared model's call with ``check=False`` next to the kernel
   it calls, so the report gives the wrapper's own per-call cost (call minus kernel);
 * group ``compile``: the first call's compile time of each compiled kernel (a fresh numba cache
@@ -60,7 +69,10 @@ PAPER_WRONG_3D = 1e-3            # the printed eq. (18) is off by far more than 
 COMPILED = ("matrix-factored", "matrix", "recurrence")
 KERNELS = ("numba", "numpy")
 BATCHED = (*METHODS, "pinocchio-parallel")
-PER_CALL = (*METHODS, "pin.rnea (bare)", "pydy-cython")
+#: Per call, each engine's own calls on preallocated joint-coordinate arrays (no G maps, no wrapper):
+#: the engine's cost, so that the report gives the method's overhead over it.
+BARE = {"pin.rnea (bare)": "pinocchio", "mj_rne (bare)": "mujoco", "CalcInverseDynamics (bare)": "drake"}
+PER_CALL = (*METHODS, *BARE, "pydy-cython")
 _FAILED: dict[tuple, str] = {}
 
 
@@ -119,7 +131,7 @@ def _prepare(method: str, kernel, mech, sw, batch=None):
     key = (method, kernel, mech)
     if key in _FAILED:
         pytest.skip(_FAILED[key])
-    base = {"pinocchio-parallel": "pinocchio", "pin.rnea (bare)": "pinocchio"}.get(method, method)
+    base = {"pinocchio-parallel": "pinocchio", **BARE}.get(method, method)
     options = {"kernel": kernel} if kernel else {}
     if method == "pinocchio-parallel":
         options["threads"] = _fastest_threads(mech, *batch)[0] if batch is not None else 2
@@ -132,6 +144,7 @@ def _prepare(method: str, kernel, mech, sw, batch=None):
         if not reason:
             raise
         _FAILED[key] = f"{method}: {reason}"
+        print(f"skipped: {_FAILED[key]}")
         pytest.skip(_FAILED[key])
 
 
@@ -196,6 +209,35 @@ def _bare_rnea(model, q, qd, qdd):
     return (lambda: pin.rnea(pm, data, qj, vj, aj)), (lambda tau_joint: tau_joint @ model.G)
 
 
+def _bare_engine(method, model, q, qd, qdd):
+    """The engine's calls of one sample on preallocated joint-coordinate arrays, without the G maps
+    or the prepared model's wrapper: MuJoCo's four stages into a preallocated result; Drake's state
+    set and its inverse dynamics minus gravity (the state is set on every call, as the method does)."""
+    qj, vj, aj = (np.ascontiguousarray(x @ model.GT) for x in (q, qd, qdd))
+    if method == "mj_rne (bare)":
+        import mujoco
+
+        m, d = model.mj_model, model.data
+        d.qpos[:], d.qvel[:], d.qacc[:] = qj, vj, aj
+        res = np.empty(m.nv)
+
+        def call():
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_comVel(m, d)
+            mujoco.mj_rne(m, d, 1, res)
+            return res
+        return call, (lambda tau_joint: tau_joint @ model.G)
+    plant = model.plant
+    ctx, forces = model._scratch()
+
+    def call():
+        plant.SetPositions(ctx, qj)
+        plant.SetVelocities(ctx, vj)
+        return plant.CalcInverseDynamics(ctx, aj, forces) - plant.CalcGravityGeneralizedForces(ctx)
+    return call, (lambda tau_joint: tau_joint @ model.G)
+
+
 def _pydy(mech, sw):
     """PyDy's compiled function of the composed equations; a skip with the reason when it cannot run."""
     why = peers.missing()
@@ -222,6 +264,9 @@ def test_inverse_per_call(benchmark, sweep, method, kernel, n, dim, topology):
     elif method == "pin.rnea (bare)":
         call, to_paper = _bare_rnea(_prepare(method, kernel, mech, sweep), q, qd, qdd)
         tau = to_paper(benchmark(call))
+    elif method in BARE:
+        call, to_paper = _bare_engine(method, _prepare(method, kernel, mech, sweep), q, qd, qdd)
+        tau = to_paper(benchmark(call).copy())
     else:
         model = _prepare(method, kernel, mech, sweep)
         model.inverse_dynamics(q, qd, qdd, check=False, out=out)

@@ -186,42 +186,58 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     return out
 
 
-def _factored_2d(n, g, c, nu_s, x, xd, xdd):
-    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks."""
+class NumpyOps:
+    """What the factored kernels need beyond elementwise arithmetic, for numpy ``(n, B)`` arrays:
+    ``cos_sin`` (:func:`_cos_sin`), ``couple(c, parts)`` (``sum_j c_ij part_j`` per Cartesian axis,
+    one product with ``c``) and ``rows(parts)`` (the blocks of tau stacked). The same kernels run on
+    CasADi's symbols with another namespace (:mod:`matrix_method.export_casadi`)."""
+
+    cos_sin = staticmethod(_cos_sin)
+
+    @staticmethod
+    def couple(c, parts):
+        return c @ np.stack(parts)
+
+    @staticmethod
+    def rows(parts):
+        return np.concatenate(parts)
+
+
+NUMPY_OPS = NumpyOps()
+
+
+def _factored_2d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
+    """The planar kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (``ops``: numpy by default,
+    :class:`NumpyOps`; any namespace with the same three functions, e.g. CasADi's)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
-    cf, sf = _cos_sin(phi)
+    cf, sf = ops.cos_sin(phi)
     radial = ldd - l * w * w                       # along u: l'' and the centripetal l u_phiphi phi'^2
     tangent = 2.0 * ld * w + l * wdd               # along u_phi: l phi'' and 2 phi' l'
-    kappa = np.stack([radial * cf - tangent * sf, radial * sf + tangent * cf])   # (2, n, B)
-    f = c @ kappa                                  # sum_j c_ij kappa_j
-    out = np.empty((2 * n, x.shape[1]))
-    out[:n] = l * (cf * f[1] - sf * f[0] + g * nu_s * cf)     # r_phi . f + g P_phi
-    out[n:] = cf * f[0] + sf * f[1] + g * nu_s * sf           # r_l . f + g P_l
-    return out
+    f = ops.couple(c, [radial * cf - tangent * sf, radial * sf + tangent * cf])   # sum_j c_ij kappa_j
+    return ops.rows([l * (cf * f[1] - sf * f[0] + g * nu_s * cf),      # r_phi . f + g P_phi
+                     cf * f[0] + sf * f[1] + g * nu_s * sf])           # r_l . f + g P_l
 
 
-def _factored_3d(n, g, c, nu_s, x, xd, xdd):
-    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks."""
+def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
+    """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (``ops`` as in
+    :func:`_factored_2d`)."""
     phi, psi, l = x[:n], x[n:2 * n], x[2 * n:]
     w, v, ld = xd[:n], xd[n:2 * n], xd[2 * n:]
     wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
-    cf, sf = _cos_sin(phi)
-    cp, sp = _cos_sin(psi)
+    cf, sf = ops.cos_sin(phi)
+    cp, sp = ops.cos_sin(psi)
     along_u = ldd - l * v * v                      # u l'' and l u_psipsi psi'^2 = -l u psi'^2
     along_psi = 2.0 * ld * v + l * vdd             # u_psi: l psi'' and 2 psi' l'
     # u_phiphi = -cos psi (cos phi, sin phi, 0), u_phipsi = -sin psi (-sin phi, cos phi, 0)
     horizontal = (along_u - l * w * w) * cp - along_psi * sp                # along (cos phi, sin phi, 0)
     azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp        # along (-sin phi, cos phi, 0)
-    kappa = np.stack([horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf,
-                      along_u * sp + along_psi * cp])                        # (3, n, B)
-    f = c @ kappa
+    f = ops.couple(c, [horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf,
+                       along_u * sp + along_psi * cp])                       # sum_j c_ij kappa_j, per axis
     radial = cf * f[0] + sf * f[1]
     vertical = f[2] + g * nu_s
-    out = np.empty((3 * n, x.shape[1]))
-    out[:n] = l * cp * (cf * f[1] - sf * f[0])                              # r_phi . f (P_phi = 0)
-    out[n:2 * n] = l * (cp * vertical - sp * radial)                        # r_psi . f + g P_psi
-    out[2 * n:] = cp * radial + sp * vertical                               # r_l . f + g P_l
-    return out
+    return ops.rows([l * cp * (cf * f[1] - sf * f[0]),                       # r_phi . f (P_phi = 0)
+                     l * (cp * vertical - sp * radial),                      # r_psi . f + g P_psi
+                     cp * radial + sp * vertical])                           # r_l . f + g P_l
 
 
 # ----------------------------------------------------------------- as printed

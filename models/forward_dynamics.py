@@ -26,7 +26,9 @@ a condition number), and :func:`condition_numbers` measures how close to singula
 
 **Integration** (:func:`simulate`) uses scipy's ``solve_ivp`` on the state ``y = [q, qd]``, with
 explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
-so the implicit integrators' finite-difference Jacobian costs one batched call per column block.
+so the implicit integrators' finite-difference Jacobian costs one batched call per column block;
+``jacobian="analytic"`` gives them :func:`make_jacobian` instead (the forward-dynamics derivatives
+of ``model.derivatives`` and the controls' ``jacobian``), which costs no right-hand-side evaluation.
 """
 
 from __future__ import annotations
@@ -186,7 +188,13 @@ def prescribed_controls(model: PreparedModel, motion_of_t) -> Controls:
         m = motion_of_t(np.array([t]))
         return np.broadcast_to(model.inverse_dynamics(m.q, m.qd, m.qdd, check=False), q.shape)
 
+    controls.jacobian = _no_state_dependence      # tau depends on t alone
     return controls
+
+
+def _no_state_dependence(t: float, q: np.ndarray, qd: np.ndarray):
+    z = np.zeros(q.shape + q.shape[-1:])
+    return z, z
 
 
 def rod_spring_damper(mech: Mechanism, k, c, l_rest) -> Controls:
@@ -200,6 +208,15 @@ def rod_spring_damper(mech: Mechanism, k, c, l_rest) -> Controls:
         tau[:, -n:] = -k * (q[:, -n:] - l_rest) - c * qd[:, -n:]
         return tau
 
+    def jacobian(t: float, q: np.ndarray, qd: np.ndarray):
+        """``(dtau/dq, dtau/dqd)``, ``(S, dof, dof)``: ``-k_i`` and ``-c_i`` on the rods' diagonal."""
+        d = q.shape[-1]
+        jq, jqd = np.zeros(q.shape + (d,)), np.zeros(q.shape + (d,))
+        rods = np.arange(d - n, d)
+        jq[..., rods, rods], jqd[..., rods, rods] = -k, -c
+        return jq, jqd
+
+    controls.jacobian = jacobian
     return controls
 
 
@@ -235,6 +252,8 @@ class Simulation:
     t_reached: float = math.nan       # the latest time the right-hand side was evaluated at
     outside: int = 0                  # trial stages outside the domain (l < 0): NaN, step rejected
     solution: object | None = field(default=None, repr=False)   # dense output when asked for
+    jacobian: str = "finite-difference"   # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
+    jacobian_columns: int = 0             # of nfev, the columns spent on scipy's finite-difference Jacobians
 
     @property
     def ok(self) -> bool:
@@ -259,11 +278,13 @@ def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | No
     :class:`IntegrationBudgetExceeded`."""
     mech = model.mechanism
     d = mech.dof
-    count = {"columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
+    count = {"columns": 0, "jacobian_columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         Y = y.reshape(2 * d, -1).T                 # (k, 2d): one row per column of y
         count["columns"] += Y.shape[0]
+        if Y.shape[0] > 1:                         # only scipy's finite-difference Jacobian asks for several
+            count["jacobian_columns"] += Y.shape[0]
         if max_evaluations is not None and count["columns"] > max_evaluations:
             raise IntegrationBudgetExceeded(f"gave up after {max_evaluations} right-hand-side evaluations "
                                             f"(t = {t:.4g} s)")
@@ -288,11 +309,49 @@ def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | No
     return rhs, count
 
 
+#: The Jacobians an implicit integrator can use: scipy's finite differences of the vectorised
+#: right-hand side (``2 dof`` columns per Jacobian), or the analytic one of :func:`make_jacobian`.
+JACOBIANS = ("finite-difference", "analytic")
+
+
+def make_jacobian(model: PreparedModel, controls: Controls):
+    """The analytic Jacobian ``df/dy`` of the right-hand side ``f = [qd, qdd]`` of :func:`make_rhs`:
+    ``[[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]]`` with the forward-dynamics
+    derivatives of ``model.derivatives`` (:mod:`matrix_method.derivatives`) and the controls' own
+    ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)`` (:func:`prescribed_controls` and
+    :func:`rod_spring_damper` have one). A ValueError when the controls have none, or when the
+    derivatives are not available (the optional extra ``casadi``)."""
+    jac_controls = getattr(controls, "jacobian", None)
+    if jac_controls is None:
+        raise ValueError("jacobian 'analytic': the controls have no jacobian(t, q, qd) -> (dtau/dq, dtau/dqd) "
+                         "attribute; use jacobian='finite-difference'")
+    derivatives = model.derivatives
+    d = model.dof
+    eye = np.eye(d)
+
+    def jac(t: float, y: np.ndarray) -> np.ndarray:
+        q, qd = y[None, :d], y[None, d:]
+        tau = controls(t, q, qd)
+        _, aq, aqd, minv = derivatives.forward_dynamics(q, qd, np.ascontiguousarray(tau), check=False)
+        cq, cqd = jac_controls(t, q, qd)
+        J = np.zeros((2 * d, 2 * d))
+        J[:d, d:] = eye
+        J[d:, :d] = aq[0] + minv[0] @ cq[0]
+        J[d:, d:] = aqd[0] + minv[0] @ cqd[0]
+        return J
+
+    return jac
+
+
 def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], controls: Controls,
              integrator: str = "DOP853", rtol: float = 1e-8,
              atol: float | None = None, max_evaluations: int | None = None, max_seconds: float | None = None,
-             dense: bool = False, first_step: float | None = None) -> Simulation:
+             dense: bool = False, first_step: float | None = None,
+             jacobian: str = "finite-difference") -> Simulation:
     """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
+
+    ``jacobian`` (implicit integrators): ``"finite-difference"`` (scipy's, from the vectorised
+    right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`).
 
     ``atol`` defaults to ``rtol * 1e-3`` (a state component of 1e-3 rad or mm counts as small).
     The initial state is validated and checked for a singular mass matrix (then
@@ -302,6 +361,11 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
     """
     if integrator not in INTEGRATORS:
         raise ValueError(f"integrator: expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    if jacobian not in JACOBIANS:
+        raise ValueError(f"jacobian: expected one of {', '.join(JACOBIANS)}, got {jacobian!r}")
+    if jacobian == "analytic" and integrator not in IMPLICIT:
+        raise ValueError(f"jacobian 'analytic': only the implicit integrators ({', '.join(IMPLICIT)}) use a "
+                         f"Jacobian, got {integrator!r}")
     from scipy.integrate import solve_ivp
 
     mech = model.mechanism
@@ -316,6 +380,8 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
     t0 = time.perf_counter()
     status, sol = "ok", None
     kw = {} if first_step is None else {"first_step": first_step}
+    if jacobian == "analytic":
+        kw["jac"] = make_jacobian(model, controls)
     try:
         r = solve_ivp(rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True,
                       dense_output=dense, **kw)
@@ -332,4 +398,5 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
         njev, nlu = 0, 0
     seconds = time.perf_counter() - t0
     return Simulation(integrator, rtol, atol, np.asarray(steps_t), np.asarray(steps_y), count["columns"],
-                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol)
+                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol, jacobian,
+                      count["jacobian_columns"])

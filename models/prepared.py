@@ -44,6 +44,16 @@ import numpy as np
 from exo_bench.models.mechanism import Mechanism, as_states
 
 
+class MissingExtra(ValueError):
+    """A method's optional engine is not installed (e.g. MuJoCo or Drake, extra ``[peers]``): a
+    ValueError whose message names the extra; ``skip_reason`` (the same line) makes studies and
+    benchmarks skip the method with it instead of failing."""
+
+    def __init__(self, message: str):
+        super().__init__(message)
+        self.skip_reason = message
+
+
 def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray):
     """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics ``(q, qd, qdd) -> tau`` on
     ``(samples, dof)`` arrays, in ONE batched call.
@@ -200,6 +210,12 @@ def _chunks(S: int, size: int):
         yield slice(s0, min(S, s0 + size))
 
 
+#: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
+#: by ``exo_bench.bench.methods`` (``matrix_method.derivatives.derivatives_of``; this layer cannot
+#: import matrix_method). None until then.
+derivative_provider = None
+
+
 class PreparedModel:
     """A mechanism prepared for one method. Subclasses set :attr:`method` and implement
     :meth:`_inverse_dynamics`; they may override ``_mass_matrix`` and ``_bias_forces``."""
@@ -265,6 +281,19 @@ class PreparedModel:
 
     def __reduce__(self):
         return (_rebuild, (type(self), self._mechanism, self._options))
+
+    @property
+    def derivatives(self):
+        """The derivatives of this model's equations of motion, built on first use:
+        ``.inverse_dynamics(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``, ``.forward_dynamics(q, qd, tau)
+        -> (qdd, dqdd_dq, dqdd_dqd, Minv)``, batch-first, and ``.source`` (which physics computes
+        them): :mod:`matrix_method.derivatives`. Needs the optional extra ``casadi``."""
+        if getattr(self, "_derivatives", None) is None:
+            if derivative_provider is None:
+                raise ValueError(f"{self.method}: derivatives: prepare the model with exo_bench.prepare "
+                                 "(it registers the derivative provider)")
+            self._derivatives = derivative_provider(self._mechanism, self.method)
+        return self._derivatives
 
     # ------------------------------------------------------------------ calls
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:

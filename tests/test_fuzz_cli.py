@@ -210,9 +210,9 @@ KINDS = ["missing", "folder", "binary", "empty", "bom", "device", "fifo", "nul",
          "under-file"]
 
 
-@settings(max_examples=len(KINDS) * 3, deadline=None, derandomize=True, database=None)
+@settings(max_examples=len(KINDS) * 4, deadline=None, derandomize=True, database=None)
 @given(st.sampled_from(KINDS), st.sampled_from(["mechanism", "states", "scene", "urdf-out", "urdf-mechanism",
-                                                "equations-out", "equations-mechanism"]))
+                                                "equations-out", "equations-mechanism", "mjcf-out", "mjcf-mechanism"]))
 def test_every_kind_of_file_in_every_role(kind, role):
     with workdir() as d:
         bad = _make(kind, d)
@@ -228,6 +228,10 @@ def test_every_kind_of_file_in_every_role(kind, role):
             holds(["equations", "fig1-2d", "--format", "c", "-o", bad])
         elif role == "equations-mechanism":
             holds(["equations", bad, "--format", "python"])
+        elif role == "mjcf-out":
+            holds(["mjcf", "fig1-2d", "--no-check", "-o", bad])
+        elif role == "mjcf-mechanism":
+            holds(["mjcf", bad, "--no-check"])
         else:
             holds(["urdf", bad])
 
@@ -293,7 +297,7 @@ def test_run_with_generated_scenes(values, present):
 
 
 # ------------------------------------------------------------------------------ free-form argument lists
-TOKENS = ["inverse", "urdf", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
+TOKENS = ["inverse", "urdf", "mjcf", "--no-check", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
           "--max-time", "--reports", "--full", "-o", "--output", "--update-readme", "-h", "fig1-2d", "exo5-3d",
           "matrix", "2G", "-1", "nan", "s.json", "m.json", "x", "", "--", "-", "\0",
           "equations", "--format", "latex", "python", "c", "--symbolic-parameters", "--size-report"]

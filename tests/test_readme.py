@@ -23,17 +23,23 @@ def test_ci_runs_the_readmes_test_command():
     assert _commands()[1] in (ROOT / ".ci/run").read_text().splitlines()
 
 
-def test_the_library_example_runs_and_checks_itself(tmp_path):
-    """The README's "Use it as a library" example, run as a user would run it (its own asserts
-    compare the methods with each other and a forward-dynamics step with the prescribed qdd)."""
+def run_example(heading: str, tmp_path):
+    """The one ```python block of the README's section ``heading``, run as a user would run it."""
     import subprocess
     import sys
 
     text = (ROOT / "README.md").read_text()
-    section = text.split("## Use it as a library", 1)[1].split("\n## ", 1)[0]
+    section = text.split(f"## {heading}", 1)[1].split("\n## ", 1)[0]
     blocks = re.findall(r"```python\n(.*?)\n```", section, re.S)
     assert len(blocks) == 1
     script = tmp_path / "example.py"
     script.write_text(blocks[0])
     r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
+    return r
+
+
+def test_the_library_example_runs_and_checks_itself(tmp_path):
+    """The README's "Use it as a library" example, run as a user would run it (its own asserts
+    compare the methods with each other and a forward-dynamics step with the prescribed qdd)."""
+    run_example("Use it as a library", tmp_path)

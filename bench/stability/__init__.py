@@ -34,3 +34,5 @@ from exo_bench.bench.stability.figures import FLOOR, families_figure, conditioni
 from exo_bench.bench.stability.forward_report import forward_markdown  # noqa: F401
 from exo_bench.bench.stability.report import baseline_level, thresholds_markdown, family_summary_markdown, family_detail_markdown, findings_markdown, report_markdown, run  # noqa: F401
 from exo_bench.bench.study import StabilityWarning, UnusableMethodWarning  # noqa: F401
+from exo_bench.bench.stability.forward_evaluation import analytic_grid, analytic_stiff  # noqa: F401
+from exo_bench.bench.stability.forward_jacobian import SAME_ERROR, Pair, pairs, verdict, jacobian_markdown  # noqa: F401

@@ -120,17 +120,18 @@ class RoundTrip:
 
 def round_trip_run(case: RoundTripCase, integrator: str, rtol: float, method: str = "pinocchio",
                    control_method: str = "pinocchio", max_seconds: float | None = None,
-                   controls: fd.Controls | None = None, models: PreparedSet | None = None) -> fd.Simulation:
+                   controls: fd.Controls | None = None, models: PreparedSet | None = None,
+                   jacobian: str = "finite-difference") -> fd.Simulation:
     """One integration of the round trip (dense output, so that it can serve as the tighter run
     of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
     dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
-    state."""
+    state; ``jacobian`` of the implicit integrators (:data:`models.forward_dynamics.JACOBIANS`)."""
     mech = case.mechanism
     models = _models(models)
     ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
     q0, qd0 = _state0(case.motion_of_t(np.array([0.0])))
     return fd.simulate(models(mech, method), q0, qd0, (0.0, case.horizon), ctrl, integrator, rtol, ATOL_FACTOR * rtol,
-                       max_seconds=max_seconds, dense=True)
+                       max_seconds=max_seconds, dense=True, jacobian=jacobian)
 
 
 def round_trip(case: RoundTripCase, integrator: str, rtol: float, method: str = "pinocchio",
@@ -198,7 +199,7 @@ def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
 
 
 def _simulate_spring(case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None,
-                     **budget) -> fd.Simulation:
+                     **budget) -> fd.Simulation:   # budget: max_evaluations, max_seconds (and jacobian)
     """A spring case integrated from its initial state over its horizon with ``method``'s ``M`` and
     ``h`` (atol = ``ATOL_FACTOR`` rtol); ``budget``: ``max_evaluations``, ``max_seconds``."""
     return fd.simulate(_models(models)(case.mechanism, method), case.q0, case.qd0, (0.0, case.horizon),
@@ -252,10 +253,10 @@ class StiffRun:
 
 def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: int, reference=None,
               method: str = "pinocchio", max_seconds: float | None = None,
-              models: PreparedSet | None = None) -> StiffRun:
+              models: PreparedSet | None = None, jacobian: str = "finite-difference") -> StiffRun:
     mech = case.mechanism
     sim = _simulate_spring(case, integrator, rtol, method, models, max_evaluations=max_evaluations,
-                           max_seconds=max_seconds)
+                           max_seconds=max_seconds, jacobian=jacobian)
     mu = np.diag(coupling(mech))
     cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)
@@ -371,15 +372,21 @@ class ForwardResults:
     cases: dict[str, str]                           # name -> description
     seconds: float = 0.0
     stiff_notes: list[str] = field(default_factory=list)
+    # the implicit integrators with the analytic Jacobian (models.forward_dynamics.make_jacobian): the
+    # work-precision round trip and the stiff work-precision case again (bench/stability/forward_jacobian.py)
+    analytic_trips: list[RoundTrip] = field(default_factory=list)
+    analytic_stiff: list[StiffRun] = field(default_factory=list)
+    analytic_notes: list[str] = field(default_factory=list)
 
 
 def _grid(case: RoundTripCase, integrators, rtols, var, method="pinocchio", max_seconds=None,
-          models: PreparedSet | None = None) -> list[RoundTrip]:
+          models: PreparedSet | None = None, jacobian: str = "finite-difference") -> list[RoundTrip]:
     """Every integrator at every tolerance; the run at rtol / TIGHTER (when in the grid) is the
     error estimate of the run at rtol."""
     out = []
     for integ in integrators:
-        sims = {r: round_trip_run(case, integ, r, method, max_seconds=max_seconds, models=models) for r in rtols}
+        sims = {r: round_trip_run(case, integ, r, method, max_seconds=max_seconds, models=models, jacobian=jacobian)
+                for r in rtols}
         for r in rtols:
             tighter = next((s for r2, s in sims.items() if math.isclose(r2, r / TIGHTER, rel_tol=1e-6)), None)
             out.append(round_trip(case, integ, r, method, var=var, sim=sims[r], tighter=tighter, estimate=False,
@@ -387,6 +394,27 @@ def _grid(case: RoundTripCase, integrators, rtols, var, method="pinocchio", max_
         for s in sims.values():
             s.solution = None          # the dense outputs served as estimates; they are large
     return out
+
+
+def analytic_grid(case: RoundTripCase, rtols, var, models: PreparedSet | None) -> tuple[list[RoundTrip], list[str]]:
+    """The round trip of :func:`_grid` for the implicit integrators with the analytic Jacobian
+    (``jacobian="analytic"``); without the derivatives (the extra ``casadi``) no rows and a note."""
+    try:
+        return _grid(case, fd.IMPLICIT, rtols, var, models=models, jacobian="analytic"), []
+    except ValueError as e:
+        return [], [f"{case.name}: no analytic Jacobian: {one_line(e)}"]
+
+
+def analytic_stiff(case: SpringCase, rtols, budget: int, reference, max_seconds, models: PreparedSet | None,
+                   notes: list[str]) -> list[StiffRun]:
+    """:func:`stiff_run` of the implicit integrators with the analytic Jacobian at ``rtols``; a
+    missing extra ``casadi`` is a note in ``notes``, not a crash."""
+    try:
+        return [stiff_run(case, integ, r, budget, reference, max_seconds=max_seconds, models=models,
+                          jacobian="analytic") for integ in fd.IMPLICIT for r in rtols]
+    except ValueError as e:
+        notes.append(f"{case.name}: no analytic Jacobian: {one_line(e)}")
+        return []
 
 
 def rt_failed(rt: RoundTrip) -> bool:
@@ -406,6 +434,7 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     sing = singular_demos(models)
     cases = [c for c in round_trip_cases(profile.full_cases) if not profile.rt_cases or c.name in profile.rt_cases]
     growth, trips, mtrips, refused = {}, [], [], []
+    a_trips, a_stiff, a_notes = [], [], []
     for i, case in enumerate(cases):
         log(f"forward dynamics: round trip {case.name}")
         ctrl = fd.prescribed_controls(models(case.mechanism, "pinocchio"), case.motion_of_t)
@@ -414,6 +443,8 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
         growth[case.name] = var.max_growth()
         if i == 0:
             trips += _grid(case, fd.INTEGRATORS, profile.wp_rtols, var, models=models)
+            log(f"forward dynamics: round trip {case.name}, implicit integrators with the analytic Jacobian")
+            a_trips, a_notes = analytic_grid(case, profile.wp_rtols, var, models)
         else:
             trips += _grid(case, profile.rt_integrators, profile.rt_rtols, var, models=models)
         if case.name in profile.method_cases:
@@ -472,9 +503,11 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
                     stiff_wp.append(stiff_run(c, integ, r, profile.stiff_budget, ref, max_seconds=secs,
                                                     models=models))
             stiff_wp += [s for s in stiff if s.case == c.name]
+            a_stiff = analytic_stiff(c, (1e-3, 1e-4, 1e-5, profile.stiff_rtol), profile.stiff_budget, ref, secs,
+                                     models, a_notes)
     descr = {c.name: c.description for c in cases}
     descr.update({c.name: c.description for c in springs})
     descr.update({c.name: c.description for c in variants})
     return ForwardResults(profile, terms, sing, growth, trips, mtrips, refused, energy, stiff, stiff_wp, descr,
-                          time.perf_counter() - t_start, notes)
+                          time.perf_counter() - t_start, notes, a_trips, a_stiff, a_notes)
 

@@ -15,34 +15,48 @@ from exo_bench.bench.stability.forward_evaluation import ForwardResults, StiffRu
 INTEGRATOR_STYLE = {"RK45": ("#1f77b4", "o"), "DOP853": ("#ff7f0e", "s"), "Radau": ("#2ca02c", "^"),
                     "BDF": ("#d62728", "v")}
 #: What the numbers beside the work-precision points are (legend title and report caption).
-RTOL_LABELS = "integrator (number beside each point: k, for rtol = 1e-k)"
+RTOL_LABELS = ("integrator (number beside each point: k, for rtol = 1e-k;\nRadau and BDF: scipy's finite-difference "
+               "Jacobian unless marked analytic)")
+
+
+#: The suffix of a series run with the analytic Jacobian (same colour as its integrator, dotted, hollow).
+ANALYTIC = ", analytic Jacobian"
 
 
 def _style(integ: str) -> tuple[str, str]:
-    return INTEGRATOR_STYLE.get(integ, ("#9467bd", "x"))
+    return INTEGRATOR_STYLE.get(integ.removesuffix(ANALYTIC), ("#9467bd", "x"))
 
 
 # ----------------------------------------------------------------------------- plots
-def work_precision_figure(panels: list[tuple[str, str, dict[str, list[tuple[float, float, float]]]]]):
+def work_precision_figure(panels: list[tuple[str, str, dict[str, list[tuple]]]]):
     """One log-log panel per problem: x the error, y the run time, a line per integrator through
     its tolerances (each point labelled with k of its rtol = 1e-k, explained in the legend's
-    title). ``panels``: (title, x label with its unit, {integrator: [(rtol, error, seconds), ...]})."""
+    title). ``panels``: (title, x label with its unit, {integrator: [(rtol, error, seconds[, RHS
+    evaluations]), ...]}). Where points carry RHS evaluations, a second row plots them against the
+    error. A series named ``<integrator>`` + :data:`ANALYTIC` is dotted with hollow markers (dashed
+    lines are thresholds in every figure)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(4.6 * len(panels) + 1.8, 4.2), layout="constrained")
-    axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    for ax, (title, xlabel, series) in zip(axes, panels):
-        for integ, pts in series.items():
-            pts = [p for p in pts if math.isfinite(p[1]) and p[1] > 0 and math.isfinite(p[2])]
-            if not pts:
-                continue
-            color, marker = _style(integ)
-            r, e, s = map(np.array, zip(*sorted(pts)))
-            ax.loglog(e, s, marker=marker, color=color, label=integ, ms=5, lw=1)
-            for ri, ei, si in zip(r, e, s):
-                ax.annotate(f"{-math.log10(ri):.0f}", (ei, si), fontsize=FONT_MIN, xytext=(3, 3),
-                            textcoords="offset points")
-        style_axes(ax, xlabel, "run time (s)", title)
+    rows = 2 if any(len(p) > 3 for _, _, series in panels for pts in series.values() for p in pts) else 1
+    fig = Figure(figsize=(4.6 * len(panels) + 1.8, 4.2 * rows), layout="constrained")
+    axes = fig.subplots(rows, len(panels), squeeze=False)
+    for col, (title, xlabel, series) in enumerate(panels):
+        for row in range(rows):
+            ax = axes[row, col]
+            y_at, ylabel = (2, "run time (s)") if row == 0 else (3, "right-hand-side evaluations (count)")
+            for integ, pts in series.items():
+                pts = [p for p in pts if len(p) > y_at and math.isfinite(p[1]) and p[1] > 0 and math.isfinite(p[y_at])]
+                if not pts:
+                    continue
+                color, marker = _style(integ)
+                analytic = integ.endswith(ANALYTIC)
+                r, e, s = map(np.array, zip(*[(p[0], p[1], p[y_at]) for p in sorted(pts)]))
+                ax.loglog(e, s, marker=marker, color=color, label=integ,
+                          ms=5, lw=1, ls=":" if analytic else "-", mfc="none" if analytic else color)
+                for ri, ei, si in zip(r, e, s):
+                    ax.annotate(f"{-math.log10(ri):.0f}", (ei, si), fontsize=FONT_MIN, xytext=(3, 3),
+                                textcoords="offset points")
+            style_axes(ax, xlabel, ylabel, title)
     legend_outside(fig, title=RTOL_LABELS)
     return fig
 
@@ -87,16 +101,22 @@ def forward_figures(res: ForwardResults) -> dict[str, object]:
     rt_series: dict[str, list] = {}
     for rt in res.round_trips:
         if rt.case == first:
-            rt_series.setdefault(rt.integrator, []).append((rt.rtol, rt.error, rt.sim.seconds))
+            rt_series.setdefault(rt.integrator, []).append((rt.rtol, rt.error, rt.sim.seconds, rt.sim.nfev))
+    for rt in res.analytic_trips:
+        if rt.case == first and rt.sim.ok:
+            rt_series.setdefault(rt.integrator + ANALYTIC, []).append((rt.rtol, rt.error, rt.sim.seconds, rt.sim.nfev))
     en_series: dict[str, list] = {}
     e_first = res.energy[0].case if res.energy else None
     for r in res.energy:
         if r.case == e_first:
-            en_series.setdefault(r.integrator, []).append((r.rtol, r.drift / r.scale, r.sim.seconds))
+            en_series.setdefault(r.integrator, []).append((r.rtol, r.drift / r.scale, r.sim.seconds, r.sim.nfev))
     st_series: dict[str, list] = {}
     for r in res.stiff_wp:
         if r.solved:
-            st_series.setdefault(r.integrator, []).append((r.rtol, r.error, r.sim.seconds))
+            st_series.setdefault(r.integrator, []).append((r.rtol, r.error, r.sim.seconds, r.sim.nfev))
+    for r in res.analytic_stiff:
+        if r.solved and res.stiff_wp and r.case == res.stiff_wp[0].case:
+            st_series.setdefault(r.integrator + ANALYTIC, []).append((r.rtol, r.error, r.sim.seconds, r.sim.nfev))
     panels = [(f"round trip: {first}", "max |q - q*| (rad, m)", rt_series),
               (f"energy drift: {e_first}", "max |E - E0| / max T (dimensionless)", en_series)]
     if st_series:

@@ -8,6 +8,7 @@ import math
 from exo_bench.bench.reporting import sci
 from exo_bench.bench.stability.forward_cases import ATOL_FACTOR, ROUND_TRIP_RULE, TIGHTER
 from exo_bench.bench.stability.forward_evaluation import ForwardResults
+from exo_bench.bench.stability.forward_jacobian import jacobian_markdown
 from exo_bench.models import forward_dynamics as fd
 
 
@@ -22,7 +23,8 @@ def forward_markdown(res: ForwardResults) -> str:
          "expose or, exactly, from their inverse dynamics (it is linear in qdd: h = ID(q, qd, 0), M e_k = "
          "ID(q, 0, e_k) - ID(q, 0, 0), one batched call per evaluation). The solve is equilibrated by diag(M). "
          "Integration: scipy `solve_ivp`, RK45 and DOP853 (explicit), Radau and BDF (implicit, Jacobian "
-         f"estimated by scipy from the vectorised right-hand side); atol = {ATOL_FACTOR:g} * rtol.", "",
+         "estimated by scipy from the vectorised right-hand side unless marked analytic, see below); "
+         f"atol = {ATOL_FACTOR:g} * rtol.", "",
          "### Each method's M and h against CRBA", "",
          "| mechanism | method | M and h | max rel. diff M | max rel. diff h | seconds (4 states) |",
          "|---|---|---|---|---|---|"]
@@ -118,5 +120,6 @@ def forward_markdown(res: ForwardResults) -> str:
         L += ["", f"At the stiffest variant ({stiffest:.1e} 1/s) the explicit integrators used up to {e_max} "
               f"evaluations{' (or gave up)' if any(not r.solved for r in expl) else ''}, the implicit ones at most "
               f"{i_max}: explicit step sizes are bounded by stability (h ~ 3 / rate), implicit ones by accuracy."]
+    L += jacobian_markdown(res)
     return "\n".join(L) + "\n"
 

@@ -1,0 +1,106 @@
+"""Derivatives of the equations of motion for a prepared model of any method, batch-first.
+
+``model.derivatives`` (:attr:`models.prepared.PreparedModel.derivatives`, attached by
+``exo_bench.prepare``) is a :class:`Derivatives`:
+
+* :meth:`Derivatives.inverse_dynamics` ``(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: CasADi's
+  algorithmic differentiation of the factored closed forms (:mod:`matrix_method.export_casadi`);
+* :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
+  implicit-function theorem on ``ID(q, qd, qdd) = tau``, as Pinocchio's ABA derivatives do:
+  ``dqdd/dq = -M^-1 dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with the
+  inverse-dynamics Jacobians at the accelerations ``qdd = M^-1 (tau - h)`` and an LU solve of
+  ``M`` equilibrated by ``diag(M)`` (:func:`models.forward_dynamics.solve_mass_matrix`).
+
+Arrays are ``(samples, dof)`` in and ``(samples, dof, dof)`` Jacobians out (``(dof,)`` and
+``(dof, dof)`` for one sample); ``J[s, i, j] = d out_i / d in_j``.
+
+**Which physics.** The equations of motion of a mechanism are unique: every method computes the
+same ``tau(q, qd, qdd)`` (the suite checks that they agree to rounding). The derivatives are those of
+the matrix method's factored closed forms (what ``matrix-factored`` evaluates) for every method;
+:attr:`Derivatives.source` says so per method. For ``matrix-paper`` they are the derivatives of the
+correct equations, not of its printed misprints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from exo_bench.matrix_method.export_casadi import casadi_functions
+from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.mechanism import Mechanism, as_states
+
+#: What computes the derivatives, per method family (:attr:`Derivatives.source`).
+SOURCE = ("CasADi algorithmic differentiation of the matrix method's factored closed forms of eq. (5)/(17) "
+          "(matrix_method/export_casadi.py)")
+
+
+def _source(method: str) -> str:
+    if method in ("matrix", "matrix-factored", "recurrence"):
+        return f"{SOURCE}: the same equations that {method} evaluates"
+    if method == "matrix-paper":
+        return (f"{SOURCE}: the CORRECT equations, not matrix-paper's eq. (18) as printed (its 3D misprints "
+                "have no derivative worth having)")
+    return (f"{SOURCE}: the equations of motion are unique, so these are {method}'s equations' derivatives to "
+            "rounding (the suite checks that every method's inverse dynamics agree)")
+
+
+def solve_mass_matrix_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``M^-1 B`` for batches ``M (S, d, d)``, ``B (S, d, k)``, equilibrated by ``D = diag(M)`` as
+    :func:`models.forward_dynamics.solve_mass_matrix` does for one right-hand side."""
+    r = 1.0 / np.sqrt(np.diagonal(M, axis1=1, axis2=2))
+    Ms = M * r[:, :, None] * r[:, None, :]
+    return r[:, :, None] * np.linalg.solve(Ms, r[:, :, None] * B)
+
+
+class Derivatives:
+    """The derivatives of one mechanism's equations of motion, for a prepared model of ``method``.
+    Built by :func:`derivatives_of` (CasADi functions compiled once per mechanism)."""
+
+    def __init__(self, mechanism: Mechanism, method: str = "matrix-factored"):
+        self.mechanism = mechanism
+        self.method = method
+        #: which physics computes these derivatives (module docstring)
+        self.source = _source(method)
+        self.equations = casadi_functions(mechanism)      # a ValueError naming the extra without CasADi
+
+    def __repr__(self) -> str:
+        return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {SOURCE}>"
+
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True):
+        """``(dtau_dq, dtau_dqd, M)`` at the states: ``(S, dof, dof)`` each (``(dof, dof)`` for one
+        ``(dof,)`` sample). ``M = dtau/dqdd``."""
+        single = np.ndim(q) == 1
+        if check:
+            q, qd, qdd = as_states(self.mechanism, q, qd, qdd, source="inverse-dynamics derivatives")
+        out = self.equations.evaluate("inverse_dynamics_derivatives", np.atleast_2d(q), np.atleast_2d(qd),
+                                      np.atleast_2d(qdd))
+        return tuple(x[0] for x in out) if single else out
+
+    def forward_dynamics(self, q, qd, tau, check: bool = True):
+        """``(qdd, dqdd_dq, dqdd_dqd, Minv)`` at the states and forces: ``qdd (S, dof)``, the rest
+        ``(S, dof, dof)`` (no sample axis for one ``(dof,)`` sample). ``Minv = dqdd/dtau``.
+
+        With ``check`` (the default) the states are validated and a singular mass matrix raises
+        :class:`models.forward_dynamics.SingularConfigurationError` naming the link, as
+        :func:`models.forward_dynamics.accelerations` does."""
+        single = np.ndim(q) == 1
+        if check:
+            q, qd, tau = as_states(self.mechanism, q, qd, tau, source="forward-dynamics derivatives")
+            reasons = [f"sample {s}: {r}" for s, rs in enumerate(fd.singular_reasons(self.mechanism, q)) for r in rs]
+            if reasons:
+                raise fd.SingularConfigurationError(reasons)
+        q, qd, tau = np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(tau)
+        ev = self.equations.evaluate
+        (M,), (h,) = ev("mass_matrix", q), ev("bias_forces", q, qd)
+        qdd = fd.solve_mass_matrix(M, tau - h)
+        jq, jqd, _ = ev("inverse_dynamics_derivatives", q, qd, qdd)
+        d = self.mechanism.dof
+        X = solve_mass_matrix_columns(M, np.concatenate([jq, jqd, np.broadcast_to(np.eye(d), M.shape)], axis=2))
+        out = (qdd, -X[:, :, :d], -X[:, :, d:2 * d], X[:, :, 2 * d:])
+        return tuple(x[0] for x in out) if single else out
+
+
+def derivatives_of(mechanism: Mechanism, method: str) -> Derivatives:
+    """The provider that ``exo_bench.prepare`` attaches to a prepared model (registered in
+    :data:`models.prepared.derivative_provider`)."""
+    return Derivatives(mechanism, method)

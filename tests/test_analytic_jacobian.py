@@ -1,0 +1,91 @@
+"""The implicit integrators' analytic Jacobian (models.forward_dynamics.make_jacobian, issue 24).
+
+Oracle: a complex step (h = 1e-30) of the right-hand side ``f(y) = [qd, M^-1 (tau(q, qd) - h)]``
+evaluated with the numpy factored kernel and numpy's solve in complex arithmetic, with the rods'
+spring-damper controls (linear in the state, so complex-safe). Error model: both sides are float64
+evaluations of ``X = M^-1 B`` with ``B`` the derivative of ``tau - h`` (see tests/test_casadi.py):
+``|dX| <= 2 K eps (cond(M) |X| + |M^-1| S_B sqrt(dof))``, S_B the derivative term scale.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from conftest import EPS, K, term_scale
+from exo_bench import prepare
+from exo_bench.bench.stability.forward_cases import ATOL_FACTOR, conservative_cases, stiff_case
+from exo_bench.models import forward_dynamics as fd
+
+pytest.importorskip("casadi")
+
+from test_casadi import _complex_forward  # noqa: E402
+
+
+@pytest.mark.parametrize("case", conservative_cases(), ids=lambda c: c.name)
+def test_analytic_jacobian_against_complex_step(case):
+    mech = case.mechanism
+    d = mech.dof
+    model = prepare(mech, "matrix-factored")
+    ctrl = case.controls
+    jac = fd.make_jacobian(model, ctrl)
+    y = np.concatenate([case.q0, case.qd0 + 0.3])
+    J = jac(0.0, y)
+    h = 1e-30
+    cs = np.empty((2 * d, 2 * d))
+    for k in range(2 * d):
+        z = y.astype(complex)
+        z[k] += 1j * h
+        q, qd = z[None, :d], z[None, d:]
+        a = _complex_forward(mech, q, qd, ctrl(0.0, q, qd))
+        cs[:, k] = np.concatenate([qd[0], a[0]]).imag / h
+    np.testing.assert_array_equal(J[:d], cs[:d])                  # d qd / d y: exactly [0, I]
+    M = model.mass_matrix(case.q0)
+    cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
+    n = mech.nlinks
+    S = term_scale(mech, case.q0, y[d:], None).max() * 2 / min(case.q0[-n:].min(), 1.0) + case.k + np.max(case.c)
+    X = np.linalg.norm(cs[d:], 2)
+    bound = 2 * K * EPS * (cond * X + minv * S * math.sqrt(d))
+    assert np.linalg.norm(J[d:] - cs[d:], 2) <= bound
+    assert bound <= 1e-6 * X, "the bound would not test anything"
+
+
+def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
+    """Radau and BDF on the stiff rods (k = 1e6): with the analytic Jacobian the same rtol costs fewer
+    right-hand-side evaluations, and the error against a tight reference is the finite-difference
+    run's within the report's factor (forward_jacobian.SAME_ERROR: both runs pass scipy's error test
+    at the same tolerance)."""
+    from exo_bench.bench.stability.forward_jacobian import SAME_ERROR
+
+    case = stiff_case(1e6)
+    model = prepare(case.mechanism, "matrix-factored")
+    run = lambda integ, r, j: fd.simulate(model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, r,
+                                          ATOL_FACTOR * r, jacobian=j)
+    ref = run("Radau", 1e-10, "analytic")
+    assert ref.ok
+    n = case.mechanism.nlinks
+    for integ in fd.IMPLICIT:
+        f, a = run(integ, 1e-4, "finite-difference"), run(integ, 1e-4, "analytic")
+        assert f.ok and a.ok and a.jacobian == "analytic" and f.jacobian == "finite-difference"
+        assert a.nfev < f.nfev
+        # scipy's finite differences take 2 dof columns per Jacobian (more where it refines a column);
+        # the analytic Jacobian takes none
+        assert f.jacobian_columns >= f.njev * 2 * case.mechanism.dof and a.jacobian_columns == 0
+        ef = np.abs(f.y[-1, :n] - ref.y[-1, :n]).max()
+        ea = np.abs(a.y[-1, :n] - ref.y[-1, :n]).max()
+        assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea
+
+
+def test_bad_jacobian_options():
+    case = stiff_case(1e4)
+    model = prepare(case.mechanism, "matrix-factored")
+    sim = lambda integ, j, ctrl=case.controls: fd.simulate(model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ,
+                                                          jacobian=j)
+    with pytest.raises(ValueError, match="jacobian: expected one of finite-difference, analytic"):
+        sim("Radau", "exact")
+    with pytest.raises(ValueError, match="only the implicit integrators"):
+        sim("DOP853", "analytic")
+    with pytest.raises(ValueError, match="controls have no jacobian"):
+        sim("Radau", "analytic", lambda t, q, qd: np.zeros_like(q))
