@@ -177,7 +177,9 @@ def cmd_mjcf(args) -> int:
 
     mech = load_mechanism(args.mechanism)
     if args.output:
+        from exo_bench.bench.output_files import output_target
         from exo_bench.bench.reporting import writable_folder
+        output_target(args.output, "mjcf -o")   # never a FIFO, a device, a socket (bench/output_files.py)
         writable_folder(Path(args.output).resolve().parent, "-o")
     text = to_mjcf(mech)
     if not args.no_check:

@@ -314,6 +314,9 @@ CASES = [
     Case("urdf-output-dangling-link", "urdf -o naming a symlink to nothing", lambda d: [
         "urdf", "fig1-2d", "-o", _link(d, d / "nothing")], "which does not exist; refusing to write through a dangling",
          issue="26: destroyed files"),
+    Case("mjcf-output-fifo", "mjcf -o naming a FIFO", lambda d: ["mjcf", "fig1-2d", "--no-check", "-o", _fifo(d)],
+         "mjcf -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced",
+         issue="26: destroyed files"),
     Case("equations-output-fifo", "equations: a FIFO where an output file goes", lambda d: [
         "equations", "fig2a-2d", "--format", "c", "-o", _fifo(d, "fig2a_2d.c").parent],
          "<dir>/fig2a_2d.c: is a FIFO; only a regular file or nothing is ever replaced", issue="26: destroyed files"),
@@ -502,8 +505,9 @@ def test_nothing_replaces_a_fifo_for_any_command_that_writes(tmp_path, monkeypat
 
     monkeypatch.setattr(eq, "size_point", lambda mech, route, budget: {"compose": 0.1, "generate": 0.1, "ops": 10,
                                                                         "c_lines": 5})
-    runs = []
+    runs, cmd_o = [], {"u.urdf": "urdf -o ", "m.xml": "mjcf -o "}
     for name, argv in [("u.urdf", lambda f: ["urdf", "fig1-2d", "-o", f]),
+                       ("m.xml", lambda f: ["mjcf", "fig1-2d", "--no-check", "-o", f]),
                        ("fig2a_2d.c", lambda f: ["equations", "fig2a-2d", "--format", "c", "-o", f.parent]),
                        ("equations_size.md", lambda f: ["equations", "--size-report", "--reports", f.parent]),
                        ("summary.md", lambda f: ["run", _scene(f.parent, 'kind = "planar-gait"\nsamples_per_period = 40'),
@@ -515,7 +519,7 @@ def test_nothing_replaces_a_fifo_for_any_command_that_writes(tmp_path, monkeypat
         runs.append((name, rc, err))
         assert rc == 2 and "Traceback" not in err, (name, err)
         assert [ln for ln in err.splitlines() if "error" in ln] == [
-            f"exo-bench: error: {'urdf -o ' + repr(str(fifo)) if name == 'u.urdf' else fifo}: is a FIFO; only a regular "
+            f"exo-bench: error: {cmd_o[name] + repr(str(fifo)) if name in cmd_o else fifo}: is a FIFO; only a regular "
             "file or nothing is ever replaced"], (name, err)
         assert _is_fifo(fifo), name
         assert not list(d.glob(".staging-*")) and not list(d.glob(f".{name}.*")), name   # nothing half-written
@@ -717,7 +721,7 @@ ISSUE_26_ROWS = [
      "refused in one line (exit 2) by the one writer behind every -o/--reports (bench/output_files.py); FIFOs, "
      "devices, sockets and symlinks to them or to nothing are never replaced; a symlink to a regular file is "
      "written through",
-     "test_bad_input[urdf-output-fifo], [urdf-output-link-to-fifo], [urdf-output-dangling-link], "
+     "test_bad_input[urdf-output-fifo], [urdf-output-link-to-fifo], [urdf-output-dangling-link], [mjcf-output-fifo], "
      "[equations-output-fifo], [reports-fifo], test_nothing_replaces_a_fifo_for_any_command_that_writes, "
      "test_a_symlink_to_a_regular_file_is_written_through_and_kept"),
     ("4. `equations --size-report` replaced the `--full` equations_size.md; `stability` overwrote a `--full` "
