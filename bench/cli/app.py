@@ -32,11 +32,18 @@ SUBCOMMANDS = ("presets", "inverse", "forward", "urdf", "mjcf", "run", "bench", 
                "gait")
 
 
+def _version() -> str:
+    import exo_bench
+
+    return exo_bench.__version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     import importlib
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")
+    p.add_argument("--version", action="version", version=f"exo-bench {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in SUBCOMMANDS:
         importlib.import_module(f"exo_bench.bench.cli.{name}").add_parser(sub)

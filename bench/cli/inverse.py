@@ -22,17 +22,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
                    "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    s.add_argument("--method", default="pinocchio",
-                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
+    default_method = _default_method()   # the same as the library's prepare()
+    s.add_argument("--method", default=default_method,
+                   help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
-    add_limit_args(s)
+    add_limit_args(s, budget_help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
     s.set_defaults(func=cmd_inverse)
 
 
-def add_limit_args(s: argparse.ArgumentParser) -> None:
+def _default_method() -> str:
+    """The default method of ``exo-bench inverse``: the one ``prepare()`` takes when none is named."""
+    import inspect
+
+    from exo_bench.api import prepare
+
+    return inspect.signature(prepare).parameters["method"].default
+
+
+def add_limit_args(s: argparse.ArgumentParser,
+                   budget_help: str = "seconds for lagrange's symbolic derivation (default 120)") -> None:
     """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
-    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
+    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS", help=budget_help)
     s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
     s.add_argument("--max-time", type=seconds_arg, default=None, metavar="SECONDS",
                    help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
@@ -113,10 +123,22 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     from exo_bench.models.mechanism import force_names
 
     method_class(args.method)  # an unknown method fails before any file is read
+    if args.budget is not None and args.method != "lagrange":
+        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
+                         "nothing (limit its time with --max-time)")
     mech = load_mechanism(args.mechanism)
-    q, qd, qdd = _load_states(args.states, mech)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
-    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
+    limits = _limits(args, args.method)
+    # reading and writing count in the estimate; a .npz by its uncompressed arrays, from its headers
+    from exo_bench.api.cost_model import check_reading
+    from exo_bench.bench.cli.states_input import peek_states
+    peek = peek_states(args.states, mech.dof)
+    if peek.samples is not None:
+        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))   # before decompressing
+    else:
+        check_reading(args.states, peek.read_bytes, peek.read_seconds, limits)
+    q, qd, qdd = _load_states(args.states, mech)
+    check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))   # before any work
     model = prepare(mech, args.method, **options)
     tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
     warn = known_wrong_warning(args.method, mech.dim)

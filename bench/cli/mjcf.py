@@ -25,7 +25,9 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
 
     mech = load_mechanism(args.mechanism)
     if args.output:
+        from exo_bench.bench.output.files import output_target
         from exo_bench.bench.output.provenance import writable_folder
+        output_target(args.output, "mjcf -o")   # never a FIFO, a device, a socket (bench/output/files.py)
         writable_folder(Path(args.output).resolve().parent, "-o")
     text = to_mjcf(mech)
     if not args.no_check:

@@ -106,6 +106,10 @@ def run_main_job(options: RunOptions) -> int:
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
     jobs = _suite_jobs() if not options.scenes else []  # naming scenes runs just those scenes
     limits = Limits(memory=options.max_memory)
+    from exo_bench.bench.output.files import output_target
+    from exo_bench.bench.output.publish import MANIFEST, SUMMARY
+    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):   # before any work: no FIFO there
+        output_target(out / name)
     set_run_id(new_run_id())
     command = "exo-bench run" + (" --full" if full else "") + ("" if not options.scenes else " " + " ".join(options.scenes))
     _warn_known_wrong(scenes)
@@ -118,10 +122,14 @@ def run_main_job(options: RunOptions) -> int:
         task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
+            staged = {f.name for f in staging.iterdir()}
             try:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
                 o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
+                for f in staging.iterdir():   # its partial files never replace the earlier run's
+                    if f.name not in staged and f.is_file():
+                        f.unlink(missing_ok=True)
             outcomes.append(o)
             progress.advance(task)
         for label, fn in jobs:
@@ -132,17 +140,21 @@ def run_main_job(options: RunOptions) -> int:
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
-        rows = {o.scene.name: scene_rows(o) for o in outcomes}
-        written = publish_run(staging, out, rows, command, read_manifest(out))
-    print_summary(outcomes)
+        if jobs or any(not o.error for o in outcomes):   # nothing ran: the folder is left exactly as it was
+            rows = {o.scene.name: scene_rows(o) for o in outcomes}
+            written = publish_run(staging, out, rows, command, read_manifest(out),
+                                  failed=frozenset(o.scene.name for o in outcomes if o.error))
+    if written:   # nothing ran (every scene refused or failed): the error lines below say it all
+        print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
-    for o in failed:
-        print(f"scene {o.scene.name} failed: {o.error}")
+    for o in failed:   # one line each on stderr; summary.md keeps the scene's earlier rows
+        print(f"exo-bench: error: scene {o.scene.name!r} failed: {o.error} (its earlier rows and files in "
+              f"{str(out)!r} are kept)", file=sys.stderr)
     for line in job_errors:
-        print(line)
-    return 1 if failed or job_errors else 0
+        print(f"exo-bench: error: {line}", file=sys.stderr)
+    return 2 if failed else 1 if job_errors else 0
 
 
 def _warn_known_wrong(scenes: list[Scene]) -> None:

@@ -34,16 +34,25 @@ from exo_bench.bench.output.provenance import atomic_write, current_run_id, prov
 
 @contextmanager
 def staging_dir(out: Path) -> Iterator[Path]:
+    from exo_bench.bench.output.files import clean_stale_staging, mark_owner
+
     out.mkdir(parents=True, exist_ok=True)
+    clean_stale_staging(out)   # what a killed run left (bench/output/files.py)
     d = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:
+        mark_owner(d)
         yield d
     finally:
         shutil.rmtree(d, ignore_errors=True)
 
 
 def publish(files: list[Path], out: Path) -> list[Path]:
-    """Move finished files from staging into ``out`` (an atomic rename each)."""
+    """Move finished files from staging into ``out`` (an atomic rename each); each target is
+    checked first (nothing but a regular file is ever replaced: bench/output/files.py)."""
+    from exo_bench.bench.output.files import output_target
+
+    for f in files:
+        output_target(out / f.name)
     done = []
     for f in files:
         target = out / f.name
@@ -121,7 +130,7 @@ def read_manifest(out: Path) -> dict:
     """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
     rows of its ``summary.md`` (marked as of an unknown run)."""
     p = Path(out) / MANIFEST
-    if p.exists():
+    if p.is_file():   # never open a FIFO or a device (it would block or never end)
         try:
             data = json.loads(p.read_text())
             if isinstance(data, dict) and data.get("format") == 1:
@@ -132,7 +141,7 @@ def read_manifest(out: Path) -> dict:
               file=sys.stderr)
     m = new_manifest()
     old = Path(out) / SUMMARY
-    if old.exists():
+    if old.is_file():
         try:
             text = old.read_text(errors="replace")
         except OSError:
@@ -162,7 +171,7 @@ def _signals_held() -> Iterator[None]:
 
 
 def publish_run(staging: Path, out: Path, scene_rows: dict[str, list[list[str]]], command: str,
-                manifest: dict) -> list[Path]:
+                manifest: dict, failed: frozenset[str] = frozenset()) -> list[Path]:
     """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
     ``summary.md``: first both saying the run is being published, then the files (atomic renames),
     then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile."""
@@ -177,6 +186,8 @@ def publish_run(staging: Path, out: Path, scene_rows: dict[str, list[list[str]]]
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for name, rows in scene_rows.items():
+        if name in failed and manifest.get("scenes", {}).get(name, {}).get("rows"):
+            continue   # a refused or failed scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[name] = {"run": run_id, "rows": rows}
     _prune(manifest, out)
     done = []

@@ -35,6 +35,9 @@ class CostModel:
     #: kernel's source), so it is named in the note and not added to the seconds: a time limit
     #: guards the run, and the run's time does not depend on the state of the cache.
     compile_seconds: float | None = None
+    #: Per-sample seconds of the compiled kernel against the figures above (the numpy kernel's),
+    #: measured (matrix 2D/3D n = 60, 100, 300 samples: 0.4 to 0.7).
+    numba_speed: float = 1.0
 
 
 def _size(x: float) -> str:
@@ -68,7 +71,11 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
+    # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400), and the first call touches its pages again;
+    # building the model from the URDF costs ~2 ms per link. Measured in a fresh process (prepare and
+    # the first call): 0.35 s at 3D n = 50 (108 MB), 0.79 s at 3D n = 70 (296 MB); in a warm one
+    # 0.54 s at 2D n = 120 (469 MB) (tests/test_estimate_vs_measured.py holds these within 2x).
+    return one * count / 0.6e9 + 2e-3 * mech.nlinks
 
 
 def _pin_note(mech, options):
@@ -135,6 +142,32 @@ def _lagrange(mech: Mechanism, k: int) -> float:
     return _loglog(pts, float(mech.nlinks))
 
 
+def recurrence_table_floats(mech: Mechanism) -> int:
+    """Floats of the recurrence's increment tables (``exo_bench.matrix_method.numba_kernels.recurrence.tables``):
+    per link k an ``m x m`` block and ``m`` more, m = its ancestors and itself; sum m^2 is n^3 / 3
+    for a chain (3.3e8 floats at n = 1000)."""
+    depth = [0] * mech.nlinks
+    for k, p in enumerate(mech.parent):
+        depth[k] = 1 + (depth[p] if p >= 0 else 0)
+    return sum(m * m + m for m in depth)
+
+
+#: Copies of the tables alive at the peak of building them: the per-link blocks, each block's
+#: flattened copy, their concatenation and its float64 copy (measured growth of the peak resident
+#: set: 3.0 to 3.4 copies at 2D n = 200 and 300, 10.6 GB at n = 1000 where 4 copies are 10.7 GB).
+RECURRENCE_TABLE_COPIES = 4
+#: Seconds per table float to build the tables (numpy per link; 2D n = 300: 0.6 s for 9e6 floats).
+RECURRENCE_TABLE_SECONDS = 7e-8
+
+
+def _recurrence_setup_bytes(mech, options):
+    return _compiled_setup_bytes(mech, options) + RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech)
+
+
+def _recurrence_setup_seconds(mech, options):
+    return 0.01 + RECURRENCE_TABLE_SECONDS * recurrence_table_floats(mech)
+
+
 # Compile times measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
 # matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up.
 PINOCCHIO = CostModel(
@@ -149,19 +182,19 @@ MATRIX = CostModel(
     _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
     sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
     note=_compiled_note(10.0, lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
-    compile_seconds=10.0)
+    compile_seconds=10.0, numba_speed=0.5)
 MATRIX_PAPER = CostModel(
     _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
     sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
     note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})")
 RECURRENCE = CostModel(
-    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    _recurrence_setup_bytes, _recurrence_setup_seconds,
     sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
     note=_compiled_note(10.0, lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
     compile_seconds=10.0)
 MATRIX_FACTORED = CostModel(
     _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-    sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
+    sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,   # 3D n = 20, 50 at 40,000 samples (issue 26)
     note=_compiled_note(4.0, lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
     compile_seconds=4.0)
 # The peers (extra [peers]): a Python loop over samples into MuJoCo / Drake. Peak RSS growth of

@@ -62,6 +62,13 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
     | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
     | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
 
+Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`~exo_bench.api.cost_formulas.recurrence_table_floats`:
+sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain; four copies at the peak
+of building them: 11.2 GB and 30 s at 2D n = 1000, measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
+touch of its Data and the model build, and ``io`` (bench/cli/states_input.py) the reading of the states
+and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
+of measurement across n.
+
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
 would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
@@ -72,7 +79,7 @@ runtime on first use and, when numba's on-disk cache lacks them, a one-time comp
 time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
 model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
-17 s, 242 MB (all points in :data:`LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
+17 s, 242 MB (all points in :data:`~exo_bench.api.cost_formulas.LAGRANGE_POINTS`, interpolated in log-log and extended beyond the
 largest n by the power law through the last two points: about n^3.5 in time and n^3.7 in memory).
 """
 
@@ -109,30 +116,41 @@ class Estimate:
     seconds: float
     setup_seconds: float
     note: str = ""
+    io_bytes: float = 0.0       # the peak of reading the states (before the method's work starts)
 
     @property
     def memory(self) -> float:
-        return BASE_BYTES + self.setup_bytes + self.array_bytes + self.chunk_bytes
+        return BASE_BYTES + max(self.io_bytes, self.setup_bytes + self.array_bytes + self.chunk_bytes)
 
     def describe(self) -> str:
         return f"about {_size(self.memory)} and {_seconds(self.seconds)}"
 
 
-def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None) -> Estimate:
+def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
+             io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
     """The estimated peak memory and seconds of ``samples`` samples of ``method`` on ``mech``
-    through a prepared model, including the setup (see the module docstring)."""
+    through a prepared model, including the setup (see the module docstring); ``io``: the peak
+    bytes of reading the states and the seconds of reading them and writing tau
+    (bench/cli/states_input.py), counted in."""
     options = dict(options or {})
     model = METHODS[method].cost if method in METHODS else None
+    io_bytes, io_seconds = (float(x) for x in io)
     if model is None:  # a method registered without a cost model: its arrays only
-        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, 0.0, 0.0, "no cost model")
+        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, io_seconds, 0.0, "no cost model",
+                        io_bytes)
     n, d = mech.nlinks, mech.dim
     chunk = min(max(samples, 1), chunk_samples(mech, method))
     calls = math.ceil(max(samples, 1) / chunk)
     setup_s = model.setup_seconds(mech, options)
-    seconds = setup_s + calls * model.call_seconds + samples * model.sample_seconds(n, d)
+    per_sample = samples * model.sample_seconds(n, d)
+    chunk_bytes = chunk * sample_bytes(mech, method)
+    if METHODS[method].compiled and options.get("kernel", "numba") == "numba":
+        # matrix's compiled kernel runs at about half the numpy figures (measured, issue 26); the chunk's
+        # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
+        per_sample *= model.numba_speed
+    seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
     return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,
-                    float(chunk * sample_bytes(mech, method)), float(seconds), float(setup_s),
-                    model.note(mech, options))
+                    float(chunk_bytes), float(seconds), float(setup_s), model.note(mech, options), io_bytes)
 
 
 class ResourceLimit(ValueError):
@@ -166,52 +184,55 @@ class Limits:
 def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
     """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
     ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
+    # lagrange's derivation budget first: the most specific reason (prepare() names it)
+    if est.method == "lagrange":
+        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
+
+        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
+        valid = not isinstance(budget, bool) and isinstance(budget, (int, float)) and budget > 0
+        if valid and est.setup_seconds > budget:   # (not a budget: the method's constructor says so)
+            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS, "
+                    "or prepare()'s option budget)")
     mem, mem_src = limits.memory_limit()
     if mem is not None and est.memory > mem:
         return f"over the memory limit of {_size(mem)} ({mem_src})"
     if limits.seconds is not None and est.seconds > limits.seconds:
         return f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
-    if est.method == "lagrange":
-        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
-
-        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
-        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
-            return None  # not a budget: the method's constructor says so
-        if est.setup_seconds > budget:
-            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS)")
     return None
 
 
 def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str = "",
-                   options: dict[str, dict] | None = None) -> Estimate | None:
+                   options: dict[str, dict] | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate | None:
     """The first method of :func:`~exo_bench.api.methods.preference` whose estimate is within the limits."""
     for m in preference():
         if m == exclude:
             continue
-        est = estimate(mech, m, samples, (options or {}).get(m))
+        est = estimate(mech, m, samples, (options or {}).get(m), io)
         if _over(est, limits) is None:
             return est
     return None
 
 
 def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
-          limits: Limits | None = None) -> Estimate:
+          limits: Limits | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
     """The estimate of ``method``, or :class:`ResourceLimit` when it exceeds ``limits``: one line
     naming the method, the estimate and what dominates it, the limit and how to raise it, and a
-    method that fits (or that none does, and why)."""
+    method that fits (or that none does, and why). ``io``: see :func:`estimate`."""
     limits = limits or Limits()
-    est = estimate(mech, method, samples, options)
+    est = estimate(mech, method, samples, options, io)
     over = _over(est, limits, options)
     if over is None:
         return est
     size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
     note = f" ({est.note})" if est.note else ""
+    if io[1] > 0.05 * est.seconds:   # named where it matters
+        note += f" (reading the states and writing tau: {_seconds(io[1])} of it)"
     msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
-    alt = fitting_method(mech, samples, limits, exclude=method)
+    alt = fitting_method(mech, samples, limits, exclude=method, io=io)
     if alt is not None:
         msg += f"; {alt.method} fits: {alt.describe()}"
     else:
-        arrays = BASE_BYTES + est.array_bytes
+        arrays = BASE_BYTES + max(est.array_bytes, est.io_bytes)
         mem, _ = limits.memory_limit()
         if mem is not None and arrays > mem:
             msg += f"; no method fits: the batch's arrays alone take {_size(arrays)}: split the batch"
@@ -219,6 +240,21 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
             msg += "; no method fits these limits"
     budget = "memory" if "memory limit" in over else ("time" if "time limit" in over else "budget")
     raise ResourceLimit(msg, budget)
+
+
+def check_reading(path: str, read_bytes: float, read_seconds: float, limits: Limits | None = None) -> None:
+    """Refuse (:class:`ResourceLimit`) reading a states file whose reading alone exceeds the limits
+    (a JSON file, whose samples are known only once it is parsed: bench/cli/states_input.py)."""
+    limits = limits or Limits()
+    mem, src = limits.memory_limit()
+    need = BASE_BYTES + read_bytes
+    over = (f"over the memory limit of {_size(mem)} ({src})" if mem is not None and need > mem else
+            f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
+            if limits.seconds is not None and read_seconds > limits.seconds else None)
+    if over:
+        raise ResourceLimit(f"states {path!r}: reading it needs about {_size(need)} and {_seconds(read_seconds)} "
+                            f"(JSON), {over}; give the states as a .npz archive (read about 20 times faster) or "
+                            "split the batch", "memory" if "memory" in over else "time")
 
 
 #: Arrays a scene's motion and study hold per sample and coordinate: t, q, qd, qdd, and per
