@@ -618,16 +618,9 @@ def report_names(out: Path, sweep: str) -> dict[str, str]:
     """The file name each report takes in ``out``. A quick run never replaces what a full run
     wrote: when ``out``'s runs.json says a report came from ``exo-bench bench --full`` (or ``run
     --full``), a quick run writes its reports beside them as ``<name>-quick.<ext>`` instead."""
-    from exo_bench.bench.runner import read_manifest
+    from exo_bench.bench.output_files import narrower_names
 
-    names = {n: n for n in REPORT_FILES}
-    if sweep == "full":
-        return names
-    manifest = read_manifest(out) if out.is_dir() else {}
-    runs, files = manifest.get("runs", {}), manifest.get("files", {})
-    if any("--full" in runs.get(files.get(n, {}).get("run"), {}).get("command", "") for n in REPORT_FILES):
-        names = {n: f"{Path(n).stem}-quick{Path(n).suffix}" for n in REPORT_FILES}
-    return names
+    return narrower_names(out, REPORT_FILES, sweep == "full")
 
 
 def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str, command: str,

@@ -114,6 +114,13 @@ def known_wrong_warning(method: str, dim: int) -> str | None:
             "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")
 
 
+def _refuse_budget(args) -> None:
+    """``--budget`` is lagrange's derivation budget: with another method it would be silently ignored."""
+    if args.budget is not None and args.method != "lagrange":
+        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
+                         "nothing (limit its time with --max-time)")
+
+
 def cmd_forward(args) -> int:
     """Forward dynamics: the accelerations ``qdd`` of states ``q, qd, tau``; a singular configuration
     is one line naming the sample, the link and the reason (exit 2), never NaN."""
@@ -122,6 +129,7 @@ def cmd_forward(args) -> int:
     from exo_bench.models.loading import load_mechanism
 
     method_class(args.method)  # an unknown method fails before any file is read
+    _refuse_budget(args)
     mech = load_mechanism(args.mechanism)
     q, qd, tau = _load_states(args.states, mech, third="tau")
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
@@ -145,10 +153,20 @@ def cmd_inverse(args) -> int:
     from exo_bench.models.mechanism import force_names
 
     method_class(args.method)  # an unknown method fails before any file is read
+    _refuse_budget(args)
     mech = load_mechanism(args.mechanism)
-    q, qd, qdd = _load_states(args.states, mech)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
-    check(mech, args.method, q.shape[0], options, _limits(args, args.method))   # refuse before any work
+    limits = _limits(args, args.method)
+    # reading and writing count in the estimate; a .npz by its uncompressed arrays, from its headers
+    from exo_bench.bench.resources import check_reading
+    from exo_bench.bench.states_input import peek_states
+    peek = peek_states(args.states, mech.dof)
+    if peek.samples is not None:
+        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))   # before decompressing
+    else:
+        check_reading(args.states, peek.read_bytes, peek.read_seconds, limits)
+    q, qd, qdd = _load_states(args.states, mech)
+    check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))   # before any work
     model = prepare(mech, args.method, **options)
     tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
     warn = known_wrong_warning(args.method, mech.dim)
@@ -173,6 +191,9 @@ def cmd_urdf(args) -> int:
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.urdf import to_urdf
 
+    if args.output:   # refused before any work when it names a FIFO, a device, a socket (bench/output_files.py)
+        from exo_bench.bench.output_files import output_target
+        output_target(args.output, "urdf -o")
     text = to_urdf(load_mechanism(args.mechanism))
     if args.output:
         from exo_bench.bench.reporting import atomic_write
@@ -190,7 +211,9 @@ def cmd_mjcf(args) -> int:
 
     mech = load_mechanism(args.mechanism)
     if args.output:
+        from exo_bench.bench.output_files import output_target
         from exo_bench.bench.reporting import writable_folder
+        output_target(args.output, "mjcf -o")   # never a FIFO, a device, a socket (bench/output_files.py)
         writable_folder(Path(args.output).resolve().parent, "-o")
     text = to_mjcf(mech)
     if not args.no_check:
@@ -307,7 +330,7 @@ def _workers_arg(text: str) -> int:
 def _limit_args(s) -> None:
     """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
     s.add_argument("--budget", type=_budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120)")
+                   help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
     s.add_argument("--max-memory", type=_size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
     s.add_argument("--max-time", type=_seconds_arg, default=None, metavar="SECONDS",
                    help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
@@ -326,11 +349,27 @@ MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated 
                    "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
 
 
+def _version() -> str:
+    import exo_bench
+
+    return exo_bench.__version__
+
+
+def _default_method() -> str:
+    """The default method of ``exo-bench inverse``: the one ``prepare()`` takes when none is named."""
+    import inspect
+
+    from exo_bench.bench.methods import prepare
+
+    return inspect.signature(prepare).parameters["method"].default
+
+
 def build_parser() -> argparse.ArgumentParser:
     from exo_bench.bench.methods import method_names
 
     p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
                 "three implementations, cross-checked, timed and visualised.")
+    p.add_argument("--version", action="version", version=f"exo-bench {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     s = sub.add_parser("presets", help="list the preset mechanisms")
@@ -340,8 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
                    "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    s.add_argument("--method", default="pinocchio",
-                   help=f"one of: {', '.join(method_names())} (matrix-paper is eq. (18) as printed: WRONG in 3D by "
+    default_method = _default_method()   # the same as the library's prepare()
+    s.add_argument("--method", default=default_method,
+                   help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
     _limit_args(s)
     s.set_defaults(func=cmd_inverse)

@@ -306,7 +306,10 @@ def size_report(args) -> int:
                          f"{r['generate']:.3g} | {note} |")
         else:
             lines.append(f"| {dim}D | {kind} | {n} | {route} | | | | | not run: {note.replace('|', '/')} |")
-    lines += ["", "![operations after CSE against n, log-log](equations_size.png)", ""]
+    from exo_bench.bench.output_files import announce_narrower, narrower_names
+    names = narrower_names(out, ["equations_size.md", "equations_size.png"], full)   # never over a --full run's
+    announce_narrower(out, names, "equation size reports")
+    lines += ["", f"![operations after CSE against n, log-log]({names['equations_size.png']})", ""]
     out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
     styles = {"matrix": "-o", "lagrange": "--s", "LagrangesMethod": ":^"}
@@ -322,8 +325,8 @@ def size_report(args) -> int:
     axes[0].set_ylabel("operations")
     axes[1].legend(fontsize=7)
     fig.tight_layout()
-    png = save_figure(fig, out / "equations_size.png")
+    png = save_figure(fig, out / names["equations_size.png"])
     plt.close(fig)
-    md = atomic_write(out / "equations_size.md", "\n".join(lines))
+    md = atomic_write(out / names["equations_size.md"], "\n".join(lines))
     print(f"wrote {md}\nwrote {png}")
     return 0

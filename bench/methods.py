@@ -80,8 +80,15 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
 
     ``options`` are the method's constructor arguments (``threads`` for pinocchio, ``budget`` and
     ``interrupt`` for lagrange, ``block`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
+    A lagrange derivation whose estimated time exceeds its ``budget`` (or whose memory exceeds what
+    a run may use) is refused before it starts (:func:`bench.resources.check`, a ValueError naming
+    the estimate and the budget).
     """
     cls = method_class(method)
+    if method == "lagrange":   # refuse up front a derivation estimated over its budget or the memory
+        from exo_bench.bench.resources import check  # noqa: PLC0415
+
+        check(mechanism, method, 1, options)
     try:
         model = cls(mechanism, **options)
     except TypeError as e:

@@ -32,9 +32,9 @@ def atomic_path(path: str | Path):
     """Yield a temporary path beside ``path`` for a writer that needs a file name (a rerun file
     sink, a PNG renderer); on success it is renamed into place with ordinary permissions, on any
     error or Ctrl-C it is removed, so that no half-written file is ever left."""
-    path = Path(path)
-    if path.is_dir():
-        raise ValueError(f"{path}: expected a file to write, got a folder")
+    from exo_bench.bench.output_files import output_target
+
+    path = output_target(path)   # nothing or a regular file, never a FIFO, a device, a socket
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -119,6 +119,8 @@ def run_id_of(path: str | Path) -> str | None:
 
     path = Path(path)
     try:
+        if not path.is_file():   # a FIFO or a device would block or never end
+            return None
         if path.suffix == ".md":
             with open(path, encoding="utf-8", errors="replace") as f:
                 for _, line in zip(range(40), f):
@@ -202,9 +204,14 @@ def writable_folder(value, label: str) -> Path:
     p = Path(text)
     try:
         for parent in [p, *p.parents]:
+            if parent.is_symlink() and not parent.exists():   # a dangling link: mkdir would say "File exists"
+                where = "is" if parent == p else f"lies under {str(parent)!r}, which is"
+                raise ValueError(f"{label} {text!r}: expected a folder, but it {where} a symlink to "
+                                 f"{os.path.realpath(parent)!r}, which does not exist")
             if parent.exists():
                 if not parent.is_dir():
-                    where = "is a file" if parent == p else f"lies under {str(parent)!r}, which is a file"
+                    what = "a file" if parent.is_file() else "a device, FIFO or socket"
+                    where = f"is {what}" if parent == p else f"lies under {str(parent)!r}, which is {what}"
                     raise ValueError(f"{label} {text!r}: expected a folder, but it {where}")
                 if not os.access(parent, os.W_OK | os.X_OK):
                     raise ValueError(f"{label} {text!r}: the folder {str(parent)!r} cannot be written "

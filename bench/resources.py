@@ -62,6 +62,13 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
     | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
     | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
 
+Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`recurrence_table_floats`:
+sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain; four copies at the peak
+of building them: 11.2 GB and 30 s at 2D n = 1000, measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
+touch of its Data and the model build, and ``io`` (bench/states_input.py) the reading of the states
+and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
+of measurement across n.
+
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
 would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
@@ -120,7 +127,11 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count / 2e9 + 2e-4 * mech.nlinks          # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400)
+    # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400), and the first call touches its pages again;
+    # building the model from the URDF costs ~2 ms per link. Measured in a fresh process (prepare and
+    # the first call): 0.35 s at 3D n = 50 (108 MB), 0.79 s at 3D n = 70 (296 MB); in a warm one
+    # 0.54 s at 2D n = 120 (469 MB) (tests/test_estimate_vs_measured.py holds these within 2x).
+    return one * count / 0.6e9 + 2e-3 * mech.nlinks
 
 
 def _pin_note(mech, options):
@@ -150,6 +161,11 @@ NUMBA_BYTES = 128 * 2**20
 #: limit guards the run, and the run's time does not depend on the state of the cache.
 NUMBA_COMPILE_SECONDS = {"matrix-factored": 4.0, "matrix": 10.0, "recurrence": 10.0,
                          "newton-euler": 15.0}   # newton-euler: 11.7 s (serial and parallel, one dim), busy machine
+
+
+#: Per-sample seconds of a compiled kernel against the model's (numpy-kernel) figures, measured
+#: (matrix 2D/3D n = 60, 100, 300 samples: 0.4 to 0.7).
+NUMBA_SPEED = {"matrix": 0.5}
 
 
 def _numba(options: dict, method: str) -> bool:
@@ -196,6 +212,33 @@ def _lagrange(mech: Mechanism, k: int) -> float:
     return _loglog(pts, float(mech.nlinks))
 
 
+def recurrence_table_floats(mech: Mechanism) -> int:
+    """Floats of the recurrence's increment tables (``matrix_method.compiled_recurrence.tables``):
+    per link k an ``m x m`` block and ``m`` more, m = its ancestors and itself; sum m^2 is n^3 / 3
+    for a chain (3.3e8 floats at n = 1000)."""
+    depth = [0] * mech.nlinks
+    for k, p in enumerate(mech.parent):
+        depth[k] = 1 + (depth[p] if p >= 0 else 0)
+    return sum(m * m + m for m in depth)
+
+
+#: Copies of the tables alive at the peak of building them: the per-link blocks, each block's
+#: flattened copy, their concatenation and its float64 copy (measured growth of the peak resident
+#: set: 3.0 to 3.4 copies at 2D n = 200 and 300, 10.6 GB at n = 1000 where 4 copies are 10.7 GB).
+RECURRENCE_TABLE_COPIES = 4
+#: Seconds per table float to build the tables (numpy per link; 2D n = 300: 0.6 s for 9e6 floats).
+RECURRENCE_TABLE_SECONDS = 7e-8
+
+
+def _recurrence_setup_bytes(mech, options):
+    return (_compiled_setup_bytes("recurrence")(mech, options)
+            + RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech))
+
+
+def _recurrence_setup_seconds(mech, options):
+    return 0.01 + RECURRENCE_TABLE_SECONDS * recurrence_table_floats(mech)
+
+
 MODELS: dict[str, CostModel] = {
     "pinocchio": CostModel(
         _pin_setup_bytes, _pin_setup_seconds,
@@ -218,14 +261,14 @@ MODELS: dict[str, CostModel] = {
         sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
         note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})"),
     "recurrence": CostModel(
-        _compiled_setup_bytes("recurrence"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+        _recurrence_setup_bytes, _recurrence_setup_seconds,
         sample_bytes=lambda n, d: F8 * ((40 if d == 2 else 80) * n * n + 60 * n),
         sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
         note=_compiled_note("recurrence", lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})")),
     "matrix-factored": CostModel(
         _compiled_setup_bytes("matrix-factored"), lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
         sample_bytes=lambda n, d: F8 * (8 * d * n + 40 * n),
-        sample_seconds=lambda n, d: (1.0 + 0.005 * n * n) * 1e-6,
+        sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,   # 3D n = 20, 50 at 40,000 samples (issue 26)
         note=_compiled_note("matrix-factored", lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})")),
     # newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample; its numpy
     # kernel holds a few dozen (n, dim, samples) arrays. Not calibrated yet: rounded-up bounds.
@@ -279,30 +322,41 @@ class Estimate:
     seconds: float
     setup_seconds: float
     note: str = ""
+    io_bytes: float = 0.0       # the peak of reading the states (before the method's work starts)
 
     @property
     def memory(self) -> float:
-        return BASE_BYTES + self.setup_bytes + self.array_bytes + self.chunk_bytes
+        return BASE_BYTES + max(self.io_bytes, self.setup_bytes + self.array_bytes + self.chunk_bytes)
 
     def describe(self) -> str:
         return f"about {_size(self.memory)} and {_seconds(self.seconds)}"
 
 
-def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None) -> Estimate:
+def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
+             io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
     """The estimated peak memory and seconds of ``samples`` samples of ``method`` on ``mech``
-    through a prepared model, including the setup (see the module docstring)."""
+    through a prepared model, including the setup (see the module docstring); ``io``: the peak
+    bytes of reading the states and the seconds of reading them and writing tau
+    (bench/states_input.py), counted in."""
     options = dict(options or {})
     model = MODELS.get(method)
+    io_bytes, io_seconds = (float(x) for x in io)
     if model is None:  # a method registered without a cost model: its arrays only
-        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, 0.0, 0.0, "no cost model")
+        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, io_seconds, 0.0, "no cost model",
+                        io_bytes)
     n, d = mech.nlinks, mech.dim
     chunk = min(max(samples, 1), chunk_samples(mech, method))
     calls = math.ceil(max(samples, 1) / chunk)
     setup_s = model.setup_seconds(mech, options)
-    seconds = setup_s + calls * model.call_seconds + samples * model.sample_seconds(n, d)
+    per_sample = samples * model.sample_seconds(n, d)
+    chunk_bytes = chunk * model.sample_bytes(n, d)
+    if _numba(options, method):
+        # matrix's compiled kernel runs at about half the numpy figures (measured, issue 26); the chunk's
+        # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
+        per_sample *= NUMBA_SPEED.get(method, 1.0)
+    seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
     return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,
-                    float(chunk * model.sample_bytes(n, d)), float(seconds), float(setup_s),
-                    model.note(mech, options))
+                    float(chunk_bytes), float(seconds), float(setup_s), model.note(mech, options), io_bytes)
 
 
 class ResourceLimit(ValueError):
@@ -336,52 +390,55 @@ class Limits:
 def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
     """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
     ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
+    # lagrange's derivation budget first: the most specific reason (prepare() names it)
+    if est.method == "lagrange":
+        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
+
+        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
+        valid = not isinstance(budget, bool) and isinstance(budget, (int, float)) and budget > 0
+        if valid and est.setup_seconds > budget:   # (not a budget: the method's constructor says so)
+            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS, "
+                    "or prepare()'s option budget)")
     mem, mem_src = limits.memory_limit()
     if mem is not None and est.memory > mem:
         return f"over the memory limit of {_size(mem)} ({mem_src})"
     if limits.seconds is not None and est.seconds > limits.seconds:
         return f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
-    if est.method == "lagrange":
-        from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
-
-        budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
-        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
-            return None  # not a budget: the method's constructor says so
-        if est.setup_seconds > budget:
-            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS)")
     return None
 
 
 def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str = "",
-                   options: dict[str, dict] | None = None) -> Estimate | None:
+                   options: dict[str, dict] | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate | None:
     """The first method of :data:`PREFERENCE` whose estimate is within the limits."""
     for m in PREFERENCE:
         if m == exclude:
             continue
-        est = estimate(mech, m, samples, (options or {}).get(m))
+        est = estimate(mech, m, samples, (options or {}).get(m), io)
         if _over(est, limits) is None:
             return est
     return None
 
 
 def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
-          limits: Limits | None = None) -> Estimate:
+          limits: Limits | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
     """The estimate of ``method``, or :class:`ResourceLimit` when it exceeds ``limits``: one line
     naming the method, the estimate and what dominates it, the limit and how to raise it, and a
-    method that fits (or that none does, and why)."""
+    method that fits (or that none does, and why). ``io``: see :func:`estimate`."""
     limits = limits or Limits()
-    est = estimate(mech, method, samples, options)
+    est = estimate(mech, method, samples, options, io)
     over = _over(est, limits, options)
     if over is None:
         return est
     size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
     note = f" ({est.note})" if est.note else ""
+    if io[1] > 0.05 * est.seconds:   # named where it matters
+        note += f" (reading the states and writing tau: {_seconds(io[1])} of it)"
     msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
-    alt = fitting_method(mech, samples, limits, exclude=method)
+    alt = fitting_method(mech, samples, limits, exclude=method, io=io)
     if alt is not None:
         msg += f"; {alt.method} fits: {alt.describe()}"
     else:
-        arrays = BASE_BYTES + est.array_bytes
+        arrays = BASE_BYTES + max(est.array_bytes, est.io_bytes)
         mem, _ = limits.memory_limit()
         if mem is not None and arrays > mem:
             msg += f"; no method fits: the batch's arrays alone take {_size(arrays)}: split the batch"
@@ -389,6 +446,21 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
             msg += "; no method fits these limits"
     budget = "memory" if "memory limit" in over else ("time" if "time limit" in over else "budget")
     raise ResourceLimit(msg, budget)
+
+
+def check_reading(path: str, read_bytes: float, read_seconds: float, limits: Limits | None = None) -> None:
+    """Refuse (:class:`ResourceLimit`) reading a states file whose reading alone exceeds the limits
+    (a JSON file, whose samples are known only once it is parsed: bench/states_input.py)."""
+    limits = limits or Limits()
+    mem, src = limits.memory_limit()
+    need = BASE_BYTES + read_bytes
+    over = (f"over the memory limit of {_size(mem)} ({src})" if mem is not None and need > mem else
+            f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
+            if limits.seconds is not None and read_seconds > limits.seconds else None)
+    if over:
+        raise ResourceLimit(f"states {path!r}: reading it needs about {_size(need)} and {_seconds(read_seconds)} "
+                            f"(JSON), {over}; give the states as a .npz archive (read about 20 times faster) or "
+                            "split the batch", "memory" if "memory" in over else "time")
 
 
 #: Arrays a scene's motion and study hold per sample and coordinate: t, q, qd, qdd, and per

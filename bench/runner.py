@@ -12,8 +12,9 @@ with SIGINT/SIGTERM held back. An error or Ctrl-C before that leaves the folder 
 (:func:`bench.reporting.current_run_id`) that every report carries. ``runs.json`` keeps, per scene,
 the summary rows of the run that last ran it and, per file, the run that wrote it; ``summary.md``
 is made from it, so ``exo-bench run SCENE`` replaces that scene's rows and keeps every other
-scene's, and lists which run produced each report file. A scene or method that fails is
-recorded (one line) and the other scenes go on.
+scene's, and lists which run produced each report file. A method that fails is recorded (one
+line) and the other methods and scenes go on; a scene that fails or is refused keeps its earlier
+rows and files, says why in one line on stderr, and the run exits 2.
 """
 
 from __future__ import annotations
@@ -211,16 +212,25 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
 
 @contextmanager
 def staging_dir(out: Path):
+    from exo_bench.bench.output_files import clean_stale_staging, mark_owner
+
     out.mkdir(parents=True, exist_ok=True)
+    clean_stale_staging(out)   # what a killed run left (bench/output_files.py)
     d = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:
+        mark_owner(d)
         yield d
     finally:
         shutil.rmtree(d, ignore_errors=True)
 
 
 def publish(files: list[Path], out: Path) -> list[Path]:
-    """Move finished files from staging into ``out`` (an atomic rename each)."""
+    """Move finished files from staging into ``out`` (an atomic rename each); each target is
+    checked first (nothing but a regular file is ever replaced: bench/output_files.py)."""
+    from exo_bench.bench.output_files import output_target
+
+    for f in files:
+        output_target(out / f.name)
     done = []
     for f in files:
         target = out / f.name
@@ -324,7 +334,7 @@ def read_manifest(out: Path) -> dict:
     """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
     rows of its ``summary.md`` (marked as of an unknown run)."""
     p = Path(out) / MANIFEST
-    if p.exists():
+    if p.is_file():   # never open a FIFO or a device (it would block or never end)
         try:
             data = json.loads(p.read_text())
             if isinstance(data, dict) and data.get("format") == 1:
@@ -335,7 +345,7 @@ def read_manifest(out: Path) -> dict:
               file=sys.stderr)
     m = new_manifest()
     old = Path(out) / SUMMARY
-    if old.exists():
+    if old.is_file():
         try:
             text = old.read_text(errors="replace")
         except OSError:
@@ -379,6 +389,8 @@ def publish_run(staging: Path, out: Path, outcomes: list[SceneOutcome], command:
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for o in outcomes:
+        if o.error and manifest.get("scenes", {}).get(o.scene.name, {}).get("rows"):
+            continue   # a refused or failed scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[o.scene.name] = {"run": run_id, "rows": scene_rows(o)}
     _prune(manifest, out)
     done = []
@@ -499,6 +511,9 @@ def run(args) -> int:
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
     jobs = _suite_jobs() if not args.scenes else []  # naming scenes runs just those scenes
     limits = Limits(memory=getattr(args, "max_memory", None))
+    from exo_bench.bench.output_files import output_target
+    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):   # before any work: no FIFO there
+        output_target(out / name)
     set_run_id(new_run_id())
     command = "exo-bench run" + (" --full" if full else "") + ("" if not args.scenes else " " + " ".join(args.scenes))
     _warn_known_wrong(scenes)
@@ -511,10 +526,14 @@ def run(args) -> int:
         task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
+            staged = {f.name for f in staging.iterdir()}
             try:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
                 o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
+                for f in staging.iterdir():   # its partial files never replace the earlier run's
+                    if f.name not in staged and f.is_file():
+                        f.unlink(missing_ok=True)
             outcomes.append(o)
             progress.advance(task)
         for label, fn in jobs:
@@ -525,16 +544,19 @@ def run(args) -> int:
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
-        written = publish_run(staging, out, outcomes, command, read_manifest(out))
-    print_summary(outcomes)
+        if jobs or any(not o.error for o in outcomes):   # nothing ran: the folder is left exactly as it was
+            written = publish_run(staging, out, outcomes, command, read_manifest(out))
+    if written:   # nothing ran (every scene refused or failed): the error lines below say it all
+        print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
-    for o in failed:
-        print(f"scene {o.scene.name} failed: {o.error}")
+    for o in failed:   # one line each on stderr; summary.md keeps the scene's earlier rows
+        print(f"exo-bench: error: scene {o.scene.name!r} failed: {o.error} (its earlier rows and files in "
+              f"{str(out)!r} are kept)", file=sys.stderr)
     for line in job_errors:
-        print(line)
-    return 1 if failed or job_errors else 0
+        print(f"exo-bench: error: {line}", file=sys.stderr)
+    return 2 if failed else 1 if job_errors else 0
 
 
 def _warn_known_wrong(scenes: list[Scene]) -> None:

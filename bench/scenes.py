@@ -188,6 +188,9 @@ def load_scene(spec: str | Path) -> Scene:
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name:
         raise _err(path, "name", "a non-empty string", name)
+    if name.startswith(".") or any(ch in "/\\" or ord(ch) < 32 or ord(ch) == 127 for ch in name):
+        raise _err(path, "name", "a name usable as a file name (it names the scene's reports: no '/', '\\', control "
+                   "characters or leading '.')", name)
     return Scene(name, path, desc, mech, tuple(methods), reference, tuple(outputs), motion)
 
 
@@ -235,6 +238,7 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
             else:
                 _number(path, f"motion.gait.{k}", v, lo=0 if k == "T" else None)
         out["params"] = replace(GAITS[base], **overrides)
+        _probe_gait(path, kind, mech, out["params"], "T" in overrides)
         out["gait_name"] = base + (f" with {', '.join(sorted(overrides))} changed" if overrides else "")
         S = int(round(out["samples_per_period"] * out["periods"]))
         if S < MIN_SAMPLES:
@@ -262,6 +266,27 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
             raise ValueError(f"{source}: expected at least {MIN_SAMPLES} samples (derivatives and plots need two), "
                              f"got {motion.q.shape[0]}")
     return out
+
+
+def _probe_gait(path: Path, kind: str, mech: Mechanism, params, period_given: bool) -> None:
+    """Refuse, before the run, a gait whose rates or accelerations are not finite float64 or whose
+    forces would overflow (a period T of 1e-300 s): 16 samples of one period, numpy's warnings off."""
+    from exo_bench.models.mechanism import as_states
+
+    fn = gait if kind == "gait" else planar_gait
+    with np.errstate(all="ignore"):
+        mo = fn(mech, np.linspace(0.0, params.T, 16), params)
+    key = "motion.gait.T" if period_given else "motion.gait"
+    for label in ("q", "qd", "qdd"):
+        a = np.asarray(getattr(mo, label), dtype=float)
+        if not np.isfinite(a).all():
+            raise _err(path, key, f"a gait whose {label} is finite in float64 (a period T this short makes the rates "
+                       f"overflow)", params.T)
+    try:
+        as_states(mech, mo.q, mo.qd, mo.qdd, source=str(path))
+    except ValueError as e:
+        raise _err(path, key, f"a gait whose forces stay within float64 ({str(e).split(': ', 1)[-1]})",
+                   params.T) from None
 
 
 def _times(source: str, t: Any) -> np.ndarray:

@@ -26,8 +26,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 
-class BudgetExceeded(Exception):
-    """The symbolic work did not finish within its time budget.
+class BudgetExceeded(ValueError):
+    """The symbolic work did not finish within its time budget (a ValueError: the model is too
+    large for the budget the caller gave).
 
     ``skip_reason`` is one line naming the work, ``n``, ``dim`` and the budget.
     """
@@ -104,8 +105,8 @@ def time_budget(budget: float, what: str, nlinks: int, dim: int):
     Yields the :class:`Deadline` to check cooperatively. Inside an enclosing budget the tighter
     of the two ends applies, and the exception names the enclosing work when that one runs out.
     """
-    if not budget > 0:
-        raise ValueError(f"{what}: field 'budget': expected a positive number of seconds, got {budget!r}")
+    if not 0 < budget < float("inf"):
+        raise ValueError(f"{what}: field 'budget': expected a positive, finite number of seconds, got {budget!r}")
     outer = current_deadline()
     dl = Deadline(what, nlinks, dim, float(budget))
     if outer is not None and outer.end < dl.end:

@@ -8,10 +8,11 @@ within the same budget.
 
 Options (constructor arguments; nothing is read from the environment):
 
-* ``budget`` (seconds, default 120): for the symbolic work. Over budget the constructor raises
-  :class:`lagrange.BudgetExceeded`, whose ``skip_reason`` names the work, the model size and the
-  budget.
-* ``interrupt`` (default True): in the main thread, a SIGALRM timer interrupts a long sympy
+* ``budget`` (seconds, default 120, finite): for the symbolic work. Over budget the constructor
+  raises :class:`lagrange.BudgetExceeded` (a ValueError), whose ``skip_reason`` names the work, the
+  model size and the budget. ``exo_bench.prepare`` refuses up front a derivation estimated over
+  the budget (bench/resources.py).
+* ``interrupt`` (True or False, default True): in the main thread, a SIGALRM timer interrupts a long sympy
   call when the budget runs out (the previous handler is restored afterwards). False uses only
   the cooperative checks between steps. In other threads only those checks run.
 """
@@ -34,8 +35,11 @@ class LagrangeModel(PreparedModel):
     method = "lagrange"
 
     def __init__(self, mechanism: Mechanism, budget: float = numeric.DEFAULT_BUDGET, interrupt: bool = True):
-        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not budget > 0:
-            raise ValueError(f"lagrange: option 'budget': expected a positive number of seconds, got {budget!r}")
+        if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0 < budget < float("inf"):
+            raise ValueError(f"lagrange: option 'budget': expected a positive, finite number of seconds (for no "
+                             f"practical limit, a large one such as 1e6), got {budget!r}")
+        if not isinstance(interrupt, bool):   # 'x' or 0.5 would be taken as True
+            raise ValueError(f"lagrange: option 'interrupt': expected True or False, got {interrupt!r}")
         super().__init__(mechanism, budget=float(budget), interrupt=bool(interrupt))
         self.budget, self.interrupt = float(budget), bool(interrupt)
         with self._signals():

@@ -38,6 +38,27 @@ def _where(i: int, name: str | None) -> str:
     return f"link {i + 1}" + (f" ({name!r})" if name else "")
 
 
+class DuplicateKey(ValueError):
+    pass
+
+
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """``object_pairs_hook`` of every JSON the suite reads: a key given twice in one object is an
+    error (``json`` would keep the last one silently)."""
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise DuplicateKey(f"duplicate key {k!r} in one object (JSON readers disagree on which one counts)")
+        out[k] = v
+    return out
+
+
+def loads(text: str) -> Any:
+    """``json.loads`` refusing duplicate keys (:func:`unique_keys`)."""
+    return json.loads(text, object_pairs_hook=unique_keys)
+
+
+
 def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
 
@@ -227,8 +248,8 @@ class Mechanism:
     @classmethod
     def from_json(cls, text: str, source: str = "mechanism") -> "Mechanism":
         try:
-            data = json.loads(text)
-        except json.JSONDecodeError as e:
+            data = loads(text)
+        except (json.JSONDecodeError, DuplicateKey) as e:
             raise ValueError(f"{source}: invalid JSON: {e}") from None
         return cls.from_dict(data, source)
 
@@ -278,6 +299,10 @@ def _validate(m: Mechanism) -> None:
             raise ValueError(f"{m.name}: field '{fld}': expected {n} entries (one per link), got {len(getattr(m, fld))}")
     for i in range(n):
         where = f"{m.name}: {_where(i, m.names[i])}"
+        nm = m.names[i]
+        if not isinstance(nm, str) or any(ord(ch) < 32 or ord(ch) == 127 for ch in nm):
+            raise ValueError(f"{where}: field 'name': expected a name without control characters (it is written "
+                             f"into the URDF and the reports), got {nm!r}")
         p = m.parent[i]
         if not isinstance(p, (int, np.integer)) or isinstance(p, bool) or not (-1 <= p < i):
             if i == 0:
@@ -359,6 +384,18 @@ def _array_problem(arr: Any) -> str:
     return f"expected numbers, got {type(arr).__name__}"
 
 
+def _first_bool(arr) -> tuple[bool, str] | None:
+    """The first boolean in a list of rows (or of numbers), with where it is."""
+    for s_, r in enumerate(arr):
+        if isinstance(r, (list, tuple)):
+            if any(type(x) is bool for x in r):
+                c = next(c for c, x in enumerate(r) if type(x) is bool)
+                return r[c], f"sample {s_}, column {c}"
+        elif type(r) is bool:
+            return r, f"index {s_}"
+    return None
+
+
 def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
     """Validate state arrays at the edge and return them as C-ordered float64 ``(samples, dof)`` arrays.
 
@@ -382,6 +419,11 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
             a = np.asarray(arr, dtype=float)
         except (TypeError, ValueError, OverflowError):
             raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
+        if isinstance(arr, (list, tuple)):   # numpy takes true/false as 1.0/0.0: JSON booleans are not numbers
+            where = _first_bool(arr)
+            if where is not None:
+                raise ValueError(f"{source}: field '{label}': expected numbers, got {where[0]!r} (a boolean) at "
+                                 f"{where[1]}")
         if a.ndim == 1:
             a = a[None, :]
         if a.ndim == 2 and not a.flags.c_contiguous:

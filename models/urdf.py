@@ -48,6 +48,13 @@ def _inertial(mass: float) -> str:
             '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>')
 
 
+def _comment(text: str) -> str:
+    """``text`` as XML comment content: "--" may not occur in a comment, so "--" is written "- -"
+    (a link's name goes into the URDF only in this comment; the element names are generated)."""
+    text = re.sub(r"-(?=-)", "- ", text)
+    return text + " " if text.endswith("-") else text
+
+
 def _link(name: str, mass: float = 0.0, comment: str = "") -> str:
     c = f"<!-- {comment} -->" if comment else ""
     return f'  <link name="{name}">{c}{_inertial(mass)}</link>'
@@ -67,7 +74,7 @@ def to_urdf(mech: Mechanism) -> str:
         k = link_prefix(mech, i)
         p = mech.parent[i]
         m0, m1, m2 = mech.masses[i]
-        lines.append(f"  <!-- link {i + 1}: {mech.names[i]}, parent {p + 1 if p >= 0 else 'support'}, "
+        lines.append(f"  <!-- link {i + 1}: {_comment(mech.names[i])}, parent {p + 1 if p >= 0 else 'support'}, "
                      f"sign {mech.sign[i]:+d}, n = {mech.n[i]!r} -->")
         base = f"{link_prefix(mech, p)}_end" if p >= 0 else "support"
         if mech.dim == 3:

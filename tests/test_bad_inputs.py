@@ -104,6 +104,7 @@ class Case:
     patch: Callable[[pytest.MonkeyPatch], None] | None = None
     example: str = ""                           # what the user typed, for the document
     tags: tuple = field(default_factory=tuple)
+    progress: bool = False                      # stdout holds run's progress bar (the error is on stderr)
 
 
 def _no_preflight(mp):
@@ -194,26 +195,28 @@ CASES = [
          "expected a NumPy .npz archive"),
     Case("states-npz-object", "states: a .npz archive of Python objects", lambda d: [
         "inverse", "fig1-2d", _npz(d, q=np.array([[0.1, "a"]], dtype=object), qd=np.zeros((1, 2)),
-                                   qdd=np.zeros((1, 2)))], "cannot read the arrays"),
+                                   qdd=np.zeros((1, 2)))], "field 'q': expected an array of real numbers, got dtype object"),
     # ---------------------------------------------------------------- memory, time, budgets
-    Case("chain300-3d-default", "a 300-link 3D chain with the default method (pinocchio)",
-         lambda d: ["inverse", _chain_file(d, 300, 3), _states(chain(300, 3), 1, path=d / "s.json"), "--max-memory", "2G"],
+    Case("chain300-3d-default", "a 300-link 3D chain with method pinocchio (the default before issue 26)",
+         lambda d: ["inverse", _chain_file(d, 300, 3), _states(chain(300, 3), 1, path=d / "s.json"), "--max-memory", "2G",
+                    "--method", "pinocchio"],
          "method 'pinocchio' on 'chain300-3d' (n=300 links, dim=3, 1 sample(s)) needs about 23.7 GB",
-         issue="300-link 3D chain", example="exo-bench inverse chain300-3d.json s.json --max-memory 2G"),
-    Case("chain300-2d-default", "a 300-link 2D chain with the default method",
-         lambda d: ["inverse", _chain_file(d, 300, 2), _states(chain(300, 2), 1, path=d / "s.json"), "--max-memory", "2G"],
+         issue="300-link 3D chain", example="exo-bench inverse chain300-3d.json s.json --max-memory 2G --method pinocchio"),
+    Case("chain300-2d-default", "a 300-link 2D chain with method pinocchio",
+         lambda d: ["inverse", _chain_file(d, 300, 2), _states(chain(300, 2), 1, path=d / "s.json"), "--max-memory", "2G",
+                    "--method", "pinocchio"],
          "matrix-factored fits", issue="300-link 3D chain"),
     Case("lagrange-50", "method lagrange on a 50-link chain",
          lambda d: ["inverse", _chain_file(d, 50, 2), _states(chain(50, 2), 2, path=d / "s.json"), "--method", "lagrange",
                     "--max-memory", "1000G"],
-         "its derivation alone over the budget of 120 s (raise it with --budget SECONDS)", issue="lagrange"),
+         "its derivation alone over the budget of 120 s (raise it with --budget SECONDS", issue="lagrange"),
     Case("lagrange-budget", "lagrange's derivation over its budget (--budget)",
          lambda d: ["inverse", "fig2a-3d", _states(chain(2, 3), 1, path=d / "s.json"), "--method", "lagrange",
                     "--budget", "0.01"],
          "exceeded the time budget of 0.01 s", issue="lagrange", patch=_no_preflight),
     Case("max-time", "a method over --max-time", lambda d: ["inverse", _chain_file(d, 300, 3), _states(
-        chain(300, 3), 1, path=d / "s.json"), "--method", "recurrence", "--max-time", "0.001", "--max-memory", "2G"],
-         "over the time limit of 1 ms (--max-time)"),
+        chain(300, 3), 1, path=d / "s.json"), "--method", "recurrence", "--max-time", "0.05", "--max-memory", "2G"],
+         "over the time limit of 50 ms (--max-time)"),
     Case("batch-too-large", "a batch whose arrays alone exceed the limit", lambda d: [
         "inverse", "exo5-3d", _npz(d, **dict(zip(("q", "qd", "qdd"), random_states(exo5(3), 20000, 0)))),
         "--max-memory", "17M", *MF], "no method fits: the batch's arrays alone take"),
@@ -226,9 +229,10 @@ CASES = [
     Case("recursion-error", "sympy's recursion limit", lambda d: ["inverse", "exo5-3d", _s5(d), *MF],
          "nested deeper than Python's recursion limit", patch=_method_raises(RecursionError("maximum recursion"))),
     Case("pinocchio-data", "a Pinocchio Data larger than the memory a run may use",
-         lambda d: ["inverse", _chain_file(d, 40, 3), _states(chain(40, 3), 1, path=d / "s.json")],
+         lambda d: ["inverse", _chain_file(d, 40, 3), _states(chain(40, 3), 1, path=d / "s.json"), "--method", "pinocchio"],
          "(3D, 40 links, nv = 120) needs 65.3 MB, more than the 50.0 MB of memory it may use", patch=_pin_data_too_large),
-    Case("pinocchio-bad-alloc", "Pinocchio's own allocation failure", lambda d: ["inverse", "exo5-3d", _s5(d)],
+    Case("pinocchio-bad-alloc", "Pinocchio's own allocation failure", lambda d: ["inverse", "exo5-3d", _s5(d),
+                                                                                "--method", "pinocchio"],
          "out of memory in Pinocchio (std::bad_alloc)", patch=_pin_bad_alloc),
     # ---------------------------------------------------------------- scenes and reports folders
     Case("scene-unknown", "run: an unknown scene", lambda d: ["run", "no-such-scene", "--reports", d / "rep"],
@@ -311,7 +315,76 @@ CASES = [
          "link 5 (trunk): rod length l5 = 0"),
     Case("forward-qdd-given", "forward: states with qdd instead of tau", lambda d: ["forward", "exo5-3d", _s5(d)],
          "expected an object with keys ['q', 'qd', 'tau']"),
+    # ---------------------------------------------------------------- issue 26: files that are not regular files
+    Case("urdf-output-fifo", "urdf -o naming a FIFO (never replaced)", lambda d: ["urdf", "fig1-2d", "-o", _fifo(d)],
+         "urdf -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced", issue="26: destroyed files"),
+    Case("urdf-output-link-to-fifo", "urdf -o naming a symlink to a FIFO", lambda d: [
+        "urdf", "fig1-2d", "-o", _link(d, _fifo(d))], "is a symlink to '<dir>/fifo', which is a FIFO",
+         issue="26: destroyed files"),
+    Case("urdf-output-dangling-link", "urdf -o naming a symlink to nothing", lambda d: [
+        "urdf", "fig1-2d", "-o", _link(d, d / "nothing")], "which does not exist; refusing to write through a dangling",
+         issue="26: destroyed files"),
+    Case("mjcf-output-fifo", "mjcf -o naming a FIFO", lambda d: ["mjcf", "fig1-2d", "--no-check", "-o", _fifo(d)],
+         "mjcf -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced",
+         issue="26: destroyed files"),
+    Case("equations-output-fifo", "equations: a FIFO where an output file goes", lambda d: [
+        "equations", "fig2a-2d", "--format", "c", "-o", _fifo(d, "fig2a_2d.c").parent],
+         "<dir>/fig2a_2d.c: is a FIFO; only a regular file or nothing is ever replaced", issue="26: destroyed files"),
+    Case("reports-fifo", "--reports naming a FIFO", lambda d: ["errata", "--reports", _fifo(d)],
+         "--reports '<dir>/fifo': expected a folder, but it is a device, FIFO or socket", issue="26: destroyed files"),
+    Case("reports-dangling-link", "--reports naming a symlink to nothing", lambda d: [
+        "run", "fig2a-2d", "--reports", _link(d, d / "gone")],
+         "--reports '<dir>/link': expected a folder, but it is a symlink to '<dir>/gone', which does not exist",
+         issue="26: smaller misses"),
+    # ---------------------------------------------------------------- issue 26: narrower runs, refused scenes
+    Case("scene-refused", "run: a scene refused for memory (earlier rows kept)", lambda d: [
+        "run", _scene(d, 'kind = "planar-gait"'), "--reports", d / "rep", "--max-memory", "1M"],
+         "scene 'sc' failed: scene 'sc': 1000 samples of 4 coordinates need about 17 MB of arrays, over the "
+         "memory limit of 1 MB (--max-memory); use fewer samples (its earlier rows and files in '<dir>/rep' are kept)",
+         progress=True,
+         issue="26: narrower overwrites wider"),
+    # ---------------------------------------------------------------- issue 26: estimates before the work
+    Case("recurrence-1000-2d", "recurrence on a 1000-link 2D chain under --max-memory 1G", lambda d: [
+        "inverse", _chain_file(d, 1000, 2), _states(chain(1000, 2), 1, path=d / "s.json"), "--method", "recurrence",
+        "--max-memory", "1G"], "method 'recurrence' on 'chain1000-2d' (n=1000 links, dim=2, 1 sample(s)) needs about "
+         "11.2 GB", issue="26: estimates"),
+    Case("npz-bomb", "states: a small compressed .npz whose arrays inflate beyond the limit (judged from its headers)",
+         lambda d: ["inverse", "exo5-3d", _npz_zeros(d, 2_000_000, 15), "--max-memory", "1G"],
+         "(n=5 links, dim=3, 2000000 sample(s)) needs about", issue="26: estimates"),
+    Case("max-time-reading", "--max-time counts reading the states", lambda d: [
+        "inverse", "exo5-3d", _states(exo5(3), 40000, path=d / "s.json"), "--max-time", "0.5"],
+         "reading it needs about", issue="26: estimates"),
+    Case("max-time-writing", "--max-time counts writing tau", lambda d: [
+        "inverse", "exo5-3d", _npz(d, **dict(zip(("q", "qd", "qdd"), random_states(exo5(3), 100000, 0)))),
+        "--max-time", "1"], "(reading the states and writing tau:", issue="26: estimates"),
+    # ---------------------------------------------------------------- issue 26: smaller misses
+    Case("states-json-true", "states: JSON true where a number goes", lambda d: ["inverse", "fig1-2d", _text(
+        d, '{"q": [[0.1, true]], "qd": [[0, 0]], "qdd": [[0, 0]]}')],
+         "field 'q': expected numbers, got True (a boolean) at sample 0, column 1", issue="26: smaller misses"),
+    Case("states-duplicate-key", "states: a key given twice", lambda d: ["inverse", "fig1-2d", _text(
+        d, '{"q": [[0.1, 1]], "qd": [[0, 0]], "qdd": [[0, 0]], "q": [[0.2, 1]]}')],
+         "invalid JSON: duplicate key 'q' in one object", issue="26: smaller misses"),
+    Case("mechanism-duplicate-key", "mechanism: a key given twice", lambda d: ["inverse", _text(
+        d, exo5(3).to_json(indent=None)[:-1] + ', "g": 1.0}', "m.json"), _s5(d)],
+         "invalid JSON: duplicate key 'g' in one object", issue="26: smaller misses"),
+    Case("mechanism-name-nul", "mechanism: a NUL character in a link name", lambda d: [
+        "urdf", _mech(d, link2_name="thigh\0"), "-o", d / "u.urdf"],
+         "link 2 ('thigh\\x00'): field 'name': expected a name without control characters", issue="26: smaller misses"),
+    Case("scene-gait-period", "run: a gait period T = 1e-300 s", lambda d: [
+        "run", _scene(d, 'kind = "planar-gait"\n[motion.gait]\nT = 1e-300'), "--reports", d / "rep"],
+         "field 'motion.gait.T': expected a gait whose", issue="26: smaller misses"),
+    Case("scene-name-slash", "run: a scene named a/b", lambda d: [
+        "run", _text(d, 'name = "a/b"\nmechanism = "fig2a-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "planar-gait"\n',
+                     "sc.toml"), "--reports", d / "rep"],
+         "field 'name': expected a name usable as a file name", issue="26: smaller misses"),
+    Case("budget-other-method", "--budget with a method other than lagrange", lambda d: [
+        "inverse", "exo5-3d", _s5(d), "--budget", "10", "--method", "recurrence"],
+         "--budget: the derivation budget of method lagrange; method 'recurrence' derives nothing",
+         issue="26: smaller misses"),
     # ---------------------------------------------------------------- warnings and accepted edges (exit 0)
+    Case("mechanism-name-dashes", "mechanism: '--' in a link name (written as '- -' in the URDF's comment)", lambda d: [
+        "inverse", _mech(d, link2_name="thigh--left-"), _s5(d), "--method", "pinocchio"], "", rc=0,
+         issue="26: smaller misses"),
     Case("matrix-paper-3d", "matrix-paper on a 3D model (a result with a warning)", lambda d: [
         "inverse", "exo5-3d", _s5(d), "--method", "matrix-paper"], "3D results are wrong by design", rc=0,
          issue="matrix-paper"),
@@ -324,6 +397,24 @@ CASES = [
     Case("negative-zero-g", "g = -0.0 (accepted: it is 0)", lambda d: ["inverse", _mech(d, g=-0.0), _s5(d), *MF],
          "", rc=0),
 ]
+
+
+def _fifo(d: Path, name: str = "fifo") -> Path:
+    """A FIFO in the test's own folder (never a system device)."""
+    os.mkfifo(d / name)
+    return d / name
+
+
+def _link(d: Path, target: Path, name: str = "link") -> Path:
+    os.symlink(target, d / name)
+    return d / name
+
+
+def _npz_zeros(d: Path, samples: int, dof: int) -> Path:
+    """A compressed .npz of zeros: a few MB on disk, ``3 x samples x dof x 8`` bytes inflated."""
+    z = np.zeros((samples, dof))
+    np.savez_compressed(d / "z.npz", q=z, qd=z, qdd=z)
+    return d / "z.npz"
 
 
 def _bin(d: Path) -> Path:
@@ -376,7 +467,7 @@ def test_bad_input(case, tmp_path):
     lines = err.strip().splitlines()
     assert rc == case.rc, err
     if case.rc == 2:
-        assert out == "" and len(lines) == 1, err
+        assert (out == "" or case.progress) and len(lines) == 1, err
         assert lines[0].startswith("exo-bench"), lines[0]
     else:
         assert all(line.startswith("exo-bench: warning: ") for line in lines), err
@@ -394,15 +485,16 @@ def test_the_method_help_says_matrix_paper_is_wrong_in_3d_by_design():
 
 
 def test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work(tmp_path, monkeypatch):
-    """No --method and no --max-memory, on a machine where 16 GB may be used: one line naming a method
-    that fits, and Pinocchio never builds a model or a Data (the refusal is the estimate alone)."""
+    """Method pinocchio (the CLI's default before issue 26) and no --max-memory, on a machine where 16 GB
+    may be used: one line naming a method that fits, and Pinocchio never builds a model or a Data (the
+    refusal is the estimate alone)."""
     import exo_bench.models.pinocchio_backend as pb
 
     monkeypatch.setattr("exo_bench.bench.resources.usable_memory", lambda: 16 * 10**9)
     monkeypatch.setattr(pb, "build_model", lambda mech: pytest.fail("a model was built"))
     monkeypatch.setattr(pb.PinocchioRNEA, "__init__", lambda *a, **k: pytest.fail("the method was prepared"))
     f = _chain_file(tmp_path, 300, 3)
-    rc, out, err = run_cli(["inverse", f, _states(chain(300, 3), 1, path=tmp_path / "s.json")])
+    rc, out, err = run_cli(["inverse", f, _states(chain(300, 3), 1, path=tmp_path / "s.json"), "--method", "pinocchio"])
     assert rc == 2 and out == "" and len(err.strip().splitlines()) == 1
     assert "over the memory limit of 16.0 GB (80% of the available memory" in err and "matrix-factored fits" in err
 
@@ -419,6 +511,201 @@ def test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits(tmp_path
     from exo_bench.bench.methods import prepare
     ref = prepare(m, "recurrence").inverse_dynamics(q, qd, qdd)
     assert np.abs(tau - ref).max() <= 16 * np.finfo(float).eps * m.dof * np.abs(ref).max()
+
+
+# ------------------------------------------------------------------------------ issue 26
+def _is_fifo(p: Path) -> bool:
+    import stat
+
+    return stat.S_ISFIFO(os.lstat(p).st_mode)
+
+
+def test_nothing_replaces_a_fifo_for_any_command_that_writes(tmp_path, monkeypatch):
+    """urdf -o, equations -o, equations --size-report, run --reports: a FIFO in a temporary folder
+    where a file would go is refused in one line (exit 2) and is still a FIFO afterwards."""
+    import exo_bench.bench.equations as eq
+
+    monkeypatch.setattr(eq, "size_point", lambda mech, route, budget: {"compose": 0.1, "generate": 0.1, "ops": 10,
+                                                                        "c_lines": 5})
+    runs, cmd_o = [], {"u.urdf": "urdf -o ", "m.xml": "mjcf -o "}
+    for name, argv in [("u.urdf", lambda f: ["urdf", "fig1-2d", "-o", f]),
+                       ("m.xml", lambda f: ["mjcf", "fig1-2d", "--no-check", "-o", f]),
+                       ("fig2a_2d.c", lambda f: ["equations", "fig2a-2d", "--format", "c", "-o", f.parent]),
+                       ("equations_size.md", lambda f: ["equations", "--size-report", "--reports", f.parent]),
+                       ("summary.md", lambda f: ["run", _scene(f.parent, 'kind = "planar-gait"\nsamples_per_period = 40'),
+                                                 "--reports", f.parent])]:
+        d = tmp_path / name.replace(".", "_")
+        d.mkdir()
+        fifo = _fifo(d, name)
+        rc, out, err = run_cli(argv(fifo))
+        runs.append((name, rc, err))
+        assert rc == 2 and "Traceback" not in err, (name, err)
+        assert [ln for ln in err.splitlines() if "error" in ln] == [
+            f"exo-bench: error: {cmd_o[name] + repr(str(fifo)) if name in cmd_o else fifo}: is a FIFO; only a regular "
+            "file or nothing is ever replaced"], (name, err)
+        assert _is_fifo(fifo), name
+        assert not list(d.glob(".staging-*")) and not list(d.glob(f".{name}.*")), name   # nothing half-written
+
+
+def test_a_symlink_to_a_regular_file_is_written_through_and_kept(tmp_path):
+    target = _text(tmp_path, "old", "real.urdf")
+    link = _link(tmp_path, target)
+    rc, out, err = run_cli(["urdf", "fig1-2d", "-o", link])
+    assert rc == 0 and err == ""
+    assert link.is_symlink() and target.read_text().startswith("<?xml")
+
+
+def test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte(tmp_path):
+    sc = _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40')
+    rep = tmp_path / "rep"
+    assert run_cli(["run", sc, "--reports", rep])[0] == 0
+    before = {p.name: p.read_bytes() for p in rep.iterdir()}
+    assert "| sc | pinocchio |" in before["summary.md"].decode()
+    rc, out, err = run_cli(["run", sc, "--reports", rep, "--max-memory", "1K"])
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "scene 'sc' failed" in err, err
+    assert {p.name: p.read_bytes() for p in rep.iterdir()} == before
+
+
+def test_a_scene_failing_midway_keeps_its_rows_while_the_others_are_updated(tmp_path, monkeypatch):
+    import argparse
+
+    from exo_bench.bench import runner
+
+    a = _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40')
+    b = (tmp_path / "b.toml")
+    b.write_text(a.read_text())
+    rep = tmp_path / "rep"
+    assert runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep))) == 0
+    old_b = (rep / "b.md").read_bytes()
+    real = runner.run_scene
+
+    def half_then_fail(scene, staging, limits=None):
+        if scene.name == "b":
+            (staging / "b.md").write_text("half")
+            raise RuntimeError("solver exploded")
+        return real(scene, staging, limits)
+
+    monkeypatch.setattr(runner, "run_scene", half_then_fail)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        rc = runner.run(argparse.Namespace(scenes=[str(a), str(b)], reports=str(rep)))
+    assert rc == 2 and "scene 'b' failed: RuntimeError: solver exploded" in err.getvalue()
+    assert (rep / "b.md").read_bytes() == old_b
+    summary = (rep / "summary.md").read_text()
+    assert "(scene failed)" not in summary and "| b | pinocchio |" in summary
+
+
+def test_stale_staging_folders_are_removed_by_the_next_run_and_live_ones_reported(tmp_path):
+    import socket
+    import subprocess
+
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (rep / ".staging-killed").mkdir()
+    (rep / ".staging-killed" / "x.md").write_text("half")
+    (rep / ".staging-killed" / ".owner").write_text(f"{dead.stdout.strip()} 1 {socket.gethostname()}\n")
+    (rep / ".staging-elsewhere").mkdir()
+    (rep / ".staging-elsewhere" / ".owner").write_text("1 1 another-host\n")
+    rc, out, err = run_cli(["run", _scene(tmp_path, 'kind = "planar-gait"\nsamples_per_period = 40'), "--reports", rep])
+    assert rc == 0, err
+    assert not (rep / ".staging-killed").exists() and (rep / ".staging-elsewhere").exists()
+    assert "removed 1 staging folder(s)" in err and "left 1 staging folder(s)" in err and ".staging-elsewhere" in err
+
+
+def test_a_quick_size_report_never_replaces_a_full_one(tmp_path, monkeypatch):
+    import exo_bench.bench.equations as eq
+
+    monkeypatch.setattr(eq, "size_point", lambda mech, route, budget: {"compose": 0.1, "generate": 0.1, "ops": 10,
+                                                                        "c_lines": 5})
+    rep = tmp_path / "rep"
+    rep.mkdir()
+    full = "# sizes\n\n_Generated by `exo-bench equations --size-report --full`; do not edit by hand._\n"
+    (rep / "equations_size.md").write_text(full)
+    rc, out, err = run_cli(["equations", "--size-report", "--reports", rep])
+    assert rc == 0, err
+    assert (rep / "equations_size.md").read_text() == full
+    quick = (rep / "equations_size-quick.md").read_text()
+    assert "equations_size-quick.png" in quick and (rep / "equations_size-quick.png").exists()
+
+
+@pytest.mark.parametrize("how", ["runs.json", "provenance"])
+def test_stability_reports_of_a_full_run_get_quick_names_beside_them(tmp_path, how):
+    from exo_bench.bench.output_files import narrower_names
+
+    names = ["stability-families.png", "stability.md"]
+    if how == "runs.json":
+        (tmp_path / "runs.json").write_text(json.dumps({"format": 1, "runs": {"r1": {"command": "exo-bench stability --full"}},
+                                                         "files": {"stability.md": {"run": "r1"}}}))
+    else:
+        (tmp_path / "stability.md").write_text("# x\n\n_Generated by `exo-bench run --full`; do not edit by hand._\n")
+    assert narrower_names(tmp_path, names, full=False) == {n: n.replace(".", "-quick.") for n in names}
+    assert narrower_names(tmp_path, names, full=True) == {n: n for n in names}
+    assert narrower_names(tmp_path / "empty", names, full=False) == {n: n for n in names}
+
+
+def test_a_compressed_npz_is_judged_before_it_is_inflated(tmp_path, monkeypatch):
+    f = _npz_zeros(tmp_path, 2_000_000, 15)
+    assert f.stat().st_size < 10e6                                  # 720 MB of arrays
+    monkeypatch.setattr(np, "load", lambda *a, **k: pytest.fail("the archive was inflated"))
+    rc, out, err = run_cli(["inverse", "exo5-3d", f, "--max-memory", "500M"])
+    assert rc == 2 and "2000000 sample(s)" in err and "over the memory limit" in err, err
+
+
+def test_prepare_lagrange_on_50_links_refuses_up_front_as_a_value_error():
+    import time
+
+    from exo_bench import prepare
+    from exo_bench.lagrange import BudgetExceeded
+
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError, match=r"needs about .* and 1034 s .*its derivation alone over the budget of 120 s"):
+        prepare(chain(50, 2), "lagrange")
+    assert time.perf_counter() - t0 < 10      # the estimate alone (was 120 s and 3.5 GB)
+    assert issubclass(BudgetExceeded, ValueError)
+
+
+@pytest.mark.parametrize("options,needle", [({"interrupt": "x"}, "option 'interrupt': expected True or False, got 'x'"),
+                                            ({"budget": float("inf")}, "option 'budget': expected a positive, finite"),
+                                            ({"budget": True}, "option 'budget'")])
+def test_lagrange_options_are_checked(options, needle):
+    from exo_bench import prepare
+
+    with pytest.raises(ValueError, match=needle.replace("(", r"\(").replace(")", r"\)")):
+        prepare(chain(1, 2), "lagrange", **options)
+
+
+def test_the_cli_default_method_is_prepares_and_the_help_names_it():
+    import inspect
+
+    from exo_bench import prepare
+
+    default = inspect.signature(prepare).parameters["method"].default
+    assert default == "matrix-factored"
+    args = cli.build_parser().parse_args(["inverse", "exo5-3d", "s.json"])
+    assert args.method == default
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+        cli.main(["inverse", "--help"])
+    assert f"(default: {default}, as prepare()'s;" in " ".join(buf.getvalue().split())
+
+
+def test_version():
+    import exo_bench
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pytest.raises(SystemExit) as info:
+        cli.main(["--version"])
+    assert info.value.code == 0 and buf.getvalue().strip() == f"exo-bench {exo_bench.__version__}"
+
+
+def test_dashes_in_a_link_name_keep_the_urdf_valid(tmp_path):
+    import xml.etree.ElementTree as ET
+
+    rc, out, err = run_cli(["urdf", _mech(tmp_path, link2_name="thigh--left-")])
+    assert rc == 0 and err == ""
+    ET.fromstring(out)                       # parses: no "--" inside a comment
+    assert "thigh- -left- ," in out
 
 
 # ------------------------------------------------------------------------------ docs/errors.md
@@ -446,6 +733,64 @@ OTHER_ROWS = [
     ("a 300-link 3D chain: answer within 2 GB or refuse within 2 s naming a method that fits",
      "tests/test_bad_inputs.py::test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work, "
      "test_the_300_link_chain_answers_within_2_gb_with_a_method_that_fits"),
+]
+
+
+#: Issue 26, case by case: (what was reported, how it answers now, the tests). Items 1 and 3 and
+#: "qd=None" / Pinocchio's bias forces on 0 samples of item 6 are the prepared models' (their own tests).
+ISSUE_26_ROWS = [
+    ("2. `urdf -o` replaced a FIFO or a device node with a regular file",
+     "refused in one line (exit 2) by the one writer behind every -o/--reports (bench/output_files.py); FIFOs, "
+     "devices, sockets and symlinks to them or to nothing are never replaced; a symlink to a regular file is "
+     "written through",
+     "test_bad_input[urdf-output-fifo], [urdf-output-link-to-fifo], [urdf-output-dangling-link], [mjcf-output-fifo], "
+     "[equations-output-fifo], [reports-fifo], test_nothing_replaces_a_fifo_for_any_command_that_writes, "
+     "test_a_symlink_to_a_regular_file_is_written_through_and_kept"),
+    ("4. `equations --size-report` replaced the `--full` equations_size.md; `stability` overwrote a `--full` "
+     "stability.md", "a quick run writes `<name>-quick.<ext>` beside a `--full` run's report (runs.json or the "
+     "report's own provenance line), as the benchmark reports do",
+     "test_a_quick_size_report_never_replaces_a_full_one, test_stability_reports_of_a_full_run_get_quick_names_beside_them"),
+    ("4. a refused scene in `run`: exit 1, nothing on stderr, good rows replaced by \"(scene failed)\"",
+     "one line on stderr, exit 2; the scene's earlier rows and files are kept (a run where nothing ran leaves the "
+     "folder untouched)",
+     "test_bad_input[scene-refused], test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte, "
+     "test_a_scene_failing_midway_keeps_its_rows_while_the_others_are_updated"),
+    ("5. recurrence on a 1000-link 2D chain: estimated 537 MB, measured 10.6 GB",
+     "its increment tables are in the cost model: about 11.2 GB and 30 s, refused under --max-memory 1G",
+     "test_bad_input[recurrence-1000-2d], tests/test_estimate_vs_measured.py"),
+    ("5. a 7 MB compressed .npz decompressed to 7.2 GB before any check",
+     "judged by its arrays' uncompressed size from the zip directory and .npy headers, before anything is inflated",
+     "test_bad_input[npz-bomb], test_a_compressed_npz_is_judged_before_it_is_inflated"),
+    ("5. `--max-time` left out reading and writing the states",
+     "reading (JSON by its size, before parsing; .npz from its headers) and writing tau count in the estimate",
+     "test_bad_input[max-time-reading], [max-time-writing]"),
+    ("5. `prepare(chain(50), \"lagrange\")`: 120 s and 3.5 GB, then BudgetExceeded (not a ValueError)",
+     "refused up front by the estimate, a ValueError naming it and the budget; BudgetExceeded is a ValueError",
+     "test_bad_input[lagrange-50], test_prepare_lagrange_on_50_links_refuses_up_front_as_a_value_error"),
+    ("5. the estimate against measurement", "within 2x of peak memory and time across n (error model in the test)",
+     "tests/test_estimate_vs_measured.py"),
+    ("6. JSON `true` taken as 1.0", "refused, naming the field, sample and column", "test_bad_input[states-json-true]"),
+    ("6. duplicate JSON keys: the last won silently", "refused (every JSON the suite reads)",
+     "test_bad_input[states-duplicate-key], [mechanism-duplicate-key]"),
+    ("6. a NUL or `--` in a link name broke the URDF",
+     "control characters refused, naming the link and field; `--` is written `- -` in the URDF's comment",
+     "test_bad_input[mechanism-name-nul], [mechanism-name-dashes], test_dashes_in_a_link_name_keep_the_urdf_valid"),
+    ("6. a gait with T = 1e-300: 12 numpy warnings, exit 0", "refused at load, naming motion.gait.T",
+     "test_bad_input[scene-gait-period]"),
+    ("6. a scene named `a/b` silently wrote no .md", "refused at load, naming the field",
+     "test_bad_input[scene-name-slash]"),
+    ("6. a dangling --reports symlink: \"File exists\"", "one line naming the link and its missing target",
+     "test_bad_input[reports-dangling-link]"),
+    ("6. `.staging-*` folders stayed forever after a SIGKILL",
+     "the next run into the folder removes those whose process is gone (a warning line) and names those it "
+     "cannot tell", "test_stale_staging_folders_are_removed_by_the_next_run_and_live_ones_reported"),
+    ("6. `interrupt='x'` taken as True; `budget=inf` raised OverflowError",
+     "ValueError naming the option (a budget is finite)", "test_lagrange_options_are_checked"),
+    ("6. `--budget` on a non-lagrange method silently ignored", "refused in one line",
+     "test_bad_input[budget-other-method]"),
+    ("6. the CLI `inverse` defaulted to pinocchio, prepare() to matrix-factored; --help named neither",
+     "both matrix-factored, named in --help", "test_the_cli_default_method_is_prepares_and_the_help_names_it"),
+    ("6. no `--version`", "`exo-bench --version` prints the version", "test_version"),
 ]
 
 
@@ -481,8 +826,11 @@ def render(tmp: Path) -> str:
              "-z in 3D); `-0.0` is accepted as 0. A motion needs at least 2 samples and strictly increasing times. "
              "Masses, lengths and rates whose forces could overflow float64 (a bound above 1e300, "
              "`models.mechanism.force_scale_log10`) are refused. Memory and time are estimated before any work "
-             "(bench/resources.py); the memory limit is 80 % of the available memory unless `--max-memory` says "
-             "otherwise.", "",
+             "(bench/resources.py), reading the states and writing the forces included (a .npz by its uncompressed "
+             "size, from its headers); the memory limit is 80 % of the available memory unless `--max-memory` says "
+             "otherwise. Files are written only over a regular file or nothing (FIFOs, devices, sockets and symlinks "
+             "to them or to nothing are refused), and a quick run writes `<name>-quick.<ext>` beside a `--full` run's "
+             "report rather than over it.", "",
              "| input | exit | what the user sees | example | test |", "|---|---|---|---|---|"]
     for case in CASES:
         example, line = _line(case, tmp / case.id)
@@ -494,6 +842,9 @@ def render(tmp: Path) -> str:
         lines.append(f"| {esc(text)} | " + ", ".join(f"test_bad_input[{i}]" for i in ids) + " |")
     for text, tests in OTHER_ROWS:
         lines.append(f"| {esc(text)} | {tests} |")
+    lines += ["", "## The cases of issue 26 (items 2, 4, 5 and 6)", "", "| reported | now | covered by |", "|---|---|---|"]
+    for text, now, tests in ISSUE_26_ROWS:
+        lines.append(f"| {esc(text)} | {esc(now)} | {tests} |")
     return "\n".join(lines) + "\n"
 
 
@@ -505,8 +856,15 @@ def test_errors_md_is_current(tmp_path):
 def test_every_issue_row_has_a_test():
     for key in ISSUE_ROWS:
         assert any(c.issue == key for c in CASES), key
-    for _, tests in OTHER_ROWS:
+    for _, tests in OTHER_ROWS + [(a, c) for a, _, c in ISSUE_26_ROWS]:
         for name in tests.split(", "):
+            if name.startswith("[") or name.startswith("test_bad_input["):
+                ident = name.split("[", 1)[1].rstrip("]")
+                assert any(c.id == ident for c in CASES), name
+                continue
+            if name.endswith(".py"):
+                assert (ROOT / name).exists(), name
+                continue
             path, func = name.split("::") if "::" in name else (None, name)
             assert any(f"def {func}(" in p.read_text() for p in (ROOT / "tests").glob("test_*.py")), name
 

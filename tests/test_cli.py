@@ -38,7 +38,11 @@ def test_inverse_accepts_a_users_own_mechanism_file(tmp_path):
     q, qd, qdd = random_states(m, 3, 1)
     r = _cli("inverse", tmp_path / "mine.json", _states_file(tmp_path / "s.json", q, qd, qdd))
     assert r.returncode == 0, r.stderr
-    assert np.allclose(json.loads(r.stdout)["tau"], pb.inverse_dynamics(m, q, qd, qdd), rtol=0, atol=0)
+    out = json.loads(r.stdout)
+    assert out["method"] == "matrix-factored"   # the default, as prepare()'s (issue 26)
+    from conftest import assert_forces_agree
+    assert_forces_agree(np.array(out["tau"]), pb.inverse_dynamics(m, q, qd, qdd), m, q, qd, qdd,
+                        what="the CLI's default method against Pinocchio")
 
 
 def test_presets_lists_every_paper_model():

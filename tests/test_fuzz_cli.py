@@ -339,7 +339,8 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
     q, qd, qdd = random_states(m, 1, 0)
     (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
     sub = {"BIN": tmp_path / "bin", "CHAIN300": tmp_path / "c.json", "S300": tmp_path / "s.json", "FILE": tmp_path / "file"}
-    argv = [str(sub.get(a, a)) for a in args] + (["--max-memory", "2G"] if args[1] == "CHAIN300" else [])
+    argv = [str(sub.get(a, a)) for a in args] + (["--max-memory", "2G", "--method", "pinocchio"]
+                                                  if args[1] == "CHAIN300" else [])
     r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120,
                        cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -38,8 +38,11 @@ def test_a_tiny_budget_raises_naming_the_work_n_dim_and_budget_and_caches_nothin
     assert (info.value.nlinks, info.value.dim, info.value.budget) == (12, 3, 0.05)
     assert not _cached(m)                                      # no half-done derivation is kept
     assert dv._FAILED[(dv.structure_of(m), "poly")] > 0        # the attempt is remembered
+    with pytest.raises(ValueError, match="its derivation alone over the budget of 50 ms"):
+        prepare(m, "lagrange", budget=0.05)                    # refused up front by the estimate (issue 26)
+    from exo_bench.lagrange.prepared import LagrangeModel
     with pytest.raises(BudgetExceeded):
-        prepare(m, "lagrange", budget=0.05)
+        LagrangeModel(m, budget=0.05)                          # the class itself: the budget stops the work
     assert not _cached(m)
     assert ln._FAILED[(m, "equations")] > 0
 
@@ -71,8 +74,8 @@ def test_run_methods_records_an_over_budget_method_as_skipped_with_its_reason():
 def test_a_bad_budget_is_a_value_error():
     with pytest.raises(ValueError, match="budget"):
         derive(chain(2, 2), budget=0)
-    for bad in (0, -1.0, "soon", True):
-        with pytest.raises(ValueError, match="lagrange: option 'budget': expected a positive number of seconds"):
+    for bad in (0, -1.0, "soon", True, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="lagrange: option 'budget': expected a positive, finite number of seconds"):
             prepare(chain(9, 2), "lagrange", budget=bad)
 
 

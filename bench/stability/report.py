@@ -243,9 +243,14 @@ def run(args) -> int:
     figs = {"stability-families.png": families_figure(families, methods),
             "stability-conditioning.png": conditioning_figure(families)}
     figs.update(forward_figures(forward))
-    written = [save_figure(fig, out / name) for name, fig in figs.items()]
-    text = report_markdown(profile, methods, families, forward, time.perf_counter() - t0, list(figs))
-    written.append(atomic_write(out / "stability.md", text))
+    # a quick run never replaces a --full run's report: it writes stability-quick.md beside it
+    from exo_bench.bench.output_files import announce_narrower, narrower_names
+    names = narrower_names(Path(getattr(args, "published_to", None) or out), [*figs, "stability.md"],
+                           bool(getattr(args, "full", False)))
+    announce_narrower(out, names, "stability reports")
+    written = [save_figure(fig, out / names[name]) for name, fig in figs.items()]
+    text = report_markdown(profile, methods, families, forward, time.perf_counter() - t0, [names[n] for n in figs])
+    written.append(atomic_write(out / names["stability.md"], text))
     for p in written:
         print(f"wrote {p}")
     # Exit status: the suite's own physics (Pinocchio's round trips, energy bounds). A registered

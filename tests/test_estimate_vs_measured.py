@@ -1,0 +1,123 @@
+"""The cost model (bench/resources.py) against measurement: within 2x of the peak memory and the
+wall time of preparing a method and running a batch, across n, for the methods whose cost grows
+fastest with n (the recurrence's increment tables, n^3; Pinocchio's Data, nv^3).
+
+A behaviour test of the estimate, not a timed goal. Each point runs in a fresh process: numba's
+machine code is loaded (from its disk cache, or compiled) before the measurement starts, so its
+one-time :data:`~exo_bench.bench.resources.NUMBA_BYTES` are left out of the estimate compared; the
+states are generated after the memory baseline (they count in the estimate's arrays) and before
+the clock starts (their generation is not the method's work). Memory is the growth of the peak
+resident set (``VmHWM`` after a reset through /proc/self/clear_refs, as
+``bench.calibration.measure`` does: Pinocchio allocates in C++ where tracemalloc does not see).
+
+Error model: memory estimates are upper bounds rounded up (measured/estimated 0.6 to 0.95 when
+fitted), held within [0.5, 2] as they are. Times are constants fitted on the shared 2-core reference
+machine, whose own times vary 2-5x with its load (recurrence 2D n = 280: 0.33 s quiet, 1.6 s
+loaded), so the time of each point is held within 2x of the estimate once divided by this host's
+speed factor (the geometric mean of the points' measured/estimated times, which must lie within
+[0.2, 5]): the test holds the shape of the model across n and methods, and its scale within 5x.
+Points outside are measured once more before the test fails; the failure names them (recalibrate
+with ``python -m exo_bench.bench.calibration``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+from exo_bench.bench.resources import NUMBA_BYTES, _numba, estimate
+from exo_bench.models.presets import chain
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="VmHWM and clear_refs are Linux's")
+
+CHILD = r"""
+import gc, json, sys, time
+method, dim, samples, ns = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), [int(x) for x in sys.argv[4:]]
+from exo_bench.bench.methods import method_class, prepare
+from exo_bench.models.motion import random_states
+from exo_bench.models.presets import chain
+method_class(method)                                   # the method's imports, outside
+if method in ("recurrence", "matrix", "matrix-factored"):   # numba's machine code, outside
+    warm = prepare(chain(2, dim), method)                  # the kernel the batch takes (serial, or parallel)
+    warm.inverse_dynamics(*random_states(chain(2, dim), max(2, min(samples, 5000)), 0))
+
+def status(key):
+    for line in open("/proc/self/status"):
+        if line.startswith(key):
+            return int(line.split()[1]) * 1024
+
+out = []
+for n in ns:                                           # one process, one point after the other
+    gc.collect()
+    open("/proc/self/clear_refs", "w").write("5")      # reset the peak (VmHWM)
+    r0 = status("VmRSS")
+    mech = chain(n, dim)
+    q, qd, qdd = random_states(mech, samples, 0)
+    t0 = time.perf_counter()
+    tau = prepare(mech, method).inverse_dynamics(q, qd, qdd)
+    out.append({"n": n, "bytes": status("VmHWM") - r0, "seconds": time.perf_counter() - t0})
+    del q, qd, qdd, tau
+print(json.dumps(out))
+"""
+
+#: method, dim, samples -> the n measured (in one process): the n^3 terms (recurrence's tables,
+#: Pinocchio's Data) or the batch's arrays (matrix-factored) dominate: 100-650 MB, 0.3-3 s each on
+#: the reference machine. ``matrix`` is left out: with its compiled kernel its peak grows by 2-6 MB
+#: (below BASE_BYTES, where the estimate is a floor), and compiling its kernels would cost CI 10 s.
+POINTS = {("recurrence", 2, 1): (280, 340), ("pinocchio", 3, 1): (50, 70), ("matrix-factored", 3, 40000): (30, 50)}
+
+
+def _measure(method, dim, samples, ns) -> list[dict]:
+    r = subprocess.run([sys.executable, "-c", CHILD, method, str(dim), str(samples), *map(str, ns)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _points() -> list[tuple[tuple, int, float, float, dict, object]]:
+    """Every point: (key, n, memory ratio, time ratio, measured, estimate); ratios measured / estimated."""
+    out = []
+    for key, ns in POINTS.items():
+        method, dim, samples = key
+        for got in _measure(method, dim, samples, ns):
+            est = estimate(chain(got["n"], dim), method, samples)
+            memory = est.memory - (NUMBA_BYTES if _numba({}, method) else 0)   # loaded before the measurement
+            out.append((key, got["n"], got["bytes"] / memory, got["seconds"] / est.seconds, got, est))
+    return out
+
+
+def _outside(points) -> list[str]:
+    """The points outside the bands, in words: memory within 2x; time within 2x once divided by this
+    host's speed against the reference machine (the geometric mean of the time ratios, itself
+    within 5x)."""
+    speed = math.exp(sum(math.log(p[3]) for p in points) / len(points))
+    bad = [f"{k[0]} {k[1]}D n={n}: measured {g['bytes'] / 1e6:.0f} MB and {g['seconds']:.2f} s, estimated "
+           f"{e.memory / 1e6:.0f} MB and {e.seconds:.2f} s (host speed factor {speed:.2f})"
+           for k, n, mem, sec, g, e in points if not (0.5 <= mem <= 2 and 0.5 <= sec / speed <= 2)]
+    if not 0.2 <= speed <= 5:
+        bad.append(f"this host runs the methods {speed:.2f}x the reference machine's times")
+    return bad
+
+
+def test_the_estimate_is_within_2x_of_the_measured_memory_and_time():
+    bad = _outside(_points())
+    if bad:   # a noisy neighbour: once more
+        bad = _outside(_points())
+    assert not bad, "; ".join(bad)
+
+
+def test_the_recurrence_on_1000_links_is_estimated_near_its_measured_10_6_gb():
+    """Issue 26: estimated 537 MB, measured 10.6 GB (and 32 s) on the 2D 1000-link chain."""
+    est = estimate(chain(1000, 2), "recurrence", 1)
+    assert 10.6e9 / 2 <= est.memory <= 2 * 10.6e9 and 32 / 2 <= est.seconds <= 2 * 32
+
+
+def test_every_method_has_a_cost_model():
+    from exo_bench.bench.methods import method_names
+    from exo_bench.bench.resources import MODELS
+
+    assert set(method_names()) <= set(MODELS)
