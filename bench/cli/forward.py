@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 
-from exo_bench.bench.cli.inverse import _limits, _load_states, _write_tau, add_limit_args
+from exo_bench.bench.cli.inverse import _limits, _load_states, _write_tau, add_limit_args, refuse_budget
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -32,6 +32,7 @@ def cmd_forward(args: argparse.Namespace) -> int:
     from exo_bench.models.loading import load_mechanism
 
     method_class(args.method)  # an unknown method fails before any file is read
+    refuse_budget(args)
     mech = load_mechanism(args.mechanism)
     q, qd, tau = _load_states(args.states, mech, third="tau")
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}

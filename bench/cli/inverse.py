@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--method", default=default_method,
                    help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
                         "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
-    add_limit_args(s, budget_help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
+    add_limit_args(s)
     s.set_defaults(func=cmd_inverse)
 
 
@@ -39,14 +39,21 @@ def _default_method() -> str:
     return inspect.signature(prepare).parameters["method"].default
 
 
-def add_limit_args(s: argparse.ArgumentParser,
-                   budget_help: str = "seconds for lagrange's symbolic derivation (default 120)") -> None:
+def add_limit_args(s: argparse.ArgumentParser) -> None:
     """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
-    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS", help=budget_help)
+    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS",
+                   help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
     s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
     s.add_argument("--max-time", type=seconds_arg, default=None, metavar="SECONDS",
                    help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
                         "(default: no limit)")
+
+
+def refuse_budget(args: argparse.Namespace) -> None:
+    """``--budget`` is lagrange's derivation budget: with another method it would be silently ignored."""
+    if args.budget is not None and args.method != "lagrange":
+        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
+                         "nothing (limit its time with --max-time)")
 
 
 def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,9 +130,7 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     from exo_bench.models.mechanism import force_names
 
     method_class(args.method)  # an unknown method fails before any file is read
-    if args.budget is not None and args.method != "lagrange":
-        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
-                         "nothing (limit its time with --max-time)")
+    refuse_budget(args)
     mech = load_mechanism(args.mechanism)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
     limits = _limits(args, args.method)
