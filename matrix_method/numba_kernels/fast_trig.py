@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
-#: |x| up to which the arithmetic path is used (and its error bound stated); beyond it, libm.
+#: ``|x|`` up to which the arithmetic path is used (and its error bound stated); beyond it, libm.
 RANGE = 1e5
 #: The stated bound of :func:`sincos_reduced` on ``|x| <= RANGE``: ulps from numpy's sin/cos.
 ULPS = 1.0

@@ -8,7 +8,7 @@ constant mass coupling ``mu`` of :func:`exo_bench.models.aggregates.coupling`: `
 **O(n) solves with M_r.** Put ``e = T r``, the rods' end points: ``T`` sums the rod vectors down
 the tree, ``T^-1`` takes one difference with the parent (``r_k = e_k - e_parent(k)``, the support
 O fixed). In end points the masses of link ``k`` sit at ``e_p`` (start, ``p`` its parent),
-``(1 - n_k) e_p + n_k e_k`` (middle) and ``e_k`` (end), so
+``(1 - n_k) e_p + n_k e_k`` (middle) and ``e_k`` (end), so::
 
     T = 1/2 sum_k [ m_k0 |e_p'|^2 + m_k1 |(1 - n_k) e_p' + n_k e_k'|^2 + m_k2 |e_k'|^2 ]
 

@@ -68,7 +68,7 @@ class StepSettings:
     * ``azimuth``: 3D only: the bound on every azimuth. The step is in the sagittal plane (step width 0),
       and the azimuths are fixed at 0 when ``azimuth == 0``: every leg rod passes the vertical, where the
       chart of eq. (7) is singular and an azimuth moves nothing.
-    * Objective, per second of walking: ``w_moment`` times the sum over joints of |net joint moment|^2 in
+    * Objective, per second of walking: ``w_moment`` times the sum over joints of ``|net joint moment|^2`` in
       (N·m/kg)^2, ``w_force`` times the sum over rods of the rod force^2 in body weights^2, and
       ``w_accel`` times the sum of qdd^2 (a small regulariser), each averaged over the step (Simpson).
     """

@@ -4,7 +4,7 @@ The plausibility table has the columns of :mod:`exo_bench.bench.studies.plausibi
 moments per kg, peak rod forces and net joint forces in body weights, beside Winter's Table A.5). Its
 last column says "yes" where the peak is within a factor of 2 of Winter's either way, and otherwise gives
 the reason computed from the step: where the peak is, the lever of the net joint force about the joint
-(|M| / |F|, against Winter's peak moment over peak force), the knee flexion and the rods' strokes used.
+(``|M| / |F|``, against Winter's peak moment over peak force), the knee flexion and the rods' strokes used.
 """
 
 from __future__ import annotations
