@@ -14,24 +14,19 @@ ROLE = re.compile(r":(?:mod|func|class|data|meth|attr|exc):`~?([A-Za-z_][\w.]*\.
 LIBRARY = ("exo_bench", "models", "matrix_method", "lagrange", "bench")
 
 
+_MISSING = object()
+
+
 def _resolves(target: str) -> bool:
     parts = target.split(".")
-    for i in range(len(parts), 0, -1):
-        try:
-            obj = importlib.import_module(".".join(parts[:i]))
-        except ImportError:
-            continue
-        try:
-            for name in parts[i:]:
-                obj = getattr(obj, name)
-        except AttributeError:
-            # a method or attribute of a class set in __init__ (instance attributes do not getattr)
-            return i < len(parts) - 1 and isinstance(_get(parts[:len(parts) - 1]), type)
+    if _get(parts) is not _MISSING:
         return True
-    return False
+    # a method or attribute of a class set in __init__ (instance attributes do not getattr)
+    return len(parts) > 2 and isinstance(_get(parts[:-1]), type)
 
 
 def _get(parts: list[str]):
+    """The object at the dotted path ``parts`` (a module, then attributes), or _MISSING."""
     for i in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:i]))
@@ -41,9 +36,9 @@ def _get(parts: list[str]):
             for name in parts[i:]:
                 obj = getattr(obj, name)
         except AttributeError:
-            return None
+            return _MISSING
         return obj
-    return None
+    return _MISSING
 
 
 def _module_name(path: Path) -> str:
