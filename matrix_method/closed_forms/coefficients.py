@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from exo_bench.models.aggregates import aggregates, coupling, coupling_entries, gravity_coupling
+from exo_bench.models.aggregates import aggregates, coupling, coupling_entries, gravity_coupling, link_aggregates
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import Symbols
 
@@ -43,15 +43,23 @@ def signed_gravity(mech: Mechanism) -> np.ndarray:
 
 
 def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Eq. (25) generalised to trees: what adding link ``k`` does to the coefficients, in floats.
+    """Eq. (25) generalised to trees: what adding link ``k`` does to the coefficients.
 
     Returns ``(idx, dc, dnu_s)``: the links concerned (the ancestors of k, then k itself), the
-    increment of ``c`` on ``idx x idx`` and the increment of ``nu s`` on ``idx``
-    (:func:`generic_recurrence_increments`, which says what each term is, on the float parameters).
+    increment of ``c`` on ``idx x idx`` and the increment of ``nu s`` on ``idx``.
+    ``theta_k s_i s_j`` on ancestor pairs (k adds to Theta of each ancestor), ``eta_k s_i s_k`` on the
+    new row and column, ``zeta_k`` in the corner; ``theta_k s_i`` and ``eta_k s_k`` for gravity.
     """
-    params = [(*(float(x) for x in mech.masses[i]), float(mech.n[i])) for i in range(mech.nlinks)]
-    idx, dc, dnu = generic_recurrence_increments(mech, params, k)
-    return np.array(idx, dtype=int), np.array(dc, dtype=float), np.array(dnu, dtype=float)
+    zeta, eta, theta = link_aggregates(mech)
+    idx = np.array(sorted(mech.ancestors[k]) + [k], dtype=int)
+    s = mech.sign_array[idx]
+    m = len(idx)
+    dc = theta[k] * np.outer(s, s)              # First term: old block, ancestors only
+    dc[-1, :] = dc[:, -1] = eta[k] * s * s[-1]  # Second term: the new row and column
+    dc[-1, -1] = zeta[k]                        # Third term: the corner
+    dnu = np.full(m, theta[k]) * s
+    dnu[-1] = eta[k] * s[-1]
+    return idx, dc, dnu
 
 
 # ---------------------------------------------------------------- symbolic
@@ -101,10 +109,7 @@ def symbolic_coupling(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 
 
 def generic_recurrence_increments(mech: Mechanism, params, k: int):
-    """Eq. (25) generalised to trees, in any arithmetic: ``(idx, dc, dnu_s)`` as nested lists.
-
-    ``theta_k s_i s_j`` on ancestor pairs (k adds to Theta of each ancestor), ``eta_k s_i s_k`` on the
-    new row and column, ``zeta_k`` in the corner; ``theta_k s_i`` and ``eta_k s_k`` for gravity."""
+    """The generic twin of :func:`recurrence_increments`: ``(idx, dc, dnu_s)`` as nested lists."""
     zeta, eta, theta = generic_aggregates(params)
     idx = sorted(mech.ancestors[k]) + [k]
     s = [mech.sign[i] for i in idx]
