@@ -316,3 +316,31 @@ def power_balance_residual(inverse_dynamics, mech, seed: int) -> float:
     power = (inverse_dynamics(mech, mo.q, mo.qd, mo.qdd) * mo.qd).sum(1)
     rate = energy_rate(mech, f, t)
     return float(np.abs(power - rate).max() / np.abs(rate).max())
+
+
+_INSTALLED: list[str] | None = None
+
+
+def installed_methods() -> list[str]:
+    """Every registered method whose engine is installed here, in registry order.
+
+    ``mujoco`` and ``drake`` are the optional extra ``[peers]``: where it is missing, preparing them
+    raises :class:`~exo_bench.models.prepared.MissingExtra`, and the tests that iterate over every
+    method leave them out (tests/test_mujoco_drake.py skips with the reason printed). Found by
+    preparing each method once on the one-link planar model, so a method that is merely slow to
+    import is not mistaken for a missing one."""
+    global _INSTALLED
+    if _INSTALLED is None:
+        from exo_bench import method_names, prepare
+        from exo_bench.models.prepared import MissingExtra
+        from exo_bench.models.presets import fig1
+
+        found = []
+        for name in method_names():
+            try:
+                prepare(fig1(2), name)
+            except MissingExtra:
+                continue
+            found.append(name)
+        _INSTALLED = found
+    return list(_INSTALLED)

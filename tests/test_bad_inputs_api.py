@@ -26,7 +26,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import assert_forces_agree, assert_mass_matrices_agree
+from conftest import assert_forces_agree, assert_mass_matrices_agree, installed_methods
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -35,9 +35,9 @@ from exo_bench.api.methods import METHODS, known_wrong
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5, fig2a
 
-#: Every registered method and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
+#: Every installed method (conftest.installed_methods) and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
 #: derivation for exo5-3d takes minutes).
-_CASES = [(m, k) for m, s in METHODS.items() for k in (s.kernels or (None,))]
+_CASES = [(m, k) for m, s in METHODS.items() if m in installed_methods() for k in (s.kernels or (None,))]
 _MODELS: dict = {}
 
 

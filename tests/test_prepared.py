@@ -13,14 +13,14 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import assert_close, assert_forces_agree, mass_matrix_scale, term_scale
+from conftest import assert_close, assert_forces_agree, installed_methods, mass_matrix_scale, term_scale
 
-from exo_bench import load_mechanism, method_names, prepare, presets
+from exo_bench import load_mechanism, prepare, presets
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import PRESETS, random_tree
 from exo_bench.models.prepared import PreparedModel
 
-CORRECT = [m for m in method_names() if m != "matrix-paper"]   # matrix-paper is wrong in 3D by design
+CORRECT = [m for m in installed_methods() if m != "matrix-paper"]   # matrix-paper is wrong in 3D by design
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
@@ -28,7 +28,7 @@ def test_every_method_prepares_every_preset_and_agrees_with_pinocchio(preset):
     mech = PRESETS[preset]()
     q, qd, qdd = random_states(mech, 4, seed=7)
     ref = prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)
-    for name in method_names():
+    for name in installed_methods():
         if name == "lagrange" and mech.nlinks > 5:
             continue   # derivation cost; the random trees below cover lagrange
         model = prepare(mech, name, **({"budget": 300} if name == "lagrange" else {}))
@@ -75,7 +75,7 @@ def test_a_users_json_mechanism(tmp_path):
         assert_forces_agree(prepare(mech, name).inverse_dynamics(q, qd, qdd), ref, mech, q, qd, qdd, what=name)
 
 
-@pytest.mark.parametrize("name", method_names())
+@pytest.mark.parametrize("name", installed_methods())
 def test_one_sample_and_the_fast_path_give_the_batch_rows(name):
     mech = presets.fig5(dim=2) if name == "lagrange" else presets.exo5(dim=3)
     model = prepare(mech, name)
@@ -104,7 +104,7 @@ def test_check_true_names_the_array_sample_and_coordinate():
         model.inverse_dynamics(q, qd[:, :3], qdd)
 
 
-@pytest.mark.parametrize("name", method_names())
+@pytest.mark.parametrize("name", installed_methods())
 def test_a_prepared_model_pickles_and_gives_the_same_forces(name):
     mech = presets.fig2b(dim=3)
     opts = {"budget": 60.0} if name == "lagrange" else {}
@@ -153,10 +153,10 @@ def test_options_are_constructor_arguments_and_bad_ones_are_named():
 
 def test_native_and_derived_terms_are_declared():
     mech = presets.fig2a(dim=3)
-    native = {name: prepare(mech, name).native_terms for name in method_names()}
+    native = {name: prepare(mech, name).native_terms for name in installed_methods()}
     assert native["matrix-factored"] is False          # the fused kernel forms no matrix
     assert native["pinocchio"] and native["matrix"] and native["lagrange"] and native["recurrence"]
-    assert all(isinstance(prepare(mech, n), PreparedModel) for n in method_names())
+    assert all(isinstance(prepare(mech, n), PreparedModel) for n in installed_methods())
 
 
 def test_pinocchio_threads_option_gives_the_serial_forces():
