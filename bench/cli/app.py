@@ -83,6 +83,10 @@ def error_line(e: BaseException) -> str:
 
     if isinstance(e, ResourceLimit):
         return str(e)
+    from exo_bench.models.prepared import MissingExtra
+
+    if isinstance(e, MissingExtra):   # an engine not installed: the message names the extra; no budget to raise
+        return f"{e}; or choose another method (matrix-factored)"
     skip = getattr(e, "skip_reason", None)
     if skip:  # lagrange.BudgetExceeded: the derivation's time budget
         return f"{skip}; raise the budget with --budget SECONDS or choose another method (matrix-factored)"
