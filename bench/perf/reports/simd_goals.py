@@ -277,12 +277,21 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=10_000)
     ap.add_argument("--rounds", type=int, default=30)
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    ap.add_argument("--markdown", default=None,
+                    help="also write them as a report with its provenance (e.g. reports/simd-goals.md)")
     a = ap.parse_args(argv)
     r = measure(a.samples, a.rounds)
     if a.json:
         with open(a.json, "w") as f:
             json.dump(r, f, indent=1)
     print("\n".join(goals_lines(r)))
+    if a.markdown:
+        from exo_bench.bench.output.provenance import atomic_write, provenance
+
+        command = "python -m exo_bench.bench.perf.reports.simd_goals --markdown " + a.markdown
+        atomic_write(a.markdown, "# The kernels against the hardware limit (issue 23)\n\n" + provenance(command)
+                     + "\n" + "\n".join(goals_lines(r)).replace("## Issue 23: kernels at the hardware limit\n", "")
+                     + "\n")
     return 0
 
 
