@@ -364,7 +364,7 @@ import json, sys, time
 t0 = time.perf_counter()
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.matrix_method import compiled
+from exo_bench.matrix_method.numba_kernels import common as compiled
 t_import = time.perf_counter() - t0
 out = {"import_seconds": t_import}
 for method in sys.argv[1].split(","):
