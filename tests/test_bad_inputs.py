@@ -347,7 +347,7 @@ CASES = [
     Case("recurrence-1000-2d", "recurrence on a 1000-link 2D chain under --max-memory 1G", lambda d: [
         "inverse", _chain_file(d, 1000, 2), _states(chain(1000, 2), 1, path=d / "s.json"), "--method", "recurrence",
         "--max-memory", "1G"], "method 'recurrence' on 'chain1000-2d' (n=1000 links, dim=2, 1 sample(s)) needs about "
-         "11.2 GB", issue="26: estimates"),
+         "3.5 GB", issue="26: estimates"),
     Case("npz-bomb", "states: a small compressed .npz whose arrays inflate beyond the limit (judged from its headers)",
          lambda d: ["inverse", "exo5-3d", _npz_zeros(d, 2_000_000, 15), "--max-memory", "1G"],
          "(n=5 links, dim=3, 2000000 sample(s)) needs about", issue="26: estimates"),
@@ -756,7 +756,7 @@ ISSUE_26_ROWS = [
      "test_bad_input[scene-refused], test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte, "
      "test_a_scene_failing_midway_keeps_its_rows_while_the_others_are_updated"),
     ("5. recurrence on a 1000-link 2D chain: estimated 537 MB, measured 10.6 GB",
-     "its increment tables are in the cost model: about 11.2 GB and 30 s, refused under --max-memory 1G",
+     "its increment tables are in the cost model, and are now built in one array (peak 10.6 GB -> 3.0 GB): about 3.5 GB and 20 s, refused under --max-memory 1G",
      "test_bad_input[recurrence-1000-2d], tests/test_estimate_vs_measured.py"),
     ("5. a 7 MB compressed .npz decompressed to 7.2 GB before any check",
      "judged by its arrays' uncompressed size from the zip directory and .npy headers, before anything is inflated",

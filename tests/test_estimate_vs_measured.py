@@ -112,10 +112,13 @@ def test_the_estimate_is_within_2x_of_the_measured_memory_and_time():
     assert not bad, "; ".join(bad)
 
 
-def test_the_recurrence_on_1000_links_is_estimated_near_its_measured_10_6_gb():
-    """Issue 26: estimated 537 MB, measured 10.6 GB (and 32 s) on the 2D 1000-link chain."""
+def test_the_recurrence_on_1000_links_is_estimated_near_its_measured_peak():
+    """Issue 26: estimated 537 MB, measured 10.6 GB (and 32 s) on the 2D 1000-link chain. The tables
+    are now written into one array: measured 3.00 GB and 12.7 s (peak resident set of a fresh
+    process, prepare and one sample, 2-core machine under a second job; /tmp/rec1000.py in the
+    session's note), too slow and large to measure in CI."""
     est = estimate(chain(1000, 2), "recurrence", 1)
-    assert 10.6e9 / 2 <= est.memory <= 2 * 10.6e9 and 32 / 2 <= est.seconds <= 2 * 32
+    assert 3.00e9 / 2 <= est.memory <= 2 * 3.00e9 and 12.7 / 2 <= est.seconds <= 2 * 12.7
 
 
 def test_every_method_has_a_cost_model():

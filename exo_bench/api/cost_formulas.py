@@ -152,16 +152,19 @@ def recurrence_table_floats(mech: Mechanism) -> int:
     return sum(m * m + m for m in depth)
 
 
-#: Copies of the tables alive at the peak of building them: the per-link blocks, each block's
-#: flattened copy, their concatenation and its float64 copy (measured growth of the peak resident
-#: set: 3.0 to 3.4 copies at 2D n = 200 and 300, 10.6 GB at n = 1000 where 4 copies are 10.7 GB).
-RECURRENCE_TABLE_COPIES = 4
-#: Seconds per table float to build the tables (numpy per link; 2D n = 300: 0.6 s for 9e6 floats).
-RECURRENCE_TABLE_SECONDS = 7e-8
+#: Copies of the tables alive at the peak of building them: one (they are written link by link into
+#: one array, numba_kernels.recurrence.tables), rounded up for the block being written and the
+#: allocator (measured growth of the peak resident set: 3.00 GB at 2D n = 1000, where one copy is
+#: 2.67 GB; before, the blocks, their flattened copies, the concatenation and its float64 copy made
+#: 10.6 GB there).
+RECURRENCE_TABLE_COPIES = 1.1
+#: Seconds per table float to build the tables (numpy per link; 2D n = 1000: 12.7 s for 3.3e8 floats
+#: on the 2-core machine under a second job).
+RECURRENCE_TABLE_SECONDS = 4e-8
 
 
 def _recurrence_setup_bytes(mech, options):
-    return _compiled_setup_bytes(mech, options) + RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech)
+    return _compiled_setup_bytes(mech, options) + int(RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech))
 
 
 def _recurrence_setup_seconds(mech, options):

@@ -63,8 +63,9 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
     | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
 
 Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`~exo_bench.api.cost_formulas.recurrence_table_floats`:
-sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain; four copies at the peak
-of building them: 11.2 GB and 30 s at 2D n = 1000, measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
+sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain, written once into one array:
+3.5 GB and 20 s estimated at 2D n = 1000, measured 3.0 GB and 12.7 s, where the former four copies
+measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
 touch of its Data and the model build, and ``io`` (bench/cli/states_input.py) the reading of the states
 and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
 of measurement across n.

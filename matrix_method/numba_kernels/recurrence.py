@@ -34,10 +34,22 @@ def tables(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
     k, then k), ``idx`` of step k at ``ints[n + 1 + ptr[k] : n + 1 + ptr[k + 1]]``.
     ``floats``: per step, its ``dc`` (``m x m``, row-major) then its ``dnu_s`` (``m``), one step after
     the other (``m = ptr[k + 1] - ptr[k]``)."""
-    steps = [recurrence_increments(mech, k) for k in range(mech.nlinks)]
-    ptr = np.cumsum([0] + [len(idx) for idx, _, _ in steps])
-    ints = np.concatenate([ptr, *[idx for idx, _, _ in steps]]).astype(np.int64)
-    floats = np.concatenate([np.concatenate([dc.ravel(), dnu]) for _, dc, dnu in steps]).astype(float)
+    n = mech.nlinks
+    sizes = [len(mech.ancestors[k]) + 1 for k in range(n)]
+    ptr = np.cumsum([0] + sizes)
+    ints = np.empty(n + 1 + int(ptr[-1]), dtype=np.int64)
+    ints[:n + 1] = ptr
+    # written step by step into one array: the tables are alive once (n^3 / 3 floats for a chain,
+    # 2.7 GB at n = 1000), never as blocks, their flattened copies and a concatenation at once
+    floats = np.empty(sum(m * m + m for m in sizes))
+    at = 0
+    for k in range(n):
+        idx, dc, dnu = recurrence_increments(mech, k)
+        m = len(idx)
+        ints[n + 1 + ptr[k]:n + 1 + ptr[k + 1]] = idx
+        floats[at:at + m * m] = dc.ravel()
+        floats[at + m * m:at + m * m + m] = dnu
+        at += m * m + m
     ints.flags.writeable = floats.flags.writeable = False
     return ints, floats
 
