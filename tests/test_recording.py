@@ -18,7 +18,7 @@ import rerun as rr
 from rerun.chunk import RrdReader
 
 from exo_bench.bench.output import recording
-from exo_bench.bench.output.figures.scene_figures import force_labels, moment_labels
+from exo_bench.bench.output.figures.scene_figures import SCALE_RATIO, force_labels, moment_labels
 from exo_bench.bench.output.recording import (TRAIL_SECONDS, rerun_executable, trail_entity, trail_indices, trail_points,
                                       verify_recording, write_recording)
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
@@ -222,7 +222,7 @@ def test_time_series_grouped_by_scale_keep_each_curve_within_its_group_span(exo)
             maxima = np.abs(rec.scalars(entity)).max(axis=0)
             cap = int(entity.split("_max")[1].split("/")[0])     # group<k>_max<ceil of its largest>
             assert maxima.max() <= cap and maxima.max() > cap - 1, entity
-            assert maxima.max() <= recording.SCALE_RATIO * maxima.min(), entity
+            assert maxima.max() <= SCALE_RATIO * maxima.min(), entity
 
 
 # ----------------------------------------------------------------------------- 3D scene
