@@ -52,6 +52,41 @@ def test_analytic_jacobian_against_complex_step(case):
     assert bound <= 1e-6 * X, "the bound would not test anything"
 
 
+@pytest.mark.parametrize("t", [0.0, 0.1, 0.18, 0.23, 0.27])
+def test_analytic_jacobian_along_the_planar_gait_round_trip(t):
+    """The Jacobian of the stability report's Radau/BDF round trip (exo5-2d planar gait, Pinocchio's
+    M and h driven by the prescribed controls, whose torques depend on t alone) against a complex step
+    of the right-hand side, on the motion's states over the horizon, including 0.18-0.27 s where
+    the report's Radau run at rtol 1e-12 spent its extra evaluations. Same error model as above, with
+    the accelerations' terms in the scale (d M / d q qdd)."""
+    from exo_bench.bench.studies.stability.forward_cases import round_trip_cases
+
+    case = round_trip_cases()[0]
+    mech = case.mechanism
+    d, n = mech.dof, mech.nlinks
+    model = prepare(mech, "pinocchio")
+    ctrl = fd.prescribed_controls(model, case.motion_of_t)
+    m = case.motion_of_t(np.array([t]))
+    y = np.concatenate([m.q[0], m.qd[0]])
+    J = fd.make_jacobian(model, ctrl)(t, y)
+    tau = ctrl(t, m.q, m.qd)
+    h = 1e-30
+    cs = np.empty((2 * d, 2 * d))
+    for k in range(2 * d):
+        z = y.astype(complex)
+        z[k] += 1j * h
+        q, qd = z[None, :d], z[None, d:]
+        cs[:, k] = np.concatenate([qd[0], _complex_forward(mech, q, qd, tau.astype(complex))[0]]).imag / h
+    np.testing.assert_array_equal(J[:d], cs[:d])
+    M = model.mass_matrix(m.q)[0]
+    cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
+    S = term_scale(mech, m.q, m.qd, m.qdd).max() * 2 / min(m.q[0, -n:].min(), 1.0)
+    X = np.linalg.norm(cs[d:], 2)
+    bound = 2 * K * EPS * (cond * X + minv * S * math.sqrt(d))
+    assert np.linalg.norm(J[d:] - cs[d:], 2) <= bound
+    assert bound <= 1e-6 * X, "the bound would not test anything"
+
+
 def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
     """Radau and BDF on the stiff rods (k = 1e6): with the analytic Jacobian the same rtol costs fewer
     right-hand-side evaluations, and the error against a tight reference is the finite-difference
