@@ -108,6 +108,11 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
         # scipy's finite differences take 2 dof columns per Jacobian (more where it refines a column);
         # the analytic Jacobian takes none
         assert f.jacobian_columns >= f.njev * 2 * case.mechanism.dof and a.jacobian_columns == 0
+        # the recorded times the report explains its counts with: one per Jacobian scipy counted, and one
+        # per single-column call, the rest of nfev being the finite-difference columns
+        assert len(f.jacobian_times) == f.njev and len(a.jacobian_times) == a.njev
+        assert len(f.call_times) + f.jacobian_columns == f.nfev and len(a.call_times) == a.nfev
+        assert f.jacobian_times[0] == a.jacobian_times[0] == 0.0
         ef = np.abs(f.y[-1, :n] - ref.y[-1, :n]).max()
         ea = np.abs(a.y[-1, :n] - ref.y[-1, :n]).max()
         assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea

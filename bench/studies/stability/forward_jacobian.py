@@ -115,8 +115,10 @@ def reason(p: Pair) -> str:
             f"({sci(p.fd_error)} against {sci(p.analytic_error)}).")
 
 
-def _times(ts) -> str:
-    return ", ".join(f"{t:.4g}" for t in ts)
+def _digits(ts) -> int:
+    """The fewest significant digits (at least 4) that tell the times ``ts`` apart."""
+    ts = sorted(set(float(t) for t in ts))
+    return next((p for p in range(4, 17) if len({f"{t:.{p}g}" for t in ts}) == len(ts)), 17)
 
 
 def stale_window(p: Pair) -> str | None:
@@ -151,7 +153,12 @@ def stale_window(p: Pair) -> str | None:
         spans[-1:] = [(spans[-1][0], b)] if spans and i > 0 and older[i - 1] else spans[-1:] + [(a, b)]
     n_an, n_fd = int(steps[id(an)][older].sum()), int(steps[id(fd_run)][older].sum())
     c_an, c_fd = int(calls[id(an)][older].sum()), int(calls[id(fd_run)][older].sum())
-    where = ", ".join(f"t = {a:.4g} to {b:.4g} s" for a, b in spans)
+    nd = _digits([*fd_run.jacobian_times, *an.jacobian_times, *(x for span in spans for x in span)])
+
+    def _times(ts) -> str:
+        return ", ".join(f"{t:.{nd}g}" for t in ts)
+
+    where = ", ".join(f"t = {a:.{nd}g} to {b:.{nd}g} s" for a, b in spans)
     return (f"Jacobians were evaluated at t = {_times(an.jacobian_times)} s (analytic) and "
             f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
             f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
