@@ -163,10 +163,21 @@ def stale_window(p: Pair) -> str | None:
             f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
             f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
             f"against {n_fd} and {c_an / max(n_an, 1):.2f} evaluations per step against {c_fd / max(n_fd, 1):.2f}, "
-            f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). scipy re-evaluates "
-            "a Jacobian only after a step whose Newton iteration needed more than 2 iterations with a last "
-            "contraction rate above 1e-3, or after one that failed: when each run re-evaluated it, not the "
-            "Jacobian's accuracy (exact to round-off, tests/test_analytic_jacobian.py), decided the count.")
+            f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). " + _reuse_rule(p.integrator)
+            + ": when each run re-evaluated it, not the Jacobian's accuracy (exact to round-off, "
+            "tests/test_analytic_jacobian.py), decided the count.")
+
+
+def _reuse_rule(integrator: str) -> str:
+    """scipy's rule for re-evaluating a Jacobian it holds (scipy/integrate/_ivp/radau.py, bdf.py)."""
+    if integrator == "Radau":
+        from scipy.integrate._ivp.radau import MU_REAL
+
+        return ("scipy's Radau re-evaluates the Jacobian it holds only after a step whose Newton iteration needed "
+                "more than 2 iterations with a last contraction rate above 1e-3, or after one that failed, and "
+                f"its error estimate passes through ({MU_REAL:.4g}/h I - J)^-1 of the Jacobian held (hence the "
+                "different steps)")
+    return f"scipy's {integrator} re-evaluates the Jacobian it holds only after a Newton iteration that failed"
 
 
 def jacobian_markdown(res: ForwardResults) -> list[str]:
