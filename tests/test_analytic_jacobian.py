@@ -24,6 +24,20 @@ pytest.importorskip("casadi")
 from test_casadi import _complex_forward  # noqa: E402
 
 
+def _complex_step_jacobian(mech, ctrl, t: float, y: np.ndarray, h: float = 1e-30) -> np.ndarray:
+    """``d f / d y`` of ``f = [qd, M^-1 (ctrl(t, q, qd) - h)]`` by a complex step of each state component
+    (the controls evaluated on the complex state: linear in it, or independent of it)."""
+    d = mech.dof
+    cs = np.empty((2 * d, 2 * d))
+    for k in range(2 * d):
+        z = y.astype(complex)
+        z[k] += 1j * h
+        q, qd = z[None, :d], z[None, d:]
+        a = _complex_forward(mech, q, qd, np.asarray(ctrl(t, q, qd), dtype=complex))
+        cs[:, k] = np.concatenate([qd[0], a[0]]).imag / h
+    return cs
+
+
 @pytest.mark.parametrize("case", conservative_cases(), ids=lambda c: c.name)
 def test_analytic_jacobian_against_complex_step(case):
     mech = case.mechanism
@@ -33,14 +47,7 @@ def test_analytic_jacobian_against_complex_step(case):
     jac = fd.make_jacobian(model, ctrl)
     y = np.concatenate([case.q0, case.qd0 + 0.3])
     J = jac(0.0, y)
-    h = 1e-30
-    cs = np.empty((2 * d, 2 * d))
-    for k in range(2 * d):
-        z = y.astype(complex)
-        z[k] += 1j * h
-        q, qd = z[None, :d], z[None, d:]
-        a = _complex_forward(mech, q, qd, ctrl(0.0, q, qd))
-        cs[:, k] = np.concatenate([qd[0], a[0]]).imag / h
+    cs = _complex_step_jacobian(mech, ctrl, 0.0, y)
     np.testing.assert_array_equal(J[:d], cs[:d])                  # d qd / d y: exactly [0, I]
     M = model.mass_matrix(case.q0)
     cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
@@ -69,14 +76,7 @@ def test_analytic_jacobian_along_the_planar_gait_round_trip(t):
     m = case.motion_of_t(np.array([t]))
     y = np.concatenate([m.q[0], m.qd[0]])
     J = fd.make_jacobian(model, ctrl)(t, y)
-    tau = ctrl(t, m.q, m.qd)
-    h = 1e-30
-    cs = np.empty((2 * d, 2 * d))
-    for k in range(2 * d):
-        z = y.astype(complex)
-        z[k] += 1j * h
-        q, qd = z[None, :d], z[None, d:]
-        cs[:, k] = np.concatenate([qd[0], _complex_forward(mech, q, qd, tau.astype(complex))[0]]).imag / h
+    cs = _complex_step_jacobian(mech, ctrl, t, y)
     np.testing.assert_array_equal(J[:d], cs[:d])
     M = model.mass_matrix(m.q)[0]
     cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
