@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import time
 import traceback
+from array import array
 from dataclasses import dataclass, field
 from collections.abc import Callable
 
@@ -202,6 +203,11 @@ class Simulation:
     solution: object | None = field(default=None, repr=False)   # dense output when asked for
     jacobian: str = "finite-difference"   # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
     jacobian_columns: int = 0             # of nfev, the columns spent on scipy's finite-difference Jacobians
+    # implicit integrators: the times at which the Jacobian was evaluated, and of every single-column
+    # right-hand-side call (stages, Newton iterations, step ends; what the stability report's Jacobian
+    # comparison explains its counts with)
+    jacobian_times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    call_times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def ok(self) -> bool:
@@ -219,20 +225,26 @@ class Simulation:
 
 
 def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | None = None,
-             max_seconds: float | None = None):
+             max_seconds: float | None = None, record_times: bool = False):
     """The vectorised right-hand side ``f(t, y)`` of ``y = [q, qd]``, ``y`` of shape ``(2 dof,)`` or
     ``(2 dof, k)``, and a counter dict (``columns`` evaluated, stages ``rejected`` as outside the
-    domain, the latest ``t`` reached). Over budget it raises
+    domain, the latest ``t`` reached; with ``record_times`` the ``times`` of the single-column calls and
+    the ``jacobian_times`` of the multi-column ones, scipy's finite-difference Jacobians). Over budget it raises
     :class:`IntegrationBudgetExceeded`."""
     mech = model.mechanism
     d = mech.dof
-    count = {"columns": 0, "jacobian_columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter()}
+    count = {"columns": 0, "jacobian_columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter(),
+             "times": array("d"), "jacobian_times": array("d")}
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
         Y = y.reshape(2 * d, -1).T                 # (k, 2d): one row per column of y
         count["columns"] += Y.shape[0]
         if Y.shape[0] > 1:                         # only scipy's finite-difference Jacobian asks for several
             count["jacobian_columns"] += Y.shape[0]
+            if record_times:
+                count["jacobian_times"].append(t)
+        elif record_times:
+            count["times"].append(t)
         if max_evaluations is not None and count["columns"] > max_evaluations:
             raise IntegrationBudgetExceeded(f"gave up after {max_evaluations} right-hand-side evaluations "
                                             f"(t = {t:.4g} s)")
@@ -322,14 +334,20 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
     if reasons:
         raise SingularConfigurationError(reasons)
     atol = rtol * 1e-3 if atol is None else atol
-    rhs, count = make_rhs(model, controls, max_evaluations, max_seconds)
+    rhs, count = make_rhs(model, controls, max_evaluations, max_seconds, record_times=integrator in IMPLICIT)
     y0 = np.concatenate([q0[0], qd0[0]])
     steps_t, steps_y = [t_span[0]], [y0]
     t0 = time.perf_counter()
     status, sol = "ok", None
     kw = {} if first_step is None else {"first_step": first_step}
     if jacobian == "analytic":
-        kw["jac"] = make_jacobian(model, controls)
+        analytic_jac = make_jacobian(model, controls)
+
+        def jac(t: float, y: np.ndarray) -> np.ndarray:
+            count["jacobian_times"].append(t)
+            return analytic_jac(t, y)
+
+        kw["jac"] = jac
     try:
         r = solve_ivp(rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True,
                       dense_output=dense, **kw)
@@ -347,4 +365,5 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
     seconds = time.perf_counter() - t0
     return Simulation(integrator, rtol, atol, np.asarray(steps_t), np.asarray(steps_y), count["columns"],
                       njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol, jacobian,
-                      count["jacobian_columns"])
+                      count["jacobian_columns"], np.unique(np.asarray(count["jacobian_times"])),
+                      np.asarray(count["times"]))

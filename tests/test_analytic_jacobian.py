@@ -24,6 +24,20 @@ pytest.importorskip("casadi")
 from test_casadi import _complex_forward  # noqa: E402
 
 
+def _complex_step_jacobian(mech, ctrl, t: float, y: np.ndarray, h: float = 1e-30) -> np.ndarray:
+    """``d f / d y`` of ``f = [qd, M^-1 (ctrl(t, q, qd) - h)]`` by a complex step of each state component
+    (the controls evaluated on the complex state: linear in it, or independent of it)."""
+    d = mech.dof
+    cs = np.empty((2 * d, 2 * d))
+    for k in range(2 * d):
+        z = y.astype(complex)
+        z[k] += 1j * h
+        q, qd = z[None, :d], z[None, d:]
+        a = _complex_forward(mech, q, qd, np.asarray(ctrl(t, q, qd), dtype=complex))
+        cs[:, k] = np.concatenate([qd[0], a[0]]).imag / h
+    return cs
+
+
 @pytest.mark.parametrize("case", conservative_cases(), ids=lambda c: c.name)
 def test_analytic_jacobian_against_complex_step(case):
     mech = case.mechanism
@@ -33,19 +47,40 @@ def test_analytic_jacobian_against_complex_step(case):
     jac = fd.make_jacobian(model, ctrl)
     y = np.concatenate([case.q0, case.qd0 + 0.3])
     J = jac(0.0, y)
-    h = 1e-30
-    cs = np.empty((2 * d, 2 * d))
-    for k in range(2 * d):
-        z = y.astype(complex)
-        z[k] += 1j * h
-        q, qd = z[None, :d], z[None, d:]
-        a = _complex_forward(mech, q, qd, ctrl(0.0, q, qd))
-        cs[:, k] = np.concatenate([qd[0], a[0]]).imag / h
+    cs = _complex_step_jacobian(mech, ctrl, 0.0, y)
     np.testing.assert_array_equal(J[:d], cs[:d])                  # d qd / d y: exactly [0, I]
     M = model.mass_matrix(case.q0)
     cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
     n = mech.nlinks
     S = term_scale(mech, case.q0, y[d:], None).max() * 2 / min(case.q0[-n:].min(), 1.0) + case.k + np.max(case.c)
+    X = np.linalg.norm(cs[d:], 2)
+    bound = 2 * K * EPS * (cond * X + minv * S * math.sqrt(d))
+    assert np.linalg.norm(J[d:] - cs[d:], 2) <= bound
+    assert bound <= 1e-6 * X, "the bound would not test anything"
+
+
+@pytest.mark.parametrize("t", [0.0, 0.1, 0.18, 0.23, 0.27])
+def test_analytic_jacobian_along_the_planar_gait_round_trip(t):
+    """The Jacobian of the stability report's Radau/BDF round trip (exo5-2d planar gait, Pinocchio's
+    M and h driven by the prescribed controls, whose torques depend on t alone) against a complex step
+    of the right-hand side, on the motion's states over the horizon, including 0.18-0.27 s where
+    the report's Radau run at rtol 1e-12 spent its extra evaluations. Same error model as above, with
+    the accelerations' terms in the scale (d M / d q qdd)."""
+    from exo_bench.bench.studies.stability.forward_cases import round_trip_cases
+
+    case = round_trip_cases()[0]
+    mech = case.mechanism
+    d, n = mech.dof, mech.nlinks
+    model = prepare(mech, "pinocchio")
+    ctrl = fd.prescribed_controls(model, case.motion_of_t)
+    m = case.motion_of_t(np.array([t]))
+    y = np.concatenate([m.q[0], m.qd[0]])
+    J = fd.make_jacobian(model, ctrl)(t, y)
+    cs = _complex_step_jacobian(mech, ctrl, t, y)
+    np.testing.assert_array_equal(J[:d], cs[:d])
+    M = model.mass_matrix(m.q)[0]
+    cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
+    S = term_scale(mech, m.q, m.qd, m.qdd).max() * 2 / min(m.q[0, -n:].min(), 1.0)
     X = np.linalg.norm(cs[d:], 2)
     bound = 2 * K * EPS * (cond * X + minv * S * math.sqrt(d))
     assert np.linalg.norm(J[d:] - cs[d:], 2) <= bound
@@ -73,6 +108,11 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
         # scipy's finite differences take 2 dof columns per Jacobian (more where it refines a column);
         # the analytic Jacobian takes none
         assert f.jacobian_columns >= f.njev * 2 * case.mechanism.dof and a.jacobian_columns == 0
+        # the recorded times the report explains its counts with: one per Jacobian scipy counted, and one
+        # per single-column call, the rest of nfev being the finite-difference columns
+        assert len(f.jacobian_times) == f.njev and len(a.jacobian_times) == a.njev
+        assert len(f.call_times) + f.jacobian_columns == f.nfev and len(a.call_times) == a.nfev
+        assert f.jacobian_times[0] == a.jacobian_times[0] == 0.0
         ef = np.abs(f.y[-1, :n] - ref.y[-1, :n]).max()
         ea = np.abs(a.y[-1, :n] - ref.y[-1, :n]).max()
         assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea

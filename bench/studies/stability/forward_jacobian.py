@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
 
@@ -96,15 +98,86 @@ def verdict(ps: list[Pair]) -> str:
 
 
 def reason(p: Pair) -> str:
-    """Why a pair is not 'fewer evaluations at the same tolerance', from its counts."""
+    """Why a pair is not 'fewer evaluations at the same tolerance', from its counts and, where the
+    analytic run took more evaluations, from when each run evaluated its Jacobian (:func:`stale_window`)."""
     if not p.fewer:
         other_fd = p.fd.nfev - p.fd.jacobian_columns
-        return (f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, scipy's {p.fd.njev} finite-difference Jacobians "
-                f"cost only {p.fd.jacobian_columns} evaluations, while the analytic run took {p.analytic.steps} steps "
-                f"against {p.fd.steps} and {p.analytic.nfev - other_fd:+d} stage and Newton evaluations: a different "
-                "step sequence, not the Jacobian, decided the count.")
+        text = (f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, scipy's {p.fd.njev} finite-difference Jacobians "
+                f"cost only {p.fd.jacobian_columns} of {p.fd.nfev} evaluations "
+                f"({100 * p.fd.jacobian_columns / p.fd.nfev:.1f}%, all an analytic Jacobian can save), while the "
+                f"analytic run took {p.analytic.steps} steps against {p.fd.steps} and "
+                f"{p.analytic.nfev - other_fd:+d} stage and Newton evaluations.")
+        w = stale_window(p)
+        if w is None:
+            return text + " A different step sequence, not the Jacobian, decided the count."
+        return text + " " + w
     return (f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, the errors differ by more than {SAME_ERROR:g}x "
             f"({sci(p.fd_error)} against {sci(p.analytic_error)}).")
+
+
+def _digits(ts) -> int:
+    """The fewest significant digits (at least 4) that tell the times ``ts`` apart."""
+    ts = sorted(set(float(t) for t in ts))
+    return next((p for p in range(4, 17) if len({f"{t:.{p}g}" for t in ts}) == len(ts)), 17)
+
+
+def stale_window(p: Pair) -> str | None:
+    """Where the analytic run spent its extra evaluations: the time during which its Jacobian in use
+    was older than the finite-difference run's, with each run's steps and evaluations per step there.
+    scipy reuses a Jacobian across steps and re-evaluates it only when a step's Newton iteration
+    needed more than 2 iterations with a last contraction rate above 1e-3 (Radau), or after a failed
+    Newton iteration (both), so the two runs hold Jacobians of different ages; a staler one costs Newton
+    iterations (3 right-hand-side evaluations each for Radau's three stages). None without the runs'
+    recorded times, or when the analytic run did not hold the older Jacobian where it spent more."""
+    fd_run, an = p.fd, p.analytic
+    if not (len(fd_run.jacobian_times) and len(an.jacobian_times) and len(fd_run.call_times)
+            and len(an.call_times)):
+        return None
+    end = fd_run.t[-1]
+    edges = np.unique(np.concatenate([fd_run.jacobian_times, an.jacobian_times, [end]]))
+    if len(edges) < 2:
+        return None
+    edges[-1] = np.nextafter(end, np.inf)
+    calls = {id(s): np.histogram(s.call_times, edges)[0] for s in (fd_run, an)}
+    steps = {id(s): np.histogram(s.t[:-1], edges)[0] for s in (fd_run, an)}
+    # the time of the Jacobian each run holds in each interval
+    held = {id(s): s.jacobian_times[np.searchsorted(s.jacobian_times, edges[:-1], side="right") - 1]
+            for s in (fd_run, an)}
+    older = (held[id(an)] < held[id(fd_run)]) & (steps[id(an)] + steps[id(fd_run)] > 0)
+    extra = int((calls[id(an)] - calls[id(fd_run)])[older].sum())
+    if not older.any() or extra <= 0:
+        return None
+    spans: list[tuple[float, float]] = []
+    for i in np.flatnonzero(older):              # contiguous intervals as one span
+        a, b = edges[i], min(edges[i + 1], end)
+        spans[-1:] = [(spans[-1][0], b)] if spans and i > 0 and older[i - 1] else spans[-1:] + [(a, b)]
+    n_an, n_fd = int(steps[id(an)][older].sum()), int(steps[id(fd_run)][older].sum())
+    c_an, c_fd = int(calls[id(an)][older].sum()), int(calls[id(fd_run)][older].sum())
+    nd = _digits([*fd_run.jacobian_times, *an.jacobian_times, *(x for span in spans for x in span)])
+
+    def _times(ts) -> str:
+        return ", ".join(f"{t:.{nd}g}" for t in ts)
+
+    where = ", ".join(f"t = {a:.{nd}g} to {b:.{nd}g} s" for a, b in spans)
+    return (f"Jacobians were evaluated at t = {_times(an.jacobian_times)} s (analytic) and "
+            f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
+            f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
+            f"against {n_fd} and {c_an / max(n_an, 1):.2f} evaluations per step against {c_fd / max(n_fd, 1):.2f}, "
+            f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). " + _reuse_rule(p.integrator)
+            + ": when each run re-evaluated it, not the Jacobian's accuracy (exact to round-off, "
+            "tests/test_analytic_jacobian.py), decided the count.")
+
+
+def _reuse_rule(integrator: str) -> str:
+    """scipy's rule for re-evaluating a Jacobian it holds (scipy/integrate/_ivp/radau.py, bdf.py)."""
+    if integrator == "Radau":
+        from scipy.integrate._ivp.radau import MU_REAL
+
+        return ("scipy's Radau re-evaluates the Jacobian it holds only after a step whose Newton iteration needed "
+                "more than 2 iterations with a last contraction rate above 1e-3, or after one that failed, and "
+                f"its error estimate passes through ({MU_REAL:.4g}/h I - J)^-1 of the Jacobian held (hence the "
+                "different steps)")
+    return f"scipy's {integrator} re-evaluates the Jacobian it holds only after a Newton iteration that failed"
 
 
 def jacobian_markdown(res: ForwardResults) -> list[str]:
