@@ -57,58 +57,59 @@ MIN_SAMPLES = 8
 
 @njit(**JIT)
 def _start_points(t, g, dim, k, m, W, F):
-    """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``."""
+    """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
+
+    The loops index per-link views (``Fk``, ``Fp``, ``Wp``): with the offsets of links ``k`` and ``p``
+    folded into the views' pointers LLVM vectorises them (indexing the whole arrays at runtime
+    offsets, it did not, measured with ``inspect_asm``)."""
     B = LANES
-    f = k * FROWS * B
+    Fk = F[k * FROWS * B:(k + 1) * FROWS * B]
     p = int(t[_PARENT, k])
     if p >= 0:
-        fp, wp = p * FROWS * B, p * ROWS * B
+        Fp, Wp = F[p * FROWS * B:(p + 1) * FROWS * B], W[p * ROWS * B:(p + 1) * ROWS * B]
         for s in range(m):
-            F[f + O0 * B + s] = F[fp + O0 * B + s] + W[wp + K0 * B + s]
-            F[f + O1 * B + s] = F[fp + O1 * B + s] + W[wp + K1 * B + s]
-            F[f + O2 * B + s] = F[fp + O2 * B + s] + W[wp + K2 * B + s]
-            F[f + F0 * B + s], F[f + F1 * B + s], F[f + F2 * B + s] = 0.0, 0.0, 0.0
+            Fk[O0 * B + s] = Fp[O0 * B + s] + Wp[K0 * B + s]
+            Fk[O1 * B + s] = Fp[O1 * B + s] + Wp[K1 * B + s]
+            Fk[O2 * B + s] = Fp[O2 * B + s] + Wp[K2 * B + s]
+            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
     else:
+        up1, up2 = (g, 0.0) if dim == 2 else (0.0, g)
         for s in range(m):
-            F[f + O0 * B + s] = 0.0
-            F[f + O1 * B + s] = g if dim == 2 else 0.0
-            F[f + O2 * B + s] = g if dim == 3 else 0.0
-            F[f + F0 * B + s], F[f + F1 * B + s], F[f + F2 * B + s] = 0.0, 0.0, 0.0
+            Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = 0.0, up1, up2
+            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
 
 
 @njit(**JIT)
 def _backward(t, dim, m, W, F):
     """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
-    (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each)."""
+    (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
+    in :func:`_start_points`."""
     n = t.shape[1]
     B = LANES
     for k in range(n - 1, -1, -1):
-        w, f, s_k = k * ROWS * B, k * FROWS * B, t[_SIGN, k]
-        zeta, eta, theta = t[_ZETA, k], t[_ETA, k], t[_THETA, k]
+        Wk, Fk = W[k * ROWS * B:(k + 1) * ROWS * B], F[k * FROWS * B:(k + 1) * FROWS * B]
+        zeta, eta, theta, s_k = t[_ZETA, k], t[_ETA, k], t[_THETA, k], t[_SIGN, k]
         p = int(t[_PARENT, k])
         if p >= 0:
-            fp = p * FROWS * B
+            Fp = F[p * FROWS * B:(p + 1) * FROWS * B]
             for s in range(m):
-                F[fp + F0 * B + s] += el.subtree_share(theta, eta, F[f + O0 * B + s], W[w + K0 * B + s],
-                                                       F[f + F0 * B + s])
-                F[fp + F1 * B + s] += el.subtree_share(theta, eta, F[f + O1 * B + s], W[w + K1 * B + s],
-                                                       F[f + F1 * B + s])
-                F[fp + F2 * B + s] += el.subtree_share(theta, eta, F[f + O2 * B + s], W[w + K2 * B + s],
-                                                       F[f + F2 * B + s])
+                Fp[F0 * B + s] += el.subtree_share(theta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                Fp[F1 * B + s] += el.subtree_share(theta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                Fp[F2 * B + s] += el.subtree_share(theta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
         if dim == 3:
             for s in range(m):
-                f0 = el.rod_force(zeta, eta, F[f + O0 * B + s], W[w + K0 * B + s], F[f + F0 * B + s])
-                f1 = el.rod_force(zeta, eta, F[f + O1 * B + s], W[w + K1 * B + s], F[f + F1 * B + s])
-                f2 = el.rod_force(zeta, eta, F[f + O2 * B + s], W[w + K2 * B + s], F[f + F2 * B + s])
-                m0, m1, m2 = el.project_3d(W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s],
-                                           W[w + SP * B + s], W[w + LEN * B + s], f0, f1, f2)
-                F[f + O0 * B + s], F[f + O1 * B + s], F[f + O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
+                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                f2 = el.rod_force(zeta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
+                m0, m1, m2 = el.project_3d(Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s],
+                                           Wk[LEN * B + s], f0, f1, f2)
+                Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
         else:
             for s in range(m):
-                f0 = el.rod_force(zeta, eta, F[f + O0 * B + s], W[w + K0 * B + s], F[f + F0 * B + s])
-                f1 = el.rod_force(zeta, eta, F[f + O1 * B + s], W[w + K1 * B + s], F[f + F1 * B + s])
-                m0, m1 = el.project_2d(W[w + CF * B + s], W[w + SF * B + s], W[w + LEN2 * B + s], f0, f1)
-                F[f + O0 * B + s], F[f + O1 * B + s] = s_k * m0, s_k * m1
+                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
+                Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
 
 @njit(**JIT)
