@@ -7,7 +7,7 @@ that LLVM turns into SIMD instructions, in the layout of :mod:`exo_bench.models.
 with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
 
 1. **transpose in** a block of the user's flat ``(samples, dof)`` states into per-link rows of ``W``
-   (:func:`exo_bench.models.simd_blocks._rows_in`);
+   (:func:`exo_bench.models.simd_blocks._rows_in_by_link`);
 2. **forward pass, roots first**, one loop over the samples per link ``k``: ``sin``/``cos`` of its
    angles in branch-free arithmetic (:func:`exo_bench.models.fast_trig.sincos_reduced`), the rod's
    ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`), its
@@ -17,7 +17,7 @@ with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
    kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`),
    written over ``A_k`` (no longer read);
-4. **transpose out** into the user's ``(samples, dof)`` result (:func:`exo_bench.models.simd_blocks._rows_out`).
+4. **transpose out** into the user's ``(samples, dof)`` result (:func:`exo_bench.models.simd_blocks._rows_out_by_link`).
 
 Rows of ``F`` per link: ``D`` in ``F0..F2``, ``A`` and then ``tau`` in ``O0..O2``. The physics is the
 element functions the per-sample kernel calls, with the same operations in the same order: the
@@ -42,8 +42,8 @@ from exo_bench.models.fast_trig import RANGE, sincos_reduced
 from exo_bench.models.newton_euler import elements as el
 from exo_bench.models.numba_threads import JIT
 from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN,
-                                          LEN2, O0, O1, O2, PHI, PSI, ROWS, SF, SP, V1, V2, W1, W2, _rows_in,
-                                          _rows_out)
+                                          LEN2, O0, O1, O2, PHI, PSI, ROWS, SF, SP, V1, V2, W1, W2,
+                                          _rows_in_by_link, _rows_out_by_link)
 
 for _f in el.ELEMENTS:
     register_jitable(_f)
@@ -189,10 +189,10 @@ def simd_3d(p, q, qd, qdd, o, start, stop):
     W, F = _scratch(n)
     for s0 in range(start, stop, LANES):
         m = min(LANES, stop - s0)
-        _rows_in(q, qd, qdd, s0, m, n, 3, W)
+        _rows_in_by_link(q, qd, qdd, s0, m, n, 3, W)
         _forward_3d(t, g, m, W, F)
         _backward(t, 3, m, W, F)
-        _rows_out(o, s0, m, n, 3, F)
+        _rows_out_by_link(o, s0, m, n, 3, F)
 
 
 @njit(**JIT)
@@ -204,10 +204,10 @@ def simd_2d(p, q, qd, qdd, o, start, stop):
     W, F = _scratch(n)
     for s0 in range(start, stop, LANES):
         m = min(LANES, stop - s0)
-        _rows_in(q, qd, qdd, s0, m, n, 2, W)
+        _rows_in_by_link(q, qd, qdd, s0, m, n, 2, W)
         _forward_2d(t, g, m, W, F)
         _backward(t, 2, m, W, F)
-        _rows_out(o, s0, m, n, 2, F)
+        _rows_out_by_link(o, s0, m, n, 2, F)
 
 
 #: dim -> the kernel ``((table, g), q, qd, qdd, o, start, stop)`` on flat states
