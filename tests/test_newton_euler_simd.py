@@ -136,3 +136,21 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(dim, threads):
         run(model.batch_kernel, model.batch_args, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S,
             threads=threads)
         assert np.array_equal(one, many), f"{threads} threads, S={S}"
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_counted_flops_are_the_kernel_s_and_grow_linearly(dim):
+    """bench/perf/roofline_newton_euler.py runs the kernel's own steps on counting numbers: its forces
+    equal the compiled kernel's to the bit (the same operations), and the count grows by the same
+    number of flops per added link (O(n) per sample)."""
+    from exo_bench.bench.perf.roofline_newton_euler import count_newton_euler_simd
+    from exo_bench.models.presets import chain
+
+    flops = []
+    for n in (10, 20, 40):
+        m = chain(n, dim)
+        q, qd, qdd = random_states(m, T, n)
+        count, tau = count_newton_euler_simd(m, q[0], qd[0], qdd[0])
+        assert np.array_equal(tau, prepare(m, "newton-euler").inverse_dynamics(q, qd, qdd)[0]), n
+        flops.append(count["flops"])
+    assert flops[2] - flops[1] == 2 * (flops[1] - flops[0]) > 0, flops
