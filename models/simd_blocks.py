@@ -26,6 +26,8 @@ from numba import njit
 
 from exo_bench.models.numba_threads import JIT, PARALLEL_MIN_SAMPLES
 
+_jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a **dict of its options
+
 #: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
 LANES = 32
 
@@ -41,7 +43,7 @@ FROWS = 6
 U = np.uintp
 
 
-@njit(**JIT)
+@_jit
 def _rows_in(q, qd, qdd, s0, m, n, blocks, W):
     """1. Samples ``s0 .. s0 + m - 1`` of flat ``(samples, blocks * n)`` states into the per-link rows
     of ``W`` (block ``k`` of link ``j``: rows ``k``, ``3 + k``, ``6 + k`` for ``q, qd, qdd``)."""
@@ -57,7 +59,7 @@ def _rows_in(q, qd, qdd, s0, m, n, blocks, W):
                 W[U(w + 6 * B)] = qdd[U(b + k * n + j)]
 
 
-@njit(**JIT)
+@_jit
 def _rows_out(o, s0, m, n, blocks, F):
     """5. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of the flat ``(samples, dof)`` ``o``."""
     dof = blocks * n
@@ -69,7 +71,7 @@ def _rows_out(o, s0, m, n, blocks, F):
                 o[U(b + k * n + i)] = F[U((i * FROWS + O0 + k) * B + s)]
 
 
-@njit(**JIT)
+@_jit
 def _rows_in_by_link(q, qd, qdd, s0, m, n, blocks, W):
     """:func:`_rows_in` in the other loop order: per state ``(block k, link j)``, the ``m`` samples in
     turn, so that the stores run along a row of ``W`` and the loads along a column of the states
@@ -89,7 +91,7 @@ def _rows_in_by_link(q, qd, qdd, s0, m, n, blocks, W):
                 W[U(w + 6 * B + s)] = qdd[U(c + s * dof)]
 
 
-@njit(**JIT)
+@_jit
 def _rows_out_by_link(o, s0, m, n, blocks, F):
     """:func:`_rows_out` in the loop order of :func:`_rows_in_by_link`: the loads along a row of ``F``."""
     dof = blocks * n

@@ -48,6 +48,8 @@ from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2,
 for _f in el.ELEMENTS:
     register_jitable(_f)
 
+_jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a **dict of its options
+
 #: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 
@@ -58,7 +60,7 @@ _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 MIN_SAMPLES = 8
 
 
-@njit(**JIT)
+@_jit
 def _start_points(t, g, dim, k, m, W, F):
     """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
 
@@ -82,7 +84,7 @@ def _start_points(t, g, dim, k, m, W, F):
             Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
 
 
-@njit(**JIT)
+@_jit
 def _backward(t, dim, m, W, F):
     """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
     (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
@@ -115,7 +117,7 @@ def _backward(t, dim, m, W, F):
                 Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
 
-@njit(**JIT)
+@_jit
 def _forward_3d(t, g, m, W, F):
     """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
     angles beyond RANGE), then its start point."""
@@ -148,7 +150,7 @@ def _forward_3d(t, g, m, W, F):
         _start_points(t, g, 3, k, m, W, F)
 
 
-@njit(**JIT)
+@_jit
 def _forward_2d(t, g, m, W, F):
     """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
     row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
@@ -178,12 +180,12 @@ def _forward_2d(t, g, m, W, F):
         _start_points(t, g, 2, k, m, W, F)
 
 
-@njit(**JIT)
+@_jit
 def _scratch(n):
     return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
 
 
-@njit(**JIT)
+@_jit
 def simd_3d(p, q, qd, qdd, o, start, stop):
     """Inverse dynamics of samples ``start .. stop - 1`` of the flat spatial ``(samples, dof)``
     states into ``o``, :data:`LANES` at a time; ``p = (table, g)``."""
@@ -198,7 +200,7 @@ def simd_3d(p, q, qd, qdd, o, start, stop):
         _rows_out_by_link(o, s0, m, n, 3, F)
 
 
-@njit(**JIT)
+@_jit
 def simd_2d(p, q, qd, qdd, o, start, stop):
     """Inverse dynamics of samples ``start .. stop - 1`` of the flat planar ``(samples, dof)``
     states into ``o``, :data:`LANES` at a time; ``p = (table, g)``."""
