@@ -6,7 +6,10 @@ Prepare time computes the per-link mass sums and factors ``M_r`` once
 no mass where its end point moves) is found there and named by :meth:`forward_dynamics`, while
 inverse dynamics stays defined. The option ``kernel`` selects the compiled loops
 (``"numba"``, the default; :mod:`exo_bench.models.newton_euler.compiled`) or the numpy reference
-(:mod:`exo_bench.models.newton_euler.passes`). The mass matrix ``J^T (mu (x) I) J`` is native (O(n^2) for
+(:mod:`exo_bench.models.newton_euler.passes`); with ``"numba"``, batches of inverse dynamics (and bias
+forces) of at least :data:`exo_bench.models.newton_euler.simd.MIN_SAMPLES` samples run the kernel
+that vectorises across samples (:mod:`exo_bench.models.newton_euler.simd`), smaller ones and forward
+dynamics the per-sample kernel. The mass matrix ``J^T (mu (x) I) J`` is native (O(n^2) for
 the output only, numpy for both kernels); the bias forces are inverse dynamics at ``qdd = 0``.
 """
 
