@@ -7,9 +7,9 @@ except that its sines and cosines come from models/fast_trig.py (within 1 ulp of
 reference takes numpy's. Where an angle falls back to libm (beyond ``fast_trig.RANGE``) the SIMD
 kernel equals the per-sample kernel to the bit.
 
-Batch sizes: around :data:`simd.MIN_SAMPLES` (below it the per-sample kernel runs, which the tests
-check by name), around the block (``LANES`` samples: partial blocks), and around the size where the
-batch is split over threads; 2D and 3D seeded random trees with several roots and signs -1, vertical
+Batch sizes: around :data:`simd.MIN_SAMPLES` (below it, and for 1-D single samples, the per-sample
+kernel runs, which the tests check by name), around the block (``LANES`` samples: partial blocks),
+and around the size where the batch is split over threads; 2D and 3D seeded random trees with several roots and signs -1, vertical
 rods and zero lengths (where inverse dynamics stays defined).
 """
 
@@ -29,7 +29,7 @@ from exo_bench.models.presets import exo5, random_tree
 from exo_bench.models.simd_blocks import LANES, run
 
 T, L, P = simd.MIN_SAMPLES, LANES, PARALLEL_MIN_SAMPLES
-SIZES = (1, T - 1, T, T + 1, L - 1, L, L + 1, 2 * L + 5, 3 * L + 17)
+SIZES = tuple(sorted({S for S in (1, 2, 7, 8, 9, T - 1, T, T + 1, L - 1, L, L + 1, 2 * L + 5, 3 * L + 17) if S >= 1}))
 
 
 def _spy(model):

@@ -28,10 +28,10 @@ Reading each link's states straight from the user's arrays inside the forward pa
 loads, no transpose in) was tried and measured 0.79-0.87x as fast at 3D n = 5, 20, 100 and 1.12x at
 n = 1000 (the shared machine, load 3.7): the transposes stay.
 
-Batches of fewer than :data:`MIN_SAMPLES` samples (and one sample) run the per-sample kernel;
-larger ones run this kernel through :func:`exo_bench.models.simd_blocks.run` (threads without
-numba's threading layer). numba's on-disk cache is keyed on this file: after editing
-``elements.py``, ``fast_trig.py`` or ``simd_blocks.py`` delete ``models/newton_euler/__pycache__/simd*.nb?``.
+One sample as 1-D arrays runs the per-sample kernel; every batch (:data:`MIN_SAMPLES`) runs this
+kernel through :func:`exo_bench.models.simd_blocks.run` (threads without numba's threading layer).
+numba's on-disk cache is keyed on this file: after editing ``elements.py``, ``fast_trig.py`` or
+``simd_blocks.py`` delete ``models/newton_euler/__pycache__/simd*.nb?``.
 """
 
 from __future__ import annotations
@@ -57,11 +57,16 @@ _jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a
 #: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 
-#: Batches of at least this many samples run this kernel; smaller ones the per-sample kernel. The
-#: vectorised loops take 8 samples a step (AVX-512) and run the rest scalar: this kernel over the
-#: per-sample one took 1.2-2.0x the time at 1-6 samples and 0.5-0.8x at 8-32 (exo5 2D and 3D, 3D
-#: chain of 100; the shared 2-core machine, load 3.5).
-MIN_SAMPLES = 8
+#: Batches of at least this many samples run this kernel: every ``(samples, dof)`` batch, as
+#: ``matrix-factored``'s does; a 1-D single sample runs the per-sample kernel. A larger threshold
+#: would be faster for 2-7 samples (this kernel took 1.2-2.0x the per-sample kernel's time at 1-6
+#: samples and 0.5-0.8x at 8-32: its vectorised loops take 8 samples a step; exo5 2D and 3D, 3D
+#: chain of 100, the shared machine at load 3.5), but the result would then depend on how a batch
+#: is cut into chunks (tests/test_resources.py holds chunks to the bit), since the two kernels' sin
+#: and cos differ by up to one ulp. The per-sample kernel with the arithmetic sin/cos was
+#: bit-identical to this one but 1.5-1.9x slower than with libm's (inverse and forward, exo5-3d and
+#: 3D n = 100), so it keeps libm's.
+MIN_SAMPLES = 1
 
 
 @_jit
