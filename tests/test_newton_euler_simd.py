@@ -9,8 +9,8 @@ kernel equals the per-sample kernel to the bit.
 
 Batch sizes: around :data:`simd.MIN_SAMPLES` (below it, and for 1-D single samples, the per-sample
 kernel runs, which the tests check by name), around the block (``LANES`` samples: partial blocks),
-and around the size where the batch is split over threads; 2D and 3D seeded random trees with several roots and signs -1, vertical
-rods and zero lengths (where inverse dynamics stays defined).
+and around the size where the batch is split over threads; 2D and 3D seeded random trees with
+several roots and signs -1, vertical rods and zero lengths (where inverse dynamics stays defined).
 """
 
 from __future__ import annotations
