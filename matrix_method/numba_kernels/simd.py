@@ -42,57 +42,15 @@ catch the stale kernel).
 from __future__ import annotations
 
 import math
-import threading
-from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 
-from exo_bench.matrix_method.numba_kernels.common import JIT, PARALLEL_MIN_SAMPLES, njit
+from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.fast_trig import RANGE, sincos_reduced
-
-#: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
-LANES = 32
-
-# Rows of one link in the scratch W (row numbers of the states: block k of q, qd, qdd in rows k,
-# 3 + k, 6 + k; then cos and sin of phi and psi, kappa) and in the scratch F (f, then the forces).
-PHI, PSI, LEN, W1, V1, L1, W2, V2, L2, CF, SF, CP, SP, K0, K1, K2 = range(16)
-LEN2, L1_2, L2_2 = 1, 4, 7          # planar: l, l', l'' (block 1 of q, qd, qdd)
-ROWS = 16
-F0, F1, F2, O0, O1, O2 = range(6)
-FROWS = 6
-# Index arithmetic on unsigned integers (U) in the scalar transposes: numba wraps negative signed
-# indices around (a compare and a select per access), which these loops cannot need.
-U = np.uintp
-
-
-@njit(**JIT)
-def _rows_in(q, qd, qdd, s0, m, n, blocks, W):
-    """1. Samples ``s0 .. s0 + m - 1`` of flat ``(samples, blocks * n)`` states into the per-link rows
-    of ``W`` (block ``k`` of link ``j``: rows ``k``, ``3 + k``, ``6 + k`` for ``q, qd, qdd``)."""
-    dof = blocks * n
-    B = LANES
-    for s in range(m):
-        b = (s0 + s) * dof
-        for k in range(blocks):
-            for j in range(n):
-                w = (j * ROWS + k) * B + s
-                W[U(w)] = q[U(b + k * n + j)]
-                W[U(w + 3 * B)] = qd[U(b + k * n + j)]
-                W[U(w + 6 * B)] = qdd[U(b + k * n + j)]
-
-
-@njit(**JIT)
-def _rows_out(o, s0, m, n, blocks, F):
-    """5. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of the flat ``(samples, dof)`` ``o``."""
-    dof = blocks * n
-    B = LANES
-    for s in range(m):
-        b = (s0 + s) * dof
-        for k in range(blocks):
-            for i in range(n):
-                o[U(b + k * n + i)] = F[U((i * FROWS + O0 + k) * B + s)]
+from exo_bench.models.simd_blocks import (  # noqa: F401 - the shared layout, re-exported under its old names
+    CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN, LEN2, O0, O1, O2, PHI, PSI, ROWS,
+    SF, SHARES_PER_THREAD, SP, U, V1, V2, W1, W2, _rows_in, _rows_out, run)
 
 
 @njit(**JIT)
@@ -225,69 +183,3 @@ def simd_2d(p, q, qd, qdd, o, start, stop):
 
 #: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states
 KERNELS = {2: simd_2d, 3: simd_3d}
-
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-
-
-def _pool(workers: int) -> ThreadPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or _POOL._max_workers < workers:
-            _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="exo-bench-simd")
-        return _POOL
-
-
-#: Shares per thread of a split batch: the threads pull shares until none is left.
-SHARES_PER_THREAD = 8
-
-
-def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None) -> None:
-    """``kernel`` over a batch of flat states into ``o``: in the calling thread, or for at least
-    :data:`exo_bench.matrix_method.numba_kernels.common.PARALLEL_MIN_SAMPLES` samples over ``threads`` (default
-    ``numba.get_num_threads()``) threads: the calling thread and ``threads - 1`` of a pool pull
-    shares of whole blocks (:data:`SHARES_PER_THREAD` per thread) until none is left, each share
-    computed by one thread (the kernel releases the GIL). The calling thread waits only for shares
-    already started: a pool thread that the OS has not scheduled yet finds nothing left and costs
-    nothing. A pool thread that the OS takes off its core in the middle of a share is waited for,
-    though: on the 2-core machine shared by several jobs (load average 7) the 2-thread split of
-    10,000 exo5-3d samples took 0.1-0.7 us per sample against 0.09 on one thread; on a quiet
-    machine it is the two cores' speed. ``numba.set_num_threads(1)`` keeps a batch on the calling
-    thread."""
-    if threads is None:
-        threads = numba.get_num_threads() if samples >= PARALLEL_MIN_SAMPLES else 1
-    if threads <= 1 or samples < PARALLEL_MIN_SAMPLES:
-        kernel(params, q, qd, qdd, o, 0, samples)
-        return
-    size = -(-samples // (threads * SHARES_PER_THREAD * LANES)) * LANES
-    starts = iter(range(0, samples, size))
-    cond = threading.Condition()
-    busy = [0]
-    errors = []
-
-    def work():
-        while True:
-            with cond:
-                s0 = next(starts, None)
-                if s0 is None:
-                    return
-                busy[0] += 1
-            try:
-                kernel(params, q, qd, qdd, o, s0, min(samples, s0 + size))
-            except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
-                errors.append(e)
-            finally:
-                with cond:
-                    busy[0] -= 1
-                    cond.notify_all()
-
-    pool = _pool(threads - 1)
-    for _ in range(threads - 1):
-        pool.submit(work)
-    work()
-    with cond:
-        while busy[0]:
-            cond.wait()
-    if errors:
-        raise errors[0]
-

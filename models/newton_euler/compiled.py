@@ -91,15 +91,15 @@ def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
     for k in range(n - 1, -1, -1):             # backward pass, leaves first
         w = W[k]
         zeta, eta, theta = t[_ZETA, k], t[_ETA, k], t[_THETA, k]
-        f0 = eta * w[_A] + zeta * w[_KAPPA] + w[_D]
-        f1 = eta * w[_A + 1] + zeta * w[_KAPPA + 1] + w[_D + 1]
-        f2 = eta * w[_A + 2] + zeta * w[_KAPPA + 2] + w[_D + 2]
+        f0 = el.rod_force(zeta, eta, w[_A], w[_KAPPA], w[_D])
+        f1 = el.rod_force(zeta, eta, w[_A + 1], w[_KAPPA + 1], w[_D + 1])
+        f2 = el.rod_force(zeta, eta, w[_A + 2], w[_KAPPA + 2], w[_D + 2])
         p = int(t[_PARENT, k])
         if p >= 0:
             wp = W[p]
-            wp[_D] += theta * w[_A] + eta * w[_KAPPA] + w[_D]
-            wp[_D + 1] += theta * w[_A + 1] + eta * w[_KAPPA + 1] + w[_D + 1]
-            wp[_D + 2] += theta * w[_A + 2] + eta * w[_KAPPA + 2] + w[_D + 2]
+            wp[_D] += el.subtree_share(theta, eta, w[_A], w[_KAPPA], w[_D])
+            wp[_D + 1] += el.subtree_share(theta, eta, w[_A + 1], w[_KAPPA + 1], w[_D + 1])
+            wp[_D + 2] += el.subtree_share(theta, eta, w[_A + 2], w[_KAPPA + 2], w[_D + 2])
         s = t[_SIGN, k]
         if dim == 2:
             m0, m1 = el.project_2d(w[0], w[1], x[s0 + n + k], f0, f1)

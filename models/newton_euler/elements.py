@@ -83,5 +83,18 @@ def rates_3d(cf, sf, cp, sp, l, vx, vy, vz):
     return (cf * vy - sf * vx) / (l * cp), (cp * vz - sp * radial) / l, cp * radial + sp * vz
 
 
+def rod_force(zeta, eta, a, kappa, d):
+    """``F_k = eta_k (A_k + g up) + zeta_k kappa_k + D_k``: one component of the force conjugate to
+    ``r_k`` (eq. 6's aggregates), from the start point's acceleration with gravity ``a``, the rod's
+    ``kappa = r_k''`` and the subtree sum ``d`` (:mod:`exo_bench.models.newton_euler.passes`)."""
+    return eta * a + zeta * kappa + d
+
+
+def subtree_share(theta, eta, a, kappa, d):
+    """``theta_k (A_k + g up) + eta_k kappa_k + D_k``: one component of what link ``k`` and its subtree
+    add to its parent's subtree sum ``D_parent``."""
+    return theta * a + eta * kappa + d
+
+
 ELEMENTS = (rod_acceleration_2d, rod_acceleration_3d, project_2d, project_3d, unproject_2d, unproject_3d,
-            rates_2d, rates_3d)
+            rates_2d, rates_3d, rod_force, subtree_share)

@@ -63,10 +63,10 @@ def rod_forces(tree: Tree, dim: int, g: float, kappa: np.ndarray) -> np.ndarray:
     D = np.zeros_like(kappa)
     F = np.empty_like(kappa)
     for k in range(n - 1, -1, -1):             # leaves first
-        F[k] = eta[k] * A[k] + zeta[k] * kappa[k] + D[k]
+        F[k] = el.rod_force(zeta[k], eta[k], A[k], kappa[k], D[k])
         p = parent[k]
         if p >= 0:
-            D[p] += theta[k] * A[k] + eta[k] * kappa[k] + D[k]
+            D[p] += el.subtree_share(theta[k], eta[k], A[k], kappa[k], D[k])
     return F
 
 

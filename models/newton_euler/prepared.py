@@ -6,7 +6,10 @@ Prepare time computes the per-link mass sums and factors ``M_r`` once
 no mass where its end point moves) is found there and named by :meth:`forward_dynamics`, while
 inverse dynamics stays defined. The option ``kernel`` selects the compiled loops
 (``"numba"``, the default; :mod:`exo_bench.models.newton_euler.compiled`) or the numpy reference
-(:mod:`exo_bench.models.newton_euler.passes`). The mass matrix ``J^T (mu (x) I) J`` is native (O(n^2) for
+(:mod:`exo_bench.models.newton_euler.passes`); with ``"numba"``, batches of inverse dynamics (and bias
+forces) of at least :data:`exo_bench.models.newton_euler.simd.MIN_SAMPLES` samples run the kernel
+that vectorises across samples (:mod:`exo_bench.models.newton_euler.simd`), smaller ones and forward
+dynamics the per-sample kernel. The mass matrix ``J^T (mu (x) I) J`` is native (O(n^2) for
 the output only, numpy for both kernels); the bias forces are inverse dynamics at ``qdd = 0``.
 """
 
@@ -16,10 +19,11 @@ import numpy as np
 
 from exo_bench.models.aggregates import coupling
 from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.newton_euler import compiled, passes
+from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
 from exo_bench.models.numba_threads import run
 from exo_bench.models.prepared import PreparedModel, _unchecked_forward, unchecked_states
+from exo_bench.models.simd_blocks import run as run_simd
 from exo_bench.models.singularity import (COS_VERTICAL, SingularConfigurationError, vertical_reason,
                                           zero_length_reason)
 
@@ -49,6 +53,10 @@ class NewtonEuler(PreparedModel):
         self.serial_kernel, self.parallel_kernel = compiled.newton_euler, compiled.newton_euler_parallel
         self.kernel_args = (self.table, float(mechanism.g), int(mechanism.dim), False)
         self._forward_args = (self.table, float(mechanism.g), int(mechanism.dim), True)
+        #: The batched inverse dynamics of at least :data:`exo_bench.models.newton_euler.simd.MIN_SAMPLES`
+        #: samples: the kernel that vectorises across samples, ``batch_kernel(batch_args, q, qd, qdd, out,
+        #: start, stop)`` (:mod:`exo_bench.models.newton_euler.simd`).
+        self.batch_kernel, self.batch_args = simd.simd_inverse, (self.table, self._g, self._dim)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (None if self.tree.singular < 0
                               else singular_mass_reason(mechanism, int(self.tree.singular)))
@@ -56,6 +64,11 @@ class NewtonEuler(PreparedModel):
     # ------------------------------------------------------------------ the kernels
     def _compiled(self, q, qd, y, forward: bool, out=None):
         o = np.empty(q.shape) if out is None else out          # C-ordered whatever q is: reshape(-1) is a view
+        samples = q.shape[0] if q.ndim == 2 else 1
+        if not forward and samples >= simd.MIN_SAMPLES:
+            run_simd(self.batch_kernel, self.batch_args, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1),
+                     samples)
+            return o
         run(compiled.newton_euler, compiled.newton_euler_parallel,
             (self.table, self._g, self._dim, forward, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1)),
             q.shape[0] if q.ndim == 2 else 1)

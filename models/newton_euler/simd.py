@@ -1,0 +1,212 @@
+"""Method ``newton-euler``, compiled to vectorise across samples: the batched inverse dynamics.
+
+The per-sample kernel (:mod:`exo_bench.models.newton_euler.compiled`) computes each sample whole,
+with libm's ``sin`` and ``cos`` per angle (four calls per 3D rod, most of its time): nothing is
+vectorised. This kernel computes :data:`LANES` samples at once, each step a loop over the samples
+that LLVM turns into SIMD instructions, in the layout of :mod:`exo_bench.models.simd_blocks` (shared
+with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
+
+1. **transpose in** a block of the user's flat ``(samples, dof)`` states into per-link rows of ``W``
+   (:func:`exo_bench.models.simd_blocks._rows_in_by_link`);
+2. **forward pass, roots first**, one loop over the samples per link ``k``: ``sin``/``cos`` of its
+   angles in branch-free arithmetic (:func:`exo_bench.models.fast_trig.sincos_reduced`), the rod's
+   ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`), its
+   start point's acceleration with gravity ``A_k = A_p + kappa_p`` (``g up`` at a root) and ``D_k =
+   0``. The angles of link ``k`` beyond the arithmetic's range (and NaN) are then redone with libm
+   by a scalar loop that only they enter, before any child reads ``kappa_k``;
+3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
+   kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`),
+   written over ``A_k`` (no longer read);
+4. **transpose out** into the user's ``(samples, dof)`` result (:func:`exo_bench.models.simd_blocks._rows_out_by_link`).
+
+Rows of ``F`` per link: ``D`` in ``F0..F2``, ``A`` and then ``tau`` in ``O0..O2``. The physics is the
+element functions the per-sample kernel calls, with the same operations in the same order: the
+result differs from that kernel's only by the ``sin``/``cos`` (within one ulp each,
+:mod:`exo_bench.models.fast_trig`); where an angle falls back to libm the two are identical.
+
+Reading each link's states straight from the user's arrays inside the forward pass (strided
+loads, no transpose in) was tried and measured 0.79-0.87x as fast at 3D n = 5, 20, 100 and 1.12x at
+n = 1000 (the shared machine, load 3.7): the transposes stay.
+
+One sample as 1-D arrays runs the per-sample kernel; every batch (:data:`MIN_SAMPLES`) runs this
+kernel through :func:`exo_bench.models.simd_blocks.run` (threads without numba's threading layer).
+numba's on-disk cache is keyed on this file: after editing ``elements.py``, ``fast_trig.py`` or
+``simd_blocks.py`` delete ``models/newton_euler/__pycache__/simd*.nb?``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
+from exo_bench.models.fast_trig import RANGE, sincos_reduced
+from exo_bench.models.newton_euler import elements as el
+from exo_bench.models.numba_threads import JIT
+from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN,
+                                          LEN2, O0, O1, O2, PHI, PSI, ROWS, SF, SP, V1, V2, W1, W2,
+                                          _rows_in_by_link, _rows_out_by_link)
+
+for _f in el.ELEMENTS:
+    register_jitable(_f)
+
+_jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a **dict of its options
+
+#: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
+_PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
+
+#: Batches of at least this many samples run this kernel: every ``(samples, dof)`` batch, as
+#: ``matrix-factored``'s does; a 1-D single sample runs the per-sample kernel. A larger threshold
+#: would be faster for 2-7 samples (this kernel took 1.2-2.0x the per-sample kernel's time at 1-6
+#: samples and 0.5-0.8x at 8-32: its vectorised loops take 8 samples a step; exo5 2D and 3D, 3D
+#: chain of 100, the shared machine at load 3.5), but the result would then depend on how a batch
+#: is cut into chunks (tests/test_resources.py holds chunks to the bit), since the two kernels' sin
+#: and cos differ by up to one ulp. The per-sample kernel with the arithmetic sin/cos was
+#: bit-identical to this one but 1.5-1.9x slower than with libm's (inverse and forward, exo5-3d and
+#: 3D n = 100), so it keeps libm's.
+MIN_SAMPLES = 1
+
+
+@_jit
+def _start_points(t, g, dim, k, m, W, F):
+    """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
+
+    The loops index per-link views (``Fk``, ``Fp``, ``Wp``): with the offsets of links ``k`` and ``p``
+    folded into the views' pointers LLVM vectorises them (indexing the whole arrays at runtime
+    offsets, it did not, measured with ``inspect_asm``)."""
+    B = LANES
+    Fk = F[k * FROWS * B:(k + 1) * FROWS * B]
+    p = int(t[_PARENT, k])
+    if p >= 0:
+        Fp, Wp = F[p * FROWS * B:(p + 1) * FROWS * B], W[p * ROWS * B:(p + 1) * ROWS * B]
+        for s in range(m):
+            Fk[O0 * B + s] = Fp[O0 * B + s] + Wp[K0 * B + s]
+            Fk[O1 * B + s] = Fp[O1 * B + s] + Wp[K1 * B + s]
+            Fk[O2 * B + s] = Fp[O2 * B + s] + Wp[K2 * B + s]
+            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
+    else:
+        up1, up2 = (g, 0.0) if dim == 2 else (0.0, g)
+        for s in range(m):
+            Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = 0.0, up1, up2
+            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
+
+
+@_jit
+def _backward(t, dim, m, W, F):
+    """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
+    (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
+    in :func:`_start_points`."""
+    n = t.shape[1]
+    B = LANES
+    for k in range(n - 1, -1, -1):
+        Wk, Fk = W[k * ROWS * B:(k + 1) * ROWS * B], F[k * FROWS * B:(k + 1) * FROWS * B]
+        zeta, eta, theta, s_k = t[_ZETA, k], t[_ETA, k], t[_THETA, k], t[_SIGN, k]
+        p = int(t[_PARENT, k])
+        if p >= 0:
+            Fp = F[p * FROWS * B:(p + 1) * FROWS * B]
+            for s in range(m):
+                Fp[F0 * B + s] += el.subtree_share(theta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                Fp[F1 * B + s] += el.subtree_share(theta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                Fp[F2 * B + s] += el.subtree_share(theta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
+        if dim == 3:
+            for s in range(m):
+                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                f2 = el.rod_force(zeta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
+                m0, m1, m2 = el.project_3d(Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s],
+                                           Wk[LEN * B + s], f0, f1, f2)
+                Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
+        else:
+            for s in range(m):
+                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
+                Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
+
+
+@_jit
+def _forward_3d(t, g, m, W, F):
+    """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
+    angles beyond RANGE), then its start point."""
+    n = t.shape[1]
+    B = LANES
+    for k in range(n):
+        w, s_k = k * ROWS * B, t[_SIGN, k]
+        outside = 0
+        for s in range(m):
+            phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
+            okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
+            sf, cf = sincos_reduced(phi if okf else 0.0)
+            sp, cp = sincos_reduced(psi if okp else 0.0)
+            outside += (0 if okf else 1) + (0 if okp else 1)
+            W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+            a0, a1, a2 = el.rod_acceleration_3d(
+                cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
+                W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
+        if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+            for s in range(m):
+                phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
+                if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
+                    cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
+                    W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+                    a0, a1, a2 = el.rod_acceleration_3d(
+                        cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s],
+                        W[w + L1 * B + s], W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+                    W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
+        _start_points(t, g, 3, k, m, W, F)
+
+
+@_jit
+def _forward_2d(t, g, m, W, F):
+    """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
+    row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
+    n = t.shape[1]
+    B = LANES
+    for k in range(n):
+        w, s_k = k * ROWS * B, t[_SIGN, k]
+        outside = 0
+        for s in range(m):
+            phi = W[w + PHI * B + s]
+            okf = abs(phi) <= RANGE
+            sf, cf = sincos_reduced(phi if okf else 0.0)
+            outside += 0 if okf else 1
+            W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+            a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s],
+                                            W[w + W2 * B + s], W[w + L2_2 * B + s])
+            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, 0.0
+        if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+            for s in range(m):
+                phi = W[w + PHI * B + s]
+                if not abs(phi) <= RANGE:
+                    cf, sf = math.cos(phi), math.sin(phi)
+                    W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+                    a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s],
+                                                    W[w + L1_2 * B + s], W[w + W2 * B + s], W[w + L2_2 * B + s])
+                    W[w + K0 * B + s], W[w + K1 * B + s] = s_k * a0, s_k * a1
+        _start_points(t, g, 2, k, m, W, F)
+
+
+@_jit
+def _scratch(n):
+    return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
+
+
+@_jit
+def simd_inverse(p, q, qd, qdd, o, start, stop):
+    """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
+    ``o``, :data:`LANES` at a time; ``p = (table, g, dim)``."""
+    t, g, dim = p
+    n = t.shape[1]
+    W, F = _scratch(n)
+    for s0 in range(start, stop, LANES):
+        m = min(LANES, stop - s0)
+        _rows_in_by_link(q, qd, qdd, s0, m, n, dim, W)
+        if dim == 3:
+            _forward_3d(t, g, m, W, F)
+        else:
+            _forward_2d(t, g, m, W, F)
+        _backward(t, dim, m, W, F)
+        _rows_out_by_link(o, s0, m, n, dim, F)
