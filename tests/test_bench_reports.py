@@ -104,3 +104,15 @@ def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
     assert any("every Lagrange/Kane peer at every n >= 2: met" in x for x in lines)
     piv.loc[(3, "chain", 5), "lagrange"] = 0.01
     assert any("**missed**" in x for x in _verdict(piv, ["lagrange"]) if "every Lagrange/Kane peer" in x)
+
+
+def test_readme_goals_are_replaced_between_markers_only():
+    from exo_bench.bench.perf.reports.simd_goals import readme_with_goals
+
+    readme = "intro\n<!-- simd-goals:start -->\nold\n<!-- simd-goals:end -->\noutro\n"
+    lines = ["## Issue 23: kernels at the hardware limit", "", "- Batched: 0.05 us per sample: **met**.", ""]
+    out = readme_with_goals(readme, lines, "cmd")
+    assert out.startswith("intro\n") and out.endswith("\noutro\n") and "old" not in out
+    assert "- Batched: 0.05 us per sample: **met**." in out and "## Issue 23" not in out and "`cmd`" in out
+    assert readme_with_goals(readme, [], "cmd") == readme          # no figures (the row did not run): unchanged
+    assert readme_with_goals("no markers", lines, "cmd") == "no markers"

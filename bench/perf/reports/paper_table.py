@@ -13,8 +13,10 @@ from exo_bench.api.methods import compiled_methods
 from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
 from exo_bench.bench.perf.reports.loading import _base, _inverse, _skips_md
+from exo_bench.bench.perf.reports.readme_blocks import inserted_by, markers, replace_block
 
-README_START, README_END = "<!-- paper-table:start -->", "<!-- paper-table:end -->"
+README_BLOCK = "paper-table"   # the README block (bench/perf/reports/readme_blocks.py) of the side-by-side table
+README_START, README_END = markers(README_BLOCK)
 #: The goals of the paper table's section (issue 11).
 GOAL_US_PER_SAMPLE = 0.5
 GOAL_ERR = 1e-12
@@ -184,11 +186,6 @@ def readme_with_table(readme: str, table_md: str, command: str) -> str:
     k = lines.index("## Side by side with the paper")
     block = [ln for ln in lines[k + 1:] if ln.startswith("|")]
     block = block[:2 + len(PAPER_TABLE)]
-    from exo_bench.bench.output.provenance import machine_info
-    info = machine_info()
-    body = "\n".join([f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); "
-                       "seconds to compose the equations; details in [reports/paper_table.md](reports/paper_table.md)._",
-                       "", *block])
-    head, rest = readme.split(README_START, 1)
-    _, tail = rest.split(README_END, 1)
-    return f"{head}{README_START}\n{body}\n{README_END}{tail}"
+    body = "\n".join([inserted_by(command, "seconds to compose the equations; details in "
+                                            "[reports/paper_table.md](reports/paper_table.md)"), "", *block])
+    return replace_block(readme, README_BLOCK, body)

@@ -296,6 +296,22 @@ def report_lines(df) -> list[str]:
     return goals_lines(rows.iloc[0]["simd_goals"]) if not rows.empty else []
 
 
+#: The README block (bench/perf/reports/readme_blocks.py) that states issue 23's figures.
+README_BLOCK = "simd-goals"
+
+
+def readme_with_goals(readme: str, lines: list[str], command: str) -> str:
+    """The README with :func:`goals_lines`' figures (``lines``; the heading left out) in its
+    ``simd-goals`` block; unchanged when there are no figures or no block."""
+    from exo_bench.bench.perf.reports.readme_blocks import inserted_by, replace_block
+
+    body = [ln for ln in lines if not ln.startswith("## ")]
+    if not any(ln.strip() for ln in body):
+        return readme
+    head = inserted_by(command, "one process, exo5-3d; details in [reports/simd-goals.md](reports/simd-goals.md)")
+    return replace_block(readme, README_BLOCK, "\n".join([head, "", *body]).rstrip())
+
+
 def main(argv=None) -> int:
     import argparse
 
@@ -305,6 +321,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
     ap.add_argument("--markdown", default=None,
                     help="also write them as a report with its provenance (e.g. reports/simd-goals.md)")
+    ap.add_argument("--update-readme", action="store_true",
+                    help="also replace the figures in the checkout's README.md (its simd-goals block)")
     a = ap.parse_args(argv)
     r = measure(a.samples, a.rounds)
     if a.json:
@@ -318,6 +336,16 @@ def main(argv=None) -> int:
         atomic_write(a.markdown, "# The kernels against the hardware limit (issue 23)\n\n" + provenance(command)
                      + "\n" + "\n".join(goals_lines(r)).replace("## Issue 23: kernels at the hardware limit\n", "")
                      + "\n")
+    if a.update_readme:
+        from exo_bench.bench.output.provenance import REPO, atomic_write
+
+        command = "python -m exo_bench.bench.perf.reports.simd_goals" + " ".join(
+            [""] + (["--markdown", a.markdown] if a.markdown else []) + ["--update-readme"])
+        readme = (REPO / "README.md").read_text()
+        updated = readme_with_goals(readme, goals_lines(r), command)
+        if updated != readme:
+            atomic_write(REPO / "README.md", updated)
+            print(f"updated issue 23's figures in {REPO / 'README.md'}")
     return 0
 
 

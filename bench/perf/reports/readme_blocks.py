@@ -1,0 +1,31 @@
+"""Blocks of the README written by code: the text between ``<!-- NAME:start -->`` and
+``<!-- NAME:end -->`` is replaced, the rest left as it is (the paper table of
+:mod:`~exo_bench.bench.perf.reports.paper_table`, issue 23's figures of
+:mod:`~exo_bench.bench.perf.reports.simd_goals`). Nothing outside the markers is touched, and a
+README without them is returned unchanged."""
+
+from __future__ import annotations
+
+
+def markers(name: str) -> tuple[str, str]:
+    """The start and end markers of block ``name``."""
+    return f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+
+
+def replace_block(readme: str, name: str, body: str) -> str:
+    """``readme`` with block ``name``'s text replaced by ``body`` (unchanged without its markers)."""
+    start, end = markers(name)
+    if start not in readme or end not in readme or readme.index(start) > readme.index(end):
+        return readme
+    head, rest = readme.split(start, 1)
+    _, tail = rest.split(end, 1)
+    return f"{head}{start}\n{body}\n{end}{tail}"
+
+
+def inserted_by(command: str, details: str) -> str:
+    """The block's first line: the command, the date and the CPU that produced it, and where the
+    details are."""
+    from exo_bench.bench.output.provenance import machine_info
+
+    info = machine_info()
+    return f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); {details}._"
