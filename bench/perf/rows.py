@@ -151,7 +151,7 @@ def safe_name(key: str) -> str:
 
 # ----------------------------------------------------------------------------- merging
 def merge(results: list[dict]) -> tuple[dict, list[dict]]:
-    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`exo_bench.bench.cluster.cluster.run_row`
+    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`exo_bench.bench.cluster.tasks.run_row`
     records) and the list of skipped or failed benchmarks with their reasons.
 
     Each benchmark keeps its row's host and CPU in ``extra_info`` (``host``, ``cpu``, ``row``); the
