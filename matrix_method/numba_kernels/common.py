@@ -164,3 +164,51 @@ def compile_times(kernels: dict, args: dict) -> dict[str, dict]:
                      "cache_misses": int(sum(k.stats.cache_misses.values()))}
     return out
 
+
+
+# ------------------------------------------------------------------ drivers generated from one template
+_SERIAL_DRIVER = '''\
+def {name}(p, {extra}q, qd, qdd, o):
+    {samples}(p, {extra}q, qd, qdd, o, 0, q.shape[0] // ({dim} * p.shape[0]){tail})
+'''
+_PARALLEL_DRIVER = '''\
+def {name}_parallel(p, {extra}q, qd, qdd, o):
+    S = q.shape[0] // ({dim} * p.shape[0])
+    for b in prange((S + BLOCK - 1) // BLOCK):
+        {samples}(p, {extra}q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK){tail})
+'''
+
+
+def drivers(module: str, prefix: str, method: str, samples: dict[int, Any], extra: tuple[str, ...] = (),
+            dim_argument: bool = False) -> dict[int, tuple[Any, Any]]:
+    """``{dim: (serial driver, parallel driver)}`` of a kernel module, from one template: the serial
+    driver runs every sample of the flat states through ``samples[dim](p, *extra, q, qd, qdd, o, start,
+    stop[, dim])``, the parallel one runs blocks of :data:`BLOCK` samples over numba's threads.
+
+    The drivers are named ``<prefix>_<dim>d`` and ``<prefix>_<dim>d_parallel``, compiled with the
+    file name of ``module`` (so numba's cache, and its :mod:`~exo_bench.matrix_method.numba_kernels.cache`
+    locator, key them on that kernel file) and set as attributes of it."""
+    import sys
+
+    from numba import prange
+
+    mod = sys.modules[module]
+    args = "".join(f"{a}, " for a in extra)
+    out = {}
+    for dim, fn in samples.items():
+        name = f"{prefix}_{dim}d"
+        fields = dict(name=name, extra=args, samples=fn.__name__, dim=dim, tail=f", {dim}" if dim_argument else "")
+        namespace = {fn.__name__: fn, "prange": prange, "BLOCK": BLOCK}
+        exec(compile(_SERIAL_DRIVER.format(**fields) + _PARALLEL_DRIVER.format(**fields), mod.__file__, "exec"), namespace)  # noqa: S102
+        pair = []
+        for fname, doc, parallel in ((name, f"Method ``{method}``, {'planar' if dim == 2 else 'spatial'}: every sample "
+                                            "of the flat states, in turn, into ``o``.", False),
+                                     (f"{name}_parallel", f":func:`{name}` with blocks of :data:`exo_bench.matrix_method."
+                                      "numba_kernels.common.BLOCK` samples over numba's threads.", True)):
+            f = namespace[fname]
+            f.__module__, f.__qualname__, f.__doc__ = module, fname, doc
+            kernel = njit(parallel=True, **JIT)(f) if parallel else njit(**JIT)(f)
+            setattr(mod, fname, kernel)
+            pair.append(kernel)
+        out[dim] = (pair[0], pair[1])
+    return out
