@@ -70,7 +70,7 @@ def test_compiled_kernel_equals_numpy_reference(method, mech):
     fast, ref = prepare(mech, method, kernel="numba"), prepare(mech, method, kernel="numpy")
     assert fast.options["kernel"] == "numba" and ref.options["kernel"] == "numpy"
     sizes = (1, 7, compiled.PARALLEL_MIN_SAMPLES - 1, compiled.PARALLEL_MIN_SAMPLES,
-             compiled.PARALLEL_MIN_SAMPLES + compiled.BLOCK + 3)
+             compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3)
     for k, S in enumerate(sizes):
         q, qd, qdd = _states(mech, S, seed=10 * k + mech.nlinks)
         want = ref.inverse_dynamics(q, qd, qdd)
