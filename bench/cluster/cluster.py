@@ -233,7 +233,8 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
 
                 client.subscribe_topic(TOPIC, started)
                 describe()
-                futures, submitted = {}, {}
+                futures: dict = {}
+                submitted: dict[str, object] = {}
                 prior_of = _chains(rows, chained)
                 # chains in increasing n first (a row's prior is submitted before it); the scheduler
                 # runs the largest rows first anyway (priority)

@@ -158,7 +158,10 @@ def merge(results: list[dict]) -> tuple[dict, list[dict]]:
     top level has the usual ``machine_info``/``commit_info``/``datetime``/``version`` (of the first
     row that ran; ``machine_info["hosts"]`` lists every host) so ``py.test-benchmark compare`` reads
     it, and ``rows`` records each row's status, reason, host, CPU, seconds and peak memory."""
-    benchmarks, skips, rows, top = [], [], {}, None
+    benchmarks: list = []
+    skips: list = []
+    rows: dict = {}
+    top = None
     hosts: list[str] = []
     for r in results:
         data = r.get("benchmark_json") or {}

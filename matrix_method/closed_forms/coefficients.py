@@ -96,7 +96,8 @@ def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
     different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
     :func:`exo_bench.models.aggregates.coupling_entries`."""
-    return signed_coupling_entries(mech, *generic_aggregates(params), zero=zero)
+    zeta, eta, theta = generic_aggregates(params)
+    return signed_coupling_entries(mech, zeta, eta, theta, zero=zero)
 
 
 def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):

@@ -99,7 +99,9 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     sing = singular_demos(models)
     cases = [c for c in round_trip_cases(profile.full_cases) if not profile.rt_cases or c.name in profile.rt_cases]
     growth, trips, mtrips, refused = {}, [], [], []
-    a_trips, a_stiff, a_notes = [], [], []
+    a_trips: list[RoundTrip] = []
+    a_stiff: list[StiffRun] = []
+    a_notes: list[str] = []
     for i, case in enumerate(cases):
         log(f"forward dynamics: round trip {case.name}")
         ctrl = fd.prescribed_controls(models(case.mechanism, "pinocchio"), case.motion_of_t)
