@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import os
 import threading
+from pathlib import Path
 from typing import Any, TypedDict
 
 import numba
+
+from exo_bench.models import numba_cache
 
 #: numba.config sets its options at run time (the stubs do not list them).
 config: Any = numba.config
@@ -66,3 +69,8 @@ def run(serial, parallel, args: tuple, samples: int):
         finally:
             _PARALLEL.release()
     return serial(*args)
+
+#: newton-euler's kernels (models/newton_euler/compiled.py, which imports this module for :data:`JIT`)
+#: inline the element functions of their own folder: numba's cache is keyed on that whole folder
+#: (:mod:`exo_bench.models.numba_cache`), so an edit to elements.py recompiles them.
+NEWTON_EULER_KERNELS = numba_cache.register_kernel_dir(Path(__file__).resolve().parent / "newton_euler")
