@@ -36,6 +36,7 @@ equations again, within the same budget).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -96,7 +97,7 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
 #: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
 #: by ``exo_bench.api.preparation`` (``matrix_method.derivatives.derivatives_of``; this layer cannot
 #: import matrix_method). None until then.
-derivative_provider = None
+derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
 class PreparedModel:
