@@ -4,14 +4,9 @@ which the kernels of compiled.py inline, recompiles them instead of loading the 
 
 from __future__ import annotations
 
-import json
-import os
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
+from conftest import package_copy_prober
 
 _PROBE = """
 import json
@@ -33,20 +28,7 @@ def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path):
     """In a copy of the package: run the compiled newton-euler kernel (cached), edit ``project_3d``
     (elements.py, not the kernel's file), run again: a cache miss, and the forces of the edited numpy
     reference, not the stale machine code's."""
-    root = Path(__file__).resolve().parent.parent
-    pkg = tmp_path / "exo_bench"
-    shutil.copytree(root / "exo_bench", pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for sub in ("models", "matrix_method", "lagrange"):
-        shutil.copytree(root / sub, pkg / sub, ignore=shutil.ignore_patterns("__pycache__"))
-    env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
-
-    def probe():
-        r = subprocess.run([sys.executable, "-c", _PROBE], env=env, cwd=tmp_path, capture_output=True, text=True,
-                           timeout=900)
-        assert r.returncode == 0, r.stderr[-3000:]
-        out = json.loads(r.stdout.strip().splitlines()[-1])
-        assert out["file"].startswith(str(tmp_path)), out["file"]     # the copy, not the installed package
-        return out
+    pkg, probe = package_copy_prober(tmp_path, _PROBE)
 
     probe()                                       # compiles (or loads) into the copy's cache
     before = probe()
