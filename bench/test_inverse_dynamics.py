@@ -133,7 +133,7 @@ def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
             m.inverse_dynamics(q, qd, qdd, check=False)
             best = min(best, time.perf_counter() - t0)
         times[t] = best
-    return (min(times, key=times.get) if times else 2), times
+    return (min(times, key=lambda t: times[t]) if times else 2), times
 
 
 def _prepare(method: str, kernel, mech, sw, batch=None):

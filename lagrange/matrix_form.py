@@ -95,11 +95,11 @@ def extract_ring(rg: TrigRing, eqs: list, deadline: Deadline | None = None) -> d
                                             "products of one link's own rates appear)")
                     name, j, factor = found
                     slot = (name, i, j)
-                m = list(monom)
+                exps = list(monom)
                 for k in zero_out:
-                    m[k] = 0
+                    exps[k] = 0
                 d = acc.setdefault(slot, {})
-                m = tuple(m)
+                m = tuple(exps)
                 d[m] = d.get(m, 0) + coeff / QQ(factor)
         mats = {name: [[R.zero] * (1 if name == "P" else n) for _ in range(n)] for name in MATRIX_NAMES[dim]}
         for (name, i, j), d in acc.items():

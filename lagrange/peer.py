@@ -41,7 +41,8 @@ def _build(mech: Mechanism, S):
     O = me.Point("O")
     O.set_vel(N, 0)
     up = N.z if dim == 3 else N.y
-    ends, particles = [], []
+    ends: list = []
+    particles: list = []
     for i in range(n):
         if dim == 2:
             A = N.orientnew(f"A{i + 1}", "Axis", [phi[i], N.z])

@@ -89,13 +89,13 @@ class TrigRing:
         vals = [(self.index[x], QQ.from_sympy(v)) for x, v in values.items() if x in self.index]
         out: dict = {}
         for monom, coeff in p.items():
-            m = list(monom)
+            exps = list(monom)
             for k, v in vals:
-                if m[k]:
-                    coeff = coeff * v ** m[k]
-                    m[k] = 0
+                if exps[k]:
+                    coeff = coeff * v ** exps[k]
+                    exps[k] = 0
             if coeff:
-                m = tuple(m)
+                m = tuple(exps)
                 out[m] = out.get(m, 0) + coeff
         return self.R.from_dict({m: c for m, c in out.items() if c})
 

@@ -23,6 +23,8 @@ new array): nothing else runs.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from exo_bench.matrix_method.numba_kernels import common as compiled, factored as compiled_factored, matrix as compiled_matrix, recurrence as compiled_recurrence
@@ -37,16 +39,22 @@ from exo_bench.models.prepared import PreparedModel, unchecked_states
 _F8 = np.dtype(np.float64)
 
 
-def _block_option(method: str, block) -> int:
-    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
-        raise ValueError(f"{method}: option 'block': expected a number of samples >= 1, got {block!r}")
-    return int(block)
+def _tile_option(method: str, tile, block=None) -> int:
+    """The option ``tile`` (samples evaluated together); ``block``, its old name, still accepted with a
+    DeprecationWarning ("block" also names a coordinate block)."""
+    if block is not None:
+        warnings.warn(f"{method}: option 'block' is now called 'tile'", DeprecationWarning, stacklevel=4)
+        tile = block
+    if isinstance(tile, bool) or not isinstance(tile, (int, np.integer)) or tile < 1:
+        raise ValueError(f"{method}: option 'tile': expected a number of samples >= 1, got {tile!r}")
+    return int(tile)
 
 
 class _MatrixFamily(PreparedModel):
-    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK):
-        super().__init__(mechanism, block=_block_option(self.method, block))
-        self.block = int(block)
+    def __init__(self, mechanism: Mechanism, tile: int = numeric.TILE, *, block: int | None = None):
+        tile = _tile_option(self.method, tile, block)
+        super().__init__(mechanism, tile=tile)
+        self.tile = tile
         self.coupling = np.ascontiguousarray(signed_coupling(mechanism))     # c_ij = mu_ij s_i s_j
         self.gravity_coefficients = np.ascontiguousarray(signed_gravity(mechanism))   # nu_i s_i
 
@@ -54,16 +62,16 @@ class _MatrixFamily(PreparedModel):
         """Every matrix of eq. (5)/(17) at ``(S, dof)`` configurations, ``block -> name -> array``."""
         raise NotImplementedError
 
-    def _blocks(self, q, qd, qdd, fn) -> np.ndarray:
+    def _tiles(self, q, qd, qdd, fn) -> np.ndarray:
         out = np.empty_like(q)
-        for s in range(0, q.shape[0], self.block):
-            b = slice(s, s + self.block)
+        for s in range(0, q.shape[0], self.tile):
+            b = slice(s, s + self.tile)
             out[b] = fn(q[b], qd[b], qdd[b])
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):
         mech = self._mechanism
-        return self._blocks(q, qd, qdd, lambda a, b, c: numeric.generalised_forces(mech, self.matrices(a), b, c))
+        return self._tiles(q, qd, qdd, lambda a, b, c: numeric.generalised_forces(mech, self.matrices(a), b, c))
 
     def _mass_matrix(self, q):
         return numeric.mass_matrix_from_matrices(self._mechanism, self.matrices(q))
@@ -79,9 +87,10 @@ class _WithNumbaKernel(_MatrixFamily):
 
     _kernels: dict = {}
 
-    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
+    def __init__(self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *,
+                 block: int | None = None):
         kernel = kernel_option(self.method, kernel)
-        super().__init__(mechanism, block)
+        super().__init__(mechanism, _tile_option(self.method, tile, block))
         self._options["kernel"] = kernel
         self.kernel = kernel
         self._numpy = kernel == "numpy"
@@ -120,7 +129,7 @@ class _WithNumbaKernel(_MatrixFamily):
 class MatrixProducts(_WithNumbaKernel):
     """Method ``matrix``: form every matrix of eq. (5)/(17) from the closed forms (3D: the planar
     matrices and those of the straightened model, then the corrected eq. (18)), then the products
-    with the rate vectors, in blocks of ``block`` samples."""
+    with the rate vectors, in tiles of ``tile`` samples."""
 
     method = "matrix"
 
@@ -150,8 +159,8 @@ class MatrixFactored(_WithNumbaKernel):
 
     Every element is ``c_ij`` times a dot product of a vector of link i and one of link j, so the
     sum over the matrices of a block is ``r_a,i . sum_j c_ij kappa_j`` (the derivation is in
-    :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`). Samples go on the fast axis in blocks of
-    ``block``. The kernel forms no matrix, so the mass matrix and the bias forces are derived from
+    :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`). Samples go on the fast axis in tiles of
+    ``tile``. The kernel forms no matrix, so the mass matrix and the bias forces are derived from
     its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'."""
 
     method = "matrix-factored"
@@ -162,8 +171,9 @@ class MatrixFactored(_WithNumbaKernel):
         return 8.0 * (8 * d * n + 40 * n)
     _kernels = compiled_factored.KERNELS
 
-    def __init__(self, mechanism: Mechanism, block: int = numeric.BLOCK, kernel: str = "numba"):
-        super().__init__(mechanism, block, kernel)
+    def __init__(self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *,
+                 block: int | None = None):
+        super().__init__(mechanism, _tile_option(self.method, tile, block), kernel)
         #: the batched path of ``kernel="numba"``: the kernel that vectorises across samples
         #: (:mod:`exo_bench.matrix_method.numba_kernels.simd`); one sample runs :attr:`serial_kernel`
         self.batch_kernel = compiled_simd.KERNELS[mechanism.dim]
@@ -172,7 +182,7 @@ class MatrixFactored(_WithNumbaKernel):
         self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
         self._nu = self.gravity_coefficients[:, None]
         self._n, self._g = n, mechanism.g
-        self._products = MatrixProducts(mechanism, block, kernel="numpy")
+        self._products = MatrixProducts(mechanism, self.tile, kernel="numpy")
 
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if not check and out is not None and not self._numpy:
@@ -213,9 +223,9 @@ class MatrixFactored(_WithNumbaKernel):
         if not self._numpy:
             return self._compiled(q, qd, qdd)
         kernel, n, g, c, nu = self._kernel, self._n, self._g, self.coupling, self._nu
-        if q.shape[0] <= self.block:
+        if q.shape[0] <= self.tile:
             return kernel(n, g, c, nu, q.T.copy(), qd.T.copy(), qdd.T.copy()).T
-        return self._blocks(q, qd, qdd, lambda a, b, d: kernel(n, g, c, nu, a.T.copy(), b.T.copy(), d.T.copy()).T)
+        return self._tiles(q, qd, qdd, lambda a, b, d: kernel(n, g, c, nu, a.T.copy(), b.T.copy(), d.T.copy()).T)
 
     def matrices(self, q):
         return self._products.matrices(q)

@@ -107,7 +107,7 @@ def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
 def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """Method ``recurrence``: the matrices by eqs. (23)-(26), then eq. (5)/(17), ``(S, dof)``."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    return _numeric.in_blocks(mech, matrices, q, qd, qdd)
+    return _numeric.in_tiles(mech, matrices, q, qd, qdd)
 
 
 # ------------------------------------------------------------------ symbolic

@@ -39,6 +39,7 @@ import traceback
 from array import array
 from dataclasses import dataclass, field
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -200,7 +201,7 @@ class Simulation:
     status: str = "ok"                # "ok", "budget exceeded: ...", "failed: ..."
     t_reached: float = math.nan       # the latest time the right-hand side was evaluated at
     outside: int = 0                  # trial stages outside the domain (l < 0): NaN, step rejected
-    solution: object | None = field(default=None, repr=False)   # dense output when asked for
+    solution: Callable[[Any], np.ndarray] | None = field(default=None, repr=False)   # dense output (scipy OdeSolution) when asked for
     jacobian: str = "finite-difference"   # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
     jacobian_columns: int = 0             # of nfev, the columns spent on scipy's finite-difference Jacobians
     # implicit integrators: the times at which the Jacobian was evaluated, and of every single-column

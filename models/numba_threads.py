@@ -12,8 +12,15 @@ from __future__ import annotations
 
 import os
 import threading
+from pathlib import Path
+from typing import Any, TypedDict
 
 import numba
+
+from exo_bench.models import numba_cache
+
+#: numba.config sets its options at run time (the stubs do not list them).
+config: Any = numba.config
 
 
 def _threading_layer() -> str:
@@ -25,17 +32,25 @@ def _threading_layer() -> str:
     except (ImportError, AttributeError):
         started = True
     if not started and "NUMBA_THREADING_LAYER" not in os.environ:
-        numba.config.THREADING_LAYER = "workqueue"
-    return numba.config.THREADING_LAYER
+        config.THREADING_LAYER = "workqueue"
+    return str(config.THREADING_LAYER)
 
 
 THREADING_LAYER = _threading_layer()
 
 #: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
 #: fastmath: the kernels are held to the numpy reference at 1e-14).
-JIT = dict(cache=True, nogil=True)
-#: Samples per block of the parallel driver (each block allocates its scratch once).
-BLOCK = 64
+class JitOptions(TypedDict):
+    cache: bool
+    nogil: bool
+
+
+JIT: JitOptions = {"cache": True, "nogil": True}
+#: Samples per task of the parallel driver (each task allocates its scratch once): a group of samples,
+#: not a coordinate block.
+SAMPLES_PER_TASK = 64
+#: The old name of :data:`SAMPLES_PER_TASK`, still imported by models/newton_euler/compiled.py.
+BLOCK = SAMPLES_PER_TASK
 #: Batches of at least this many samples run the parallel driver. Below it, waking numba's threads
 #: costs more than it saves: on the 2-core machine (quiet) exo5-3d took 0.12 us/sample serial at
 #: every size, and in parallel 0.20-0.34 us/sample at 600-2048 samples, 0.09-0.17 at 4096, 0.08 at
@@ -54,3 +69,8 @@ def run(serial, parallel, args: tuple, samples: int):
         finally:
             _PARALLEL.release()
     return serial(*args)
+
+#: newton-euler's kernels (models/newton_euler/compiled.py, which imports this module for :data:`JIT`)
+#: inline the element functions of their own folder: numba's cache is keyed on that whole folder
+#: (:mod:`exo_bench.models.numba_cache`), so an edit to elements.py recompiles them.
+NEWTON_EULER_KERNELS = numba_cache.register_kernel_dir(Path(__file__).resolve().parent / "newton_euler")

@@ -36,13 +36,25 @@ equations again, within the same budget).
 
 from __future__ import annotations
 
-import os
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.memory import (CHUNK_BYTES, MAX_CHUNK, USABLE_SHARE, available_memory, chunks,
+                                     default_chunk_samples, usable_memory)
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
+
+#: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
+#: were defined here first and are imported from here.
+__all__ = ["PreparedModel", "MissingExtra", "terms_from_inverse_dynamics", "cholesky_solve", "CHUNK_BYTES",
+           "MAX_CHUNK", "USABLE_SHARE", "available_memory", "default_chunk_samples", "usable_memory",
+           "unchecked_states", "unchecked_forward", "_unchecked_forward"]
+
+#: The old private name, still imported by models/newton_euler/prepared.py.
+_unchecked_forward = unchecked_forward
 
 
 class MissingExtra(ValueError):
@@ -82,147 +94,10 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
     return cls(mechanism, **options)
 
 
-#: Target bytes of one chunk's temporaries (see :func:`default_chunk_samples`).
-CHUNK_BYTES = 64 * 2**20
-#: No chunk is longer than this: past it a longer chunk saves no measurable call overhead.
-MAX_CHUNK = 65536
-
-
-def default_chunk_samples(dof: int, bytes_per_sample: float | None = None) -> int:
-    """Samples per chunk so that one chunk's temporaries stay near :data:`CHUNK_BYTES`.
-
-    ``bytes_per_sample`` defaults to a bound for every method: ``8 (dof^2 + 64 dof)`` bytes (the
-    matrix family forms ``(samples, n, n)`` matrices, some dozens of them, ``n <= dof / 2``;
-    the others keep a few dozen ``(samples, dof)`` arrays)."""
-    if bytes_per_sample is None:
-        bytes_per_sample = 8.0 * (dof * dof + 64 * dof)
-    return int(max(1, min(MAX_CHUNK, CHUNK_BYTES // max(bytes_per_sample, 1.0))))
-
-
-def available_memory() -> int | None:
-    """Bytes that can be allocated without swapping: ``MemAvailable`` of /proc/meminfo, or less
-    when a cgroup (container) limit leaves less (``memory.max - memory.current``); elsewhere the
-    free physical pages; None where that is unknown."""
-    avail = None
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    avail = int(line.split()[1]) * 1024
-                    break
-    except (OSError, ValueError, IndexError):
-        pass
-    if avail is None:
-        try:
-            avail = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (OSError, ValueError, AttributeError):
-            return None
-    try:
-        with open("/sys/fs/cgroup/memory.max") as f:
-            cap = f.read().strip()
-        with open("/sys/fs/cgroup/memory.current") as f:
-            used = int(f.read().strip())
-        if cap != "max":
-            avail = min(avail, max(int(cap) - used, 0))
-    except (OSError, ValueError):
-        pass
-    return avail
-
-
-#: The share of :func:`available_memory` a run may plan to use by default: the rest is left to
-#: the system and to other processes, so that a run that fits its estimate is not killed by the
-#: kernel's out-of-memory killer (a 3D chain of 300 links estimated at 23.7 GB, run with 23.9 GB
-#: available, was killed).
-USABLE_SHARE = 0.8
-
-
-def usable_memory() -> int | None:
-    """The default memory limit: :data:`USABLE_SHARE` of :func:`available_memory` (None if unknown)."""
-    avail = available_memory()
-    return None if avail is None else int(USABLE_SHARE * avail)
-
-
-def _check_out(out, shape: tuple, method: str = "") -> None:
-    """``out`` of :meth:`PreparedModel.inverse_dynamics`: a writable C-ordered float64 array of ``shape``."""
-    if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == tuple(shape)
-            and out.flags.c_contiguous and out.flags.writeable):
-        got = (f"{type(out).__name__}" if not isinstance(out, np.ndarray) else
-               f"{out.dtype} array of shape {out.shape}" + ("" if out.flags.c_contiguous else ", not C-ordered")
-               + ("" if out.flags.writeable else ", read-only"))
-        raise ValueError(f"{method + ': ' if method else ''}field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
-
-
-_F8 = np.dtype(np.float64)
-
-
-def _describe(a) -> str:
-    if not isinstance(a, np.ndarray):
-        return "None" if a is None else type(a).__name__
-    return (f"{a.dtype.str if a.dtype.byteorder == '>' else a.dtype} array of shape {a.shape}" + ("" if a.flags.c_contiguous else ", not C-ordered")
-            + ("" if a.flags.writeable else ", read-only"))
-
-
-def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
-    """What ``check=False`` still checks: memory safety, never values.
-
-    The kernels read ``samples * dof`` float64 numbers from each state array and write as many
-    into ``out``, through raw pointers (numba does not check bounds). So every array must be a
-    C-ordered float64 ndarray of one shape, ``(dof,)`` or ``(samples, dof)``, and ``out`` (if given)
-    a writable one of that shape. One comparison per property; a ValueError naming the field,
-    the expected and the actual array otherwise (a Fortran-ordered batch from a DataFrame would
-    otherwise be read in the wrong order, an ``out`` too small written past its end).
-    """
-    q = arrays[0]
-    try:                                     # straight-line: about 0.15 us on the quiet 2-core machine
-        s = q.shape
-        ok = len(s) < 3 and s[-1] == dof and q.dtype is _F8 and q.flags.c_contiguous
-        for a in arrays[1:]:
-            ok = ok and a.shape == s and a.dtype is _F8 and a.flags.c_contiguous
-        if ok and out is not None:
-            ok = out.shape == s and out.dtype is _F8 and out.flags.c_contiguous and out.flags.writeable
-    except (AttributeError, IndexError):
-        ok = False
-    if ok:
-        return
-    names = ("q", "qd", "qdd")[:len(arrays)]
-    expected = (f"C-ordered float64 arrays of one shape, (dof,) or (samples, dof) with dof = {dof} "
-                "(check=False checks memory safety only; check=True converts any layout and dtype)")
-    for name, a in zip(names, arrays):
-        good = (isinstance(a, np.ndarray) and a.dtype == _F8 and a.flags.c_contiguous and a.ndim in (1, 2)
-                and a.shape[-1:] == (dof,) and a.shape == getattr(q, "shape", None))
-        if not good:
-            raise ValueError(f"{method}: field '{name}': expected {expected}, got {_describe(a)}"
-                             + ("" if name == "q" or not isinstance(q, np.ndarray) else f" (q: {q.shape})"))
-    if out is not None:
-        _check_out(out, q.shape, method)
-    # here: safe after all (a float64 dtype object that is not numpy's own, as some libraries make)
-
-
-def _require_rates(method: str, *rates) -> None:
-    """``qd`` (and ``qdd``) are required where the call needs them: None is not "zero"."""
-    for name, a in zip(("qd", "qdd"), rates):
-        if a is None:
-            raise ValueError(f"{method}: field '{name}': expected an array of shape (dof,) or (samples, dof), "
-                             "got None (pass zeros for a state at rest)")
-
-
-def _chunks(S: int, size: int):
-    for s0 in range(0, S, size):
-        yield slice(s0, min(S, s0 + size))
-
-
-def _unchecked_forward(method: str, dof: int, q, qd, tau, out) -> None:
-    """:func:`unchecked_states` for forward dynamics (its third array is ``tau``)."""
-    try:
-        unchecked_states(method, dof, (q, qd, tau), out)
-    except ValueError as e:
-        raise ValueError(str(e).replace("field 'qdd'", "field 'tau'")) from None
-
-
 #: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
 #: by ``exo_bench.api.preparation`` (``matrix_method.derivatives.derivatives_of``; this layer cannot
 #: import matrix_method). None until then.
-derivative_provider = None
+derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
 class PreparedModel:
@@ -280,7 +155,7 @@ class PreparedModel:
         if S <= self._chunk:
             return fn(*arrays)
         out = np.empty((S, *out_shape))
-        for c in _chunks(S, self._chunk):
+        for c in chunks(S, self._chunk):
             out[c] = fn(*(a[c] for a in arrays))
         return out
 
@@ -319,10 +194,10 @@ class PreparedModel:
         allocates nothing: the compiled kernels write into it directly)."""
         if check:
             single = np.ndim(q) == 1
-            _require_rates(self.method, qd, qdd)
+            require_rates(self.method, qd, qdd)
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
             if out is not None:
-                _check_out(out, q.shape[1:] if single else q.shape, self.method)
+                check_out(out, q.shape[1:] if single else q.shape, self.method)
             tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
             tau = tau[0] if single else tau
         else:
@@ -355,7 +230,7 @@ class PreparedModel:
         """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
         single = np.ndim(q) == 1
         if check:
-            _require_rates(self.method, qd)
+            require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
         else:
             unchecked_states(self.method, self._dof, (q, qd))
@@ -368,7 +243,7 @@ class PreparedModel:
         """Both terms of ``M qdd + h = tau`` at once, ``(S, dof, dof)`` and ``(S, dof)`` (batch only):
         one batched inverse-dynamics call where the terms are derived."""
         if check:
-            _require_rates(self.method, qd)
+            require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
         else:
             unchecked_states(self.method, self._dof, (q, qd))
@@ -384,7 +259,7 @@ class PreparedModel:
         if S <= size:
             return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, qd)
         M, h = np.empty((S, d, d)), np.empty((S, d))
-        for c in _chunks(S, size):
+        for c in chunks(S, size):
             M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
         return M, h
 
@@ -398,13 +273,13 @@ class PreparedModel:
         with its O(n) passes."""
         single = np.ndim(q) == 1
         if check:
-            _require_rates(self.method, qd, tau)
+            require_rates(self.method, qd, tau)
             try:
                 q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
             except ValueError as e:        # the third array of as_states is called qdd: here it is tau
                 raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
             if out is not None:
-                _check_out(out, q.shape[1:] if single else q.shape, self.method)
+                check_out(out, q.shape[1:] if single else q.shape, self.method)
             self.check_regular(q)
         else:
             _unchecked_forward(self.method, self._dof, q, qd, tau, out)
@@ -434,7 +309,7 @@ class PreparedModel:
         if q.shape[0] <= size:
             return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, np.zeros_like(q))[0]
         M = np.empty((q.shape[0], d, d))
-        for c in _chunks(q.shape[0], size):
+        for c in chunks(q.shape[0], size):
             M[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], np.zeros_like(q[c]))[0]
         return M
 

@@ -103,10 +103,14 @@ def random_tree(nlinks: int, dim: int, seed: int) -> Mechanism:
                      name=f"tree{nlinks}-{dim}d-seed{seed}")
 
 
+def _preset(f: Callable[[int], Mechanism], d: int) -> Callable[[], Mechanism]:
+    return lambda: f(d)
+
+
 PRESETS: dict[str, Callable[[], Mechanism]] = {}
 for _fn in (fig1, fig2a, fig2b, fig5, exo5):
     for _dim in (2, 3):
-        PRESETS[f"{_fn.__name__}-{_dim}d"] = (lambda f=_fn, d=_dim: f(d))
+        PRESETS[f"{_fn.__name__}-{_dim}d"] = _preset(_fn, _dim)
 
 
 def preset_descriptions() -> dict[str, str]:

@@ -23,11 +23,11 @@ import os
 import subprocess
 import sys
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import package_copy_prober
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import common as compiled
 from exo_bench.models.presets import chain, exo5, random_tree
@@ -70,7 +70,7 @@ def test_compiled_kernel_equals_numpy_reference(method, mech):
     fast, ref = prepare(mech, method, kernel="numba"), prepare(mech, method, kernel="numpy")
     assert fast.options["kernel"] == "numba" and ref.options["kernel"] == "numpy"
     sizes = (1, 7, compiled.PARALLEL_MIN_SAMPLES - 1, compiled.PARALLEL_MIN_SAMPLES,
-             compiled.PARALLEL_MIN_SAMPLES + compiled.BLOCK + 3)
+             compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3)
     for k, S in enumerate(sizes):
         q, qd, qdd = _states(mech, S, seed=10 * k + mech.nlinks)
         want = ref.inverse_dynamics(q, qd, qdd)
@@ -191,22 +191,7 @@ def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path):
     kernel of the edited copy, not the stale machine code's. (With numba's own locator alone,
     NUMBA_CACHE_LOCATOR_CLASSES=InTreeCacheLocator in the probes' environment, the second run loads
     the stale kernel: a hit, no miss, and this test fails.)"""
-    import shutil
-
-    root = Path(__file__).resolve().parent.parent
-    pkg = tmp_path / "exo_bench"
-    shutil.copytree(root / "exo_bench", pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for sub in ("models", "matrix_method", "lagrange"):
-        shutil.copytree(root / sub, pkg / sub, ignore=shutil.ignore_patterns("__pycache__"))
-    env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
-
-    def probe():
-        r = subprocess.run([sys.executable, "-c", _EDIT_PROBE], env=env, cwd=tmp_path, capture_output=True, text=True,
-                           timeout=600)
-        assert r.returncode == 0, r.stderr[-3000:]
-        out = json.loads(r.stdout.strip().splitlines()[-1])
-        assert out["file"].startswith(str(tmp_path)), out["file"]     # the copy, not the installed package
-        return out
+    pkg, probe = package_copy_prober(tmp_path, _EDIT_PROBE)
 
     probe()                                       # compiles (or loads) into the copy's cache
     before = probe()

@@ -253,7 +253,7 @@ def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_ch
 
 
 def test_reports_are_not_rendered_again_from_a_sweep_with_rows_missing(tmp_path):
-    from exo_bench.bench.cluster.cluster import render_checkpoints
+    from exo_bench.bench.cluster.commands import render_checkpoints
 
     (tmp_path / "cp" / "abc123").mkdir(parents=True)
     with pytest.raises(ValueError, match=r"render: \d+ of \d+ rows have no checkpoint at code abc123"):

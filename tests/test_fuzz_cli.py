@@ -315,7 +315,7 @@ def test_any_argument_list(argv):
         for mod in (bench_reports, errata, stability):  # the heavy jobs: stubs
             mp.setattr(mod, "run", lambda options: 0)
         mp.setattr(runner, "run_main_job", lambda options: 0)
-        mp.setattr("exo_bench.bench.cluster.cluster.bench_run", lambda options: 0)   # bench --full: the Dask sweep
+        mp.setattr("exo_bench.bench.cluster.commands.bench_run", lambda options: 0)   # bench --full: the Dask sweep
         mp.setattr("exo_bench.bench.studies.equations_size.size_report", lambda options: 0)
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))

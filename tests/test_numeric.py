@@ -42,7 +42,7 @@ def test_matrix_method_agrees_with_pinocchio_and_lagrange_on_random_trees(n, dim
 @pytest.mark.parametrize("n,dim,seed", [(3, 2, 1), (6, 2, 2), (4, 3, 3), (7, 3, 4)])
 def test_factored_evaluation_equals_the_matrices_times_the_rates(n, dim, seed):
     """The fast path forms no matrix; it must equal eq. (17) with every matrix formed, on every
-    block of samples (3000 samples: several blocks of numeric.BLOCK)."""
+    tile of samples (3000 samples: several tiles of numeric.TILE)."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 3000, seed)
     assert_forces_agree(prepare(m, "matrix-factored").inverse_dynamics(q, qd, qdd),

@@ -145,7 +145,12 @@ def test_options_are_constructor_arguments_and_bad_ones_are_named():
         prepare(mech, "pinocchio", budget=3)
     with pytest.raises(ValueError, match=r"pinocchio: option 'threads': expected an integer >= 1, got 0"):
         prepare(mech, "pinocchio", threads=0)
-    with pytest.raises(ValueError, match=r"matrix: option 'block': expected a number of samples >= 1, got -4"):
+    with pytest.raises(ValueError, match=r"matrix: option 'tile': expected a number of samples >= 1, got -4"):
+        prepare(mech, "matrix", tile=-4)
+    with pytest.warns(DeprecationWarning, match="option 'block' is now called 'tile'"):   # the old name
+        assert prepare(mech, "matrix-factored", block=8, kernel="numpy").tile == 8
+    with pytest.raises(ValueError, match=r"matrix: option 'tile': expected a number of samples >= 1, got -4"), \
+            pytest.warns(DeprecationWarning):
         prepare(mech, "matrix", block=-4)
     with pytest.raises(ValueError, match="expected a Mechanism"):
         prepare({"dim": 2}, "matrix")

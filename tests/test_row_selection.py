@@ -1,9 +1,9 @@
-"""``exo-bench bench --rows PATTERN``: only the matching rows of the sweep (bench/cluster/cluster.py)."""
+"""``exo-bench bench --rows PATTERN``: only the matching rows of the sweep (bench/cluster/commands.py)."""
 
 import pytest
 
 from exo_bench.bench.cli.app import build_parser
-from exo_bench.bench.cluster.cluster import selected_rows
+from exo_bench.bench.cluster.commands import selected_rows
 
 
 def test_rows_are_selected_by_pattern_and_a_pattern_that_matches_nothing_is_named():

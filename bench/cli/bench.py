@@ -38,5 +38,5 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     opts = options(args)
     if opts.cluster is not None:
-        from exo_bench.bench.cluster.cluster import bench_run as run
+        from exo_bench.bench.cluster.commands import bench_run as run
     return report_job(run, opts, "exo-bench bench")

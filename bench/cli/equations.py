@@ -97,6 +97,7 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
     """``file name -> text`` of the equations of ``mech`` in ``fmt`` (nothing written)."""
     import exo_bench
     from exo_bench.matrix_method.export import code as export_code, latex as export_latex
+    from exo_bench.bench.output import latex_document
 
     clock = _Clock(mech, fmt, budget)
     stem = file_stem(mech.name)
@@ -104,10 +105,10 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
         parts = export_latex.element_parts(mech, symbolic_parameters)
         clock.check("composing")
         header = _latex_header(mech, symbolic_parameters)
-        md = export_latex.document(mech, symbolic_parameters, "md", header, parts=parts, eq4=eq4_pair(mech),
+        md = latex_document.document(mech, symbolic_parameters, "md", header, parts=parts, eq4=eq4_pair(mech),
                                    matrices_shown=md_matrices(mech))
         clock.check("the Markdown page")
-        tex = export_latex.document(mech, symbolic_parameters, "tex", "", parts=parts, eq4=eq4_pair(mech))
+        tex = latex_document.document(mech, symbolic_parameters, "tex", "", parts=parts, eq4=eq4_pair(mech))
         clock.check("the LaTeX file")
         return {f"equations-{stem}.md": md, f"equations-{stem}.tex": tex}
     if fmt == "casadi":

@@ -51,7 +51,7 @@ def describe(step: data.StoredStep, mech) -> list[str]:
              f"{sv.get('iterations')} iterations, {sv.get('solve_seconds', float('nan')):.1f} s, objective "
              f"{sv.get('objective', float('nan')):.6g}, constraint violation (CasADi) {sv.get('constraint_violation', float('nan')):.1e}",
              f"  constraints re-evaluated in numpy: largest violation {max(viol.values()):.1e} "
-             f"({max(viol, key=viol.get)})"]
+             f"({max(viol, key=lambda k: viol[k])})"]
     return lines
 
 

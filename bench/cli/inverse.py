@@ -149,14 +149,14 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
-    count, first = 0, None
+    count, first = 0, (0, 0)
     for s0 in range(0, tau.shape[0], 65536):   # in row blocks: no (samples, dof) mask
         bad = ~np.isfinite(tau[s0:s0 + 65536])
         if bad.any():
-            count += int(bad.sum())
-            if first is None:
+            if count == 0:                # the first NaN/Inf
                 s, c = map(int, np.argwhere(bad)[0])
                 first = (s0 + s, c)
+            count += int(bad.sum())
     if count:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
         print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
               f"(first: sample {first[0]}, {force_names(mech)[first[1]]})", file=sys.stderr)

@@ -24,6 +24,6 @@ def cmd_stability(args: argparse.Namespace) -> int:
 
     opts = StabilityOptions(reports=reports_folder(args.reports), full=args.full, cluster=cluster_options(args))
     if opts.cluster is not None:
-        from exo_bench.bench.cluster.cluster import stability_evaluator
+        from exo_bench.bench.cluster.commands import stability_evaluator
         opts = dataclasses.replace(opts, evaluate=stability_evaluator(opts))
     return report_job(run, opts, "exo-bench stability")

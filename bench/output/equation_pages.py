@@ -72,15 +72,16 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
     from exo_bench.bench.output.provenance import atomic_write, provenance
     from exo_bench.matrix_method.export import latex as export_latex
+    from exo_bench.bench.output import latex_document
 
     mech = scene.mechanism
     _Clock(mech, "latex", DEFAULT_BUDGET)
     parts = export_latex.element_parts(mech, True)
     header = provenance(f"exo-bench run {scene.name}")
     title = f"Equations of motion of scene `{scene.name}` ({mech.name})"
-    md = export_latex.document(mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech),
+    md = latex_document.document(mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech),
                                matrices_shown=md_matrices(mech))
-    tex = export_latex.document(mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts,
+    tex = latex_document.document(mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts,
                                 eq4=eq4_pair(mech))
     return [atomic_write(staging / f"equations-{scene.name}.md", md),
             atomic_write(staging / f"equations-{scene.name}.tex", tex)]

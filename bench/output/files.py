@@ -185,7 +185,8 @@ def stale_staging(out: Path) -> tuple[list[Path], list[Path]]:
     unmarked and older than a day), and those whose owner cannot be told (another host, too young)."""
     import time
 
-    stale, unknown = [], []
+    stale: list[Path] = []
+    unknown: list[Path] = []
     try:
         entries = [d for d in Path(out).iterdir() if d.name.startswith(".staging-") and d.is_dir()
                    and not d.is_symlink()]

@@ -157,7 +157,7 @@ def throughput(scale: int = 1) -> dict[str, float]:
     """This CPU's scalar and SIMD multiply-add rate and ``sin`` rate, per second, from numba loops
     (module docstring); ``scale`` multiplies the loop lengths."""
     x, y = 0.999999, 1e-7                      # |x| < 1: the values stay bounded
-    if numba.config.SLP_VECTORIZE:
+    if getattr(numba.config, "SLP_VECTORIZE", False):
         raise RuntimeError("limit: numba's SLP vectorizer is on (NUMBA_SLP_VECTORIZE): the scalar rate would be a SIMD one")
     scalar = scalar_rate(scale)
     a = np.random.default_rng(0).uniform(-np.pi, np.pi, 1024)

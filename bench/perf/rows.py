@@ -151,14 +151,17 @@ def safe_name(key: str) -> str:
 
 # ----------------------------------------------------------------------------- merging
 def merge(results: list[dict]) -> tuple[dict, list[dict]]:
-    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`exo_bench.bench.cluster.cluster.run_row`
+    """The pytest-benchmark JSON of a whole sweep from its row results (:func:`exo_bench.bench.cluster.tasks.run_row`
     records) and the list of skipped or failed benchmarks with their reasons.
 
     Each benchmark keeps its row's host and CPU in ``extra_info`` (``host``, ``cpu``, ``row``); the
     top level has the usual ``machine_info``/``commit_info``/``datetime``/``version`` (of the first
     row that ran; ``machine_info["hosts"]`` lists every host) so ``py.test-benchmark compare`` reads
     it, and ``rows`` records each row's status, reason, host, CPU, seconds and peak memory."""
-    benchmarks, skips, rows, top = [], [], {}, None
+    benchmarks: list = []
+    skips: list = []
+    rows: dict = {}
+    top = None
     hosts: list[str] = []
     for r in results:
         data = r.get("benchmark_json") or {}

@@ -36,7 +36,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     ``mass_matrix`` and ``bias_forces`` as often as needed.
 
     ``options`` are the method's constructor arguments (``threads`` for pinocchio, ``budget`` and
-    ``interrupt`` for lagrange, ``block`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
+    ``interrupt`` for lagrange, ``tile`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
     A lagrange derivation whose estimated time exceeds its ``budget`` (or whose memory exceeds what
     a run may use) is refused before it starts (:func:`exo_bench.api.cost_model.check`, a ValueError
     naming the estimate and the budget).

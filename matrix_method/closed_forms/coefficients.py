@@ -7,9 +7,9 @@ Every matrix element of eqs. (5) and (17) is ``c_ij = mu_ij s_i s_j`` times a ge
 links i and j (:mod:`exo_bench.matrix_method.closed_forms.planar`), so the sign products of a branched model ("reversed
 links contribute sign products") live in ``c`` alone; this module adds them.
 
-Each function exists in a numeric form (floats from the mechanism) and a symbolic form
-(expressions in the shared mass symbols of :func:`exo_bench.models.symbols.symbols_for`), both built on
-:func:`exo_bench.models.aggregates.aggregates` and :func:`exo_bench.models.aggregates.coupling_entries`.
+Each formula is written once, in any arithmetic (:func:`signed_coupling_entries`, :func:`increments`);
+the numeric forms (floats from the mechanism, cached arrays) and the symbolic ones (expressions in the
+shared mass symbols of :func:`exo_bench.models.symbols.symbols_for`, ring elements, CasADi) call it.
 """
 
 from __future__ import annotations
@@ -19,47 +19,56 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from exo_bench.models.aggregates import aggregates, coupling, coupling_entries, gravity_coupling, link_aggregates
+from exo_bench.models.aggregates import aggregates, coupling_entries, link_aggregates
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import Symbols
 
 
 # ----------------------------------------------------------------- numeric
 @lru_cache(maxsize=256)
-def signed_coupling(mech: Mechanism) -> np.ndarray:
-    """``c_ij = mu_ij s_i s_j``, the coefficient every closed-form element carries, ``(n, n)``."""
-    s = mech.sign_array
-    c = coupling(mech) * s[:, None] * s[None, :]
-    c.flags.writeable = False
-    return c
-
-
-@lru_cache(maxsize=256)
-def signed_gravity(mech: Mechanism) -> np.ndarray:
-    """``nu_i s_i`` with ``nu_i = eta_i + Theta(i)``: the coefficient of the gravity vectors ``P``."""
-    out = gravity_coupling(mech) * mech.sign_array
-    out.flags.writeable = False
+def _signed(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`signed_coupling_entries` on the mechanism's floats, as read-only arrays."""
+    c, nu_s = signed_coupling_entries(mech, *link_aggregates(mech), zero=0.0)
+    out = np.array(c, dtype=float).reshape(mech.nlinks, mech.nlinks), np.array(nu_s, dtype=float)
+    for a in out:
+        a.flags.writeable = False
     return out
 
 
-def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Eq. (25) generalised to trees: what adding link ``k`` does to the coefficients.
+def signed_coupling(mech: Mechanism) -> np.ndarray:
+    """``c_ij = mu_ij s_i s_j``, the coefficient every closed-form element carries, ``(n, n)``."""
+    return _signed(mech)[0]
+
+
+def signed_gravity(mech: Mechanism) -> np.ndarray:
+    """``nu_i s_i`` with ``nu_i = eta_i + Theta(i)``: the coefficient of the gravity vectors ``P``."""
+    return _signed(mech)[1]
+
+
+def increments(mech: Mechanism, k: int, zeta_k, eta_k, theta_k, dtype=float):
+    """Eq. (25) generalised to trees, in any arithmetic: what adding link ``k`` (aggregates ``zeta_k,
+    eta_k, theta_k``) does to the coefficients.
 
     Returns ``(idx, dc, dnu_s)``: the links concerned (the ancestors of k, then k itself), the
-    increment of ``c`` on ``idx x idx`` and the increment of ``nu s`` on ``idx``.
-    ``theta_k s_i s_j`` on ancestor pairs (k adds to Theta of each ancestor), ``eta_k s_i s_k`` on the
-    new row and column, ``zeta_k`` in the corner; ``theta_k s_i`` and ``eta_k s_k`` for gravity.
+    increment of ``c`` on ``idx x idx`` and the increment of ``nu s`` on ``idx``, as arrays of
+    ``dtype`` (``object`` for sympy or ring elements). ``theta_k s_i s_j`` on ancestor pairs (k adds
+    to Theta of each ancestor), ``eta_k s_i s_k`` on the new row and column, ``zeta_k`` in the
+    corner; ``theta_k s_i`` and ``eta_k s_k`` for gravity.
     """
-    zeta, eta, theta = link_aggregates(mech)
     idx = np.array(sorted(mech.ancestors[k]) + [k], dtype=int)
-    s = mech.sign_array[idx]
-    m = len(idx)
-    dc = theta[k] * np.outer(s, s)              # First term: old block, ancestors only
-    dc[-1, :] = dc[:, -1] = eta[k] * s * s[-1]  # Second term: the new row and column
-    dc[-1, -1] = zeta[k]                        # Third term: the corner
-    dnu = np.full(m, theta[k]) * s
-    dnu[-1] = eta[k] * s[-1]
+    s = np.array([mech.sign[i] for i in idx], dtype=dtype)
+    dc = np.outer(s, s) * theta_k               # First term: old block, ancestors only
+    dc[-1, :] = dc[:, -1] = s * s[-1] * eta_k   # Second term: the new row and column
+    dc[-1, -1] = zeta_k                         # Third term: the corner
+    dnu = s * theta_k
+    dnu[-1] = s[-1] * eta_k
     return idx, dc, dnu
+
+
+def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`increments` of link ``k`` on the mechanism's floats."""
+    zeta, eta, theta = link_aggregates(mech)
+    return increments(mech, k, zeta[k], eta[k], theta[k])
 
 
 # ---------------------------------------------------------------- symbolic
@@ -87,7 +96,8 @@ def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
     different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
     :func:`exo_bench.models.aggregates.coupling_entries`."""
-    return signed_coupling_entries(mech, *generic_aggregates(params), zero=zero)
+    zeta, eta, theta = generic_aggregates(params)
+    return signed_coupling_entries(mech, zeta, eta, theta, zero=zero)
 
 
 def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):
@@ -109,14 +119,7 @@ def symbolic_coupling(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
 
 
 def generic_recurrence_increments(mech: Mechanism, params, k: int):
-    """The generic twin of :func:`recurrence_increments`: ``(idx, dc, dnu_s)`` as nested lists."""
-    zeta, eta, theta = generic_aggregates(params)
-    idx = sorted(mech.ancestors[k]) + [k]
-    s = [mech.sign[i] for i in idx]
-    m = len(idx)
-    dc = [[(s[a] * s[b]) * theta[k] for b in range(m)] for a in range(m)]   # First term: ancestors
-    for a in range(m):
-        dc[a][m - 1] = dc[m - 1][a] = (s[a] * s[m - 1]) * eta[k]           # Second term: new row/column
-    dc[m - 1][m - 1] = zeta[k]                                             # Third term: the corner
-    dnu = [s[a] * theta[k] for a in range(m - 1)] + [s[m - 1] * eta[k]]
-    return idx, dc, dnu
+    """:func:`increments` of link ``k`` in any arithmetic (``params`` as for :func:`generic_aggregates`),
+    as object arrays."""
+    zeta, eta, theta = aggregates(*params[k])
+    return increments(mech, k, zeta, eta, theta, dtype=object)

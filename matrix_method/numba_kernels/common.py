@@ -13,13 +13,13 @@ The kernels themselves, one algorithm per file:
 The pure-numpy kernels (:mod:`exo_bench.matrix_method.numpy_kernels.matrix`, :mod:`exo_bench.matrix_method.recurrence`) stay the
 reference implementation; tests/test_compiled.py holds these to them at 1e-14 relative.
 
-**One kernel, one sample or a batch.** Each algorithm is a per-sample function, a block function
+**One kernel, one sample or a batch.** Each algorithm is a per-sample function, a function
 that runs it over samples ``start .. stop - 1`` with its scratch allocated once, and two drivers
 ``kernel(*args, q, qd, qdd, o)`` that write the forces into ``o``; states and forces are flat,
 C-ordered ``(samples * dof,)`` float64 arrays (a ``(dof,)`` sample is already one, a
 ``(samples, dof)`` batch is its ``reshape(-1)``, a view): one signature per kernel. The serial
-driver runs one block; for batches of at least :data:`PARALLEL_MIN_SAMPLES` samples the parallel
-driver runs blocks of :data:`BLOCK` samples over numba's threads (``prange``). Writing into a
+driver runs them all; for batches of at least :data:`PARALLEL_MIN_SAMPLES` samples the parallel
+driver runs tasks of :data:`SAMPLES_PER_TASK` samples over numba's threads (``prange``). Writing into a
 given ``o`` (no array returned) leaves a one-sample call with numba's dispatch and the arithmetic
 only (returning a new array cost about as much as the arithmetic of exo5-3d): the caller may
 preallocate it (``inverse_dynamics(..., out=)``).
@@ -61,7 +61,7 @@ from exo_bench.matrix_method.closed_forms import factored, planar, transitions a
 from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
 from exo_bench.models.numba_threads import (  # noqa: F401 - shared with models.newton_euler, re-exported
-    BLOCK, JIT, PARALLEL_MIN_SAMPLES, THREADING_LAYER, _PARALLEL, _threading_layer, run)
+    BLOCK, JIT, PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK, THREADING_LAYER, _PARALLEL, _threading_layer, run)
 
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
@@ -164,3 +164,51 @@ def compile_times(kernels: dict, args: dict) -> dict[str, dict]:
                      "cache_misses": int(sum(k.stats.cache_misses.values()))}
     return out
 
+
+
+# ------------------------------------------------------------------ drivers generated from one template
+_SERIAL_DRIVER = '''\
+def {name}(p, {extra}q, qd, qdd, o):
+    {samples}(p, {extra}q, qd, qdd, o, 0, q.shape[0] // ({dim} * p.shape[0]){tail})
+'''
+_PARALLEL_DRIVER = '''\
+def {name}_parallel(p, {extra}q, qd, qdd, o):
+    S = q.shape[0] // ({dim} * p.shape[0])
+    for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
+        {samples}(p, {extra}q, qd, qdd, o, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK){tail})
+'''
+
+
+def drivers(module: str, prefix: str, method: str, samples: dict[int, Any], extra: tuple[str, ...] = (),
+            dim_argument: bool = False) -> dict[int, tuple[Any, Any]]:
+    """``{dim: (serial driver, parallel driver)}`` of a kernel module, from one template: the serial
+    driver runs every sample of the flat states through ``samples[dim](p, *extra, q, qd, qdd, o, start,
+    stop[, dim])``, the parallel one runs tasks of :data:`SAMPLES_PER_TASK` samples over numba's threads.
+
+    The drivers are named ``<prefix>_<dim>d`` and ``<prefix>_<dim>d_parallel``, compiled with the
+    file name of ``module`` (so numba's cache, and its :mod:`~exo_bench.matrix_method.numba_kernels.cache`
+    locator, key them on that kernel file) and set as attributes of it."""
+    import sys
+
+    from numba import prange
+
+    mod = sys.modules[module]
+    args = "".join(f"{a}, " for a in extra)
+    out = {}
+    for dim, fn in samples.items():
+        name = f"{prefix}_{dim}d"
+        fields = dict(name=name, extra=args, samples=fn.__name__, dim=dim, tail=f", {dim}" if dim_argument else "")
+        namespace = {fn.__name__: fn, "prange": prange, "SAMPLES_PER_TASK": SAMPLES_PER_TASK}
+        exec(compile(_SERIAL_DRIVER.format(**fields) + _PARALLEL_DRIVER.format(**fields), mod.__file__, "exec"), namespace)  # noqa: S102
+        pair = []
+        for fname, doc, parallel in ((name, f"Method ``{method}``, {'planar' if dim == 2 else 'spatial'}: every sample "
+                                            "of the flat states, in turn, into ``o``.", False),
+                                     (f"{name}_parallel", f":func:`{name}` with tasks of :data:`exo_bench.matrix_method."
+                                      "numba_kernels.common.SAMPLES_PER_TASK` samples over numba's threads.", True)):
+            f = namespace[fname]
+            f.__module__, f.__qualname__, f.__doc__ = module, fname, doc
+            kernel = njit(parallel=True, **JIT)(f) if parallel else njit(**JIT)(f)
+            setattr(mod, fname, kernel)
+            pair.append(kernel)
+        out[dim] = (pair[0], pair[1])
+    return out

@@ -19,10 +19,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT
+from exo_bench.matrix_method.numba_kernels.common import JIT, drivers
 
 
 @njit(**JIT)
@@ -95,33 +95,6 @@ def _samples_3d(p, q, qd, qdd, o, start, stop):
         _sample_3d(p, q, qd, qdd, o, s * 3 * n, k)
 
 
-@njit(**JIT)
-def factored_2d(p, q, qd, qdd, o):
-    """Method ``matrix-factored``, planar: every sample of the flat states, in turn, into ``o``."""
-    _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
-
-
-@njit(parallel=True, **JIT)
-def factored_2d_parallel(p, q, qd, qdd, o):
-    """:func:`factored_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (2 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-
-
-@njit(**JIT)
-def factored_3d(p, q, qd, qdd, o):
-    """Method ``matrix-factored``, spatial: every sample of the flat states, in turn, into ``o``."""
-    _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
-
-
-@njit(parallel=True, **JIT)
-def factored_3d_parallel(p, q, qd, qdd, o):
-    """:func:`factored_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (3 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-
-
-#: dim -> (serial kernel, parallel kernel)
-KERNELS = {2: (factored_2d, factored_2d_parallel), 3: (factored_3d, factored_3d_parallel)}
+#: dim -> (serial kernel, parallel kernel): factored_2d, factored_2d_parallel, factored_3d, factored_3d_parallel
+KERNELS = drivers(__name__, "factored", "matrix-factored", {2: _samples_2d, 3: _samples_3d})
+factored_2d, factored_3d = KERNELS[2][0], KERNELS[3][0]

@@ -20,10 +20,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from exo_bench.matrix_method.closed_forms import transitions as spatial
-from exo_bench.matrix_method.numba_kernels.common import (BLOCK, JIT, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition,
+from exo_bench.matrix_method.numba_kernels.common import (JIT, drivers, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition,
                                                            set_planar, set_planar_gravity, set_spatial,
                                                            set_spatial_gravity)
 
@@ -137,33 +137,5 @@ def _samples_3d(p, q, qd, qdd, o, start, stop):
         _sample_3d(p, q, qd, qdd, o, s * 3 * n, pl, ps, pP, m3, P3, cs, xr)
 
 
-@njit(**JIT)
-def matrix_2d(p, q, qd, qdd, o):
-    """Method ``matrix``, planar: every sample of the flat states, in turn, into ``o``."""
-    _samples_2d(p, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]))
-
-
-@njit(parallel=True, **JIT)
-def matrix_2d_parallel(p, q, qd, qdd, o):
-    """:func:`matrix_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (2 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples_2d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-
-
-@njit(**JIT)
-def matrix_3d(p, q, qd, qdd, o):
-    """Method ``matrix``, spatial: every sample of the flat states, in turn, into ``o``."""
-    _samples_3d(p, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]))
-
-
-@njit(parallel=True, **JIT)
-def matrix_3d_parallel(p, q, qd, qdd, o):
-    """:func:`matrix_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (3 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples_3d(p, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK))
-
-
-#: dim -> (serial kernel, parallel kernel)
-KERNELS = {2: (matrix_2d, matrix_2d_parallel), 3: (matrix_3d, matrix_3d_parallel)}
+#: dim -> (serial kernel, parallel kernel): matrix_2d, matrix_2d_parallel, matrix_3d, matrix_3d_parallel
+KERNELS = drivers(__name__, "matrix", "matrix", {2: _samples_2d, 3: _samples_3d})

@@ -19,10 +19,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from exo_bench.matrix_method.closed_forms.coefficients import recurrence_increments
-from exo_bench.matrix_method.numba_kernels.common import BLOCK, JIT, RATES_2D, RATES_3D, add_planar, add_planar_gravity
+from exo_bench.matrix_method.numba_kernels.common import JIT, RATES_2D, RATES_3D, add_planar, add_planar_gravity, drivers
 from exo_bench.matrix_method.numba_kernels.matrix import products, spatial_matrices
 from exo_bench.models.mechanism import Mechanism
 
@@ -118,33 +118,6 @@ def _samples(p, ints, floats, q, qd, qdd, o, start, stop, dim):
         _sample(p, ints, floats, q, qd, qdd, o, s * dim * n, dim, pl, ps, pP, nus, geo, m3, P3, cs, xr)
 
 
-@njit(**JIT)
-def recurrence_2d(p, ints, floats, q, qd, qdd, o):
-    """Method ``recurrence``, planar: every sample of the flat states, in turn, into ``o``."""
-    _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (2 * p.shape[0]), 2)
-
-
-@njit(parallel=True, **JIT)
-def recurrence_2d_parallel(p, ints, floats, q, qd, qdd, o):
-    """:func:`recurrence_2d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (2 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 2)
-
-
-@njit(**JIT)
-def recurrence_3d(p, ints, floats, q, qd, qdd, o):
-    """Method ``recurrence``, spatial: every sample of the flat states, in turn, into ``o``."""
-    _samples(p, ints, floats, q, qd, qdd, o, 0, q.shape[0] // (3 * p.shape[0]), 3)
-
-
-@njit(parallel=True, **JIT)
-def recurrence_3d_parallel(p, ints, floats, q, qd, qdd, o):
-    """:func:`recurrence_3d` with blocks of :data:`exo_bench.matrix_method.numba_kernels.common.BLOCK` samples over numba's threads."""
-    S = q.shape[0] // (3 * p.shape[0])
-    for b in prange((S + BLOCK - 1) // BLOCK):
-        _samples(p, ints, floats, q, qd, qdd, o, b * BLOCK, min(S, (b + 1) * BLOCK), 3)
-
-
-#: dim -> (serial kernel, parallel kernel)
-KERNELS = {2: (recurrence_2d, recurrence_2d_parallel), 3: (recurrence_3d, recurrence_3d_parallel)}
+#: dim -> (serial kernel, parallel kernel): recurrence_2d, recurrence_2d_parallel, recurrence_3d, recurrence_3d_parallel
+KERNELS = drivers(__name__, "recurrence", "recurrence", {2: _samples, 3: _samples}, extra=("ints", "floats"),
+                  dim_argument=True)

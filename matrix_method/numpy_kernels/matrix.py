@@ -126,13 +126,13 @@ def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
                            for r in bl], axis=1)
 
 
-def in_blocks(mech: Mechanism, build, q, qd, qdd, block: int | None = None) -> np.ndarray:
-    """``generalised_forces(mech, build(mech, q_b), qd_b, qdd_b)`` over blocks of samples (default
-    :data:`BLOCK`), so that the ``(block, n, n)`` matrices stay in the CPU cache."""
-    block = block or BLOCK
+def in_tiles(mech: Mechanism, build, q, qd, qdd, tile: int | None = None) -> np.ndarray:
+    """``generalised_forces(mech, build(mech, q_b), qd_b, qdd_b)`` over tiles of samples (default
+    :data:`TILE`), so that the ``(tile, n, n)`` matrices stay in the CPU cache."""
+    tile = tile or TILE
     out = np.empty_like(q)
-    for s in range(0, q.shape[0], block):
-        b = slice(s, s + block)
+    for s in range(0, q.shape[0], tile):
+        b = slice(s, s + tile)
         out[b] = generalised_forces(mech, build(mech, q[b]), qd[b], qdd[b])
     return out
 
@@ -140,7 +140,7 @@ def in_blocks(mech: Mechanism, build, q, qd, qdd, block: int | None = None) -> n
 def inverse_dynamics_from_matrices(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     """The matrix method step by step: :func:`matrices`, then :func:`generalised_forces`."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    return in_blocks(mech, matrices, q, qd, qdd)
+    return in_tiles(mech, matrices, q, qd, qdd)
 
 
 def _cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -153,9 +153,10 @@ def _cos_sin(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (1.0 - h) * (1.0 + h) * d, 2.0 * h * d
 
 
-#: Samples per block of the fast path: the temporaries of a block, (n, BLOCK) floats each, stay
-#: in the CPU cache (and below the allocator's mmap threshold); larger arrays are slower per sample.
-BLOCK = 1024
+#: Samples per tile of the fast path (a group of samples, not a coordinate block): the temporaries of
+#: a tile, (n, TILE) floats each, stay in the CPU cache (and below the allocator's mmap threshold);
+#: larger arrays are slower per sample.
+TILE = 1024
 
 
 def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
@@ -174,15 +175,15 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
     product with the constant ``c`` per Cartesian axis, and no matrix is formed. Equal to
     :func:`inverse_dynamics_from_matrices` to rounding (tested).
 
-    Batched: each block of :data:`BLOCK` samples is one vectorised evaluation with the samples on
-    the fast axis (``(n, BLOCK)`` rows); the loop runs over blocks, for cache locality.
+    Batched: each tile of :data:`TILE` samples is one vectorised evaluation with the samples on
+    the fast axis (``(n, TILE)`` rows); the loop runs over tiles, for cache locality.
     """
     q, qd, qdd = as_states(mech, q, qd, qdd)
     out = np.empty_like(q)
     kernel = _factored_2d if mech.dim == 2 else _factored_3d
     c, nu_s = signed_coupling(mech), signed_gravity(mech)[:, None]
-    for s in range(0, q.shape[0], BLOCK):
-        b = slice(s, s + BLOCK)
+    for s in range(0, q.shape[0], TILE):
+        b = slice(s, s + TILE)
         out[b] = kernel(mech.nlinks, mech.g, c, nu_s, q[b].T.copy(), qd[b].T.copy(), qdd[b].T.copy()).T
     return out
 

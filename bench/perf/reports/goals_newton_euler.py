@@ -47,7 +47,7 @@ def _per_sample(df: pd.DataFrame, group_prefix: str) -> pd.DataFrame:
     return d[(d["dim"] == 3) & (d.get("topology", "chain") == "chain")] if "topology" in d else d
 
 
-def goals_issue22(df: pd.DataFrame) -> list[str]:
+def newton_euler_goals(df: pd.DataFrame) -> list[str]:
     """The section's Markdown lines (empty when the run has no newton-euler row)."""
     inv = _per_sample(df, "inverse-batched")
     fwd = _per_sample(df, "forward-batched")

@@ -99,7 +99,7 @@ def speed_goals(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
                    + ("" if samples >= 10_000 else " (quick profile: fewer samples than the goal's 10,000)") + ".")
         pin = {m: bat[m] for m in ("pinocchio", "pinocchio-parallel") if m in bat.index}
         if pin:
-            best = min(pin, key=pin.get)
+            best = min(pin, key=lambda m: pin[m])
             threads = exo[exo["batched"] & (exo["method"] == best)]["threads"].iloc[0] if "threads" in exo else ""
             r = pin[best] / us
             out.append(f"- Batched, exo5-3d: Pinocchio's best batched path `{best}`"
@@ -212,8 +212,8 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
     lines += speed_goals(inv, skips)
-    from exo_bench.bench.perf.reports.goals_newton_euler import goals_issue22   # newton-euler's goals and forward table
-    lines += goals_issue22(df)
+    from exo_bench.bench.perf.reports.goals_newton_euler import newton_euler_goals   # newton-euler's goals and forward table
+    lines += newton_euler_goals(df)
     per = inv[~inv["batched"]].copy()
     per["us_per_call"] = per["median"] * 1e6
     if not per.empty:

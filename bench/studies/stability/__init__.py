@@ -20,14 +20,18 @@ The forward-dynamics part (round trip, energy drift, stiff rods, work-precision 
 in the ``forward_*`` modules; :func:`run` writes both into ``reports/stability.md`` with its PNGs.
 
 One responsibility per module: ``cases`` and ``forward_cases`` (what is computed),
-``evaluation`` and ``forward_evaluation`` (computing it), ``figures`` and ``forward_figures``,
+``evaluation`` and ``forward_evaluation`` (computing it; the forward parts in ``forward_round_trip``,
+``forward_energy`` and ``forward_terms``), ``figures`` and ``forward_figures``,
 ``report`` and ``forward_report`` (the Markdown, and :func:`run`, the ``exo-bench stability`` job).
 This package re-exports their public names.
 """
 
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, TIGHTER, ROUND_TRIP_RULE, RoundTripCase, round_trip_cases, SpringCase, conservative_cases, hanging_chain, stiff_case  # noqa: F401
 from exo_bench.bench.studies.stability.cases import EPS, REL_UNUSABLE, REL_DEGRADED, COND_ILL, COND_SINGULAR, IllConditionedWarning, Profile, QUICK, FULL, Case, BASELINE, family_baseline, family_near_vertical, family_removable, family_lengths, family_masses, family_large_n, family_fast_gaits, FAMILIES  # noqa: F401
-from exo_bench.bench.studies.stability.forward_evaluation import Variational, variational, a_priori_bound, RoundTrip, round_trip_run, round_trip, energy_gradient, energy_bound, EnergyRun, energy_drift, StiffRun, stiff_run, TermsRow, terms_agreement, SingularDemo, singular_demos, ForwardResults, rt_failed, run_forward  # noqa: F401
+from exo_bench.bench.studies.stability.forward_round_trip import Variational, variational, a_priori_bound, RoundTrip, round_trip_run, round_trip  # noqa: F401
+from exo_bench.bench.studies.stability.forward_energy import energy_gradient, energy_bound, EnergyRun, energy_drift, StiffRun, stiff_run  # noqa: F401
+from exo_bench.bench.studies.stability.forward_terms import TermsRow, terms_agreement, SingularDemo, singular_demos  # noqa: F401
+from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults, rt_failed, run_forward  # noqa: F401
 from exo_bench.bench.studies.stability.evaluation import reference_forces, MethodRow, CaseResult, evaluate_case, equilibrated_mu_condition, FamilyResult, evaluate_family, method_options, evaluate_families  # noqa: F401
 from exo_bench.bench.studies.stability.forward_figures import work_precision_figure, stiff_figure, forward_figures  # noqa: F401
 from exo_bench.bench.studies.stability.figures import FLOOR, families_figure, conditioning_figure  # noqa: F401

@@ -143,7 +143,8 @@ def hanging_chain(mass_scale: float = 1.0) -> tuple[Mechanism, np.ndarray]:
     angles -pi/2 + (0.5, 0.3, -0.4); ``mass_scale`` multiplies the masses of the last link."""
     base = chain(3, 2)
     masses = list(base.masses)
-    masses[-1] = tuple(mass_scale * x for x in masses[-1])
+    m0, m1, m2 = masses[-1]
+    masses[-1] = (mass_scale * m0, mass_scale * m1, mass_scale * m2)
     name = "chain3-2d hanging" + ("" if mass_scale == 1 else f", last link masses x{mass_scale:g}")
     mech = base.replace(masses=tuple(masses), name=name)
     q0 = np.array([-math.pi / 2 + 0.5, -math.pi / 2 + 0.3, -math.pi / 2 - 0.4, 0.43, 0.43, 0.43])

@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from exo_bench.bench.studies.stability.figures import FONT_MIN, legend_outside, style_axes
-from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults, StiffRun
+from exo_bench.bench.studies.stability.forward_energy import StiffRun
+from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
 
 
 #: One colour and marker per integrator, the same in every figure (no threshold is drawn here).

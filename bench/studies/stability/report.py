@@ -222,7 +222,7 @@ def run(options: StabilityOptions) -> int:
     """``exo-bench stability [--full] [--reports DIR]``: write ``stability.md`` and its PNGs.
 
     ``options.evaluate(profile, methods, log) -> (families, forward)``, if set, computes the results
-    (:func:`exo_bench.bench.cluster.cluster.stability_evaluator`: as tasks on a Dask cluster); else
+    (:func:`exo_bench.bench.cluster.commands.stability_evaluator`: as tasks on a Dask cluster); else
     this process does."""
     from exo_bench.bench.studies.stability.forward_evaluation import run_forward
     from exo_bench.bench.studies.stability.forward_figures import forward_figures

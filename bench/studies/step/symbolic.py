@@ -51,7 +51,8 @@ def _positions(mech: Mechanism, q) -> list:
     n = mech.nlinks
     lengths = q[-n:]
     fr = mech.fractions
-    ends, out = [], []
+    ends: list = []
+    out: list = []
     for i in range(n):
         w = mech.sign[i] * lengths[i] * _unit(mech, q, i)
         start = ends[mech.parent[i]] if mech.parent[i] >= 0 else ca.SX.zeros(mech.dim)

@@ -1,0 +1,121 @@
+"""numba's on-disk cache keyed on the source of every function a kernel inlines.
+
+numba keys a cached kernel on its own file only (the source stamp of its cache index): an edit to
+an element function that a kernel inlines from another file (``register_jitable``), or an upgrade
+that changes only that file, would leave the old machine code serving wrong forces, silently.
+:class:`KernelSourceLocator` wraps numba's own locator for the kernels of the registered kernel
+folders (:func:`register_kernel_dir`; same cache folder, same file names) and adds to the source
+stamp a hash of every module of the kernel's folder and of the files its kernels inline
+(:func:`inlined_sources`): any edit there makes the index's stamp differ, so numba recompiles and
+overwrites the entry instead of loading it. It is put first in numba's list of locators when this
+module is imported; a kernel folder is registered before its kernels are defined (the matrix
+family's by :mod:`exo_bench.matrix_method.numba_kernels.cache`, newton-euler's by
+:mod:`exo_bench.models.numba_threads`, which its kernels import for their jit options).
+tests/test_compiled.py and tests/test_kernel_cache.py edit an element function in a copy of the
+package and see the new forces from the compiled kernels.
+
+numba's documentation says a cached function is invalidated "when the corresponding source file is
+modified" and that changes to functions it calls in other files are not detected; this closes that
+gap for our kernels (numba/core/caching.py: ``_CacheLocator.get_source_stamp``, ``CacheImpl._locator_classes``).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import inspect
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+from numba.core import caching
+from numba.extending import register_jitable
+
+_CacheLocator = caching._CacheLocator
+#: numba's cache implementation, whose ``_locator_classes`` lists the locators tried in order
+#: (``CacheImpl`` in numba 0.68; ``_CacheImpl`` before).
+_CacheImpl: Any = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")  # noqa: B009
+
+#: The kernel folders, each with the files (beyond its own modules) whose functions its kernels inline.
+KERNEL_DIRS: dict[Path, dict[str, None]] = {}
+
+
+def register_kernel_dir(folder: str | Path) -> Path:
+    """Kernels defined in a file of ``folder`` use :class:`KernelSourceLocator` from now on."""
+    path = Path(folder).resolve()
+    KERNEL_DIRS.setdefault(path, {})
+    inlined_sources_hash.cache_clear()
+    return path
+
+
+def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, always: bool = False) -> None:
+    """Register ``functions`` with numba (``register_jitable``: callable from a kernel, and still plain
+    Python for numpy and sympy) and key the cache of the kernels of ``kernel_dir`` on their source
+    files; ``always``: inline them in numba's IR (generated call lists, which must compile as if
+    written out)."""
+    files = KERNEL_DIRS[register_kernel_dir(kernel_dir)]
+    for f in functions:
+        if always:
+            register_jitable(inline="always")(f)
+        else:
+            register_jitable(f)
+        files[str(Path(inspect.getfile(f)).resolve())] = None
+    inlined_sources_hash.cache_clear()
+
+
+def inlined_sources(kernel_dir: str | Path) -> list[Path]:
+    """The source files the kernels of ``kernel_dir`` depend on: every module of that folder and the
+    modules of the element functions registered for it."""
+    folder = Path(kernel_dir).resolve()
+    own = sorted(p.resolve() for p in folder.glob("*.py"))
+    return own + [Path(p) for p in KERNEL_DIRS.get(folder, {}) if Path(p) not in own]
+
+
+@functools.cache
+def inlined_sources_hash(kernel_dir: Path) -> str:
+    h = hashlib.sha256()
+    for p in inlined_sources(kernel_dir):
+        h.update(str(p.name).encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+class KernelSourceLocator(_CacheLocator):
+    """numba's own locator for a kernel file of a registered folder, with a source stamp that also
+    covers :func:`inlined_sources`."""
+
+    def __init__(self, inner: _CacheLocator, kernel_dir: Path) -> None:
+        self._inner = inner
+        self._kernel_dir = kernel_dir
+
+    def ensure_cache_path(self) -> None:
+        self._inner.ensure_cache_path()
+
+    def get_cache_path(self) -> str:
+        return self._inner.get_cache_path()
+
+    def get_disambiguator(self) -> str:
+        return self._inner.get_disambiguator()
+
+    def get_source_stamp(self) -> Any:
+        return (self._inner.get_source_stamp(), inlined_sources_hash(self._kernel_dir))
+
+    @classmethod
+    def from_function(cls, py_func: Callable[..., Any], py_file: str) -> KernelSourceLocator | None:
+        try:
+            folder = Path(py_file).resolve().parent
+        except OSError:
+            return None
+        if folder not in KERNEL_DIRS:
+            return None
+        for base in _CacheImpl._locator_classes:
+            if base is cls:
+                continue
+            inner = base.from_function(py_func, py_file)
+            if inner is not None:
+                return cls(inner, folder)
+        return None
+
+
+if KernelSourceLocator not in _CacheImpl._locator_classes:
+    _CacheImpl._locator_classes.insert(0, KernelSourceLocator)
