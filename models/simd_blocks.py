@@ -26,7 +26,7 @@ from numba import njit
 
 from exo_bench.models.numba_threads import JIT, PARALLEL_MIN_SAMPLES
 
-_jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a **dict of its options
+_jit = njit(**JIT)
 
 #: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
 LANES = 32

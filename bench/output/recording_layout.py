@@ -63,9 +63,12 @@ def _groups(study: Study, part: int) -> tuple:
     ok = study.ok_methods()
     if not ok:
         return None, {}
-    data = {m: moments_and_forces(study.mechanism, study.results[m].tau)[part] for m in ok}
+    taus = {m: study.results[m].tau for m in ok}      # ok methods: each produced tau
+    data = {m: moments_and_forces(study.mechanism, tau)[part] for m, tau in taus.items() if tau is not None}
     # Groups follow the reference method's scales; the other methods' curves share its groups.
-    ref = data[reference_method(study)]
+    ref_method = reference_method(study)
+    assert ref_method is not None, "ok methods exist, so a reference method does"
+    ref = data[ref_method]
     return group_by_scale(np.where(np.isfinite(ref), np.abs(ref), 0.0).max(axis=0), SCALE_RATIO), data
 
 

@@ -58,7 +58,7 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
         w, h = (int(x) for x in size.split("x"))
         img = Image.open(shot).convert("RGB")
         if img.size != (w, h):
-            img = img.resize((w, h), Image.LANCZOS)
+            img = img.resize((w, h), Image.Resampling.LANCZOS)
         import io
 
         buf = io.BytesIO()

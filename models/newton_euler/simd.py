@@ -52,7 +52,7 @@ from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2,
 for _f in el.ELEMENTS:
     register_jitable(_f)
 
-_jit = njit(**JIT)  # type: ignore[call-overload]  # numba's stubs do not take a **dict of its options
+_jit = njit(**JIT)
 
 #: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
