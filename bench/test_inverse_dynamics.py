@@ -2,6 +2,10 @@
 its error against the 50-digit reference in ``extra_info`` and ASSERTED (one table for error
 against run time, one for scaling in n, one for the wrapper's own cost).
 
+Longer than the project's 400 lines on purpose: the distributed sweep keys its rows (and their
+checkpoints) by file and model (bench/perf/rows.py), so per call and batched for one model, which
+the reports divide by each other, stay one row of one file.
+
 Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readable parameters);
 ``extra_info["method"]`` is the row's name, which says what runs:
 

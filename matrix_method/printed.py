@@ -5,6 +5,9 @@ equations (and Pinocchio) and writes the verdicts to ``reports/errata.md``; the 
 ``matrix-paper`` evaluates :data:`TRANSITIONS` literally. Where an entry carries a ``corrected``
 form, that is a hypothesis the same report verifies.
 
+Longer than the project's 400 lines on purpose: one table of the printed formulas, in the paper's
+order, each once; split, a reader could no longer check it against the paper page by page.
+
 Transcription conventions (the source is the Russian original's LaTeX,
 ``/work/shared/paper/borisov-chigarev-original-ru.md``):
 
