@@ -71,38 +71,44 @@ def _rows_out(o, s0, m, n, blocks, F):
                 o[U(b + k * n + i)] = F[U((i * FROWS + O0 + k) * B + s)]
 
 
-@_jit
-def _rows_in_by_link(q, qd, qdd, s0, m, n, blocks, W):
-    """:func:`_rows_in` in the other loop order: per state ``(block k, link j)``, the ``m`` samples in
-    turn, so that the stores run along a row of ``W`` and the loads along a column of the states
-    (stride ``dof``). :func:`_rows_in` stores ``W`` at a stride of ``ROWS * LANES`` doubles (4 KiB,
-    one cache set) and rereads each sample's row ``n`` times further apart as ``n`` grows: 3D
-    chains of n = 100 and 1000 took 21.5 and 28.6 ns per link and sample for both transposes, this
-    order 17.7 and 16.0 (n = 5: 6.2 and 4.9; the shared 2-core machine, load 2.9)."""
-    dof = blocks * n
-    B = LANES
-    for k in range(blocks):
-        for j in range(n):
-            w = (j * ROWS + k) * B
-            c = s0 * dof + k * n + j
-            for s in range(m):
-                W[U(w + s)] = q[U(c + s * dof)]
-                W[U(w + 3 * B + s)] = qd[U(c + s * dof)]
-                W[U(w + 6 * B + s)] = qdd[U(c + s * dof)]
+def by_link_transposes(lanes: int):
+    """The two by-link transposes (:func:`_rows_in_by_link`, :func:`_rows_out_by_link`) compiled for
+    blocks of ``lanes`` samples (numba freezes ``lanes`` as a constant, as it does :data:`LANES`)."""
+    B = lanes
+
+    @_jit
+    def _rows_in_by_link(q, qd, qdd, s0, m, n, blocks, W):
+        """:func:`_rows_in` in the other loop order: per state ``(block k, link j)``, the ``m`` samples in
+        turn, so that the stores run along a row of ``W`` and the loads along a column of the states
+        (stride ``dof``). :func:`_rows_in` stores ``W`` at a stride of ``ROWS * LANES`` doubles (4 KiB,
+        one cache set) and rereads each sample's row ``n`` times further apart as ``n`` grows: 3D
+        chains of n = 100 and 1000 took 21.5 and 28.6 ns per link and sample for both transposes, this
+        order 17.7 and 16.0 (n = 5: 6.2 and 4.9; the shared 2-core machine, load 2.9)."""
+        dof = blocks * n
+        for k in range(blocks):
+            for j in range(n):
+                w = (j * ROWS + k) * B
+                c = s0 * dof + k * n + j
+                for s in range(m):
+                    W[U(w + s)] = q[U(c + s * dof)]
+                    W[U(w + 3 * B + s)] = qd[U(c + s * dof)]
+                    W[U(w + 6 * B + s)] = qdd[U(c + s * dof)]
+
+    @_jit
+    def _rows_out_by_link(o, s0, m, n, blocks, F):
+        """:func:`_rows_out` in the loop order of :func:`_rows_in_by_link`: the loads along a row of ``F``."""
+        dof = blocks * n
+        for k in range(blocks):
+            for i in range(n):
+                f = (i * FROWS + O0 + k) * B
+                c = s0 * dof + k * n + i
+                for s in range(m):
+                    o[U(c + s * dof)] = F[U(f + s)]
+
+    return _rows_in_by_link, _rows_out_by_link
 
 
-@_jit
-def _rows_out_by_link(o, s0, m, n, blocks, F):
-    """:func:`_rows_out` in the loop order of :func:`_rows_in_by_link`: the loads along a row of ``F``."""
-    dof = blocks * n
-    B = LANES
-    for k in range(blocks):
-        for i in range(n):
-            f = (i * FROWS + O0 + k) * B
-            c = s0 * dof + k * n + i
-            for s in range(m):
-                o[U(c + s * dof)] = F[U(f + s)]
-
+_rows_in_by_link, _rows_out_by_link = by_link_transposes(LANES)
 
 _POOL: ThreadPoolExecutor | None = None
 _POOL_LOCK = threading.Lock()

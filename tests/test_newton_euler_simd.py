@@ -145,3 +145,30 @@ def test_the_counted_flops_are_the_kernel_s_and_grow_linearly(dim):
         assert np.array_equal(tau, prepare(m, "newton-euler").inverse_dynamics(q, qd, qdd)[0]), n
         flops.append(count["flops"])
     assert flops[2] - flops[1] == 2 * (flops[1] - flops[0]) > 0, flops
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("n", [simd.NARROW_FROM_LINKS - 1, simd.NARROW_FROM_LINKS])
+def test_large_mechanisms_run_the_narrow_blocks_and_agree_with_the_numpy_reference(n, dim):
+    """Around :data:`simd.NARROW_FROM_LINKS` the block size changes (:data:`simd.NARROW_LANES` samples
+    from it on): batch sizes that are not multiples of either block (partial blocks), against the
+    numpy reference in the error model, and to the bit against the other block size (the same
+    operations per sample, so a batch's result does not depend on how it is blocked)."""
+    m = random_tree(n, dim, 7)
+    fast, ref = prepare(m, "newton-euler"), prepare(m, "newton-euler", kernel="numpy")
+    narrow = n >= simd.NARROW_FROM_LINKS
+    kernel = simd.kernel_for(n)
+    assert fast.batch_kernel is kernel                                  # what runs, by name
+    assert (kernel is simd._NARROW.simd_inverse) == narrow and (kernel is simd.simd_inverse) != narrow
+    other = simd.simd_inverse if narrow else simd._NARROW.simd_inverse
+    calls = _spy(fast)
+    for S in (1, simd.NARROW_LANES - 1, simd.NARROW_LANES + 1, LANES + 5):
+        q, qd, qdd = random_states(m, S, n + S)
+        del calls[:]
+        got = fast.inverse_dynamics(q, qd, qdd)
+        assert sum(calls) == S, f"S={S}: batch kernel ran for {calls}"
+        assert_forces_agree(got, ref.inverse_dynamics(q, qd, qdd), m, q, qd, qdd, what=f"n={n} S={S}")
+        o = np.full(q.shape, np.nan)
+        other(fast.batch_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1), 0, S)
+        np.testing.assert_array_equal(got, o)
+    assert simd._NARROW.simd_inverse.signatures                         # the narrow variant was compiled and ran

@@ -27,8 +27,11 @@ __all__ = ["count_newton_euler_simd", "estimate_simd"]
 
 
 def _rebind(fn, **names):
-    """``fn``'s Python function with some of its globals replaced."""
-    return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__)
+    """``fn``'s Python function with some of its globals or closure variables replaced (the kernel's
+    functions are closures of :func:`exo_bench.models.newton_euler.simd.build`)."""
+    cells = None if fn.__closure__ is None else tuple(
+        types.CellType(names[v]) if v in names else c for v, c in zip(fn.__code__.co_freevars, fn.__closure__))
+    return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__, fn.__defaults__, cells)
 
 
 def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:

@@ -55,8 +55,9 @@ class NewtonEuler(PreparedModel):
         self._forward_args = (self.table, float(mechanism.g), int(mechanism.dim), True)
         #: The batched inverse dynamics of at least :data:`exo_bench.models.newton_euler.simd.MIN_SAMPLES`
         #: samples: the kernel that vectorises across samples, ``batch_kernel(batch_args, q, qd, qdd, out,
-        #: start, stop)`` (:mod:`exo_bench.models.newton_euler.simd`).
-        self.batch_kernel, self.batch_args = simd.simd_inverse, (self.table, self._g, self._dim)
+        #: start, stop)`` (:mod:`exo_bench.models.newton_euler.simd`), its block size chosen from the links.
+        self.batch_kernel = simd.kernel_for(int(self.table.shape[1]))
+        self.batch_args = (self.table, self._g, self._dim)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (None if self.tree.singular < 0
                               else singular_mass_reason(mechanism, int(self.tree.singular)))

@@ -28,6 +28,10 @@ Reading each link's states straight from the user's arrays inside the forward pa
 loads, no transpose in) was tried and measured 0.79-0.87x as fast at 3D n = 5, 20, 100 and 1.12x at
 n = 1000 (the shared machine, load 3.7): the transposes stay.
 
+The functions are built by :func:`build` for a block size that numba compiles in as a constant:
+blocks of :data:`LANES` samples, or :data:`NARROW_LANES` for mechanisms of at least
+:data:`NARROW_FROM_LINKS` links (:func:`kernel_for`, chosen at prepare time).
+
 One sample as 1-D arrays runs the per-sample kernel; every batch (:data:`MIN_SAMPLES`) runs this
 kernel through :func:`exo_bench.models.simd_blocks.run` (threads without numba's threading layer).
 numba's on-disk cache is keyed on this file: after editing ``elements.py``, ``fast_trig.py`` or
@@ -37,6 +41,7 @@ numba's on-disk cache is keyed on this file: after editing ``elements.py``, ``fa
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 from numba import njit
@@ -47,7 +52,7 @@ from exo_bench.models.newton_euler import elements as el
 from exo_bench.models.numba_threads import JIT
 from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN,
                                           LEN2, O0, O1, O2, PHI, PSI, ROWS, SF, SP, V1, V2, W1, W2,
-                                          _rows_in_by_link, _rows_out_by_link)
+                                          by_link_transposes)
 
 for _f in el.ELEMENTS:
     register_jitable(_f)
@@ -69,144 +74,170 @@ _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 MIN_SAMPLES = 1
 
 
-@_jit
-def _start_points(t, g, dim, k, m, W, F):
-    """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
+def build(lanes: int) -> SimpleNamespace:
+    """The kernel's functions compiled for blocks of ``lanes`` samples (numba freezes ``lanes`` as a
+    constant: a runtime block size left the loops scalar, 2.5-3x slower); :func:`kernel_for` picks
+    the block size for a mechanism."""
+    B = lanes
+    rows_in, rows_out = by_link_transposes(lanes)
 
-    The loops index per-link views (``Fk``, ``Fp``, ``Wp``): with the offsets of links ``k`` and ``p``
-    folded into the views' pointers LLVM vectorises them (indexing the whole arrays at runtime
-    offsets, it did not, measured with ``inspect_asm``)."""
-    B = LANES
-    Fk = F[k * FROWS * B:(k + 1) * FROWS * B]
-    p = int(t[_PARENT, k])
-    if p >= 0:
-        Fp, Wp = F[p * FROWS * B:(p + 1) * FROWS * B], W[p * ROWS * B:(p + 1) * ROWS * B]
-        for s in range(m):
-            Fk[O0 * B + s] = Fp[O0 * B + s] + Wp[K0 * B + s]
-            Fk[O1 * B + s] = Fp[O1 * B + s] + Wp[K1 * B + s]
-            Fk[O2 * B + s] = Fp[O2 * B + s] + Wp[K2 * B + s]
-            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
-    else:
-        up1, up2 = (g, 0.0) if dim == 2 else (0.0, g)
-        for s in range(m):
-            Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = 0.0, up1, up2
-            Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
+    @_jit
+    def _start_points(t, g, dim, k, m, W, F):
+        """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
 
-
-@_jit
-def _backward(t, dim, m, W, F):
-    """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
-    (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
-    in :func:`_start_points`."""
-    n = t.shape[1]
-    B = LANES
-    for k in range(n - 1, -1, -1):
-        Wk, Fk = W[k * ROWS * B:(k + 1) * ROWS * B], F[k * FROWS * B:(k + 1) * FROWS * B]
-        zeta, eta, theta, s_k = t[_ZETA, k], t[_ETA, k], t[_THETA, k], t[_SIGN, k]
+        The loops index per-link views (``Fk``, ``Fp``, ``Wp``): with the offsets of links ``k`` and ``p``
+        folded into the views' pointers LLVM vectorises them (indexing the whole arrays at runtime
+        offsets, it did not, measured with ``inspect_asm``)."""
+        Fk = F[k * FROWS * B:(k + 1) * FROWS * B]
         p = int(t[_PARENT, k])
         if p >= 0:
-            Fp = F[p * FROWS * B:(p + 1) * FROWS * B]
+            Fp, Wp = F[p * FROWS * B:(p + 1) * FROWS * B], W[p * ROWS * B:(p + 1) * ROWS * B]
             for s in range(m):
-                Fp[F0 * B + s] += el.subtree_share(theta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
-                Fp[F1 * B + s] += el.subtree_share(theta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
-                Fp[F2 * B + s] += el.subtree_share(theta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
-        if dim == 3:
-            for s in range(m):
-                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
-                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
-                f2 = el.rod_force(zeta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
-                m0, m1, m2 = el.project_3d(Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s],
-                                           Wk[LEN * B + s], f0, f1, f2)
-                Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
+                Fk[O0 * B + s] = Fp[O0 * B + s] + Wp[K0 * B + s]
+                Fk[O1 * B + s] = Fp[O1 * B + s] + Wp[K1 * B + s]
+                Fk[O2 * B + s] = Fp[O2 * B + s] + Wp[K2 * B + s]
+                Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
         else:
+            up1, up2 = (g, 0.0) if dim == 2 else (0.0, g)
             for s in range(m):
-                f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
-                f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
-                m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
-                Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
+                Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = 0.0, up1, up2
+                Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
 
+    @_jit
+    def _backward(t, dim, m, W, F):
+        """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
+        (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
+        in :func:`_start_points`."""
+        n = t.shape[1]
+        for k in range(n - 1, -1, -1):
+            Wk, Fk = W[k * ROWS * B:(k + 1) * ROWS * B], F[k * FROWS * B:(k + 1) * FROWS * B]
+            zeta, eta, theta, s_k = t[_ZETA, k], t[_ETA, k], t[_THETA, k], t[_SIGN, k]
+            p = int(t[_PARENT, k])
+            if p >= 0:
+                Fp = F[p * FROWS * B:(p + 1) * FROWS * B]
+                for s in range(m):
+                    Fp[F0 * B + s] += el.subtree_share(theta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                    Fp[F1 * B + s] += el.subtree_share(theta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                    Fp[F2 * B + s] += el.subtree_share(theta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
+            if dim == 3:
+                for s in range(m):
+                    f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                    f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                    f2 = el.rod_force(zeta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
+                    m0, m1, m2 = el.project_3d(Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s],
+                                               Wk[LEN * B + s], f0, f1, f2)
+                    Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
+            else:
+                for s in range(m):
+                    f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
+                    f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
+                    m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
+                    Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
-@_jit
-def _forward_3d(t, g, m, W, F):
-    """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
-    angles beyond RANGE), then its start point."""
-    n = t.shape[1]
-    B = LANES
-    for k in range(n):
-        w, s_k = k * ROWS * B, t[_SIGN, k]
-        outside = 0
-        for s in range(m):
-            phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-            okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
-            sf, cf = sincos_reduced(phi if okf else 0.0)
-            sp, cp = sincos_reduced(psi if okp else 0.0)
-            outside += (0 if okf else 1) + (0 if okp else 1)
-            W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-            a0, a1, a2 = el.rod_acceleration_3d(
-                cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
-                W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
-            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
-        if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+    @_jit
+    def _forward_3d(t, g, m, W, F):
+        """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
+        angles beyond RANGE), then its start point."""
+        n = t.shape[1]
+        for k in range(n):
+            w, s_k = k * ROWS * B, t[_SIGN, k]
+            outside = 0
             for s in range(m):
                 phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-                if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
-                    cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
-                    W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-                    a0, a1, a2 = el.rod_acceleration_3d(
-                        cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s],
-                        W[w + L1 * B + s], W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
-                    W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
-        _start_points(t, g, 3, k, m, W, F)
+                okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
+                sf, cf = sincos_reduced(phi if okf else 0.0)
+                sp, cp = sincos_reduced(psi if okp else 0.0)
+                outside += (0 if okf else 1) + (0 if okp else 1)
+                W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+                a0, a1, a2 = el.rod_acceleration_3d(
+                    cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
+                    W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+                W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
+            if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+                for s in range(m):
+                    phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
+                    if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
+                        cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
+                        W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
+                        a0, a1, a2 = el.rod_acceleration_3d(
+                            cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s],
+                            W[w + L1 * B + s], W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+                        W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
+            _start_points(t, g, 3, k, m, W, F)
 
-
-@_jit
-def _forward_2d(t, g, m, W, F):
-    """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
-    row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
-    n = t.shape[1]
-    B = LANES
-    for k in range(n):
-        w, s_k = k * ROWS * B, t[_SIGN, k]
-        outside = 0
-        for s in range(m):
-            phi = W[w + PHI * B + s]
-            okf = abs(phi) <= RANGE
-            sf, cf = sincos_reduced(phi if okf else 0.0)
-            outside += 0 if okf else 1
-            W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-            a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s],
-                                            W[w + W2 * B + s], W[w + L2_2 * B + s])
-            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, 0.0
-        if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+    @_jit
+    def _forward_2d(t, g, m, W, F):
+        """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
+        row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
+        n = t.shape[1]
+        for k in range(n):
+            w, s_k = k * ROWS * B, t[_SIGN, k]
+            outside = 0
             for s in range(m):
                 phi = W[w + PHI * B + s]
-                if not abs(phi) <= RANGE:
-                    cf, sf = math.cos(phi), math.sin(phi)
-                    W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                    a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s],
-                                                    W[w + L1_2 * B + s], W[w + W2 * B + s], W[w + L2_2 * B + s])
-                    W[w + K0 * B + s], W[w + K1 * B + s] = s_k * a0, s_k * a1
-        _start_points(t, g, 2, k, m, W, F)
+                okf = abs(phi) <= RANGE
+                sf, cf = sincos_reduced(phi if okf else 0.0)
+                outside += 0 if okf else 1
+                W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+                a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s],
+                                                W[w + W2 * B + s], W[w + L2_2 * B + s])
+                W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, 0.0
+            if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+                for s in range(m):
+                    phi = W[w + PHI * B + s]
+                    if not abs(phi) <= RANGE:
+                        cf, sf = math.cos(phi), math.sin(phi)
+                        W[w + CF * B + s], W[w + SF * B + s] = cf, sf
+                        a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s],
+                                                        W[w + L1_2 * B + s], W[w + W2 * B + s], W[w + L2_2 * B + s])
+                        W[w + K0 * B + s], W[w + K1 * B + s] = s_k * a0, s_k * a1
+            _start_points(t, g, 2, k, m, W, F)
+
+    @_jit
+    def _scratch(n):
+        return np.empty(n * ROWS * B), np.empty(n * FROWS * B)
+
+    @_jit
+    def simd_inverse(p, q, qd, qdd, o, start, stop):
+        """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
+        ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``."""
+        t, g, dim = p
+        n = t.shape[1]
+        W, F = _scratch(n)
+        for s0 in range(start, stop, B):
+            m = min(B, stop - s0)
+            rows_in(q, qd, qdd, s0, m, n, dim, W)
+            if dim == 3:
+                _forward_3d(t, g, m, W, F)
+            else:
+                _forward_2d(t, g, m, W, F)
+            _backward(t, dim, m, W, F)
+            rows_out(o, s0, m, n, dim, F)
+
+    return SimpleNamespace(lanes=lanes, _start_points=_start_points, _backward=_backward, _forward_3d=_forward_3d,
+                           _forward_2d=_forward_2d, _scratch=_scratch, simd_inverse=simd_inverse)
 
 
-@_jit
-def _scratch(n):
-    return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
+_WIDE = build(LANES)
+_start_points, _backward, _forward_3d, _forward_2d = (_WIDE._start_points, _WIDE._backward, _WIDE._forward_3d,
+                                                      _WIDE._forward_2d)
+_scratch, simd_inverse = _WIDE._scratch, _WIDE.simd_inverse
+
+#: Blocks of this many samples for mechanisms of at least :data:`NARROW_FROM_LINKS` links.
+NARROW_LANES = 16
+#: From this many links on, blocks of :data:`NARROW_LANES` samples: the scratch of 32-sample blocks
+#: (22 rows of 32 doubles per link, 5.5 MB at n = 1000) is far beyond L2 (1 MiB per core here) and
+#: the transposes read 3 x 32 sample rows at once. 16-sample blocks against 32 on 3D chains (per
+#: sample, one thread, best of 7 interleaved; the shared 2-core machine, load 1.1-1.6): n = 1000
+#: 0.86-1.00x (median 0.95x over 16 runs), n = 100-700 0.97-1.02x, n = 20 1.17-1.24x; 8-sample
+#: blocks were slower at every n (1.05-1.4x). The growth exponent from n = 20 to 1000 falls by
+#: about 0.01 only (1.04-1.06 in these runs): most of the growth is elsewhere.
+NARROW_FROM_LINKS = 800
+_NARROW = build(NARROW_LANES)
 
 
-@_jit
-def simd_inverse(p, q, qd, qdd, o, start, stop):
-    """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
-    ``o``, :data:`LANES` at a time; ``p = (table, g, dim)``."""
-    t, g, dim = p
-    n = t.shape[1]
-    W, F = _scratch(n)
-    for s0 in range(start, stop, LANES):
-        m = min(LANES, stop - s0)
-        _rows_in_by_link(q, qd, qdd, s0, m, n, dim, W)
-        if dim == 3:
-            _forward_3d(t, g, m, W, F)
-        else:
-            _forward_2d(t, g, m, W, F)
-        _backward(t, dim, m, W, F)
-        _rows_out_by_link(o, s0, m, n, dim, F)
+def kernel_for(nlinks: int):
+    """The batched kernel ``(p, q, qd, qdd, o, start, stop)`` for a mechanism of ``nlinks`` links:
+    :func:`simd_inverse` (blocks of :data:`LANES`), or from :data:`NARROW_FROM_LINKS` links on the same
+    kernel compiled for blocks of :data:`NARROW_LANES`."""
+    return _NARROW.simd_inverse if nlinks >= NARROW_FROM_LINKS else simd_inverse
