@@ -49,8 +49,6 @@ JIT: JitOptions = {"cache": True, "nogil": True}
 #: Samples per task of the parallel driver (each task allocates its scratch once): a group of samples,
 #: not a coordinate block.
 SAMPLES_PER_TASK = 64
-#: The old name of :data:`SAMPLES_PER_TASK`, still imported by models/newton_euler/compiled.py.
-BLOCK = SAMPLES_PER_TASK
 #: Batches of at least this many samples run the parallel driver. Below it, waking numba's threads
 #: costs more than it saves: on the 2-core machine (quiet) exo5-3d took 0.12 us/sample serial at
 #: every size, and in parallel 0.20-0.34 us/sample at 600-2048 samples, 0.09-0.17 at 4096, 0.08 at

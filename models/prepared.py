@@ -51,10 +51,9 @@ from exo_bench.models.unchecked import check_out, require_rates, unchecked_forwa
 #: were defined here first and are imported from here.
 __all__ = ["PreparedModel", "MissingExtra", "terms_from_inverse_dynamics", "cholesky_solve", "CHUNK_BYTES",
            "MAX_CHUNK", "USABLE_SHARE", "available_memory", "default_chunk_samples", "usable_memory",
-           "unchecked_states", "unchecked_forward", "_unchecked_forward"]
+           "unchecked_states", "unchecked_forward"]
 
 #: The old private name, still imported by models/newton_euler/prepared.py.
-_unchecked_forward = unchecked_forward
 
 
 class MissingExtra(ValueError):
@@ -282,7 +281,7 @@ class PreparedModel:
                 check_out(out, q.shape[1:] if single else q.shape, self.method)
             self.check_regular(q)
         else:
-            _unchecked_forward(self.method, self._dof, q, qd, tau, out)
+            unchecked_forward(self.method, self._dof, q, qd, tau, out)
             if single:
                 q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))

@@ -23,7 +23,7 @@ from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import random_states
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.tree import prepare_tree, solve_coupling
-from exo_bench.models.numba_threads import BLOCK, PARALLEL_MIN_SAMPLES
+from exo_bench.models.numba_threads import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
 from exo_bench.models.presets import exo5, random_tree
 from exo_bench.models.singularity import SingularConfigurationError
 
@@ -86,7 +86,7 @@ def test_numba_kernel_matches_the_numpy_reference_serial_and_threaded(dim):
     the error model, through one sample, a batch, and a batch long enough for the threaded driver
     (a block boundary inside), with and without ``out``."""
     m = random_tree(6, dim, 21)
-    S = PARALLEL_MIN_SAMPLES + BLOCK + 3
+    S = PARALLEL_MIN_SAMPLES + SAMPLES_PER_TASK + 3
     q, qd, qdd = random_states(m, S, 5)
     fast, ref = prepare(m, "newton-euler"), prepare(m, "newton-euler", kernel="numpy")
     a, b = fast.inverse_dynamics(q, qd, qdd), ref.inverse_dynamics(q, qd, qdd)

@@ -61,7 +61,7 @@ from exo_bench.matrix_method.closed_forms import factored, planar, transitions a
 from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
 from exo_bench.models.numba_threads import (  # noqa: F401 - shared with models.newton_euler, re-exported
-    BLOCK, JIT, PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK, THREADING_LAYER, _PARALLEL, _threading_layer, run)
+    JIT, PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK, THREADING_LAYER, _PARALLEL, _threading_layer, run)
 
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))

@@ -22,7 +22,8 @@ from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
 from exo_bench.models.numba_threads import run
-from exo_bench.models.prepared import PreparedModel, _unchecked_forward, unchecked_states
+from exo_bench.models.prepared import PreparedModel, unchecked_states
+from exo_bench.models.unchecked import unchecked_forward
 from exo_bench.models.simd_blocks import run as run_simd
 from exo_bench.models.singularity import (COS_VERTICAL, SingularConfigurationError, vertical_reason,
                                           zero_length_reason)
@@ -107,7 +108,7 @@ class NewtonEuler(PreparedModel):
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
-        _unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
+        unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
         if q.ndim == 1:
             o = np.empty(q.shape) if out is None else out
             self.serial_kernel(*self._forward_args, q, qd, tau, o)
