@@ -5,4 +5,12 @@ path runs instead."""
 
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("exo_bench.matrix_method.numba_kernels._lean_call", ["matrix_method/numba_kernels/_lean_call.c"], optional=True)])
+setup(
+    ext_modules=[
+        Extension(
+            "exo_bench.matrix_method.numba_kernels._lean_call",
+            ["matrix_method/numba_kernels/_lean_call.c"],
+            optional=True,
+        )
+    ]
+)

@@ -35,12 +35,18 @@ def sweep(request) -> _sweep.Sweep:
 def pytest_runtest_logreport(report):
     if report.skipped and report.when in ("setup", "call"):
         reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
-        _SKIPS.append({"nodeid": report.nodeid, "reason": reason.removeprefix("Skipped: "),
-                       "params": getattr(report, "user_properties", [])})
+        _SKIPS.append(
+            {
+                "nodeid": report.nodeid,
+                "reason": reason.removeprefix("Skipped: "),
+                "params": getattr(report, "user_properties", []),
+            }
+        )
 
 
 def pytest_sessionfinish(session, exitstatus):
     path = session.config.getoption("--skips-json")
     if path:
         from exo_bench.bench.output.provenance import atomic_write
+
         atomic_write(path, json.dumps(_SKIPS, indent=1))

@@ -36,22 +36,27 @@ def model(n: int, dim: int, topology: str) -> Mechanism:
 def _composer(method: str, budget: float):
     if method in ("lagrange", "lagrange-expr"):
         from exo_bench.lagrange import derive
+
         engine = "poly" if method == "lagrange" else "expr"
         return lambda m: derive(m, symbolic_parameters=True, budget=budget, engine=engine, cache=False).equations
     if method in ("sympy-lagrangesmethod", "sympy-kanesmethod"):
         from exo_bench.lagrange.peer import peer_equations
+
         kind = "lagrange" if method == "sympy-lagrangesmethod" else "kane"
         return lambda m: peer_equations(m, kind, symbolic_parameters=True, budget=budget)
     if method == "matrix":
         from exo_bench.matrix_method.symbolic.compose import compose_equations
+
         return lambda m: compose_equations(m, symbolic_parameters=True)
     from exo_bench.matrix_method.recurrence import compose_equations
+
     return lambda m: compose_equations(m, symbolic_parameters=True)
 
 
 def _clear_caches():
     from exo_bench import lagrange
     from exo_bench.matrix_method.symbolic import polynomials
+
     sp.core.cache.clear_cache()
     lagrange.clear_cache()
     polynomials.clear_caches()
@@ -67,6 +72,7 @@ def _same_equations(mech: Mechanism, eqs) -> float:
     """Largest relative difference from the matrix method's equations at a random point."""
     if mech not in _REFERENCE:
         from exo_bench.matrix_method.symbolic.compose import compose_equations
+
         ref = compose_equations(mech, symbolic_parameters=True)
         vals = _values(ref)
         _REFERENCE[mech] = (vals, [sp.N(e.xreplace(vals), 25) for e in ref])
@@ -104,7 +110,7 @@ def test_compose(benchmark, sweep, compose_case, request):
     mech = model(n, dim, topo)
     benchmark.group = f"compose-{dim}d"
     key = (method, dim, topo)
-    for k, v in prior_over_budget(request.config).items():   # found by earlier rows of a distributed sweep
+    for k, v in prior_over_budget(request.config).items():  # found by earlier rows of a distributed sweep
         _FAILED.setdefault(k, v)
     if key in _FAILED and _FAILED[key][0] <= n:  # a smaller model of this kind was already over budget
         request.node.user_properties.append((OVER_BUDGET, [method, *_FAILED[key][:1], dim, topo, _FAILED[key][1]]))

@@ -50,10 +50,13 @@ from exo_bench.models.presets import chain, exo5
 K = 16
 EPS = float(np.finfo(float).eps)
 #: row method -> (registered method, kernel option)
-ROUTES = {"newton-euler (numba)": ("newton-euler", "numba"), "newton-euler (numpy)": ("newton-euler", "numpy"),
-          "pinocchio (CRBA + Cholesky)": ("pinocchio", None),
-          "matrix-factored (numba) + solve": ("matrix-factored", "numba"),
-          "matrix (numba) + solve": ("matrix", "numba")}
+ROUTES = {
+    "newton-euler (numba)": ("newton-euler", "numba"),
+    "newton-euler (numpy)": ("newton-euler", "numpy"),
+    "pinocchio (CRBA + Cholesky)": ("pinocchio", None),
+    "matrix-factored (numba) + solve": ("matrix-factored", "numba"),
+    "matrix (numba) + solve": ("matrix", "numba"),
+}
 NEWTON_EULER = ("newton-euler (numba)", "newton-euler (numpy)")
 #: Samples per batched call (capped by the profile's array bytes, as in bench/test_inverse_dynamics.py).
 SAMPLES = {"quick": 200, "full": 2000}
@@ -75,16 +78,18 @@ def pytest_generate_tests(metafunc):
         metafunc.parametrize("n,dim,topology", mem, ids=[f"chain{c[0]}-3d" for c in mem])
         return
     cases = _cases(sw)
-    metafunc.parametrize("method,kernel,n,dim,topology", cases,
-                         ids=[f"{m.replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
-                              for m, _, n, d, t in cases])
+    metafunc.parametrize(
+        "method,kernel,n,dim,topology",
+        cases,
+        ids=[f"{m.replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d" for m, _, n, d, t in cases],
+    )
 
 
 def _prepare(method, mech):
     base, kernel = ROUTES[method]
     try:
         return prepare(mech, base, **({"kernel": kernel} if kernel else {}))
-    except MemoryError as e:               # Pinocchio's Data (32 nv^3 bytes) does not fit
+    except MemoryError as e:  # Pinocchio's Data (32 nv^3 bytes) does not fit
         pytest.skip(f"{method} n={mech.nlinks}: {e}")
 
 
@@ -96,13 +101,15 @@ def test_forward_batched(benchmark, sweep, method, kernel, n, dim, topology):
     ne = prepare(mech, "newton-euler")
     tau = ne.inverse_dynamics(q, qd, qdd, check=False)
     model = _prepare(method, mech)
-    model.forward_dynamics(q[:1], qd[:1], tau[:1], check=False)          # first-call costs (JIT, caches)
+    model.forward_dynamics(q[:1], qd[:1], tau[:1], check=False)  # first-call costs (JIT, caches)
     t0 = time.perf_counter()
     model.forward_dynamics(q[:1], qd[:1], tau[:1], check=False)
     projected = (time.perf_counter() - t0) * samples
     if projected > sweep.inverse_budget:
-        pytest.skip(f"{method} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of {samples} "
-                    f"> {sweep.inverse_budget:g} s")
+        pytest.skip(
+            f"{method} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of {samples} "
+            f"> {sweep.inverse_budget:g} s"
+        )
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     tracemalloc.reset_peak()
@@ -110,23 +117,44 @@ def test_forward_batched(benchmark, sweep, method, kernel, n, dim, topology):
     peak = tracemalloc.get_traced_memory()[1] - base
     tracemalloc.stop()
     rounds = max(3, min(20, int(2.0 / max(projected, 1e-9))))
-    benchmark.extra_info.update(method=method, base_method=ROUTES[method][0], kernel=ROUTES[method][1] or "",
-                                n=n, dim=dim, topology=topology, mechanism=mech.name, samples=samples, batched=True,
-                                traced_bytes_per_sample=peak / samples)
-    got = np.asarray(benchmark.pedantic(model.forward_dynamics, args=(q, qd, tau), kwargs={"check": False},
-                                        rounds=rounds, iterations=1, warmup_rounds=1))
+    benchmark.extra_info.update(
+        method=method,
+        base_method=ROUTES[method][0],
+        kernel=ROUTES[method][1] or "",
+        n=n,
+        dim=dim,
+        topology=topology,
+        mechanism=mech.name,
+        samples=samples,
+        batched=True,
+        traced_bytes_per_sample=peak / samples,
+    )
+    got = np.asarray(
+        benchmark.pedantic(
+            model.forward_dynamics,
+            args=(q, qd, tau),
+            kwargs={"check": False},
+            rounds=rounds,
+            iterations=1,
+            warmup_rounds=1,
+        )
+    )
     idx = np.unique(np.linspace(0, samples - 1, min(samples, 64)).round().astype(int))
     residual = ne.inverse_dynamics(q[idx], qd[idx], got[idx], check=False) - tau[idx]
     zero = np.zeros_like(q[idx])
     h = ne.inverse_dynamics(q[idx], qd[idx], zero, check=False)
     mq = ne.inverse_dynamics(q[idx], zero, got[idx], check=False) - ne.inverse_dynamics(q[idx], zero, zero, check=False)
     bound = K * EPS * mech.dof * (np.abs(tau[idx]).max() + np.abs(mq).max() + np.abs(h).max())
-    benchmark.extra_info.update(backward_error=float(np.abs(residual).max()), bound=float(bound),
-                                forward_rel_err=float(np.abs(got[idx] - qdd[idx]).max() / np.abs(qdd[idx]).max()),
-                                maxrss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+    benchmark.extra_info.update(
+        backward_error=float(np.abs(residual).max()),
+        bound=float(bound),
+        forward_rel_err=float(np.abs(got[idx] - qdd[idx]).max() / np.abs(qdd[idx]).max()),
+        maxrss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    )
     assert np.isfinite(got).all(), f"{method}: NaN/Inf in the accelerations"
-    assert np.abs(residual).max() <= bound, (f"{method} on {mech.name}: backward error {np.abs(residual).max():.3e} "
-                                             f"> bound {bound:.3e}")
+    assert np.abs(residual).max() <= bound, (
+        f"{method} on {mech.name}: backward error {np.abs(residual).max():.3e} > bound {bound:.3e}"
+    )
 
 
 _MEMORY_PROBE = """
@@ -162,11 +190,20 @@ def test_newton_euler_memory(benchmark, sweep, n, dim, topology):
 
     benchmark.group = "memory-newton-euler"
     samples = int(max(1, min(SAMPLES[sweep.name], sweep.array_bytes // (4 * 8 * 3 * n))))
-    r = subprocess.run([sys.executable, "-c", _MEMORY_PROBE, str(n), str(samples)], capture_output=True, text=True,
-                       timeout=1800)
+    r = subprocess.run(
+        [sys.executable, "-c", _MEMORY_PROBE, str(n), str(samples)], capture_output=True, text=True, timeout=1800
+    )
     assert r.returncode == 0, r.stderr
     got = json.loads(r.stdout.strip().splitlines()[-1])
     assert got["finite"]
-    benchmark.extra_info.update(method="newton-euler (numba)", n=n, dim=dim, topology=topology,
-                                mechanism=f"chain{n}-{dim}d", samples=samples, batched=True, **got)
+    benchmark.extra_info.update(
+        method="newton-euler (numba)",
+        n=n,
+        dim=dim,
+        topology=topology,
+        mechanism=f"chain{n}-{dim}d",
+        samples=samples,
+        batched=True,
+        **got,
+    )
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)

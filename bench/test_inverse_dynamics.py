@@ -68,7 +68,7 @@ from exo_bench.models.presets import chain, exo5
 
 K = 16
 EPS = float(np.finfo(float).eps)
-PAPER_WRONG_3D = 1e-3            # the printed eq. (18) is off by far more than this in 3D (reports/errata.md)
+PAPER_WRONG_3D = 1e-3  # the printed eq. (18) is off by far more than this in 3D (reports/errata.md)
 #: Methods with the option ``kernel``: each is a row per kernel.
 COMPILED = ("matrix-factored", "matrix", "recurrence", "newton-euler")
 KERNELS = ("numba", "numpy")
@@ -96,7 +96,7 @@ def _variants(methods):
 def _cases(ns, methods, sw=None):
     cases = [(m, k, n, d, "chain") for d in (2, 3) for n in ns for m, k in _variants(methods)]
     cases += [(m, k, 5, 3, "exo5") for m, k in _variants(methods)]  # the paper's five-link model: the goal rows
-    if sw is not None:   # batched: the scaling rows (3D chains), every method within its budget, then newton-euler alone
+    if sw is not None:  # batched: the scaling rows (3D chains), every method within its budget, then newton-euler alone
         cases += [(m, k, n, 3, "chain") for n in sw.scaling_n for m, k in _variants(methods)]
         cases += [(m, k, n, 3, "chain") for n in sw.newton_euler_n for m, k in _variants(["newton-euler"])]
     return cases
@@ -115,9 +115,14 @@ def pytest_generate_tests(metafunc):
     sw = current(metafunc.config.getoption("--sweep"))
     batched = metafunc.function.__name__ == "test_inverse_batched"
     cases = _cases(sw.inverse_n, BATCHED, sw) if batched else _cases(sw.per_call_n, PER_CALL)
-    metafunc.parametrize("method,kernel,n,dim,topology", cases,
-                         ids=[f"{row_name(m, k).replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
-                              for m, k, n, d, t in cases])
+    metafunc.parametrize(
+        "method,kernel,n,dim,topology",
+        cases,
+        ids=[
+            f"{row_name(m, k).replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-{d}d"
+            for m, k, n, d, t in cases
+        ],
+    )
 
 
 def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
@@ -128,7 +133,7 @@ def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
     for t in sorted({2, cpus, 2 * cpus}):
         try:
             m = prepare(mech, "pinocchio", threads=t)
-        except MemoryError:                  # PinocchioDataTooLarge: one Data per thread does not fit
+        except MemoryError:  # PinocchioDataTooLarge: one Data per thread does not fit
             continue
         m.inverse_dynamics(q[:8], qd[:8], qdd[:8], check=False)
         best = np.inf
@@ -173,35 +178,52 @@ def check_error(benchmark, method, mech, q, qd, qdd, tau, subsample):
     err = np.abs(tau[idx] - ref)
     bound = _bound(method, mech, ref)
     scale = float(np.abs(ref).max())
-    benchmark.extra_info.update(max_abs_err=float(err.max()), max_rel_err=float(err.max() / scale),
-                                bound_rel=bound / scale, reference=label,
-                                nonfinite=int(np.count_nonzero(~np.isfinite(tau))))
+    benchmark.extra_info.update(
+        max_abs_err=float(err.max()),
+        max_rel_err=float(err.max() / scale),
+        bound_rel=bound / scale,
+        reference=label,
+        nonfinite=int(np.count_nonzero(~np.isfinite(tau))),
+    )
     if method == "matrix-paper" and mech.dim == 3 and mech.nlinks > 1:
-        assert not (err.max() <= PAPER_WRONG_3D * scale), \
+        assert not (err.max() <= PAPER_WRONG_3D * scale), (
             "matrix-paper (eq. 18 as printed) agrees with the reference in 3D: the printed formulas are not what runs"
+        )
     else:
         assert np.isfinite(tau[idx]).all(), f"{method}: NaN/Inf in the forces"
-        assert err.max() <= bound, (f"{method} on {mech.name}: error {err.max():.3e} > bound {bound:.3e} "
-                                    f"(K={K} * eps * dof={mech.dof} * max|tau|)")
+        assert err.max() <= bound, (
+            f"{method} on {mech.name}: error {err.max():.3e} > bound {bound:.3e} "
+            f"(K={K} * eps * dof={mech.dof} * max|tau|)"
+        )
 
 
 def _info(benchmark, method, kernel, n, dim, topology, mech, **more):
-    benchmark.extra_info.update(method=row_name(method, kernel), base_method=method, kernel=kernel or "", n=n,
-                                dim=dim, topology=topology, mechanism=mech.name, **more)
+    benchmark.extra_info.update(
+        method=row_name(method, kernel),
+        base_method=method,
+        kernel=kernel or "",
+        n=n,
+        dim=dim,
+        topology=topology,
+        mechanism=mech.name,
+        **more,
+    )
 
 
 def test_inverse_batched(benchmark, sweep, method, kernel, n, dim, topology):
     benchmark.group = f"inverse-batched-{dim}d"
     mech = _mechanism(n, dim, topology)
     samples = batch_samples(sweep, mech)
-    if n > max(sweep.inverse_n):             # the scaling rows: the cost model first (a probe of an O(n^3) method takes minutes)
+    if n > max(sweep.inverse_n):  # the scaling rows: the cost model first (a probe of an O(n^3) method takes minutes)
         from exo_bench.api.cost_model import estimate
 
         base = {"pinocchio-parallel": "pinocchio"}.get(method, method)
         est = estimate(mech, base, samples, {"kernel": kernel} if kernel else {}).seconds
         if est > 10 * sweep.inverse_budget:
-            pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected by the cost model "
-                        f"(exo_bench/api/cost_model.py) {est:.0f} s per batch of {samples} > 10 x {sweep.inverse_budget:g} s")
+            pytest.skip(
+                f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected by the cost model "
+                f"(exo_bench/api/cost_model.py) {est:.0f} s per batch of {samples} > 10 x {sweep.inverse_budget:g} s"
+            )
     mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, samples), seed=n)
     q, qd, qdd = mo.q, mo.qd, mo.qdd
     model = _prepare(method, kernel, mech, sweep, batch=(q, qd, qdd))
@@ -212,22 +234,37 @@ def test_inverse_batched(benchmark, sweep, method, kernel, n, dim, topology):
     model.inverse_dynamics(q[:1], qd[:1], qdd[:1], check=False)
     one = time.perf_counter() - t0
     if one * samples > 10 * sweep.inverse_budget:
-        pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected from one sample "
-                    f"{one * samples:.1f} s per batch of {samples} > {sweep.inverse_budget:g} s")
+        pytest.skip(
+            f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected from one sample "
+            f"{one * samples:.1f} s per batch of {samples} > {sweep.inverse_budget:g} s"
+        )
     probe = min(50, samples)
-    model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)    # first-call costs (caches, JIT)
+    model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)  # first-call costs (caches, JIT)
     t0 = time.perf_counter()
     model.inverse_dynamics(q[:probe], qd[:probe], qdd[:probe], check=False)
     projected = (time.perf_counter() - t0) * samples / probe
     if projected > sweep.inverse_budget:
-        pytest.skip(f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of "
-                    f"{samples} > {sweep.inverse_budget:g} s")
-    model.inverse_dynamics(q, qd, qdd, check=False)      # the parallel driver's first use (compiled kernels)
+        pytest.skip(
+            f"{row_name(method, kernel)} n={n} {dim}D: over budget, projected {projected:.1f} s per batch of "
+            f"{samples} > {sweep.inverse_budget:g} s"
+        )
+    model.inverse_dynamics(q, qd, qdd, check=False)  # the parallel driver's first use (compiled kernels)
     rounds = max(3, min(20, int(2.0 / max(projected, 1e-9))))
-    _info(benchmark, method, kernel, n, dim, topology, mech, samples=samples, batched=True,
-          threads=model.options.get("threads", ""))
-    tau = benchmark.pedantic(model.inverse_dynamics, args=(q, qd, qdd), kwargs={"check": False}, rounds=rounds,
-                             iterations=1, warmup_rounds=1)
+    _info(
+        benchmark,
+        method,
+        kernel,
+        n,
+        dim,
+        topology,
+        mech,
+        samples=samples,
+        batched=True,
+        threads=model.options.get("threads", ""),
+    )
+    tau = benchmark.pedantic(
+        model.inverse_dynamics, args=(q, qd, qdd), kwargs={"check": False}, rounds=rounds, iterations=1, warmup_rounds=1
+    )
     check_error(benchmark, method, mech, q, qd, qdd, np.asarray(tau), sweep.error_subsample)
 
 
@@ -259,6 +296,7 @@ def _bare_engine(method, model, q, qd, qdd):
             mujoco.mj_comVel(m, d)
             mujoco.mj_rne(m, d, 1, res)
             return res
+
         return call, (lambda tau_joint: tau_joint @ model.G)
     plant = model.plant
     ctx, forces = model._scratch()
@@ -267,6 +305,7 @@ def _bare_engine(method, model, q, qd, qdd):
         plant.SetPositions(ctx, qj)
         plant.SetVelocities(ctx, vj)
         return plant.CalcInverseDynamics(ctx, aj, forces) - plant.CalcGravityGeneralizedForces(ctx)
+
     return call, (lambda tau_joint: tau_joint @ model.G)
 
 
@@ -277,8 +316,10 @@ def _pydy(mech, sw):
         print(f"skipped: {why}")
         pytest.skip(why)
     if mech.name != "exo5-3d" and mech.nlinks not in sw.pydy_n:
-        pytest.skip(f"pydy-cython: n={mech.nlinks} not generated in the {sw.name} profile (composing and compiling "
-                    f"C grows fast with n: minutes at n = 20 in 3D); profile pydy_n = {sw.pydy_n}")
+        pytest.skip(
+            f"pydy-cython: n={mech.nlinks} not generated in the {sw.name} profile (composing and compiling "
+            f"C grows fast with n: minutes at n = 20 in 3D); profile pydy_n = {sw.pydy_n}"
+        )
     return peers.pydy_cython(mech)
 
 
@@ -326,11 +367,12 @@ def test_wrapper_alone(benchmark, part):
     model = _NullKernel(mech)
     q = qd = qdd = np.zeros(mech.dof)
     Q = q[None]
-    benchmark.extra_info.update(method="(wrapper alone)", part=part, mechanism=mech.name, samples=1, batched=False,
-                                n=5, dim=3)
+    benchmark.extra_info.update(
+        method="(wrapper alone)", part=part, mechanism=mech.name, samples=1, batched=False, n=5, dim=3
+    )
     if part == "call":
         out = benchmark(model.inverse_dynamics, q, qd, qdd, check=False)
-        assert out.shape == (mech.dof,)       # the wrapper returns one sample for one sample
+        assert out.shape == (mech.dof,)  # the wrapper returns one sample for one sample
     else:
         out = benchmark(model._inverse_dynamics, Q, Q, Q)
         assert out.shape == (1, mech.dof)
@@ -350,16 +392,17 @@ def test_wrapper_overhead(benchmark, sweep, method, part):
     q, qd, qdd = mo.q[0].copy(), mo.qd[0].copy(), mo.qdd[0].copy()
     Q, QD, QDD = q[None], qd[None], qdd[None]
     out = np.empty(mech.dof)
-    benchmark.extra_info.update(method=row_name(method, kernel), part=part, mechanism=mech.name, samples=1,
-                                batched=False, n=5, dim=3)
+    benchmark.extra_info.update(
+        method=row_name(method, kernel), part=part, mechanism=mech.name, samples=1, batched=False, n=5, dim=3
+    )
     if part == "call":
         tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False, out=out).copy()
     elif kernel == "numba":
         args = model.kernel_args
-        benchmark(model.serial_kernel, *args, q, qd, qdd, out)          # the compiled kernel alone
+        benchmark(model.serial_kernel, *args, q, qd, qdd, out)  # the compiled kernel alone
         tau = out.copy()
     else:
-        tau = benchmark(model._inverse_dynamics, Q, QD, QDD)[0]   # the method's own work on (1, dof)
+        tau = benchmark(model._inverse_dynamics, Q, QD, QDD)[0]  # the method's own work on (1, dof)
     check_error(benchmark, method, mech, Q, QD, QDD, np.asarray(tau)[None], 1)
 
 
@@ -383,8 +426,9 @@ print(json.dumps(out))
 
 
 def _compile_probe(methods, env) -> dict:
-    r = subprocess.run([sys.executable, "-c", _COMPILE_PROBE, ",".join(methods)], env=env, capture_output=True,
-                       text=True, timeout=1200)
+    r = subprocess.run(
+        [sys.executable, "-c", _COMPILE_PROBE, ",".join(methods)], env=env, capture_output=True, text=True, timeout=1200
+    )
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -396,8 +440,10 @@ def test_compile_time(benchmark, tmp_path):
     minute, too much for CI)."""
     benchmark.group = "compile"
     if benchmark.disabled:
-        pytest.skip("compile time: measured when the benchmarks are timed (exo-bench bench); numba's cache across "
-                    "processes is tested by tests/test_compiled.py")
+        pytest.skip(
+            "compile time: measured when the benchmarks are timed (exo-bench bench); numba's cache across "
+            "processes is tested by tests/test_compiled.py"
+        )
     methods = COMPILED
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
     cold = _compile_probe(methods, env)
@@ -407,10 +453,21 @@ def test_compile_time(benchmark, tmp_path):
             assert cold[m][driver]["cache_misses"] >= 1 and cold[m][driver]["cache_hits"] == 0, (m, driver, cold)
             assert warm[m][driver]["cache_hits"] >= 1 and warm[m][driver]["cache_misses"] == 0, (m, driver, warm)
     benchmark.extra_info.update(
-        method="(compile)", mechanism="exo5-3d", samples=1, batched=False, n=5, dim=3,
-        compile={m: {d: {"first_call_s": cold[m][d]["seconds"], "from_cache_s": warm[m][d]["seconds"]}
-                     for d in ("serial", "parallel")} for m in methods},
-        import_seconds=warm["import_seconds"])
+        method="(compile)",
+        mechanism="exo5-3d",
+        samples=1,
+        batched=False,
+        n=5,
+        dim=3,
+        compile={
+            m: {
+                d: {"first_call_s": cold[m][d]["seconds"], "from_cache_s": warm[m][d]["seconds"]}
+                for d in ("serial", "parallel")
+            }
+            for m in methods
+        },
+        import_seconds=warm["import_seconds"],
+    )
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)
 
 
@@ -419,16 +476,27 @@ def test_limit(benchmark):
     this CPU's multiply-add and sin rates (bench/perf/roofline.py); the report turns them into a time."""
     benchmark.group = "limit"
     mech = exo5(3)
-    q, qd, qdd = (x[0].copy() for x in (lambda m: (m.q, m.qd, m.qdd))(
-        smooth_random_motion(mech, np.linspace(0.0, 1.0, 2), seed=5)))
+    q, qd, qdd = (
+        x[0].copy()
+        for x in (lambda m: (m.q, m.qd, m.qdd))(smooth_random_motion(mech, np.linspace(0.0, 1.0, 2), seed=5))
+    )
     count, tau = limit.count_factored(mech, q, qd, qdd)
     # what was counted is what the compiled kernel computes: the same forces, to the last bit
     assert np.array_equal(tau, prepare(mech, "matrix-factored").inverse_dynamics(q, qd, qdd, check=False))
-    assert count["trig"] == 4 * mech.nlinks                      # cos, sin of phi_j and of psi_j
+    assert count["trig"] == 4 * mech.nlinks  # cos, sin of phi_j and of psi_j
     rates = limit.throughput()
     import numba
 
-    benchmark.extra_info.update(method="(limit)", mechanism=mech.name, samples=1, batched=False, n=5, dim=3,
-                                count=count, rates=rates, estimate=limit.estimate(count, rates),
-                                numba_threads=numba.get_num_threads())
+    benchmark.extra_info.update(
+        method="(limit)",
+        mechanism=mech.name,
+        samples=1,
+        batched=False,
+        n=5,
+        dim=3,
+        count=count,
+        rates=rates,
+        estimate=limit.estimate(count, rates),
+        numba_threads=numba.get_num_threads(),
+    )
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)

@@ -36,13 +36,13 @@ from exo_bench.models.presets import exo5
 
 SAMPLES = (10_000, 1_000_000)
 METHODS = ("matrix-factored", "matrix", "pinocchio", "recurrence")
-QUICK_1E6 = ("matrix-factored",)          # the others take 10-40 s for 10^6 samples
+QUICK_1E6 = ("matrix-factored",)  # the others take 10-40 s for 10^6 samples
 _STATES: dict[int, tuple] = {}
 
 
 def _states(mech, samples):
     if samples not in _STATES:
-        _STATES.clear()                   # hold one batch at a time (10^6 samples: 360 MB of inputs)
+        _STATES.clear()  # hold one batch at a time (10^6 samples: 360 MB of inputs)
         _STATES[samples] = random_states(mech, samples, 11)
     return _STATES[samples]
 
@@ -53,12 +53,14 @@ def test_peak_memory_of_a_batch(benchmark, sweep, method, samples):
     mech = exo5(3)
     if samples >= 10**6 and sweep.name == "quick" and method not in QUICK_1E6:
         est = estimate(mech, method, samples)
-        pytest.skip(f"{method}: 10^6 samples take about {est.seconds:.0f} s (exo_bench/api/cost_model.py), too slow for "
-                    "the quick profile; run with --sweep=full")
+        pytest.skip(
+            f"{method}: 10^6 samples take about {est.seconds:.0f} s (exo_bench/api/cost_model.py), too slow for "
+            "the quick profile; run with --sweep=full"
+        )
     benchmark.group = "memory-exo5-3d"
     q, qd, qdd = _states(mech, samples)
     model = prepare(mech, method)
-    model.inverse_dynamics(q[:2], qd[:2], qdd[:2])                   # first call: Data, caches
+    model.inverse_dynamics(q[:2], qd[:2], qdd[:2])  # first call: Data, caches
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()
@@ -71,13 +73,24 @@ def test_peak_memory_of_a_batch(benchmark, sweep, method, samples):
     working = grown - tau.nbytes
     bound = estimate(mech, method, samples).chunk_bytes
     chunk = model.chunk_samples
-    benchmark.extra_info.update(method=method, samples=samples, mechanism=mech.name, n=mech.nlinks, dim=mech.dim,
-                                batched=True,  # every row of the suite has it (bench_reports filters on it)
-                                peak_mb=grown / 1e6, working_set_mb=working / 1e6, result_mb=tau.nbytes / 1e6,
-                                chunk=chunk, bound_mb=bound / 1e6)
+    benchmark.extra_info.update(
+        method=method,
+        samples=samples,
+        mechanism=mech.name,
+        n=mech.nlinks,
+        dim=mech.dim,
+        batched=True,  # every row of the suite has it (bench_reports filters on it)
+        peak_mb=grown / 1e6,
+        working_set_mb=working / 1e6,
+        result_mb=tau.nbytes / 1e6,
+        chunk=chunk,
+        bound_mb=bound / 1e6,
+    )
     assert np.isfinite(tau).all()
-    assert working <= bound, (f"{method}, {samples} samples: working set {working / 1e6:.1f} MB > the cost model's "
-                              f"one-chunk bound {bound / 1e6:.1f} MB (chunk {chunk})")
+    assert working <= bound, (
+        f"{method}, {samples} samples: working set {working / 1e6:.1f} MB > the cost model's "
+        f"one-chunk bound {bound / 1e6:.1f} MB (chunk {chunk})"
+    )
     del tau
     t0 = time.perf_counter()
     benchmark.pedantic(model.inverse_dynamics, args=(q, qd, qdd), rounds=1, iterations=1)

@@ -16,14 +16,17 @@ from exo_bench.bench.perf.reports import simd_goals
 def test_issue23_goals(benchmark, sweep):
     benchmark.group = "simd-goals"
     if benchmark.disabled:
-        pytest.skip("issue 23's goals: measured when the benchmarks are timed (exo-bench bench, or "
-                    "python -m exo_bench.bench.perf.reports.simd_goals); the kernels' agreement is tested in tests/")
+        pytest.skip(
+            "issue 23's goals: measured when the benchmarks are timed (exo-bench bench, or "
+            "python -m exo_bench.bench.perf.reports.simd_goals); the kernels' agreement is tested in tests/"
+        )
     samples = 10_000 if sweep.samples >= 10_000 else sweep.samples
     r = simd_goals.measure(samples=samples)
     assert r["batched_err"] <= r["err_bound"], r
     assert r["per_call_err"] <= r["err_bound"], r
     if "pydy_err" in r:
         assert r["pydy_err"] <= r["err_bound"], r
-    benchmark.extra_info.update(method="(issue 23 goals)", mechanism=r["mechanism"], samples=samples, batched=True,
-                                n=5, dim=3, simd_goals=r)
+    benchmark.extra_info.update(
+        method="(issue 23 goals)", mechanism=r["mechanism"], samples=samples, batched=True, n=5, dim=3, simd_goals=r
+    )
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)

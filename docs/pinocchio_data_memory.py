@@ -52,8 +52,10 @@ def revolute_chain(nv: int) -> pin.Model:
 
 def data_memory() -> None:
     print("1. pin.Data(model) on a chain of nv revolute joints (pin", pin.__version__ + "): RSS growth in MB")
-    print(f"{'nv':>5} {'32 nv^3':>9} {'pin.Data kept':>14} {'peak':>8} {'createData kept':>16} {'peak':>8} "
-          f"{'seconds':>8} {'rnea us':>8}")
+    print(
+        f"{'nv':>5} {'32 nv^3':>9} {'pin.Data kept':>14} {'peak':>8} {'createData kept':>16} {'peak':>8} "
+        f"{'seconds':>8} {'rnea us':>8}"
+    )
     for nv in (50, 100, 200, 400):
         model = revolute_chain(nv)
         data, peak, kept, seconds = peak_of(lambda: pin.Data(model))
@@ -64,11 +66,15 @@ def data_memory() -> None:
         del data
         data, cpeak, ckept, _ = peak_of(model.createData)
         del data
-        print(f"{nv:5d} {32 * nv**3 / 1e6:9.1f} {kept / 1e6:14.1f} {peak / 1e6:8.1f} {ckept / 1e6:16.1f} "
-              f"{cpeak / 1e6:8.1f} {seconds:8.3f} {rnea:8.0f}")
-    print("RNEA itself needs O(nv) memory; the nv^3 part is d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq "
-          "(nv x nv x nv each) and kinematic_hessians (6 x nv x nv), all allocated in DataTpl's constructor. "
-          "createData() peaks at twice the size: it returns a copy.")
+        print(
+            f"{nv:5d} {32 * nv**3 / 1e6:9.1f} {kept / 1e6:14.1f} {peak / 1e6:8.1f} {ckept / 1e6:16.1f} "
+            f"{cpeak / 1e6:8.1f} {seconds:8.3f} {rnea:8.0f}"
+        )
+    print(
+        "RNEA itself needs O(nv) memory; the nv^3 part is d2tau_dqdq, d2tau_dvdv, d2tau_dqdv, d2tau_dadq "
+        "(nv x nv x nv each) and kinematic_hessians (6 x nv x nv), all allocated in DataTpl's constructor. "
+        "createData() peaks at twice the size: it returns a copy."
+    )
 
 
 URDF = """<?xml version="1.0"?>

@@ -18,29 +18,48 @@ _LIMIT = '<limit effort="1e6" velocity="1e6" lower="-1e3" upper="1e3"/>'
 
 def _joint(name, kind, parent, child, axis, mimic=None):
     m = f'<mimic joint="{mimic[0]}" multiplier="{mimic[1]}" offset="0"/>' if mimic else ""
-    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="{axis}"/>{_LIMIT}{m}</joint>')
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="{axis}"/>{_LIMIT}{m}</joint>'
+    )
 
 
 def _link(name, mass=0.0):
-    inertial = (f'<inertial><origin xyz="0 0 0"/><mass value="{mass}"/>'
-                '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>') if mass else ""
+    inertial = (
+        (
+            f'<inertial><origin xyz="0 0 0"/><mass value="{mass}"/>'
+            '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>'
+        )
+        if mass
+        else ""
+    )
     return f'<link name="{name}">{inertial}</link>'
 
 
 def urdf(mimic: bool = True) -> str:
     """Two spatial rods; ``mimic=False`` drops the mimic tags (the joints become independent)."""
     mm = (lambda j, k: (j, k)) if mimic else (lambda j, k: None)
-    parts = ['<?xml version="1.0"?><robot name="rods">', _link("support"),
-             _joint("A_phi", "revolute", "support", "A_yaw", "0 0 1"), _link("A_yaw"),
-             _joint("A_psi", "revolute", "A_yaw", "A_frame", "0 -1 0"), _link("A_frame", 1.0),
-             _joint("A_len", "prismatic", "A_frame", "A_end", "1 0 0"), _link("A_end", 2.0),
-             _joint("A_mid", "prismatic", "A_frame", "A_mid", "1 0 0", mm("A_len", 0.5)), _link("A_mid", 3.0),
-             _joint("B_undo", "revolute", "A_end", "B_level", "0 -1 0", mm("A_psi", -1.0)), _link("B_level"),
-             _joint("B_phi", "revolute", "B_level", "B_yaw", "0 0 1"), _link("B_yaw"),
-             _joint("B_psi", "revolute", "B_yaw", "B_frame", "0 -1 0"), _link("B_frame", 0.5),
-             _joint("B_len", "prismatic", "B_frame", "B_end", "1 0 0"), _link("B_end", 1.5),
-             "</robot>"]
+    parts = [
+        '<?xml version="1.0"?><robot name="rods">',
+        _link("support"),
+        _joint("A_phi", "revolute", "support", "A_yaw", "0 0 1"),
+        _link("A_yaw"),
+        _joint("A_psi", "revolute", "A_yaw", "A_frame", "0 -1 0"),
+        _link("A_frame", 1.0),
+        _joint("A_len", "prismatic", "A_frame", "A_end", "1 0 0"),
+        _link("A_end", 2.0),
+        _joint("A_mid", "prismatic", "A_frame", "A_mid", "1 0 0", mm("A_len", 0.5)),
+        _link("A_mid", 3.0),
+        _joint("B_undo", "revolute", "A_end", "B_level", "0 -1 0", mm("A_psi", -1.0)),
+        _link("B_level"),
+        _joint("B_phi", "revolute", "B_level", "B_yaw", "0 0 1"),
+        _link("B_yaw"),
+        _joint("B_psi", "revolute", "B_yaw", "B_frame", "0 -1 0"),
+        _link("B_frame", 0.5),
+        _joint("B_len", "prismatic", "B_frame", "B_end", "1 0 0"),
+        _link("B_end", 1.5),
+        "</robot>",
+    ]
     return "".join(parts)
 
 
@@ -53,7 +72,7 @@ def build(mimic: bool = True) -> pin.Model:
 def state(model: pin.Model, seed: int):
     rng = np.random.default_rng(seed)
     q = rng.uniform(-1.0, 1.0, model.nq)
-    for j in range(1, model.njoints):              # lengths of the rods positive
+    for j in range(1, model.njoints):  # lengths of the rods positive
         if model.names[j].endswith("_len"):
             q[model.idx_qs[j]] = rng.uniform(0.3, 1.2)
     return q, rng.uniform(-2, 2, model.nv), rng.uniform(-2, 2, model.nv)
@@ -115,13 +134,20 @@ def crba_reuse_difference(model: pin.Model, samples: int = 20) -> float:
 
 def table() -> str:
     with_mimic, without = build(True), build(False)
-    rows = ["| function | with mimic joints (nv = %d) | without (nv = %d) |" % (with_mimic.nv, without.nv), "|---|---|---|"]
+    rows = [
+        "| function | with mimic joints (nv = %d) | without (nv = %d) |" % (with_mimic.nv, without.nv),
+        "|---|---|---|",
+    ]
     for (name, a), (_, b) in zip(refused(with_mimic), refused(without)):
         rows.append(f"| `{name}` | {a} | {b} |")
-    rows.append(f"| `computeCoriolisMatrix`: max abs(C v + g - rnea(q, v, 0)), 20 states | {coriolis_residual(with_mimic):.3g} "
-                f"| {coriolis_residual(without):.3g} |")
-    rows.append(f"| `crba` on a reused Data minus on a fresh Data, max abs, 20 states | {crba_reuse_difference(with_mimic):.3g} "
-                f"| {crba_reuse_difference(without):.3g} |")
+    rows.append(
+        f"| `computeCoriolisMatrix`: max abs(C v + g - rnea(q, v, 0)), 20 states | {coriolis_residual(with_mimic):.3g} "
+        f"| {coriolis_residual(without):.3g} |"
+    )
+    rows.append(
+        f"| `crba` on a reused Data minus on a fresh Data, max abs, 20 states | {crba_reuse_difference(with_mimic):.3g} "
+        f"| {crba_reuse_difference(without):.3g} |"
+    )
     return "\n".join(rows)
 
 

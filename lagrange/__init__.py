@@ -11,5 +11,13 @@ from exo_bench.lagrange.derivation import Derivation, clear_cache, derive
 from exo_bench.lagrange.matrix_form import FormViolation, extract_matrices, rebuild_equations
 from exo_bench.lagrange.ring import canonical_form
 
-__all__ = ["BudgetExceeded", "Derivation", "FormViolation", "canonical_form", "clear_cache", "derive",
-           "extract_matrices", "rebuild_equations"]
+__all__ = [
+    "BudgetExceeded",
+    "Derivation",
+    "FormViolation",
+    "canonical_form",
+    "clear_cache",
+    "derive",
+    "extract_matrices",
+    "rebuild_equations",
+]

@@ -33,12 +33,12 @@ class BudgetExceeded(ValueError):
     ``skip_reason`` is one line naming the work, ``n``, ``dim`` and the budget.
     """
 
-    def __init__(self, what: str, nlinks: int, dim: int, budget: float, elapsed: float | None = None,
-                 note: str = ""):
+    def __init__(self, what: str, nlinks: int, dim: int, budget: float, elapsed: float | None = None, note: str = ""):
         self.what, self.nlinks, self.dim, self.budget, self.elapsed = what, nlinks, dim, budget, elapsed
         took = f" (stopped after {elapsed:.2f} s)" if elapsed is not None else ""
-        self.skip_reason = (f"{what} for n={nlinks} links, dim={dim} exceeded the time budget of "
-                            f"{budget:g} s{took}{note}")
+        self.skip_reason = (
+            f"{what} for n={nlinks} links, dim={dim} exceeded the time budget of {budget:g} s{took}{note}"
+        )
         super().__init__(self.skip_reason)
 
 
@@ -58,7 +58,7 @@ class Deadline:
     budget: float
     start: float = field(default_factory=time.perf_counter)
     end: float = 0.0
-    interrupts: bool = False   # True when SIGALRM is armed for this deadline
+    interrupts: bool = False  # True when SIGALRM is armed for this deadline
 
     def __post_init__(self) -> None:
         self.end = self.start + self.budget
@@ -68,8 +68,7 @@ class Deadline:
         return self.end - time.perf_counter()
 
     def exceeded(self, note: str = "") -> BudgetExceeded:
-        return BudgetExceeded(self.what, self.nlinks, self.dim, self.budget,
-                              time.perf_counter() - self.start, note)
+        return BudgetExceeded(self.what, self.nlinks, self.dim, self.budget, time.perf_counter() - self.start, note)
 
     def check(self) -> None:
         if time.perf_counter() > self.end:
@@ -112,8 +111,11 @@ def time_budget(budget: float, what: str, nlinks: int, dim: int):
     if outer is not None and outer.end < dl.end:
         # The enclosing budget ends first: it is the one that is exceeded.
         dl = Deadline(outer.what, outer.nlinks, outer.dim, outer.budget, start=outer.start)
-    main = (threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
-            and not getattr(_active, "no_signals", False))
+    main = (
+        threading.current_thread() is threading.main_thread()
+        and hasattr(signal, "setitimer")
+        and not getattr(_active, "no_signals", False)
+    )
     old_handler = None
     old_remaining = 0.0
     if main:

@@ -60,8 +60,8 @@ class Derivation:
     symbolic_parameters: bool
     engine: str
     seconds: dict[str, float] = field(default_factory=dict)
-    ring_form: RingForm | None = field(default=None, repr=False)   # internal: the ring elements
-    values: dict = field(default_factory=dict, repr=False)   # the substituted parameter values ({} if symbolic)
+    ring_form: RingForm | None = field(default=None, repr=False)  # internal: the ring elements
+    values: dict = field(default_factory=dict, repr=False)  # the substituted parameter values ({} if symbolic)
 
     @property
     def g(self) -> sp.Expr:
@@ -80,8 +80,7 @@ class Derivation:
     def mass_matrix(self) -> sp.Matrix:
         """``(dof, dof)``: row block k is ``[A_k, B_k, Lambda_k]`` (``[A_k, Lambda_k]`` in 2D)."""
         cols = ("A", "B", "Lambda") if self.dim == 3 else ("A", "Lambda")
-        return sp.Matrix.vstack(*[sp.Matrix.hstack(*[self.matrices[k][c] for c in cols])
-                                  for k in BLOCKS[self.dim]])
+        return sp.Matrix.vstack(*[sp.Matrix.hstack(*[self.matrices[k][c] for c in cols]) for k in BLOCKS[self.dim]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,17 +117,29 @@ def _derive_symbolic(st: Structure, engine: str, dl: Deadline) -> Derivation:
     return out
 
 
-def _from_ring(st: Structure, form: RingForm, symbolic: bool, engine: str, seconds: dict,
-               values: dict | None = None) -> Derivation:
+def _from_ring(
+    st: Structure, form: RingForm, symbolic: bool, engine: str, seconds: dict, values: dict | None = None
+) -> Derivation:
     """The sympy expressions of a ring form."""
-    return Derivation(st, form.ring.S, tuple(e.as_expr() for e in form.equations), matrices_expr(form.matrices),
-                      form.T.as_expr(), form.Pi.as_expr(), symbolic, engine, seconds, form, values or {})
+    return Derivation(
+        st,
+        form.ring.S,
+        tuple(e.as_expr() for e in form.equations),
+        matrices_expr(form.matrices),
+        form.T.as_expr(),
+        form.Pi.as_expr(),
+        symbolic,
+        engine,
+        seconds,
+        form,
+        values or {},
+    )
 
 
 # ------------------------------------------------------------------ entry point
 _SYMBOLIC: dict[tuple[Structure, str], Derivation] = {}
 _NUMERIC: dict[tuple[Mechanism, str], Derivation] = {}
-_FAILED: dict[tuple[Structure, str], float] = {}   # seconds an unfinished derivation ran
+_FAILED: dict[tuple[Structure, str], float] = {}  # seconds an unfinished derivation ran
 
 
 def clear_cache() -> None:
@@ -149,17 +160,25 @@ def _substitute(sym: Derivation, mech: Mechanism) -> Derivation:
     rg = f.ring
     vals = parameter_values(mech, sym.symbols)
     sub = lambda p: rg.substitute(p, vals)
-    form = RingForm(rg, [sub(e) for e in f.equations],
-                     {blk: {name: [[sub(x) for x in row] for row in rows] for name, rows in m.items()}
-                      for blk, m in f.matrices.items()}, sub(f.T), sub(f.Pi))
+    form = RingForm(
+        rg,
+        [sub(e) for e in f.equations],
+        {
+            blk: {name: [[sub(x) for x in row] for row in rows] for name, rows in m.items()}
+            for blk, m in f.matrices.items()
+        },
+        sub(f.T),
+        sub(f.Pi),
+    )
     seconds = dict(sym.seconds)
     out = _from_ring(sym.structure, form, False, sym.engine, seconds, vals)
     seconds["substitute"] = time.perf_counter() - t0
     return out
 
 
-def derive(mech: Mechanism, symbolic_parameters: bool = False, budget: float = 60.0,
-           engine: str = "poly", cache: bool = True) -> Derivation:
+def derive(
+    mech: Mechanism, symbolic_parameters: bool = False, budget: float = 60.0, engine: str = "poly", cache: bool = True
+) -> Derivation:
     """Lagrange II for ``mech``; cached per structure (and, with numbers, per mechanism).
 
     ``symbolic_parameters=True`` keeps ``m{i}_{b}``, ``n{i}`` and ``g`` as symbols (zero masses

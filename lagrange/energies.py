@@ -41,8 +41,7 @@ class Structure:
 
 
 def structure_of(mech: Mechanism) -> Structure:
-    return Structure(mech.dim, mech.parent, mech.sign,
-                     tuple(tuple(m == 0.0 for m in ms) for ms in mech.masses))
+    return Structure(mech.dim, mech.parent, mech.sign, tuple(tuple(m == 0.0 for m in ms) for ms in mech.masses))
 
 
 @dataclass
@@ -60,18 +59,18 @@ def energies_poly(st: Structure, rg: TrigRing, dl: Deadline) -> Energies:
     T, Pi = R.zero, R.zero
     for i in range(n):
         p = st.parent[i]
-        start = ends[p] if p >= 0 else [R.zero] * dim                  # end of the parent, or O
-        w = [st.sign[i] * rg.q_l[i] * x for x in rg.unit(i)]            # w_i = s_i l_i u_i
+        start = ends[p] if p >= 0 else [R.zero] * dim  # end of the parent, or O
+        w = [st.sign[i] * rg.q_l[i] * x for x in rg.unit(i)]  # w_i = s_i l_i u_i
         ends.append([a + b for a, b in zip(start, w)])
         for b, frac in enumerate((R.zero, rg.gen[S.n[i]], R.one)):
             dl.check()
             if st.zero_masses[i][b]:
                 continue
             m = rg.gen[S.m[i][b]]
-            r = [a + frac * c for a, c in zip(start, w)]                 # r_ib = start + n_ib w_i
+            r = [a + frac * c for a, c in zip(start, w)]  # r_ib = start + n_ib w_i
             v = [sum((rg.d_dq(x, a) * rg.qd[a] for a in range(dof)), R.zero) for x in r]
-            T += m * sum((x * x for x in v), R.zero) / 2                  # 1/2 m |v|^2
-            Pi += m * g * r[-1]                                           # m g h
+            T += m * sum((x * x for x in v), R.zero) / 2  # 1/2 m |v|^2
+            Pi += m * g * r[-1]  # m g h
     return Energies(rg.reduce(T), Pi)
 
 
@@ -80,7 +79,7 @@ def lagrange_poly(rg: TrigRing, E: Energies, dof: int, dl: Deadline) -> list:
     eqs = []
     for a in range(dof):
         dl.check()
-        p_a = E.T.diff(rg.qd[a])                                          # dT/dqd_a
+        p_a = E.T.diff(rg.qd[a])  # dT/dqd_a
         # First term: d/dt dT/dqd_a = sum_b d2T/dqd_a dq_b qd_b + sum_b d2T/dqd_a dqd_b qdd_b
         ddt = sum((rg.d_dq(p_a, b) * rg.qd[b] for b in range(dof)), rg.R.zero)
         ddt += sum((p_a.diff(rg.qd[b]) * rg.qdd[b] for b in range(dof)), rg.R.zero)

@@ -34,8 +34,7 @@ def compile_reference(mech: Mechanism, budget: float | None = None) -> Lambdifie
     return lambdify_within_budget(mech, "mpmath reference", budget, _equations, modules="mpmath")
 
 
-def inverse_dynamics_mpf(mech: Mechanism, q, qd, qdd, dps: int = 50,
-                         budget: float | None = None) -> np.ndarray:
+def inverse_dynamics_mpf(mech: Mechanism, q, qd, qdd, dps: int = 50, budget: float | None = None) -> np.ndarray:
     """Generalised forces at ``dps`` significant digits, an object array of ``mpmath.mpf``,
     ``(samples, dof)``. Inputs are float64 arrays, converted to mpf exactly."""
     if not isinstance(dps, (int, np.integer)) or isinstance(dps, bool) or dps < 15:

@@ -18,7 +18,7 @@ from exo_bench.models.equation_form import ACCELERATION, RATES, blocks, matrix_n
 from exo_bench.models.symbols import Symbols
 
 #: blocks of coordinates (rows of the matrix form), in block order
-BLOCKS = {dim: blocks(dim) for dim in (2, 3)}   # models.equation_form: the block order, defined once
+BLOCKS = {dim: blocks(dim) for dim in (2, 3)}  # models.equation_form: the block order, defined once
 #: names of the matrices of eq. (5) (2D) and eq. (17) (3D)
 MATRIX_NAMES = {dim: (*matrix_names(dim), "P") for dim in (2, 3)}
 
@@ -51,14 +51,14 @@ def _classify(items: list[tuple[tuple[str, str, int], int]]) -> tuple[str, int, 
     if len(items) == 1:
         (order, blk, j), e = items[0]
         if order == "dd" and e == 1:
-            return _ACCEL[blk], j, 1          # A, B, Lambda: accelerations
+            return _ACCEL[blk], j, 1  # A, B, Lambda: accelerations
         if order == "d" and e == 2 and blk in _SQUARE:
-            return _SQUARE[blk], j, 1         # D, E: squared angle rates
+            return _SQUARE[blk], j, 1  # D, E: squared angle rates
         return None
     if len(items) == 2:
         ((o1, b1, j1), e1), ((o2, b2, j2), e2) = items
         if o1 == o2 == "d" and e1 == e2 == 1 and j1 == j2 and b1 != b2:
-            return _PAIR[frozenset((b1, b2))], j1, 2   # 2G, 2H, 2K: products of one link's rates
+            return _PAIR[frozenset((b1, b2))], j1, 2  # 2G, 2H, 2K: products of one link's rates
     return None
 
 
@@ -81,8 +81,10 @@ def extract_ring(rg: TrigRing, eqs: list, deadline: Deadline | None = None) -> d
                 items = [(slots[k], monom[k]) for k in slots if monom[k]]
                 if not items:
                     if monom[gi] != 1:
-                        raise FormViolation(f"{where()}: a term without rates must be g times a function of "
-                                            "the coordinates (the g P column)")
+                        raise FormViolation(
+                            f"{where()}: a term without rates must be g times a function of "
+                            "the coordinates (the g P column)"
+                        )
                     slot = ("P", i, 0)
                     factor = 1
                 else:
@@ -90,9 +92,11 @@ def extract_ring(rg: TrigRing, eqs: list, deadline: Deadline | None = None) -> d
                         raise FormViolation(f"{where()}: g times rates fits no matrix of the form")
                     found = _classify(items)
                     if found is None:
-                        raise FormViolation(f"{where()}: this product of rates fits no matrix of the form "
-                                            "(only accelerations, squared angle rates of one link and "
-                                            "products of one link's own rates appear)")
+                        raise FormViolation(
+                            f"{where()}: this product of rates fits no matrix of the form "
+                            "(only accelerations, squared angle rates of one link and "
+                            "products of one link's own rates appear)"
+                        )
                     name, j, factor = found
                     slot = (name, i, j)
                 exps = list(monom)
@@ -109,12 +113,13 @@ def extract_ring(rg: TrigRing, eqs: list, deadline: Deadline | None = None) -> d
 
 
 def matrices_expr(mats: dict[str, dict[str, list]]) -> dict[str, dict[str, sp.Matrix]]:
-    return {blk: {name: sp.Matrix([[x.as_expr() for x in row] for row in rows]) for name, rows in m.items()}
-            for blk, m in mats.items()}
+    return {
+        blk: {name: sp.Matrix([[x.as_expr() for x in row] for row in rows]) for name, rows in m.items()}
+        for blk, m in mats.items()
+    }
 
 
-def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = None
-                     ) -> dict[str, dict[str, sp.Matrix]]:
+def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = None) -> dict[str, dict[str, sp.Matrix]]:
     """The paper's matrices (eq. 5 in 2D, eq. 17 in 3D) read off equations given in block order.
 
     Row ``i`` of block ``k`` is ``sum_j (A ddphi_j + B ddpsi_j + Lambda ddl_j + D dphi_j^2
@@ -132,21 +137,26 @@ def extract_matrices(equations, symbols: Symbols, deadline: Deadline | None = No
     dim = 3 if S.psi else 2
     n = len(S.phi)
     if len(equations) != dim * n:
-        raise ValueError(f"extract_matrices: field 'equations': expected {dim * n} equations "
-                         f"(block order {', '.join(BLOCKS[dim])}), got {len(equations)}")
+        raise ValueError(
+            f"extract_matrices: field 'equations': expected {dim * n} equations "
+            f"(block order {', '.join(BLOCKS[dim])}), got {len(equations)}"
+        )
     rg = TrigRing(S, dim)
     eqs = []
     for k, e in enumerate(equations):
         try:
             eqs.append(rg.reduce(rg.from_expr(sp.expand_trig(sp.sympify(e)))))
         except (ValueError, sp.polys.polyerrors.PolynomialError) as err:
-            raise ValueError(f"extract_matrices: equation {k + 1}: expected a polynomial in sines and cosines "
-                             f"of the angles, lengths, rates and the shared parameter symbols: {err}") from None
+            raise ValueError(
+                f"extract_matrices: equation {k + 1}: expected a polynomial in sines and cosines "
+                f"of the angles, lengths, rates and the shared parameter symbols: {err}"
+            ) from None
     return matrices_expr(extract_ring(rg, eqs, deadline))
 
 
-def rebuild_equations(matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols, g: sp.Expr | None = None
-                      ) -> tuple[sp.Expr, ...]:
+def rebuild_equations(
+    matrices: dict[str, dict[str, sp.Matrix]], symbols: Symbols, g: sp.Expr | None = None
+) -> tuple[sp.Expr, ...]:
     """The equations written back from the matrix form (the inverse of :func:`extract_matrices`);
     ``g`` defaults to the symbol (pass :attr:`exo_bench.lagrange.derivation.Derivation.g` for substituted parameters)."""
     S = symbols

@@ -33,11 +33,11 @@ def default_budget() -> float:
 @dataclass(frozen=True)
 class Lambdified:
     fn: Callable
-    seconds: float   # wall time of the lambdify call
+    seconds: float  # wall time of the lambdify call
 
 
 _CACHE: dict[tuple[Mechanism, str], Lambdified] = {}
-_FAILED: dict[tuple[Mechanism, str], float] = {}   # seconds an unfinished compilation ran
+_FAILED: dict[tuple[Mechanism, str], float] = {}  # seconds an unfinished compilation ran
 
 
 def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> np.ndarray:
@@ -48,8 +48,13 @@ def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> 
     return out
 
 
-def lambdify_within_budget(mech: Mechanism, what: str, budget: float | None,
-                           build: Callable[[Derivation], tuple[list, list]], modules: str = "numpy") -> Lambdified:
+def lambdify_within_budget(
+    mech: Mechanism,
+    what: str,
+    budget: float | None,
+    build: Callable[[Derivation], tuple[list, list]],
+    modules: str = "numpy",
+) -> Lambdified:
     """``sympy.lambdify(*build(derive(mech)), modules=modules, cse=True)``, the derivation and the
     lambdify together within ``budget`` seconds (None: :func:`default_budget`), cached per
     ``(mech, what)``; an attempt that ran out of budget is remembered, so that a second call with no
@@ -76,8 +81,9 @@ def lambdify_within_budget(mech: Mechanism, what: str, budget: float | None,
 def compile_equations(mech: Mechanism, budget: float | None = None) -> Lambdified:
     """The lambdified equations ``tau(q..., qd..., qdd...)`` of a mechanism (cached); call once
     outside a timed loop to separate the symbolic cost from the evaluation."""
-    return lambdify_within_budget(mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd),
-                                                           list(d.equations)))
+    return lambdify_within_budget(
+        mech, "equations", budget, lambda d: (list(d.symbols.q + d.symbols.qd + d.symbols.qdd), list(d.equations))
+    )
 
 
 def inverse_dynamics(mech: Mechanism, q, qd, qdd, budget: float | None = None) -> np.ndarray:
@@ -96,7 +102,7 @@ def mass_matrix(mech: Mechanism, q, budget: float | None = None) -> np.ndarray:
     """The mass matrix ``d tau / d qdd`` (row block k: ``[A_k, B_k, Lambda_k]``), ``(samples, dof, dof)``."""
     q, _, _ = as_states(mech, q)
     c = lambdify_within_budget(mech, "mass matrix", budget, _mass_matrix_build)
-    return _columns(c.fn, list(q.T), q.shape[0], mech.dof ** 2).reshape(-1, mech.dof, mech.dof)
+    return _columns(c.fn, list(q.T), q.shape[0], mech.dof**2).reshape(-1, mech.dof, mech.dof)
 
 
 def _bias_build(d):
@@ -117,5 +123,12 @@ def clear_cache() -> None:
     _FAILED.clear()
 
 
-__all__ = ["DEFAULT_BUDGET", "default_budget", "bias_forces", "clear_cache", "compile_equations", "inverse_dynamics",
-           "mass_matrix"]
+__all__ = [
+    "DEFAULT_BUDGET",
+    "default_budget",
+    "bias_forces",
+    "clear_cache",
+    "compile_equations",
+    "inverse_dynamics",
+    "mass_matrix",
+]

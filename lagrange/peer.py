@@ -36,7 +36,7 @@ def _build(mech: Mechanism, S):
     t = me.dynamicsymbols._t
     q = me.dynamicsymbols(" ".join(f"q_{x}" for x in S.q))
     q = list(q) if isinstance(q, (list, tuple)) else [q]
-    phi, psi, lens = q[:n], (q[n:2 * n] if dim == 3 else []), q[-n:]
+    phi, psi, lens = q[:n], (q[n : 2 * n] if dim == 3 else []), q[-n:]
     N = me.ReferenceFrame("N")
     O = me.Point("O")
     O.set_vel(N, 0)
@@ -72,8 +72,9 @@ def _to_our_symbols(exprs, t, q, S):
     return tuple(sp.expand(me.msubs(e, rep)) for e in exprs)
 
 
-def peer_equations(mech: Mechanism, kind: str = "lagrange", symbolic_parameters: bool = False,
-                   budget: float = 600.0) -> tuple[sp.Expr, ...]:
+def peer_equations(
+    mech: Mechanism, kind: str = "lagrange", symbolic_parameters: bool = False, budget: float = 600.0
+) -> tuple[sp.Expr, ...]:
     """The peer's generalised forces of ``mech`` in our symbols and block order (len dof).
 
     ``kind`` is ``"lagrange"`` (``LagrangesMethod``) or ``"kane"`` (``KanesMethod``). Parameters
@@ -108,8 +109,9 @@ def peer_equations(mech: Mechanism, kind: str = "lagrange", symbolic_parameters:
     return eqs
 
 
-def timed_peer_equations(mech: Mechanism, kind: str = "lagrange", budget: float = 600.0
-                         ) -> tuple[tuple[sp.Expr, ...], float]:
+def timed_peer_equations(
+    mech: Mechanism, kind: str = "lagrange", budget: float = 600.0
+) -> tuple[tuple[sp.Expr, ...], float]:
     """:func:`peer_equations` with symbolic parameters and its wall time in seconds (for benchmarks)."""
     t0 = time.perf_counter()
     eqs = peer_equations(mech, kind, symbolic_parameters=True, budget=budget)

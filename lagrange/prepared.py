@@ -41,9 +41,11 @@ class LagrangeModel(PreparedModel):
 
     def __init__(self, mechanism: Mechanism, budget: float = numeric.DEFAULT_BUDGET, interrupt: bool = True):
         if isinstance(budget, bool) or not isinstance(budget, (int, float)) or not 0 < budget < float("inf"):
-            raise ValueError(f"lagrange: option 'budget': expected a positive, finite number of seconds (for no "
-                             f"practical limit, a large one such as 1e6), got {budget!r}")
-        if not isinstance(interrupt, bool):   # 'x' or 0.5 would be taken as True
+            raise ValueError(
+                f"lagrange: option 'budget': expected a positive, finite number of seconds (for no "
+                f"practical limit, a large one such as 1e6), got {budget!r}"
+            )
+        if not isinstance(interrupt, bool):  # 'x' or 0.5 would be taken as True
             raise ValueError(f"lagrange: option 'interrupt': expected True or False, got {interrupt!r}")
         super().__init__(mechanism, budget=float(budget), interrupt=bool(interrupt))
         self.budget, self.interrupt = float(budget), bool(interrupt)
@@ -60,13 +62,16 @@ class LagrangeModel(PreparedModel):
     def _mass_matrix(self, q):
         if self._mass is None:
             with self._signals():
-                self._mass = numeric.lambdify_within_budget(self._mechanism, "mass matrix", self.budget,
-                                              numeric._mass_matrix_build).fn
+                self._mass = numeric.lambdify_within_budget(
+                    self._mechanism, "mass matrix", self.budget, numeric._mass_matrix_build
+                ).fn
         d = self._dof
         return numeric._columns(self._mass, list(q.T), q.shape[0], d * d).reshape(-1, d, d)
 
     def _bias_forces(self, q, qd):
         if self._bias is None:
             with self._signals():
-                self._bias = numeric.lambdify_within_budget(self._mechanism, "bias forces", self.budget, numeric._bias_build).fn
+                self._bias = numeric.lambdify_within_budget(
+                    self._mechanism, "bias forces", self.budget, numeric._bias_build
+                ).fn
         return numeric._columns(self._bias, [*q.T, *qd.T], q.shape[0], self._dof)

@@ -45,7 +45,7 @@ class TrigRing:
         """Partial derivative with respect to coordinate ``a`` (block order)."""
         if a < self.nangles:
             s, c = self.trig_pairs[a]
-            return p.diff(s) * c - p.diff(c) * s   # d sin = cos, d cos = -sin
+            return p.diff(s) * c - p.diff(c) * s  # d sin = cos, d cos = -sin
         return p.diff(self.q_l[a - self.nangles])
 
     def unit(self, i: int):
@@ -118,6 +118,8 @@ def canonical_form(expr: sp.Expr, symbols: Symbols) -> sp.Expr:
     try:
         p = rg.R.from_expr(e)
     except (ValueError, sp.polys.polyerrors.PolynomialError) as err:
-        raise ValueError(f"canonical_form: expected a polynomial in sines and cosines of the angles, "
-                         f"lengths, rates and parameters, got {expr}: {err}") from None
+        raise ValueError(
+            f"canonical_form: expected a polynomial in sines and cosines of the angles, "
+            f"lengths, rates and parameters, got {expr}: {err}"
+        ) from None
     return rg.reduce(p).as_expr()

@@ -30,8 +30,10 @@ from exo_bench.models import forward_dynamics as fd
 from exo_bench.models.mechanism import Mechanism, as_states
 
 #: What computes the derivatives, per method family (:attr:`Derivatives.source`).
-SOURCE = ("CasADi algorithmic differentiation of the matrix method's factored closed forms of eq. (5)/(17) "
-          "(matrix_method/export/casadi_functions.py)")
+SOURCE = (
+    "CasADi algorithmic differentiation of the matrix method's factored closed forms of eq. (5)/(17) "
+    "(matrix_method/export/casadi_functions.py)"
+)
 
 
 def source_text(method: str, evaluates_these: bool, known_wrong: bool) -> str:
@@ -39,12 +41,16 @@ def source_text(method: str, evaluates_these: bool, known_wrong: bool) -> str:
     family), the correct ones for a method known to be wrong, or the unique equations of motion that
     every other method agrees with (the facts come from the method's MethodSpec, exo_bench.api)."""
     if known_wrong:
-        return (f"{SOURCE}: the CORRECT equations, not {method}'s eq. (18) as printed (its 3D misprints "
-                "have no derivative worth having)")
+        return (
+            f"{SOURCE}: the CORRECT equations, not {method}'s eq. (18) as printed (its 3D misprints "
+            "have no derivative worth having)"
+        )
     if evaluates_these:
         return f"{SOURCE}: the same equations that {method} evaluates"
-    return (f"{SOURCE}: the equations of motion are unique, so these are {method}'s equations' derivatives to "
-            "rounding (the suite checks that every method's inverse dynamics agree)")
+    return (
+        f"{SOURCE}: the equations of motion are unique, so these are {method}'s equations' derivatives to "
+        "rounding (the suite checks that every method's inverse dynamics agree)"
+    )
 
 
 def solve_mass_matrix_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -64,7 +70,7 @@ class Derivatives:
         self.method = method
         #: which physics computes these derivatives (module docstring)
         self.source = source if source is not None else source_text(method, True, False)
-        self.equations = casadi_functions(mechanism)      # a ValueError naming the extra without CasADi
+        self.equations = casadi_functions(mechanism)  # a ValueError naming the extra without CasADi
 
     def __repr__(self) -> str:
         return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {SOURCE}>"
@@ -75,8 +81,9 @@ class Derivatives:
         single = np.ndim(q) == 1
         if check:
             q, qd, qdd = as_states(self.mechanism, q, qd, qdd, source="inverse-dynamics derivatives")
-        out = self.equations.evaluate("inverse_dynamics_derivatives", np.atleast_2d(q), np.atleast_2d(qd),
-                                      np.atleast_2d(qdd))
+        out = self.equations.evaluate(
+            "inverse_dynamics_derivatives", np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(qdd)
+        )
         return tuple(x[0] for x in out) if single else out
 
     def forward_dynamics(self, q, qd, tau, check: bool = True):
@@ -99,7 +106,7 @@ class Derivatives:
         jq, jqd, _ = ev("inverse_dynamics_derivatives", q, qd, qdd)
         d = self.mechanism.dof
         X = solve_mass_matrix_columns(M, np.concatenate([jq, jqd, np.broadcast_to(np.eye(d), M.shape)], axis=2))
-        out = (qdd, -X[:, :, :d], -X[:, :, d:2 * d], X[:, :, 2 * d:])
+        out = (qdd, -X[:, :, :d], -X[:, :, d : 2 * d], X[:, :, 2 * d :])
         return tuple(x[0] for x in out) if single else out
 
 

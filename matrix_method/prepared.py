@@ -27,7 +27,12 @@ import warnings
 
 import numpy as np
 
-from exo_bench.matrix_method.numba_kernels import common as compiled, factored as compiled_factored, matrix as compiled_matrix, recurrence as compiled_recurrence
+from exo_bench.matrix_method.numba_kernels import (
+    common as compiled,
+    factored as compiled_factored,
+    matrix as compiled_matrix,
+    recurrence as compiled_recurrence,
+)
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.numba_kernels import lean as compiled_lean, simd as compiled_simd
 from exo_bench.matrix_method import recurrence as _recurrence
@@ -55,8 +60,8 @@ class _MatrixFamily(PreparedModel):
         tile = _tile_option(self.method, tile, block)
         super().__init__(mechanism, tile=tile)
         self.tile = tile
-        self.coupling = np.ascontiguousarray(signed_coupling(mechanism))     # c_ij = mu_ij s_i s_j
-        self.gravity_coefficients = np.ascontiguousarray(signed_gravity(mechanism))   # nu_i s_i
+        self.coupling = np.ascontiguousarray(signed_coupling(mechanism))  # c_ij = mu_ij s_i s_j
+        self.gravity_coefficients = np.ascontiguousarray(signed_gravity(mechanism))  # nu_i s_i
 
     def matrices(self, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
         """Every matrix of eq. (5)/(17) at ``(S, dof)`` configurations, ``block -> name -> array``."""
@@ -87,8 +92,9 @@ class _WithNumbaKernel(_MatrixFamily):
 
     _kernels: dict = {}
 
-    def __init__(self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *,
-                 block: int | None = None):
+    def __init__(
+        self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *, block: int | None = None
+    ):
         kernel = kernel_option(self.method, kernel)
         super().__init__(mechanism, _tile_option(self.method, tile, block))
         self._options["kernel"] = kernel
@@ -97,8 +103,10 @@ class _WithNumbaKernel(_MatrixFamily):
         self.serial_kernel, self.parallel_kernel = self._kernels[mechanism.dim]
         #: the kernel's arguments before the states: ``serial_kernel(*kernel_args, q, qd, qdd)``
         #: is the compiled call for flat C-ordered states (what a numba model's call runs).
-        self.kernel_args = (compiled.params(self.coupling, self.gravity_coefficients, mechanism.g),
-                            *self._kernel_extra(mechanism))
+        self.kernel_args = (
+            compiled.params(self.coupling, self.gravity_coefficients, mechanism.g),
+            *self._kernel_extra(mechanism),
+        )
 
     def _kernel_extra(self, mechanism: Mechanism) -> tuple:
         return ()
@@ -106,12 +114,12 @@ class _WithNumbaKernel(_MatrixFamily):
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
-        unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
-        if q.ndim == 1:                         # one sample: the serial kernel on the arrays as given
+        unchecked_states(self.method, self._dof, (q, qd, qdd), out)  # memory safety: layout, shapes, out
+        if q.ndim == 1:  # one sample: the serial kernel on the arrays as given
             o = np.empty(q.shape) if out is None else out
             self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
             return o
-        if out is None:                         # a batch: the compiled kernel, no chunks (O(n^2) scratch)
+        if out is None:  # a batch: the compiled kernel, no chunks (O(n^2) scratch)
             return self._inverse_dynamics(q, qd, qdd)
         return self._compiled(q, qd, qdd, out)
 
@@ -120,9 +128,13 @@ class _WithNumbaKernel(_MatrixFamily):
     def _compiled(self, q, qd, qdd, out=None):
         """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
         ``out`` (C-ordered) or a new array."""
-        o = np.empty(q.shape) if out is None else out     # C-ordered whatever q is: reshape(-1) is a view
-        compiled.run(self.serial_kernel, self.parallel_kernel,
-                     (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1)), q.shape[0])
+        o = np.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
+        compiled.run(
+            self.serial_kernel,
+            self.parallel_kernel,
+            (*self.kernel_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1)),
+            q.shape[0],
+        )
         return o
 
 
@@ -137,6 +149,7 @@ class MatrixProducts(_WithNumbaKernel):
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
         n, d = nlinks, dim
         return 8.0 * ((24 if d == 2 else 44) * n * n + 40 * n)
+
     _kernels = compiled_matrix.KERNELS
 
     def _inverse_dynamics(self, q, qd, qdd):
@@ -148,8 +161,9 @@ class MatrixProducts(_WithNumbaKernel):
         flat = numeric._planar(mech, phi, l, np.cos, np.sin, self.coupling, self.gravity_coefficients)
         if mech.dim == 2:
             return flat
-        straight = numeric._planar(mech, np.zeros_like(phi), l, np.cos, np.sin, self.coupling,
-                                   self.gravity_coefficients)
+        straight = numeric._planar(
+            mech, np.zeros_like(phi), l, np.cos, np.sin, self.coupling, self.gravity_coefficients
+        )
         _, psi, _ = split(mech, q)
         return numeric.spatial_from_planar(psi, l, flat, straight, self.gravity_coefficients)
 
@@ -169,15 +183,17 @@ class MatrixFactored(_WithNumbaKernel):
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
         n, d = nlinks, dim
         return 8.0 * (8 * d * n + 40 * n)
+
     _kernels = compiled_factored.KERNELS
 
-    def __init__(self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *,
-                 block: int | None = None):
+    def __init__(
+        self, mechanism: Mechanism, tile: int = numeric.TILE, kernel: str = "numba", *, block: int | None = None
+    ):
         super().__init__(mechanism, _tile_option(self.method, tile, block), kernel)
         #: the batched path of ``kernel="numba"``: the kernel that vectorises across samples
         #: (:mod:`exo_bench.matrix_method.numba_kernels.simd`); one sample runs :attr:`serial_kernel`
         self.batch_kernel = compiled_simd.KERNELS[mechanism.dim]
-        self._lean = None                       # the lean one-sample entry, resolved on first use
+        self._lean = None  # the lean one-sample entry, resolved on first use
         n = mechanism.nlinks
         self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
         self._nu = self.gravity_coefficients[:, None]
@@ -190,9 +206,18 @@ class MatrixFactored(_WithNumbaKernel):
             # trusts is checked here, the shapes and strides in compiled code
             lean = self._lean or self._resolve_lean()
             try:
-                if (q.ndim == 1 and qd.ndim == 1 and qdd.ndim == 1 and out.ndim == 1 and q.dtype is _F8
-                        and qd.dtype is _F8 and qdd.dtype is _F8 and out.dtype is _F8 and out.flags.writeable
-                        and lean(self._params, q, qd, qdd, out)):
+                if (
+                    q.ndim == 1
+                    and qd.ndim == 1
+                    and qdd.ndim == 1
+                    and out.ndim == 1
+                    and q.dtype is _F8
+                    and qd.dtype is _F8
+                    and qdd.dtype is _F8
+                    and out.dtype is _F8
+                    and out.flags.writeable
+                    and lean(self._params, q, qd, qdd, out)
+                ):
                     return out
             except AttributeError:
                 pass
@@ -205,8 +230,9 @@ class MatrixFactored(_WithNumbaKernel):
         self._lean = compiled_lean.entry(self._mechanism.dim, self._params)
         # the compiled wrapper, where it was built: from the next call on, model.inverse_dynamics is
         # it, and it passes every call it does not take (check=True, no out, batches) to this method
-        fast = compiled_lean.c_call(self._mechanism.dim, self._params,
-                                    type(self).inverse_dynamics.__get__(self, type(self)), self._dof)
+        fast = compiled_lean.c_call(
+            self._mechanism.dim, self._params, type(self).inverse_dynamics.__get__(self, type(self)), self._dof
+        )
         if fast is not None:
             self.inverse_dynamics = fast
         return self._lean
@@ -215,8 +241,15 @@ class MatrixFactored(_WithNumbaKernel):
         """The batched path: :attr:`batch_kernel` over ``(samples, dof)`` states (flat views), into
         ``out`` or a new C-ordered array, split over threads for large batches (:func:`exo_bench.matrix_method.numba_kernels.simd.run`)."""
         o = np.empty(q.shape) if out is None else out
-        compiled_simd.run(self.batch_kernel, self.kernel_args[0], q.reshape(-1), qd.reshape(-1), qdd.reshape(-1),
-                          o.reshape(-1), q.shape[0])
+        compiled_simd.run(
+            self.batch_kernel,
+            self.kernel_args[0],
+            q.reshape(-1),
+            qd.reshape(-1),
+            qdd.reshape(-1),
+            o.reshape(-1),
+            q.shape[0],
+        )
         return o
 
     def _inverse_dynamics(self, q, qd, qdd):
@@ -230,7 +263,7 @@ class MatrixFactored(_WithNumbaKernel):
     def matrices(self, q):
         return self._products.matrices(q)
 
-    _mass_matrix = PreparedModel._mass_matrix      # derived from the factored inverse dynamics
+    _mass_matrix = PreparedModel._mass_matrix  # derived from the factored inverse dynamics
     _bias_forces = PreparedModel._bias_forces
 
 
@@ -252,8 +285,9 @@ class MatrixPaper(_MatrixFamily):
         return numeric.paper_matrices(self._mechanism, q)
 
     def _inverse_dynamics(self, q, qd, qdd):
-        return numeric.warn_paper_nan(numeric.generalised_forces(self._mechanism, self.matrices(q), qd, qdd),
-                                      stacklevel=3)
+        return numeric.warn_paper_nan(
+            numeric.generalised_forces(self._mechanism, self.matrices(q), qd, qdd), stacklevel=3
+        )
 
 
 class Recurrence(_WithNumbaKernel):
@@ -267,6 +301,7 @@ class Recurrence(_WithNumbaKernel):
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
         n, d = nlinks, dim
         return 8.0 * ((40 if d == 2 else 80) * n * n + 60 * n)
+
     _kernels = compiled_recurrence.KERNELS
 
     def _kernel_extra(self, mechanism):

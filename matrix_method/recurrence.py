@@ -35,8 +35,17 @@ from exo_bench.models.mechanism import Mechanism, as_states, split
 
 
 # ------------------------------------------------------------------ numeric
-def planar_step(mech: Mechanism, k: int, mats: dict, nu_s: np.ndarray, l: np.ndarray, C: np.ndarray,
-                S: np.ndarray, cos_phi: np.ndarray, sin_phi: np.ndarray) -> None:
+def planar_step(
+    mech: Mechanism,
+    k: int,
+    mats: dict,
+    nu_s: np.ndarray,
+    l: np.ndarray,
+    C: np.ndarray,
+    S: np.ndarray,
+    cos_phi: np.ndarray,
+    sin_phi: np.ndarray,
+) -> None:
     """Eqs. (23)-(25) for trees, in place: add link ``k`` to the planar matrices ``mats``
     (``block -> name -> (N, N, samples)``, ``P``: ``(N, samples)``) of links ``0..k-1``.
 
@@ -53,7 +62,7 @@ def planar_step(mech: Mechanism, k: int, mats: dict, nu_s: np.ndarray, l: np.nda
     dc = dc[:, :, None]
     for b, fns in planar.PAIRS.items():
         for name, f in fns.items():
-            mats[b][name][block] += f(dc, li, lj, Cs, Ss)                           # delta X_n (25)
+            mats[b][name][block] += f(dc, li, lj, Cs, Ss)  # delta X_n (25)
         mats[b]["P"][idx] += planar.GRAVITY[b](dnu[:, None], l[idx], cos_phi[idx], sin_phi[idx])
     nu_s[idx] += dnu
 
@@ -63,7 +72,7 @@ def planar_sequence(mech: Mechanism, q: np.ndarray, straight: bool = False) -> I
     previous one by :func:`planar_step`; matrices as ``(samples, n, n)`` (``P``: ``(samples, n)``)
     views, valid until the next step. ``straight``: the straightened model (every ``phi = 0``)."""
     phi, _, l = split(mech, q)
-    phi, l = phi.T, np.ascontiguousarray(l.T)                 # (N, samples)
+    phi, l = phi.T, np.ascontiguousarray(l.T)  # (N, samples)
     if straight:
         phi = np.zeros_like(phi)
     N, samples = mech.nlinks, q.shape[0]
@@ -77,8 +86,14 @@ def planar_sequence(mech: Mechanism, q: np.ndarray, straight: bool = False) -> I
     for k in range(N):
         planar_step(mech, k, mats, nu_s, l, C, S, cos_phi, sin_phi)
         n = k + 1
-        yield n, {b: {name: (np.moveaxis(m[:n, :n], -1, 0) if name != "P" else m[:n].T) for name, m in ms.items()}
-                  for b, ms in mats.items()}, nu_s[:n]
+        yield (
+            n,
+            {
+                b: {name: (np.moveaxis(m[:n, :n], -1, 0) if name != "P" else m[:n].T) for name, m in ms.items()}
+                for b, ms in mats.items()
+            },
+            nu_s[:n],
+        )
 
 
 def matrix_sequence(mech: Mechanism, q, every: bool = True) -> Iterator[tuple[int, dict]]:
@@ -125,7 +140,7 @@ def _symbolic_planar(mech: Mechanism, G: Generators, straight: bool):
                 C, Sn = (1, 0) if straight else (G.C(i, j), G.S(i, j))
                 for blk, fns in planar.PAIRS.items():
                     for name, f in fns.items():
-                        delta = f(dc[a][b], G["l", i], G["l", j], C, Sn)        # delta X_n (25)
+                        delta = f(dc[a][b], G["l", i], G["l", j], C, Sn)  # delta X_n (25)
                         old = entries[blk][name].get((i, j))
                         entries[blk][name][(i, j)] = delta if old is None else old + delta
             nu_s[i] = dnu[a] if i not in nu_s else nu_s[i] + dnu[a]

@@ -68,8 +68,8 @@ def coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0) -> tuple[list[li
     mu = [[zero] * n for _ in range(n)]
     nu = []
     for k in range(n):
-        mu[k][k] = zeta[k] + Theta[k]                  # First term: the link with itself
-        for a in mech.ancestors[k]:                    # Second term: k with each ancestor, k deeper
+        mu[k][k] = zeta[k] + Theta[k]  # First term: the link with itself
+        for a in mech.ancestors[k]:  # Second term: k with each ancestor, k deeper
             mu[a][k] = mu[k][a] = eta[k] + Theta[k]
         nu.append(eta[k] + Theta[k])
     return mu, nu

@@ -52,7 +52,9 @@ def import_drake():
     try:
         from pydrake.multibody import plant, tree
     except ImportError as e:
-        raise MissingExtra(f"drake: Drake is not installed (no module {e.name or e}): {EXTRA} to use method 'drake'") from None
+        raise MissingExtra(
+            f"drake: Drake is not installed (no module {e.name or e}): {EXTRA} to use method 'drake'"
+        ) from None
     return plant, tree
 
 
@@ -84,10 +86,12 @@ def build_plant(mech: Mechanism) -> DrakePlant:
         return plant.AddRigidBody(name, tree.SpatialInertia(float(mass), np.zeros(3), zero))
 
     def joint(kind, name, parent, child, axis, coef):
-        joints.append((plant.AddJoint(kind(name, parent.body_frame(), child.body_frame(), np.asarray(axis, float))), coef))
+        joints.append(
+            (plant.AddJoint(kind(name, parent.body_frame(), child.body_frame(), np.asarray(axis, float))), coef)
+        )
 
     bodies = []
-    for i in range(n):   # parents come before their children
+    for i in range(n):  # parents come before their children
         k, p = link_prefix(mech, i), mech.parent[i]
         m0, m1, m2 = mech.masses[i]
         base = ends[p] if p >= 0 else plant.world_body()
@@ -139,7 +143,7 @@ def body_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
             X = lambda name: plant.EvalBodyPoseInWorld(ctx, plant.GetBodyByName(name)).translation()
             start, end = X(a), X(c)
             mid = X(b) if b is not None else start + mech.n[i] * (end - start)
-            out[s, i] = np.stack([start, mid, end])[:, :mech.dim]
+            out[s, i] = np.stack([start, mid, end])[:, : mech.dim]
     return out
 
 
@@ -154,7 +158,7 @@ class DrakeID(PreparedModel):
 
     @classmethod
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
-        return 8.0 * 20 * dim * nlinks      # the cost model's figure (exo_bench.api.cost_formulas)
+        return 8.0 * 20 * dim * nlinks  # the cost model's figure (exo_bench.api.cost_formulas)
 
     def __init__(self, mechanism: Mechanism):
         super().__init__(mechanism)

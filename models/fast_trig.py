@@ -44,20 +44,20 @@ RANGE = 1e5
 #: The stated bound of :func:`sincos_reduced` on ``|x| <= RANGE``: ulps from numpy's sin/cos.
 ULPS = 1.0
 
-INVPIO2 = 6.36619772367581382433e-01      # 2/pi
-PIO2_1 = 1.57079632673412561417e+00       # first 33 bits of pi/2
-PIO2_2 = 6.07710050630396597660e-11       # second 33 bits of pi/2
-PIO2_3 = 2.02226624871116645580e-21       # third 33 bits of pi/2
-PIO2_3T = 8.47842766036889956997e-32      # pi/2 - (PIO2_1 + PIO2_2 + PIO2_3)
-ROUND = 6755399441055744.0                # 1.5 * 2^52: x + ROUND - ROUND rounds x to an integer
+INVPIO2 = 6.36619772367581382433e-01  # 2/pi
+PIO2_1 = 1.57079632673412561417e00  # first 33 bits of pi/2
+PIO2_2 = 6.07710050630396597660e-11  # second 33 bits of pi/2
+PIO2_3 = 2.02226624871116645580e-21  # third 33 bits of pi/2
+PIO2_3T = 8.47842766036889956997e-32  # pi/2 - (PIO2_1 + PIO2_2 + PIO2_3)
+ROUND = 6755399441055744.0  # 1.5 * 2^52: x + ROUND - ROUND rounds x to an integer
 
-S1 = -1.66666666666666324348e-01          # fdlibm __kernel_sin
+S1 = -1.66666666666666324348e-01  # fdlibm __kernel_sin
 S2 = 8.33333333332248946124e-03
 S3 = -1.98412698298579493134e-04
 S4 = 2.75573137070700676789e-06
 S5 = -2.50507602534068634195e-08
 S6 = 1.58969099521155010221e-10
-C1 = 4.16666666666666019037e-02           # fdlibm __kernel_cos
+C1 = 4.16666666666666019037e-02  # fdlibm __kernel_cos
 C2 = -1.38888888888741095749e-03
 C3 = 2.48015872894767294178e-05
 C4 = -2.75573143513906633035e-07
@@ -69,18 +69,18 @@ C6 = -1.13596475577881948265e-11
 def sincos_reduced(x):
     """``(sin x, cos x)`` for ``|x| <= RANGE``, branch-free (module docstring); outside the range
     the result is meaningless (use :func:`sincos` or :func:`sincos_into`)."""
-    fn = (x * INVPIO2 + ROUND) - ROUND                 # k = round(x 2/pi), exact for |x| < 2^51
-    r0 = x - fn * PIO2_1                               # exact: fn * PIO2_1 has at most 53 bits
-    p2 = fn * PIO2_2                                   # exact (|k| < 2^20)
-    r1 = r0 - p2                                       # TwoSum: r0 - p2 = r1 + e1 exactly
+    fn = (x * INVPIO2 + ROUND) - ROUND  # k = round(x 2/pi), exact for |x| < 2^51
+    r0 = x - fn * PIO2_1  # exact: fn * PIO2_1 has at most 53 bits
+    p2 = fn * PIO2_2  # exact (|k| < 2^20)
+    r1 = r0 - p2  # TwoSum: r0 - p2 = r1 + e1 exactly
     b1 = r1 - r0
     e1 = (r0 - (r1 - b1)) - (p2 + b1)
-    p3 = fn * PIO2_3                                   # exact
-    r2 = r1 - p3                                       # r1 - p3 = r2 + e2 exactly
+    p3 = fn * PIO2_3  # exact
+    r2 = r1 - p3  # r1 - p3 = r2 + e2 exactly
     b2 = r2 - r1
     e2 = (r1 - (r2 - b2)) - (p3 + b2)
     tail = (e1 + e2) - fn * PIO2_3T
-    y0 = r2 + tail                                     # x = k pi/2 + y0 + y1
+    y0 = r2 + tail  # x = k pi/2 + y0 + y1
     y1 = (r2 - y0) + tail
     z = y0 * y0
     # sin(y0 + y1), fdlibm __kernel_sin(y0, y1, 1)

@@ -65,8 +65,9 @@ def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, vi
     dynamics (:func:`exo_bench.models.prepared.terms_from_inverse_dynamics`, one batched call).
     """
     if via_inverse_dynamics:
-        return terms_from_inverse_dynamics(lambda a, b, c: model.inverse_dynamics(a, b, c, check=False),
-                                           model.dof, q, qd)
+        return terms_from_inverse_dynamics(
+            lambda a, b, c: model.inverse_dynamics(a, b, c, check=False), model.dof, q, qd
+        )
     return model.mass_matrix_and_bias(q, qd, check=False)
 
 
@@ -138,7 +139,7 @@ def prescribed_controls(model: PreparedModel, motion_of_t) -> Controls:
         m = motion_of_t(np.array([t]))
         return np.broadcast_to(model.inverse_dynamics(m.q, m.qd, m.qdd, check=False), q.shape)
 
-    controls.jacobian = _no_state_dependence      # tau depends on t alone
+    controls.jacobian = _no_state_dependence  # tau depends on t alone
     return controls
 
 
@@ -192,18 +193,20 @@ class Simulation:
     integrator: str
     rtol: float
     atol: float
-    t: np.ndarray                     # (N,) accepted step times, t[0] the start
-    y: np.ndarray                     # (N, 2 dof) states [q, qd] at those times
-    nfev: int = 0                     # right-hand-side evaluations (columns, for vectorised calls)
+    t: np.ndarray  # (N,) accepted step times, t[0] the start
+    y: np.ndarray  # (N, 2 dof) states [q, qd] at those times
+    nfev: int = 0  # right-hand-side evaluations (columns, for vectorised calls)
     njev: int = 0
     nlu: int = 0
     seconds: float = 0.0
-    status: str = "ok"                # "ok", "budget exceeded: ...", "failed: ..."
-    t_reached: float = math.nan       # the latest time the right-hand side was evaluated at
-    outside: int = 0                  # trial stages outside the domain (l < 0): NaN, step rejected
-    solution: Callable[[Any], np.ndarray] | None = field(default=None, repr=False)   # dense output (scipy OdeSolution) when asked for
-    jacobian: str = "finite-difference"   # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
-    jacobian_columns: int = 0             # of nfev, the columns spent on scipy's finite-difference Jacobians
+    status: str = "ok"  # "ok", "budget exceeded: ...", "failed: ..."
+    t_reached: float = math.nan  # the latest time the right-hand side was evaluated at
+    outside: int = 0  # trial stages outside the domain (l < 0): NaN, step rejected
+    solution: Callable[[Any], np.ndarray] | None = field(
+        default=None, repr=False
+    )  # dense output (scipy OdeSolution) when asked for
+    jacobian: str = "finite-difference"  # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
+    jacobian_columns: int = 0  # of nfev, the columns spent on scipy's finite-difference Jacobians
     # implicit integrators: the times at which the Jacobian was evaluated, and of every single-column
     # right-hand-side call (stages, Newton iterations, step ends; what the stability report's Jacobian
     # comparison explains its counts with)
@@ -225,8 +228,13 @@ class Simulation:
         return self.y[:, dof:]
 
 
-def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | None = None,
-             max_seconds: float | None = None, record_times: bool = False):
+def make_rhs(
+    model: PreparedModel,
+    controls: Controls,
+    max_evaluations: int | None = None,
+    max_seconds: float | None = None,
+    record_times: bool = False,
+):
     """The vectorised right-hand side ``f(t, y)`` of ``y = [q, qd]``, ``y`` of shape ``(2 dof,)`` or
     ``(2 dof, k)``, and a counter dict (``columns`` evaluated, stages ``rejected`` as outside the
     domain, the latest ``t`` reached; with ``record_times`` the ``times`` of the single-column calls and
@@ -234,24 +242,33 @@ def make_rhs(model: PreparedModel, controls: Controls, max_evaluations: int | No
     :class:`IntegrationBudgetExceeded`."""
     mech = model.mechanism
     d = mech.dof
-    count = {"columns": 0, "jacobian_columns": 0, "rejected": 0, "t": -math.inf, "start": time.perf_counter(),
-             "times": array("d"), "jacobian_times": array("d")}
+    count = {
+        "columns": 0,
+        "jacobian_columns": 0,
+        "rejected": 0,
+        "t": -math.inf,
+        "start": time.perf_counter(),
+        "times": array("d"),
+        "jacobian_times": array("d"),
+    }
 
     def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        Y = y.reshape(2 * d, -1).T                 # (k, 2d): one row per column of y
+        Y = y.reshape(2 * d, -1).T  # (k, 2d): one row per column of y
         count["columns"] += Y.shape[0]
-        if Y.shape[0] > 1:                         # only scipy's finite-difference Jacobian asks for several
+        if Y.shape[0] > 1:  # only scipy's finite-difference Jacobian asks for several
             count["jacobian_columns"] += Y.shape[0]
             if record_times:
                 count["jacobian_times"].append(t)
         elif record_times:
             count["times"].append(t)
         if max_evaluations is not None and count["columns"] > max_evaluations:
-            raise IntegrationBudgetExceeded(f"gave up after {max_evaluations} right-hand-side evaluations "
-                                            f"(t = {t:.4g} s)")
+            raise IntegrationBudgetExceeded(
+                f"gave up after {max_evaluations} right-hand-side evaluations (t = {t:.4g} s)"
+            )
         if max_seconds is not None and time.perf_counter() - count["start"] > max_seconds:
-            raise IntegrationBudgetExceeded(f"gave up after {max_seconds:g} s of wall time "
-                                            f"({count['columns']} evaluations, t = {t:.4g} s)")
+            raise IntegrationBudgetExceeded(
+                f"gave up after {max_seconds:g} s of wall time ({count['columns']} evaluations, t = {t:.4g} s)"
+            )
         count["t"] = max(count["t"], t)
         q, qd = np.ascontiguousarray(Y[:, :d]), np.ascontiguousarray(Y[:, d:])
         # A trial stage of a too-long step can leave the domain (a rod length below zero, or not
@@ -284,8 +301,10 @@ def make_jacobian(model: PreparedModel, controls: Controls):
     derivatives are not available (the optional extra ``casadi``)."""
     jac_controls = getattr(controls, "jacobian", None)
     if jac_controls is None:
-        raise ValueError("jacobian 'analytic': the controls have no jacobian(t, q, qd) -> (dtau/dq, dtau/dqd) "
-                         "attribute; use jacobian='finite-difference'")
+        raise ValueError(
+            "jacobian 'analytic': the controls have no jacobian(t, q, qd) -> (dtau/dq, dtau/dqd) "
+            "attribute; use jacobian='finite-difference'"
+        )
     derivatives = model.derivatives
     d = model.dof
     eye = np.eye(d)
@@ -304,11 +323,21 @@ def make_jacobian(model: PreparedModel, controls: Controls):
     return jac
 
 
-def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], controls: Controls,
-             integrator: str = "DOP853", rtol: float = 1e-8,
-             atol: float | None = None, max_evaluations: int | None = None, max_seconds: float | None = None,
-             dense: bool = False, first_step: float | None = None,
-             jacobian: str = "finite-difference") -> Simulation:
+def simulate(
+    model: PreparedModel,
+    q0,
+    qd0,
+    t_span: tuple[float, float],
+    controls: Controls,
+    integrator: str = "DOP853",
+    rtol: float = 1e-8,
+    atol: float | None = None,
+    max_evaluations: int | None = None,
+    max_seconds: float | None = None,
+    dense: bool = False,
+    first_step: float | None = None,
+    jacobian: str = "finite-difference",
+) -> Simulation:
     """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
 
     ``jacobian`` (implicit integrators): ``"finite-difference"`` (scipy's, from the vectorised
@@ -325,8 +354,10 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
     if jacobian not in JACOBIANS:
         raise ValueError(f"jacobian: expected one of {', '.join(JACOBIANS)}, got {jacobian!r}")
     if jacobian == "analytic" and integrator not in IMPLICIT:
-        raise ValueError(f"jacobian 'analytic': only the implicit integrators ({', '.join(IMPLICIT)}) use a "
-                         f"Jacobian, got {integrator!r}")
+        raise ValueError(
+            f"jacobian 'analytic': only the implicit integrators ({', '.join(IMPLICIT)}) use a "
+            f"Jacobian, got {integrator!r}"
+        )
     from scipy.integrate import solve_ivp
 
     mech = model.mechanism
@@ -350,8 +381,9 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
 
         kw["jac"] = jac
     try:
-        r = solve_ivp(rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True,
-                      dense_output=dense, **kw)
+        r = solve_ivp(
+            rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True, dense_output=dense, **kw
+        )
         steps_t, steps_y = list(r.t), list(r.y.T)
         njev, nlu = int(r.njev), int(r.nlu)
         sol = r.sol
@@ -364,7 +396,22 @@ def simulate(model: PreparedModel, q0, qd0, t_span: tuple[float, float], control
         status = f"skipped: {skip}" if skip else "failed: " + traceback.format_exception_only(type(e), e)[-1].strip()
         njev, nlu = 0, 0
     seconds = time.perf_counter() - t0
-    return Simulation(integrator, rtol, atol, np.asarray(steps_t), np.asarray(steps_y), count["columns"],
-                      njev, nlu, seconds, status, float(count["t"]), count["rejected"], sol, jacobian,
-                      count["jacobian_columns"], np.unique(np.asarray(count["jacobian_times"])),
-                      np.asarray(count["times"]))
+    return Simulation(
+        integrator,
+        rtol,
+        atol,
+        np.asarray(steps_t),
+        np.asarray(steps_y),
+        count["columns"],
+        njev,
+        nlu,
+        seconds,
+        status,
+        float(count["t"]),
+        count["rejected"],
+        sol,
+        jacobian,
+        count["jacobian_columns"],
+        np.unique(np.asarray(count["jacobian_times"])),
+        np.asarray(count["times"]),
+    )

@@ -75,8 +75,8 @@ SWING_LINKS = (2, 3)
 FIT_SAMPLES = 400
 STARTS = 16
 SEED = 0
-ANGLE_SCALE = 1.0      # deg
-LENGTH_SCALE = 0.005   # m
+ANGLE_SCALE = 1.0  # deg
+LENGTH_SCALE = 0.005  # m
 STRETCH_SCALE = 0.005  # of the rest length
 J5 = 0.05
 
@@ -85,13 +85,13 @@ J5 = 0.05
 class GaitCheck:
     """What a set of gait parameters achieves against the targets."""
 
-    angles: tuple[tuple[float, float], ...]   # (min, max) sagittal angle of links 1-4, degrees
+    angles: tuple[tuple[float, float], ...]  # (min, max) sagittal angle of links 1-4, degrees
     targets: tuple[tuple[float, float], ...]  # the normative (min, max), degrees
-    rms: tuple[float, ...]                    # RMS of model minus Winter over the phase, degrees
-    lowest_swing_point: float                 # m, over every swing-leg point mass and instant
-    lowest_swing_at: float                    # s
-    lateral: float                            # m, largest |y| of any point mass
-    cadence: float                            # steps/min, 120 / T
+    rms: tuple[float, ...]  # RMS of model minus Winter over the phase, degrees
+    lowest_swing_point: float  # m, over every swing-leg point mass and instant
+    lowest_swing_at: float  # s
+    lateral: float  # m, largest |y| of any point mass
+    cadence: float  # steps/min, 120 / T
 
     @property
     def angle_residuals(self) -> tuple[tuple[float, float], ...]:
@@ -116,8 +116,15 @@ def check_gait(params: GaitParams, samples: int = 20000) -> GaitCheck:
     k = int(np.argmin(z))
     targets = tuple(WINTER.angle_range(seg, phase) for seg, phase in SEGMENTS)
     rms = tuple(float(np.sqrt(np.mean(r**2))) for r in _curve_errors(params))
-    return GaitCheck(tuple((float(th[:, i].min()), float(th[:, i].max())) for i in range(4)), targets, rms,
-                     float(z[k]), float(t[k]), float(np.abs(P[..., 1]).max()), 120.0 / params.T)
+    return GaitCheck(
+        tuple((float(th[:, i].min()), float(th[:, i].max())) for i in range(4)),
+        targets,
+        rms,
+        float(z[k]),
+        float(t[k]),
+        float(np.abs(P[..., 1]).max()),
+        120.0 / params.T,
+    )
 
 
 def _curve_errors(params: GaitParams) -> list[np.ndarray]:
@@ -132,9 +139,13 @@ def _curve_errors(params: GaitParams) -> list[np.ndarray]:
 
 
 def _params(x: np.ndarray) -> GaitParams:
-    return GaitParams(T=WINTER.stride_time.value, j=tuple(float(v) for v in x[0:4]) + (J5,),
-                      f=tuple(float(v) for v in x[4:8]), l_star=tuple(float(v) for v in x[8:12]) + (REST_LENGTHS[4],),
-                      l=float(x[12]))
+    return GaitParams(
+        T=WINTER.stride_time.value,
+        j=tuple(float(v) for v in x[0:4]) + (J5,),
+        f=tuple(float(v) for v in x[4:8]),
+        l_star=tuple(float(v) for v in x[8:12]) + (REST_LENGTHS[4],),
+        l=float(x[12]),
+    )
 
 
 class _Problem:
@@ -182,8 +193,7 @@ def objective(params: GaitParams, samples: int = FIT_SAMPLES) -> float:
     return _Problem(samples).objective(_vector(params))
 
 
-BOUNDS = ([(0.0, 1.5)] * 4 + [(-math.pi, math.pi)] * 4 + [(0.9 * a, 1.1 * a) for a in REST_LENGTHS[:4]]
-          + [(0.0, 0.1)])
+BOUNDS = [(0.0, 1.5)] * 4 + [(-math.pi, math.pi)] * 4 + [(0.9 * a, 1.1 * a) for a in REST_LENGTHS[:4]] + [(0.0, 0.1)]
 
 
 @dataclass(frozen=True)
@@ -205,8 +215,9 @@ def fit_gait(starts: int = STARTS, seed: int = SEED, samples: int = FIT_SAMPLES)
     best, feasible = None, 0
     for _ in range(starts):
         x0 = np.concatenate([rng.uniform(0.1, 1.2, 4), rng.uniform(-math.pi, math.pi, 4), REST_LENGTHS[:4], [0.01]])
-        res = minimize(prob.objective, x0, method="SLSQP", bounds=BOUNDS, constraints=cons,
-                       options={"maxiter": 500, "ftol": 1e-10})
+        res = minimize(
+            prob.objective, x0, method="SLSQP", bounds=BOUNDS, constraints=cons, options={"maxiter": 500, "ftol": 1e-10}
+        )
         ok = prob.clearance(res.x).min() >= -1e-6 and prob.lateral(res.x).min() >= -1e-6
         feasible += ok
         if ok and (best is None or res.fun < best.fun):
@@ -226,17 +237,25 @@ def rounded(params: GaitParams, digits: int = 4) -> GaitParams:
 def describe(params: GaitParams, check: GaitCheck | None = None) -> str:
     """The targets and what ``params`` achieve, as text (the fit's report)."""
     c = check or check_gait(params)
-    lines = [f"T = {params.T} s ({c.cadence:.1f} steps/min; target {WINTER.stride_time.value} s, "
-             f"{WINTER.cadence:.1f} steps/min at {WINTER.speed.value} m/s)"]
+    lines = [
+        f"T = {params.T} s ({c.cadence:.1f} steps/min; target {WINTER.stride_time.value} s, "
+        f"{WINTER.cadence:.1f} steps/min at {WINTER.speed.value} m/s)"
+    ]
     for i, role in enumerate(ROLES):
         (a, b), (lo, hi) = c.angles[i], c.targets[i]
-        lines.append(f"link {i + 1} ({role}): RMS {c.rms[i]:.1f} deg over the phase; range {a:.1f} to {b:.1f} deg, "
-                     f"Winter {lo:.1f} to {hi:.1f} deg (residual {a - lo:+.1f}, {b - hi:+.1f})")
-    lines.append(f"lowest swing-leg point mass: {100 * c.lowest_swing_point:.2f} cm at t = {c.lowest_swing_at:.3f} s "
-                 f"(target >= {100 * CLEARANCE:.0f} cm)")
+        lines.append(
+            f"link {i + 1} ({role}): RMS {c.rms[i]:.1f} deg over the phase; range {a:.1f} to {b:.1f} deg, "
+            f"Winter {lo:.1f} to {hi:.1f} deg (residual {a - lo:+.1f}, {b - hi:+.1f})"
+        )
+    lines.append(
+        f"lowest swing-leg point mass: {100 * c.lowest_swing_point:.2f} cm at t = {c.lowest_swing_at:.3f} s "
+        f"(target >= {100 * CLEARANCE:.0f} cm)"
+    )
     lines.append(f"largest |y| of any point mass: {100 * c.lateral:.2f} cm (bound {100 * LATERAL_BOUND:.0f} cm)")
-    lines.append(f"rest lengths {params.l_star} m (anthropometric {tuple(round(x, 4) for x in REST_LENGTHS)}), "
-                 f"stretch l = {params.l}")
+    lines.append(
+        f"rest lengths {params.l_star} m (anthropometric {tuple(round(x, 4) for x in REST_LENGTHS)}), "
+        f"stretch l = {params.l}"
+    )
     return "\n".join(lines)
 
 

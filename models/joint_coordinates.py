@@ -37,13 +37,13 @@ class JointBasis:
     angles into the physical joint moments and rod forces, rows named by ``names``.
     """
 
-    names: tuple[str, ...]       # Pinocchio joint names, e.g. "L1_phi", "L1_psi", "L1_len"
-    labels: tuple[str, ...]      # "Mψ1 stance_shin", "F1 stance_shin", ...
-    link: tuple[int, ...]        # 0-based link of each joint
-    kind: tuple[str, ...]        # "phi", "psi" or "len"
-    G_inv: np.ndarray            # (dof, dof)
+    names: tuple[str, ...]  # Pinocchio joint names, e.g. "L1_phi", "L1_psi", "L1_len"
+    labels: tuple[str, ...]  # "Mψ1 stance_shin", "F1 stance_shin", ...
+    link: tuple[int, ...]  # 0-based link of each joint
+    kind: tuple[str, ...]  # "phi", "psi" or "len"
+    G_inv: np.ndarray  # (dof, dof)
     moment_rows: tuple[int, ...]  # joint rows that are moments (revolute joints)
-    force_rows: tuple[int, ...]   # joint rows that are rod forces (prismatic joints), link order
+    force_rows: tuple[int, ...]  # joint rows that are rod forces (prismatic joints), link order
 
 
 @lru_cache(maxsize=64)
@@ -66,14 +66,15 @@ def joint_basis(mech: Mechanism) -> JointBasis:
         labels.append(f"{_SYMBOL[kind]}{i + 1} {mech.names[i]}")
     moment_rows = tuple(r for r, k in enumerate(kinds) if k != "len")
     force_rows = tuple(sorted((r for r, k in enumerate(kinds) if k == "len"), key=lambda r: links[r]))
-    return JointBasis(tuple(pm.joint_names), tuple(labels), tuple(links), tuple(kinds), np.linalg.inv(G),
-                      moment_rows, force_rows)
+    return JointBasis(
+        tuple(pm.joint_names), tuple(labels), tuple(links), tuple(kinds), np.linalg.inv(G), moment_rows, force_rows
+    )
 
 
 def joint_quantities(mech: Mechanism, tau: np.ndarray) -> np.ndarray:
     """``tau_joint = G^-T tau``: the joint moments and rod forces, ``(S, dof)`` in the rows of
     :attr:`JointBasis.names`, from generalised forces ``(S, dof)`` of the absolute angles."""
-    with np.errstate(invalid="ignore"):   # inf * 0 in a non-finite tau: NaN, reported by nonfinite_notes
+    with np.errstate(invalid="ignore"):  # inf * 0 in a non-finite tau: NaN, reported by nonfinite_notes
         return np.asarray(tau, dtype=float) @ joint_basis(mech).G_inv
 
 

@@ -46,11 +46,16 @@ def _rod_accelerations(mech: Mechanism, q: np.ndarray, qd: np.ndarray, qdd: np.n
         c, s = np.cos(phi), np.sin(phi)
         sp = np.sin(psi)
         zero = np.zeros_like(c)
-        u_phiphi = np.stack([-u[..., 0], -u[..., 1], zero], axis=-1)     # d2u/dphi2
-        u_phipsi = np.stack([sp * s, -sp * c, zero], axis=-1)            # d2u/dphi dpsi
+        u_phiphi = np.stack([-u[..., 0], -u[..., 1], zero], axis=-1)  # d2u/dphi2
+        u_phipsi = np.stack([sp * s, -sp * c, zero], axis=-1)  # d2u/dphi dpsi
         ud = u_phi * phid[..., None] + u_psi * psid[..., None]
-        udd = (u_phi * phidd[..., None] + u_psi * psidd[..., None] + u_phiphi * (phid**2)[..., None]
-               + 2.0 * u_phipsi * (phid * psid)[..., None] - u * (psid**2)[..., None])   # d2u/dpsi2 = -u
+        udd = (
+            u_phi * phidd[..., None]
+            + u_psi * psidd[..., None]
+            + u_phiphi * (phid**2)[..., None]
+            + 2.0 * u_phipsi * (phid * psid)[..., None]
+            - u * (psid**2)[..., None]
+        )  # d2u/dpsi2 = -u
     acc = ldd[..., None] * u + 2.0 * ld[..., None] * ud + l[..., None] * udd
     return mech.sign_array[None, :, None] * acc
 
@@ -86,13 +91,13 @@ def net_joint_loads(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, np.ndarray
     P = point_mass_positions(mech, q)
     A = point_mass_accelerations(mech, q, qd, qdd)
     m = mech.mass_array[None, :, :, None]
-    f = m * (A - gravity_vector(mech))                  # (S, n, 3, dim): m (a - g) of every mass
+    f = m * (A - gravity_vector(mech))  # (S, n, 3, dim): m (a - g) of every mass
     S, n = q.shape[0], mech.nlinks
     M = np.zeros((S, n, 3)) if mech.dim == 3 else np.zeros((S, n))
     F = np.zeros((S, n, mech.dim))
     for k in range(n):
         links = list(subtree(mech, k))
-        r = P[:, k, 0][:, None, None, :]                  # the joint: start of link k
+        r = P[:, k, 0][:, None, None, :]  # the joint: start of link k
         arm = P[:, links] - r
         fk = f[:, links]
         if mech.dim == 3:

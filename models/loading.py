@@ -48,9 +48,11 @@ def read_text(path: str | Path, what: str) -> str:
     size = p.stat().st_size
     limit = usable_memory()
     if limit is not None and size * READ_BYTES_PER_BYTE > limit:
-        raise ValueError(f"{what}: {size / 1e9:.1f} GB of text would need about {size * READ_BYTES_PER_BYTE / 1e9:.0f} GB "
-                         f"to read, more than the {limit / 1e9:.1f} GB a run may use; split it, or give states as a "
-                         ".npz file")
+        raise ValueError(
+            f"{what}: {size / 1e9:.1f} GB of text would need about {size * READ_BYTES_PER_BYTE / 1e9:.0f} GB "
+            f"to read, more than the {limit / 1e9:.1f} GB a run may use; split it, or give states as a "
+            ".npz file"
+        )
     try:
         data = p.read_bytes()
     except OSError as e:
@@ -58,8 +60,10 @@ def read_text(path: str | Path, what: str) -> str:
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ValueError(f"{what}: expected UTF-8 text, got bytes that are not (byte {e.start}: {data[e.start:e.start + 1]!r}); "
-                         "is this a binary file?") from None
+        raise ValueError(
+            f"{what}: expected UTF-8 text, got bytes that are not (byte {e.start}: {data[e.start : e.start + 1]!r}); "
+            "is this a binary file?"
+        ) from None
 
 
 def read_json(path: str | Path, what: str) -> Any:
@@ -71,8 +75,9 @@ def read_json(path: str | Path, what: str) -> Any:
     except json.JSONDecodeError as e:
         raise ValueError(f"{what}: invalid JSON: {e}") from None
     except RecursionError:
-        raise ValueError(f"{what}: JSON nested too deeply to read (more than Python's recursion limit of "
-                         "about 1000 levels)") from None
+        raise ValueError(
+            f"{what}: JSON nested too deeply to read (more than Python's recursion limit of about 1000 levels)"
+        ) from None
 
 
 def read_toml(path: str | Path, what: str) -> dict:
@@ -95,7 +100,9 @@ def load_mechanism(spec: str | Path) -> Mechanism:
     try:
         exists = Path(spec).exists()
     except (OSError, ValueError) as e:  # a NUL character, a name too long
-        raise ValueError(f"mechanism {key!r}: not a preset and not a usable path ({getattr(e, 'strerror', None) or e})") from None
+        raise ValueError(
+            f"mechanism {key!r}: not a preset and not a usable path ({getattr(e, 'strerror', None) or e})"
+        ) from None
     if not exists:
         raise ValueError(f"mechanism {key!r}: not a preset ({', '.join(sorted(PRESETS))}) and no such file")
     return Mechanism.from_dict(read_json(spec, f"mechanism {key!r}"), source=str(spec))

@@ -28,13 +28,34 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.states import CHECK_ROWS, as_states, coordinate_names, force_names, split
-from exo_bench.models.validation import (_NEGATIVE_G, MAX_FORCE_SCALE, DuplicateKey, _finite, _is_number, _where,
-                                         force_scale_log10, loads, unique_keys, validate)
+from exo_bench.models.validation import (
+    _NEGATIVE_G,
+    MAX_FORCE_SCALE,
+    DuplicateKey,
+    _finite,
+    _is_number,
+    _where,
+    force_scale_log10,
+    loads,
+    unique_keys,
+    validate,
+)
 
 #: Re-exported: the state helpers (models/states.py) and the validation (models/validation.py) were
 #: defined here first, and users import them from this module.
-__all__ = ["Mechanism", "as_states", "coordinate_names", "force_names", "split", "CHECK_ROWS", "MAX_FORCE_SCALE",
-           "DuplicateKey", "force_scale_log10", "loads", "unique_keys"]
+__all__ = [
+    "Mechanism",
+    "as_states",
+    "coordinate_names",
+    "force_names",
+    "split",
+    "CHECK_ROWS",
+    "MAX_FORCE_SCALE",
+    "DuplicateKey",
+    "force_scale_log10",
+    "loads",
+    "unique_keys",
+]
 
 _LINK_KEYS = {"parent", "sign", "masses", "n"}
 _LINK_OPTIONAL = {"name"}
@@ -77,8 +98,9 @@ class Mechanism:
         object.__setattr__(self, "n", tuple(float(x) for x in self.n))
         object.__setattr__(self, "g", float(self.g) + 0.0)  # -0.0 -> 0.0: one mechanism, one hash
         object.__setattr__(self, "dim", int(self.dim))
-        object.__setattr__(self, "_hash", hash((self.dim, self.g, self.parent, self.sign, self.masses, self.n,
-                                                self.names, self.name)))
+        object.__setattr__(
+            self, "_hash", hash((self.dim, self.g, self.parent, self.sign, self.masses, self.n, self.names, self.name))
+        )
 
     def __hash__(self) -> int:  # cached: models, URDFs and derivations are looked up by mechanism
         return self._hash
@@ -154,8 +176,13 @@ class Mechanism:
         links = []
         for i in range(self.nlinks):
             links.append(
-                {"name": self.names[i], "parent": self.parent[i], "sign": self.sign[i],
-                 "masses": list(self.masses[i]), "n": self.n[i]}
+                {
+                    "name": self.names[i],
+                    "parent": self.parent[i],
+                    "sign": self.sign[i],
+                    "masses": list(self.masses[i]),
+                    "n": self.n[i],
+                }
             )
         return {"name": self.name, "dim": self.dim, "g": self.g, "links": links}
 
@@ -167,13 +194,19 @@ class Mechanism:
         """Build from the JSON format, validating every field with a message that
         names the link, the field, and the expected and actual values."""
         if not isinstance(data, dict):
-            raise ValueError(f"{source}: expected a JSON object with keys {sorted(_TOP_KEYS)}, got {type(data).__name__}")
+            raise ValueError(
+                f"{source}: expected a JSON object with keys {sorted(_TOP_KEYS)}, got {type(data).__name__}"
+            )
         missing = _TOP_KEYS - data.keys()
         if missing:
-            raise ValueError(f"{source}: missing key(s) {sorted(missing)}: expected an object with keys {sorted(_TOP_KEYS)}")
+            raise ValueError(
+                f"{source}: missing key(s) {sorted(missing)}: expected an object with keys {sorted(_TOP_KEYS)}"
+            )
         extra = data.keys() - _TOP_KEYS - _TOP_OPTIONAL
         if extra:
-            raise ValueError(f"{source}: unknown key(s) {sorted(extra)}: expected only {sorted(_TOP_KEYS | _TOP_OPTIONAL)}")
+            raise ValueError(
+                f"{source}: unknown key(s) {sorted(extra)}: expected only {sorted(_TOP_KEYS | _TOP_OPTIONAL)}"
+            )
         dim, g, links = data["dim"], data["g"], data["links"]
         if not isinstance(dim, int) or isinstance(dim, bool) or dim not in (2, 3):
             raise ValueError(f"{source}: field 'dim': expected 2 or 3, got {dim!r}")
@@ -197,24 +230,39 @@ class Mechanism:
                 raise ValueError(f"{where}: missing field(s) {sorted(missing)}: expected keys {sorted(_LINK_KEYS)}")
             extra = link.keys() - _LINK_KEYS - _LINK_OPTIONAL
             if extra:
-                raise ValueError(f"{where}: unknown field(s) {sorted(extra)}: expected only {sorted(_LINK_KEYS | _LINK_OPTIONAL)}")
+                raise ValueError(
+                    f"{where}: unknown field(s) {sorted(extra)}: expected only {sorted(_LINK_KEYS | _LINK_OPTIONAL)}"
+                )
             p, s, m, f = link["parent"], link["sign"], link["masses"], link["n"]
             if not isinstance(p, int) or isinstance(p, bool):
-                raise ValueError(f"{where}: field 'parent': expected an integer index of an earlier link or -1, got {p!r}")
+                raise ValueError(
+                    f"{where}: field 'parent': expected an integer index of an earlier link or -1, got {p!r}"
+                )
             if not isinstance(s, int) or isinstance(s, bool):
                 raise ValueError(f"{where}: field 'sign': expected +1 or -1, got {s!r}")
             if not isinstance(m, list) or len(m) != 3 or not all(_is_number(x) for x in m):
                 raise ValueError(f"{where}: field 'masses': expected a list of three numbers [m0, m1, m2], got {m!r}")
             if not _is_number(f):
                 raise ValueError(f"{where}: field 'n': expected a number in (0, 1), got {f!r}")
-            parent.append(p); sign.append(s); masses.append(tuple(m)); frac.append(f)
+            parent.append(p)
+            sign.append(s)
+            masses.append(tuple(m))
+            frac.append(f)
             names.append(nm if nm is not None else f"link{i + 1}")
         name = str(data.get("name", "mechanism"))
         try:
-            return cls(dim=dim, g=g, parent=tuple(parent), sign=tuple(sign), masses=tuple(masses),
-                       n=tuple(frac), names=tuple(names), name=name)
+            return cls(
+                dim=dim,
+                g=g,
+                parent=tuple(parent),
+                sign=tuple(sign),
+                masses=tuple(masses),
+                n=tuple(frac),
+                names=tuple(names),
+                name=name,
+            )
         except ValueError as e:  # the same checks, reported against the file rather than the model name
-            raise ValueError(f"{source}:" + str(e)[len(name) + 1:]) from None
+            raise ValueError(f"{source}:" + str(e)[len(name) + 1 :]) from None
 
     @classmethod
     def from_json(cls, text: str, source: str = "mechanism") -> Mechanism:

@@ -22,9 +22,9 @@ from exo_bench.models.mechanism import Mechanism, as_states
 
 @dataclass(frozen=True)
 class Motion:
-    t: np.ndarray    # (S,)
-    q: np.ndarray    # (S, dof)
-    qd: np.ndarray   # (S, dof)
+    t: np.ndarray  # (S,)
+    q: np.ndarray  # (S, dof)
+    qd: np.ndarray  # (S, dof)
     qdd: np.ndarray  # (S, dof)
 
 
@@ -85,8 +85,13 @@ class GaitParams:
 #: The paper's assumptions before the fit (anthropometry, no data): T = 1.1 s; amplitudes
 #: 0.3-0.4 rad; phases f1 = f4 = pi/2, f2 = f3 = 0 (each elevation swings monotonically between
 #: pi/2 - j and pi/2 + j each half period); rest lengths of a 1.75 m person; rods stretch +-2 %.
-PAPER_ASSUMED_V1 = GaitParams(T=1.1, j=(0.35, 0.30, 0.40, 0.35, 0.05), f=(math.pi / 2, 0.0, 0.0, math.pi / 2),
-                              l_star=(0.43, 0.43, 0.43, 0.43, 0.50), l=0.02)
+PAPER_ASSUMED_V1 = GaitParams(
+    T=1.1,
+    j=(0.35, 0.30, 0.40, 0.35, 0.05),
+    f=(math.pi / 2, 0.0, 0.0, math.pi / 2),
+    l_star=(0.43, 0.43, 0.43, 0.43, 0.50),
+    l=0.02,
+)
 
 #: Named gaits a scene can select (``[motion] gait = "paper-assumed-v1"``); the first is the default.
 GAITS: dict[str, GaitParams] = {"winter-fit-v1": GaitParams(), "paper-assumed-v1": PAPER_ASSUMED_V1}
@@ -116,17 +121,25 @@ def _gait_angles(t: np.ndarray, p: GaitParams):
     ap = lambda f: (f - (1 + cw) * h, h * w * sw, h * w * w * cw)
     j, f = p.j, p.f
     psi = []
-    for fn, a, ji in ((_sin_chain, am(f[0]), j[0]), (_cos_chain, am(f[1]), j[1]),
-                      (_cos_chain, ap(f[2]), j[2]), (_sin_chain, ap(f[3]), j[3])):
+    for fn, a, ji in (
+        (_sin_chain, am(f[0]), j[0]),
+        (_cos_chain, am(f[1]), j[1]),
+        (_cos_chain, ap(f[2]), j[2]),
+        (_sin_chain, ap(f[3]), j[3]),
+    ):
         x, x1, x2 = fn(*a)
         psi.append((h + ji * x, ji * x1, ji * x2))
     psi.append((zero + h, zero, zero))  # psi_5 = pi/2: the trunk stands vertical
     s_, c_ = (sw, w * cw, -w * w * sw), (cw, -w * sw, -w * w * cw)
-    phi = [tuple(j[0] * x for x in s_), tuple(j[1] * x for x in c_), tuple(j[2] * x for x in c_),
-           tuple(j[3] * x for x in s_), tuple(j[4] * x for x in c_)]
+    phi = [
+        tuple(j[0] * x for x in s_),
+        tuple(j[1] * x for x in c_),
+        tuple(j[2] * x for x in c_),
+        tuple(j[3] * x for x in s_),
+        tuple(j[4] * x for x in c_),
+    ]
     sgn = (1, 1, 1, -1, 1)  # l_4 = l_4* (1 - l sin wt), the others with +
-    lens = [tuple(ls * (d + k * p.l * x) for d, x in zip((1.0, 0.0, 0.0), s_))
-            for ls, k in zip(p.l_star, sgn)]
+    lens = [tuple(ls * (d + k * p.l * x) for d, x in zip((1.0, 0.0, 0.0), s_)) for ls, k in zip(p.l_star, sgn)]
     return phi, psi, lens
 
 
@@ -138,8 +151,10 @@ def _stack(blocks):
 
 def _check_five(mech: Mechanism, dim: int, what: str) -> None:
     if mech.nlinks != 5 or mech.dim != dim:
-        raise ValueError(f"{what}: mechanism {mech.name!r}: expected a {dim}D five-link model "
-                         f"(eq. 26 prescribes five links), got {mech.dim}D with {mech.nlinks} link(s)")
+        raise ValueError(
+            f"{what}: mechanism {mech.name!r}: expected a {dim}D five-link model "
+            f"(eq. 26 prescribes five links), got {mech.dim}D with {mech.nlinks} link(s)"
+        )
 
 
 def gait(mech: Mechanism, t: np.ndarray, params: GaitParams = GaitParams()) -> Motion:
@@ -159,8 +174,10 @@ def planar_gait(mech: Mechanism, t: np.ndarray, params: GaitParams = GaitParams(
     defined by the paper and are refused.
     """
     if mech.dim != 2 or mech.nlinks > 5:
-        raise ValueError(f"planar_gait: mechanism {mech.name!r}: expected a 2D model with at most 5 links, "
-                         f"got {mech.dim}D with {mech.nlinks} link(s)")
+        raise ValueError(
+            f"planar_gait: mechanism {mech.name!r}: expected a 2D model with at most 5 links, "
+            f"got {mech.dim}D with {mech.nlinks} link(s)"
+        )
     t = np.asarray(t, dtype=float)
     _, psi, lens = _gait_angles(t, params)
     n = mech.nlinks
@@ -168,8 +185,9 @@ def planar_gait(mech: Mechanism, t: np.ndarray, params: GaitParams = GaitParams(
     return Motion(t, q, qd, qdd)
 
 
-def smooth_random_motion(mech: Mechanism, t: np.ndarray, seed: int, harmonics: int = 3,
-                         length_range: tuple[float, float] = (0.3, 1.2)) -> Motion:
+def smooth_random_motion(
+    mech: Mechanism, t: np.ndarray, seed: int, harmonics: int = 3, length_range: tuple[float, float] = (0.3, 1.2)
+) -> Motion:
     """A seeded smooth motion: every coordinate is a constant plus a few harmonics.
 
     Angles move by up to about one radian around random means (elevations stay within
@@ -208,7 +226,7 @@ def random_states(mech: Mechanism, samples: int, seed: int) -> tuple[np.ndarray,
     n = mech.nlinks
     q = rng.uniform(-math.pi, math.pi, (samples, mech.dof))
     if mech.dim == 3:
-        q[:, n:2 * n] = rng.uniform(-1.2, 1.2, (samples, n))
+        q[:, n : 2 * n] = rng.uniform(-1.2, 1.2, (samples, n))
     q[:, -n:] = rng.uniform(0.3, 1.2, (samples, n))
     qd = rng.uniform(-2, 2, (samples, mech.dof))
     qdd = rng.uniform(-2, 2, (samples, mech.dof))

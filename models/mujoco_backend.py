@@ -40,8 +40,10 @@ def import_mujoco():
     try:
         import mujoco
     except ImportError as e:
-        raise MissingExtra(f"mujoco: MuJoCo is not installed (no module {e.name or e}): {EXTRA} to use method 'mujoco' "
-                         "and to check exported MJCF files") from None
+        raise MissingExtra(
+            f"mujoco: MuJoCo is not installed (no module {e.name or e}): {EXTRA} to use method 'mujoco' "
+            "and to check exported MJCF files"
+        ) from None
     return mujoco
 
 
@@ -68,10 +70,10 @@ class MujocoModel:
     and end masses."""
 
     mechanism: Mechanism
-    model: object            # mujoco.MjModel
-    G: np.ndarray            # (nv, dof)
+    model: object  # mujoco.MjModel
+    G: np.ndarray  # (nv, dof)
     map: JointMap
-    bodies: np.ndarray       # (n, 3) body ids
+    bodies: np.ndarray  # (n, 3) body ids
 
 
 def exact_model(mech: Mechanism, model) -> None:
@@ -83,16 +85,24 @@ def exact_model(mech: Mechanism, model) -> None:
         for name, mass in zip(names, mech.masses[i]):
             if name is not None:
                 b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-                model.body_mass[b] = float(mass)          # the compiler raised 0 to BOUND
-    model.body_inertia[:] = 0.0                           # point masses: zero rotational inertia
+                model.body_mass[b] = float(mass)  # the compiler raised 0 to BOUND
+    model.body_inertia[:] = 0.0  # point masses: zero rotational inertia
     model.body_ipos[:] = 0.0
     model.dof_armature[:] = 0.0
     model.dof_damping[:] = 0.0
     model.jnt_stiffness[:] = 0.0
     model.dof_frictionloss[:] = 0.0
     D = mujoco.mjtDisableBit
-    model.opt.disableflags |= int(D.mjDSBL_CONTACT | D.mjDSBL_LIMIT | D.mjDSBL_EQUALITY | D.mjDSBL_CONSTRAINT
-                                  | D.mjDSBL_FRICTIONLOSS | D.mjDSBL_SPRING | D.mjDSBL_DAMPER | D.mjDSBL_ACTUATION)
+    model.opt.disableflags |= int(
+        D.mjDSBL_CONTACT
+        | D.mjDSBL_LIMIT
+        | D.mjDSBL_EQUALITY
+        | D.mjDSBL_CONSTRAINT
+        | D.mjDSBL_FRICTIONLOSS
+        | D.mjDSBL_SPRING
+        | D.mjDSBL_DAMPER
+        | D.mjDSBL_ACTUATION
+    )
 
 
 @lru_cache(maxsize=64)
@@ -125,7 +135,7 @@ def body_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
             a, b, c = mm.bodies[i]
             start, end = data.xpos[a].copy(), data.xpos[c].copy()
             mid = data.xpos[b].copy() if b >= 0 else start + mech.n[i] * (end - start)
-            out[s, i] = np.stack([start, mid, end])[:, :mech.dim]
+            out[s, i] = np.stack([start, mid, end])[:, : mech.dim]
     return out
 
 
@@ -141,7 +151,7 @@ class MujocoRNE(PreparedModel):
 
     @classmethod
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
-        return 8.0 * 20 * dim * nlinks      # the cost model's figure (exo_bench.api.cost_formulas)
+        return 8.0 * 20 * dim * nlinks  # the cost model's figure (exo_bench.api.cost_formulas)
 
     def __init__(self, mechanism: Mechanism):
         super().__init__(mechanism)

@@ -42,14 +42,16 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-SOURCE = ("Winter, Biomechanics and Motor Control of Human Movement, 4th ed. (2009), Appendix A; "
-          "from the Excel transcription github.com/namita-kumar/WinterWalkingData (not checked against the book)")
+SOURCE = (
+    "Winter, Biomechanics and Motor Control of Human Movement, 4th ed. (2009), Appendix A; "
+    "from the Excel transcription github.com/namita-kumar/WinterWalkingData (not checked against the book)"
+)
 SHORT_SOURCE = "Winter (2009) App. A"
 
 #: Frames of Winter's Appendix A stride (see the module text).
 HEEL_CONTACT, TOE_OFF, NEXT_HEEL_CONTACT = 28, 70, 97
-SINGLE_SUPPORT = (36, 62)   # estimated by left-right symmetry
-SUBJECT_MASS = 56.7         # kg
+SINGLE_SUPPORT = (36, 62)  # estimated by left-right symmetry
+SUBJECT_MASS = 56.7  # kg
 G = 9.81
 
 
@@ -84,7 +86,7 @@ class WinterStride:
     def curve(self, segment: str, phase: str) -> np.ndarray:
         """The angles of ``segment`` ("leg", "thigh") over ``phase`` (a key of :data:`PHASES`), degrees."""
         a, b = PHASES[phase]
-        return np.asarray(self.theta[segment][a - HEEL_CONTACT: b - HEEL_CONTACT + 1], dtype=float)
+        return np.asarray(self.theta[segment][a - HEEL_CONTACT : b - HEEL_CONTACT + 1], dtype=float)
 
     def angle_range(self, segment: str, phase: str) -> tuple[float, float]:
         c = self.curve(segment, phase)
@@ -104,16 +106,150 @@ WINTER = WinterStride(
     stride_time=_n(0.987, "s", "Table A.3, HCR frame 28 to HCR frame 97"),
     speed=_n(1.41, "m/s", "Table A.2, base of rib cage, frames 28 to 97"),
     theta={
-        "leg": (108.4, 106.6, 104.6, 102.5, 100.3, 98.1, 95.9, 93.8, 91.9, 90.3, 88.9, 87.6, 86.5, 85.4, 84.4, 83.5,
-                82.5, 81.6, 80.6, 79.7, 78.7, 77.8, 76.8, 75.9, 74.9, 73.8, 72.7, 71.6, 70.2, 68.7, 67.1, 65.2, 63.2,
-                61.1, 58.7, 56.2, 53.6, 50.9, 48.1, 45.4, 42.9, 40.7, 38.9, 37.6, 36.8, 36.8, 37.4, 38.8, 40.9, 43.6,
-                46.8, 50.6, 54.6, 59.0, 63.6, 68.3, 73.1, 78.0, 82.9, 87.9, 92.8, 97.6, 102.0, 105.9, 109.0, 111.0,
-                112.0, 112.0, 111.1, 109.6),
-        "thigh": (109.6, 109.3, 109.0, 108.6, 108.4, 108.2, 107.9, 107.6, 106.9, 105.9, 104.5, 102.9, 101.2, 99.3,
-                  97.6, 95.9, 94.3, 92.8, 91.4, 90.0, 88.7, 87.4, 86.0, 84.6, 83.1, 81.7, 80.2, 78.8, 77.5, 76.3, 75.3,
-                  74.5, 73.8, 73.4, 73.1, 73.1, 73.4, 74.1, 75.0, 76.4, 78.1, 80.2, 82.5, 85.2, 88.2, 91.3, 94.5, 97.7,
-                  100.7, 103.6, 106.1, 108.3, 110.1, 111.7, 113.0, 114.0, 114.9, 115.4, 115.7, 115.7, 115.4, 114.8,
-                  114.0, 113.2, 112.4, 111.7, 111.3, 110.9, 110.8, 110.6),
+        "leg": (
+            108.4,
+            106.6,
+            104.6,
+            102.5,
+            100.3,
+            98.1,
+            95.9,
+            93.8,
+            91.9,
+            90.3,
+            88.9,
+            87.6,
+            86.5,
+            85.4,
+            84.4,
+            83.5,
+            82.5,
+            81.6,
+            80.6,
+            79.7,
+            78.7,
+            77.8,
+            76.8,
+            75.9,
+            74.9,
+            73.8,
+            72.7,
+            71.6,
+            70.2,
+            68.7,
+            67.1,
+            65.2,
+            63.2,
+            61.1,
+            58.7,
+            56.2,
+            53.6,
+            50.9,
+            48.1,
+            45.4,
+            42.9,
+            40.7,
+            38.9,
+            37.6,
+            36.8,
+            36.8,
+            37.4,
+            38.8,
+            40.9,
+            43.6,
+            46.8,
+            50.6,
+            54.6,
+            59.0,
+            63.6,
+            68.3,
+            73.1,
+            78.0,
+            82.9,
+            87.9,
+            92.8,
+            97.6,
+            102.0,
+            105.9,
+            109.0,
+            111.0,
+            112.0,
+            112.0,
+            111.1,
+            109.6,
+        ),
+        "thigh": (
+            109.6,
+            109.3,
+            109.0,
+            108.6,
+            108.4,
+            108.2,
+            107.9,
+            107.6,
+            106.9,
+            105.9,
+            104.5,
+            102.9,
+            101.2,
+            99.3,
+            97.6,
+            95.9,
+            94.3,
+            92.8,
+            91.4,
+            90.0,
+            88.7,
+            87.4,
+            86.0,
+            84.6,
+            83.1,
+            81.7,
+            80.2,
+            78.8,
+            77.5,
+            76.3,
+            75.3,
+            74.5,
+            73.8,
+            73.4,
+            73.1,
+            73.1,
+            73.4,
+            74.1,
+            75.0,
+            76.4,
+            78.1,
+            80.2,
+            82.5,
+            85.2,
+            88.2,
+            91.3,
+            94.5,
+            97.7,
+            100.7,
+            103.6,
+            106.1,
+            108.3,
+            110.1,
+            111.7,
+            113.0,
+            114.0,
+            114.9,
+            115.4,
+            115.7,
+            115.7,
+            115.4,
+            114.8,
+            114.0,
+            113.2,
+            112.4,
+            111.7,
+            111.3,
+            110.9,
+            110.8,
+            110.6,
+        ),
     },
     moments={
         "ankle, stance": _n(1.58, "N·m/kg", "Table A.5 ankle moment 89.8 N·m, frames 28-70"),
@@ -187,8 +323,20 @@ def winter_appendix(path: str | Path) -> WinterStride:
 
     a2 = _by_frame(sheet("A2"), {"t": 3, "rib_x": 4})
     a3 = _by_frame(sheet("A3"), {"t": 3, "leg": 14, "thigh": 24})
-    a5 = _by_frame(sheet("A5"), {"ankle_m": 9, "knee_m": 16, "hip_m": 24, "ankle_x": 6, "ankle_y": 7,
-                                 "knee_x": 13, "knee_y": 14, "hip_x": 21, "hip_y": 22})
+    a5 = _by_frame(
+        sheet("A5"),
+        {
+            "ankle_m": 9,
+            "knee_m": 16,
+            "hip_m": 24,
+            "ankle_x": 6,
+            "ankle_y": 7,
+            "knee_x": 13,
+            "knee_y": 14,
+            "hip_x": 21,
+            "hip_y": 22,
+        },
+    )
     hc, hc2 = HEEL_CONTACT, NEXT_HEEL_CONTACT
     stride = a3[hc2]["t"] - a3[hc]["t"]
     speed = (a2[hc2]["rib_x"] - a2[hc]["rib_x"]) / (a2[hc2]["t"] - a2[hc]["t"])
@@ -209,12 +357,26 @@ def winter_appendix(path: str | Path) -> WinterStride:
         stride_time=_n(round(stride, 3), "s", f"Table A.3, HCR frame {hc} to HCR frame {hc2}"),
         speed=_n(round(speed, 2), "m/s", f"Table A.2, base of rib cage, frames {hc} to {hc2}"),
         theta={seg: tuple(a3[f][seg] for f in range(hc, hc2 + 1)) for seg in ("leg", "thigh")},
-        moments={f"{j}, {p}": peak(f"{j}_m", p, SUBJECT_MASS, "N·m/kg", f"{j} moment")
-                 for j, p in (("ankle", "stance"), ("knee", "stance"), ("hip", "stance"), ("knee", "swing"),
-                              ("hip", "swing"))},
-        forces={f"{j}, {p}": peak(j, p, bw, "BW", f"{j} RX, RY")
-                for j, p in (("ankle", "stance"), ("knee", "stance"), ("hip", "stance"), ("knee", "swing"),
-                             ("hip", "swing"))},
+        moments={
+            f"{j}, {p}": peak(f"{j}_m", p, SUBJECT_MASS, "N·m/kg", f"{j} moment")
+            for j, p in (
+                ("ankle", "stance"),
+                ("knee", "stance"),
+                ("hip", "stance"),
+                ("knee", "swing"),
+                ("hip", "swing"),
+            )
+        },
+        forces={
+            f"{j}, {p}": peak(j, p, bw, "BW", f"{j} RX, RY")
+            for j, p in (
+                ("ankle", "stance"),
+                ("knee", "stance"),
+                ("hip", "stance"),
+                ("knee", "swing"),
+                ("hip", "swing"),
+            )
+        },
     )
 
 

@@ -28,6 +28,7 @@ def _threading_layer() -> str:
     return the layer numba will use (or uses)."""
     try:
         from numba.np.ufunc import parallel
+
         started = bool(parallel._is_initialized)
     except (ImportError, AttributeError):
         started = True
@@ -37,6 +38,7 @@ def _threading_layer() -> str:
 
 
 THREADING_LAYER = _threading_layer()
+
 
 #: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
 #: fastmath: the kernels are held to the numpy reference at 1e-14).
@@ -67,6 +69,7 @@ def run(serial, parallel, args: tuple, samples: int):
         finally:
             _PARALLEL.release()
     return serial(*args)
+
 
 #: newton-euler's kernels (models/newton_euler/compiled.py, which imports this module for :data:`JIT`)
 #: inline the element functions of their own folder: numba's cache is keyed on that whole folder

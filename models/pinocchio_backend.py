@@ -33,8 +33,14 @@ import pinocchio as pin
 
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.prepared import USABLE_SHARE, PreparedModel, usable_memory
-from exo_bench.models.urdf import (DATA_BYTES_PER_JOINT, data_bytes, link_prefix, pinocchio_data_bytes,  # noqa: F401
-                                   pinocchio_model_size, to_urdf)
+from exo_bench.models.urdf import (
+    DATA_BYTES_PER_JOINT,  # noqa: F401
+    data_bytes,  # noqa: F401
+    link_prefix,  # noqa: F401
+    pinocchio_data_bytes,  # noqa: F401
+    pinocchio_model_size,  # noqa: F401
+    to_urdf,  # noqa: F401
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,15 +64,15 @@ class PinocchioModel:
 
     mechanism: Mechanism
     model: pin.Model
-    G: np.ndarray              # (nv, dof)
+    G: np.ndarray  # (nv, dof)
     joint_names: tuple[str, ...]  # name of the joint of each row of G
-    frames: np.ndarray         # (n, 3) frame ids of the start, middle, end bodies (-1: no middle body)
+    frames: np.ndarray  # (n, 3) frame ids of the start, middle, end bodies (-1: no middle body)
 
     def create_data(self) -> pin.Data:
         """A new scratch ``Data`` (``32 nv^3`` bytes and more: :func:`data_bytes`), after checking
         that it fits in the available memory. Never cached here: the model cache would keep it."""
         check_data_fits(self.mechanism)
-        return pin.Data(self.model)   # in place: createData() returns a copy, twice the peak
+        return pin.Data(self.model)  # in place: createData() returns a copy, twice the peak
 
     @property
     def data(self) -> pin.Data:
@@ -92,7 +98,8 @@ class PinocchioDataTooLarge(MemoryError):
             f"pinocchio: {what} for {mech.name!r} ({mech.dim}D, {mech.nlinks} links, nv = {nv}) needs "
             f"{_gb(need * count)}, more than the {_gb(limit)} of memory it may use ({USABLE_SHARE:.0%} of the memory available now, so "
             f"that the machine is not driven out of memory): Pinocchio allocates four nv^3 tensors in every Data "
-            f"(docs/pinocchio-memory.md); use method matrix-factored")
+            f"(docs/pinocchio-memory.md); use method matrix-factored"
+        )
 
 
 def _gb(x: float) -> str:
@@ -130,13 +137,13 @@ def build_model(mech: Mechanism) -> PinocchioModel:
             v = model.idx_vs[jid]
             names[v] = f"{k}_{kind}"
             if kind == "phi":
-                G[v, col["phi"] + i] = 1.0          # phi_k ...
+                G[v, col["phi"] + i] = 1.0  # phi_k ...
                 if p >= 0:
-                    G[v, col["phi"] + p] = -1.0     # ... minus phi_parent: a relative angle
+                    G[v, col["phi"] + p] = -1.0  # ... minus phi_parent: a relative angle
             elif kind == "psi":
-                G[v, col["psi"] + i] = 1.0          # psi_k is already absolute (the undo joint levels)
+                G[v, col["psi"] + i] = 1.0  # psi_k is already absolute (the undo joint levels)
             else:
-                G[v, col["l"] + i] = 1.0            # l_k
+                G[v, col["l"] + i] = 1.0  # l_k
         frames[i, 0] = model.getFrameId(f"{k}_frame", pin.FrameType.BODY)
         frames[i, 2] = model.getFrameId(f"{k}_end", pin.FrameType.BODY)
         if mech.masses[i][1] > 0:
@@ -174,7 +181,7 @@ def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None =
     q, qd, qdd = as_states(mech, q, qd, qdd)
     threads = threads or os.cpu_count() or 1
     pm = build_model(mech)
-    check_data_fits(mech, threads + 1)   # the pool's Data, and one more while it copies them
+    check_data_fits(mech, threads + 1)  # the pool's Data, and one more while it copies them
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
     f = lambda x: np.asfortranarray(x.T)
     tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
@@ -234,9 +241,12 @@ def point_mass_positions(mech: Mechanism, q) -> np.ndarray:
         for i in range(n):
             start = data.oMf[int(pm.frames[i, 0])].translation
             end = data.oMf[int(pm.frames[i, 2])].translation
-            mid = (data.oMf[int(pm.frames[i, 1])].translation if pm.frames[i, 1] >= 0
-                   else start + mech.n[i] * (end - start))
-            out[s, i] = np.stack([start, mid, end])[:, :mech.dim]
+            mid = (
+                data.oMf[int(pm.frames[i, 1])].translation
+                if pm.frames[i, 1] >= 0
+                else start + mech.n[i] * (end - start)
+            )
+            out[s, i] = np.stack([start, mid, end])[:, : mech.dim]
     return out
 
 
@@ -286,7 +296,7 @@ class PinocchioRNEA(PreparedModel):
         """This thread's scratch ``Data`` (created on first use in each thread)."""
         d = getattr(self._local, "data", None)
         if d is None:
-            d = self._local.data = pin.Data(self.pin_model)   # in place (createData(): twice the peak)
+            d = self._local.data = pin.Data(self.pin_model)  # in place (createData(): twice the peak)
         return d
 
     def joint_torques(self, q, qd, qdd, check: bool = True) -> np.ndarray:
@@ -320,7 +330,7 @@ class PinocchioRNEA(PreparedModel):
     def _bias_forces(self, q, qd):
         qj, vj = q @ self.GT, qd @ self.GT
         model, data = self.pin_model, self.data
-        out = np.empty((q.shape[0], self.pin_model.nv))     # (0, nv) for no samples
+        out = np.empty((q.shape[0], self.pin_model.nv))  # (0, nv) for no samples
         for s in range(q.shape[0]):
             out[s] = pin.nonLinearEffects(model, data, qj[s], vj[s])
         return out @ self.G

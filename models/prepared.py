@@ -42,16 +42,34 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.memory import (CHUNK_BYTES, MAX_CHUNK, USABLE_SHARE, available_memory, chunks,
-                                     default_chunk_samples, usable_memory)
+from exo_bench.models.memory import (
+    CHUNK_BYTES,
+    MAX_CHUNK,
+    USABLE_SHARE,
+    available_memory,
+    chunks,
+    default_chunk_samples,
+    usable_memory,
+)
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
 
 #: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
 #: were defined here first and are imported from here.
-__all__ = ["PreparedModel", "MissingExtra", "terms_from_inverse_dynamics", "cholesky_solve", "CHUNK_BYTES",
-           "MAX_CHUNK", "USABLE_SHARE", "available_memory", "default_chunk_samples", "usable_memory",
-           "unchecked_states", "unchecked_forward"]
+__all__ = [
+    "PreparedModel",
+    "MissingExtra",
+    "terms_from_inverse_dynamics",
+    "cholesky_solve",
+    "CHUNK_BYTES",
+    "MAX_CHUNK",
+    "USABLE_SHARE",
+    "available_memory",
+    "default_chunk_samples",
+    "usable_memory",
+    "unchecked_states",
+    "unchecked_forward",
+]
 
 #: The old private name, still imported by models/newton_euler/prepared.py.
 
@@ -77,9 +95,9 @@ def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: n
     """
     S, d = q.shape
     k = dof + 2
-    Q = np.repeat(q, k, axis=0)                      # (S*k, d): each sample's q, k times
+    Q = np.repeat(q, k, axis=0)  # (S*k, d): each sample's q, k times
     QD = np.zeros_like(Q)
-    QD[::k] = qd                                     # first row of each block: the real rates
+    QD[::k] = qd  # first row of each block: the real rates
     QDD = np.zeros_like(Q)
     rows = np.arange(S)[:, None] * k + 2 + np.arange(d)[None, :]
     QDD[rows.ravel(), np.tile(np.arange(d), S)] = 1.0
@@ -108,8 +126,10 @@ class PreparedModel:
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):
-            raise ValueError(f"{self.method}: expected a Mechanism (exo_bench.Mechanism or exo_bench.load_mechanism), "
-                             f"got {type(mechanism).__name__}")
+            raise ValueError(
+                f"{self.method}: expected a Mechanism (exo_bench.Mechanism or exo_bench.load_mechanism), "
+                f"got {type(mechanism).__name__}"
+            )
         self._mechanism = mechanism
         self._options = dict(options)
         self._dof = mechanism.dof
@@ -179,8 +199,10 @@ class PreparedModel:
         them): :mod:`exo_bench.matrix_method.derivatives`. Needs the optional extra ``casadi``."""
         if getattr(self, "_derivatives", None) is None:
             if derivative_provider is None:
-                raise ValueError(f"{self.method}: derivatives: prepare the model with exo_bench.prepare "
-                                 "(it registers the derivative provider)")
+                raise ValueError(
+                    f"{self.method}: derivatives: prepare the model with exo_bench.prepare "
+                    "(it registers the derivative provider)"
+                )
             self._derivatives = derivative_provider(self._mechanism, self.method)
         return self._derivatives
 
@@ -247,8 +269,10 @@ class PreparedModel:
         else:
             unchecked_states(self.method, self._dof, (q, qd))
         if q.ndim != 2:
-            raise ValueError(f"{self.method}: mass_matrix_and_bias takes a batch: expected q of shape (samples, "
-                             f"{self._dof}), got {q.shape}")
+            raise ValueError(
+                f"{self.method}: mass_matrix_and_bias takes a batch: expected q of shape (samples, "
+                f"{self._dof}), got {q.shape}"
+            )
         d = self._dof
         if self.native_terms:
             return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
@@ -275,7 +299,7 @@ class PreparedModel:
             require_rates(self.method, qd, tau)
             try:
                 q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
-            except ValueError as e:        # the third array of as_states is called qdd: here it is tau
+            except ValueError as e:  # the third array of as_states is called qdd: here it is tau
                 raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
             if out is not None:
                 check_out(out, q.shape[1:] if single else q.shape, self.method)
@@ -304,7 +328,7 @@ class PreparedModel:
 
     def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
         d = self._dof
-        size = max(1, self._chunk // (d + 2))   # (dof + 2) inverse-dynamics rows per sample
+        size = max(1, self._chunk // (d + 2))  # (dof + 2) inverse-dynamics rows per sample
         if q.shape[0] <= size:
             return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, np.zeros_like(q))[0]
         M = np.empty((q.shape[0], d, d))
@@ -330,13 +354,21 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
     if bad.any():
         s = int(np.argmax(bad))
         c = int(np.argmin(dg[s]))
-        raise SingularConfigurationError([f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
-                                          f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"])
+        raise SingularConfigurationError(
+            [
+                f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
+                f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"
+            ]
+        )
     r = 1.0 / np.sqrt(dg)
     try:
         L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])
     except np.linalg.LinAlgError:
-        raise SingularConfigurationError(["M is not positive definite in floating point (numerically singular: "
-                                          "a rod nearly vertical or nearly of length zero)"]) from None
+        raise SingularConfigurationError(
+            [
+                "M is not positive definite in floating point (numerically singular: "
+                "a rod nearly vertical or nearly of length zero)"
+            ]
+        ) from None
     y = np.linalg.solve(L, (r * b)[..., None])
     return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]

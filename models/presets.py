@@ -36,9 +36,16 @@ TRUNK = (split_mass(28.93), 0.500)
 
 
 def _mech(name, dim, parent, sign, parts, names) -> Mechanism:
-    return Mechanism(dim=dim, g=G, parent=tuple(parent), sign=tuple(sign),
-                     masses=tuple(p[0] for p in parts), n=tuple(p[1] for p in parts),
-                     names=tuple(names), name=name)
+    return Mechanism(
+        dim=dim,
+        g=G,
+        parent=tuple(parent),
+        sign=tuple(sign),
+        masses=tuple(p[0] for p in parts),
+        n=tuple(p[1] for p in parts),
+        names=tuple(names),
+        name=name,
+    )
 
 
 def fig1(dim: int = 2) -> Mechanism:
@@ -58,16 +65,26 @@ def fig2b(dim: int = 2) -> Mechanism:
 
 def fig5(dim: int = 2) -> Mechanism:
     """Fig. 5: four links, branch point between links 2 and 3 (eq. 20: ``a11 + a12 - a13 - a14``)."""
-    return _mech(f"fig5-{dim}d", dim, [-1, 0, 1, 2], [1, 1, -1, -1],
-                 [SHIN, THIGH, THIGH, SHIN],
-                 ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin"])
+    return _mech(
+        f"fig5-{dim}d",
+        dim,
+        [-1, 0, 1, 2],
+        [1, 1, -1, -1],
+        [SHIN, THIGH, THIGH, SHIN],
+        ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin"],
+    )
 
 
 def exo5(dim: int = 3) -> Mechanism:
     """Fig. 6: the five-link exoskeleton as a tree (stance leg, swing leg from the hip, trunk)."""
-    return _mech(f"exo5-{dim}d", dim, [-1, 0, 1, 2, 1], [1, 1, -1, -1, 1],
-                 [SHIN, THIGH, THIGH, SHIN, TRUNK],
-                 ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk"])
+    return _mech(
+        f"exo5-{dim}d",
+        dim,
+        [-1, 0, 1, 2, 1],
+        [1, 1, -1, -1, 1],
+        [SHIN, THIGH, THIGH, SHIN, TRUNK],
+        ["stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk"],
+    )
 
 
 def chain(nlinks: int, dim: int = 2, seed: int | None = None) -> Mechanism:
@@ -76,12 +93,25 @@ def chain(nlinks: int, dim: int = 2, seed: int | None = None) -> Mechanism:
         raise ValueError(f"chain: field 'nlinks': expected >= 1, got {nlinks}")
     if seed is None:
         parts = [(SHIN, THIGH)[i % 2] for i in range(nlinks)]
-        return _mech(f"chain{nlinks}-{dim}d", dim, range(-1, nlinks - 1), [1] * nlinks, parts,
-                     [f"link{i + 1}" for i in range(nlinks)])
+        return _mech(
+            f"chain{nlinks}-{dim}d",
+            dim,
+            range(-1, nlinks - 1),
+            [1] * nlinks,
+            parts,
+            [f"link{i + 1}" for i in range(nlinks)],
+        )
     rng = np.random.default_rng(seed)
     masses, fr = _random_masses(rng, nlinks)
-    return Mechanism(dim=dim, g=G, parent=tuple(range(-1, nlinks - 1)), sign=(1,) * nlinks,
-                     masses=masses, n=fr, name=f"chain{nlinks}-{dim}d-seed{seed}")
+    return Mechanism(
+        dim=dim,
+        g=G,
+        parent=tuple(range(-1, nlinks - 1)),
+        sign=(1,) * nlinks,
+        masses=masses,
+        n=fr,
+        name=f"chain{nlinks}-{dim}d-seed{seed}",
+    )
 
 
 def _random_masses(rng: np.random.Generator, nlinks: int):
@@ -99,8 +129,15 @@ def random_tree(nlinks: int, dim: int, seed: int) -> Mechanism:
     parent = [-1] + [int(rng.integers(-1, i)) for i in range(1, nlinks)]
     sign = [1] + [int(rng.choice([-1, 1])) for _ in range(1, nlinks)]
     masses, fr = _random_masses(rng, nlinks)
-    return Mechanism(dim=dim, g=G, parent=tuple(parent), sign=tuple(sign), masses=masses, n=fr,
-                     name=f"tree{nlinks}-{dim}d-seed{seed}")
+    return Mechanism(
+        dim=dim,
+        g=G,
+        parent=tuple(parent),
+        sign=tuple(sign),
+        masses=masses,
+        n=fr,
+        name=f"tree{nlinks}-{dim}d-seed{seed}",
+    )
 
 
 def _preset(f: Callable[[int], Mechanism], d: int) -> Callable[[], Mechanism]:

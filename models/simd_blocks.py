@@ -34,7 +34,7 @@ LANES = 32
 # Rows of one link in the scratch W (row numbers of the states: block k of q, qd, qdd in rows k,
 # 3 + k, 6 + k; then cos and sin of phi and psi, kappa) and in the scratch F (f, then the forces).
 PHI, PSI, LEN, W1, V1, L1, W2, V2, L2, CF, SF, CP, SP, K0, K1, K2 = range(16)
-LEN2, L1_2, L2_2 = 1, 4, 7          # planar: l, l', l'' (block 1 of q, qd, qdd)
+LEN2, L1_2, L2_2 = 1, 4, 7  # planar: l, l', l'' (block 1 of q, qd, qdd)
 ROWS = 16
 F0, F1, F2, O0, O1, O2 = range(6)
 FROWS = 6
@@ -174,4 +174,3 @@ def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None)
             cond.wait()
     if errors:
         raise errors[0]
-

@@ -36,8 +36,10 @@ class SingularConfigurationError(ValueError):
 
 def massless_reason(mech: Mechanism, i: int) -> str:
     """Link ``i`` (0-based) carries no mass that moves with its coordinates."""
-    return (f"link {i + 1} ({mech.names[i]}): no mass moves with its coordinates "
-            "(no middle or end mass, nothing hanging from it)")
+    return (
+        f"link {i + 1} ({mech.names[i]}): no mass moves with its coordinates "
+        "(no middle or end mass, nothing hanging from it)"
+    )
 
 
 def zero_length_reason(mech: Mechanism, i: int) -> str:
@@ -47,9 +49,11 @@ def zero_length_reason(mech: Mechanism, i: int) -> str:
 
 def vertical_reason(mech: Mechanism, i: int, psi: float) -> str:
     """Rod ``i`` (0-based) is vertical to working precision (``|cos psi| <= COS_VERTICAL``)."""
-    return (f"link {i + 1} ({mech.names[i]}): vertical rod (psi{i + 1} = {float(psi)!r}, "
-            f"|cos psi{i + 1}| = {abs(np.cos(psi)):.2g}): its azimuth phi{i + 1} is undefined "
-            "and its column of M vanishes")
+    return (
+        f"link {i + 1} ({mech.names[i]}): vertical rod (psi{i + 1} = {float(psi)!r}, "
+        f"|cos psi{i + 1}| = {abs(np.cos(psi)):.2g}): its azimuth phi{i + 1} is undefined "
+        "and its column of M vanishes"
+    )
 
 
 def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
@@ -69,8 +73,10 @@ def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
     if not always:
         ev = np.linalg.eigvalsh(mu)
         if ev[0] <= mech.nlinks * np.finfo(float).eps * ev[-1]:
-            always.append("the mass distribution leaves a combination of rod motions without inertia "
-                          f"(smallest eigenvalue of mu {ev[0]:.3g} kg, largest {ev[-1]:.3g} kg)")
+            always.append(
+                "the mass distribution leaves a combination of rod motions without inertia "
+                f"(smallest eigenvalue of mu {ev[0]:.3g} kg, largest {ev[-1]:.3g} kg)"
+            )
     out = []
     for s in range(q.shape[0]):
         r = list(always)

@@ -33,7 +33,7 @@ def split(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None
     n = mech.nlinks
     if mech.dim == 2:
         return q[..., :n], None, q[..., n:]
-    return q[..., :n], q[..., n:2 * n], q[..., 2 * n:]
+    return q[..., :n], q[..., n : 2 * n], q[..., 2 * n :]
 
 
 #: Rows checked at a time for NaN/Inf and negative lengths: the check's own memory stays fixed.
@@ -49,8 +49,10 @@ def _array_problem(arr: Any) -> str:
             lengths = [len(r) for r in rows]
             if len(set(lengths)) > 1:
                 k = next(i for i, n in enumerate(lengths) if n != lengths[0])
-                return (f"ragged rows: expected every row to have the same number of coordinates, got row 0 with "
-                        f"{lengths[0]} and row {k} with {lengths[k]}")
+                return (
+                    f"ragged rows: expected every row to have the same number of coordinates, got row 0 with "
+                    f"{lengths[0]} and row {k} with {lengths[k]}"
+                )
             for s_, r in enumerate(rows):
                 for c, x in enumerate(r):
                     if not _is_number(x):
@@ -99,51 +101,59 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
             a = np.asarray(arr, dtype=float)
         except (TypeError, ValueError, OverflowError):
             raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
-        if isinstance(arr, (list, tuple)):   # numpy takes true/false as 1.0/0.0: JSON booleans are not numbers
+        if isinstance(arr, (list, tuple)):  # numpy takes true/false as 1.0/0.0: JSON booleans are not numbers
             where = _first_bool(arr)
             if where is not None:
-                raise ValueError(f"{source}: field '{label}': expected numbers, got {where[0]!r} (a boolean) at "
-                                 f"{where[1]}")
+                raise ValueError(
+                    f"{source}: field '{label}': expected numbers, got {where[0]!r} (a boolean) at {where[1]}"
+                )
         if a.ndim == 1:
             a = a[None, :]
         if a.ndim == 2 and not a.flags.c_contiguous:
-            a = np.ascontiguousarray(a)     # a DataFrame's values, a transpose, an .npz of asfortranarray
+            a = np.ascontiguousarray(a)  # a DataFrame's values, a transpose, an .npz of asfortranarray
         if a.ndim != 2 or a.shape[1] != mech.dof:
             raise ValueError(
                 f"{source}: field '{label}': expected shape (samples, {mech.dof}) in the order "
-                f"{names[0]}..{names[-1]}, got {tuple(np.shape(arr))}")
+                f"{names[0]}..{names[-1]}, got {tuple(np.shape(arr))}"
+            )
         for s0 in range(0, a.shape[0], CHECK_ROWS):
-            bad = ~np.isfinite(a[s0:s0 + CHECK_ROWS])
+            bad = ~np.isfinite(a[s0 : s0 + CHECK_ROWS])
             if bad.any():
                 s, c = map(int, np.argwhere(bad)[0])
                 s += s0
-                raise ValueError(f"{source}: field '{label}' sample {s} coordinate {names[c]}: "
-                                 f"expected a finite number, got {a[s, c]}")
+                raise ValueError(
+                    f"{source}: field '{label}' sample {s} coordinate {names[c]}: "
+                    f"expected a finite number, got {a[s, c]}"
+                )
         out.append(a)
     shapes = {a.shape[0] for a in out if a is not None}
     if len(shapes) > 1:
         raise ValueError(f"{source}: q, qd and qdd must have the same number of samples, got {sorted(shapes)}")
     n = mech.nlinks
     length = rate = acceleration = 0.0
-    first = cast(np.ndarray, out[0])   # q is required
+    first = cast(np.ndarray, out[0])  # q is required
     for s0 in range(0, first.shape[0], CHECK_ROWS):
-        l = first[s0:s0 + CHECK_ROWS, -n:]
+        l = first[s0 : s0 + CHECK_ROWS, -n:]
         if (l < 0).any():
             s, i = map(int, np.argwhere(l < 0)[0])
             s += s0
-            raise ValueError(f"{source}: field 'q' sample {s} coordinate l{i + 1} ({_where(i, mech.names[i])}): "
-                             f"expected a rod length >= 0, got {l[s - s0, i]}")
+            raise ValueError(
+                f"{source}: field 'q' sample {s} coordinate l{i + 1} ({_where(i, mech.names[i])}): "
+                f"expected a rod length >= 0, got {l[s - s0, i]}"
+            )
         if l.size:
             length = max(length, float(l.max()))
         if out[1] is not None and out[1].size:
-            rate = max(rate, float(np.abs(out[1][s0:s0 + CHECK_ROWS]).max()))
+            rate = max(rate, float(np.abs(out[1][s0 : s0 + CHECK_ROWS]).max()))
         if out[2] is not None and out[2].size:
-            acceleration = max(acceleration, float(np.abs(out[2][s0:s0 + CHECK_ROWS]).max()))
+            acceleration = max(acceleration, float(np.abs(out[2][s0 : s0 + CHECK_ROWS]).max()))
     scale = force_scale_log10(mech, length, rate, acceleration)
     if not scale < math.log10(MAX_FORCE_SCALE):
         big = max(max(ms) for ms in mech.masses)
-        raise ValueError(f"{source}: the forces would overflow float64: with masses up to {big:.3g} kg, "
-                         f"rod lengths up to {length:.3g}, rates up to {rate:.3g} and accelerations up to "
-                         f"{acceleration:.3g} the force bound is 1e{scale:.0f} > {MAX_FORCE_SCALE:.0e} "
-                         "(models/validation.py force_scale_log10); express the states in other units")
+        raise ValueError(
+            f"{source}: the forces would overflow float64: with masses up to {big:.3g} kg, "
+            f"rod lengths up to {length:.3g}, rates up to {rate:.3g} and accelerations up to "
+            f"{acceleration:.3g} the force bound is 1e{scale:.0f} > {MAX_FORCE_SCALE:.0e} "
+            "(models/validation.py force_scale_log10); express the states in other units"
+        )
     return tuple(out)

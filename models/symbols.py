@@ -18,7 +18,7 @@ from exo_bench.models.mechanism import Mechanism
 @dataclass(frozen=True)
 class Symbols:
     phi: tuple[sp.Symbol, ...]
-    psi: tuple[sp.Symbol, ...]        # empty in 2D
+    psi: tuple[sp.Symbol, ...]  # empty in 2D
     l: tuple[sp.Symbol, ...]
     dphi: tuple[sp.Symbol, ...]
     dpsi: tuple[sp.Symbol, ...]
@@ -60,9 +60,15 @@ def symbols_for(nlinks: int, dim: int) -> Symbols:
     mk = lambda p: tuple(sp.Symbol(f"{p}{i}", real=True) for i in k)
     psi = lambda p: mk(p) if dim == 3 else ()
     return Symbols(
-        phi=mk("phi"), psi=psi("psi"), l=mk("l"),
-        dphi=mk("dphi"), dpsi=psi("dpsi"), dl=mk("dl"),
-        ddphi=mk("ddphi"), ddpsi=psi("ddpsi"), ddl=mk("ddl"),
+        phi=mk("phi"),
+        psi=psi("psi"),
+        l=mk("l"),
+        dphi=mk("dphi"),
+        dpsi=psi("dpsi"),
+        dl=mk("dl"),
+        ddphi=mk("ddphi"),
+        ddpsi=psi("ddpsi"),
+        ddl=mk("ddl"),
         m=tuple(tuple(sp.Symbol(f"m{i}_{b}", nonnegative=True) for b in range(3)) for i in k),
         n=tuple(sp.Symbol(f"n{i}", positive=True) for i in k),
         g=sp.Symbol("g", real=True),

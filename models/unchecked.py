@@ -8,12 +8,23 @@ import numpy as np
 
 def check_out(out, shape: tuple, method: str = "") -> None:
     """``out`` of :meth:`~exo_bench.models.prepared.PreparedModel.inverse_dynamics`: a writable C-ordered float64 array of ``shape``."""
-    if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.shape == tuple(shape)
-            and out.flags.c_contiguous and out.flags.writeable):
-        got = (f"{type(out).__name__}" if not isinstance(out, np.ndarray) else
-               f"{out.dtype} array of shape {out.shape}" + ("" if out.flags.c_contiguous else ", not C-ordered")
-               + ("" if out.flags.writeable else ", read-only"))
-        raise ValueError(f"{method + ': ' if method else ''}field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
+    if not (
+        isinstance(out, np.ndarray)
+        and out.dtype == np.float64
+        and out.shape == tuple(shape)
+        and out.flags.c_contiguous
+        and out.flags.writeable
+    ):
+        got = (
+            f"{type(out).__name__}"
+            if not isinstance(out, np.ndarray)
+            else f"{out.dtype} array of shape {out.shape}"
+            + ("" if out.flags.c_contiguous else ", not C-ordered")
+            + ("" if out.flags.writeable else ", read-only")
+        )
+        raise ValueError(
+            f"{method + ': ' if method else ''}field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}"
+        )
 
 
 _F8 = np.dtype(np.float64)
@@ -22,8 +33,11 @@ _F8 = np.dtype(np.float64)
 def _describe(a) -> str:
     if not isinstance(a, np.ndarray):
         return "None" if a is None else type(a).__name__
-    return (f"{a.dtype.str if a.dtype.byteorder == '>' else a.dtype} array of shape {a.shape}" + ("" if a.flags.c_contiguous else ", not C-ordered")
-            + ("" if a.flags.writeable else ", read-only"))
+    return (
+        f"{a.dtype.str if a.dtype.byteorder == '>' else a.dtype} array of shape {a.shape}"
+        + ("" if a.flags.c_contiguous else ", not C-ordered")
+        + ("" if a.flags.writeable else ", read-only")
+    )
 
 
 def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
@@ -37,7 +51,7 @@ def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
     otherwise be read in the wrong order, an ``out`` too small written past its end).
     """
     q = arrays[0]
-    try:                                     # straight-line: about 0.15 us on the quiet 2-core machine
+    try:  # straight-line: about 0.15 us on the quiet 2-core machine
         s = q.shape
         ok = len(s) < 3 and s[-1] == dof and q.dtype is _F8 and q.flags.c_contiguous
         for a in arrays[1:]:
@@ -48,15 +62,25 @@ def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
         ok = False
     if ok:
         return
-    names = ("q", "qd", "qdd")[:len(arrays)]
-    expected = (f"C-ordered float64 arrays of one shape, (dof,) or (samples, dof) with dof = {dof} "
-                "(check=False checks memory safety only; check=True converts any layout and dtype)")
+    names = ("q", "qd", "qdd")[: len(arrays)]
+    expected = (
+        f"C-ordered float64 arrays of one shape, (dof,) or (samples, dof) with dof = {dof} "
+        "(check=False checks memory safety only; check=True converts any layout and dtype)"
+    )
     for name, a in zip(names, arrays):
-        good = (isinstance(a, np.ndarray) and a.dtype == _F8 and a.flags.c_contiguous and a.ndim in (1, 2)
-                and a.shape[-1:] == (dof,) and a.shape == getattr(q, "shape", None))
+        good = (
+            isinstance(a, np.ndarray)
+            and a.dtype == _F8
+            and a.flags.c_contiguous
+            and a.ndim in (1, 2)
+            and a.shape[-1:] == (dof,)
+            and a.shape == getattr(q, "shape", None)
+        )
         if not good:
-            raise ValueError(f"{method}: field '{name}': expected {expected}, got {_describe(a)}"
-                             + ("" if name == "q" or not isinstance(q, np.ndarray) else f" (q: {q.shape})"))
+            raise ValueError(
+                f"{method}: field '{name}': expected {expected}, got {_describe(a)}"
+                + ("" if name == "q" or not isinstance(q, np.ndarray) else f" (q: {q.shape})")
+            )
     if out is not None:
         check_out(out, q.shape, method)
     # here: safe after all (a float64 dtype object that is not numpy's own, as some libraries make)
@@ -66,8 +90,10 @@ def require_rates(method: str, *rates) -> None:
     """``qd`` (and ``qdd``) are required where the call needs them: None is not "zero"."""
     for name, a in zip(("qd", "qdd"), rates):
         if a is None:
-            raise ValueError(f"{method}: field '{name}': expected an array of shape (dof,) or (samples, dof), "
-                             "got None (pass zeros for a state at rest)")
+            raise ValueError(
+                f"{method}: field '{name}': expected an array of shape (dof,) or (samples, dof), "
+                "got None (pass zeros for a state at rest)"
+            )
 
 
 def unchecked_forward(method: str, dof: int, q, qd, tau, out) -> None:

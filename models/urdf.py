@@ -44,8 +44,10 @@ def link_prefix(mech: Mechanism, i: int) -> str:
 def _inertial(mass: float) -> str:
     if mass == 0.0:
         return ""
-    return (f'<inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="{mass!r}"/>'
-            '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>')
+    return (
+        f'<inertial><origin xyz="0 0 0" rpy="0 0 0"/><mass value="{mass!r}"/>'
+        '<inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial>'
+    )
 
 
 def _comment(text: str) -> str:
@@ -62,20 +64,23 @@ def _link(name: str, mass: float = 0.0, comment: str = "") -> str:
 
 def _joint(name: str, kind: str, parent: str, child: str, axis: str, mimic: tuple[str, float] | None = None) -> str:
     m = f'<mimic joint="{mimic[0]}" multiplier="{mimic[1]!r}" offset="0"/>' if mimic else ""
-    return (f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="{axis}"/>{_LIMIT}{m}</joint>')
+    return (
+        f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="0 0 0" rpy="0 0 0"/><axis xyz="{axis}"/>{_LIMIT}{m}</joint>'
+    )
 
 
 def to_urdf(mech: Mechanism) -> str:
     """The URDF text of a mechanism (planar joints for 2D, spatial for 3D)."""
-    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(_safe(mech.name))}>",
-             '  <link name="support"/>']
+    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(_safe(mech.name))}>", '  <link name="support"/>']
     for i in range(mech.nlinks):
         k = link_prefix(mech, i)
         p = mech.parent[i]
         m0, m1, m2 = mech.masses[i]
-        lines.append(f"  <!-- link {i + 1}: {_comment(mech.names[i])}, parent {p + 1 if p >= 0 else 'support'}, "
-                     f"sign {mech.sign[i]:+d}, n = {mech.n[i]!r} -->")
+        lines.append(
+            f"  <!-- link {i + 1}: {_comment(mech.names[i])}, parent {p + 1 if p >= 0 else 'support'}, "
+            f"sign {mech.sign[i]:+d}, n = {mech.n[i]!r} -->"
+        )
         base = f"{link_prefix(mech, p)}_end" if p >= 0 else "support"
         if mech.dim == 3:
             if p >= 0:

@@ -38,7 +38,6 @@ def loads(text: str) -> Any:
     return json.loads(text, object_pairs_hook=unique_keys)
 
 
-
 def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
 
@@ -52,8 +51,10 @@ def _finite(x: Any) -> bool:
 
 
 #: Why a negative g is refused (the choice is documented in docs/errors.md and tested).
-_NEGATIVE_G = ("expected g >= 0: g is the magnitude of gravity, which acts along -y in 2D and -z in 3D by convention "
-               "(a model that hangs from its support is described by its angles, not by reversing gravity)")
+_NEGATIVE_G = (
+    "expected g >= 0: g is the magnitude of gravity, which acts along -y in 2D and -z in 3D by convention "
+    "(a model that hangs from its support is described by its angles, not by reversing gravity)"
+)
 
 #: The largest force scale accepted: a bound on ``|tau|`` of ``1e300`` leaves float64 (largest 1.8e308)
 #: a margin of 1e8 for the sums and products inside every method.
@@ -88,20 +89,23 @@ def validate(m: Mechanism) -> None:
         raise ValueError(f"{m.name}: field 'links': expected at least one link, got none")
     for fld in ("sign", "masses", "n", "names"):
         if len(getattr(m, fld)) != n:
-            raise ValueError(f"{m.name}: field '{fld}': expected {n} entries (one per link), got {len(getattr(m, fld))}")
+            raise ValueError(
+                f"{m.name}: field '{fld}': expected {n} entries (one per link), got {len(getattr(m, fld))}"
+            )
     for i in range(n):
         where = f"{m.name}: {_where(i, m.names[i])}"
         nm = m.names[i]
         if not isinstance(nm, str) or any(ord(ch) < 32 or ord(ch) == 127 for ch in nm):
-            raise ValueError(f"{where}: field 'name': expected a name without control characters (it is written "
-                             f"into the URDF and the reports), got {nm!r}")
+            raise ValueError(
+                f"{where}: field 'name': expected a name without control characters (it is written "
+                f"into the URDF and the reports), got {nm!r}"
+            )
         p = m.parent[i]
         if not isinstance(p, (int, np.integer)) or isinstance(p, bool) or not (-1 <= p < i):
             if i == 0:
                 expected = "-1 (the support: the first link has no earlier link to hang from)"
             else:
-                expected = (f"-1 (the support) or the 0-based index of an earlier link, 0..{i - 1} "
-                            f"(links 1..{i})")
+                expected = f"-1 (the support) or the 0-based index of an earlier link, 0..{i - 1} (links 1..{i})"
             raise ValueError(f"{where}: field 'parent': expected {expected}, got {p!r}")
         s = m.sign[i]
         if isinstance(s, bool) or s not in (1, -1):
@@ -120,6 +124,8 @@ def validate(m: Mechanism) -> None:
     scale = force_scale_log10(m)
     if not scale < math.log10(MAX_FORCE_SCALE):
         big = max(max(ms) for ms in m.masses)
-        raise ValueError(f"{m.name}: field 'masses': the forces of masses this large overflow float64 even at unit "
-                         f"lengths and rates (largest mass {big:.3g} kg, force bound 1e{scale:.0f} > "
-                         f"{MAX_FORCE_SCALE:.0e}); express the model in other units")
+        raise ValueError(
+            f"{m.name}: field 'masses': the forces of masses this large overflow float64 even at unit "
+            f"lengths and rates (largest mass {big:.3g} kg, force bound 1e{scale:.0f} > "
+            f"{MAX_FORCE_SCALE:.0e}); express the model in other units"
+        )

@@ -43,7 +43,7 @@ def _sample(mech: Mechanism, q, qd, qdd) -> list:
     n, dim = mech.nlinks, mech.dim
     mp = mpmath.mpf
     q, qd, qdd = [[mp(float(x)) for x in v] for v in (q, qd, qdd)]
-    blocks = lambda v: (v[:n], v[n:2 * n] if dim == 3 else [mp(0)] * n, v[-n:])
+    blocks = lambda v: (v[:n], v[n : 2 * n] if dim == 3 else [mp(0)] * n, v[-n:])
     (phi, psi, l), (dphi, dpsi, dl), (ddphi, ddpsi, ddl) = blocks(q), blocks(qd), blocks(qdd)
     up = [mp(0)] * (dim - 1) + [mp(mech.g)]
     add = lambda a, b: [x + y for x, y in zip(a, b)]
@@ -59,8 +59,9 @@ def _sample(mech: Mechanism, q, qd, qdd) -> list:
         uddot = add(scale(ddphi[k], u_f), scale(dphi[k] ** 2, u_ff))
         if dim == 3:
             udot = add(udot, scale(dpsi[k], u_p))
-            uddot = add(uddot, add(scale(ddpsi[k], u_p), add(scale(2 * dphi[k] * dpsi[k], u_fp),
-                                                              scale(dpsi[k] ** 2, u_pp))))
+            uddot = add(
+                uddot, add(scale(ddpsi[k], u_p), add(scale(2 * dphi[k] * dpsi[k], u_fp), scale(dpsi[k] ** 2, u_pp)))
+            )
         # w'' = s (l'' u + 2 l' u' + l u'')
         wdd.append(scale(s, add(scale(ddl[k], u), add(scale(2 * dl[k], udot), scale(l[k], uddot)))))
     # Forward pass: accelerations of every rod's start point
@@ -71,7 +72,7 @@ def _sample(mech: Mechanism, q, qd, qdd) -> list:
         start[k] = end[p] if p >= 0 else [mp(0)] * dim
         end[k] = add(start[k], wdd[k])
     # Backward pass: F_k = own masses weighted by their fractions + everything below, whole
-    below = [[mp(0)] * dim for _ in range(n)]    # sum over strict descendants of m_p (r_p'' + g up)
+    below = [[mp(0)] * dim for _ in range(n)]  # sum over strict descendants of m_p (r_p'' + g up)
     F = [None] * n
     for k in reversed(range(n)):
         own_weighted, own_whole = [mp(0)] * dim, [mp(0)] * dim

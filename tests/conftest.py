@@ -110,7 +110,7 @@ def _subtree_rows(mech) -> np.ndarray:
             p = mech.parent[p]
     R = np.eye(mech.dof)
     for b in range(mech.dim - 1):
-        R[b * n:(b + 1) * n, b * n:(b + 1) * n] = sub
+        R[b * n : (b + 1) * n, b * n : (b + 1) * n] = sub
     return R
 
 
@@ -124,9 +124,9 @@ def _rates(mech, q, qd, qdd):
     l = q[:, -n:]
     ad, add = np.abs(qd), np.abs(qdd)
     wd, ld = ad[:, :n], ad[:, -n:]
-    vd = ad[:, n:2 * n] if mech.dim == 3 else np.zeros_like(wd)
+    vd = ad[:, n : 2 * n] if mech.dim == 3 else np.zeros_like(wd)
     wdd, ldd = add[:, :n], add[:, -n:]
-    vdd = add[:, n:2 * n] if mech.dim == 3 else np.zeros_like(wdd)
+    vdd = add[:, n : 2 * n] if mech.dim == 3 else np.zeros_like(wdd)
     kappa = l * (wdd + vdd + wd**2 + vd**2 + 2 * wd * vd) + ldd + 2 * ld * (wd + vd)
     return q, l, wd, vd, ld, kappa
 
@@ -143,7 +143,7 @@ def term_scale(mech, q, qd=None, qdd=None, gravity: bool = True) -> np.ndarray:
     q, l, wd, vd, ld, kappa = _rates(mech, q, qd, qdd)
     n = mech.nlinks
     mu, nu = mass_coupling_oracle(mech)
-    per_link = kappa @ np.abs(mu).T + (mech.g * np.abs(nu) if gravity else 0.0)      # (S, n)
+    per_link = kappa @ np.abs(mu).T + (mech.g * np.abs(nu) if gravity else 0.0)  # (S, n)
     angles = np.maximum(1.0, np.abs(q[:, :-n]).max(axis=1, initial=0.0))[:, None]
     rows = _lever_arms(mech, q) * per_link[:, _link_of_row(mech)] * angles
     # every point mass's own moment about its link's joint, with the lever arm of the rounding,
@@ -152,8 +152,9 @@ def term_scale(mech, q, qd=None, qdd=None, gravity: bool = True) -> np.ndarray:
     path_speed = np.stack([link_speed[:, [i, *mech.ancestors[i]]].sum(axis=1) for i in range(n)], axis=1)
     own = np.array([sum(mech.masses[i]) for i in range(n)])[None, :] * (
         LEVER_ROUNDING * (kappa.max(axis=1, initial=0.0)[:, None] + (mech.g if gravity else 0.0))
-        + SPEED_ROUNDING * path_speed**2)
-    rows[:, :(mech.dim - 1) * n] += np.tile(own, mech.dim - 1) * angles
+        + SPEED_ROUNDING * path_speed**2
+    )
+    rows[:, : (mech.dim - 1) * n] += np.tile(own, mech.dim - 1) * angles
     return rows @ _subtree_rows(mech).T
 
 
@@ -168,7 +169,7 @@ def mass_matrix_scale(mech, q, derived: bool = False) -> np.ndarray:
     mu, _ = mass_coupling_oracle(mech)
     r = _lever_arms(mech, q)
     link = _link_of_row(mech)
-    angles = np.maximum(1.0, np.abs(q[:, :-mech.nlinks]).max(axis=1, initial=0.0))[:, None, None]
+    angles = np.maximum(1.0, np.abs(q[:, : -mech.nlinks]).max(axis=1, initial=0.0))[:, None, None]
     R = _subtree_rows(mech)
     out = R @ (r[:, :, None] * np.abs(mu)[link][:, link][None] * r[:, None, :]) @ R.T * angles
     if derived:
@@ -219,7 +220,7 @@ def com_frame_scale(mech, q, qd=None, qdd=None, gravity: bool = True, matrix: bo
     root = np.array([([i, *mech.ancestors[i]])[-1] for i in range(n)])
     trees = [np.flatnonzero(root == r) for r in np.unique(root)]
     path_kappa = np.stack([kappa[:, [i, *mech.ancestors[i]]].sum(axis=1) for i in range(n)], axis=1)
-    angle = np.tile(np.arange(mech.dof) < (mech.dim - 1) * n, 1)          # rows of angles
+    angle = np.tile(np.arange(mech.dof) < (mech.dim - 1) * n, 1)  # rows of angles
     link = _link_of_row(mech)
     out = np.zeros((S, mech.dof, mech.dof) if matrix else (S, mech.dof))
     for t in trees:
@@ -228,7 +229,7 @@ def com_frame_scale(mech, q, qd=None, qdd=None, gravity: bool = True, matrix: bo
         W_T = 2 * (wd[:, t] + vd[:, t]).sum(axis=1)
         V_T = (ld[:, t] + l[:, t] * W_T[:, None]).sum(axis=1)
         rows = np.isin(link, t)
-        lever = np.where(angle[None, :], L_T[:, None], 1.0) * rows[None, :]          # (S, dof)
+        lever = np.where(angle[None, :], L_T[:, None], 1.0) * rows[None, :]  # (S, dof)
         if matrix:
             out += M_T * lever[:, :, None] * lever[:, None, :]
         else:
@@ -246,7 +247,7 @@ def assert_matrices_agree(ours: dict, ref: dict, mech, q, k: float = K, blocks=N
     ``k eps`` :func:`matrix_scale`; returns the largest ratio."""
     scale = matrix_scale(mech, q)
     worst = 0.0
-    for block in (blocks or ref):
+    for block in blocks or ref:
         for name, x in ref[block].items():
             sc = np.diagonal(scale, axis1=1, axis2=2) if name == "P" else scale
             worst = max(worst, assert_close(ours[block][name], x, sc, k, what=f"{block}.{name}"))
@@ -261,7 +262,7 @@ def assert_close(a, b, scale, k: float = K, what: str = "") -> float:
     assert np.isfinite(a).all() and np.isfinite(b).all(), what
     scale = np.broadcast_to(scale, a.shape)
     diff = np.abs(a - b)
-    with np.errstate(divide="ignore", invalid="ignore"):   # a zero scale allows no difference at all
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero scale allows no difference at all
         ratio = float(np.where(diff == 0, 0.0, diff / (EPS * scale)).max())
     assert ratio <= k, f"{what}: disagreement {ratio:.3g} eps * scale > {k} (max |a - b| = {diff.max():.3g})"
     return ratio
@@ -365,11 +366,12 @@ def package_copy_prober(tmp_path, probe: str):
     env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
 
     def run() -> dict:
-        r = subprocess.run([sys.executable, "-c", probe], env=env, cwd=tmp_path, capture_output=True, text=True,
-                           timeout=900)
+        r = subprocess.run(
+            [sys.executable, "-c", probe], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=900
+        )
         assert r.returncode == 0, r.stderr[-3000:]
         out = json.loads(r.stdout.strip().splitlines()[-1])
-        assert out["file"].startswith(str(tmp_path)), out["file"]     # the copy, not the installed package
+        assert out["file"].startswith(str(tmp_path)), out["file"]  # the copy, not the installed package
         return out
 
     return pkg, run

@@ -41,44 +41,100 @@ ROOT = Path(__file__).resolve().parent.parent
 
 #: module -> (file, functions to mutate or None for the whole module, test selection)
 TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
-    "planar": ("matrix_method/closed_forms/planar.py", None,
-               ["tests/test_tolerance_sensitivity.py", "tests/test_planar.py",
-                "tests/test_spatial.py::test_planar_closed_forms_are_the_dot_products_of_their_definition"]),
-    "spatial": ("matrix_method/closed_forms/transitions.py", None,
-                ["tests/test_tolerance_sensitivity.py",
-                 "tests/test_spatial.py::test_every_transition_gives_pinocchios_3d_matrix",
-                 "tests/test_spatial.py::test_a_link_that_carries_no_mass_has_finite_zero_gravity_terms",
-                 "tests/test_spatial.py::test_corrected_transitions_are_the_dot_products_of_their_definition"]),
-    "coefficients": ("matrix_method/closed_forms/coefficients.py", None,
-                     ["tests/test_coefficients.py", "tests/test_recurrence.py", "tests/test_planar.py",
-                      "tests/test_symbolic.py"]),
-    "aggregates": ("models/aggregates.py", None,
-                   ["tests/test_coefficients.py", "tests/test_forward_dynamics.py", "tests/test_planar.py"]),
-    "urdf": ("models/urdf.py", ("_safe", "link_prefix", "_inertial", "_link", "_joint", "to_urdf",
-                                "pinocchio_model_size"),
-             ["tests/test_urdf.py", "tests/test_pinocchio_backend.py"]),
-    "G": ("models/pinocchio_backend.py", ("build_model", "_joint_states"),
-          ["tests/test_pinocchio_backend.py", "tests/test_urdf.py"]),
-    "mjcf": ("models/mjcf.py", ("_joint_rows", "joint_map"),
-             ["tests/test_mujoco_drake.py::test_mjcf_ties_and_map_are_what_the_paper_coordinates_say",
-              "tests/test_mujoco_drake.py::test_exported_mjcf_bodies_are_the_point_masses",
-              "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method",
-              "tests/test_mujoco_drake.py::test_zero_point_masses_are_exactly_zero",
-              "tests/test_mujoco_drake.py::test_exported_mjcf_with_zero_masses_loads_and_places_its_bodies"]),
-    "drake": ("models/drake_backend.py", ("build_plant",),
-              ["tests/test_mujoco_drake.py::test_drake_bodies_are_the_point_masses",
-               "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method",
-               "tests/test_mujoco_drake.py::test_zero_point_masses_are_exactly_zero"]),
-    "mechanism": ("models/mechanism.py", ("from_dict", "__post_init__"),
-                  ["tests/test_mechanism.py", "tests/test_bad_inputs.py"]),
-    "validation": ("models/validation.py", ("_is_number", "_finite", "validate"),
-                   ["tests/test_mechanism.py", "tests/test_bad_inputs.py"]),
+    "planar": (
+        "matrix_method/closed_forms/planar.py",
+        None,
+        [
+            "tests/test_tolerance_sensitivity.py",
+            "tests/test_planar.py",
+            "tests/test_spatial.py::test_planar_closed_forms_are_the_dot_products_of_their_definition",
+        ],
+    ),
+    "spatial": (
+        "matrix_method/closed_forms/transitions.py",
+        None,
+        [
+            "tests/test_tolerance_sensitivity.py",
+            "tests/test_spatial.py::test_every_transition_gives_pinocchios_3d_matrix",
+            "tests/test_spatial.py::test_a_link_that_carries_no_mass_has_finite_zero_gravity_terms",
+            "tests/test_spatial.py::test_corrected_transitions_are_the_dot_products_of_their_definition",
+        ],
+    ),
+    "coefficients": (
+        "matrix_method/closed_forms/coefficients.py",
+        None,
+        ["tests/test_coefficients.py", "tests/test_recurrence.py", "tests/test_planar.py", "tests/test_symbolic.py"],
+    ),
+    "aggregates": (
+        "models/aggregates.py",
+        None,
+        ["tests/test_coefficients.py", "tests/test_forward_dynamics.py", "tests/test_planar.py"],
+    ),
+    "urdf": (
+        "models/urdf.py",
+        ("_safe", "link_prefix", "_inertial", "_link", "_joint", "to_urdf", "pinocchio_model_size"),
+        ["tests/test_urdf.py", "tests/test_pinocchio_backend.py"],
+    ),
+    "G": (
+        "models/pinocchio_backend.py",
+        ("build_model", "_joint_states"),
+        ["tests/test_pinocchio_backend.py", "tests/test_urdf.py"],
+    ),
+    "mjcf": (
+        "models/mjcf.py",
+        ("_joint_rows", "joint_map"),
+        [
+            "tests/test_mujoco_drake.py::test_mjcf_ties_and_map_are_what_the_paper_coordinates_say",
+            "tests/test_mujoco_drake.py::test_exported_mjcf_bodies_are_the_point_masses",
+            "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method",
+            "tests/test_mujoco_drake.py::test_zero_point_masses_are_exactly_zero",
+            "tests/test_mujoco_drake.py::test_exported_mjcf_with_zero_masses_loads_and_places_its_bodies",
+        ],
+    ),
+    "drake": (
+        "models/drake_backend.py",
+        ("build_plant",),
+        [
+            "tests/test_mujoco_drake.py::test_drake_bodies_are_the_point_masses",
+            "tests/test_mujoco_drake.py::test_forces_agree_with_every_other_method",
+            "tests/test_mujoco_drake.py::test_zero_point_masses_are_exactly_zero",
+        ],
+    ),
+    "mechanism": (
+        "models/mechanism.py",
+        ("from_dict", "__post_init__"),
+        ["tests/test_mechanism.py", "tests/test_bad_inputs.py"],
+    ),
+    "validation": (
+        "models/validation.py",
+        ("_is_number", "_finite", "validate"),
+        ["tests/test_mechanism.py", "tests/test_bad_inputs.py"],
+    ),
 }
 
-SWAP_BIN = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult, ast.Pow: ast.Mult,
-            ast.FloorDiv: ast.Div, ast.Mod: ast.FloorDiv, ast.BitOr: ast.BitAnd, ast.BitAnd: ast.BitOr}
-SWAP_CMP = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt, ast.Eq: ast.NotEq,
-            ast.NotEq: ast.Eq, ast.In: ast.NotIn, ast.NotIn: ast.In, ast.Is: ast.IsNot, ast.IsNot: ast.Is}
+SWAP_BIN = {
+    ast.Add: ast.Sub,
+    ast.Sub: ast.Add,
+    ast.Mult: ast.Div,
+    ast.Div: ast.Mult,
+    ast.Pow: ast.Mult,
+    ast.FloorDiv: ast.Div,
+    ast.Mod: ast.FloorDiv,
+    ast.BitOr: ast.BitAnd,
+    ast.BitAnd: ast.BitOr,
+}
+SWAP_CMP = {
+    ast.Lt: ast.LtE,
+    ast.LtE: ast.Lt,
+    ast.Gt: ast.GtE,
+    ast.GtE: ast.Gt,
+    ast.Eq: ast.NotEq,
+    ast.NotEq: ast.Eq,
+    ast.In: ast.NotIn,
+    ast.NotIn: ast.In,
+    ast.Is: ast.IsNot,
+    ast.IsNot: ast.Is,
+}
 
 
 @dataclass
@@ -99,8 +155,12 @@ def _protected(tree: ast.AST) -> set[int]:
     for node in ast.walk(tree):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef, ast.Module)):
             body = node.body
-            if body and isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant) \
-                    and isinstance(body[0].value.value, str):
+            if (
+                body
+                and isinstance(body[0], ast.Expr)
+                and isinstance(getattr(body[0], "value", None), ast.Constant)
+                and isinstance(body[0].value.value, str)
+            ):
                 mark(body[0])
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             if node.returns is not None:
@@ -143,7 +203,9 @@ def _sites(tree: ast.Module, functions):
                 if type(op) in SWAP_CMP:
                     sites.append(((node, k), "cmp", line, f"{type(op).__name__} -> {SWAP_CMP[type(op)].__name__}"))
         elif isinstance(node, ast.BoolOp):
-            sites.append((node, "boolop", line, f"{type(node.op).__name__} -> {'Or' if isinstance(node.op, ast.And) else 'And'}"))
+            sites.append(
+                (node, "boolop", line, f"{type(node.op).__name__} -> {'Or' if isinstance(node.op, ast.And) else 'And'}")
+            )
         elif isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.Not)):
             sites.append((node, "unary", line, f"remove {type(node.op).__name__}"))
         elif isinstance(node, ast.Constant) and type(node.value) in (int, float, bool):
@@ -210,6 +272,7 @@ def _preload() -> None:
     global _PRELOADED
     if not _PRELOADED:
         import hypothesis, matplotlib, numpy, pinocchio, pytest, scipy.integrate, sympy  # noqa: F401,E401
+
         matplotlib.use("Agg")
         _PRELOADED = True
 
@@ -219,7 +282,7 @@ def _run_tests(tmp: Path, tests: list[str], timeout: float) -> bool:
     imports ``exo_bench`` from ``tmp`` (nothing of it is imported in this parent)."""
     _preload()
     pid = os.fork()
-    if pid == 0:                                     # child: never returns
+    if pid == 0:  # child: never returns
         code = 3
         try:
             os.chdir(tmp)
@@ -229,6 +292,7 @@ def _run_tests(tmp: Path, tests: list[str], timeout: float) -> bool:
             os.dup2(devnull, 1)
             os.dup2(devnull, 2)
             import pytest
+
             code = int(pytest.main(["-x", "-q", "-p", "no:cacheprovider", *tests]))
         finally:
             os._exit(code)
@@ -265,9 +329,16 @@ def run(name: str, timeout: float, only: list[int] | None = None) -> dict:
             print(f"{name} #{m.index} line {m.line} {m.description}: {status}", flush=True)
         target.write_text(original)
     total = len(killed) + len(survived)
-    return {"module": name, "file": path, "functions": functions, "tests": tests, "mutants": total,
-            "killed": len(killed), "survived": [vars(m) for m in survived],
-            "score": len(killed) / total if total else 1.0}
+    return {
+        "module": name,
+        "file": path,
+        "functions": functions,
+        "tests": tests,
+        "mutants": total,
+        "killed": len(killed),
+        "survived": [vars(m) for m in survived],
+        "score": len(killed) / total if total else 1.0,
+    }
 
 
 BEGIN, END = "<!-- mutation:begin (tests/mutate.py --write) -->", "<!-- mutation:end -->"
@@ -289,10 +360,17 @@ def write_summary(results: list[dict], doc_path: Path) -> None:
     the document lists as equivalent, others, and the score over the non-equivalent mutants."""
     doc = doc_path.read_text()
     equivalent = _equivalent(doc)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-    lines = [BEGIN, "", f"Generated by `python tests/mutate.py --write docs/testing.md RESULTS.json...` at commit {commit}.", "",
-             "| module | file (scope) | mutants | killed | equivalent | surviving, not equivalent | score (non-equivalent killed) |",
-             "| --- | --- | ---: | ---: | ---: | ---: | ---: |"]
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
+    lines = [
+        BEGIN,
+        "",
+        f"Generated by `python tests/mutate.py --write docs/testing.md RESULTS.json...` at commit {commit}.",
+        "",
+        "| module | file (scope) | mutants | killed | equivalent | surviving, not equivalent | score (non-equivalent killed) |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
     for r in results:
         surv = [f"line {m['line']} {m['description']}" for m in r["survived"]]
         eq = [x for x in surv if (r["module"], x) in equivalent]
@@ -300,7 +378,9 @@ def write_summary(results: list[dict], doc_path: Path) -> None:
         denominator = r["mutants"] - len(eq)
         scope = r["file"] + (f" ({', '.join(r['functions'])})" if r["functions"] else "")
         score = 100.0 * r["killed"] / denominator if denominator else 100.0
-        lines.append(f"| {r['module']} | {scope} | {r['mutants']} | {r['killed']} | {len(eq)} | {len(other)} | {score:.1f}% |")
+        lines.append(
+            f"| {r['module']} | {scope} | {r['mutants']} | {r['killed']} | {len(eq)} | {len(other)} | {score:.1f}% |"
+        )
         for x in other:
             lines.append(f"| {r['module']} | NOT EXPLAINED: {x} | | | | | |")
     lines += ["", END]
@@ -315,7 +395,9 @@ def main(argv=None) -> int:
     ap.add_argument("--only", type=int, nargs="*", help="mutant indices to run (after a fix)")
     ap.add_argument("--json", help="write the results here")
     ap.add_argument("--list", action="store_true", help="list the mutants, run nothing")
-    ap.add_argument("--write", metavar="DOC", help="with RESULTS.json files as arguments: write the score table into DOC")
+    ap.add_argument(
+        "--write", metavar="DOC", help="with RESULTS.json files as arguments: write the score table into DOC"
+    )
     args = ap.parse_args(argv)
     if args.write:
         results = [r for f in args.modules for r in json.loads(Path(f).read_text())]
@@ -330,8 +412,10 @@ def main(argv=None) -> int:
             continue
         r = run(name, args.timeout, args.only)
         results.append(r)
-        print(f"== {name}: {r['killed']}/{r['mutants']} killed ({100 * r['score']:.1f}%), "
-              f"{len(r['survived'])} survived", flush=True)
+        print(
+            f"== {name}: {r['killed']}/{r['mutants']} killed ({100 * r['score']:.1f}%), {len(r['survived'])} survived",
+            flush=True,
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     return 0

@@ -48,7 +48,7 @@ def test_analytic_jacobian_against_complex_step(case):
     y = np.concatenate([case.q0, case.qd0 + 0.3])
     J = jac(0.0, y)
     cs = _complex_step_jacobian(mech, ctrl, 0.0, y)
-    np.testing.assert_array_equal(J[:d], cs[:d])                  # d qd / d y: exactly [0, I]
+    np.testing.assert_array_equal(J[:d], cs[:d])  # d qd / d y: exactly [0, I]
     M = model.mass_matrix(case.q0)
     cond, minv = np.linalg.cond(M), np.linalg.norm(np.linalg.inv(M), 2)
     n = mech.nlinks
@@ -96,8 +96,9 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
 
     case = stiff_case(1e6)
     model = prepare(case.mechanism, "matrix-factored")
-    run = lambda integ, r, j: fd.simulate(model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, r,
-                                          ATOL_FACTOR * r, jacobian=j)
+    run = lambda integ, r, j: fd.simulate(
+        model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, r, ATOL_FACTOR * r, jacobian=j
+    )
     ref = run("Radau", 1e-10, "analytic")
     assert ref.ok
     n = case.mechanism.nlinks
@@ -121,8 +122,9 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
 def test_bad_jacobian_options():
     case = stiff_case(1e4)
     model = prepare(case.mechanism, "matrix-factored")
-    sim = lambda integ, j, ctrl=case.controls: fd.simulate(model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ,
-                                                          jacobian=j)
+    sim = lambda integ, j, ctrl=case.controls: fd.simulate(
+        model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ, jacobian=j
+    )
     with pytest.raises(ValueError, match="jacobian: expected one of finite-difference, analytic"):
         sim("Radau", "exact")
     with pytest.raises(ValueError, match="only the implicit integrators"):

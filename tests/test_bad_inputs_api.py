@@ -50,7 +50,7 @@ def _model(method: str, kernel, dim: int):
 
 
 def _call(model, *args, **kw):
-    with warnings.catch_warnings():          # matrix-paper warns of its NaN in 3D by design
+    with warnings.catch_warnings():  # matrix-paper warns of its NaN in 3D by design
         warnings.simplefilter("ignore", RuntimeWarning)
         return model.inverse_dynamics(*args, **kw)
 
@@ -89,7 +89,7 @@ def _relayout(a: np.ndarray, layout: str, dtype: str) -> np.ndarray:
     a = a.astype(dtype)
     if layout == "F":
         return np.asfortranarray(a)
-    if layout == "strided":                   # every other row and column of a larger array
+    if layout == "strided":  # every other row and column of a larger array
         big = np.zeros((2 * a.shape[0], 2 * a.shape[1]), dtype=a.dtype)
         big[::2, ::2] = a
         return big[::2, ::2]
@@ -98,13 +98,20 @@ def _relayout(a: np.ndarray, layout: str, dtype: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
-@settings(max_examples=40, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.too_slow])
-@given(case=st.sampled_from(_CASES), dim=st.sampled_from([2, 3]), samples=st.sampled_from([1, 3, 17]),
-       layouts=st.tuples(_layout, _layout, _layout), dtype=_dtype, single=st.booleans(), with_out=st.booleans(),
-       seed=st.integers(0, 2**16))
-def test_every_layout_and_dtype_agrees_with_the_c_ordered_float64_call(case, dim, samples, layouts, dtype, single,
-                                                                        with_out, seed):
+@settings(max_examples=40, deadline=None, derandomize=True, database=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    case=st.sampled_from(_CASES),
+    dim=st.sampled_from([2, 3]),
+    samples=st.sampled_from([1, 3, 17]),
+    layouts=st.tuples(_layout, _layout, _layout),
+    dtype=_dtype,
+    single=st.booleans(),
+    with_out=st.booleans(),
+    seed=st.integers(0, 2**16),
+)
+def test_every_layout_and_dtype_agrees_with_the_c_ordered_float64_call(
+    case, dim, samples, layouts, dtype, single, with_out, seed
+):
     """Property: with ``check=True`` every model gives, for any layout, stride and real dtype of the
     states (and with or without ``out``), the forces of the C-ordered float64 call on the same values;
     with ``check=False`` it gives them for C-ordered float64 and refuses anything else with a
@@ -113,9 +120,9 @@ def test_every_layout_and_dtype_agrees_with_the_c_ordered_float64_call(case, dim
     model = _model(method, kernel, dim)
     mech = model.mechanism
     q, qd, qdd = random_states(mech, samples, seed=seed)
-    if dtype == "int64":                      # integer states: the values must be exact integers
+    if dtype == "int64":  # integer states: the values must be exact integers
         q, qd, qdd = (np.round(a) for a in (q, qd, qdd))
-        q[:, -mech.nlinks:] = np.abs(q[:, -mech.nlinks:]) + 1
+        q[:, -mech.nlinks :] = np.abs(q[:, -mech.nlinks :]) + 1
     elif dtype == "float32":
         q, qd, qdd = (a.astype(np.float32).astype(np.float64) for a in (q, qd, qdd))
     args = [_relayout(a, lay, dtype) for a, lay in zip((q, qd, qdd), layouts)]
@@ -130,14 +137,28 @@ def test_every_layout_and_dtype_agrees_with_the_c_ordered_float64_call(case, dim
     s = (lambda a: a[None]) if single else (lambda a: a)
     assert tau.dtype == np.float64 and tau.shape == expected.shape and tau.flags.c_contiguous
     if not np.isnan(expected).any():
-        assert_forces_agree(s(tau), s(expected), mech, s(np.asarray(ref_args[0])), s(np.asarray(ref_args[1])),
-                            s(np.asarray(ref_args[2])), what=f"{method} {layouts} {dtype}")
+        assert_forces_agree(
+            s(tau),
+            s(expected),
+            mech,
+            s(np.asarray(ref_args[0])),
+            s(np.asarray(ref_args[1])),
+            s(np.asarray(ref_args[2])),
+            what=f"{method} {layouts} {dtype}",
+        )
     c_float = dtype == "float64" and all(a.flags.c_contiguous for a in args)
     if c_float:
         fast = _call(model, *args, check=False, out=None if out is None else np.empty_like(out))
         if not np.isnan(expected).any():
-            assert_forces_agree(s(fast), s(expected), mech, s(np.asarray(ref_args[0])), s(np.asarray(ref_args[1])),
-                                s(np.asarray(ref_args[2])), what=f"{method} check=False")
+            assert_forces_agree(
+                s(fast),
+                s(expected),
+                mech,
+                s(np.asarray(ref_args[0])),
+                s(np.asarray(ref_args[1])),
+                s(np.asarray(ref_args[2])),
+                what=f"{method} check=False",
+            )
     else:
         with pytest.raises(ValueError, match=r"field '(q|qd|qdd)': expected C-ordered float64"):
             _call(model, *args, check=False)

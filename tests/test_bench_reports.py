@@ -3,8 +3,15 @@
 import numpy as np
 import pandas as pd
 
-from exo_bench.bench.perf.reports.benchmark_reports import (PAPER_TABLE, README_END, README_START, crossover, fit_exponent, paper_table,
-                                 readme_with_table)
+from exo_bench.bench.perf.reports.benchmark_reports import (
+    PAPER_TABLE,
+    README_END,
+    README_START,
+    crossover,
+    fit_exponent,
+    paper_table,
+    readme_with_table,
+)
 
 
 def test_growth_exponent_of_a_power_law_is_recovered():
@@ -14,8 +21,8 @@ def test_growth_exponent_of_a_power_law_is_recovered():
 
 
 def test_crossover_is_where_the_faster_method_stays_faster():
-    a = pd.Series({1: 1.0, 2: 2.0, 5: 5.0, 10: 10.0})     # grows like n
-    b = pd.Series({1: 3.0, 2: 3.0, 5: 3.0, 10: 3.0})      # constant
+    a = pd.Series({1: 1.0, 2: 2.0, 5: 5.0, 10: 10.0})  # grows like n
+    b = pd.Series({1: 3.0, 2: 3.0, 5: 3.0, 10: 3.0})  # constant
     assert crossover(a, b) == "n = 5"
     assert crossover(b, a).startswith("none up to")
 
@@ -46,18 +53,64 @@ def test_readme_table_is_replaced_between_markers_only():
 
 def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float, err: float):
     """exo5-3d rows of one run: matrix-factored (numba) batched and per call, Pinocchio's paths, PyDy."""
-    base = dict(mechanism="exo5-3d", n=5, dim=3, topology="exo5", iqr=0.0, reference="ref", nonfinite=0,
-                max_abs_err=err, max_rel_err=err)
-    rows = [dict(base, group="inverse-batched-3d", method="matrix-factored (numba)", batched=True, samples=10_000,
-                 median=fast_us * 1e-6 * 10_000, threads=""),
-            dict(base, group="inverse-batched-3d", method="pinocchio-parallel", batched=True, samples=10_000,
-                 median=pin_us * 1e-6 * 10_000, threads=2),
-            dict(base, group="inverse-per-call-3d", method="matrix-factored (numba)", batched=False, samples=1,
-                 median=fast_us * 5e-6, threads=""),
-            dict(base, group="inverse-per-call-3d", method="pin.rnea (bare)", batched=False, samples=1,
-                 median=bare_us * 1e-6, threads=""),
-            dict(base, group="inverse-per-call-3d", method="pydy-cython", batched=False, samples=1,
-                 median=pydy_us * 1e-6, threads="")]
+    base = dict(
+        mechanism="exo5-3d",
+        n=5,
+        dim=3,
+        topology="exo5",
+        iqr=0.0,
+        reference="ref",
+        nonfinite=0,
+        max_abs_err=err,
+        max_rel_err=err,
+    )
+    rows = [
+        dict(
+            base,
+            group="inverse-batched-3d",
+            method="matrix-factored (numba)",
+            batched=True,
+            samples=10_000,
+            median=fast_us * 1e-6 * 10_000,
+            threads="",
+        ),
+        dict(
+            base,
+            group="inverse-batched-3d",
+            method="pinocchio-parallel",
+            batched=True,
+            samples=10_000,
+            median=pin_us * 1e-6 * 10_000,
+            threads=2,
+        ),
+        dict(
+            base,
+            group="inverse-per-call-3d",
+            method="matrix-factored (numba)",
+            batched=False,
+            samples=1,
+            median=fast_us * 5e-6,
+            threads="",
+        ),
+        dict(
+            base,
+            group="inverse-per-call-3d",
+            method="pin.rnea (bare)",
+            batched=False,
+            samples=1,
+            median=bare_us * 1e-6,
+            threads="",
+        ),
+        dict(
+            base,
+            group="inverse-per-call-3d",
+            method="pydy-cython",
+            batched=False,
+            samples=1,
+            median=pydy_us * 1e-6,
+            threads="",
+        ),
+    ]
     return pd.DataFrame(rows)
 
 
@@ -70,11 +123,12 @@ def test_speed_goals_are_judged_from_the_rows_of_one_run():
     assert "0.1 us/sample, goal at most 0.15 us: **met**" in good and "50x slower than" in good
     assert "**not met**" not in good
     bad = "\n".join(speed_goals(_inverse(_inverse_frame(0.2, 5.0, 3.0, 0.5, 3e-14)), []))
-    assert bad.count("**not met**") == 4      # PyDy faster, 0.2 us/sample, 25x, error above 1e-14
+    assert bad.count("**not met**") == 4  # PyDy faster, 0.2 us/sample, 25x, error above 1e-14
 
 
 def _manifest(out, command):
     import json
+
     files = {n: {"run": "r1"} for n in ("scaling.md", "paper_table.md")}
     (out / "runs.json").write_text(json.dumps({"format": 1, "runs": {"r1": {"command": command}}, "files": files}))
 
@@ -82,14 +136,14 @@ def _manifest(out, command):
 def test_a_quick_run_never_replaces_the_reports_of_a_full_run(tmp_path):
     from exo_bench.bench.perf.reports.benchmark_reports import REPORT_FILES, report_names
 
-    assert report_names(tmp_path, "quick") == {n: n for n in REPORT_FILES}       # nothing there yet
+    assert report_names(tmp_path, "quick") == {n: n for n in REPORT_FILES}  # nothing there yet
     _manifest(tmp_path, "exo-bench bench")
-    assert report_names(tmp_path, "quick")["scaling.md"] == "scaling.md"          # quick over quick
+    assert report_names(tmp_path, "quick")["scaling.md"] == "scaling.md"  # quick over quick
     _manifest(tmp_path, "exo-bench bench --full")
     quick = report_names(tmp_path, "quick")
     assert quick["scaling.md"] == "scaling-quick.md" and quick["scaling.png"] == "scaling-quick.png"
-    assert set(quick.values()).isdisjoint(REPORT_FILES)                           # every full report kept
-    assert report_names(tmp_path, "full") == {n: n for n in REPORT_FILES}         # a full run replaces them
+    assert set(quick.values()).isdisjoint(REPORT_FILES)  # every full report kept
+    assert report_names(tmp_path, "full") == {n: n for n in REPORT_FILES}  # a full run replaces them
 
 
 def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
@@ -98,9 +152,11 @@ def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
 
     from exo_bench.bench.perf.reports.benchmark_reports import _verdict
 
-    idx = pd.MultiIndex.from_tuples([(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"])
+    idx = pd.MultiIndex.from_tuples(
+        [(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"]
+    )
     piv = pd.DataFrame({"matrix": [0.01, 0.05, 20.0], "lagrange": [0.1, 0.9, np.nan]}, index=idx)
-    lines = _verdict(piv, ["lagrange"])      # n = 50 composed by matrix alone: no peer to compare with
+    lines = _verdict(piv, ["lagrange"])  # n = 50 composed by matrix alone: no peer to compare with
     assert any("every Lagrange/Kane peer at every n >= 2: met" in x for x in lines)
     piv.loc[(3, "chain", 5), "lagrange"] = 0.01
     assert any("**missed**" in x for x in _verdict(piv, ["lagrange"]) if "every Lagrange/Kane peer" in x)
@@ -114,5 +170,5 @@ def test_readme_goals_are_replaced_between_markers_only():
     out = readme_with_goals(readme, lines, "cmd")
     assert out.startswith("intro\n") and out.endswith("\noutro\n") and "old" not in out
     assert "- Batched: 0.05 us per sample: **met**." in out and "## Issue 23" not in out and "`cmd`" in out
-    assert readme_with_goals(readme, [], "cmd") == readme          # no figures (the row did not run): unchanged
+    assert readme_with_goals(readme, [], "cmd") == readme  # no figures (the row did not run): unchanged
     assert readme_with_goals("no markers", lines, "cmd") == "no markers"

@@ -47,8 +47,7 @@ ca = pytest.importorskip("casadi")
 
 from exo_bench.matrix_method.export.casadi_functions import FUNCTIONS, CasadiEquations, casadi_functions  # noqa: E402
 
-TREES = [random_tree(5, 2, 11), random_tree(6, 3, 12), presets.exo5(dim=3), presets.exo5(dim=2),
-         random_tree(4, 3, 13)]
+TREES = [random_tree(5, 2, 11), random_tree(6, 3, 12), presets.exo5(dim=3), presets.exo5(dim=2), random_tree(4, 3, 13)]
 IDS = [m.name for m in TREES]
 
 
@@ -94,7 +93,7 @@ def test_functions_agree_with_the_numeric_kernels(mech):
     assert_forces_agree(h, h_ref, mech, q, qd, None, what="casadi h")
     assert _rel(h, h_ref) <= 1e-13
     _, _, M_ad = E.evaluate("inverse_dynamics_derivatives", q, qd, qdd)
-    np.testing.assert_array_equal(M_ad, M)          # the same expression, d tau / d qdd
+    np.testing.assert_array_equal(M_ad, M)  # the same expression, d tau / d qdd
 
 
 @pytest.mark.parametrize("mech", TREES[:3], ids=IDS[:3])
@@ -148,8 +147,10 @@ def _against_central_differences(mech, ref, q, qd, qdd, jq, jqd):
         trunc_q = (h * max(1.0, np.abs(q[:, k]).max())) ** 2 / 6 * 8 * S if angles[k] else 0.0 * S
         step_q = h * np.maximum(1.0, np.abs(q[:, k]))[:, None]
         step_qd = h * np.maximum(1.0, np.abs(qd[:, k]))[:, None]
-        for J, x, step, trunc, f in ((jq, q, step_q, trunc_q, lambda x: ID(x, qd, qdd)),
-                                     (jqd, qd, step_qd, 0.0 * S, lambda x: ID(q, x, qdd))):
+        for J, x, step, trunc, f in (
+            (jq, q, step_q, trunc_q, lambda x: ID(x, qd, qdd)),
+            (jqd, qd, step_qd, 0.0 * S, lambda x: ID(q, x, qdd)),
+        ):
             fd = _central(f, x, k, h)
             bound = 1.01 * trunc + 2 * K * EPS * S / step
             assert (bound <= 1e-7 * np.abs(J).max()).all(), "the bound would not test anything"
@@ -189,7 +190,7 @@ def test_inverse_dynamics_derivatives_against_complex_step(mech):
     z = lambda x: x.astype(complex)
     cs_q = np.stack([_complex_inverse(mech, q + _step(q, k, h), z(qd), z(qdd)).imag / h for k in range(d)], -1)
     cs_qd = np.stack([_complex_inverse(mech, z(q), qd + _step(q, k, h), z(qdd)).imag / h for k in range(d)], -1)
-    per_q = np.where(np.arange(d) < d - n, 1.0, 1.0 / np.concatenate([np.ones_like(q[:, :d - n]), q[:, -n:]], 1))
+    per_q = np.where(np.arange(d) < d - n, 1.0, 1.0 / np.concatenate([np.ones_like(q[:, : d - n]), q[:, -n:]], 1))
     assert_close(jq, cs_q, 2 * S[:, :, None] * per_q[:, None, :], what="dtau_dq")
     assert_close(jqd, cs_qd, 2 * S[:, :, None] / np.abs(qd)[:, None, :], what="dtau_dqd")
     assert _rel(jq, cs_q) <= 1e-13 and _rel(jqd, cs_qd) <= 1e-13
@@ -243,8 +244,7 @@ def test_forward_dynamics_derivatives_against_complex_step(mech):
         assert (bound <= 1e-4 * Xn).all(), f"{name}: the bound would not test anything"
 
 
-@pytest.mark.parametrize("method", ["matrix", "matrix-factored", "recurrence", "pinocchio", "lagrange",
-                                    "matrix-paper"])
+@pytest.mark.parametrize("method", ["matrix", "matrix-factored", "recurrence", "pinocchio", "lagrange", "matrix-paper"])
 def test_every_method_has_derivatives(method):
     """Every method's prepared model has ``.derivatives``: its M (d tau/d qdd) is the method's own
     mass matrix to the error model, its accelerations invert the method's inverse dynamics, and
@@ -271,16 +271,28 @@ def test_every_method_has_derivatives(method):
 def test_casadi_export_round_trips(mech, tmp_path):
     """``exo-bench equations MECH --format casadi -o DIR``: every function loads back with CasADi
     alone (``Function.load``) and gives the in-memory function's numbers exactly."""
-    rc, out, err = run_cli(["equations", mech.name if mech.name.startswith("exo5") else _json(mech, tmp_path),
-                            "--format", "casadi", "-o", tmp_path / "out"])
+    rc, out, err = run_cli(
+        [
+            "equations",
+            mech.name if mech.name.startswith("exo5") else _json(mech, tmp_path),
+            "--format",
+            "casadi",
+            "-o",
+            tmp_path / "out",
+        ]
+    )
     assert rc == 0, err
     stem = mech.name
     files = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert files == sorted([f"{stem}_{n}.casadi" for n in FUNCTIONS] + [f"{stem}_casadi.md"])
     E = casadi_functions(mech)
     q, qd, qdd = _states(mech, samples=3)
-    args = {"q": q.T, "qd": qd.T, "qdd": qdd.T,
-            "tau": prepare(mech, "matrix-factored", kernel="numpy").inverse_dynamics(q, qd, qdd).T}
+    args = {
+        "q": q.T,
+        "qd": qd.T,
+        "qdd": qdd.T,
+        "tau": prepare(mech, "matrix-factored", kernel="numpy").inverse_dynamics(q, qd, qdd).T,
+    }
     for name, (ins, outs) in FUNCTIONS.items():
         f = ca.Function.load(str(tmp_path / "out" / f"{stem}_{name}.casadi"))
         assert f.name_in() == list(ins) and f.name_out() == list(outs)
@@ -308,7 +320,7 @@ def test_functions_take_symbols():
     M = ca.Function("M", [q], [E.mass_matrix(q)])
     x = _states(mech, samples=1)[0][0]
     np.testing.assert_array_equal(np.asarray(M(x)), np.asarray(E.mass_matrix(x)))
-    assert E.inverse_dynamics.expand().n_instructions() > 0      # SX: expandable for IPOPT
+    assert E.inverse_dynamics.expand().n_instructions() > 0  # SX: expandable for IPOPT
 
 
 def test_bad_input():
@@ -319,8 +331,9 @@ def test_bad_input():
     with pytest.raises(ValueError, match="qd"):
         model.derivatives.inverse_dynamics(q, qd[:, :3], qdd)
     q_bad = q.copy()
-    q_bad[0, -1] = 0.0                                     # l5 = 0: M singular, forward dynamics undefined
+    q_bad[0, -1] = 0.0  # l5 = 0: M singular, forward dynamics undefined
     from exo_bench.models.forward_dynamics import SingularConfigurationError
+
     with pytest.raises(SingularConfigurationError, match="link 5"):
         model.derivatives.forward_dynamics(q_bad, qd, qdd)
 
@@ -330,7 +343,7 @@ def test_missing_extra_is_named(monkeypatch, tmp_path):
     prints one line and exits 2, writing nothing."""
     import sys
 
-    monkeypatch.setitem(sys.modules, "casadi", None)         # import casadi raises ImportError
+    monkeypatch.setitem(sys.modules, "casadi", None)  # import casadi raises ImportError
     casadi_functions.cache_clear()
     try:
         mech = random_tree(2, 2, 99)
@@ -351,20 +364,23 @@ def test_parameters_are_an_input(mech, tmp_path):
     from exo_bench.matrix_method.export.casadi_functions import parameter_names, parameter_values
 
     E = casadi_functions(mech, parameters=True)
-    other = mech.replace(masses=tuple(tuple(1.3 * x + 0.1 for x in m) for m in mech.masses),
-                         n=tuple(0.5 for _ in mech.n), g=1.62)
+    other = mech.replace(
+        masses=tuple(tuple(1.3 * x + 0.1 for x in m) for m in mech.masses), n=tuple(0.5 for _ in mech.n), g=1.62
+    )
     q, qd, qdd = _states(mech)
     ref = prepare(other, "matrix-factored", kernel="numpy")
     (tau,) = E.evaluate("inverse_dynamics", q, qd, qdd, params=parameter_values(other))
     assert_forces_agree(tau, ref.inverse_dynamics(q, qd, qdd), other, q, qd, qdd, what="tau(params)")
     (M,) = E.evaluate("mass_matrix", q, params=parameter_values(other))
     assert_mass_matrices_agree(M, prepare(other, "matrix", kernel="numpy").mass_matrix(q), other, q)
-    (same,) = E.evaluate("inverse_dynamics", q, qd, qdd)          # default: the mechanism's own values
-    assert_forces_agree(same, prepare(mech, "matrix-factored", kernel="numpy").inverse_dynamics(q, qd, qdd),
-                        mech, q, qd, qdd)
+    (same,) = E.evaluate("inverse_dynamics", q, qd, qdd)  # default: the mechanism's own values
+    assert_forces_agree(
+        same, prepare(mech, "matrix-factored", kernel="numpy").inverse_dynamics(q, qd, qdd), mech, q, qd, qdd
+    )
     assert len(parameter_names(mech)) == E.params.numel() == 4 * mech.nlinks + 1
-    rc, _, err = run_cli(["equations", _json(mech, tmp_path), "--format", "casadi", "--symbolic-parameters",
-                          "-o", tmp_path / "out"])
+    rc, _, err = run_cli(
+        ["equations", _json(mech, tmp_path), "--format", "casadi", "--symbolic-parameters", "-o", tmp_path / "out"]
+    )
     assert rc == 0, err
     f = ca.Function.load(str(tmp_path / "out" / f"{mech.name}_inverse_dynamics.casadi"))
     assert f.name_in() == ["q", "qd", "qdd", "params"]

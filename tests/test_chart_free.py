@@ -51,11 +51,11 @@ def test_rod_loads_are_the_joint_moments_carried_by_each_rod_and_its_axial_force
     mo = gait(m, np.linspace(0.0, 0.98, 9)) if dim == 3 else planar_gait(m, np.linspace(0.0, 0.98, 9))
     f = cf.rod_loads(m, mo.q, mo.qd, mo.qdd)
     M, _ = net_joint_loads(m, mo.q, mo.qd, mo.qdd)
-    axial = prepare(m, "pinocchio").inverse_dynamics(mo.q, mo.qd, mo.qdd)[:, -m.nlinks:]
+    axial = prepare(m, "pinocchio").inverse_dynamics(mo.q, mo.qd, mo.qdd)[:, -m.nlinks :]
     g = cf.rod_loads_from_joint_loads(m, mo.q, M, axial)
     a = np.linalg.norm(point_mass_accelerations(m, mo.q, mo.qd, mo.qdd), axis=-1)
     W = (m.mass_array[None] * (a + m.g)).sum(axis=(1, 2))[:, None, None]
-    l = mo.q[:, -m.nlinks:][..., None]
+    l = mo.q[:, -m.nlinks :][..., None]
     bound = K * EPS * W * (1 + 2 * l.sum(axis=1, keepdims=True) / l)
     assert (np.abs(f - g) <= bound).all(), float((np.abs(f - g) / bound).max())
 

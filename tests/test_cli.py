@@ -13,8 +13,13 @@ from exo_bench.models.presets import exo5, random_tree
 
 
 def _cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=120,
+    )
 
 
 def _states_file(path, q, qd, qdd):
@@ -39,10 +44,18 @@ def test_inverse_accepts_a_users_own_mechanism_file(tmp_path):
     r = _cli("inverse", tmp_path / "mine.json", _states_file(tmp_path / "s.json", q, qd, qdd))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
-    assert out["method"] == "matrix-factored"   # the default, as prepare()'s (issue 26)
+    assert out["method"] == "matrix-factored"  # the default, as prepare()'s (issue 26)
     from conftest import assert_forces_agree
-    assert_forces_agree(np.array(out["tau"]), pb.inverse_dynamics(m, q, qd, qdd), m, q, qd, qdd,
-                        what="the CLI's default method against Pinocchio")
+
+    assert_forces_agree(
+        np.array(out["tau"]),
+        pb.inverse_dynamics(m, q, qd, qdd),
+        m,
+        q,
+        qd,
+        qdd,
+        what="the CLI's default method against Pinocchio",
+    )
 
 
 def test_presets_lists_every_paper_model():
@@ -74,9 +87,20 @@ def _bad_cases(tmp_path):
     }
 
 
-@pytest.mark.parametrize("case", ["unknown method", "missing mechanism file", "missing states file",
-                                  "invalid JSON states", "invalid JSON mechanism", "invalid mechanism",
-                                  "wrong state shape", "unknown command", "missing argument"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "unknown method",
+        "missing mechanism file",
+        "missing states file",
+        "invalid JSON states",
+        "invalid JSON mechanism",
+        "invalid mechanism",
+        "wrong state shape",
+        "unknown command",
+        "missing argument",
+    ],
+)
 def test_bad_input_gives_one_line_and_exit_code_2(case, tmp_path):
     args, needle = _bad_cases(tmp_path)[case]
     r = _cli(*args)

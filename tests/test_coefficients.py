@@ -40,7 +40,7 @@ def test_chain_coupling_is_the_bracket_of_eq6():
     mu = ag.coupling(m)
     for i in range(5):
         for j in range(i, 5):
-            expected = (zeta[i] if i == j else eta[j]) + theta[j + 1:].sum()
+            expected = (zeta[i] if i == j else eta[j]) + theta[j + 1 :].sum()
             assert mu[i, j] == pytest.approx(expected, rel=1e-15) and mu[j, i] == mu[i, j]
 
 
@@ -67,7 +67,7 @@ def test_recurrence_increments_add_up_to_the_direct_coefficients(seed):
         idx, dc, dnu = co.recurrence_increments(m, k)
         c[np.ix_(idx, idx)] += dc
         nu[idx] += dnu
-    mu_ref, nu_ref = mass_coupling_oracle(m)                 # from the point masses, not from eq. (6)
+    mu_ref, nu_ref = mass_coupling_oracle(m)  # from the point masses, not from eq. (6)
     s = m.sign_array
     # a few roundings of sums of at most 3n masses: 4 n eps relative
     tol = 4 * m.nlinks * np.finfo(float).eps
@@ -103,16 +103,16 @@ def test_coefficients_are_those_of_the_point_masses(seed):
     assert close(theta, masses.sum(axis=1))
     below = np.array([sum(masses[j].sum() for j in range(m.nlinks) if i in m.ancestors[j]) for i in range(m.nlinks)])
     assert close(ag.descendant_mass(m), below)
-    assert close(np.array(ag.descendant_sums(m, list(theta))), below)          # the default zero of any arithmetic
+    assert close(np.array(ag.descendant_sums(m, list(theta))), below)  # the default zero of any arithmetic
     mu_default, nu_default = ag.coupling_entries(m, zeta, eta, theta)
     assert close(np.array(mu_default, dtype=float), mu_ref) and close(np.array(nu_default, dtype=float), nu_ref)
     S = symbols_for(m.nlinks, 3)
-    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=False)      # exact Rationals of the floats
+    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=False)  # exact Rationals of the floats
     assert close(np.array([[float(x) for x in row] for row in c]), mu_ref * np.outer(s, s))
     assert close(np.array([float(x) for x in nu]), nu_ref * s)
-    gc, gnu = co.generic_coupling(m, co._parameters(m, S, False))        # the default zero of any arithmetic
+    gc, gnu = co.generic_coupling(m, co._parameters(m, S, False))  # the default zero of any arithmetic
     assert close(np.array(gc, dtype=float), mu_ref * np.outer(s, s)) and close(np.array(gnu, dtype=float), nu_ref * s)
-    for k in range(m.nlinks):                                          # eq. (25)'s increments, both twins
+    for k in range(m.nlinks):  # eq. (25)'s increments, both twins
         idx, dc, dnu = co.recurrence_increments(m, k)
         gidx, gdc, gdnu = co.generic_recurrence_increments(m, co._parameters(m, S, False), k)
         assert list(idx) == list(gidx) == sorted(m.ancestors[k]) + [k]

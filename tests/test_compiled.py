@@ -61,7 +61,7 @@ def test_the_random_trees_are_branched_and_have_negative_signs():
     for m in MECHS:
         if m.name.startswith("tree"):
             assert -1 in m.sign
-            assert len(set(m.parent)) < m.nlinks          # some link has two children (or two roots)
+            assert len(set(m.parent)) < m.nlinks  # some link has two children (or two roots)
 
 
 @pytest.mark.parametrize("method", COMPILED)
@@ -69,8 +69,13 @@ def test_the_random_trees_are_branched_and_have_negative_signs():
 def test_compiled_kernel_equals_numpy_reference(method, mech):
     fast, ref = prepare(mech, method, kernel="numba"), prepare(mech, method, kernel="numpy")
     assert fast.options["kernel"] == "numba" and ref.options["kernel"] == "numpy"
-    sizes = (1, 7, compiled.PARALLEL_MIN_SAMPLES - 1, compiled.PARALLEL_MIN_SAMPLES,
-             compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3)
+    sizes = (
+        1,
+        7,
+        compiled.PARALLEL_MIN_SAMPLES - 1,
+        compiled.PARALLEL_MIN_SAMPLES,
+        compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3,
+    )
     for k, S in enumerate(sizes):
         q, qd, qdd = _states(mech, S, seed=10 * k + mech.nlinks)
         want = ref.inverse_dynamics(q, qd, qdd)
@@ -101,7 +106,9 @@ def test_the_default_kernel_is_numba_and_names_say_it():
 
 
 def test_bad_kernel_option_is_named():
-    with pytest.raises(ValueError, match=r"matrix-factored: option 'kernel': expected one of 'numba', 'numpy', got 'cuda'"):
+    with pytest.raises(
+        ValueError, match=r"matrix-factored: option 'kernel': expected one of 'numba', 'numpy', got 'cuda'"
+    ):
         prepare(exo5(2), "matrix-factored", kernel="cuda")
     with pytest.raises(ValueError, match=r"recurrence: option 'kernel': expected one of 'numba', 'numpy', got 3"):
         prepare(exo5(2), "recurrence", kernel=3)
@@ -144,7 +151,9 @@ def test_a_second_process_loads_the_kernel_from_numbas_cache(tmp_path):
     assert cold["misses"] >= 1 and cold["hits"] == 0, cold
     assert warm["hits"] >= 1 and warm["misses"] == 0, warm
     assert cold["tau0"] == warm["tau0"] == second["tau0"]
-    print(f"first call of factored_3d: compiling {cold['seconds']:.2f} s, from the cache {warm['seconds'] * 1e3:.1f} ms")
+    print(
+        f"first call of factored_3d: compiling {cold['seconds']:.2f} s, from the cache {warm['seconds'] * 1e3:.1f} ms"
+    )
 
 
 @pytest.mark.parametrize("method", COMPILED)
@@ -162,7 +171,9 @@ def test_out_receives_the_forces(method):
             out = np.full(q.shape, np.nan)
             got = model.inverse_dynamics(q, qd, qdd, check=check, out=out)
             assert got is out and np.array_equal(out, want)
-    with pytest.raises(ValueError, match=r"field 'out': expected a writable C-ordered float64 array of shape \(15,\), got float32"):
+    with pytest.raises(
+        ValueError, match=r"field 'out': expected a writable C-ordered float64 array of shape \(15,\), got float32"
+    ):
         model.inverse_dynamics(q[0], qd[0], qdd[0], out=np.empty(15, np.float32))
 
 
@@ -193,7 +204,7 @@ def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path):
     the stale kernel: a hit, no miss, and this test fails.)"""
     pkg, probe = package_copy_prober(tmp_path, _EDIT_PROBE)
 
-    probe()                                       # compiles (or loads) into the copy's cache
+    probe()  # compiles (or loads) into the copy's cache
     before = probe()
     assert before["hits"] >= 1 and before["misses"] == 0, before
     planar_py = pkg / "matrix_method" / "closed_forms" / "planar.py"
@@ -201,7 +212,7 @@ def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path):
     assert text.count("    return nu_s * sin_i\n") == 1
     planar_py.write_text(text.replace("    return nu_s * sin_i\n", "    return 2.0 * nu_s * sin_i\n"))
     after = probe()
-    assert after["misses"] >= 1, after            # recompiled, not served from the stale cache
+    assert after["misses"] >= 1, after  # recompiled, not served from the stale cache
     tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
     assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
     # the compiled kernel agrees with the edited numpy kernel as it does with the unedited one

@@ -48,7 +48,7 @@ def _close(got, want, what):
 @pytest.mark.parametrize("mech", MECHS, ids=lambda m: m.name)
 def test_simd_batches_equal_the_numpy_reference(mech):
     fast, ref = prepare(mech, "matrix-factored"), prepare(mech, "matrix-factored", kernel="numpy")
-    assert fast.batch_kernel is compiled_simd.KERNELS[mech.dim]          # what runs, by name
+    assert fast.batch_kernel is compiled_simd.KERNELS[mech.dim]  # what runs, by name
     for k, S in enumerate(SIZES):
         q, qd, qdd = _states(mech, S, seed=k)
         want = ref.inverse_dynamics(q, qd, qdd)
@@ -92,13 +92,16 @@ def test_angles_beyond_the_fast_range_and_nan_take_libm(mech):
     model = prepare(mech, "matrix-factored")
     p = model.kernel_args[0]
     q, qd, qdd = _states(mech, 2 * L + 3, seed=8)
-    far = [0, L - 1, L, 2 * L + 2]                  # every angle of these samples beyond the range
+    far = [0, L - 1, L, 2 * L + 2]  # every angle of these samples beyond the range
     angles = (mech.dim - 1) * mech.nlinks
     rng = np.random.default_rng(1)
-    q[np.ix_(far, range(angles))] = rng.choice([-1.0, 1.0], (4, angles)) * rng.uniform(1.0, 100.0, (4, angles)) * \
-        np.array([fast_trig.RANGE, 10.0 * fast_trig.RANGE, 1e7, 1e15])[:, None]
+    q[np.ix_(far, range(angles))] = (
+        rng.choice([-1.0, 1.0], (4, angles))
+        * rng.uniform(1.0, 100.0, (4, angles))
+        * np.array([fast_trig.RANGE, 10.0 * fast_trig.RANGE, 1e7, 1e15])[:, None]
+    )
     q[far[2], 0] = np.nextafter(fast_trig.RANGE, np.inf)
-    q[3, 0] = 3 * fast_trig.RANGE                      # one far angle among fast ones
+    q[3, 0] = 3 * fast_trig.RANGE  # one far angle among fast ones
     got = model.inverse_dynamics(q, qd, qdd, check=False)
     want = np.empty(q.size)
     model.serial_kernel(p, q.ravel(), qd.ravel(), qdd.ravel(), want)
@@ -119,7 +122,7 @@ def test_lean_one_sample_path_equals_the_kernel_and_allocates_nothing():
     want = np.empty(mech.dof)
     model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
     assert np.array_equal(out, want)
-    assert np.array_equal(model.inverse_dynamics(q, qd, qdd), want)       # check=True: the same forces
+    assert np.array_equal(model.inverse_dynamics(q, qd, qdd), want)  # check=True: the same forces
 
 
 def test_lean_path_refuses_what_is_not_memory_safe():
@@ -134,8 +137,13 @@ def test_lean_path_refuses_what_is_not_memory_safe():
     ro = np.empty(d)
     ro.flags.writeable = False
     cases = {
-        "q": [np.full(2 * d, 0.3)[::2], np.full(d + 1, 0.3), np.full(d, 0.3, np.float32), np.full(d, 1),
-              np.full(d, 0.3).astype(">f8")],
+        "q": [
+            np.full(2 * d, 0.3)[::2],
+            np.full(d + 1, 0.3),
+            np.full(d, 0.3, np.float32),
+            np.full(d, 1),
+            np.full(d, 0.3).astype(">f8"),
+        ],
         "qd": [np.full(2 * d, 0.3)[::2], np.full(d - 1, 0.3)],
         "out": [np.empty(2 * d)[::2], np.empty(d + 1), np.empty(d, np.float32), ro, np.empty((1, d))],
     }
@@ -144,7 +152,7 @@ def test_lean_path_refuses_what_is_not_memory_safe():
             args = {"q": q, "qd": q, "qdd": q, "out": good, field: a}
             with pytest.raises(ValueError, match=f"field '{field}'"):
                 model.inverse_dynamics(args["q"], args["qd"], args["qdd"], check=False, out=args["out"])
-    with pytest.raises(ValueError, match="field 'qd'.*\\(q: \\(1, 15\\)\\)"):     # a batch of one against 1-D arrays
+    with pytest.raises(ValueError, match="field 'qd'.*\\(q: \\(1, 15\\)\\)"):  # a batch of one against 1-D arrays
         model.inverse_dynamics(np.full((1, d), 0.3), q, q, check=False, out=good)
     assert np.isfinite(model.inverse_dynamics(q, q, q, check=False, out=good)).all()
 
@@ -163,7 +171,9 @@ def test_after_the_first_lean_call_the_compiled_wrapper_takes_every_form_of_the_
     passes every other form to the Python method; each form gives the same forces, and misuse the
     same errors as the method."""
     if not _c_wrapper_built():
-        pytest.skip("matrix_method/_lean_call.c was not built here (no C compiler at install): the Python lean path runs")
+        pytest.skip(
+            "matrix_method/_lean_call.c was not built here (no C compiler at install): the Python lean path runs"
+        )
     from exo_bench.matrix_method.numba_kernels import _lean_call
 
     mech = exo5(3)
@@ -173,23 +183,29 @@ def test_after_the_first_lean_call_the_compiled_wrapper_takes_every_form_of_the_
     out = np.empty(mech.dof)
     model.inverse_dynamics(q, qd, qdd, check=False, out=out)
     assert isinstance(model.inverse_dynamics, _lean_call.LeanCall)
-    forms = [((q, qd, qdd), {"check": False, "out": out}), ((q, qd, qdd, False, out), {}),
-             ((q, qd, qdd, False), {"out": out}), ((q, qd, qdd), {"out": out, "check": False}),
-             ((q, qd, qdd), {}), ((q, qd, qdd), {"check": False}), ((q, qd, qdd), {"out": out}),
-             ((q, qd, qdd), {"check": 0, "out": out})]
+    forms = [
+        ((q, qd, qdd), {"check": False, "out": out}),
+        ((q, qd, qdd, False, out), {}),
+        ((q, qd, qdd, False), {"out": out}),
+        ((q, qd, qdd), {"out": out, "check": False}),
+        ((q, qd, qdd), {}),
+        ((q, qd, qdd), {"check": False}),
+        ((q, qd, qdd), {"out": out}),
+        ((q, qd, qdd), {"check": 0, "out": out}),
+    ]
     for args, kw in forms:
         out[:] = np.nan
         got = model.inverse_dynamics(*args, **kw)
         assert np.abs(got - want).max() <= TOL * np.abs(want).max(), (len(args), kw)
     Q = np.stack([q, q])
-    assert model.inverse_dynamics(Q, Q, Q, check=False).shape == (2, mech.dof)          # a batch: the method
+    assert model.inverse_dynamics(Q, Q, Q, check=False).shape == (2, mech.dof)  # a batch: the method
     with pytest.raises(TypeError):
         model.inverse_dynamics(q, qd, qdd, check=False, out=out, extra=1)
     with pytest.raises(TypeError):
         model.inverse_dynamics(q, qd, qdd, False, out, check=False)
     with pytest.raises(ValueError, match="field 'out'"):
         model.inverse_dynamics(q, qd, qdd, check=False, out=np.empty(mech.dof + 1))
-    twin = __import__("pickle").loads(__import__("pickle").dumps(model))                # pickles by reconstruction
+    twin = __import__("pickle").loads(__import__("pickle").dumps(model))  # pickles by reconstruction
     assert np.array_equal(twin.inverse_dynamics(q, qd, qdd), want)
 
 
@@ -218,4 +234,3 @@ def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
     want = np.empty(mech.dof)
     model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
     assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), want)
-

@@ -25,7 +25,7 @@ from exo_bench.bench.cluster.cluster import run_sweep
 
 PLUGIN = ("-p", "exo_bench.bench.conftest")
 
-TINY = '''
+TINY = """
 import os, signal, time
 import pytest
 
@@ -57,19 +57,30 @@ def test_tiny(benchmark, case, request):
     if n == 5 and dim == 3 and SLEEP:
         time.sleep(SLEEP)
     benchmark.pedantic(sum, args=(range(50 * n),), rounds=3, iterations=1)
-'''
+"""
 
 
 def tiny_bench(folder: Path, ns=(1, 2), kill: Path | None = None, fail=False, sleep=0.0, chain=False) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "tiny_rows.py").write_text(TINY.format(kill=str(kill) if kill else None, fail=fail, sleep=sleep,
-                                                     ns=tuple(ns), chain=chain))
+    (folder / "tiny_rows.py").write_text(
+        TINY.format(kill=str(kill) if kill else None, fail=fail, sleep=sleep, ns=tuple(ns), chain=chain)
+    )
     return folder
 
 
 def sweep(folder: Path, workers: int, budget: float = 60.0, **kw):
-    return run_sweep(["tiny_rows.py"], "quick", checkpoints=folder / "checkpoints", workers=workers, budget=budget,
-                     pytest_args=PLUGIN, repo=folder, progress=False, log=lambda msg: None, **kw)
+    return run_sweep(
+        ["tiny_rows.py"],
+        "quick",
+        checkpoints=folder / "checkpoints",
+        workers=workers,
+        budget=budget,
+        pytest_args=PLUGIN,
+        repo=folder,
+        progress=False,
+        log=lambda msg: None,
+        **kw,
+    )
 
 
 def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
@@ -79,8 +90,9 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
     assert out.workers == 2 and sorted(out.ran) == sorted(keys) and out.resumed == []
     # each finished row records its pytest process's peak memory (a Python process: tens of MB at least)
-    assert all(10 < out.merged["rows"][k]["peak_rss_mb"] < 10_000 for k in keys
-               if out.merged["rows"][k]["status"] == "ok")
+    assert all(
+        10 < out.merged["rows"][k]["peak_rss_mb"] < 10_000 for k in keys if out.merged["rows"][k]["status"] == "ok"
+    )
     status = {k.rsplit(":", 1)[1]: r for k, r in zip(keys, out.rows)}
     ok = [k for k in status if k.endswith("n1") or k == "2d-chain-n5"]
     assert all(status[k]["status"] == "ok" for k in ok), out.rows
@@ -93,8 +105,8 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     over = [s for s in out.skips if "chain5-3d" in s["nodeid"]]
     assert len(over) == 2 and all("over budget" in s["reason"] for s in over)
     bench = out.merged["benchmarks"]
-    assert len(bench) == 2 * len(ok)                          # 2 methods per finished row
-    for b in bench:                                           # each benchmark carries its row's host and CPU
+    assert len(bench) == 2 * len(ok)  # 2 methods per finished row
+    for b in bench:  # each benchmark carries its row's host and CPU
         row = out.merged["rows"][b["extra_info"]["row"]]
         assert b["extra_info"]["host"] == row["host"] and b["extra_info"]["cpu"] == row["cpu"]
         assert b["extra_info"]["row"].endswith(f"{b['extra_info']['dim']}d-chain-n{b['extra_info']['n']}")
@@ -107,8 +119,9 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     path = tmp_path / "benchmarks-quick.json"
     path.write_text(json.dumps(out.merged))
     cli = Path(sys.executable).with_name("py.test-benchmark")
-    r = subprocess.run([str(cli), "compare", str(path), "--columns=min,median"], capture_output=True, text=True,
-                       timeout=60)
+    r = subprocess.run(
+        [str(cli), "compare", str(path), "--columns=min,median"], capture_output=True, text=True, timeout=60
+    )
     assert r.returncode == 0, r.stderr
     assert "test_tiny[alpha-chain1-3d]" in r.stdout and "test_tiny[beta-chain5-2d]" in r.stdout
 
@@ -117,10 +130,10 @@ def test_a_killed_worker_does_not_lose_the_sweep_and_chained_rows_pass_on_their_
     marker = tmp_path / "killed"
     d = tiny_bench(tmp_path / "b", ns=(3, 6, 7), kill=marker, chain=True)
     out = sweep(d, workers=2, chained=("tiny_rows.py",))
-    assert marker.exists()                                    # the row did kill its worker
+    assert marker.exists()  # the row did kill its worker
     assert all(r["status"] == "ok" for r in out.rows), out.rows
     killer = [b for b in out.merged["benchmarks"] if b["extra_info"]["n"] == 3]
-    assert len(killer) == 4                                   # the killed row ran again, elsewhere, to its end
+    assert len(killer) == 4  # the killed row ran again, elsewhere, to its end
     # chains: the row of n = 7 ran after the row of n = 6 (killed row n = 3 before both) and was told
     # that beta is over budget from n = 6, so it skipped beta without trying
     reasons = {s["nodeid"].split("[")[1].rstrip("]"): s["reason"] for s in out.skips}
@@ -142,7 +155,7 @@ def test_a_second_run_after_an_interrupted_one_does_only_the_missing_rows(tmp_pa
     assert sorted(out.resumed) == sorted(seen)
     assert sorted(out.ran) == sorted(set(r["key"] for r in out.rows) - set(seen)) and len(out.ran) == 1
     assert len(out.merged["benchmarks"]) == 4 and all(r["status"] == "ok" for r in out.rows)
-    again = sweep(d, workers=2)                               # nothing missing: nothing runs, not even a cluster
+    again = sweep(d, workers=2)  # nothing missing: nothing runs, not even a cluster
     assert again.ran == [] and again.workers == 0 and len(again.merged["benchmarks"]) == 4
 
 
@@ -151,19 +164,41 @@ def _records(hosts: dict[str, str]) -> list[dict]:
     out = []
     for key, host in hosts.items():
         n = int(key.rsplit("n", 1)[1])
-        bench = [{"name": f"test[{m}-{n}]", "fullname": f"f.py::test[{m}-{n}]", "group": "inverse-batched-3d",
-                  "extra_info": {"method": m, "n": n, "dim": 3, "mechanism": f"chain{n}-3d", "batched": True,
-                                 "samples": 1},
-                  "stats": {"median": t, "min": t, "mean": t, "rounds": 1, "iqr": 0.0}}
-                 for m, t in (("matrix", 1e-3 * n), ("pinocchio", 2e-3 * n))]
-        out.append({"key": key, "status": "ok", "host": host, "cpu": f"cpu of {host}", "seconds": 1.0,
-                    "benchmark_json": {"machine_info": {"node": host}, "benchmarks": bench}, "skips": []})
+        bench = [
+            {
+                "name": f"test[{m}-{n}]",
+                "fullname": f"f.py::test[{m}-{n}]",
+                "group": "inverse-batched-3d",
+                "extra_info": {
+                    "method": m,
+                    "n": n,
+                    "dim": 3,
+                    "mechanism": f"chain{n}-3d",
+                    "batched": True,
+                    "samples": 1,
+                },
+                "stats": {"median": t, "min": t, "mean": t, "rounds": 1, "iqr": 0.0},
+            }
+            for m, t in (("matrix", 1e-3 * n), ("pinocchio", 2e-3 * n))
+        ]
+        out.append(
+            {
+                "key": key,
+                "status": "ok",
+                "host": host,
+                "cpu": f"cpu of {host}",
+                "seconds": 1.0,
+                "benchmark_json": {"machine_info": {"node": host}, "benchmarks": bench},
+                "skips": [],
+            }
+        )
     return out
 
 
 def _frame(merged: dict) -> pd.DataFrame:
-    return pd.DataFrame([{**b["extra_info"], "group": b["group"], "median": b["stats"]["median"]}
-                         for b in merged["benchmarks"]])
+    return pd.DataFrame(
+        [{**b["extra_info"], "group": b["group"], "median": b["stats"]["median"]} for b in merged["benchmarks"]]
+    )
 
 
 def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
@@ -171,8 +206,8 @@ def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
     merged, _ = rows.merge(_records({"full:f.py:3d-chain-n1": "alpha", "full:f.py:3d-chain-n2": "beta"}))
     assert merged["machine_info"]["hosts"] == ["alpha", "beta"]
     df = _frame(merged)
-    rows.check_ratio_groups(df)                               # accepted
-    for _, g in df.groupby("n"):                              # the reports' ratios: methods at equal n
+    rows.check_ratio_groups(df)  # accepted
+    for _, g in df.groupby("n"):  # the reports' ratios: methods at equal n
         a, b = g.set_index("method").loc["pinocchio"], g.set_index("method").loc["matrix"]
         assert rows.ratio(a["median"], b["median"], a["host"], b["host"]) == pytest.approx(2.0, rel=1e-12)
     # a timing of host alpha divided by one of host beta is refused, by the function and by the check
@@ -180,7 +215,7 @@ def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
     with pytest.raises(rows.CrossHostRatio, match="host 'alpha' by one from host 'beta'"):
         rows.ratio(a["median"], b["median"], a["host"], b["host"])
     bad = df.copy()
-    bad.loc[(bad["n"] == 2) & (bad["method"] == "matrix"), "host"] = "alpha"   # one group, two hosts
+    bad.loc[(bad["n"] == 2) & (bad["method"] == "matrix"), "host"] = "alpha"  # one group, two hosts
     with pytest.raises(rows.CrossHostRatio, match="hosts alpha, beta"):
         rows.check_ratio_groups(bad)
     # the report code refuses it too (bench_reports.load runs the check)
@@ -189,6 +224,7 @@ def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
     bad_merged["benchmarks"][3]["extra_info"]["host"] = "alpha"
     path.write_text(json.dumps(bad_merged))
     from exo_bench.bench.perf.reports.benchmark_reports import load
+
     with pytest.raises(rows.CrossHostRatio):
         load(path)
 
@@ -207,11 +243,16 @@ def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
     import psutil
 
     exe = Path(sys.executable).with_name("exo-bench")
-    proc = subprocess.Popen([str(exe), "bench", "--workers", "2", "--reports", str(tmp_path / "reports")],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [str(exe), "bench", "--workers", "2", "--reports", str(tmp_path / "reports")],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     seen, deadline = {}, time.monotonic() + 120
     try:
-        while time.monotonic() < deadline:       # until a row's pytest runs on a worker
+        while time.monotonic() < deadline:  # until a row's pytest runs on a worker
             for p in _descendants(proc.pid):
                 try:
                     seen[p.pid] = p
@@ -239,13 +280,31 @@ def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_ch
     from exo_bench.bench.cluster.cluster import _chains
 
     def row(n, methods):
-        return {"key": f"3d-chain-n{n}", "file": "bench/test_compose.py", "dim": 3, "topology": "chain", "n": n,
-                "nodeids": [f"bench/test_compose.py::test_compose[{m}-chain{n}-3d]" for m in methods]}
+        return {
+            "key": f"3d-chain-n{n}",
+            "file": "bench/test_compose.py",
+            "dim": 3,
+            "topology": "chain",
+            "n": n,
+            "nodeids": [f"bench/test_compose.py::test_compose[{m}-chain{n}-3d]" for m in methods],
+        }
 
     peers = ("matrix", "recurrence", "lagrange-expr", "KanesMethod")
-    rows = [row(1, peers), row(2, peers), row(5, peers), row(10, ("matrix", "recurrence")),
-            row(50, ("matrix", "recurrence")), {"key": "odd", "file": "bench/test_compose.py", "n": 7, "dim": 3,
-                                                "topology": "chain", "nodeids": ["bench/test_compose.py::other"]}]
+    rows = [
+        row(1, peers),
+        row(2, peers),
+        row(5, peers),
+        row(10, ("matrix", "recurrence")),
+        row(50, ("matrix", "recurrence")),
+        {
+            "key": "odd",
+            "file": "bench/test_compose.py",
+            "n": 7,
+            "dim": 3,
+            "topology": "chain",
+            "nodeids": ["bench/test_compose.py::other"],
+        },
+    ]
     prior = _chains(rows, ("bench/test_compose.py",))
     # a peer over its budget at n is skipped at every larger n: those rows wait for the one before;
     # a row of an unknown shape stays in the chain; the rows of matrix and recurrence alone do not wait

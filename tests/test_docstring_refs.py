@@ -60,11 +60,13 @@ def test_every_dotted_cross_reference_imports():
                 if first == "exo_bench":
                     ok = _resolves(target)
                 elif hasattr(module, first) and not isinstance(getattr(module, first), type(importlib)):
-                    ok = _resolves(f"{module.__name__}.{target}")      # a class or function of this module
+                    ok = _resolves(f"{module.__name__}.{target}")  # a class or function of this module
                 else:
-                    try:                                                  # another library (fractions, dask's distributed)
+                    try:  # another library (fractions, dask's distributed)
                         importlib.import_module(first)
-                        ok = _resolves(target) and not first.startswith(("bench", "models", "matrix_method", "lagrange"))
+                        ok = _resolves(target) and not first.startswith(
+                            ("bench", "models", "matrix_method", "lagrange")
+                        )
                     except ImportError:
                         ok = False
                 if not ok:

@@ -103,9 +103,22 @@ def _run_python_module(tmp_path, mech, symbolic, q, qd, qdd):
         arrays["params"] = np.array(export_code.parameter_values(mech))
     np.savez(tmp_path / "in.npz", **arrays)
     env = {"PYTHONPATH": os.pathsep.join([str(tmp_path), str(_numpy_only_path(tmp_path))]), "PATH": os.environ["PATH"]}
-    r = subprocess.run([sys.executable, "-S", "-s", str(tmp_path / "run.py"), name, str(tmp_path / "in.npz"),
-                        str(tmp_path / "out.npz")], capture_output=True, text=True, env=env, timeout=120,
-                       cwd=tmp_path)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-S",
+            "-s",
+            str(tmp_path / "run.py"),
+            name,
+            str(tmp_path / "in.npz"),
+            str(tmp_path / "out.npz"),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
     assert exo_bench.__version__ in r.stdout and mech.name in r.stdout
     return np.load(tmp_path / "out.npz")
@@ -120,7 +133,7 @@ def test_python_module_runs_with_numpy_only_and_agrees(key, tmp_path):
         assert _rel(out["tau"], tau) < TOL, name
         assert _rel(out["M"], M) < TOL, name
         assert _rel(out["h"], h) < TOL, name
-    assert _rel(out["tau1"], out["tau"][0]) == 0.0   # a single (dof,) sample: the same numbers
+    assert _rel(out["tau1"], out["tau"][0]) == 0.0  # a single (dof,) sample: the same numbers
 
 
 def test_python_module_header_names_mechanism_version_and_coordinate_order():
@@ -142,11 +155,15 @@ def _compile(tmp_path, mech, symbolic):
     prefix, h, c = export_code.c_sources(es, exo_bench.__version__)
     (tmp_path / f"{prefix}.h").write_text(h)
     (tmp_path / f"{prefix}.c").write_text(c)
-    assert f"cc {export_code.C_FLAGS} -c {prefix}.c" in h          # the compile line in the header
+    assert f"cc {export_code.C_FLAGS} -c {prefix}.c" in h  # the compile line in the header
     so = tmp_path / f"lib{prefix}.so"
-    r = subprocess.run([cc, *export_code.C_FLAGS.split(), "-fPIC", "-shared", "-o", str(so), str(tmp_path / f"{prefix}.c"),
-                        "-lm"], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0 and r.stderr == "", r.stderr            # warning-free at -Wall -Wextra -Werror
+    r = subprocess.run(
+        [cc, *export_code.C_FLAGS.split(), "-fPIC", "-shared", "-o", str(so), str(tmp_path / f"{prefix}.c"), "-lm"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0 and r.stderr == "", r.stderr  # warning-free at -Wall -Wextra -Werror
     return ctypes.CDLL(str(so)), prefix, c
 
 
@@ -170,7 +187,7 @@ def test_c_compiles_warning_free_and_agrees(key, tmp_path):
     mech = MODELS[key]()
     symbolic = key == "tree3-2d"
     lib, prefix, src = _compile(tmp_path, mech, symbolic)
-    assert "malloc" not in src and "static" not in src          # no allocation, no global state
+    assert "malloc" not in src and "static" not in src  # no allocation, no global state
     q, qd, qdd = random_states(mech, 20, 12)
     tau, M, h = _call_c(lib, prefix, mech, symbolic, q, qd, qdd)
     for name, (rt, rM, rh) in _references(mech, key, q, qd, qdd).items():
@@ -188,8 +205,21 @@ def test_the_cli_writes_c_for_exo5_that_agrees_with_exo_bench_inverse(tmp_path):
     if cc is None:
         pytest.skip("no system C compiler (cc)")
     so = tmp_path / "libexo5.so"
-    r = subprocess.run([cc, *export_code.C_FLAGS.split(), "-fPIC", "-shared", "-o", str(so),
-                        str(tmp_path / "out" / "exo5_3d.c"), "-lm"], capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            cc,
+            *export_code.C_FLAGS.split(),
+            "-fPIC",
+            "-shared",
+            "-o",
+            str(so),
+            str(tmp_path / "out" / "exo5_3d.c"),
+            "-lm",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0 and r.stderr == "", r.stderr
     mech = exo5(3)
     q, qd, qdd = random_states(mech, 5, 13)
@@ -203,9 +233,16 @@ def test_the_cli_writes_c_for_exo5_that_agrees_with_exo_bench_inverse(tmp_path):
 
 # ------------------------------------------------------------------------------ LaTeX
 #: The paper's notation -> names sympy's LaTeX parser reads as one symbol each.
-_TOKENS = [(r"C^{\psi}_{", r"\gamma_{"), (r"S^{\psi}_{", r"\sigma_{"), (r"\ddot{\varphi}_{", r"\alpha_{"),
-           (r"\dot{\varphi}_{", r"\omega_{"), (r"\ddot{\psi}_{", r"\beta_{"), (r"\dot{\psi}_{", r"\kappa_{"),
-           (r"\ddot{l}_{", r"\rho_{"), (r"\dot{l}_{", r"\nu_{")]
+_TOKENS = [
+    (r"C^{\psi}_{", r"\gamma_{"),
+    (r"S^{\psi}_{", r"\sigma_{"),
+    (r"\ddot{\varphi}_{", r"\alpha_{"),
+    (r"\dot{\varphi}_{", r"\omega_{"),
+    (r"\ddot{\psi}_{", r"\beta_{"),
+    (r"\dot{\psi}_{", r"\kappa_{"),
+    (r"\ddot{l}_{", r"\rho_{"),
+    (r"\dot{l}_{", r"\nu_{"),
+]
 
 
 @functools.cache
@@ -222,21 +259,41 @@ def _values(mech, q, qd, qdd, symbolic: bool) -> dict[str, float]:
     """Parsed symbol name -> value at one state (and the aggregates of eq. (6))."""
     n = mech.nlinks
     phi, l = q[:n], q[-n:]
-    psi = q[n:2 * n] if mech.dim == 3 else None
+    psi = q[n : 2 * n] if mech.dim == 3 else None
     v = {"g": mech.g}
     for i in range(n):
         k = str(i + 1)
-        v.update({f"l_{{{k}}}": l[i], f"C_{{{k}}}": np.cos(phi[i]), f"S_{{{k}}}": np.sin(phi[i]),
-                  f"omega_{{{k}}}": qd[i], f"alpha_{{{k}}}": qdd[i], f"nu_{{{k}}}": qd[-n + i], f"rho_{{{k}}}": qdd[-n + i]})
+        v.update(
+            {
+                f"l_{{{k}}}": l[i],
+                f"C_{{{k}}}": np.cos(phi[i]),
+                f"S_{{{k}}}": np.sin(phi[i]),
+                f"omega_{{{k}}}": qd[i],
+                f"alpha_{{{k}}}": qdd[i],
+                f"nu_{{{k}}}": qd[-n + i],
+                f"rho_{{{k}}}": qdd[-n + i],
+            }
+        )
         if psi is not None:
-            v.update({f"gamma_{{{k}}}": np.cos(psi[i]), f"sigma_{{{k}}}": np.sin(psi[i]),
-                      f"kappa_{{{k}}}": qd[n + i], f"beta_{{{k}}}": qdd[n + i]})
+            v.update(
+                {
+                    f"gamma_{{{k}}}": np.cos(psi[i]),
+                    f"sigma_{{{k}}}": np.sin(psi[i]),
+                    f"kappa_{{{k}}}": qd[n + i],
+                    f"beta_{{{k}}}": qdd[n + i],
+                }
+            )
         for j in range(i + 1, n):
             v[f"C_{{{k}{j + 1}}}"] = np.cos(phi[i] - phi[j])
             v[f"S_{{{k}{j + 1}}}"] = np.sin(phi[i] - phi[j])
         m0, m1, m2 = mech.masses[i]
-        v.update({f"zeta_{{{k}}}": m1 * mech.n[i] ** 2 + m2, f"eta_{{{k}}}": m1 * mech.n[i] + m2,
-                  f"theta_{{{k}}}": m0 + m1 + m2})
+        v.update(
+            {
+                f"zeta_{{{k}}}": m1 * mech.n[i] ** 2 + m2,
+                f"eta_{{{k}}}": m1 * mech.n[i] + m2,
+                f"theta_{{{k}}}": m0 + m1 + m2,
+            }
+        )
     return v
 
 
@@ -245,8 +302,11 @@ def _evaluate(text: str, values: dict[str, float]) -> float:
     return float(e.subs({s: values[s.name] for s in e.free_symbols}))
 
 
-@pytest.mark.parametrize("mech,symbolic", [(fig2a(2), False), (fig2b(2), True), (fig2b(3), True)],
-                         ids=["fig2a-2d-numbers", "fig2b-2d-aggregates", "fig2b-3d-aggregates"])
+@pytest.mark.parametrize(
+    "mech,symbolic",
+    [(fig2a(2), False), (fig2b(2), True), (fig2b(3), True)],
+    ids=["fig2a-2d-numbers", "fig2b-2d-aggregates", "fig2b-3d-aggregates"],
+)
 def test_latex_parses_back_to_the_equations_of_pinocchio(mech, symbolic):
     """Every element of every matrix, parsed back from the LaTeX and assembled into eq. (5)/(17),
     gives Pinocchio's and Lagrange's M and tau."""
@@ -334,8 +394,11 @@ def test_pages_compile_with_a_tex_engine_where_installed(tmp_path):
     for name, text in files.items():
         if name.endswith(".tex"):
             (tmp_path / "doc.tex").write_text(text)
-            args = [engine, "doc.tex"] if engine == "tectonic" else [engine, "-interaction=nonstopmode", "-halt-on-error",
-                                                                     "doc.tex"]
+            args = (
+                [engine, "doc.tex"]
+                if engine == "tectonic"
+                else [engine, "-interaction=nonstopmode", "-halt-on-error", "doc.tex"]
+            )
             r = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, timeout=300)
             assert r.returncode == 0, r.stdout[-2000:]
 
@@ -346,12 +409,15 @@ def test_only_scenes_that_declare_equations_get_the_pages(tmp_path):
     import exo_bench.bench.cli.run as runner
     from exo_bench.bench.studies.options import RunOptions
 
-    base = 'mechanism = "fig2a-2d"\nmethods = ["matrix-factored"]\noutputs = [{}]\n[motion]\nkind = "planar-gait"\n' \
-           'samples_per_period = 20\n'
+    base = (
+        'mechanism = "fig2a-2d"\nmethods = ["matrix-factored"]\noutputs = [{}]\n[motion]\nkind = "planar-gait"\n'
+        "samples_per_period = 20\n"
+    )
     (tmp_path / "with.toml").write_text(base.format('"equations"'))
     (tmp_path / "without.toml").write_text(base.format('"table"'))
-    rc = runner.run_main_job(RunOptions(scenes=[str(tmp_path / "with.toml"), str(tmp_path / "without.toml")],
-                                       reports=str(tmp_path / "rep")))
+    rc = runner.run_main_job(
+        RunOptions(scenes=[str(tmp_path / "with.toml"), str(tmp_path / "without.toml")], reports=str(tmp_path / "rep"))
+    )
     assert rc == 0
     names = sorted(p.name for p in (tmp_path / "rep").iterdir())
     assert names == ["equations-with.md", "equations-with.tex", "runs.json", "summary.md", "without.md"]
@@ -373,7 +439,7 @@ def test_size_report_is_generated_with_provenance(tmp_path, monkeypatch):
     from exo_bench.bench.studies.options import ReportOptions
 
     monkeypatch.setattr(es, "QUICK_N", (1, 2))
-    monkeypatch.setattr(es, "ROUTES", ("matrix", "lagrange"))   # LagrangesMethod: the test below
+    monkeypatch.setattr(es, "ROUTES", ("matrix", "lagrange"))  # LagrangesMethod: the test below
     rc = es.size_report(ReportOptions(full=False, reports=tmp_path))
     assert rc == 0
     text = (tmp_path / "equations_size.md").read_text()
@@ -402,11 +468,11 @@ def test_a_hostile_mechanism_name_cannot_break_the_generated_code(tmp_path):
     es = export_code.equation_set(mech)
     text = export_code.python_module(es, "0")
     ns: dict = {}
-    exec(compile(text, "gen.py", "exec"), ns)          # still valid Python, the name intact
+    exec(compile(text, "gen.py", "exec"), ns)  # still valid Python, the name intact
     assert ns["MECHANISM"] == mech.name
     q, qd, qdd = random_states(mech, 3, 1)
     assert _rel(ns["inverse_dynamics"](q, qd, qdd), prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)) < TOL
-    lib, prefix, _ = _compile(tmp_path, mech, False)        # still compiles, warning-free
+    lib, prefix, _ = _compile(tmp_path, mech, False)  # still compiles, warning-free
     assert prefix.isidentifier()
     tau, _, _ = _call_c(lib, prefix, mech, False, q, qd, qdd)
     assert _rel(tau, ns["inverse_dynamics"](q, qd, qdd)) < TOL

@@ -82,7 +82,7 @@ def _printed_line_errors(models):
     for m in models:
         q, _, _ = random_states(m, 4, 99)
         n = m.nlinks
-        q2 = np.concatenate([q[:, :n], q[:, 2 * n:]], axis=1)
+        q2 = np.concatenate([q[:, :n], q[:, 2 * n :]], axis=1)
         spatial, planar = _peer_matrices(m, q), _peer_matrices(m.replace(dim=2), q2)
         scale = _model_scale(spatial)
         t = printed.transition_namespace(m, q, planar, three_d=spatial)
@@ -109,7 +109,7 @@ def test_report_names_exactly_the_misprinted_lines_and_their_verified_correction
     borderline = {k: e for k, e in printed_err.items() if AGREE < e <= 1e-3}
     assert not borderline
     misprinted = {k for k, e in printed_err.items() if e > 1e-3}
-    assert misprinted                                      # the paper has misprints in (18): g^l, k^l
+    assert misprinted  # the paper has misprints in (18): g^l, k^l
     verdicts = results.verdicts
     value_fails = {v.formula.key for v in verdicts if v.formula.kind == "transition" and v.status == "fails"}
     assert value_fails == misprinted
@@ -117,7 +117,7 @@ def test_report_names_exactly_the_misprinted_lines_and_their_verified_correction
         if v.status.startswith("fails"):
             assert f"### {v.formula.equation} {v.formula.label} (`{v.formula.key}`): {v.status}" in text
             assert v.formula.corrected is not None and v.largest_corrected <= errata.TOLERANCE, v.formula.key
-            if v.formula.key in misprinted:              # the corrected form agrees with the peer to rounding
+            if v.formula.key in misprinted:  # the corrected form agrees with the peer to rounding
                 assert corrected_err[v.formula.key] <= AGREE, v.formula.key
     label = next(v for v in verdicts if v.formula.key == "18:k^psi")
     assert label.status == "fails (left side)" and not label.label_exists
@@ -126,6 +126,7 @@ def test_report_names_exactly_the_misprinted_lines_and_their_verified_correction
 def test_a_witness_over_budget_is_reported_as_skipped(small, monkeypatch):
     def over(self, mech):
         raise BudgetExceeded("Lagrange II derivation", mech.nlinks, mech.dim, 0.01)
+
     monkeypatch.setattr(errata.LagrangeWitness, "_compiled", over)
     v = errata.check_transition(printed.TRANSITIONS[0], [errata.LagrangeWitness(), errata.PinocchioWitness()])
     assert {c.witness for c in v.checks if c.skipped} == {"lagrange"} and v.status == "holds"
@@ -134,7 +135,8 @@ def test_a_witness_over_budget_is_reported_as_skipped(small, monkeypatch):
 def test_an_interrupted_run_leaves_no_report(small, monkeypatch, tmp_path):
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
-    monkeypatch.setattr(errata.evaluation, "check_all", boom)           # interrupted during the checks
+
+    monkeypatch.setattr(errata.evaluation, "check_all", boom)  # interrupted during the checks
     with pytest.raises(KeyboardInterrupt):
         errata.write_report(tmp_path / "errata.md")
     assert not list(tmp_path.iterdir())

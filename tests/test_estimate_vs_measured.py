@@ -74,8 +74,12 @@ POINTS = {("recurrence", 2, 1): (280, 340), ("pinocchio", 3, 1): (50, 70), ("mat
 
 
 def _measure(method, dim, samples, ns) -> list[dict]:
-    r = subprocess.run([sys.executable, "-c", CHILD, method, str(dim), str(samples), *map(str, ns)],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [sys.executable, "-c", CHILD, method, str(dim), str(samples), *map(str, ns)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     return json.loads(r.stdout.strip().splitlines()[-1])
 
@@ -87,7 +91,7 @@ def _points() -> list[tuple[tuple, int, float, float, dict, object]]:
         method, dim, samples = key
         for got in _measure(method, dim, samples, ns):
             est = estimate(chain(got["n"], dim), method, samples)
-            memory = est.memory - (NUMBA_BYTES if METHODS[method].compiled else 0)   # loaded before the measurement
+            memory = est.memory - (NUMBA_BYTES if METHODS[method].compiled else 0)  # loaded before the measurement
             out.append((key, got["n"], got["bytes"] / memory, got["seconds"] / est.seconds, got, est))
     return out
 
@@ -97,9 +101,12 @@ def _outside(points) -> list[str]:
     host's speed against the reference machine (the geometric mean of the time ratios, itself
     within 5x)."""
     speed = math.exp(sum(math.log(p[3]) for p in points) / len(points))
-    bad = [f"{k[0]} {k[1]}D n={n}: measured {g['bytes'] / 1e6:.0f} MB and {g['seconds']:.2f} s, estimated "
-           f"{e.memory / 1e6:.0f} MB and {e.seconds:.2f} s (host speed factor {speed:.2f})"
-           for k, n, mem, sec, g, e in points if not (0.5 <= mem <= 2 and 0.5 <= sec / speed <= 2)]
+    bad = [
+        f"{k[0]} {k[1]}D n={n}: measured {g['bytes'] / 1e6:.0f} MB and {g['seconds']:.2f} s, estimated "
+        f"{e.memory / 1e6:.0f} MB and {e.seconds:.2f} s (host speed factor {speed:.2f})"
+        for k, n, mem, sec, g, e in points
+        if not (0.5 <= mem <= 2 and 0.5 <= sec / speed <= 2)
+    ]
     if not 0.2 <= speed <= 5:
         bad.append(f"this host runs the methods {speed:.2f}x the reference machine's times")
     return bad
@@ -107,7 +114,7 @@ def _outside(points) -> list[str]:
 
 def test_the_estimate_is_within_2x_of_the_measured_memory_and_time():
     bad = _outside(_points())
-    if bad:   # a noisy neighbour: once more
+    if bad:  # a noisy neighbour: once more
         bad = _outside(_points())
     assert not bad, "; ".join(bad)
 

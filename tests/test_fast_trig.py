@@ -47,8 +47,11 @@ def test_uniformly_over_the_range():
 def test_at_the_doubles_nearest_every_multiple_of_half_pi():
     k = np.arange(-int(fast_trig.RANGE / (np.pi / 2)), int(fast_trig.RANGE / (np.pi / 2)) + 1)
     centre = k * (np.pi / 2)
-    x = np.concatenate([centre] + [np.nextafter(centre, d) for d in (np.inf, -np.inf)]
-                       + [np.nextafter(np.nextafter(centre, d), d) for d in (np.inf, -np.inf)])
+    x = np.concatenate(
+        [centre]
+        + [np.nextafter(centre, d) for d in (np.inf, -np.inf)]
+        + [np.nextafter(np.nextafter(centre, d), d) for d in (np.inf, -np.inf)]
+    )
     _check(x[np.abs(x) <= fast_trig.RANGE], "next to k pi/2")
 
 
@@ -61,8 +64,25 @@ def test_at_the_quadrant_boundaries():
 
 def test_at_the_edges_of_the_range_and_beyond():
     r = fast_trig.RANGE
-    edge = np.array([r, -r, np.nextafter(r, 0), np.nextafter(-r, 0), np.nextafter(r, np.inf),
-                     np.nextafter(-r, -np.inf), 2 * r, 1e6, 1e12, 1e300, -1e300, 0.0, -0.0, 5e-324, 1e-300])
+    edge = np.array(
+        [
+            r,
+            -r,
+            np.nextafter(r, 0),
+            np.nextafter(-r, 0),
+            np.nextafter(r, np.inf),
+            np.nextafter(-r, -np.inf),
+            2 * r,
+            1e6,
+            1e12,
+            1e300,
+            -1e300,
+            0.0,
+            -0.0,
+            5e-324,
+            1e-300,
+        ]
+    )
     _check(edge, "edges")
     beyond = np.array([np.nextafter(r, np.inf), 2 * r, 1e22, -1e300])
     s, c = fast_trig.sincos_array(beyond)
@@ -86,5 +106,5 @@ def test_exact_values_at_zero():
 def test_every_length_of_array(n):
     """The vectorised loop and its remainder: lengths around every SIMD width."""
     x = np.linspace(-20.0, 20.0, n)
-    x[n // 2] = 3e5 if n > 2 else x[n // 2]                  # one angle on the libm path in the middle
+    x[n // 2] = 3e5 if n > 2 else x[n // 2]  # one angle on the libm path in the middle
     _check(x, f"length {n}")

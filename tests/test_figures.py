@@ -40,9 +40,11 @@ UNIT = re.compile(r"\([^()]*[A-Za-z·/]+[^()]*\)")
 
 def _scene(tmp_path, mechanism: str, kind: str) -> Path:
     p = tmp_path / f"{mechanism}.toml"
-    p.write_text(f'mechanism = "{mechanism}"\nmethods = {METHODS}\n'
-                 f'outputs = ["table", {", ".join(repr(k).replace(chr(39), chr(34)) for k in FIGURES)}]\n'
-                 f'[motion]\nkind = "{kind}"\nsamples_per_period = 120\n')
+    p.write_text(
+        f'mechanism = "{mechanism}"\nmethods = {METHODS}\n'
+        f'outputs = ["table", {", ".join(repr(k).replace(chr(39), chr(34)) for k in FIGURES)}]\n'
+        f'[motion]\nkind = "{kind}"\nsamples_per_period = 120\n'
+    )
     return p
 
 
@@ -123,8 +125,11 @@ def test_no_legend_covers_a_plot(scenes, mech, kind):
 def test_all_text_is_9_pt_or_more(scenes, mech, kind):
     fig = scenes[mech][1][kind]
     _drawn(fig)
-    small = [(t.get_text()[:30], t.get_fontsize()) for t in fig.findobj(Text)
-             if t.get_visible() and t.get_text().strip() and t.get_fontsize() < TEXT_PT]
+    small = [
+        (t.get_text()[:30], t.get_fontsize())
+        for t in fig.findobj(Text)
+        if t.get_visible() and t.get_text().strip() and t.get_fontsize() < TEXT_PT
+    ]
     assert not small
 
 
@@ -146,7 +151,13 @@ def test_every_axis_with_tick_labels_names_its_unit(scenes, mech, kind):
 def test_each_method_has_its_colour_and_nothing_else_uses_a_method_colour(scenes, kind):
     fig = scenes["exo5-3d"][1][kind]
     method_lines = [ln for ax in fig.axes for ln in ax.get_lines() if (ln.get_gid() or "").startswith("diff:")]
-    assert {ln.get_gid()[5:] for ln in method_lines} == {"matrix", "matrix-factored", "matrix-paper", "recurrence", "lagrange"}
+    assert {ln.get_gid()[5:] for ln in method_lines} == {
+        "matrix",
+        "matrix-factored",
+        "matrix-paper",
+        "recurrence",
+        "lagrange",
+    }
     for ln in method_lines:
         assert ln.get_color() == METHOD_COLORS[ln.get_gid()[5:]]
     reserved = set(METHOD_COLORS.values())
@@ -187,7 +198,8 @@ def test_a_users_arm_scene_names_its_tip_and_never_walks(tmp_path):
     (tmp_path / "arm.toml").write_text(
         'mechanism = "arm.json"\nmethods = ["pinocchio", "matrix"]\n'
         f'outputs = ["table", {", ".join(chr(34) + k + chr(34) for k in FIGURES)}]\n'
-        '[motion]\nkind = "smooth-random"\nduration = 1.0\nsamples = 60\nseed = 3\n')
+        '[motion]\nkind = "smooth-random"\nduration = 1.0\nsamples = 60\nseed = 3\n'
+    )
     o = runner.run_scene(load_scene(tmp_path / "arm.toml"), tmp_path)
     study = o.study
     assert plots.trail_points(study.mechanism) == {"tip (hand end)": (2, 2)}
@@ -198,7 +210,7 @@ def test_a_users_arm_scene_names_its_tip_and_never_walks(tmp_path):
         words = " ".join(t.get_text() for t in fig.findobj(Text))
         for bad in WALKING_WORDS:
             assert bad not in words.lower(), (kind, bad)
-        if kind == "overview":                      # the figure that draws the trails
+        if kind == "overview":  # the figure that draws the trails
             assert "tip (hand end)" in words
     report = next(f for f in o.files if f.suffix == ".md").read_text()
     assert "Plausibility" not in report and "Winter" not in report
@@ -214,8 +226,14 @@ def test_all_text_lies_inside_the_figure_and_the_time_plots_use_its_width(scenes
     page = fig.bbox
     # tick labels are left out: matplotlib keeps (and does not draw) the labels of ticks beyond an
     # axis' limits; the axes themselves must lie inside the figure
-    ticks = {id(lab) for ax in fig.axes for axis in (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None)) if axis
-             for tick in axis.get_major_ticks() + axis.get_minor_ticks() for lab in (tick.label1, tick.label2)}
+    ticks = {
+        id(lab)
+        for ax in fig.axes
+        for axis in (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None))
+        if axis
+        for tick in axis.get_major_ticks() + axis.get_minor_ticks()
+        for lab in (tick.label1, tick.label2)
+    }
     for ax in fig.axes:
         box = ax.get_window_extent(renderer)
         assert page.x0 - 1 <= box.x0 and box.x1 <= page.x1 + 1 and page.y0 - 1 <= box.y0 and box.y1 <= page.y1 + 1
@@ -248,9 +266,13 @@ def test_no_two_axis_labels_overlap(scenes, mech, kind):
     """The overview's 3D z label once sat on top of the rod-force panel's y label."""
     fig = scenes[mech][1][kind]
     renderer = _drawn(fig)
-    labels = [a.label for ax in fig.axes for a in (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None))
-              if a is not None and a.label.get_visible() and a.label.get_text().strip()]
+    labels = [
+        a.label
+        for ax in fig.axes
+        for a in (ax.xaxis, ax.yaxis, getattr(ax, "zaxis", None))
+        if a is not None and a.label.get_visible() and a.label.get_text().strip()
+    ]
     boxes = [(lab.get_text(), lab.get_window_extent(renderer)) for lab in labels]
     for i, (ta, a) in enumerate(boxes):
-        for tb, b in boxes[i + 1:]:
+        for tb, b in boxes[i + 1 :]:
             assert not a.overlaps(b), (kind, ta, tb)

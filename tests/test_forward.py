@@ -22,8 +22,9 @@ def gait_case():
     from exo_bench.models.motion import PAPER_ASSUMED_V1, planar_gait
 
     c = fw.round_trip_cases()[0]
-    return fw.RoundTripCase(c.name, c.mechanism, lambda t: planar_gait(c.mechanism, t, PAPER_ASSUMED_V1),
-                            c.horizon, c.description)
+    return fw.RoundTripCase(
+        c.name, c.mechanism, lambda t: planar_gait(c.mechanism, t, PAPER_ASSUMED_V1), c.horizon, c.description
+    )
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +39,8 @@ def test_controls_from_inverse_dynamics_reproduce_the_planar_gait(gait_case, gai
     rt = fw.round_trip(gait_case, integrator, rtol, var=gait_flow)
     assert rt.sim.ok, rt.sim.status
     assert rt.error <= rt.tolerance, (rt.error, rt.estimate, rt.floor)
-    assert rt.error <= rt.bound                 # the a priori first-order worst case holds too
-    assert rt.error < 1e-5                      # and the motion is recovered, in absolute terms (rad, m)
+    assert rt.error <= rt.bound  # the a priori first-order worst case holds too
+    assert rt.error < 1e-5  # and the motion is recovered, in absolute terms (rad, m)
 
 
 def test_a_wrong_control_is_caught_by_the_round_trip_tolerance(gait_case, gait_flow):
@@ -68,19 +69,21 @@ def test_round_trip_in_3d_with_every_registered_method():
 @pytest.mark.parametrize("integrator, rtol", [("DOP853", 1e-7), ("RK45", 1e-6), ("Radau", 1e-6), ("BDF", 1e-6)])
 def test_passive_exoskeleton_conserves_energy_within_the_bound_from_rtol(integrator, rtol):
     case = fw.conservative_cases()[0]
-    case = fw.SpringCase(case.name, case.mechanism, case.q0, case.qd0, case.k, case.c, case.l_rest, 0.25,
-                         case.description)
+    case = fw.SpringCase(
+        case.name, case.mechanism, case.q0, case.qd0, case.k, case.c, case.l_rest, 0.25, case.description
+    )
     run = fw.energy_drift(case, integrator, rtol)
     assert run.sim.ok
-    assert run.scale > 10                         # the fall does exchange energy (J) ...
-    assert run.drift <= run.bound                 # ... yet T + Pi + V_spring stays within the bound
+    assert run.scale > 10  # the fall does exchange energy (J) ...
+    assert run.drift <= run.bound  # ... yet T + Pi + V_spring stays within the bound
     assert run.drift < 1e-3 * run.scale
 
 
 def test_energy_drift_shrinks_with_the_tolerance():
     case = fw.conservative_cases()[0]
-    case = fw.SpringCase(case.name, case.mechanism, case.q0, case.qd0, case.k, case.c, case.l_rest, 0.25,
-                         case.description)
+    case = fw.SpringCase(
+        case.name, case.mechanism, case.q0, case.qd0, case.k, case.c, case.l_rest, 0.25, case.description
+    )
     loose, tight = (fw.energy_drift(case, "DOP853", r) for r in (1e-5, 1e-9))
     assert tight.drift < loose.drift / 100 and tight.bound < loose.bound / 100
 

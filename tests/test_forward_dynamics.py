@@ -30,7 +30,7 @@ def test_inverse_dynamics_is_linear_in_qdd_so_it_gives_M_and_h(mech, rel):
     q, qd, _ = random_states(mech, 5, 1)
     rnea = lambda a, b, c: pb.inverse_dynamics(mech, a, b, c)  # noqa: E731 - RNEA only, no CRBA
     M, h = terms_from_inverse_dynamics(rnea, mech.dof, q, qd)
-    scale = mass_matrix_scale(mech, q, derived=True)          # the error model of tests/conftest.py
+    scale = mass_matrix_scale(mech, q, derived=True)  # the error model of tests/conftest.py
     assert_close(M, pb.mass_matrix(mech, q), scale)
     assert_forces_agree(h, pb.bias_forces(mech, q, qd), mech, q, qd, None)
     assert_close(M, np.swapaxes(M, 1, 2), scale + np.swapaxes(scale, 1, 2))
@@ -55,12 +55,12 @@ def test_mass_coupling_gives_the_kinetic_energy_of_the_point_masses(mech, rel):
     q, qd, _ = random_states(mech, 6, 3)
     mu = coupling(mech)
     # w_i': the velocity of the end of link i relative to its start (the end of its parent, or O)
-    v = point_mass_velocities(mech, q, qd)                     # (S, n, 3, dim)
+    v = point_mass_velocities(mech, q, qd)  # (S, n, 3, dim)
     parent_end = np.zeros_like(v[:, :, 0])
     for i, p in enumerate(mech.parent):
         if p >= 0:
             parent_end[:, i] = v[:, p, 2]
-    wd = v[:, :, 2] - parent_end                                # (S, n, dim)
+    wd = v[:, :, 2] - parent_end  # (S, n, dim)
     T = 0.5 * np.einsum("ij,sik,sjk->s", mu, wd, wd)
     assert rel(T, kinetic_energy(mech, q, qd)) < 1e-13
 
@@ -88,14 +88,14 @@ def test_equilibrated_condition_number_is_that_of_the_mass_distribution_at_every
     # the smallest entries by at most the spread of the diagonal, itself at most cond(M): the bound is
     # k * eps * cond(M) with k = 10 (measured: below 0.05 of it).
     assert np.abs(eq / expected - 1).max() < 10 * EPS * raw.max()
-    assert raw.max() / raw.min() > 1.05   # cond(M) does move with the configuration
+    assert raw.max() / raw.min() > 1.05  # cond(M) does move with the configuration
 
 
 def test_vertical_rod_is_singular_for_forward_dynamics_but_not_for_inverse_dynamics():
     mech = exo5(3)
     n = mech.nlinks
     q, qd, qdd = random_states(mech, 1, 6)
-    q[0, n + 2] = math.pi / 2                                  # psi_3: the swing thigh stands vertical
+    q[0, n + 2] = math.pi / 2  # psi_3: the swing thigh stands vertical
     tau = pb.inverse_dynamics(mech, q, qd, qdd)
     assert np.isfinite(tau).all()
     M = pb.mass_matrix(mech, q)[0]
@@ -123,11 +123,11 @@ def test_near_vertical_rod_is_regular_and_its_condition_number_grows_like_1_over
 def test_zero_length_rod_and_massless_link_are_singular():
     mech = exo5(3)
     q, qd, qdd = random_states(mech, 2, 8)
-    q[1, 2 * mech.nlinks + 1] = 0.0                            # l_2 = 0 in sample 1
+    q[1, 2 * mech.nlinks + 1] = 0.0  # l_2 = 0 in sample 1
     reasons = fd.singular_reasons(mech, q)
     assert reasons[0] == [] and "l2 = 0" in reasons[1][0]
     masses = list(mech.masses)
-    masses[3] = (masses[3][0], 0.0, 0.0)                       # swing shin: only the mass at its hinge
+    masses[3] = (masses[3][0], 0.0, 0.0)  # swing shin: only the mass at its hinge
     massless = mech.replace(masses=tuple(masses))
     r = fd.singular_reasons(massless, q[:1])[0]
     assert len(r) == 1 and "link 4" in r[0] and "no mass" in r[0]
@@ -149,11 +149,12 @@ def test_budget_and_states_outside_the_domain_are_recorded_not_raised():
     q0 = np.array([[-1.0, 0.5]])
     ctrl = fd.rod_spring_damper(mech, 1e3, 0.0, 0.5)
     model = prepare(mech, "pinocchio")
-    sim = fd.simulate(model, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10,
-                      max_evaluations=200)
+    sim = fd.simulate(
+        model, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10, max_evaluations=200
+    )
     assert sim.status.startswith("budget exceeded") and not sim.ok and sim.nfev == 201
     rhs, count = fd.make_rhs(model, ctrl)
-    y = np.array([[-1.0, -1.0], [0.5, -0.1], [0.0, 0.0], [0.0, 0.0]])   # columns: l = 0.5 and l = -0.1
+    y = np.array([[-1.0, -1.0], [0.5, -0.1], [0.0, 0.0], [0.0, 0.0]])  # columns: l = 0.5 and l = -0.1
     f = rhs(0.0, y)
     assert np.isfinite(f[:, 0]).all() and np.isnan(f[2:, 1]).all() and count["rejected"] == 1
 
@@ -162,7 +163,9 @@ def test_simulate_refuses_a_singular_initial_state():
     mech = fig1(3)
     q0 = np.array([[0.3, math.pi / 2, 0.4]])
     with pytest.raises(fd.SingularConfigurationError, match="vertical"):
-        fd.simulate(prepare(mech, "matrix"), q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4))
+        fd.simulate(
+            prepare(mech, "matrix"), q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4)
+        )
 
 
 def test_spring_damper_forces_act_on_the_rods_only():
@@ -171,8 +174,8 @@ def test_spring_damper_forces_act_on_the_rods_only():
     tau = fd.rod_spring_damper(mech, 2e3, 5.0, 0.4)(0.0, q, qd)
     _, l = split(mech, q)[0], split(mech, q)[2]
     _, ld = split(mech, qd)[0], split(mech, qd)[2]
-    assert np.all(tau[:, :mech.nlinks] == 0)
-    assert np.allclose(tau[:, mech.nlinks:], -2e3 * (l - 0.4) - 5.0 * ld)
+    assert np.all(tau[:, : mech.nlinks] == 0)
+    assert np.allclose(tau[:, mech.nlinks :], -2e3 * (l - 0.4) - 5.0 * ld)
     # the spring energy is the potential of those forces: dV/dl = -F (damping aside)
     h = 1e-6
     dq = np.zeros_like(q)

@@ -39,7 +39,7 @@ def _models(mech):
     out = {name: prepare(mech, name) for name in names}
     out["newton-euler (numba)"] = prepare(mech, "newton-euler")
     out["newton-euler (numpy)"] = prepare(mech, "newton-euler", kernel="numpy")
-    if mech.dim == 2:          # eq. (18) as printed only matters in 3D: in 2D it is the closed forms
+    if mech.dim == 2:  # eq. (18) as printed only matters in 3D: in 2D it is the closed forms
         out["matrix-paper"] = prepare(mech, "matrix-paper")
     if mech.nlinks <= LAGRANGE_MAX_LINKS:
         out["lagrange"] = prepare(mech, "lagrange")
@@ -58,8 +58,11 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
     reasons = singular_reasons(mech, q)
     singular = np.array([bool(r) for r in reasons])
     M = prepare(mech, "pinocchio").mass_matrix(q)
-    scale = (np.linalg.norm(term_scale(mech, q, qd, qdd), axis=1) + np.linalg.norm(term_scale(mech, q, qd), axis=1)
-             + np.linalg.norm(mass_matrix_scale(mech, q, derived=True), ord=2, axis=(1, 2)) * np.linalg.norm(qdd, axis=1))
+    scale = (
+        np.linalg.norm(term_scale(mech, q, qd, qdd), axis=1)
+        + np.linalg.norm(term_scale(mech, q, qd), axis=1)
+        + np.linalg.norm(mass_matrix_scale(mech, q, derived=True), ord=2, axis=(1, 2)) * np.linalg.norm(qdd, axis=1)
+    )
     sigma = np.linalg.svd(M, compute_uv=False)
     # sigma_min resolved: above the rounding of M itself (Weyl), else the bound is vacuous
     resolved = sigma[:, -1] > 2 * K * EPS * np.linalg.norm(mass_matrix_scale(mech, q, derived=True), ord=2, axis=(1, 2))
@@ -71,7 +74,7 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
             with pytest.raises(SingularConfigurationError) as e:
                 model.forward_dynamics(q[s], qd[s], tau[s])
             first = reasons[s][0]
-            if "mass" in first:     # mu singular: newton-euler names the link whose pivot of M_r vanished
+            if "mass" in first:  # mu singular: newton-euler names the link whose pivot of M_r vanished
                 assert "mass" in str(e.value), name
             else:
                 assert first in str(e.value), name
@@ -80,8 +83,11 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
             # sigma_min below the rounding of M: a finite answer, or the error that names it numerically
             # singular (M derived by differences can lose a diagonal of 1e-30 entirely); never NaN
             try:
-                assert np.isfinite(model.forward_dynamics(q[~singular & ~resolved], qd[~singular & ~resolved],
-                                                          tau[~singular & ~resolved])).all(), name
+                assert np.isfinite(
+                    model.forward_dynamics(
+                        q[~singular & ~resolved], qd[~singular & ~resolved], tau[~singular & ~resolved]
+                    )
+                ).all(), name
             except SingularConfigurationError as e:
                 assert "numerically singular" in str(e), name
         if not ok.any():
@@ -90,5 +96,7 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
         assert np.isfinite(got).all(), name
         err = np.linalg.norm(got - qdd[ok], axis=1)
         ratio = err * sigma[ok, -1] / (EPS * scale[ok])
-        event(f"largest ratio {'<= 0.01' if ratio.max() <= 0.01 else '<= 0.1' if ratio.max() <= 0.1 else '<= 1' if ratio.max() <= 1 else '> 1'}")
+        event(
+            f"largest ratio {'<= 0.01' if ratio.max() <= 0.01 else '<= 0.1' if ratio.max() <= 0.1 else '<= 1' if ratio.max() <= 1 else '> 1'}"
+        )
         assert (ratio <= K).all(), (name, float(ratio.max()))

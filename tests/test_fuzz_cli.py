@@ -32,16 +32,45 @@ from test_bad_inputs import run_cli
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, fig1
 
-FUZZ = settings(max_examples=60, deadline=None, derandomize=True, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+FUZZ = settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
 
-SPECIAL = [math.nan, math.inf, -math.inf, 1e308, -1e308, -0.0, 0.0, 5e-324, 1e-308, 1e200, -1e200, 10**400, -(10**400),
-           0.5, 1.0, 2, True, False, None, "1", "", [], {}]
-numbers = st.sampled_from(SPECIAL) | st.floats(allow_nan=True, allow_infinity=True) | st.integers(-10**30, 10**30)
+SPECIAL = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    1e308,
+    -1e308,
+    -0.0,
+    0.0,
+    5e-324,
+    1e-308,
+    1e200,
+    -1e200,
+    10**400,
+    -(10**400),
+    0.5,
+    1.0,
+    2,
+    True,
+    False,
+    None,
+    "1",
+    "",
+    [],
+    {},
+]
+numbers = st.sampled_from(SPECIAL) | st.floats(allow_nan=True, allow_infinity=True) | st.integers(-(10**30), 10**30)
 json_values = st.recursive(
     st.none() | st.booleans() | numbers | st.text(max_size=6),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=6), children, max_size=4),
-    max_leaves=12)
+    max_leaves=12,
+)
 
 
 @contextmanager
@@ -91,8 +120,9 @@ def test_inverse_with_any_json_as_mechanism(value):
         holds(["inverse", d / "m.json", _good_states(d)])
 
 
-MECH_FIELDS = ["dim", "g", "links", "name", "extra"] + [f"link{i}_{k}" for i in (1, 3) for k in
-                                                       ("parent", "sign", "masses", "n", "name", "extra")]
+MECH_FIELDS = ["dim", "g", "links", "name", "extra"] + [
+    f"link{i}_{k}" for i in (1, 3) for k in ("parent", "sign", "masses", "n", "name", "extra")
+]
 
 
 @FUZZ
@@ -127,7 +157,7 @@ def test_every_special_value_in_the_states(which, value):
     mech = exo5(3)
     q, qd, qdd = random_states(mech, 2, 1)
     arrays = {"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}
-    arrays[which][1][12] = value   # l3 in q
+    arrays[which][1][12] = value  # l3 in q
     with workdir() as d:
         (d / "s.json").write_text(_dump(arrays))
         holds(["inverse", "exo5-3d", d / "s.json", "--method", "matrix-factored"])
@@ -135,9 +165,14 @@ def test_every_special_value_in_the_states(which, value):
 
 # ------------------------------------------------------------------------------ inverse: the states
 @FUZZ
-@given(st.sampled_from(["fig1-2d", "exo5-3d"]), st.integers(0, 3), st.sampled_from([-1, 0, 1]),
-       st.lists(numbers, min_size=1, max_size=8), st.sampled_from(["q", "qd", "qdd"]),
-       st.sampled_from(["pinocchio", "matrix-factored", "matrix", "recurrence", "matrix-paper"]))
+@given(
+    st.sampled_from(["fig1-2d", "exo5-3d"]),
+    st.integers(0, 3),
+    st.sampled_from([-1, 0, 1]),
+    st.lists(numbers, min_size=1, max_size=8),
+    st.sampled_from(["q", "qd", "qdd"]),
+    st.sampled_from(["pinocchio", "matrix-factored", "matrix", "recurrence", "matrix-paper"]),
+)
 def test_inverse_with_generated_shapes_and_numbers(preset, samples, extra, values, which, method):
     mech = fig1(2) if preset == "fig1-2d" else exo5(3)
     q, qd, qdd = random_states(mech, max(samples, 1), 1)
@@ -159,9 +194,11 @@ def test_inverse_with_any_json_as_states(value):
 
 
 @FUZZ
-@given(st.sampled_from(["pinocchio", "lagrange", "matrix", "matrix-factored", "matrix-paper", "recurrence", "newton", ""]),
-       st.sampled_from(["--max-memory", "--max-time", "--budget"]),
-       st.sampled_from(["2G", "0", "-1", "nan", "inf", "1e999", "1e-300", "x", "", "1.5GB", "10k", "-0.0", "3"]))
+@given(
+    st.sampled_from(["pinocchio", "lagrange", "matrix", "matrix-factored", "matrix-paper", "recurrence", "newton", ""]),
+    st.sampled_from(["--max-memory", "--max-time", "--budget"]),
+    st.sampled_from(["2G", "0", "-1", "nan", "inf", "1e999", "1e-300", "x", "", "1.5GB", "10k", "-0.0", "3"]),
+)
 def test_inverse_options(method, option, value):
     with workdir() as d:
         holds(["inverse", "fig1-2d", _good_states(d, fig1(2)), "--method", method, option, value])
@@ -206,13 +243,40 @@ def _make(kind: str, d: Path) -> str:
     raise AssertionError(kind)
 
 
-KINDS = ["missing", "folder", "binary", "empty", "bom", "device", "fifo", "nul", "long", "deep", "loop", "npz-junk",
-         "under-file"]
+KINDS = [
+    "missing",
+    "folder",
+    "binary",
+    "empty",
+    "bom",
+    "device",
+    "fifo",
+    "nul",
+    "long",
+    "deep",
+    "loop",
+    "npz-junk",
+    "under-file",
+]
 
 
 @settings(max_examples=len(KINDS) * 4, deadline=None, derandomize=True, database=None)
-@given(st.sampled_from(KINDS), st.sampled_from(["mechanism", "states", "scene", "urdf-out", "urdf-mechanism",
-                                                "equations-out", "equations-mechanism", "mjcf-out", "mjcf-mechanism"]))
+@given(
+    st.sampled_from(KINDS),
+    st.sampled_from(
+        [
+            "mechanism",
+            "states",
+            "scene",
+            "urdf-out",
+            "urdf-mechanism",
+            "equations-out",
+            "equations-mechanism",
+            "mjcf-out",
+            "mjcf-mechanism",
+        ]
+    ),
+)
 def test_every_kind_of_file_in_every_role(kind, role):
     with workdir() as d:
         bad = _make(kind, d)
@@ -237,13 +301,20 @@ def test_every_kind_of_file_in_every_role(kind, role):
 
 
 @settings(max_examples=30, deadline=None, derandomize=True, database=None)
-@given(st.sampled_from(["run", "bench", "errata", "stability"]), st.sampled_from(["file", "under-file", "nul", "empty",
-                                                                                  "long"]))
+@given(
+    st.sampled_from(["run", "bench", "errata", "stability"]),
+    st.sampled_from(["file", "under-file", "nul", "empty", "long"]),
+)
 def test_report_commands_refuse_a_bad_reports_folder_before_any_work(command, kind):
     with workdir() as d:
         (d / "f").write_text("x")
-        path = {"file": d / "f", "under-file": d / "f" / "sub", "nul": "r\0p", "empty": "",
-                "long": d / ("y" * 300) / "z"}[kind]
+        path = {
+            "file": d / "f",
+            "under-file": d / "f" / "sub",
+            "nul": "r\0p",
+            "empty": "",
+            "long": d / ("y" * 300) / "z",
+        }[kind]
         argv = [command] + (["fig1-2d"] if command == "run" else []) + ["--reports", path]
         rc, _, _ = holds(argv)
         assert rc == 2
@@ -257,8 +328,19 @@ def test_huge_n_is_answered_or_refused_in_one_line(n, dim, method, tmp_path):
     (tmp_path / "c.json").write_text(m.to_json(indent=None))
     q, qd, qdd = random_states(m, 1, 0)
     (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
-    rc, _, err = holds(["inverse", tmp_path / "c.json", tmp_path / "s.json", "--method", method, "--max-memory", "2G",
-                        "--max-time", "20"])
+    rc, _, err = holds(
+        [
+            "inverse",
+            tmp_path / "c.json",
+            tmp_path / "s.json",
+            "--method",
+            method,
+            "--max-memory",
+            "2G",
+            "--max-time",
+            "20",
+        ]
+    )
     if method in ("pinocchio", "lagrange") or n == 20000:
         assert rc == 2 and "needs about" in err
 
@@ -280,27 +362,70 @@ SCENE_FIELDS = {
 
 
 @settings(max_examples=80, deadline=None, derandomize=True, database=None)
-@given(st.fixed_dictionaries({k: st.sampled_from(v) for k, v in SCENE_FIELDS.items()}),
-       st.sets(st.sampled_from(sorted(SCENE_FIELDS)), max_size=11))
+@given(
+    st.fixed_dictionaries({k: st.sampled_from(v) for k, v in SCENE_FIELDS.items()}),
+    st.sets(st.sampled_from(sorted(SCENE_FIELDS)), max_size=11),
+)
 def test_run_with_generated_scenes(values, present):
     lines_top = [f"{k} = {values[k]}" for k in ("mechanism", "methods", "reference", "outputs") if k in present]
-    motion = [f"{k} = {values[k]}" for k in ("kind", "samples", "duration", "seed", "periods", "samples_per_period",
-                                              "file") if k in present]
+    motion = [
+        f"{k} = {values[k]}"
+        for k in ("kind", "samples", "duration", "seed", "periods", "samples_per_period", "file")
+        if k in present
+    ]
     text = "\n".join(lines_top + ["[motion]"] + motion) + "\n"
     with workdir() as d:
         (d / "bin.json").write_bytes(bytes(range(256)))
         q, qd, qdd = random_states(fig1(2), 3, 0)
-        (d / "mo.json").write_text(json.dumps({"t": [0.0, 0.1, 0.1], "q": q.tolist(), "qd": qd.tolist(),
-                                               "qdd": qdd.tolist()}))
+        (d / "mo.json").write_text(
+            json.dumps({"t": [0.0, 0.1, 0.1], "q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()})
+        )
         (d / "sc.toml").write_text(text)
         holds(["run", d / "sc.toml", "--reports", d / "rep", "--max-memory", "20M"], allow=(0, 1, 2))
 
 
 # ------------------------------------------------------------------------------ free-form argument lists
-TOKENS = ["inverse", "urdf", "mjcf", "--no-check", "run", "bench", "errata", "stability", "presets", "--method", "--budget", "--max-memory",
-          "--max-time", "--reports", "--full", "-o", "--output", "--update-readme", "-h", "fig1-2d", "exo5-3d",
-          "matrix", "2G", "-1", "nan", "s.json", "m.json", "x", "", "--", "-", "\0",
-          "equations", "--format", "latex", "python", "c", "--symbolic-parameters", "--size-report"]
+TOKENS = [
+    "inverse",
+    "urdf",
+    "mjcf",
+    "--no-check",
+    "run",
+    "bench",
+    "errata",
+    "stability",
+    "presets",
+    "--method",
+    "--budget",
+    "--max-memory",
+    "--max-time",
+    "--reports",
+    "--full",
+    "-o",
+    "--output",
+    "--update-readme",
+    "-h",
+    "fig1-2d",
+    "exo5-3d",
+    "matrix",
+    "2G",
+    "-1",
+    "nan",
+    "s.json",
+    "m.json",
+    "x",
+    "",
+    "--",
+    "-",
+    "\0",
+    "equations",
+    "--format",
+    "latex",
+    "python",
+    "c",
+    "--symbolic-parameters",
+    "--size-report",
+]
 
 
 @FUZZ
@@ -315,7 +440,7 @@ def test_any_argument_list(argv):
         for mod in (bench_reports, errata, stability):  # the heavy jobs: stubs
             mp.setattr(mod, "run", lambda options: 0)
         mp.setattr(runner, "run_main_job", lambda options: 0)
-        mp.setattr("exo_bench.bench.cluster.commands.bench_run", lambda options: 0)   # bench --full: the Dask sweep
+        mp.setattr("exo_bench.bench.cluster.commands.bench_run", lambda options: 0)  # bench --full: the Dask sweep
         mp.setattr("exo_bench.bench.studies.equations_size.size_report", lambda options: 0)
         q, qd, qdd = random_states(fig1(2), 2, 0)
         (d / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
@@ -327,11 +452,14 @@ def test_any_argument_list(argv):
 
 
 # ------------------------------------------------------------------------------ a few real processes
-@pytest.mark.parametrize("args,needle", [
-    (["inverse", "BIN", "exo5-3d"], "expected UTF-8 text"),
-    (["inverse", "CHAIN300", "S300"], "matrix-factored fits"),
-    (["errata", "--reports", "FILE"], "expected a folder, but it is a file"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["inverse", "BIN", "exo5-3d"], "expected UTF-8 text"),
+        (["inverse", "CHAIN300", "S300"], "matrix-factored fits"),
+        (["errata", "--reports", "FILE"], "expected a folder, but it is a file"),
+    ],
+)
 def test_in_a_subprocess_too(args, needle, tmp_path):
     (tmp_path / "bin").write_bytes(bytes(range(256)))
     (tmp_path / "file").write_text("x")
@@ -339,11 +467,18 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
     (tmp_path / "c.json").write_text(m.to_json(indent=None))
     q, qd, qdd = random_states(m, 1, 0)
     (tmp_path / "s.json").write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist()}))
-    sub = {"BIN": tmp_path / "bin", "CHAIN300": tmp_path / "c.json", "S300": tmp_path / "s.json", "FILE": tmp_path / "file"}
-    argv = [str(sub.get(a, a)) for a in args] + (["--max-memory", "2G", "--method", "pinocchio"]
-                                                  if args[1] == "CHAIN300" else [])
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120,
-                       cwd=tmp_path)
+    sub = {
+        "BIN": tmp_path / "bin",
+        "CHAIN300": tmp_path / "c.json",
+        "S300": tmp_path / "s.json",
+        "FILE": tmp_path / "file",
+    }
+    argv = [str(sub.get(a, a)) for a in args] + (
+        ["--max-memory", "2G", "--method", "pinocchio"] if args[1] == "CHAIN300" else []
+    )
+    r = subprocess.run(
+        [sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
 
@@ -355,8 +490,21 @@ def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
 
     mo = gait(exo5(3), np.array([0.0, 0.3]))
     (tmp_path / "s.json").write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))
-    r = subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", "inverse", "exo5-3d", str(tmp_path / "s.json"),
-                        "--method", "matrix-paper"], capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "exo_bench.bench.cli",
+            "inverse",
+            "exo5-3d",
+            str(tmp_path / "s.json"),
+            "--method",
+            "matrix-paper",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 0
     lines = r.stderr.strip().splitlines()
     assert any("divides 0/0" in line for line in lines), r.stderr

@@ -28,7 +28,7 @@ def shipped():
 
 def test_no_point_mass_of_the_swing_leg_goes_below_the_floor_in_the_shipped_gait(shipped):
     assert shipped.lowest_swing_point >= 0.0
-    assert shipped.lowest_swing_point >= CLEARANCE - ROUNDING          # the fit's margin survives rounding
+    assert shipped.lowest_swing_point >= CLEARANCE - ROUNDING  # the fit's margin survives rounding
 
 
 def test_the_shipped_scene_samples_keep_the_swing_leg_above_the_floor():
@@ -68,9 +68,12 @@ def test_the_documented_residual_of_the_fit_is_the_objective_of_the_stored_param
     assert round(gait_fit.objective(GaitParams())) == 365
     assert "objective of 365" in " ".join(GaitParams.__doc__.split())
     angles = sum(r**2 for r in shipped.rms) / gait_fit.ANGLE_SCALE**2
-    lengths = sum(((a - b) / gait_fit.LENGTH_SCALE) ** 2 for a, b in zip(GaitParams().l_star, gait_fit.REST_LENGTHS[:4]))
-    assert gait_fit.objective(GaitParams()) == pytest.approx(angles + lengths + (GaitParams().l / gait_fit.STRETCH_SCALE) ** 2,
-                                                             rel=1e-3)
+    lengths = sum(
+        ((a - b) / gait_fit.LENGTH_SCALE) ** 2 for a, b in zip(GaitParams().l_star, gait_fit.REST_LENGTHS[:4])
+    )
+    assert gait_fit.objective(GaitParams()) == pytest.approx(
+        angles + lengths + (GaitParams().l / gait_fit.STRETCH_SCALE) ** 2, rel=1e-3
+    )
 
 
 def test_the_fit_follows_winters_curves_closer_than_the_paper_assumed_gait(shipped):
@@ -99,21 +102,33 @@ def _cell(ref: str, value) -> str:
 
 
 def _sheet(rows: dict[int, dict[str, float]]) -> str:
-    body = "".join(f'<row r="{r}">' + "".join(_cell(f"{c}{r}", v) for c, v in cells.items()) + "</row>"
-                   for r, cells in sorted(rows.items()))
-    return ('<worksheet xmlns="http://schemas.openxmlformats.org/spreadsheetml/2006/main"><sheetData>'
-            f"{body}</sheetData></worksheet>")
+    body = "".join(
+        f'<row r="{r}">' + "".join(_cell(f"{c}{r}", v) for c, v in cells.items()) + "</row>"
+        for r, cells in sorted(rows.items())
+    )
+    return (
+        '<worksheet xmlns="http://schemas.openxmlformats.org/spreadsheetml/2006/main"><sheetData>'
+        f"{body}</sheetData></worksheet>"
+    )
 
 
 def _workbook(path, sheets: dict[str, dict[int, dict[str, float]]]):
     ns = 'xmlns="http://schemas.openxmlformats.org/spreadsheetml/2006/main"'
     rns = 'xmlns:r="http://schemas.openxmlformats.org/officeDocument/2006/relationships"'
     names = list(sheets)
-    wb = (f"<workbook {ns} {rns}><sheets>" + "".join(f'<sheet name="{n}" sheetId="{k + 1}" r:id="rId{k + 1}"/>'
-                                                     for k, n in enumerate(names)) + "</sheets></workbook>")
-    rels = ('<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
-            + "".join(f'<Relationship Id="rId{k + 1}" Target="worksheets/sheet{k + 1}.xml" Type="worksheet"/>'
-                      for k in range(len(names))) + "</Relationships>")
+    wb = (
+        f"<workbook {ns} {rns}><sheets>"
+        + "".join(f'<sheet name="{n}" sheetId="{k + 1}" r:id="rId{k + 1}"/>' for k, n in enumerate(names))
+        + "</sheets></workbook>"
+    )
+    rels = (
+        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+        + "".join(
+            f'<Relationship Id="rId{k + 1}" Target="worksheets/sheet{k + 1}.xml" Type="worksheet"/>'
+            for k in range(len(names))
+        )
+        + "</Relationships>"
+    )
     with zipfile.ZipFile(path, "w") as z:
         z.writestr("xl/workbook.xml", wb)
         z.writestr("xl/_rels/workbook.xml.rels", rels)
@@ -131,9 +146,22 @@ def test_winters_tables_are_read_from_the_columns_the_module_names(tmp_path):
     a2 = {4 + f: {"B": f, "C": f * dt, "D": 0.5 + 1.4 * f * dt} for f in frames}
     a3 = {4 + f: {"B": f, "C": f * dt, "N": leg[f], "X": thigh[f]} for f in frames}
     # moments: 10 N·m at frame 50 (stance ankle), 5 at 80 (swing hip); force (3, 4) -> 5 N at the knee
-    a5 = {5 + f: {"B": f, "C": f * dt, "I": 10.0 if f == 50 else 1.0, "P": 0.0, "X": 5.0 if f == 80 else 0.0,
-                  "F": 0.0, "G": 0.0, "M": 3.0 if f == 40 else 0.0, "N": 4.0 if f == 40 else 0.0, "U": 0.0, "V": 0.0}
-          for f in frames}
+    a5 = {
+        5 + f: {
+            "B": f,
+            "C": f * dt,
+            "I": 10.0 if f == 50 else 1.0,
+            "P": 0.0,
+            "X": 5.0 if f == 80 else 0.0,
+            "F": 0.0,
+            "G": 0.0,
+            "M": 3.0 if f == 40 else 0.0,
+            "N": 4.0 if f == 40 else 0.0,
+            "U": 0.0,
+            "V": 0.0,
+        }
+        for f in frames
+    }
     path = tmp_path / "w.xlsx"
     _workbook(path, {"A2.Filtered": a2, "A3.Linear": a3, "A5.Reaction": a5})
     w = winter_appendix(path)

@@ -34,7 +34,7 @@ def test_accelerations_are_the_time_derivative_of_the_velocities(seed, dim):
     t, h = np.linspace(0.1, 1.9, 9), 1e-4
     m = [f(t + k * h) for k in (-2, -1, 1, 2)]
     v = [point_mass_velocities(mech, x.q, x.qd) for x in m]
-    fd = (v[0] - 8 * v[1] + 8 * v[2] - v[3]) / (12 * h)           # fourth order: error ~ h^4 |v'''''|
+    fd = (v[0] - 8 * v[1] + 8 * v[2] - v[3]) / (12 * h)  # fourth order: error ~ h^4 |v'''''|
     mo = f(t)
     a = point_mass_accelerations(mech, mo.q, mo.qd, mo.qdd)
     assert np.abs(a - fd).max() <= 1e-7 * max(1.0, np.abs(a).max())
@@ -63,7 +63,7 @@ def test_elevation_joint_torques_are_the_moment_at_the_joint_minus_the_childrens
     tj = joint_torques(mech, q, qd, qdd)
     phi = q[:, : mech.nlinks]
     for k, row in enumerate(_rows(mech, "psi")):
-        axis = np.stack([np.sin(phi[:, k]), -np.cos(phi[:, k]), np.zeros(len(q))], axis=-1)   # -e_y turned by phi_k
+        axis = np.stack([np.sin(phi[:, k]), -np.cos(phi[:, k]), np.zeros(len(q))], axis=-1)  # -e_y turned by phi_k
         on_axis = lambda j: np.einsum("sd,sd->s", M[:, j], axis)
         expected = on_axis(k) - sum((on_axis(c) for c in mech.children[k]), np.zeros(len(q)))
         assert np.abs(tj[:, row] - expected).max() <= K * EPS * np.abs(tj).max(), f"link {k + 1}"
@@ -77,8 +77,8 @@ def test_the_net_moment_at_the_support_point_balances_gravity_for_a_mechanism_at
     M, F = net_joint_loads(mech, q, zero, zero)
     P = point_mass_positions(mech, q)
     m = mech.mass_array
-    com = np.einsum("ib,sibd->sd", m, P)                                   # sum m p (about O = 0)
-    expected = np.cross(com, np.array([0.0, 0.0, mech.g]))                 # sum p x m (a - g), a = 0
+    com = np.einsum("ib,sibd->sd", m, P)  # sum m p (about O = 0)
+    expected = np.cross(com, np.array([0.0, 0.0, mech.g]))  # sum p x m (a - g), a = 0
     np.testing.assert_allclose(M[:, 0], expected, rtol=0, atol=K * EPS * np.abs(expected).max())
     np.testing.assert_allclose(F[:, 0], np.tile([0.0, 0.0, mech.g * mech.total_mass], (6, 1)), rtol=1e-14)
 
@@ -88,9 +88,9 @@ def test_sagittal_moment_is_positive_when_it_turns_a_rod_from_forward_to_up():
     seen with x right and z up), so the joint must push it counter-clockwise: a positive moment."""
     mech = exo5(3)
     q = np.zeros((1, mech.dof))
-    q[0, -5:] = 0.4                        # lengths; every angle 0: all rods along +x, horizontal
+    q[0, -5:] = 0.4  # lengths; every angle 0: all rods along +x, horizontal
     M, _ = net_joint_loads(mech, q, np.zeros_like(q), np.zeros_like(q))
-    trunk = 4                              # a leaf with sign +1: it points along +x
+    trunk = 4  # a leaf with sign +1: it points along +x
     expected = mech.g * 0.4 * (mech.n[trunk] * mech.masses[trunk][1] + mech.masses[trunk][2])
     assert sagittal_moments(mech, M)[0, trunk] == pytest.approx(expected, rel=1e-14)
 

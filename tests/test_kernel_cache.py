@@ -30,7 +30,7 @@ def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path):
     reference, not the stale machine code's."""
     pkg, probe = package_copy_prober(tmp_path, _PROBE)
 
-    probe()                                       # compiles (or loads) into the copy's cache
+    probe()  # compiles (or loads) into the copy's cache
     before = probe()
     assert before["hits"] >= 1 and before["misses"] == 0, before
     elements_py = pkg / "models" / "newton_euler" / "elements.py"
@@ -39,7 +39,7 @@ def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path):
     assert text.count(old) == 1
     elements_py.write_text(text.replace(old, old.replace("cp * radial + sp * fz", "2.0 * (cp * radial + sp * fz)")))
     after = probe()
-    assert after["misses"] >= 1, after            # recompiled, not served from the stale cache
+    assert after["misses"] >= 1, after  # recompiled, not served from the stale cache
     tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
     assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
     assert np.abs(tau_after - edited).max() <= 1e-12 * np.abs(edited).max()

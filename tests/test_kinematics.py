@@ -3,8 +3,14 @@
 import numpy as np
 import pytest
 
-from exo_bench.models.kinematics import (energy_rate, kinetic_energy, point_mass_positions, point_mass_velocities,
-                               potential_energy, total_energy)
+from exo_bench.models.kinematics import (
+    energy_rate,
+    kinetic_energy,
+    point_mass_positions,
+    point_mass_velocities,
+    potential_energy,
+    total_energy,
+)
 from exo_bench.models.motion import smooth_random_motion
 from exo_bench.models.presets import fig1, random_tree
 
@@ -32,7 +38,7 @@ def test_one_link_energies_are_eq1_and_eqs11_12(dim):
         P = m.g * eta * l * np.sin(phi)
     else:
         (phi, psi, l), (phid, psid, ld) = q.T, qd.T
-        T = 0.5 * zeta * (ld**2 + l**2 * (phid**2 * np.cos(psi)**2 + psid**2))
+        T = 0.5 * zeta * (ld**2 + l**2 * (phid**2 * np.cos(psi) ** 2 + psid**2))
         P = m.g * eta * l * np.sin(psi)
     assert np.allclose(kinetic_energy(m, q, qd), T, rtol=1e-13)
     assert np.allclose(potential_energy(m, q), P, rtol=1e-13, atol=1e-13)

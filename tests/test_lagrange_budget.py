@@ -25,8 +25,11 @@ from exo_bench.models.presets import chain
 def _cached(mech):
     """What the derivation and compilation caches hold for ``mech`` (and its structure)."""
     st = dv.structure_of(mech)
-    return ({k for k in dv._SYMBOLIC if k[0] == st} | {k for k in dv._NUMERIC if k[0] == mech}
-            | {k for k in ln._CACHE if k[0] == mech})
+    return (
+        {k for k in dv._SYMBOLIC if k[0] == st}
+        | {k for k in dv._NUMERIC if k[0] == mech}
+        | {k for k in ln._CACHE if k[0] == mech}
+    )
 
 
 def test_a_tiny_budget_raises_naming_the_work_n_dim_and_budget_and_caches_nothing():
@@ -36,13 +39,14 @@ def test_a_tiny_budget_raises_naming_the_work_n_dim_and_budget_and_caches_nothin
     reason = info.value.skip_reason
     assert "Lagrange II derivation" in reason and "n=12" in reason and "dim=3" in reason and "0.05 s" in reason
     assert (info.value.nlinks, info.value.dim, info.value.budget) == (12, 3, 0.05)
-    assert not _cached(m)                                      # no half-done derivation is kept
-    assert dv._FAILED[(dv.structure_of(m), "poly")] > 0        # the attempt is remembered
+    assert not _cached(m)  # no half-done derivation is kept
+    assert dv._FAILED[(dv.structure_of(m), "poly")] > 0  # the attempt is remembered
     with pytest.raises(ValueError, match="its derivation alone over the budget of 50 ms"):
-        prepare(m, "lagrange", budget=0.05)                    # refused up front by the estimate (issue 26)
+        prepare(m, "lagrange", budget=0.05)  # refused up front by the estimate (issue 26)
     from exo_bench.lagrange.prepared import LagrangeModel
+
     with pytest.raises(BudgetExceeded):
-        LagrangeModel(m, budget=0.05)                          # the class itself: the budget stops the work
+        LagrangeModel(m, budget=0.05)  # the class itself: the budget stops the work
     assert not _cached(m)
     assert ln._FAILED[(m, "equations")] > 0
 
@@ -75,7 +79,9 @@ def test_a_bad_budget_is_a_value_error():
     with pytest.raises(ValueError, match="budget"):
         derive(chain(2, 2), budget=0)
     for bad in (0, -1.0, "soon", True, float("inf"), float("nan")):
-        with pytest.raises(ValueError, match="lagrange: option 'budget': expected a positive, finite number of seconds"):
+        with pytest.raises(
+            ValueError, match="lagrange: option 'budget': expected a positive, finite number of seconds"
+        ):
             prepare(chain(9, 2), "lagrange", budget=bad)
 
 

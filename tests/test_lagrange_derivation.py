@@ -63,15 +63,34 @@ def test_two_links_are_eq4_with_upper_and_lower_signs(make, sigma):
     C1, S1, C2, S2 = sp.cos(p1), sp.sin(p1), sp.cos(p2), sp.sin(p2)
     C12, S12 = sp.cos(p1 - p2), sp.sin(p1 - p2)
     eq4 = [
-        (z1 + t2) * l1**2 * a1 + s * l1 * l2 * e2 * C12 * a2 + s * l1 * l2 * e2 * S12 * w2**2
-        + (e1 + t2) * g * l1 * C1 + 2 * (z1 + t2) * l1 * d1 * w1 + s * 2 * l1 * e2 * C12 * d2 * w2
+        (z1 + t2) * l1**2 * a1
+        + s * l1 * l2 * e2 * C12 * a2
+        + s * l1 * l2 * e2 * S12 * w2**2
+        + (e1 + t2) * g * l1 * C1
+        + 2 * (z1 + t2) * l1 * d1 * w1
+        + s * 2 * l1 * e2 * C12 * d2 * w2
         - s * l1 * e2 * S12 * b2,
-        s * l1 * l2 * e2 * C12 * a1 + z2 * l2**2 * a2 - s * l1 * l2 * e2 * S12 * w1**2 + s * e2 * g * l2 * C2
-        + s * 2 * l2 * e2 * C12 * d1 * w1 + 2 * z2 * l2 * d2 * w2 + s * l2 * e2 * S12 * b1,
-        s * l2 * e2 * S12 * a2 - (z1 + t2) * l1 * w1**2 - s * l2 * e2 * C12 * w2**2 + (e1 + t2) * g * S1
-        + s * 2 * e2 * S12 * d2 * w2 + (z1 + t2) * b1 + s * e2 * C12 * b2,
-        -s * l1 * e2 * S12 * a1 - s * l1 * e2 * C12 * w1**2 - z2 * l2 * w2**2 + s * e2 * g * S2
-        - s * 2 * e2 * S12 * d1 * w1 + s * e2 * C12 * b1 + z2 * b2,
+        s * l1 * l2 * e2 * C12 * a1
+        + z2 * l2**2 * a2
+        - s * l1 * l2 * e2 * S12 * w1**2
+        + s * e2 * g * l2 * C2
+        + s * 2 * l2 * e2 * C12 * d1 * w1
+        + 2 * z2 * l2 * d2 * w2
+        + s * l2 * e2 * S12 * b1,
+        s * l2 * e2 * S12 * a2
+        - (z1 + t2) * l1 * w1**2
+        - s * l2 * e2 * C12 * w2**2
+        + (e1 + t2) * g * S1
+        + s * 2 * e2 * S12 * d2 * w2
+        + (z1 + t2) * b1
+        + s * e2 * C12 * b2,
+        -s * l1 * e2 * S12 * a1
+        - s * l1 * e2 * C12 * w1**2
+        - z2 * l2 * w2**2
+        + s * e2 * g * S2
+        - s * 2 * e2 * S12 * d1 * w1
+        + s * e2 * C12 * b1
+        + z2 * b2,
     ]
     for got, want in zip(d.equations, eq4):
         assert _same(got, want, S)
@@ -109,18 +128,24 @@ def test_matrices_rebuild_the_equations_exactly(n, dim, seed):
         # and the public extraction from the plain expressions finds the same matrices
         again = extract_matrices(d.equations, d.symbols) if symbolic else None
         if again is not None:
-            assert all(sp.expand(again[b][k] - d.matrices[b][k]) == sp.zeros(*d.matrices[b][k].shape)
-                       for b in again for k in again[b])
+            assert all(
+                sp.expand(again[b][k] - d.matrices[b][k]) == sp.zeros(*d.matrices[b][k].shape)
+                for b in again
+                for k in again[b]
+            )
 
 
-@pytest.mark.parametrize("extra,why", [
-    ("l1*l2*cos(phi2)*dphi1*dphi2", "rates of two different links"),
-    ("l1*dl1**2", "squared length rate"),
-    ("l1*dphi1*ddphi1", "rate times acceleration"),
-    ("dphi1*dl2", "angle rate of one link times length rate of another"),
-    ("l1*sin(phi1)", "rate-free term without g"),
-    ("g*dphi1*l1", "g times a rate"),
-])
+@pytest.mark.parametrize(
+    "extra,why",
+    [
+        ("l1*l2*cos(phi2)*dphi1*dphi2", "rates of two different links"),
+        ("l1*dl1**2", "squared length rate"),
+        ("l1*dphi1*ddphi1", "rate times acceleration"),
+        ("dphi1*dl2", "angle rate of one link times length rate of another"),
+        ("l1*sin(phi1)", "rate-free term without g"),
+        ("g*dphi1*l1", "g times a rate"),
+    ],
+)
 def test_form_check_rejects_terms_outside_the_matrix_form(extra, why):
     m = random_tree(2, 3, 34)
     d = derive(m, symbolic_parameters=True)

@@ -23,8 +23,14 @@ def test_inverse_dynamics_agrees_with_pinocchio_on_random_trees(n, dim, seed):
     """Within the float64 error model of tests/conftest.py."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 30, seed)
-    assert_forces_agree(prepare(m, "lagrange").inverse_dynamics(q, qd, qdd),
-                        prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd), m, q, qd, qdd)
+    assert_forces_agree(
+        prepare(m, "lagrange").inverse_dynamics(q, qd, qdd),
+        prepare(m, "pinocchio").inverse_dynamics(q, qd, qdd),
+        m,
+        q,
+        qd,
+        qdd,
+    )
 
 
 @pytest.mark.parametrize("n,dim,seed", TREES[1::8])
@@ -60,7 +66,7 @@ def test_cli_lagrange_agrees_with_pinocchio_on_the_exo5_gait(tmp_path, capsys):
         assert main(["inverse", "exo5-3d", str(states), "--method", method]) == 0
         out[method] = np.array(json.loads(capsys.readouterr().out)["tau"])
     assert out["lagrange"].shape == (23, 15)
-    assert_forces_agree(out["lagrange"], out["pinocchio"], m, mo.q, mo.qd, mo.qdd)   # JSON floats: exact round trip
+    assert_forces_agree(out["lagrange"], out["pinocchio"], m, mo.q, mo.qd, mo.qdd)  # JSON floats: exact round trip
 
 
 def test_one_sample_and_bad_states():

@@ -13,9 +13,16 @@ from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
 
 CASES = [
-    (fig1(2), "lagrange"), (fig2a(2), "lagrange"), (fig2b(2), "lagrange"), (fig2b(2), "kane"),
+    (fig1(2), "lagrange"),
+    (fig2a(2), "lagrange"),
+    (fig2b(2), "lagrange"),
+    (fig2b(2), "kane"),
     (random_tree(2, 2, 71), "kane"),
-    (fig1(3), "lagrange"), (fig1(3), "kane"), (fig2a(3), "kane"), (fig2b(3), "lagrange"), (fig2b(3), "kane"),
+    (fig1(3), "lagrange"),
+    (fig1(3), "kane"),
+    (fig2a(3), "kane"),
+    (fig2b(3), "lagrange"),
+    (fig2b(3), "kane"),
     (random_tree(2, 3, 73), "kane"),
 ]
 
@@ -33,8 +40,9 @@ def test_peer_equations_equal_ours(m, kind):
     num = [e.xreplace(vals) for e in theirs]
     q, qd, qdd = random_states(m, 10, 7)
     args = S.q + S.qd + S.qdd
-    f = lambda eqs: np.stack([np.broadcast_to(sp.lambdify(args, e, "numpy")(*q.T, *qd.T, *qdd.T), (10,))
-                              for e in eqs], -1)
+    f = lambda eqs: np.stack(
+        [np.broadcast_to(sp.lambdify(args, e, "numpy")(*q.T, *qd.T, *qdd.T), (10,)) for e in eqs], -1
+    )
     a, b = f(derive(m).equations), f(num)
     assert_forces_agree(a, b, m, q, qd, qdd)
 

@@ -24,8 +24,9 @@ def test_50_digit_reference_agrees_with_float64_on_random_states(n, dim, seed):
 def test_50_digit_reference_agrees_with_float64_along_the_exo5_gait():
     m = exo5(3)
     mo = gait(m, np.linspace(0.0, 1.1, 12))
-    assert_forces_agree(ln.inverse_dynamics(m, mo.q, mo.qd, mo.qdd), lr.inverse_dynamics(m, mo.q, mo.qd, mo.qdd),
-                        m, mo.q, mo.qd, mo.qdd)
+    assert_forces_agree(
+        ln.inverse_dynamics(m, mo.q, mo.qd, mo.qdd), lr.inverse_dynamics(m, mo.q, mo.qd, mo.qdd), m, mo.q, mo.qd, mo.qdd
+    )
 
 
 def test_reference_digits_agree_between_50_and_80_digits():

@@ -32,8 +32,14 @@ def test_layers_only_go_down_and_there_are_no_cycles(tmp_path):
     for sub in SUBPACKAGES:
         shutil.copytree(ROOT / sub, pkg / sub, ignore=shutil.ignore_patterns("__pycache__", "scenes"))
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    r = subprocess.run([lint, "--config", str(ROOT / "pyproject.toml"), "--no-cache"], cwd=tmp_path, env=env,
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [lint, "--config", str(ROOT / "pyproject.toml"), "--no-cache"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
     assert "0 broken" in r.stdout
 
@@ -50,7 +56,8 @@ def test_a_users_own_models_module_does_not_shadow_ours(tmp_path):
         "q, qd, qdd = random_states(m, 3, seed=0)\n"
         "a = prepare(m, 'matrix').inverse_dynamics(q, qd, qdd)\n"
         "b = prepare(m, 'pinocchio').inverse_dynamics(q, qd, qdd)\n"
-        "print(float(np.abs(a - b).max() / np.abs(b).max()))\n")
+        "print(float(np.abs(a - b).max() / np.abs(b).max()))\n"
+    )
     r = subprocess.run([sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     # Two float64 implementations of the same forces: a few ulps of the largest force (conftest).

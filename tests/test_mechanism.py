@@ -10,9 +10,14 @@ from exo_bench.models.loading import load_mechanism, save_mechanism
 from exo_bench.models.mechanism import Mechanism, as_states, coordinate_names
 from exo_bench.models.presets import PRESETS, exo5, random_tree
 
-ISSUE_EXAMPLE = {"dim": 3, "g": 9.81,
-                 "links": [{"parent": -1, "sign": 1, "masses": [0.7275, 1.455, 0.7275], "n": 0.595},
-                           {"parent": 0, "sign": 1, "masses": [2.2325, 4.465, 2.2325], "n": 0.545}]}
+ISSUE_EXAMPLE = {
+    "dim": 3,
+    "g": 9.81,
+    "links": [
+        {"parent": -1, "sign": 1, "masses": [0.7275, 1.455, 0.7275], "n": 0.595},
+        {"parent": 0, "sign": 1, "masses": [2.2325, 4.465, 2.2325], "n": 0.545},
+    ],
+}
 
 
 def test_documented_json_format_loads():
@@ -44,8 +49,12 @@ def test_exo5_is_the_papers_tree_with_its_masses():
 
 
 def test_coordinates_are_in_block_order():
-    assert coordinate_names(exo5(3))[:2] + coordinate_names(exo5(3))[5:6] + coordinate_names(exo5(3))[-1:] == \
-        ["phi1", "phi2", "psi1", "l5"]
+    assert coordinate_names(exo5(3))[:2] + coordinate_names(exo5(3))[5:6] + coordinate_names(exo5(3))[-1:] == [
+        "phi1",
+        "phi2",
+        "psi1",
+        "l5",
+    ]
     assert "psi1" not in coordinate_names(exo5(2))
 
 
@@ -66,9 +75,18 @@ BAD = {
     "sign 0": (lambda d: d["links"][1].__setitem__("sign", 0), ["link 2", "'sign'", "+1 or -1", "0"]),
     "dim 4": (lambda d: d.__setitem__("dim", 4), ["'dim'", "2 or 3", "4"]),
     "no links": (lambda d: d.__setitem__("links", []), ["'links'", "non-empty", "[]"]),
-    "all-zero masses": (lambda d: [lk.__setitem__("masses", [0, 0, 0]) for lk in d["links"]], ["'masses'", "positive", "all zero"]),
-    "mass is a string": (lambda d: d["links"][0].__setitem__("masses", ["1", 1, 1]), ["link 1", "'masses'", "three numbers", "'1'"]),
-    "two masses": (lambda d: d["links"][0].__setitem__("masses", [1, 1]), ["link 1", "'masses'", "three numbers", "[1, 1]"]),
+    "all-zero masses": (
+        lambda d: [lk.__setitem__("masses", [0, 0, 0]) for lk in d["links"]],
+        ["'masses'", "positive", "all zero"],
+    ),
+    "mass is a string": (
+        lambda d: d["links"][0].__setitem__("masses", ["1", 1, 1]),
+        ["link 1", "'masses'", "three numbers", "'1'"],
+    ),
+    "two masses": (
+        lambda d: d["links"][0].__setitem__("masses", [1, 1]),
+        ["link 1", "'masses'", "three numbers", "[1, 1]"],
+    ),
     "sign is bool": (lambda d: d["links"][0].__setitem__("sign", True), ["link 1", "'sign'", "True"]),
     "parent is float": (lambda d: d["links"][1].__setitem__("parent", 0.0), ["link 2", "'parent'", "0.0"]),
     "g is a string": (lambda d: d.__setitem__("g", "9.81"), ["'g'", "finite number", "'9.81'"]),
@@ -106,10 +124,12 @@ def test_state_arrays_are_validated_at_the_edge():
     q = np.ones((2, 15))
     with pytest.raises(ValueError, match=r"'q'.*\(samples, 15\).*\(2, 14\)"):
         as_states(m, np.ones((2, 14)), q, q)
-    bad = q.copy(); bad[1, 3] = np.nan
+    bad = q.copy()
+    bad[1, 3] = np.nan
     with pytest.raises(ValueError, match=r"'qd' sample 1 coordinate phi4.*nan"):
         as_states(m, q, bad, q)
-    neg = q.copy(); neg[0, 12] = -0.1
+    neg = q.copy()
+    neg[0, 12] = -0.1
     with pytest.raises(ValueError, match=r"sample 0 coordinate l3 .*swing_thigh.*>= 0.*-0.1"):
         as_states(m, neg, q, q)
     with pytest.raises(ValueError, match="same number of samples"):
@@ -130,27 +150,33 @@ def _one_link(**changes):
     return Mechanism(**d)
 
 
-@pytest.mark.parametrize("changes,message", [
-    ({"dim": 5}, r"m: field 'dim': expected 2 or 3, got 5"),
-    ({"dim": True}, r"m: field 'dim': expected 2 or 3, got True"),
-    ({"g": float("nan")}, r"m: field 'g': expected a finite number, got nan"),
-    ({"g": 10**400}, r"m: field 'g': expected a finite number, got 1000"),            # an int no float can hold
-    ({"masses": ((0.1, 10**400, 0.3),)}, r"link 1 \('link1'\): field 'masses\[1\]': expected a finite mass >= 0"),
-    ({"n": (10**400,)}, r"link 1 \('link1'\): field 'n': expected a fraction in \(0, 1\)"),
-])
+@pytest.mark.parametrize(
+    "changes,message",
+    [
+        ({"dim": 5}, r"m: field 'dim': expected 2 or 3, got 5"),
+        ({"dim": True}, r"m: field 'dim': expected 2 or 3, got True"),
+        ({"g": float("nan")}, r"m: field 'g': expected a finite number, got nan"),
+        ({"g": 10**400}, r"m: field 'g': expected a finite number, got 1000"),  # an int no float can hold
+        ({"masses": ((0.1, 10**400, 0.3),)}, r"link 1 \('link1'\): field 'masses\[1\]': expected a finite mass >= 0"),
+        ({"n": (10**400,)}, r"link 1 \('link1'\): field 'n': expected a fraction in \(0, 1\)"),
+    ],
+)
 def test_the_constructor_validates_every_field_itself(changes, message):
     """Mechanism(...) directly (not through JSON) names the field, the expected and the actual value."""
     with pytest.raises(ValueError, match=message):
         _one_link(**changes)
 
 
-@pytest.mark.parametrize("field,value,message", [
-    ("dim", 2.0, r"field 'dim': expected 2 or 3, got 2.0"),
-    ("parent", 0.5, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got 0.5"),
-    ("parent", True, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got True"),
-    ("sign", 1.0, r"link 1: field 'sign': expected \+1 or -1, got 1.0"),
-    ("sign", True, r"link 1: field 'sign': expected \+1 or -1, got True"),
-])
+@pytest.mark.parametrize(
+    "field,value,message",
+    [
+        ("dim", 2.0, r"field 'dim': expected 2 or 3, got 2.0"),
+        ("parent", 0.5, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got 0.5"),
+        ("parent", True, r"link 1: field 'parent': expected an integer index of an earlier link or -1, got True"),
+        ("sign", 1.0, r"link 1: field 'sign': expected \+1 or -1, got 1.0"),
+        ("sign", True, r"link 1: field 'sign': expected \+1 or -1, got True"),
+    ],
+)
 def test_json_numbers_of_the_wrong_type_are_refused(field, value, message):
     """JSON 2.0, 1.0 or true where an integer belongs is refused, not silently converted."""
     data = json.loads(json.dumps(ISSUE_EXAMPLE))

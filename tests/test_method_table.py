@@ -18,14 +18,13 @@ from exo_bench.api.methods import compiled_methods, known_wrong, preference
 ROOT = Path(__file__).resolve().parent.parent
 LIBRARY = ("exo_bench", "models", "matrix_method", "lagrange", "bench")
 #: Modules that choose which methods to run (not facts about a method).
-CHOICES = {"bench/test_inverse_dynamics.py", "bench/test_memory.py", "bench/test_compose.py",
-           "bench/perf/profiles.py"}
+CHOICES = {"bench/test_inverse_dynamics.py", "bench/test_memory.py", "bench/test_compose.py", "bench/perf/profiles.py"}
 #: Single literals that choose what a report shows: (module, the method names in the literal).
 CHOSEN = {
-    ("bench/studies/equations_size.py", ("lagrange", "matrix")),     # the size study's routes and their styles
+    ("bench/studies/equations_size.py", ("lagrange", "matrix")),  # the size study's routes and their styles
     ("bench/perf/reports/paper_table.py", ("lagrange", "matrix", "recurrence")),  # the paper table's columns
-    ("bench/perf/reports/paper_table.py", ("matrix", "matrix-factored")),          # the exo5-3d ratio's rows
-    ("bench/studies/errata/report.py", ("lagrange", "pinocchio")),   # the errata study's witnesses
+    ("bench/perf/reports/paper_table.py", ("matrix", "matrix-factored")),  # the exo5-3d ratio's rows
+    ("bench/studies/errata/report.py", ("lagrange", "pinocchio")),  # the errata study's witnesses
     ("bench/perf/peer_ratios.py", ("matrix-factored", "newton-euler")),  # the denominators of the engines' ratios
 }
 

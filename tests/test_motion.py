@@ -48,8 +48,16 @@ def test_gait_matches_eq26_at_quarter_period():
     j, f, ls, l = p.j, p.f, p.l_star, p.l
     h = np.pi / 2
     assert np.allclose(q[:5], [j[0], 0, 0, j[3], 0], atol=1e-15)
-    assert np.allclose(q[5:10], [h + j[0] * np.sin(f[0] - h), h + j[1] * np.cos(f[1] - h),
-                                 h + j[2] * np.cos(f[2] - h), h + j[3] * np.sin(f[3] - h), h])
+    assert np.allclose(
+        q[5:10],
+        [
+            h + j[0] * np.sin(f[0] - h),
+            h + j[1] * np.cos(f[1] - h),
+            h + j[2] * np.cos(f[2] - h),
+            h + j[3] * np.sin(f[3] - h),
+            h,
+        ],
+    )
     assert np.allclose(q[10:], [ls[0] * (1 + l), ls[1] * (1 + l), ls[2] * (1 + l), ls[3] * (1 - l), ls[4] * (1 + l)])
 
 

@@ -36,14 +36,16 @@ LAGRANGE_N = 3
 
 
 def _peers(method, mech):
-    others = ["pinocchio", "matrix-factored", "matrix", "recurrence"] + (["lagrange"] if mech.nlinks <= LAGRANGE_N else [])
+    others = ["pinocchio", "matrix-factored", "matrix", "recurrence"] + (
+        ["lagrange"] if mech.nlinks <= LAGRANGE_N else []
+    )
     return others + [m for m in ENGINES if m != method and importlib.util.find_spec(ENGINES[m]) is not None]
 
 
 def _special(mech, q, case):
     n = mech.nlinks
     q = q.copy()
-    if case == "vertical":      # every rod vertical: psi = +-pi/2 in 3D, phi = +-pi/2 in 2D
+    if case == "vertical":  # every rod vertical: psi = +-pi/2 in 3D, phi = +-pi/2 in 2D
         block = slice(n, 2 * n) if mech.dim == 3 else slice(0, n)
         q[:, block] = np.where(np.arange(q.shape[0])[:, None] % 2 == 0, np.pi / 2, -np.pi / 2)
     elif case == "zero-length":
@@ -62,8 +64,9 @@ def test_forces_agree_with_every_other_method(method, case, n, dim, seed):
     tau = prepare(mech, method).inverse_dynamics(q, qd, qdd)
     for other in _peers(method, mech):
         ref = prepare(mech, other).inverse_dynamics(q, qd, qdd)
-        assert_forces_agree(tau, ref, mech, q, qd, qdd, what=f"{method} vs {other} ({case})",
-                            com_frame="mujoco" in (method, other))
+        assert_forces_agree(
+            tau, ref, mech, q, qd, qdd, what=f"{method} vs {other} ({case})", com_frame="mujoco" in (method, other)
+        )
 
 
 @pytest.mark.parametrize("method", list(ENGINES))
@@ -82,8 +85,17 @@ def test_mass_matrix_and_bias_agree(method, n, dim, seed):
     if n <= LAGRANGE_N:
         assert_mass_matrices_agree(M, prepare(mech, "lagrange").mass_matrix(q), mech, q, com_frame=com)
     assert_forces_agree(h, pin.bias_forces(q, qd), mech, q, qd, None, what=f"{method} h", com_frame=com)
-    assert_forces_agree(np.einsum("sij,sj->si", M, qdd) + h, model.inverse_dynamics(q, qd, qdd), mech, q, qd, qdd,
-                        k=16, what=f"{method} M qdd + h", com_frame=com)   # both sides rounded: twice K
+    assert_forces_agree(
+        np.einsum("sij,sj->si", M, qdd) + h,
+        model.inverse_dynamics(q, qd, qdd),
+        mech,
+        q,
+        qd,
+        qdd,
+        k=16,
+        what=f"{method} M qdd + h",
+        com_frame=com,
+    )  # both sides rounded: twice K
 
 
 @pytest.mark.parametrize("method", list(ENGINES))
@@ -128,8 +140,9 @@ def test_mujoco_rne_stages_equal_mj_inverse_with_constraints_off():
     assert_forces_agree(inv, tau, mech, q, qd, qdd, com_frame=True)
 
 
-@pytest.mark.parametrize("mech", [exo5(3), exo5(2), fig2b(3), random_tree(9, 3, 8), random_tree(9, 2, 9)],
-                         ids=lambda m: m.name)
+@pytest.mark.parametrize(
+    "mech", [exo5(3), exo5(2), fig2b(3), random_tree(9, 3, 8), random_tree(9, 2, 9)], ids=lambda m: m.name
+)
 def test_exported_mjcf_bodies_are_the_point_masses(mech, tmp_path):
     """The file written by ``exo-bench mjcf``, loaded by ``MjModel.from_xml_path`` as a user would,
     puts every point-mass body where eq. (7) does, to 1e-12 m, at q_mj = G q; its joints are those of
@@ -140,8 +153,17 @@ def test_exported_mjcf_bodies_are_the_point_masses(mech, tmp_path):
     from exo_bench.bench.cli import main
 
     path = tmp_path / "m.xml"
-    assert main(["mjcf", mech.name if mech.name in ("exo5-3d", "exo5-2d", "fig2b-3d") else _json(mech, tmp_path),
-                 "-o", str(path)]) == 0
+    assert (
+        main(
+            [
+                "mjcf",
+                mech.name if mech.name in ("exo5-3d", "exo5-2d", "fig2b-3d") else _json(mech, tmp_path),
+                "-o",
+                str(path),
+            ]
+        )
+        == 0
+    )
     model = mujoco.MjModel.from_xml_path(str(path))
     jm = joint_map(mech)
     assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)] == list(jm.joints)
@@ -162,7 +184,7 @@ def test_exported_mjcf_bodies_are_the_point_masses(mech, tmp_path):
         for i, names in enumerate(jm.bodies):
             for beta, name in enumerate(names):
                 if name is not None:
-                    assert np.abs(data.xpos[body(name)][:mech.dim] - expect[s, i, beta]).max() <= 1e-12
+                    assert np.abs(data.xpos[body(name)][: mech.dim] - expect[s, i, beta]).max() <= 1e-12
                     if mech.dim == 2:
                         assert data.xpos[body(name)][2] == 0.0
 
@@ -191,7 +213,7 @@ def test_mjcf_ties_and_map_are_what_the_paper_coordinates_say():
     text = to_mjcf(mech)
     n = mech.nlinks
     for r, name in enumerate(jm.joints):
-        k = int(name[1:name.index("_")]) - 1
+        k = int(name[1 : name.index("_")]) - 1
         kind = name.split("_")[1]
         row = np.zeros(mech.dof)
         p = mech.parent[k]
@@ -214,18 +236,23 @@ def test_mjcf_ties_and_map_are_what_the_paper_coordinates_say():
 
 # ------------------------------------------------------------------ bad input, missing extras
 def _cli(*args, hide=()):
-    code = ("import sys\n" + "".join(f"sys.modules[{m!r}] = None\n" for m in hide)
-            + "from exo_bench.bench.cli import main\nsys.exit(main(sys.argv[1:]))")
+    code = (
+        "import sys\n"
+        + "".join(f"sys.modules[{m!r}] = None\n" for m in hide)
+        + "from exo_bench.bench.cli import main\nsys.exit(main(sys.argv[1:]))"
+    )
     return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=300)
 
 
 def test_mjcf_bad_input_is_one_line_and_exit_2(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    cases = [(["mjcf", "no-such-mechanism", "-o", str(tmp_path / "a.xml")], (), "not a preset"),
-             (["mjcf", "exo5-3d", "-o", str(blocker / "a.xml")], (), ""),
-             (["mjcf", "exo5-3d", "-o", str(tmp_path)], (), "folder"),
-             (["mjcf", "exo5-3d", "-o", str(tmp_path / "b.xml")], ("mujoco",), "exo-bench[peers]")]
+    cases = [
+        (["mjcf", "no-such-mechanism", "-o", str(tmp_path / "a.xml")], (), "not a preset"),
+        (["mjcf", "exo5-3d", "-o", str(blocker / "a.xml")], (), ""),
+        (["mjcf", "exo5-3d", "-o", str(tmp_path)], (), "folder"),
+        (["mjcf", "exo5-3d", "-o", str(tmp_path / "b.xml")], ("mujoco",), "exo-bench[peers]"),
+    ]
     for args, hide, words in cases:
         r = _cli(*args, hide=hide)
         assert r.returncode == 2, (args, r.stderr)
@@ -238,10 +265,12 @@ def test_mjcf_bad_input_is_one_line_and_exit_2(tmp_path):
 
 @pytest.mark.parametrize("method,module", [("mujoco", "mujoco"), ("drake", "pydrake")])
 def test_missing_engine_is_a_value_error_naming_the_extra(method, module):
-    code = (f"import sys; sys.modules[{module!r}] = None\n"
-            "from exo_bench import prepare, presets\n"
-            f"try:\n    prepare(presets.exo5(dim=3), {method!r})\n"
-            "except ValueError as e:\n    print(e)\n")
+    code = (
+        f"import sys; sys.modules[{module!r}] = None\n"
+        "from exo_bench import prepare, presets\n"
+        f"try:\n    prepare(presets.exo5(dim=3), {method!r})\n"
+        "except ValueError as e:\n    print(e)\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert "pip install 'exo-bench[peers]'" in r.stdout and method in r.stdout, r.stdout + r.stderr
     r = _cli("inverse", "exo5-3d", "nothing.json", "--method", method, hide=(module,))
@@ -275,7 +304,7 @@ def _with_zero_masses(mech):
     masses[2][1] = 0.0
     masses[3][2] = 0.0
     masses[4][1] = 0.0
-    masses[5][1] = masses[5][2] = 0.0     # a leaf rod with its start mass only: its length force is exactly 0
+    masses[5][1] = masses[5][2] = 0.0  # a leaf rod with its start mass only: its length force is exactly 0
     return mech.replace(masses=tuple(tuple(m) for m in masses), name=mech.name + "-zeros")
 
 
@@ -290,10 +319,18 @@ def test_zero_point_masses_are_exactly_zero(method, dim):
     q, qd, qdd = random_states(mech, 6, 3)
     tau = prepare(mech, method).inverse_dynamics(q, qd, qdd)
     for other in ("pinocchio", "matrix-factored"):
-        assert_forces_agree(tau, prepare(mech, other).inverse_dynamics(q, qd, qdd), mech, q, qd, qdd,
-                            com_frame=method == "mujoco", what=f"{method} vs {other}")
-    assert np.array_equal(tau[:, -1], np.zeros(len(q)))   # the massless leaf rod: no force along it, exactly
-    if method == "drake":    # its bodies: each point mass where eq. (7) puts it, each with its mass
+        assert_forces_agree(
+            tau,
+            prepare(mech, other).inverse_dynamics(q, qd, qdd),
+            mech,
+            q,
+            qd,
+            qdd,
+            com_frame=method == "mujoco",
+            what=f"{method} vs {other}",
+        )
+    assert np.array_equal(tau[:, -1], np.zeros(len(q)))  # the massless leaf rod: no force along it, exactly
+    if method == "drake":  # its bodies: each point mass where eq. (7) puts it, each with its mass
         from exo_bench.models.drake_backend import body_positions, build_plant
 
         assert np.abs(body_positions(mech, q) - point_mass_positions(mech, q)).max() <= 1e-12

@@ -44,8 +44,10 @@ def test_the_trees_cover_roots_and_signs():
 def test_agrees_with_every_method_and_the_50_digit_reference(n, dim, seed):
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 6, seed)
-    others = {name: prepare(m, name).inverse_dynamics(q, qd, qdd)
-              for name in ("pinocchio", "matrix", "matrix-factored", "recurrence")}
+    others = {
+        name: prepare(m, name).inverse_dynamics(q, qd, qdd)
+        for name in ("pinocchio", "matrix", "matrix-factored", "recurrence")
+    }
     others["virtual-work (50 digits)"] = vw.inverse_dynamics(m, q, qd, qdd)
     if n <= 2:
         others["lagrange"] = prepare(m, "lagrange").inverse_dynamics(q, qd, qdd)
@@ -115,7 +117,7 @@ def test_mass_matrix_is_J_transpose_mu_J():
     m = random_tree(7, 3, 8)
     q, _, _ = random_states(m, 3, 1)
     mu, _ = mass_coupling_oracle(m)
-    J = passes.jacobian_columns(prepare_tree(m), 3, q)           # (S, dof, 3)
+    J = passes.jacobian_columns(prepare_tree(m), 3, q)  # (S, dof, 3)
     dense = np.einsum("sai,ij,sbj->sab", _blocks(J, m), np.kron(mu, np.eye(3)), _blocks(J, m))
     assert_mass_matrices_agree(prepare(m, "newton-euler").mass_matrix(q), dense, m, q)
 
@@ -127,13 +129,21 @@ def _blocks(J, m):
     out = np.zeros((S, m.dof, 3 * n))
     for a in range(m.dof):
         i = a % n
-        out[:, a, 3 * i:3 * i + 3] = J[:, a]
+        out[:, a, 3 * i : 3 * i + 3] = J[:, a]
     return out
 
 
 # ------------------------------------------------------------------ singular configurations
-CHAIN = Mechanism(dim=3, g=9.81, parent=(-1, 0, 1), sign=(1, -1, 1), masses=((1.0, 1.0, 1.0),) * 3,
-                  n=(0.5, 0.5, 0.5), names=("a", "b", "c"), name="chain3")
+CHAIN = Mechanism(
+    dim=3,
+    g=9.81,
+    parent=(-1, 0, 1),
+    sign=(1, -1, 1),
+    masses=((1.0, 1.0, 1.0),) * 3,
+    n=(0.5, 0.5, 0.5),
+    names=("a", "b", "c"),
+    name="chain3",
+)
 
 
 def _state(psi2=0.3, l3=0.8):
@@ -193,8 +203,10 @@ def test_cli_forward_at_a_vertical_rod_is_one_line_and_exit_2(tmp_path, capsys):
     assert "expected an object with keys ['q', 'qd', 'tau']" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("method,kernel", [("newton-euler", "numba"), ("newton-euler", "numpy"),
-                                           ("matrix-factored", "numba"), ("pinocchio", None)])
+@pytest.mark.parametrize(
+    "method,kernel",
+    [("newton-euler", "numba"), ("newton-euler", "numpy"), ("matrix-factored", "numba"), ("pinocchio", None)],
+)
 def test_forward_dynamics_any_layout_with_check_and_memory_safety_without(method, kernel):
     """``check=True`` converts a Fortran-ordered batch (same accelerations); ``check=False`` refuses
     what is not memory safe (a Fortran-ordered tau, an out too small), naming the field."""

@@ -49,15 +49,16 @@ def _spy(model):
 def test_batches_around_every_threshold_agree_with_the_numpy_reference(n, dim, seed):
     m = random_tree(n, dim, seed)
     fast, ref = prepare(m, "newton-euler"), prepare(m, "newton-euler", kernel="numpy")
-    assert fast.batch_kernel is simd.simd_inverse                   # what runs, by name
+    assert fast.batch_kernel is simd.simd_inverse  # what runs, by name
     calls = _spy(fast)
     for k, S in enumerate(SIZES):
         q, qd, qdd = random_states(m, S, seed + 100 * k)
         want = ref.inverse_dynamics(q, qd, qdd)
         del calls[:]
         for check in (True, False):
-            assert_forces_agree(fast.inverse_dynamics(q, qd, qdd, check=check), want, m, q, qd, qdd,
-                                what=f"S={S} check={check}")
+            assert_forces_agree(
+                fast.inverse_dynamics(q, qd, qdd, check=check), want, m, q, qd, qdd, what=f"S={S} check={check}"
+            )
         out = np.full(q.shape, np.nan)
         assert fast.inverse_dynamics(q, qd, qdd, check=False, out=out) is out
         assert_forces_agree(out, want, m, q, qd, qdd, what=f"S={S} out=")
@@ -81,9 +82,9 @@ def test_vertical_rods_and_zero_lengths(dim):
     m = exo5(dim)
     n, S = m.nlinks, L + 3
     q, qd, qdd = random_states(m, S, 9)
-    q[::3, -n:][:, [0, 2]] = 0.0                                  # zero lengths
+    q[::3, -n:][:, [0, 2]] = 0.0  # zero lengths
     if dim == 3:
-        q[1::3, n:2 * n] = np.pi / 2                              # every rod vertical
+        q[1::3, n : 2 * n] = np.pi / 2  # every rod vertical
         q[2::3, n + 1] = -np.pi / 2
     want = prepare(m, "newton-euler", kernel="numpy").inverse_dynamics(q, qd, qdd)
     got = prepare(m, "newton-euler").inverse_dynamics(q, qd, qdd)
@@ -101,9 +102,12 @@ def test_angles_beyond_the_fast_range_take_libm_and_nan_stays_in_its_sample(dim)
     angles = (dim - 1) * m.nlinks
     far = [0, L - 1, L, 2 * L + 2]
     rng = np.random.default_rng(1)
-    q[np.ix_(far, range(angles))] = rng.choice([-1.0, 1.0], (4, angles)) * rng.uniform(1.0, 100.0, (4, angles)) * \
-        np.array([fast_trig.RANGE, 10.0 * fast_trig.RANGE, 1e7, 1e15])[:, None]
-    q[3, 0] = 3 * fast_trig.RANGE                                 # one far angle among fast ones
+    q[np.ix_(far, range(angles))] = (
+        rng.choice([-1.0, 1.0], (4, angles))
+        * rng.uniform(1.0, 100.0, (4, angles))
+        * np.array([fast_trig.RANGE, 10.0 * fast_trig.RANGE, 1e7, 1e15])[:, None]
+    )
+    q[3, 0] = 3 * fast_trig.RANGE  # one far angle among fast ones
     got = model.inverse_dynamics(q, qd, qdd, check=False)
     per_sample = np.empty(q.size)
     model.serial_kernel(*model.kernel_args, q.ravel(), qd.ravel(), qdd.ravel(), per_sample)
@@ -124,8 +128,7 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(dim, threads):
         q, qd, qdd = random_states(m, S, S)
         one, many = np.empty(q.shape), np.full(q.shape, np.nan)
         run(model.batch_kernel, model.batch_args, q.ravel(), qd.ravel(), qdd.ravel(), one.ravel(), S, threads=1)
-        run(model.batch_kernel, model.batch_args, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S,
-            threads=threads)
+        run(model.batch_kernel, model.batch_args, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S, threads=threads)
         assert np.array_equal(one, many), f"{threads} threads, S={S}"
 
 
@@ -158,7 +161,7 @@ def test_large_mechanisms_run_the_narrow_blocks_and_agree_with_the_numpy_referen
     fast, ref = prepare(m, "newton-euler"), prepare(m, "newton-euler", kernel="numpy")
     narrow = n >= simd.NARROW_FROM_LINKS
     kernel = simd.kernel_for(n)
-    assert fast.batch_kernel is kernel                                  # what runs, by name
+    assert fast.batch_kernel is kernel  # what runs, by name
     assert (kernel is simd._NARROW.simd_inverse) == narrow and (kernel is simd.simd_inverse) != narrow
     other = simd.simd_inverse if narrow else simd._NARROW.simd_inverse
     calls = _spy(fast)
@@ -171,4 +174,4 @@ def test_large_mechanisms_run_the_narrow_blocks_and_agree_with_the_numpy_referen
         o = np.full(q.shape, np.nan)
         other(fast.batch_args, q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), o.reshape(-1), 0, S)
         np.testing.assert_array_equal(got, o)
-    assert simd._NARROW.simd_inverse.signatures                         # the narrow variant was compiled and ran
+    assert simd._NARROW.simd_inverse.signatures  # the narrow variant was compiled and ran

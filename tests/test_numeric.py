@@ -35,8 +35,9 @@ def test_matrix_method_agrees_with_pinocchio_and_lagrange_on_random_trees(n, dim
         tau = prepare(m, method).inverse_dynamics(q, qd, qdd)
         assert_forces_agree(tau, ref, m, q, qd, qdd, what=f"{method} vs pinocchio")
         if n <= LAGRANGE_MAX_LINKS:
-            assert_forces_agree(tau, lagrange_numeric.inverse_dynamics(m, q, qd, qdd), m, q, qd, qdd,
-                                what=f"{method} vs lagrange")
+            assert_forces_agree(
+                tau, lagrange_numeric.inverse_dynamics(m, q, qd, qdd), m, q, qd, qdd, what=f"{method} vs lagrange"
+            )
 
 
 @pytest.mark.parametrize("n,dim,seed", [(3, 2, 1), (6, 2, 2), (4, 3, 3), (7, 3, 4)])
@@ -45,8 +46,14 @@ def test_factored_evaluation_equals_the_matrices_times_the_rates(n, dim, seed):
     tile of samples (3000 samples: several tiles of numeric.TILE)."""
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 3000, seed)
-    assert_forces_agree(prepare(m, "matrix-factored").inverse_dynamics(q, qd, qdd),
-                        numeric.inverse_dynamics_from_matrices(m, q, qd, qdd), m, q, qd, qdd)
+    assert_forces_agree(
+        prepare(m, "matrix-factored").inverse_dynamics(q, qd, qdd),
+        numeric.inverse_dynamics_from_matrices(m, q, qd, qdd),
+        m,
+        q,
+        qd,
+        qdd,
+    )
 
 
 def test_half_angle_sines_and_cosines_are_accurate():
@@ -54,7 +61,10 @@ def test_half_angle_sines_and_cosines_are_accurate():
     x[:4] = [0.0, np.pi / 2, np.pi, -np.pi]
     c, s = numeric._cos_sin(x)
     # a few ulps of 1 (numpy's own cos/sin are faithfully rounded: 1 ulp each)
-    assert np.abs(c - np.cos(x)).max() <= 4 * np.finfo(float).eps and np.abs(s - np.sin(x)).max() <= 4 * np.finfo(float).eps
+    assert (
+        np.abs(c - np.cos(x)).max() <= 4 * np.finfo(float).eps
+        and np.abs(s - np.sin(x)).max() <= 4 * np.finfo(float).eps
+    )
 
 
 @pytest.mark.parametrize("n,dim,seed", [(3, 2, 21), (5, 2, 22), (4, 3, 23), (6, 3, 24)])
@@ -66,7 +76,7 @@ def test_matrix_method_satisfies_power_balance(n, dim, seed):
 def _singular_states(m, seed):
     """phi_1 - phi_2 = pi/2 (cos(phi_i - phi_j) = 0), cos phi_1 = 0, sin phi_2 = sin phi_3 = 0."""
     q, qd, qdd = random_states(m, 6, seed)
-    q[:, :m.nlinks] = [np.pi / 2, 0.0, 0.0, -np.pi / 2][:m.nlinks]
+    q[:, : m.nlinks] = [np.pi / 2, 0.0, 0.0, -np.pi / 2][: m.nlinks]
     return q, qd, qdd
 
 
@@ -93,17 +103,18 @@ def test_matrix_paper_is_nan_at_exactly_singular_cosines():
     q = np.array([sp.pi / 2, sp.S.Zero, sp.pi / 3] + [sp.Rational(1, 5)] * 3 + [sp.Rational(1, 2)] * 3, dtype=object)
     exact = numeric.paper_matrices(m, q, exact=True)
     is_nan = lambda x: x is sp.nan
-    assert is_nan(exact["psi"]["B"][0, 0, 1]) and is_nan(exact["psi"]["B"][0, 1, 0])   # cos(phi1 - phi2) = 0
-    assert is_nan(exact["psi"]["P"][0, 0])                                             # cos phi_1 = 0
-    assert is_nan(exact["l"]["P"][0, 1])                                               # sin phi_2 = 0
+    assert is_nan(exact["psi"]["B"][0, 0, 1]) and is_nan(exact["psi"]["B"][0, 1, 0])  # cos(phi1 - phi2) = 0
+    assert is_nan(exact["psi"]["P"][0, 0])  # cos phi_1 = 0
+    assert is_nan(exact["l"]["P"][0, 1])  # sin phi_2 = 0
     qf = np.array([float(x) for x in q])[None, :]
     ours = numeric.matrices(m, qf)
     ref = errata.pinocchio_matrices(m, qf)
     for block, name in [("psi", "B"), ("psi", "P"), ("l", "P"), ("l", "E")]:
         assert np.isfinite(ours[block][name]).all()
         # each element is one term: mass times at most two lengths (the scale of the whole matrix)
-        assert_close(ours[block][name], ref[block][name], np.abs(ref[block][name]).max() + m.total_mass,
-                     what=f"{block}.{name}")
+        assert_close(
+            ours[block][name], ref[block][name], np.abs(ref[block][name]).max() + m.total_mass, what=f"{block}.{name}"
+        )
 
 
 def _away_from_singular(m, seed, samples=10):
@@ -128,18 +139,22 @@ def test_matrix_paper_agrees_wherever_the_printed_formulas_hold(n, seed, rel):
     the error model's bound."""
     m2 = random_tree(n, 2, seed)
     q, qd, qdd = random_states(m2, 10, seed)
-    assert_forces_agree(numeric.inverse_dynamics_paper(m2, q, qd, qdd), pb.inverse_dynamics(m2, q, qd, qdd),
-                        m2, q, qd, qdd)
+    assert_forces_agree(
+        numeric.inverse_dynamics_paper(m2, q, qd, qdd), pb.inverse_dynamics(m2, q, qd, qdd), m2, q, qd, qdd
+    )
     m = random_tree(n, 3, seed)
     q, qd, qdd = _away_from_singular(m, seed)
     ref = pb.inverse_dynamics(m, q, qd, qdd)
     paper = numeric.inverse_dynamics_paper(m, q, qd, qdd)
     scale = 20 * term_scale(m, q, qd, qdd)
-    assert_close(paper[:, :2 * n], ref[:, :2 * n], scale[:, :2 * n])
-    assert rel(paper[:, 2 * n:], ref[:, 2 * n:]) > 1e-3          # the l rows use g^l and k^l
-    qd[:, n:2 * n] = 0.0
-    assert_close(numeric.inverse_dynamics_paper(m, q, qd, qdd), pb.inverse_dynamics(m, q, qd, qdd),
-                 20 * term_scale(m, q, qd, qdd))
+    assert_close(paper[:, : 2 * n], ref[:, : 2 * n], scale[:, : 2 * n])
+    assert rel(paper[:, 2 * n :], ref[:, 2 * n :]) > 1e-3  # the l rows use g^l and k^l
+    qd[:, n : 2 * n] = 0.0
+    assert_close(
+        numeric.inverse_dynamics_paper(m, q, qd, qdd),
+        pb.inverse_dynamics(m, q, qd, qdd),
+        20 * term_scale(m, q, qd, qdd),
+    )
 
 
 def test_matrix_paper_disagrees_exactly_by_the_documented_errata(rel):
@@ -147,16 +162,20 @@ def test_matrix_paper_disagrees_exactly_by_the_documented_errata(rel):
     agree with Pinocchio; each of those whose values are wrong is needed."""
     witness = [errata.PinocchioWitness()]
     models = [random_tree(3, 3, 51), exo5(3)]
-    failing = [v.formula.key for f in printed.TRANSITIONS
-               for v in [errata.check_transition(f, witness, models)] if v.status.startswith("fails")]
+    failing = [
+        v.formula.key
+        for f in printed.TRANSITIONS
+        for v in [errata.check_transition(f, witness, models)]
+        if v.status.startswith("fails")
+    ]
     assert failing, "eq. (18) as printed has misprints"
     assert all(f.corrected is not None for f in printed.TRANSITIONS if f.key in failing)
     for m in [random_tree(4, 3, 52), fig5(3)]:
         q, qd, qdd = _away_from_singular(m, 53)
         ref = pb.inverse_dynamics(m, q, qd, qdd)
         fixed = numeric.generalised_forces(m, numeric.paper_matrices(m, q, printed.corrected_table(failing)), qd, qdd)
-        assert_close(fixed, ref, 20 * term_scale(m, q, qd, qdd))      # divisors >= 0.05: see above
-        wrong_values = [k for k in failing if k != "18:k^psi"]      # k^psi: only its label is wrong
+        assert_close(fixed, ref, 20 * term_scale(m, q, qd, qdd))  # divisors >= 0.05: see above
+        wrong_values = [k for k in failing if k != "18:k^psi"]  # k^psi: only its label is wrong
         for k in wrong_values:
             partial = printed.corrected_table([x for x in failing if x != k])
             tau = numeric.generalised_forces(m, numeric.paper_matrices(m, q, partial), qd, qdd)
@@ -182,7 +201,7 @@ def test_cli_inverse_agrees_with_pinocchio_on_the_gait(tmp_path, capsys):
     for method in ("pinocchio", "matrix", "recurrence"):
         assert main(["inverse", "exo5-3d", str(path), "--method", method]) == 0
         out[method] = np.array(json.loads(capsys.readouterr().out)["tau"])
-    for method in ("matrix", "recurrence"):   # JSON prints floats with repr: round trip exact
+    for method in ("matrix", "recurrence"):  # JSON prints floats with repr: round trip exact
         assert_forces_agree(out[method], out["pinocchio"], exo5(3), mo.q, mo.qd, mo.qdd, what=method)
 
 

@@ -9,10 +9,25 @@ from exo_bench.bench.perf.peer_ratios import engine_section, ratios
 
 
 def _rows(with_newton: bool):
-    base = dict(mechanism="exo5-3d", n=5, dim=3, topology="exo5", iqr=0.0, reference="ref", nonfinite=0,
-                max_abs_err=1e-15, max_rel_err=1e-16, threads="")
-    us = {"matrix-factored (numba)": 0.2, "matrix-factored (numpy)": 3.0, "mujoco": 40.0, "drake": 120.0,
-          "pinocchio": 30.0}
+    base = dict(
+        mechanism="exo5-3d",
+        n=5,
+        dim=3,
+        topology="exo5",
+        iqr=0.0,
+        reference="ref",
+        nonfinite=0,
+        max_abs_err=1e-15,
+        max_rel_err=1e-16,
+        threads="",
+    )
+    us = {
+        "matrix-factored (numba)": 0.2,
+        "matrix-factored (numpy)": 3.0,
+        "mujoco": 40.0,
+        "drake": 120.0,
+        "pinocchio": 30.0,
+    }
     if with_newton:
         us["newton-euler (numba)"] = 0.5
     rows = []
@@ -32,7 +47,9 @@ def test_ratios_are_to_the_fastest_row_of_each_reference():
     text = "\n".join(engine_section(df))
     assert "| `mujoco` | exo5-3d | 40 | 200 (`matrix-factored (numba)`) | 80 (`newton-euler (numba)`) |" in text
     # per call: the bare engine's time and the method's overhead over it (drake: no bare row here)
-    assert "| `mujoco` | exo5-3d | 80 | 30 | 50 | 200 (`matrix-factored (numba)`) | 80 (`newton-euler (numba)`) |" in text
+    assert (
+        "| `mujoco` | exo5-3d | 80 | 30 | 50 | 200 (`matrix-factored (numba)`) | 80 (`newton-euler (numba)`) |" in text
+    )
     assert "| `drake` | exo5-3d | 240 | - | - |" in text
     assert "Python loop over MuJoCo's `mj_kinematics`" in text and "CalcInverseDynamics" in text
 

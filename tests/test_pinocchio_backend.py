@@ -54,15 +54,42 @@ def _eq4(m, q, qd, qdd, sigma):
     (p1, p2, l1, l2), (w1, w2, d1, d2), (a1, a2, b1, b2) = q.T, qd.T, qdd.T
     C1, S1, C2, S2 = np.cos(p1), np.sin(p1), np.cos(p2), np.sin(p2)
     C12, S12 = np.cos(p1 - p2), np.sin(p1 - p2)
-    r1 = ((z1 + t2) * l1**2 * a1 + s * l1 * l2 * e2 * C12 * a2 + s * l1 * l2 * e2 * S12 * w2**2
-          + (e1 + t2) * g * l1 * C1 + 2 * (z1 + t2) * l1 * d1 * w1 + s * 2 * l1 * e2 * C12 * d2 * w2
-          - s * l1 * e2 * S12 * b2)
-    r2 = (s * l1 * l2 * e2 * C12 * a1 + z2 * l2**2 * a2 - s * l1 * l2 * e2 * S12 * w1**2 + s * e2 * g * l2 * C2
-          + s * 2 * l2 * e2 * C12 * d1 * w1 + 2 * z2 * l2 * d2 * w2 + s * l2 * e2 * S12 * b1)
-    r3 = (s * l2 * e2 * S12 * a2 - (z1 + t2) * l1 * w1**2 - s * l2 * e2 * C12 * w2**2 + (e1 + t2) * g * S1
-          + s * 2 * e2 * S12 * d2 * w2 + (z1 + t2) * b1 + s * e2 * C12 * b2)
-    r4 = (-s * l1 * e2 * S12 * a1 - s * l1 * e2 * C12 * w1**2 - z2 * l2 * w2**2 + s * e2 * g * S2
-          - s * 2 * e2 * S12 * d1 * w1 + s * e2 * C12 * b1 + z2 * b2)
+    r1 = (
+        (z1 + t2) * l1**2 * a1
+        + s * l1 * l2 * e2 * C12 * a2
+        + s * l1 * l2 * e2 * S12 * w2**2
+        + (e1 + t2) * g * l1 * C1
+        + 2 * (z1 + t2) * l1 * d1 * w1
+        + s * 2 * l1 * e2 * C12 * d2 * w2
+        - s * l1 * e2 * S12 * b2
+    )
+    r2 = (
+        s * l1 * l2 * e2 * C12 * a1
+        + z2 * l2**2 * a2
+        - s * l1 * l2 * e2 * S12 * w1**2
+        + s * e2 * g * l2 * C2
+        + s * 2 * l2 * e2 * C12 * d1 * w1
+        + 2 * z2 * l2 * d2 * w2
+        + s * l2 * e2 * S12 * b1
+    )
+    r3 = (
+        s * l2 * e2 * S12 * a2
+        - (z1 + t2) * l1 * w1**2
+        - s * l2 * e2 * C12 * w2**2
+        + (e1 + t2) * g * S1
+        + s * 2 * e2 * S12 * d2 * w2
+        + (z1 + t2) * b1
+        + s * e2 * C12 * b2
+    )
+    r4 = (
+        -s * l1 * e2 * S12 * a1
+        - s * l1 * e2 * C12 * w1**2
+        - z2 * l2 * w2**2
+        + s * e2 * g * S2
+        - s * 2 * e2 * S12 * d1 * w1
+        + s * e2 * C12 * b1
+        + z2 * b2
+    )
     return np.stack([r1, r2, r3, r4], -1)
 
 
@@ -74,7 +101,7 @@ def test_fig2b_differs_from_fig2a_exactly_by_eq4_sign_pattern(rel):
     assert_forces_agree(tb, _eq4(b, q, qd, qdd, -1), b, q, qd, qdd)
     # the sign-flipped terms are exactly half the difference between the two models
     flipped = 0.5 * (_eq4(a, q, qd, qdd, +1) - _eq4(a, q, qd, qdd, -1))
-    assert_forces_agree(ta - tb, 2 * flipped, a, q, qd, qdd, k=2 * K)    # two differences of forces
+    assert_forces_agree(ta - tb, 2 * flipped, a, q, qd, qdd, k=2 * K)  # two differences of forces
     assert np.abs(ta - tb).max() > 1.0
 
 
@@ -96,7 +123,7 @@ def test_mass_matrix_is_the_kinetic_energy_hessian(n, dim, seed, rel):
     I = np.eye(m.dof)
     scale = mass_matrix_scale(m, q)
     for s in range(q.shape[0]):
-        T = lambda v: kinetic_energy(m, q[s:s + 1], v[None])[0]
+        T = lambda v: kinetic_energy(m, q[s : s + 1], v[None])[0]
         H = np.array([[T(I[i] + I[j]) - T(I[i]) - T(I[j]) for j in range(m.dof)] for i in range(m.dof)])
         # T is quadratic: the second difference is exact up to rounding; the three energies summed
         # are each at most the diagonal scales (|T(e_i + e_j)| <= 2 (M_ii + M_jj)), a few more ulps
@@ -109,8 +136,10 @@ def test_rnea_is_mass_matrix_times_acceleration_plus_bias(n, dim, seed, rel):
     m = random_tree(n, dim, seed)
     q, qd, qdd = random_states(m, 5, seed)
     tau = pb.inverse_dynamics(m, q, qd, qdd)
-    assert_forces_agree(np.einsum("sij,sj->si", pb.mass_matrix(m, q), qdd) + pb.bias_forces(m, q, qd), tau, m, q, qd, qdd)
-    assert np.array_equal(pb.inverse_dynamics_parallel(m, q, qd, qdd, threads=2), tau)   # the same RNEA per sample
+    assert_forces_agree(
+        np.einsum("sij,sj->si", pb.mass_matrix(m, q), qdd) + pb.bias_forces(m, q, qd), tau, m, q, qd, qdd
+    )
+    assert np.array_equal(pb.inverse_dynamics_parallel(m, q, qd, qdd, threads=2), tau)  # the same RNEA per sample
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -121,7 +150,7 @@ def test_frame_positions_are_the_point_masses(dim):
     m = m.replace(masses=tuple(masses))
     q, _, _ = random_states(m, 5, 4)
     # positions are sums of at most n rod vectors of length <= 1.2: a few ulps of their total length
-    total = q[:, -m.nlinks:].sum(axis=1)[:, None, None, None]
+    total = q[:, -m.nlinks :].sum(axis=1)[:, None, None, None]
     assert_close(pb.point_mass_positions(m, q), point_mass_positions(m, q), total)
 
 
@@ -133,4 +162,4 @@ def test_generalised_forces_are_joint_moments_summed_back():
     names = pb.build_model(m).joint_names
     M1, M2 = tj[:, names.index("L1_phi")], tj[:, names.index("L2_phi")]
     tau = pb.inverse_dynamics(m, q, qd, qdd)
-    assert np.array_equal(tau[:, 0], M1 - M2) and np.array_equal(tau[:, 1], M2)   # G^T: exactly these sums
+    assert np.array_equal(tau[:, 0], M1 - M2) and np.array_equal(tau[:, 1], M2)  # G^T: exactly these sums

@@ -23,10 +23,23 @@ from exo_bench.models.presets import exo5, random_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Refused on mimic models by pin 4.1 (RuntimeError), or wrong there (computeCoriolisMatrix).
-FORBIDDEN = ("aba", "forwardDynamics", "computeMinverse", "computeRNEADerivatives", "computeABADerivatives",
-             "computeAllTerms", "computeKineticEnergy", "computePotentialEnergy", "computeMechanicalEnergy",
-             "computeCoriolisMatrix", "computeGeneralizedGravity", "computeStaticTorque",
-             "computeForwardKinematicsDerivatives", "constraintDynamics", "impulseDynamics")
+FORBIDDEN = (
+    "aba",
+    "forwardDynamics",
+    "computeMinverse",
+    "computeRNEADerivatives",
+    "computeABADerivatives",
+    "computeAllTerms",
+    "computeKineticEnergy",
+    "computePotentialEnergy",
+    "computeMechanicalEnergy",
+    "computeCoriolisMatrix",
+    "computeGeneralizedGravity",
+    "computeStaticTorque",
+    "computeForwardKinematicsDerivatives",
+    "constraintDynamics",
+    "impulseDynamics",
+)
 LIBRARY = ("models", "bench", "matrix_method", "lagrange", "exo_bench")
 
 
@@ -72,12 +85,13 @@ def test_the_library_calls_no_function_refused_or_wrong_on_mimic_models():
     assert len(files) > 30
     hits = {str(p.relative_to(ROOT)): sorted(_pinocchio_attributes(p) & set(FORBIDDEN)) for p in files}
     assert {k: v for k, v in hits.items() if v} == {}
-    assert "rnea" in _pinocchio_attributes(ROOT / "models" / "pinocchio_backend.py")   # the scan sees real uses
+    assert "rnea" in _pinocchio_attributes(ROOT / "models" / "pinocchio_backend.py")  # the scan sees real uses
 
 
 def test_the_pinocchio_method_and_forward_dynamics_run_with_the_forbidden_functions_raising(monkeypatch):
     """The same, at run time: every forbidden function raises, and the pinocchio method's inverse
     dynamics, mass matrix, bias forces, and forward dynamics through it, still run."""
+
     def boom(*a, **k):
         raise AssertionError("a function refused or wrong on mimic models was called")
 
@@ -109,5 +123,5 @@ def test_a_reused_data_gives_the_fresh_data_mass_matrix(mech):
     for x in qj:
         M = pin.crba(pm.model, reused, x)
         raw.append(np.triu(M) + np.triu(M, 1).T)
-    if mech.dim == 3:   # the mimic undo joints: pin.crba's history-dependence (docs/pinocchio-mimic.md)
+    if mech.dim == 3:  # the mimic undo joints: pin.crba's history-dependence (docs/pinocchio-mimic.md)
         assert np.abs(np.stack(raw) - fresh).max() > 1e-6

@@ -42,8 +42,9 @@ def test_rod_forces_are_the_length_rows_of_tau_in_body_weights(planar):
     mech = planar.mechanism
     _, _, rods = split(mech, planar.results["pinocchio"].tau)
     p = plausibility(planar)
-    np.testing.assert_allclose([r.force for r in p.rods], np.abs(rods).max(axis=0) / (mech.total_mass * mech.g),
-                               rtol=1e-15)
+    np.testing.assert_allclose(
+        [r.force for r in p.rods], np.abs(rods).max(axis=0) / (mech.total_mass * mech.g), rtol=1e-15
+    )
 
 
 def test_the_exoskeletons_joints_get_winters_values_and_the_verdicts():
@@ -55,8 +56,13 @@ def test_the_exoskeletons_joints_get_winters_values_and_the_verdicts():
     assert p.walker and p.rods[4].normative is None
     md = markdown(p)
     assert "| stance ankle (support point O) | " in md and "Table A.5 ankle moment 89.8 N·m" in md
-    for needle in ("**No feet.**", "**No double support.**", "**A periodic single-support phase.**",
-                   "not comparable with walking", "namita-kumar/WinterWalkingData"):
+    for needle in (
+        "**No feet.**",
+        "**No double support.**",
+        "**A periodic single-support phase.**",
+        "not comparable with walking",
+        "namita-kumar/WinterWalkingData",
+    ):
         assert needle in md
     assert "stance ankle (support point O)" in text(p) and "Not comparable with walking" in text(p)
 

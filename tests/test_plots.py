@@ -10,8 +10,18 @@ from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 
 from exo_bench.bench.output.figures import scene_figures as plots
-from exo_bench.bench.output.figures.scene_figures import (differences_figure, forces_figure, group_by_scale, joint_basis, joint_quantities,
-                         kinogram_figure, moments_and_forces, moments_figure, save_figure, write_plots)
+from exo_bench.bench.output.figures.scene_figures import (
+    differences_figure,
+    forces_figure,
+    group_by_scale,
+    joint_basis,
+    joint_quantities,
+    kinogram_figure,
+    moments_and_forces,
+    moments_figure,
+    save_figure,
+    write_plots,
+)
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import split
@@ -92,18 +102,18 @@ def test_grouping_by_scale_keeps_each_panel_within_the_ratio_and_cuts_at_the_wid
     rng = np.random.default_rng(seed)
     maxima = 10 ** rng.uniform(-2, 3, rng.integers(1, 16))
     if seed % 3 == 0:
-        maxima[0] = 0.0                                    # a curve that is zero throughout
+        maxima[0] = 0.0  # a curve that is zero throughout
     g = group_by_scale(maxima, ratio=10.0)
     flat = [i for grp in g.groups for i in grp]
-    assert sorted(flat + list(g.zero)) == list(range(len(maxima)))        # every curve exactly once
+    assert sorted(flat + list(g.zero)) == list(range(len(maxima)))  # every curve exactly once
     assert all(maxima[i] == 0.0 for i in g.zero) and all(maxima[i] > 0 for i in flat)
-    assert all(maxima[a] >= maxima[b] for a, b in zip(flat, flat[1:]))    # largest scale first
+    assert all(maxima[a] >= maxima[b] for a, b in zip(flat, flat[1:]))  # largest scale first
     for grp in g.groups:
-        assert maxima[grp[0]] <= 10.0 * maxima[grp[-1]]                  # a panel spans at most 10x
+        assert maxima[grp[0]] <= 10.0 * maxima[grp[-1]]  # a panel spans at most 10x
     for a, b in zip(g.groups, g.groups[1:]):
         cut = maxima[a[-1]] / maxima[b[0]]
         inner = [maxima[x] / maxima[y] for grp in (a, b) for x, y in zip(grp, grp[1:])]
-        assert all(cut >= r for r in inner)                               # boundaries at the widest gaps
+        assert all(cut >= r for r in inner)  # boundaries at the widest gaps
 
 
 def test_grouping_keeps_curves_of_similar_size_together():
@@ -158,7 +168,7 @@ def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
         ref_lines = [ln for ln in lines if ln.get_gid().startswith("pinocchio:")]
         maxima = [np.abs(ln.get_ydata()).max() for ln in ref_lines]
         assert max(maxima) <= 10.0 * min(maxima)
-        for ln in ref_lines:                                               # the curve is the study's array
+        for ln in ref_lines:  # the curve is the study's array
             j = labels.index(ln.get_gid().split(":", 1)[1])
             np.testing.assert_array_equal(ln.get_ydata(), values[:, j])
             seen.append(j)
@@ -166,7 +176,7 @@ def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
         assert f"{hi:.3g}" in ax.get_title(loc="left") and f"{lo:.3g}" in ax.get_title(loc="left")
     zero = [labels.index(x) for x in _zero_named(fig, labels)]
     assert sorted(seen + zero) == list(range(len(labels)))
-    for a, b in zip(panels, panels[1:]):                                   # larger scales above smaller ones
+    for a, b in zip(panels, panels[1:]):  # larger scales above smaller ones
         assert min(np.abs(ln.get_ydata()).max() for ln in a[1]) > max(np.abs(ln.get_ydata()).max() for ln in b[1])
 
 
@@ -229,8 +239,12 @@ def test_a_study_without_results_cannot_be_plotted_and_says_why():
 
 # ----------------------------------------------------------------------------- kinogram (Fig. 9)
 def _masses_collections(fig):
-    return {c.get_gid(): c for ax in fig.axes for c in ax.collections
-            if isinstance(c, PathCollection) and (c.get_gid() or "").startswith("masses:")}
+    return {
+        c.get_gid(): c
+        for ax in fig.axes
+        for c in ax.collections
+        if isinstance(c, PathCollection) and (c.get_gid() or "").startswith("masses:")
+    }
 
 
 def _frame_times(fig) -> list[float]:
@@ -249,20 +263,21 @@ def test_kinogram_frames_are_drawn_in_place_with_dots_of_area_proportional_to_ma
     study = request.getfixturevalue(which)
     mech = study.mechanism
     fig = kinogram_figure(study, frames=7)
-    idx = plots.kinogram_frames(study, 7)                                # evenly spread, first and last sample
+    idx = plots.kinogram_frames(study, 7)  # evenly spread, first and last sample
     assert len(idx) == 7 and idx[0] == 0 and idx[-1] == len(study.motion.t) - 1
     np.testing.assert_allclose(study.motion.t[idx], _frame_times(fig), atol=0.005 + 1e-12)
-    P = point_mass_positions(mech, study.motion.q[idx])                 # (F, n, 3, dim)
+    P = point_mass_positions(mech, study.motion.q[idx])  # (F, n, 3, dim)
     cols = _masses_collections(fig)
     projections = plots.projections(mech)
-    assert len(cols) == 7 * (len(projections) + 1)                      # overlays + one panel per frame
+    assert len(cols) == 7 * (len(projections) + 1)  # overlays + one panel per frame
     m = mech.mass_array.reshape(-1)
     for k in range(7):
-        for gid, proj in [(f"masses:frame:{k}", projections[0])] + [(f"masses:overlay:{p.name}:{k}", p)
-                                                                     for p in projections]:
+        for gid, proj in [(f"masses:frame:{k}", projections[0])] + [
+            (f"masses:overlay:{p.name}:{k}", p) for p in projections
+        ]:
             col = cols[gid]
             sizes = np.asarray(col.get_sizes())
-            np.testing.assert_allclose(sizes / m, (sizes / m)[0])            # area ∝ mass
+            np.testing.assert_allclose(sizes / m, (sizes / m)[0])  # area ∝ mass
             hx, vx = proj.axes
             expected = np.stack([P[k, :, :, hx].reshape(-1), P[k, :, :, vx].reshape(-1)], axis=1)
             np.testing.assert_allclose(col.get_offsets(), expected, atol=1e-12)
@@ -291,7 +306,7 @@ def test_the_shipped_gaits_kinogram_shows_no_swing_leg_point_below_the_floor():
     sc = load_scene("exo5-3d")
     study = run_methods(sc.name, sc.mechanism, sc.build_motion(), sc.motion_label(), ["pinocchio"])
     fig = kinogram_figure(study)
-    swing = [3 * i + b for i in (2, 3) for b in range(3)]                 # the dots of links 3 and 4
+    swing = [3 * i + b for i in (2, 3) for b in range(3)]  # the dots of links 3 and 4
     for gid, col in _masses_collections(fig).items():
         if gid.startswith("masses:frame:") or "sagittal" in gid:
             assert np.asarray(col.get_offsets())[swing, 1].min() >= 0.0, gid
@@ -339,8 +354,13 @@ def test_a_method_returning_nan_is_reported_not_hidden(planar):
     ref = planar.results["pinocchio"].tau
     bad = ref.copy()
     bad[5, 2] = np.nan
-    study = Study(planar.name, planar.mechanism, planar.motion, planar.motion_label,
-                  {"pinocchio": planar.results["pinocchio"], "shaky": MethodResult("shaky", bad)})
+    study = Study(
+        planar.name,
+        planar.mechanism,
+        planar.motion,
+        planar.motion_label,
+        {"pinocchio": planar.results["pinocchio"], "shaky": MethodResult("shaky", bad)},
+    )
     t5 = f"{planar.motion.t[5]:.4g}"
     for fig in (moments_figure(study), forces_figure(study), differences_figure(study)):
         notes = " ".join(t.get_text() for ax in fig.axes for t in ax.texts)

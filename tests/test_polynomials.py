@@ -16,8 +16,20 @@ def _random_exprs(seed, count=60):
     rng = random.Random(seed)
     x, y, z = sp.symbols("x y z", real=True)
     m = sp.Symbol("m1_0", nonnegative=True)
-    atoms = [x, y, z, m, sp.cos(x), sp.sin(x - y), sp.cos(y - z), x**2, sp.Rational(3, 7), sp.Integer(-2),
-             sp.Float(1.5), m * x + 2 * y]
+    atoms = [
+        x,
+        y,
+        z,
+        m,
+        sp.cos(x),
+        sp.sin(x - y),
+        sp.cos(y - z),
+        x**2,
+        sp.Rational(3, 7),
+        sp.Integer(-2),
+        sp.Float(1.5),
+        m * x + 2 * y,
+    ]
     out = []
     for _ in range(count):
         k = rng.randint(1, 4)
@@ -50,5 +62,5 @@ def test_polynomial_arithmetic_matches_sympy():
         ea, eb = G.expr(a), G.expr(b)
         assert sp.expand(G.expr(a * b) - ea * eb) == 0
         assert sp.expand(G.expr(a - b) - (ea - eb)) == 0
-        assert sp.expand(G.expr(a ** 2) - ea ** 2) == 0
+        assert sp.expand(G.expr(a**2) - ea**2) == 0
     assert Poly({}) == 0 and (Poly({}) + 0) == 0

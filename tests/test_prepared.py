@@ -20,7 +20,7 @@ from exo_bench.models.motion import random_states
 from exo_bench.models.presets import PRESETS, random_tree
 from exo_bench.models.prepared import PreparedModel
 
-CORRECT = [m for m in installed_methods() if m != "matrix-paper"]   # matrix-paper is wrong in 3D by design
+CORRECT = [m for m in installed_methods() if m != "matrix-paper"]  # matrix-paper is wrong in 3D by design
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
@@ -30,13 +30,13 @@ def test_every_method_prepares_every_preset_and_agrees_with_pinocchio(preset):
     ref = prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)
     for name in installed_methods():
         if name == "lagrange" and mech.nlinks > 5:
-            continue   # derivation cost; the random trees below cover lagrange
+            continue  # derivation cost; the random trees below cover lagrange
         model = prepare(mech, name, **({"budget": 300} if name == "lagrange" else {}))
         assert model.mechanism is mech and model.method == name
         tau = model.inverse_dynamics(q, qd, qdd)
         assert tau.shape == q.shape
         if name == "matrix-paper" and mech.dim == 3 and mech.nlinks > 1:
-            continue   # as printed: wrong by design (reports/errata.md)
+            continue  # as printed: wrong by design (reports/errata.md)
         assert_forces_agree(tau, ref, mech, q, qd, qdd, what=name)
 
 
@@ -64,10 +64,12 @@ def test_the_methods_agree_on_random_trees_through_prepare(dim, seed):
 
 def test_a_users_json_mechanism(tmp_path):
     p = tmp_path / "arm.json"
-    p.write_text('{"dim": 3, "g": 9.81, "links": ['
-                 '{"parent": -1, "sign": 1, "masses": [0.0, 1.5, 0.5], "n": 0.5, "name": "upper"},'
-                 '{"parent": 0, "sign": 1, "masses": [0.0, 1.0, 0.3], "n": 0.4, "name": "fore"},'
-                 '{"parent": 0, "sign": -1, "masses": [0.1, 0.2, 0.3], "n": 0.6}]}')
+    p.write_text(
+        '{"dim": 3, "g": 9.81, "links": ['
+        '{"parent": -1, "sign": 1, "masses": [0.0, 1.5, 0.5], "n": 0.5, "name": "upper"},'
+        '{"parent": 0, "sign": 1, "masses": [0.0, 1.0, 0.3], "n": 0.4, "name": "fore"},'
+        '{"parent": 0, "sign": -1, "masses": [0.1, 0.2, 0.3], "n": 0.6}]}'
+    )
     mech = load_mechanism(str(p))
     q, qd, qdd = random_states(mech, 3, seed=1)
     ref = prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)
@@ -97,7 +99,7 @@ def test_one_sample_and_the_fast_path_give_the_batch_rows(name):
 def test_check_true_names_the_array_sample_and_coordinate():
     model = prepare(presets.exo5(dim=3), "matrix")
     q, qd, qdd = random_states(model.mechanism, 2, seed=0)
-    q[1, 11] = -0.5   # l2 < 0
+    q[1, 11] = -0.5  # l2 < 0
     with pytest.raises(ValueError, match=r"field 'q' sample 1 coordinate l2 .*expected a rod length >= 0, got -0.5"):
         model.inverse_dynamics(q, qd, qdd)
     with pytest.raises(ValueError, match=r"field 'qd': expected shape \(samples, 15\)"):
@@ -147,10 +149,12 @@ def test_options_are_constructor_arguments_and_bad_ones_are_named():
         prepare(mech, "pinocchio", threads=0)
     with pytest.raises(ValueError, match=r"matrix: option 'tile': expected a number of samples >= 1, got -4"):
         prepare(mech, "matrix", tile=-4)
-    with pytest.warns(DeprecationWarning, match="option 'block' is now called 'tile'"):   # the old name
+    with pytest.warns(DeprecationWarning, match="option 'block' is now called 'tile'"):  # the old name
         assert prepare(mech, "matrix-factored", block=8, kernel="numpy").tile == 8
-    with pytest.raises(ValueError, match=r"matrix: option 'tile': expected a number of samples >= 1, got -4"), \
-            pytest.warns(DeprecationWarning):
+    with (
+        pytest.raises(ValueError, match=r"matrix: option 'tile': expected a number of samples >= 1, got -4"),
+        pytest.warns(DeprecationWarning),
+    ):
         prepare(mech, "matrix", block=-4)
     with pytest.raises(ValueError, match="expected a Mechanism"):
         prepare({"dim": 2}, "matrix")
@@ -159,7 +163,7 @@ def test_options_are_constructor_arguments_and_bad_ones_are_named():
 def test_native_and_derived_terms_are_declared():
     mech = presets.fig2a(dim=3)
     native = {name: prepare(mech, name).native_terms for name in installed_methods()}
-    assert native["matrix-factored"] is False          # the fused kernel forms no matrix
+    assert native["matrix-factored"] is False  # the fused kernel forms no matrix
     assert native["pinocchio"] and native["matrix"] and native["lagrange"] and native["recurrence"]
     assert all(isinstance(prepare(mech, n), PreparedModel) for n in installed_methods())
 

@@ -16,7 +16,7 @@ BY_KEY = {f.key: f for f in printed.ALL}
 def _transition_inputs(m, seed):
     q, _, _ = random_states(m, 10, seed)
     m2 = m.replace(dim=2)
-    q2 = np.concatenate([q[:, :m.nlinks], q[:, 2 * m.nlinks:]], axis=1)
+    q2 = np.concatenate([q[:, : m.nlinks], q[:, 2 * m.nlinks :]], axis=1)
     spatial = pinocchio_matrices(m, q)
     t = printed.transition_namespace(m, q, pinocchio_matrices(m2, q2), three_d=spatial)
     return q, t, spatial
@@ -28,8 +28,14 @@ def _quotient_scale(mech, q):
     of (18): ``cos(phi_i - phi_j)``, ``cos phi_i``, ``sin phi_i``, ``l_j``)."""
     n = mech.nlinks
     phi, l = q[:, :n], q[:, -n:]
-    divisor = np.minimum.reduce([np.abs(np.cos(phi[:, :, None] - phi[:, None, :])).min(axis=(1, 2)),
-                                 np.abs(np.cos(phi)).min(axis=1), np.abs(np.sin(phi)).min(axis=1), l.min(axis=1)])
+    divisor = np.minimum.reduce(
+        [
+            np.abs(np.cos(phi[:, :, None] - phi[:, None, :])).min(axis=(1, 2)),
+            np.abs(np.cos(phi)).min(axis=1),
+            np.abs(np.sin(phi)).min(axis=1),
+            l.min(axis=1),
+        ]
+    )
     return matrix_scale(mech, q) / np.minimum(1.0, divisor)[:, None, None]
 
 
@@ -42,7 +48,7 @@ def test_printed_eq14_has_phi_dot_where_psi_dot_belongs(rel):
     true = pb.inverse_dynamics(m, q, qd, qdd)[:, 1]
     diff = BY_KEY["14"].fn(x)[:, 0] - true
     scale = term_scale(m, q, qd, qdd)[:, 1]
-    assert_close(diff, 2 * zeta * x.l(1) * x.dl(1) * (x.dphi(1) - x.dpsi(1)), scale, k=2 * K)   # two sides rounded
+    assert_close(diff, 2 * zeta * x.l(1) * x.dl(1) * (x.dphi(1) - x.dpsi(1)), scale, k=2 * K)  # two sides rounded
     assert_close(BY_KEY["14"].corrected(x)[:, 0], true, scale)
 
 
@@ -100,9 +106,18 @@ def test_only_the_exactly_one_index_reading_of_the_branch_rule_matches_fig5():
     scale = matrix_scale(branched, q)
     verdict = {}
     for reading, sigma in printed.branch_sign_readings(3, 4).items():
-        verdict[reading] = all(np.abs(sigma * a[blk][k] - b[blk][k]).max() <= K * np.finfo(float).eps * scale.max()
-                               for blk in b for k in b[blk] if k != "P")
-    assert verdict == {"either index after the branch point": False, "both indices after the branch point": False,
-                       "exactly one index after the branch point": True}
-    assert np.array_equal(printed.branch_sign_readings(3, 4)["exactly one index after the branch point"],
-                          np.outer(branched.sign, branched.sign))
+        verdict[reading] = all(
+            np.abs(sigma * a[blk][k] - b[blk][k]).max() <= K * np.finfo(float).eps * scale.max()
+            for blk in b
+            for k in b[blk]
+            if k != "P"
+        )
+    assert verdict == {
+        "either index after the branch point": False,
+        "both indices after the branch point": False,
+        "exactly one index after the branch point": True,
+    }
+    assert np.array_equal(
+        printed.branch_sign_readings(3, 4)["exactly one index after the branch point"],
+        np.outer(branched.sign, branched.sign),
+    )

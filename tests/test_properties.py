@@ -26,8 +26,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from conftest import (EPS, K, assert_close, assert_forces_agree, mass_coupling_oracle, mass_matrix_scale,
-                      term_scale)
+from conftest import EPS, K, assert_close, assert_forces_agree, mass_coupling_oracle, mass_matrix_scale, term_scale
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
@@ -35,10 +34,16 @@ from exo_bench import prepare
 from exo_bench.models.forward_dynamics import singular_reasons
 from exo_bench.models.mechanism import Mechanism, split
 
-PROFILE = settings(max_examples=60, deadline=None, derandomize=True, database=None,
-                   suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+PROFILE = settings(
+    max_examples=60,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 SAMPLES = 4
 LAGRANGE_MAX_LINKS = 2
+
 
 def _mostly(regular, *edges, weight=5):
     """``regular`` ``weight`` times as often as each edge case (so that most examples are regular)."""
@@ -59,8 +64,9 @@ def mechanisms(draw, max_links=5):
     if all(x == 0 for m in masses for x in m):
         masses[-1] = (0.0, 0.0, 1.0)
     frac = [draw(fraction) for _ in range(n)]
-    return Mechanism(dim=dim, g=9.81, parent=tuple(parent), sign=tuple(sign), masses=tuple(masses), n=tuple(frac),
-                     name="hypothesis")
+    return Mechanism(
+        dim=dim, g=9.81, parent=tuple(parent), sign=tuple(sign), masses=tuple(masses), n=tuple(frac), name="hypothesis"
+    )
 
 
 @st.composite
@@ -70,8 +76,20 @@ def states(draw, mech: Mechanism):
     for _ in range(SAMPLES):
         angle = st.floats(-4 * math.pi, 4 * math.pi)
         phi = [draw(angle) for _ in range(n)]
-        psi = [draw(_mostly(st.floats(-1.5, 1.5), st.sampled_from([math.pi / 2, -math.pi / 2]),
-                            st.floats(-1e-9, 1e-9).map(lambda d: math.pi / 2 + d))) for _ in range(n)] if dim == 3 else []
+        psi = (
+            [
+                draw(
+                    _mostly(
+                        st.floats(-1.5, 1.5),
+                        st.sampled_from([math.pi / 2, -math.pi / 2]),
+                        st.floats(-1e-9, 1e-9).map(lambda d: math.pi / 2 + d),
+                    )
+                )
+                for _ in range(n)
+            ]
+            if dim == 3
+            else []
+        )
         l = [draw(_mostly(st.floats(0.05, 2.0), st.just(0.0), st.floats(1e-9, 1e-6))) for _ in range(n)]
         rate = st.floats(-30.0, 30.0)
         qd = [draw(rate) for _ in range(mech.dof)]
@@ -86,8 +104,15 @@ def cases(draw):
     return mech, *draw(states(mech))
 
 
-CHAIN3 = Mechanism(dim=3, g=9.81, parent=(-1, 0, 1), sign=(1, -1, 1), masses=((0.0, 0.0, 0.0), (1.0, 0.0, 0.0),
-                   (0.0, 2.0, 1.0)), n=(0.5, 0.5, 0.5), name="massless-links")
+CHAIN3 = Mechanism(
+    dim=3,
+    g=9.81,
+    parent=(-1, 0, 1),
+    sign=(1, -1, 1),
+    masses=((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 2.0, 1.0)),
+    n=(0.5, 0.5, 0.5),
+    name="massless-links",
+)
 VERTICAL = np.array([[0.3, -2.0, 1.1, math.pi / 2, -math.pi / 2, 0.2, 1.0, 0.0, 1e-9]])
 EXAMPLE_RATES = np.full((1, 9), 25.0)
 
@@ -117,8 +142,14 @@ def _unit_vector_derivatives(mech, q):
     cf, sf, cp, sp = np.cos(phi), np.sin(phi), np.cos(psi), np.sin(psi)
     z = np.zeros_like(phi)
     v = lambda x, y, w: np.stack([x, y, w], -1)
-    return {"u": v(cp * cf, cp * sf, sp), "f": v(-cp * sf, cp * cf, z), "p": v(-sp * cf, -sp * sf, cp),
-            "ff": v(-cp * cf, -cp * sf, z), "pp": v(-cp * cf, -cp * sf, -sp), "fp": v(sp * sf, -sp * cf, z)}
+    return {
+        "u": v(cp * cf, cp * sf, sp),
+        "f": v(-cp * sf, cp * cf, z),
+        "p": v(-sp * cf, -sp * sf, cp),
+        "ff": v(-cp * cf, -cp * sf, z),
+        "pp": v(-cp * cf, -cp * sf, -sp),
+        "fp": v(sp * sf, -sp * cf, z),
+    }
 
 
 def _point_mass_power(mech, q, qd, qdd):
@@ -132,9 +163,11 @@ def _point_mass_power(mech, q, qd, qdd):
     e = lambda x: x[..., None]
     s = np.array(mech.sign, dtype=float)[None, :, None]
     w1 = s * (e(l) * (U["f"] * e(wd) + U["p"] * e(pd)) + U["u"] * e(ld))
-    w2 = s * (e(l) * (U["f"] * e(wdd) + U["p"] * e(pdd) + U["ff"] * e(wd**2) + U["pp"] * e(pd**2)
-                      + 2 * U["fp"] * e(wd * pd))
-              + U["u"] * e(ldd) + 2 * (U["f"] * e(wd) + U["p"] * e(pd)) * e(ld))
+    w2 = s * (
+        e(l) * (U["f"] * e(wdd) + U["p"] * e(pdd) + U["ff"] * e(wd**2) + U["pp"] * e(pd**2) + 2 * U["fp"] * e(wd * pd))
+        + U["u"] * e(ldd)
+        + 2 * (U["f"] * e(wd) + U["p"] * e(pd)) * e(ld)
+    )
     up = np.zeros(3)
     up[1 if dim == 2 else 2] = 1.0
     power = np.zeros(q.shape[0])
@@ -180,7 +213,7 @@ def test_mass_matrix_is_symmetric_psd_with_its_null_space_where_singular_reasons
             err = K * EPS * scale[s]
             # PSD: no eigenvalue below minus the norm of the rounding (Weyl)
             assert np.linalg.eigvalsh(M[s])[0] >= -np.linalg.norm(err), name
-            resolved = (np.diagonal(M[s]) > np.diagonal(err)).all()   # every diagonal above its rounding
+            resolved = (np.diagonal(M[s]) > np.diagonal(err)).all()  # every diagonal above its rounding
             event("singular" if reasons[s] else "regular, resolved" if resolved else "regular, below rounding")
             if not reasons[s] and resolved:
                 # M = J^T (mu (x) I) J: equilibrated, it is orthogonally similar to the equilibrated mu
@@ -196,16 +229,19 @@ def test_mass_matrix_is_symmetric_psd_with_its_null_space_where_singular_reasons
                 assert want[0] > 0, name
             elif reasons[s]:
                 # each named cause leaves these columns of M zero (their coordinates move no mass)
-                phi, psi, l = split(mech, q[s:s + 1])
+                phi, psi, l = split(mech, q[s : s + 1])
                 for i in range(n):
                     zero = []
                     if mu[i, i] == 0 or l[0, i] == 0:
-                        zero = [i] + ([n + i] if dim == 3 else [])          # the angles of link i
+                        zero = [i] + ([n + i] if dim == 3 else [])  # the angles of link i
                         if mu[i, i] == 0:
-                            zero.append(mech.dof - n + i)                 # and its length
+                            zero.append(mech.dof - n + i)  # and its length
                     elif psi is not None and abs(math.cos(psi[0, i])) <= 1e-15:
-                        zero = [i]                                        # the azimuth of a vertical rod
+                        zero = [i]  # the azimuth of a vertical rod
                     for a in zero:
                         assert any(f"link {i + 1} " in r for r in reasons[s]), (name, i, reasons[s])
                         # the column is l_i cos psi_i (or 0) times at most the scale of an entry
-                        assert np.abs(M[s][:, a]).max() <= K * EPS * scale[s][:, a].max() + 1e-15 * scale[s].max(), (name, a)
+                        assert np.abs(M[s][:, a]).max() <= K * EPS * scale[s][:, a].max() + 1e-15 * scale[s].max(), (
+                            name,
+                            a,
+                        )

@@ -19,8 +19,15 @@ from rerun.chunk import RrdReader
 
 from exo_bench.bench.output import recording
 from exo_bench.bench.output.figures.scene_figures import SCALE_RATIO, force_labels, moment_labels
-from exo_bench.bench.output.recording import (TRAIL_SECONDS, rerun_executable, trail_entity, trail_indices, trail_points,
-                                      verify_recording, write_recording)
+from exo_bench.bench.output.recording import (
+    TRAIL_SECONDS,
+    rerun_executable,
+    trail_entity,
+    trail_indices,
+    trail_points,
+    verify_recording,
+    write_recording,
+)
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.motion import GaitParams, gait, planar_gait
@@ -188,7 +195,10 @@ def test_differences_are_method_minus_reference_in_joint_coordinates(exo):
     # (ref + noise) - ref loses the last bits of |tau|: a few ulps of the largest generalised force
     atol = 16 * np.finfo(float).eps * np.abs(study.results["pinocchio"].tau).max()
     dm, df = rec.scalars("differences/moments/noisy"), rec.scalars("differences/forces/noisy")
-    for vals, expected, entity in ((dm, moments, "differences/moments/noisy"), (df, forces, "differences/forces/noisy")):
+    for vals, expected, entity in (
+        (dm, moments, "differences/moments/noisy"),
+        (df, forces, "differences/forces/noisy"),
+    ):
         names = [n.split(" (")[0].removeprefix("Δ") for n in rec.names(entity)]
         assert set(names) == set(expected)
         for k, label in enumerate(names):
@@ -220,7 +230,7 @@ def test_time_series_grouped_by_scale_keep_each_curve_within_its_group_span(exo)
     for root in ("moments", "forces"):
         for entity in [e for e in rec.temporal if e.startswith(root + "/group") and e.endswith("/pinocchio")]:
             maxima = np.abs(rec.scalars(entity)).max(axis=0)
-            cap = int(entity.split("_max")[1].split("/")[0])     # group<k>_max<ceil of its largest>
+            cap = int(entity.split("_max")[1].split("/")[0])  # group<k>_max<ceil of its largest>
             assert maxima.max() <= cap and maxima.max() > cap - 1, entity
             assert maxima.max() <= SCALE_RATIO * maxima.min(), entity
 
@@ -230,10 +240,10 @@ def test_time_series_grouped_by_scale_keep_each_curve_within_its_group_span(exo)
 def test_rods_and_point_masses_sit_where_the_kinematics_puts_them(which, request):
     study, _, rec = request.getfixturevalue(which)
     mech = study.mechanism
-    P = point_mass_positions(mech, study.motion.q)                  # (S, n, 3, dim)
-    if mech.dim == 2:                                                # the plane drawn as x-z, z up
+    P = point_mass_positions(mech, study.motion.q)  # (S, n, 3, dim)
+    if mech.dim == 2:  # the plane drawn as x-z, z up
         P = np.stack([P[..., 0], np.zeros_like(P[..., 0]), P[..., 1]], axis=-1)
-    strips = np.array(rec.temporal["world/rods"]["LineStrips3D:strips"], dtype=float)   # (S, n, 2, 3)
+    strips = np.array(rec.temporal["world/rods"]["LineStrips3D:strips"], dtype=float)  # (S, n, 2, 3)
     assert strips.shape == (P.shape[0], mech.nlinks, 2, 3)
     np.testing.assert_allclose(strips[:, :, 0], P[:, :, 0], atol=1e-6)
     np.testing.assert_allclose(strips[:, :, 1], P[:, :, 2], atol=1e-6)
@@ -260,7 +270,7 @@ def test_trails_follow_the_hip_and_the_swing_ankle_over_the_last_fifth_of_a_seco
         strips = np.array(rec.temporal[f"world/trails/{name}"]["LineStrips3D:strips"], dtype=float)  # (S, 1, k, 3)
         assert strips.shape[:2] == (len(t), 1)
         path = strips[:, 0]
-        np.testing.assert_allclose(path[:, -1], P[:, link, 2], atol=1e-6)      # ends at the current point
+        np.testing.assert_allclose(path[:, -1], P[:, link, 2], atol=1e-6)  # ends at the current point
         late = t >= TRAIL_SECONDS + 0.02
         i0 = np.flatnonzero(late)[0]
         # the oldest point lies about 0.2 s back along the same point's path
@@ -270,7 +280,7 @@ def test_trails_follow_the_hip_and_the_swing_ankle_over_the_last_fifth_of_a_seco
 
 def test_trail_points_of_the_planar_scenes_are_named_after_their_links():
     """fig2b's branch point is the end of its shin (a knee, not a hip): names come from the links."""
-    assert trail_points(fig2a(2)) == {"tip (thigh end)": (1, 2)}   # a chain: the free end of its last link
+    assert trail_points(fig2a(2)) == {"tip (thigh end)": (1, 2)}  # a chain: the free end of its last link
     assert trail_points(fig2b(2)) == {"shin end": (0, 2), "thigh end": (1, 2)}
     assert trail_points(fig5(2)) == {"stance_thigh end (hip)": (1, 2), "swing_shin end (swing ankle)": (3, 2)}
     assert trail_entity("stance_thigh end (hip)") == "stance_thigh_end_hip"
@@ -299,6 +309,7 @@ def test_meta_records_the_sdk_version_commit_methods_and_conventions(exo):
     assert "joint moments" in text and rr.__version__ in text
     # the loads beside level walking, with the same numbers as the scene report's table
     from exo_bench.bench.studies.plausibility import plausibility
+
     p = plausibility(study)
     assert "## Loads" in text and "beside level walking" in text and "Not comparable with walking" in text
     for row in p.joints:
@@ -313,8 +324,12 @@ def test_blueprint_lays_out_the_3d_view_and_time_series_of_recorded_entities(exo
     for chunk in reader.stream(store=bp).to_chunks():
         rb = chunk.to_record_batch()
         if "ViewBlueprint:class_identifier" in rb.schema.names:
-            views.append((rb.column("ViewBlueprint:class_identifier").to_pylist()[-1][0],
-                          rb.column("ViewBlueprint:space_origin").to_pylist()[-1][0]))
+            views.append(
+                (
+                    rb.column("ViewBlueprint:class_identifier").to_pylist()[-1][0],
+                    rb.column("ViewBlueprint:space_origin").to_pylist()[-1][0],
+                )
+            )
     kinds = defaultdict(list)
     for kind, origin in views:
         kinds[kind].append(origin)
@@ -325,7 +340,7 @@ def test_blueprint_lays_out_the_3d_view_and_time_series_of_recorded_entities(exo
     for origin in series:  # every plot shows something that was recorded
         assert any(e.startswith(origin + "/") for e in rec.temporal), origin
     groups = {e.rsplit("/", 1)[0] for e in rec.temporal if e.startswith(("moments/", "forces/"))}
-    assert groups <= set(series)                                           # and every group has a plot
+    assert groups <= set(series)  # and every group has a plot
 
 
 def test_the_rerun_executable_is_installed_with_rerun_sdk():
@@ -373,14 +388,20 @@ def test_a_recording_is_written_whole_with_ordinary_permissions(exo, tmp_path):
     mask = os.umask(0)
     os.umask(mask)
     assert (p.stat().st_mode & 0o777) == (0o666 & ~mask)
-    assert RrdReader(p).store() is not None        # has its footer: the stream was closed before the rename
+    assert RrdReader(p).store() is not None  # has its footer: the stream was closed before the rename
 
 
 def test_a_scene_where_no_method_succeeded_still_records_the_motion_and_says_why(tmp_path):
     mech = fig2b(2)
     t = np.linspace(0.0, 1.0, 40, endpoint=False)
-    study = Study(mech.name, mech, planar_gait(mech, t), "test gait",
-                  {"broken": MethodResult("broken", error="ValueError: no such method")}, reference="broken")
+    study = Study(
+        mech.name,
+        mech,
+        planar_gait(mech, t),
+        "test gait",
+        {"broken": MethodResult("broken", error="ValueError: no such method")},
+        reference="broken",
+    )
     rec = Recording(write_recording(study, tmp_path / "none.rrd"))
     assert "world/rods" in rec.temporal and not any(e.startswith("moments/") for e in rec.temporal)
     assert "ValueError: no such method" in rec.static["meta"]["TextDocument:text"][0]
@@ -396,9 +417,11 @@ def test_a_screenshot_needs_a_display_and_says_so(exo, tmp_path, monkeypatch):
     assert not (tmp_path / "x.png").exists()
 
 
-@pytest.mark.skipif(not os.environ.get("EXO_BENCH_SCREENSHOT") or not os.environ.get("DISPLAY"),
-                    reason="slow (about 20 s on a CPU renderer) and needs a display: set EXO_BENCH_SCREENSHOT=1 "
-                           "and DISPLAY (e.g. Xvfb with mesa-vulkan-drivers)")
+@pytest.mark.skipif(
+    not os.environ.get("EXO_BENCH_SCREENSHOT") or not os.environ.get("DISPLAY"),
+    reason="slow (about 20 s on a CPU renderer) and needs a display: set EXO_BENCH_SCREENSHOT=1 "
+    "and DISPLAY (e.g. Xvfb with mesa-vulkan-drivers)",
+)
 def test_the_viewer_renders_the_recording_with_its_layout(exo, tmp_path):
     from PIL import Image
 
@@ -406,7 +429,7 @@ def test_the_viewer_renders_the_recording_with_its_layout(exo, tmp_path):
     png = recording.screenshot(path, tmp_path / "viewer.png", size="1280x720")
     img = np.asarray(Image.open(png).convert("L"), dtype=float)
     assert img.shape == (720, 1280)
-    assert img.std() > 10          # not a blank (all-black) frame: the views were drawn
+    assert img.std() > 10  # not a blank (all-black) frame: the views were drawn
 
 
 def test_a_method_returning_nan_is_named_in_the_recording(tmp_path):

@@ -38,7 +38,9 @@ def test_every_intermediate_model_of_the_recurrence_is_pinocchios_for_every_n_up
         sub = prefix(m, n)
         qs, qds, qdds = (prefix_states(m, x, n) for x in (q, qd, qdd))
         tau = numeric.generalised_forces(sub, mats, qds, qdds)
-        assert_forces_agree(tau, prepare(sub, "pinocchio").inverse_dynamics(qs, qds, qdds), sub, qs, qds, qdds, what=f"n={n}")
+        assert_forces_agree(
+            tau, prepare(sub, "pinocchio").inverse_dynamics(qs, qds, qdds), sub, qs, qds, qdds, what=f"n={n}"
+        )
 
 
 @pytest.mark.parametrize("seed", [4, 5, 6])
@@ -57,10 +59,12 @@ def test_a_new_link_changes_only_the_rows_and_columns_of_its_ancestors(seed):
                 for name, new in mats[block].items():
                     old = previous[block][name]
                     if name == "P":
-                        assert np.array_equal(new[:, :n - 1][:, [i not in anc for i in range(n - 1)]],
-                                              old[:, [i not in anc for i in range(n - 1)]])
+                        assert np.array_equal(
+                            new[:, : n - 1][:, [i not in anc for i in range(n - 1)]],
+                            old[:, [i not in anc for i in range(n - 1)]],
+                        )
                     else:
-                        assert np.array_equal(new[:, :n - 1, :n - 1][:, ~touched], old[:, ~touched]), (n, block, name)
+                        assert np.array_equal(new[:, : n - 1, : n - 1][:, ~touched], old[:, ~touched]), (n, block, name)
         previous = {b: {k_: np.array(v) for k_, v in ms.items()} for b, ms in mats.items()}
 
 

@@ -53,8 +53,9 @@ def test_data_bytes_bounds_the_measured_growth_of_a_data(dim):
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "-c", _MEASURE_DATA.format(n=40, dim=dim)], capture_output=True, text=True,
-                       timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-c", _MEASURE_DATA.format(n=40, dim=dim)], capture_output=True, text=True, timeout=120
+    )
     assert r.returncode == 0, r.stderr
     grown, nv, njoints = json.loads(r.stdout)
     predicted = data_bytes(nv, njoints)
@@ -74,7 +75,9 @@ def test_crba_with_a_reused_data_is_the_fresh_data_result():
         assert np.array_equal(np.triu(pb.crba(pm.model, data, qj[s])), np.triu(fresh))
     stale = pm.model.createData()
     pin.crba(pm.model, stale, qj[0])
-    assert not np.allclose(np.triu(pin.crba(pm.model, stale, qj[1])), np.triu(pin.crba(pm.model, pm.model.createData(), qj[1])))
+    assert not np.allclose(
+        np.triu(pin.crba(pm.model, stale, qj[1])), np.triu(pin.crba(pm.model, pm.model.createData(), qj[1]))
+    )
 
 
 def test_pinocchio_refuses_a_data_that_does_not_fit(monkeypatch):
@@ -113,8 +116,11 @@ def test_a_class_prepared_directly_chunks_as_prepare_does():
     from exo_bench.matrix_method.prepared import MatrixFactored
 
     m = chain(50, 3)
-    assert MatrixFactored(m).chunk_samples == prepare(m, "matrix-factored").chunk_samples \
+    assert (
+        MatrixFactored(m).chunk_samples
+        == prepare(m, "matrix-factored").chunk_samples
         == resources.chunk_samples(m, "matrix-factored")
+    )
 
 
 def test_a_refusal_names_method_estimate_limit_and_a_method_that_fits():
@@ -122,8 +128,14 @@ def test_a_refusal_names_method_estimate_limit_and_a_method_that_fits():
         check(chain(300, 3), "pinocchio", 1, limits=Limits(memory=2e9))
     msg = str(e.value)
     assert msg == e.value.skip_reason and "\n" not in msg
-    for needle in ("'pinocchio'", "23.7 GB", "nv = 900", "memory limit of 2.0 GB", "--max-memory",
-                   "matrix-factored fits"):
+    for needle in (
+        "'pinocchio'",
+        "23.7 GB",
+        "nv = 900",
+        "memory limit of 2.0 GB",
+        "--max-memory",
+        "matrix-factored fits",
+    ):
         assert needle in msg, (needle, msg)
 
 
@@ -140,8 +152,17 @@ def test_no_method_fits_a_batch_whose_arrays_exceed_the_limit():
         check(exo5(3), "matrix-factored", 10**8, limits=Limits(memory=1e9))
 
 
-@pytest.mark.parametrize("text,value", [("2G", 2 * 2**30), ("512M", 512 * 2**20), ("1.5GB", int(1.5 * 2**30)),
-                                        ("2GiB", 2 * 2**30), ("1e9", 10**9), ("100k", 102400)])
+@pytest.mark.parametrize(
+    "text,value",
+    [
+        ("2G", 2 * 2**30),
+        ("512M", 512 * 2**20),
+        ("1.5GB", int(1.5 * 2**30)),
+        ("2GiB", 2 * 2**30),
+        ("1e9", 10**9),
+        ("100k", 102400),
+    ],
+)
 def test_sizes(text, value):
     assert parse_size(text) == value
 
@@ -163,8 +184,11 @@ def test_chunks_do_not_change_a_bit(method, dim):
     parts.chunk_samples = 5
     with np.errstate(all="ignore"):
         for check_ in (True, False):
-            assert np.array_equal(whole.inverse_dynamics(q, qd, qdd, check=check_),
-                                  parts.inverse_dynamics(q, qd, qdd, check=check_), equal_nan=True)
+            assert np.array_equal(
+                whole.inverse_dynamics(q, qd, qdd, check=check_),
+                parts.inverse_dynamics(q, qd, qdd, check=check_),
+                equal_nan=True,
+            )
         assert np.array_equal(whole.bias_forces(q, qd), parts.bias_forces(q, qd), equal_nan=True)
         Mw, hw = whole.mass_matrix_and_bias(q, qd)
         Mp, hp = parts.mass_matrix_and_bias(q, qd)

@@ -19,7 +19,7 @@ from exo_bench.models.presets import random_tree
 
 ROOT = Path(__file__).resolve().parent.parent
 
-SCENE = '''
+SCENE = """
 name = "{name}"
 mechanism = "tree.json"
 methods = ["pinocchio", "matrix-factored"]
@@ -27,7 +27,7 @@ outputs = {outputs}
 [motion]
 kind = "smooth-random"
 samples = 30
-'''
+"""
 
 
 def _scene(tmp_path, name, outputs='["table"]'):
@@ -79,7 +79,7 @@ def test_a_folder_from_before_run_identifiers_keeps_its_rows(tmp_path):
         pytest.skip("the checkout's reports already carry run identifiers")
     (rep / "summary.md").write_text(old)
     before = {k: len(v) for k, v in _old_rows(old).items()}
-    assert sum(before.values()) == 25 and before["fig2a-2d"] == 5   # the issue's "26 rows": 25 and the header
+    assert sum(before.values()) == 25 and before["fig2a-2d"] == 5  # the issue's "26 rows": 25 and the header
     assert _run(rep, _scene(tmp_path, "fig2a-2d")) == 0
     after = _rows((rep / "summary.md").read_text())
     assert {k: len(v) for k, v in after.items()} == {**before, "fig2a-2d": 2}
@@ -128,13 +128,17 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
     text = (rep / "summary.md").read_text()
     assert f"Run `{new}`" in text and "was interrupted while its files were being published" in text
     # each file in the folder is marked by the run that wrote it: its own provenance agrees with the summary
-    files = sorted(p.name for p in rep.iterdir() if not p.name.startswith(".") and p.name not in ("summary.md", "runs.json"))
+    files = sorted(
+        p.name for p in rep.iterdir() if not p.name.startswith(".") and p.name not in ("summary.md", "runs.json")
+    )
     assert files == ["a-moments.png", "a.md"]
     marks = {f: run_id_of(rep / f) for f in files}
-    assert sorted(marks.values()) == sorted([old, new])          # one file from each run
+    assert sorted(marks.values()) == sorted([old, new])  # one file from each run
     for f in files:  # the summary names both possible runs of each file; the file's own mark says which
-        assert f"| {f} | `{new}` if published before the interruption, else `{old}` (the file's own mark says which)" \
-            in text, f
+        assert (
+            f"| {f} | `{new}` if published before the interruption, else `{old}` (the file's own mark says which)"
+            in text
+        ), f
     # the next whole run completes the folder and no longer announces an interruption of files it replaced
     monkeypatch.setattr(publishing, "publish", real)
     assert _run(rep, a) == 0
@@ -153,6 +157,7 @@ def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
 
     def fake_errata(args):
         from exo_bench.bench.output.provenance import atomic_write, provenance
+
         atomic_write(Path(args.reports) / "errata.md", "# Errata\n\n" + provenance("exo-bench errata"))
         return 0
 

@@ -13,7 +13,7 @@ from exo_bench.models.prepared import PreparedModel
 from exo_bench.api import methods
 from exo_bench.models.presets import random_tree
 
-SCENE = '''
+SCENE = """
 description = "a user's own scene"
 mechanism = "{mech}"
 methods = {methods}
@@ -23,7 +23,7 @@ kind = "smooth-random"
 duration = 1.0
 samples = 60
 seed = 3
-'''
+"""
 
 
 def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
@@ -34,8 +34,9 @@ def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=300
+    )
 
 
 def test_users_own_scene_file_runs_and_reports_power_balance(tmp_path):
@@ -50,8 +51,9 @@ def test_users_own_scene_file_runs_and_reports_power_balance(tmp_path):
     assert "mine" in (tmp_path / "rep" / "summary.md").read_text()
 
 
-@pytest.mark.parametrize("args,needle", [(["run", "no-such-scene"], "not a shipped scene"),
-                                         (["run", "BAD"], "field 'motion.kind'")])
+@pytest.mark.parametrize(
+    "args,needle", [(["run", "no-such-scene"], "not a shipped scene"), (["run", "BAD"], "field 'motion.kind'")]
+)
 def test_unknown_or_malformed_scene_is_one_line_and_exit_2(args, needle, tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('mechanism = "fig1-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "jog"\n')
@@ -64,9 +66,11 @@ def test_unknown_or_malformed_scene_is_one_line_and_exit_2(args, needle, tmp_pat
 def test_undeclared_things_are_never_built(tmp_path):
     """A scene without lagrange never derives; without a recording never imports rerun."""
     p = _user_scene(tmp_path)
-    code = (f"import sys; from exo_bench.bench.studies.scene_run import run_scene; from exo_bench.bench.studies.scenes import load_scene; "
-            f"import pathlib; o = run_scene(load_scene({str(p)!r}), pathlib.Path({str(tmp_path)!r})); "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'lagrange', 'matplotlib')))")
+    code = (
+        f"import sys; from exo_bench.bench.studies.scene_run import run_scene; from exo_bench.bench.studies.scenes import load_scene; "
+        f"import pathlib; o = run_scene(load_scene({str(p)!r}), pathlib.Path({str(tmp_path)!r})); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'lagrange', 'matplotlib')))"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"
@@ -121,14 +125,27 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
 
     monkeypatch.setitem(methods.METHODS, "broken", methods.MethodSpec("broken", __name__, "_Broken", "always fails"))
     p = tmp_path / "gait.toml"
-    p.write_text('mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
-                 'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
-                 '[motion]\nkind = "planar-gait"\nsamples_per_period = 40\n')
+    p.write_text(
+        'mechanism = "fig2b-2d"\nmethods = ["pinocchio", "lagrange", "broken"]\n'
+        'outputs = ["table", "moments", "forces", "kinogram", "differences", "overview", "recording"]\n'
+        '[motion]\nkind = "planar-gait"\nsamples_per_period = 40\n'
+    )
     rc = runner.run_main_job(RunOptions(scenes=[str(p)], reports=str(tmp_path / "rep")))
     assert rc == 0
     names = sorted(q.name for q in (tmp_path / "rep").iterdir())
-    assert names == sorted(["gait.md", "gait-moments.png", "gait-forces.png", "gait-kinogram.png",
-                            "gait-differences.png", "gait-overview.png", "gait.rrd", "summary.md", "runs.json"])
+    assert names == sorted(
+        [
+            "gait.md",
+            "gait-moments.png",
+            "gait-forces.png",
+            "gait-kinogram.png",
+            "gait-differences.png",
+            "gait-overview.png",
+            "gait.rrd",
+            "summary.md",
+            "runs.json",
+        ]
+    )
     assert "1 file verified without error" in verify_recording(tmp_path / "rep" / "gait.rrd")
     entities = {c.entity_path for c in RrdReader(tmp_path / "rep" / "gait.rrd").stream().to_chunks()}
     assert {"/world/rods", "/world/masses", "/meta"} <= entities
@@ -141,9 +158,15 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
     import time
 
     p = tmp_path / "slow.toml"
-    p.write_text('mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n')
-    proc = subprocess.Popen([sys.executable, "-m", "exo_bench.bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    p.write_text(
+        'mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n'
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "exo_bench.bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.time() + 60
     while time.time() < deadline and not any((tmp_path / "rep").glob(".staging-*")):
         time.sleep(0.05)
@@ -158,13 +181,16 @@ class _Offset(PreparedModel):
 
     def _inverse_dynamics(self, q, qd, qdd):
         from exo_bench.models.pinocchio_backend import inverse_dynamics
+
         tau = inverse_dynamics(self.mechanism, q, qd, qdd)
         tau[-1, 1] += 1e-6 * np.abs(tau).max()  # the last sample, on M_phi2
         return tau
 
 
 def test_a_disagreeing_method_is_reported_with_where(tmp_path, monkeypatch):
-    monkeypatch.setitem(methods.METHODS, "offset", methods.MethodSpec("offset", __name__, "_Offset", "pinocchio plus a known error"))
+    monkeypatch.setitem(
+        methods.METHODS, "offset", methods.MethodSpec("offset", __name__, "_Offset", "pinocchio plus a known error")
+    )
     p = _user_scene(tmp_path, "off", '["pinocchio", "offset"]')
     assert runner.run_main_job(RunOptions(scenes=[str(p)], reports=str(tmp_path / "rep"))) == 0
     table = (tmp_path / "rep" / "off.md").read_text()

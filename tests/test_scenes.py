@@ -18,6 +18,7 @@ def test_every_shipped_scene_loads_and_builds_its_motion():
         assert mo.q.shape[1] == sc.mechanism.dof
         if sc.mechanism.dim == 2:  # a 2D scene has no psi anywhere
             from exo_bench.models.mechanism import coordinate_names, force_names
+
             assert not any("psi" in c for c in coordinate_names(sc.mechanism) + force_names(sc.mechanism))
 
 
@@ -27,13 +28,13 @@ def _write(tmp_path, text, name="s.toml"):
     return p
 
 
-GOOD = '''
+GOOD = """
 mechanism = "fig2b-2d"
 methods = ["pinocchio"]
 [motion]
 kind = "planar-gait"
 samples_per_period = 50
-'''
+"""
 
 BAD = {
     "unknown key": (None, 'mechanism = "fig2b-2d"\nmethod = ["x"]\n', "field 'method'"),
@@ -46,9 +47,12 @@ BAD = {
     "negative samples": (None, GOOD.replace("50", "-5"), "field 'motion.samples_per_period'"),
     "bad gait override": (None, GOOD + "[motion.gait]\nT = -1.0\n", "field 'motion.gait.T'"),
     "unknown gait parameter": (None, GOOD + "[motion.gait]\nspeed = 2.0\n", "field 'motion.gait.speed'"),
-    "unknown named gait": (None, GOOD + 'gait = "moonwalk"\n', "field 'motion.gait': expected a gait among "
-                           "winter-fit-v1, paper-assumed-v1, got 'moonwalk'"),
-    "unknown base gait": (None, GOOD + '[motion.gait]\nbase = 3\n', "field 'motion.gait.base'"),
+    "unknown named gait": (
+        None,
+        GOOD + 'gait = "moonwalk"\n',
+        "field 'motion.gait': expected a gait among winter-fit-v1, paper-assumed-v1, got 'moonwalk'",
+    ),
+    "unknown base gait": (None, GOOD + "[motion.gait]\nbase = 3\n", "field 'motion.gait.base'"),
     "unknown preset": (None, GOOD.replace("fig2b-2d", "fig9-2d"), "field 'mechanism'"),
     "invalid TOML": (None, "mechanism = [", "invalid TOML"),
 }
@@ -72,7 +76,7 @@ def test_a_scene_selects_a_named_gait_and_overrides_its_fields(tmp_path):
     old = load_scene(_write(tmp_path, GOOD + 'gait = "paper-assumed-v1"\n', "b.toml"))
     assert old.motion["params"] == PAPER_ASSUMED_V1 == GAITS["paper-assumed-v1"]
     assert "paper-assumed-v1" in old.motion_label()
-    mo = old.build_motion()                                 # the old figures' motion, sample for sample
+    mo = old.build_motion()  # the old figures' motion, sample for sample
     np.testing.assert_array_equal(mo.q, planar_gait(old.mechanism, mo.t, PAPER_ASSUMED_V1).q)
     assert mo.t[-1] == pytest.approx(1.1 * 49 / 50)
     changed = load_scene(_write(tmp_path, GOOD + '[motion.gait]\nbase = "paper-assumed-v1"\nT = 2.0\n', "c.toml"))
@@ -95,8 +99,18 @@ def test_unknown_scene_is_a_clear_error():
 
 
 def test_states_file_motion_is_validated(tmp_path):
-    (tmp_path / "st.json").write_text(json.dumps({"t": [0, 1], "q": [[0.1, 0.2, 1.0, 1.0]] * 2,
-                                                  "qd": [[0, 0, 0, 0]] * 2, "qdd": [[0, 0, 0, float("nan")]] * 2}))
-    p = _write(tmp_path, 'mechanism = "fig2a-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "states"\nfile = "st.json"\n')
+    (tmp_path / "st.json").write_text(
+        json.dumps(
+            {
+                "t": [0, 1],
+                "q": [[0.1, 0.2, 1.0, 1.0]] * 2,
+                "qd": [[0, 0, 0, 0]] * 2,
+                "qdd": [[0, 0, 0, float("nan")]] * 2,
+            }
+        )
+    )
+    p = _write(
+        tmp_path, 'mechanism = "fig2a-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "states"\nfile = "st.json"\n'
+    )
     with pytest.raises(ValueError, match=r"motion.file 'st.json'.*'qdd' sample 0 coordinate l2"):
         load_scene(p)

@@ -46,9 +46,9 @@ def test_transitions_are_finite_and_right_at_every_singular_configuration(rel):
     """cos(phi_i - phi_j) = 0, cos phi_i = 0, sin phi_i = 0 and l_j = 0 all at once."""
     m = random_tree(4, 3, 12)
     q, _, _ = random_states(m, 4, 5)
-    q[:, :4] = [np.pi / 2, 0.0, np.pi, -np.pi / 2]        # phi_1 - phi_2 = pi/2, ...
-    q[:, -1] = 0.0                                        # a rod retracted to zero length
-    assert_matrices_agree(numeric.matrices(m, q), pinocchio_matrices(m, q), m, q)   # finite, and right
+    q[:, :4] = [np.pi / 2, 0.0, np.pi, -np.pi / 2]  # phi_1 - phi_2 = pi/2, ...
+    q[:, -1] = 0.0  # a rod retracted to zero length
+    assert_matrices_agree(numeric.matrices(m, q), pinocchio_matrices(m, q), m, q)  # finite, and right
 
 
 def _dot_product_oracle(dim):
@@ -66,8 +66,16 @@ def _dot_product_oracle(dim):
         up = sp.Matrix([0, 0, 1])
     ui, uj = u(phi_i, psi_i), u(phi_j, psi_j)
     r = {"phi": l_i * ui.diff(phi_i), "psi": l_i * ui.diff(psi_i), "l": ui}
-    v = {"A": l_j * uj.diff(phi_j), "B": l_j * uj.diff(psi_j), "Lambda": uj, "D": l_j * uj.diff(phi_j, 2),
-         "E": l_j * uj.diff(psi_j, 2), "G": l_j * uj.diff(phi_j, psi_j), "H": uj.diff(phi_j), "K": uj.diff(psi_j)}
+    v = {
+        "A": l_j * uj.diff(phi_j),
+        "B": l_j * uj.diff(psi_j),
+        "Lambda": uj,
+        "D": l_j * uj.diff(phi_j, 2),
+        "E": l_j * uj.diff(psi_j, 2),
+        "G": l_j * uj.diff(phi_j, psi_j),
+        "H": uj.diff(phi_j),
+        "K": uj.diff(psi_j),
+    }
     blocks = ("phi", "l") if dim == 2 else ("phi", "psi", "l")
     names = ("A", "Lambda", "D", "H") if dim == 2 else tuple(v)
     pairs = {b: {x: c * r[b].dot(v[x]) for x in names} for b in blocks}
@@ -95,12 +103,15 @@ def test_corrected_transitions_are_the_dot_products_of_their_definition():
     C, S = sp.cos(phi_i - phi_j), sp.sin(phi_i - phi_j)
 
     def inputs(li, lj, a, b, pa, pb):
-        now = {blk: {k: f(c, li, lj, sp.cos(a - b), sp.sin(a - b)) for k, f in fns.items()} for blk, fns in planar.PAIRS.items()}
+        now = {
+            blk: {k: f(c, li, lj, sp.cos(a - b), sp.sin(a - b)) for k, f in fns.items()}
+            for blk, fns in planar.PAIRS.items()
+        }
         straight = {blk: {k: f(c, li, lj, 1, 0) for k, f in fns.items()} for blk, fns in planar.PAIRS.items()}
         return spatial.transition_inputs(now, straight, li, lj, sp.cos(pa), sp.sin(pa), sp.cos(pb), sp.sin(pb))
 
     t = inputs(l_i, l_j, phi_i, phi_j, psi_i, psi_j)
-    t_swapped = inputs(l_j, l_i, phi_j, phi_i, psi_j, psi_i)       # element (j, i), for D_l = -(H_phi)^T
+    t_swapped = inputs(l_j, l_i, phi_j, phi_i, psi_j, psi_i)  # element (j, i), for D_l = -(H_phi)^T
     for block, fns in spatial.PAIRS.items():
         for name, f in fns.items():
             value = spatial.d_l(spatial.h_phi(t_swapped)) if (block, name) == ("l", "D") else f(t)
@@ -114,6 +125,7 @@ def test_a_link_that_carries_no_mass_has_finite_zero_gravity_terms():
     yet every 3D element and force is finite and Pinocchio's (no 0 / nu anywhere)."""
     from exo_bench import prepare
     from conftest import assert_forces_agree
+
     m = random_tree(3, 3, 21)
     m = m.replace(parent=(-1, 0, 1), masses=(m.masses[0], m.masses[1], (0.7, 0.0, 0.0)))
     q, qd, qdd = random_states(m, 6, 4)

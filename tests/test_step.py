@@ -87,7 +87,7 @@ def test_the_optimisers_net_joint_loads_are_those_of_joint_loads(stored):
     ang = slice(0, n if mech.dim == 2 else 2 * n)
     w = np.abs(qd[:, ang]).reshape(len(q), -1, n).sum(1)
     wd = np.abs(qdd[:, ang]).reshape(len(q), -1, n).sum(1)
-    acc_terms = (np.abs(ldd) + 2 * np.abs(ld) * w + l * (wd + w * w)).sum(1) + mech.g          # (S,)
+    acc_terms = (np.abs(ldd) + 2 * np.abs(ld) * w + l * (wd + w * w)).sum(1) + mech.g  # (S,)
     P = point_mass_positions(mech, q)
     reach = np.abs(P).max(axis=(1, 2, 3)) * 2
     scale_F = np.stack([mech.mass_array[list(subtree(mech, k))].sum() * acc_terms for k in range(n)], -1)
@@ -125,9 +125,9 @@ def test_swing_foot_clears_the_floor(stored):
     K_ = len(st.t)
     lo, hi = int(round(s.window * (K_ - 1))), int(round((1 - s.window) * (K_ - 1)))
     assert s.clearance == 0.01
-    assert low[lo:hi + 1].min() >= s.clearance - CONSTRAINT_TOL
+    assert low[lo : hi + 1].min() >= s.clearance - CONSTRAINT_TOL
     assert low[1:-1].min() >= -CONSTRAINT_TOL
-    assert abs(low[0]) <= CONSTRAINT_TOL and abs(low[-1]) <= CONSTRAINT_TOL   # lifts off and lands on the floor
+    assert abs(low[0]) <= CONSTRAINT_TOL and abs(low[-1]) <= CONSTRAINT_TOL  # lifts off and lands on the floor
 
 
 def test_leg_swap_is_the_rod_vector_relabelling():
@@ -158,7 +158,7 @@ def test_walking_motion_moves_the_support_point(stored):
     # the world hip continues through the swap: one step's end is the next one's start
     W = point_mass_positions(mech, mo.q) + mo.origin[:, None, None, :]
     hip_end = point_mass_positions(mech, st.q[-1:])[0, 1, 2]
-    assert np.allclose(W[K_, 1, 2] - W[K_ - 1, 1, 2], 0, atol=0.05)     # continuous to one interval's travel
+    assert np.allclose(W[K_, 1, 2] - W[K_ - 1, 1, 2], 0, atol=0.05)  # continuous to one interval's travel
     assert np.all(np.diff(W[:, 1, 2, 0]) > 0)
     assert hip_end[0] == pytest.approx(W[K_ - 1, 1, 2, 0])
 
@@ -167,9 +167,9 @@ def test_scene_report_peaks_within_2x_or_a_reason():
     """Every joint and rod that Winter's tables cover: within 2x of Winter's (either way), or the report gives
     the computed reason beside the number; and the ratios printed are those of the stored step."""
     report = (REPO / "reports" / "exo5-3d-step.md").read_text()
-    section = report[report.index("## Plausibility"):]
+    section = report[report.index("## Plausibility") :]
     rows = [r for r in section.splitlines() if r.startswith("| ") and "Table A.5" in r]
-    assert len(rows) == 9                                 # 5 joints (all covered), 4 rods (the trunk is not)
+    assert len(rows) == 9  # 5 joints (all covered), 4 rods (the trunk is not)
     for row in rows:
         cells = [c.strip() for c in row.strip("|").split("|")]
         ratio = float(cells[4].rstrip("×"))

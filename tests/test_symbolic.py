@@ -13,8 +13,18 @@ from exo_bench.models.motion import random_states
 from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
 from exo_bench.models.symbols import symbols_for
 
-MODELS = [fig1(2), fig2a(2), fig2b(2), random_tree(3, 2, 3), random_tree(3, 2, 4),
-          fig1(3), fig2b(3), random_tree(2, 3, 5), random_tree(3, 3, 6), random_tree(3, 3, 7)]
+MODELS = [
+    fig1(2),
+    fig2a(2),
+    fig2b(2),
+    random_tree(3, 2, 3),
+    random_tree(3, 2, 4),
+    fig1(3),
+    fig2b(3),
+    random_tree(2, 3, 5),
+    random_tree(3, 3, 6),
+    random_tree(3, 3, 7),
+]
 
 
 @pytest.mark.parametrize("mech", MODELS, ids=lambda m: m.name)
@@ -45,8 +55,12 @@ def test_every_matrix_equals_lagranges_entry_by_entry(mech):
                     assert canonical_form(ours[block][name][i, j] - M[i, j], d.symbols) == 0, (block, name, i, j)
 
 
-PEER_CASES = [(fig2b(2), "lagrange"), (random_tree(3, 2, 11), "kane"), (fig2b(3), "kane"),
-              (random_tree(2, 3, 73), "kane")]
+PEER_CASES = [
+    (fig2b(2), "lagrange"),
+    (random_tree(3, 2, 11), "kane"),
+    (fig2b(3), "kane"),
+    (random_tree(2, 3, 73), "kane"),
+]
 
 
 @pytest.mark.parametrize("mech,kind", PEER_CASES, ids=[f"{m.name}-{k}" for m, k in PEER_CASES])

@@ -21,7 +21,9 @@ import pytest
 
 from exo_bench.bench.perf.reports.simd_goals import OMP_FIRST
 
-_PROBE = OMP_FIRST + r"""
+_PROBE = (
+    OMP_FIRST
+    + r"""
 layer_before = numba.threading_layer()
 import json
 from exo_bench import prepare, presets
@@ -40,6 +42,7 @@ print(json.dumps({"layer_before": layer_before, "layer_after": numba.threading_l
                   "threads": numba.get_num_threads(), "worst": worst,
                   "batch_kernel_parallel": bool(fast.batch_kernel.targetoptions.get("parallel"))}))
 """
+)
 
 
 def test_batch_path_with_numbas_openmp_threads_started_first():
@@ -48,6 +51,6 @@ def test_batch_path_with_numbas_openmp_threads_started_first():
         pytest.skip(f"numba's OpenMP layer is not available here: {r.stderr.strip().splitlines()[-1]}")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout.strip().splitlines()[-1])
-    assert out["layer_before"] == "omp" and out["layer_after"] == "omp", out     # the premise: the user's layer
-    assert not out["batch_kernel_parallel"], out                                  # ours never enters it
+    assert out["layer_before"] == "omp" and out["layer_after"] == "omp", out  # the premise: the user's layer
+    assert not out["batch_kernel_parallel"], out  # ours never enters it
     assert out["worst"] <= 1e-14, out

@@ -29,9 +29,15 @@ def _mechanism(dim: int) -> Mechanism:
     vanishes for want of a common mass, and the sign products are exercised. The tip is the
     heaviest link, so that the elements it couples to the root carry a term comparable to the
     root's row scale."""
-    return Mechanism(dim=dim, g=9.81, parent=(-1, 0, 1), sign=(1, -1, 1),
-                     masses=((0.3, 0.5, 0.4), (0.2, 0.9, 0.5), (0.4, 1.6, 1.8)), n=(0.4, 0.55, 0.35),
-                     name=f"sensitivity-{dim}d")
+    return Mechanism(
+        dim=dim,
+        g=9.81,
+        parent=(-1, 0, 1),
+        sign=(1, -1, 1),
+        masses=((0.3, 0.5, 0.4), (0.2, 0.9, 0.5), (0.4, 1.6, 1.8)),
+        n=(0.4, 0.55, 0.35),
+        name=f"sensitivity-{dim}d",
+    )
 
 
 class _Module:
@@ -49,9 +55,10 @@ class _Module:
 
 def _perturb(f, index):
     def g(*args):
-        out = np.array(f(*args), dtype=float)          # a copy: the closed form's own array is untouched
+        out = np.array(f(*args), dtype=float)  # a copy: the closed form's own array is untouched
         out[(Ellipsis,) + index] *= 1.0 + REL
         return out
+
     return g
 
 
@@ -96,7 +103,9 @@ def test_a_1e12_change_of_any_single_closed_form_element_fails_the_agreement_che
     mech = _mechanism(dim)
     q, qd, qdd = random_states(mech, 40, seed=11)
     ref = prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)
-    model = prepare(mech, "matrix", kernel="numpy")   # the numpy reference reads the patched closed forms; the numba kernels compiled them
+    model = prepare(
+        mech, "matrix", kernel="numpy"
+    )  # the numpy reference reads the patched closed forms; the numba kernels compiled them
     assert assert_forces_agree(model.inverse_dynamics(q, qd, qdd), ref, mech, q, qd, qdd) <= K
     detected, zero, missed = [], [], []
     for table, key, index, label in _cases(dim):
@@ -116,10 +125,13 @@ def test_a_1e12_change_of_any_single_closed_form_element_fails_the_agreement_che
         else:
             missed.append(label)
     assert not missed, f"a {REL:g} relative change of these elements passes the agreement check: {missed}"
-    expected_zero = {f"{b}.{x}[{i},{i}]" for b, x in [("phi", "Lambda"), ("phi", "D"), ("l", "A"), ("l", "H")] for i in range(3)}
-    if dim == 3:   # diagonal: the derivative vectors of u_i that are orthogonal (u . u_phi = 0, ...)
+    expected_zero = {
+        f"{b}.{x}[{i},{i}]" for b, x in [("phi", "Lambda"), ("phi", "D"), ("l", "A"), ("l", "H")] for i in range(3)
+    }
+    if dim == 3:  # diagonal: the derivative vectors of u_i that are orthogonal (u . u_phi = 0, ...)
         orthogonal = {"phi": "B Lambda D E K", "psi": "A Lambda E G H", "l": "A B G H K"}
-        expected_zero = ({f"{b}.{x}[{i},{i}]" for b, xs in orthogonal.items() for x in xs.split() for i in range(3)}
-                         | {f"phi.P[{i}]" for i in range(3)})      # gravity does no work on an azimuth
+        expected_zero = {f"{b}.{x}[{i},{i}]" for b, xs in orthogonal.items() for x in xs.split() for i in range(3)} | {
+            f"phi.P[{i}]" for i in range(3)
+        }  # gravity does no work on an azimuth
     assert set(zero) == expected_zero, (sorted(set(zero) - expected_zero), sorted(expected_zero - set(zero)))
     assert len(detected) + len(zero) == len(list(_cases(dim)))

@@ -30,8 +30,8 @@ def test_joints_and_bodies_follow_the_mechanism(mech):
     n, roots = mech.nlinks, mech.parent.count(-1)
     revolute = sum(1 for j in joints if j.get("type") == "revolute" and j.find("mimic") is None)
     prismatic = sum(1 for j in joints if j.get("type") == "prismatic" and j.find("mimic") is None)
-    assert prismatic == n                          # one length per rod
-    assert revolute == (mech.dim - 1) * n          # phi (and psi in 3D) per rod
+    assert prismatic == n  # one length per rod
+    assert revolute == (mech.dim - 1) * n  # phi (and psi in 3D) per rod
     mid_mimics = [j for j in joints if j.find("mimic") is not None and j.get("type") == "prismatic"]
     assert len(mid_mimics) == sum(1 for m in mech.masses if m[1] > 0)
     for j, i in zip(mid_mimics, [i for i in range(n) if mech.masses[i][1] > 0]):
@@ -71,6 +71,7 @@ def test_model_size_predicted_without_building_is_pinocchios(mech, zero_middle):
     URDF: nv = dof (mimic joints have no velocity), and the joints per link (phi, psi, the 3D undo
     mimic below a root, len, the mid mimic only for a middle mass)."""
     from exo_bench.models.urdf import pinocchio_model_size
+
     if zero_middle:
         mech = mech.replace(masses=tuple((a, 0.0 if i % 2 == 0 else b, c) for i, (a, b, c) in enumerate(mech.masses)))
     model = pin.buildModelFromXML(to_urdf(mech), mimic=True)

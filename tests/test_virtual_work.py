@@ -25,12 +25,14 @@ def test_power_balance_holds_to_many_digits_along_the_gait():
     latter bounded here with the energy itself."""
     m = exo5(3)
     from exo_bench.models.motion import gait
+
     f = lambda t: gait(m, t)
     t = np.linspace(0.05, 1.0, 7)
     mo = f(t)
     power = (vw.inverse_dynamics(m, mo.q, mo.qd, mo.qdd) * mo.qd).sum(1)
     rate = energy_rate(m, f, t)
     from exo_bench.models.kinematics import _FD6, total_energy
+
     # the stencil sums sum|c_k| E(t + k h) / h, each energy a sum of 2 terms (T and Pi) per point
     # mass rounded once each; twice that for the truncation and the forces' own rounding
     energy = np.abs(total_energy(m, mo.q, mo.qd)).max()

@@ -28,8 +28,19 @@ class _UsageError(Exception):
 
 #: The subcommands, in the order ``exo-bench --help`` lists them: one module each, with its
 #: ``add_parser(subparsers)``.
-SUBCOMMANDS = ("presets", "inverse", "forward", "urdf", "mjcf", "run", "bench", "errata", "stability", "equations",
-               "gait")
+SUBCOMMANDS = (
+    "presets",
+    "inverse",
+    "forward",
+    "urdf",
+    "mjcf",
+    "run",
+    "bench",
+    "errata",
+    "stability",
+    "equations",
+    "gait",
+)
 
 
 def _version() -> str:
@@ -41,8 +52,11 @@ def _version() -> str:
 def build_parser() -> argparse.ArgumentParser:
     import importlib
 
-    p = _Parser(prog="exo-bench", description="Equations of motion of variable-length rod exoskeletons: "
-                "three implementations, cross-checked, timed and visualised.")
+    p = _Parser(
+        prog="exo-bench",
+        description="Equations of motion of variable-length rod exoskeletons: "
+        "three implementations, cross-checked, timed and visualised.",
+    )
     p.add_argument("--version", action="version", version=f"exo-bench {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in SUBCOMMANDS:
@@ -67,13 +81,15 @@ def _shorten(line: str) -> str:
     if len(line) <= MAX_LINE:
         return line
     cut = len(line) - MAX_LINE + 40
-    return f"{line[:MAX_LINE // 2]} ... ({cut} characters left out) ... {line[-(MAX_LINE // 2 - 40):]}"
+    return f"{line[: MAX_LINE // 2]} ... ({cut} characters left out) ... {line[-(MAX_LINE // 2 - 40) :]}"
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
     """Python warnings as one line each on stderr (no source line, no file name)."""
-    print(f"exo-bench: warning: {_one_line(message) if isinstance(message, BaseException) else str(message).splitlines()[0]}",
-          file=sys.stderr)
+    print(
+        f"exo-bench: warning: {_one_line(message) if isinstance(message, BaseException) else str(message).splitlines()[0]}",
+        file=sys.stderr,
+    )
 
 
 def error_line(e: BaseException) -> str:
@@ -85,7 +101,7 @@ def error_line(e: BaseException) -> str:
         return str(e)
     from exo_bench.models.prepared import MissingExtra
 
-    if isinstance(e, MissingExtra):   # an engine not installed: the message names the extra; no budget to raise
+    if isinstance(e, MissingExtra):  # an engine not installed: the message names the extra; no budget to raise
         return f"{e}; or choose another method (matrix-factored)"
     skip = getattr(e, "skip_reason", None)
     if skip:  # lagrange.BudgetExceeded: the derivation's time budget
@@ -94,14 +110,20 @@ def error_line(e: BaseException) -> str:
         avail = _available()
         if str(e).strip():  # e.g. the Pinocchio backend's check of its Data against the available memory
             return f"out of memory: {_one_line(e)}"
-        return (f"out of memory: the model or the batch did not fit in the {avail} available (the limit of every "
-                "run; estimated beforehand, see --max-memory); try a smaller batch or method matrix-factored")
+        return (
+            f"out of memory: the model or the batch did not fit in the {avail} available (the limit of every "
+            "run; estimated beforehand, see --max-memory); try a smaller batch or method matrix-factored"
+        )
     if isinstance(e, RecursionError):  # sympy on a very large expression
-        return (f"the symbolic derivation nested deeper than Python's recursion limit ({sys.getrecursionlimit()}): "
-                "the model is too large for method lagrange; choose another method (matrix-factored)")
+        return (
+            f"the symbolic derivation nested deeper than Python's recursion limit ({sys.getrecursionlimit()}): "
+            "the model is too large for method lagrange; choose another method (matrix-factored)"
+        )
     if isinstance(e, RuntimeError) and any(k in str(e) for k in ("bad_alloc", "length_error", "Unable to allocate")):
-        return (f"out of memory in Pinocchio ({_one_line(e)}): the model does not fit in the {_available()} available "
-                "(see --max-memory); choose method matrix-factored")
+        return (
+            f"out of memory in Pinocchio ({_one_line(e)}): the model does not fit in the {_available()} available "
+            "(see --max-memory); choose method matrix-factored"
+        )
     if isinstance(e, OSError):
         name = e.filename if e.filename is not None else ""
         return f"{name!s}: {e.strerror or _one_line(e)}" if name else (e.strerror or _one_line(e))
@@ -132,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv, warnings) -> int:
     with warnings.catch_warnings():
-        warnings.showwarning = _show_warning   # one line each, not Python's file:line and source line
+        warnings.showwarning = _show_warning  # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
             return int(args.func(args) or 0)
@@ -140,8 +162,11 @@ def _main(argv, warnings) -> int:
             print(_shorten(str(e).splitlines()[0] if str(e).strip() else "exo-bench: usage error"), file=sys.stderr)
             return 2
         except KeyboardInterrupt:
-            print("exo-bench: interrupted; the reports folder holds only whole files of earlier runs or of this one "
-                  "(summary.md says which)", file=sys.stderr)
+            print(
+                "exo-bench: interrupted; the reports folder holds only whole files of earlier runs or of this one "
+                "(summary.md says which)",
+                file=sys.stderr,
+            )
             return 130
         except BrokenPipeError:  # the reader of stdout went away (| head): nothing more to say
             _silence_stdout()
@@ -153,8 +178,9 @@ def _main(argv, warnings) -> int:
             if getattr(e, "skip_reason", None) or isinstance(e, RuntimeError) and "alloc" in str(e):
                 print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             else:
-                print(f"exo-bench: internal error: {type(e).__name__}: {_one_line(e)} (please report it)",
-                      file=sys.stderr)
+                print(
+                    f"exo-bench: internal error: {type(e).__name__}: {_one_line(e)} (please report it)", file=sys.stderr
+                )
             return 2
 
 

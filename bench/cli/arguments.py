@@ -10,8 +10,10 @@ from typing import TypeVar
 
 from exo_bench.bench.studies.options import ClusterOptions, ReportOptions
 
-MAX_MEMORY_HELP = ("refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
-                   "(default: 80%% of the machine's available memory); the estimate and a method that fits are named")
+MAX_MEMORY_HELP = (
+    "refuse (one line, before any work) a method whose estimated memory exceeds SIZE, e.g. 2G, 512M "
+    "(default: 80%% of the machine's available memory); the estimate and a method that fits are named"
+)
 
 
 def reports_folder(value: str | None) -> Path | None:
@@ -89,8 +91,17 @@ def workers_arg(text: str) -> int:
 
 
 def add_cluster_args(s: argparse.ArgumentParser) -> None:
-    s.add_argument("--workers", type=workers_arg, default=None, metavar="N",
-                   help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
-                        "per core; 1 = serial)")
-    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the sweep on the running Dask cluster at ADDRESS (e.g. tcp://10.0.0.1:8786)")
+    s.add_argument(
+        "--workers",
+        type=workers_arg,
+        default=None,
+        metavar="N",
+        help="run the sweep on a local Dask cluster of N single-threaded worker processes (default: one "
+        "per core; 1 = serial)",
+    )
+    s.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the sweep on the running Dask cluster at ADDRESS (e.g. tcp://10.0.0.1:8786)",
+    )

@@ -12,13 +12,21 @@ from exo_bench.bench.perf.options import BenchOptions
 def add_parser(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
-    s.add_argument("--update-readme", action="store_true",
-                   help="also replace the paper table in the checkout's README.md (only then is README.md changed)")
+    s.add_argument(
+        "--update-readme",
+        action="store_true",
+        help="also replace the paper table in the checkout's README.md (only then is README.md changed)",
+    )
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    s.add_argument("--rows", action="append", default=None, metavar="PATTERN",
-                   help="run only the sweep's rows whose key matches PATTERN (shell-style, repeatable; e.g. "
-                        "'*test_forward_dynamics.py:3d-chain-*'); their reports go to REPORTS/selected-rows, never over "
-                        "a whole sweep's, and their checkpoints are resumed by a later whole sweep")
+    s.add_argument(
+        "--rows",
+        action="append",
+        default=None,
+        metavar="PATTERN",
+        help="run only the sweep's rows whose key matches PATTERN (shell-style, repeatable; e.g. "
+        "'*test_forward_dynamics.py:3d-chain-*'); their reports go to REPORTS/selected-rows, never over "
+        "a whole sweep's, and their checkpoints are resumed by a later whole sweep",
+    )
     add_cluster_args(s)
     s.set_defaults(func=cmd_bench)
 
@@ -26,11 +34,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def options(args: argparse.Namespace) -> BenchOptions:
     rows = tuple(args.rows or ())
     cluster = cluster_options(args)
-    if rows and cluster is None:      # a selection of rows runs on the cluster's machinery
+    if rows and cluster is None:  # a selection of rows runs on the cluster's machinery
         from exo_bench.bench.studies.options import ClusterOptions
+
         cluster = ClusterOptions(workers=args.workers, scheduler=args.scheduler)
-    return BenchOptions(reports=reports_folder(args.reports), full=args.full, update_readme=args.update_readme,
-                        cluster=cluster, rows=rows)
+    return BenchOptions(
+        reports=reports_folder(args.reports),
+        full=args.full,
+        update_readme=args.update_readme,
+        cluster=cluster,
+        rows=rows,
+    )
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

@@ -27,8 +27,14 @@ from pathlib import Path
 from exo_bench.bench.cli.arguments import budget_arg, report_job
 from exo_bench.bench.studies.options import ReportOptions
 
-from exo_bench.bench.output.equation_pages import (DEFAULT_BUDGET, EquationsBudget, _Clock, eq4_pair,  # noqa: F401
-                                            md_matrices, scene_pages)
+from exo_bench.bench.output.equation_pages import (
+    DEFAULT_BUDGET,  # noqa: F401
+    EquationsBudget,  # noqa: F401
+    _Clock,  # noqa: F401
+    eq4_pair,  # noqa: F401
+    md_matrices,  # noqa: F401
+    scene_pages,  # noqa: F401
+)
 
 FORMATS = ("latex", "python", "c", "casadi")
 
@@ -36,22 +42,40 @@ FORMATS = ("latex", "python", "c", "casadi")
 # ------------------------------------------------------------------------------ the command
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``exo-bench equations`` on the CLI's subparsers."""
-    s = sub.add_parser("equations", help="write a mechanism's equations of motion as LaTeX, a standalone Python "
-                       "module or C99 source (eq. (5)/(17) composed by the matrix method)")
+    s = sub.add_parser(
+        "equations",
+        help="write a mechanism's equations of motion as LaTeX, a standalone Python "
+        "module or C99 source (eq. (5)/(17) composed by the matrix method)",
+    )
     s.add_argument("mechanism", nargs="?", help="a preset name or a mechanism JSON file")
-    s.add_argument("--format", choices=None, default=None, metavar="FORMAT",
-                   help="latex (a Markdown page and a standalone .tex), python (imports numpy only), c (C99 "
-                        ".h and .c) or casadi (casadi.Function files .casadi and a note; the extra 'casadi')")
+    s.add_argument(
+        "--format",
+        choices=None,
+        default=None,
+        metavar="FORMAT",
+        help="latex (a Markdown page and a standalone .tex), python (imports numpy only), c (C99 "
+        ".h and .c) or casadi (casadi.Function files .casadi and a note; the extra 'casadi')",
+    )
     s.add_argument("-o", "--output", default=".", metavar="DIR", help="output folder (default: the current folder)")
-    s.add_argument("--symbolic-parameters", action="store_true",
-                   help="keep masses, fractions and g as symbols (latex: the aggregates of eq. (6); python and c: "
-                        "one more input, params)")
-    s.add_argument("--budget", type=budget_arg, default=DEFAULT_BUDGET, metavar="SECONDS",
-                   help=f"seconds that composing and generating may take (default {DEFAULT_BUDGET:g}); estimated "
-                        "before any work")
-    s.add_argument("--size-report", action="store_true",
-                   help="instead: measure the size of the equations (matrix method vs Lagrange) for chains and "
-                        "trees and write equations_size.md into --reports")
+    s.add_argument(
+        "--symbolic-parameters",
+        action="store_true",
+        help="keep masses, fractions and g as symbols (latex: the aggregates of eq. (6); python and c: "
+        "one more input, params)",
+    )
+    s.add_argument(
+        "--budget",
+        type=budget_arg,
+        default=DEFAULT_BUDGET,
+        metavar="SECONDS",
+        help=f"seconds that composing and generating may take (default {DEFAULT_BUDGET:g}); estimated before any work",
+    )
+    s.add_argument(
+        "--size-report",
+        action="store_true",
+        help="instead: measure the size of the equations (matrix method vs Lagrange) for chains and "
+        "trees and write equations_size.md into --reports",
+    )
     s.add_argument("--full", action="store_true", help="with --size-report: n = 1..20 (default 1..4)")
     s.add_argument("--reports", default=None, help="with --size-report: output folder (default: ./reports)")
     s.set_defaults(func=cmd_equations)
@@ -66,8 +90,9 @@ def cmd_equations(args: argparse.Namespace) -> int:
         if args.mechanism is not None or args.format is not None:
             raise ValueError("equations --size-report: takes no MECHANISM and no --format")
         reports = None if args.reports is None else output_folder(args.reports, "--reports")
-        return report_job(size_report, ReportOptions(reports=reports, full=args.full),
-                          "exo-bench equations --size-report")
+        return report_job(
+            size_report, ReportOptions(reports=reports, full=args.full), "exo-bench equations --size-report"
+        )
     if args.format not in FORMATS:
         got = "nothing" if args.format is None else repr(args.format)
         raise ValueError(f"equations --format: expected one of {', '.join(FORMATS)}, got {got}")
@@ -105,8 +130,9 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
         parts = export_latex.element_parts(mech, symbolic_parameters)
         clock.check("composing")
         header = _latex_header(mech, symbolic_parameters)
-        md = latex_document.document(mech, symbolic_parameters, "md", header, parts=parts, eq4=eq4_pair(mech),
-                                   matrices_shown=md_matrices(mech))
+        md = latex_document.document(
+            mech, symbolic_parameters, "md", header, parts=parts, eq4=eq4_pair(mech), matrices_shown=md_matrices(mech)
+        )
         clock.check("the Markdown page")
         tex = latex_document.document(mech, symbolic_parameters, "tex", "", parts=parts, eq4=eq4_pair(mech))
         clock.check("the LaTeX file")
@@ -124,8 +150,9 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
     return {f"{prefix}.h": h, f"{prefix}.c": c}
 
 
-def write_equations(mech, fmt: str, out: Path, symbolic_parameters: bool = False,
-                    budget: float = DEFAULT_BUDGET) -> list[Path]:
+def write_equations(
+    mech, fmt: str, out: Path, symbolic_parameters: bool = False, budget: float = DEFAULT_BUDGET
+) -> list[Path]:
     """Render, then write every file atomically (all are rendered before the first is written)."""
     from contextlib import ExitStack
 
@@ -151,9 +178,13 @@ def _casadi_files(mech, stem: str, symbolic_parameters: bool, clock) -> dict[str
 
     export_casadi.require_casadi()
     flag = " --symbolic-parameters" if symbolic_parameters else ""
-    files = export_casadi.export_files(mech, stem, exo_bench.__version__,
-                                       provenance(f"exo-bench equations {mech.name} --format casadi{flag}"),
-                                       symbolic_parameters)
+    files = export_casadi.export_files(
+        mech,
+        stem,
+        exo_bench.__version__,
+        provenance(f"exo-bench equations {mech.name} --format casadi{flag}"),
+        symbolic_parameters,
+    )
     clock.check("building and serialising the CasADi functions")
     return files
 

@@ -10,8 +10,9 @@ from exo_bench.bench.studies.options import ReportOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("errata", help="check every printed formula of the paper against Lagrange and Pinocchio; "
-                       "write errata.md")
+    s = sub.add_parser(
+        "errata", help="check every printed formula of the paper against Lagrange and Pinocchio; write errata.md"
+    )
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.set_defaults(func=cmd_errata)
 

@@ -17,8 +17,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     s = sub.add_parser("forward", help="forward dynamics: accelerations for given states and forces")
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
-    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
-                   "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]")
+    s.add_argument(
+        "states",
+        help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
+        "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]",
+    )
     s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
     add_limit_args(s)
     s.set_defaults(func=cmd_forward)
@@ -38,12 +41,12 @@ def cmd_forward(args: argparse.Namespace) -> int:
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
     # forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own
     rows = q.shape[0] * (1 if args.method == "newton-euler" else mech.dof + 2)
-    check(mech, args.method, rows, options, _limits(args, args.method))   # refuse before any work
+    check(mech, args.method, rows, options, _limits(args, args.method))  # refuse before any work
     model = prepare(mech, args.method, **options)
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
-    model.check_regular(q)                    # singular configurations: named, before any work
-    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)   # validated above
+    model.check_regular(q)  # singular configurations: named, before any work
+    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)  # validated above
     _write_tau(args.method, qdd, sys.stdout, key="qdd")
     return 0

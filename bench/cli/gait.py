@@ -21,11 +21,17 @@ from exo_bench.bench.studies.step import data
 
 def add_parser(sub) -> None:
     """Register ``exo-bench gait`` on the CLI's subparsers."""
-    s = sub.add_parser("gait", help="the predicted walking step of exo5 (direct collocation): describe the stored "
-                       "step, or --solve it again and compare")
+    s = sub.add_parser(
+        "gait",
+        help="the predicted walking step of exo5 (direct collocation): describe the stored "
+        "step, or --solve it again and compare",
+    )
     s.add_argument("--dim", type=int, choices=(2, 3), default=3, help="exo5-2d or exo5-3d (default 3)")
-    s.add_argument("--solve", action="store_true",
-                   help="solve the step again (needs the extra 'casadi') and check it reproduces the stored one")
+    s.add_argument(
+        "--solve",
+        action="store_true",
+        help="solve the step again (needs the extra 'casadi') and check it reproduces the stored one",
+    )
     s.add_argument("--store", action="store_true", help="with --solve: write the new solution as the stored step")
     s.add_argument("--verbose", action="store_true", help="with --solve: IPOPT's iteration log")
     s.set_defaults(func=cmd_gait)
@@ -43,23 +49,28 @@ def describe(step: data.StoredStep, mech) -> list[str]:
     sv = meta.get("solver", {})
     hip = data.hip_path(step, mech)
     viol = data.violations(step, mech)
-    lines = [f"{mech.name}: one step of {step.duration:.4f} s, step length {step.step_length:.4f} m at the prescribed "
-             f"{s.speed:g} m/s (Winter 1.41 m/s); {s.intervals} Hermite-Simpson intervals",
-             f"  hip advances {hip[-1, 0] - hip[0, 0]:.4f} m (from {hip[0, 0]:+.4f} to {hip[-1, 0]:+.4f} m over O); "
-             f"lowest swing-leg point mass in the clearance phase {data.lowest_swing_mass(step, mech)[int(round(s.window * 2 * s.intervals)):int(round((1 - s.window) * 2 * s.intervals)) + 1].min() * 100:.3f} cm",
-             f"  solved at {meta.get('commit', '?')} on {meta.get('date', '?')}: IPOPT {sv.get('status')}, "
-             f"{sv.get('iterations')} iterations, {sv.get('solve_seconds', float('nan')):.1f} s, objective "
-             f"{sv.get('objective', float('nan')):.6g}, constraint violation (CasADi) {sv.get('constraint_violation', float('nan')):.1e}",
-             f"  constraints re-evaluated in numpy: largest violation {max(viol.values()):.1e} "
-             f"({max(viol, key=lambda k: viol[k])})"]
+    lines = [
+        f"{mech.name}: one step of {step.duration:.4f} s, step length {step.step_length:.4f} m at the prescribed "
+        f"{s.speed:g} m/s (Winter 1.41 m/s); {s.intervals} Hermite-Simpson intervals",
+        f"  hip advances {hip[-1, 0] - hip[0, 0]:.4f} m (from {hip[0, 0]:+.4f} to {hip[-1, 0]:+.4f} m over O); "
+        f"lowest swing-leg point mass in the clearance phase {data.lowest_swing_mass(step, mech)[int(round(s.window * 2 * s.intervals)) : int(round((1 - s.window) * 2 * s.intervals)) + 1].min() * 100:.3f} cm",
+        f"  solved at {meta.get('commit', '?')} on {meta.get('date', '?')}: IPOPT {sv.get('status')}, "
+        f"{sv.get('iterations')} iterations, {sv.get('solve_seconds', float('nan')):.1f} s, objective "
+        f"{sv.get('objective', float('nan')):.6g}, constraint violation (CasADi) {sv.get('constraint_violation', float('nan')):.1e}",
+        f"  constraints re-evaluated in numpy: largest violation {max(viol.values()):.1e} "
+        f"({max(viol, key=lambda k: viol[k])})",
+    ]
     return lines
 
 
 def compare(stored: data.StoredStep, new) -> dict[str, float]:
     """Largest differences between a stored step and a new solution: duration, q, qd, qdd."""
-    return {"duration": abs(stored.duration - new.duration),
-            "q": float(np.abs(stored.q - new.q).max()), "qd": float(np.abs(stored.qd - new.qd).max()),
-            "qdd": float(np.abs(stored.qdd - new.qdd).max())}
+    return {
+        "duration": abs(stored.duration - new.duration),
+        "q": float(np.abs(stored.q - new.q).max()),
+        "qd": float(np.abs(stored.qd - new.qd).max()),
+        "qdd": float(np.abs(stored.qdd - new.qdd).max()),
+    }
 
 
 def cmd_gait(args) -> int:
@@ -72,7 +83,7 @@ def cmd_gait(args) -> int:
         return 0
     from exo_bench.matrix_method.export.casadi_functions import require_casadi
 
-    require_casadi()   # one line naming the extra when CasADi is missing
+    require_casadi()  # one line naming the extra when CasADi is missing
     from exo_bench.bench.studies.step.problem import solve
 
     try:
@@ -86,27 +97,37 @@ def cmd_gait(args) -> int:
         stored, settings = None, StepSettings(dim=args.dim)
     try:
         sol = solve(mech, settings, verbose=args.verbose)
-    except RuntimeError as e:        # IPOPT did not converge: one line, exit 2, nothing written
+    except RuntimeError as e:  # IPOPT did not converge: one line, exit 2, nothing written
         print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
         return 2
     st = sol.stats
-    print(f"{mech.name}: IPOPT {st['status']} in {st['iterations']} iterations, {st['solve_seconds']:.2f} s "
-          f"(this host, now); constraint violation {st['constraint_violation']:.1e} (CasADi); objective {st['objective']:.8g}; "
-          f"duration {sol.duration:.6f} s, step length {sol.step_length:.6f} m")
+    print(
+        f"{mech.name}: IPOPT {st['status']} in {st['iterations']} iterations, {st['solve_seconds']:.2f} s "
+        f"(this host, now); constraint violation {st['constraint_violation']:.1e} (CasADi); objective {st['objective']:.8g}; "
+        f"duration {sol.duration:.6f} s, step length {sol.step_length:.6f} m"
+    )
     code = 0
     if stored is not None:
         diff = compare(stored, sol)
         same = diff["duration"] <= data.REPRODUCE_TOL and diff["q"] <= data.REPRODUCE_TOL
-        print(f"against the stored step: |dT| {diff['duration']:.1e} s, max |dq| {diff['q']:.1e}, max |dqd| "
-              f"{diff['qd']:.1e}, max |dqdd| {diff['qdd']:.1e}: "
-              + (f"reproduces it (tolerance {data.REPRODUCE_TOL:g} s and rad/m on T and q)" if same else
-                 f"DIFFERS by more than the tolerance {data.REPRODUCE_TOL:g}"))
+        print(
+            f"against the stored step: |dT| {diff['duration']:.1e} s, max |dq| {diff['q']:.1e}, max |dqd| "
+            f"{diff['qd']:.1e}, max |dqdd| {diff['qdd']:.1e}: "
+            + (
+                f"reproduces it (tolerance {data.REPRODUCE_TOL:g} s and rad/m on T and q)"
+                if same
+                else f"DIFFERS by more than the tolerance {data.REPRODUCE_TOL:g}"
+            )
+        )
         code = 0 if same else 1
     if args.store:
         from exo_bench.bench.output.provenance import _git_commit
 
-        prov = {"commit": _git_commit(), "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
-                "command": f"exo-bench gait --solve --dim {args.dim} --store"}
+        prov = {
+            "commit": _git_commit(),
+            "date": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+            "command": f"exo-bench gait --solve --dim {args.dim} --store",
+        }
         p = data.save(sol, mech, provenance=prov)
         print(f"wrote {p}")
         for line in describe(data.load(mech.name), mech)[-1:]:

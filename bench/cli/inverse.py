@@ -20,12 +20,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     s = sub.add_parser("inverse", help="inverse dynamics: generalised forces for given states")
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
-    s.add_argument("states", help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
-                   "one row per sample, coordinates in block order [phi..., psi..., l...]")
-    default_method = _default_method()   # the same as the library's prepare()
-    s.add_argument("--method", default=default_method,
-                   help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
-                        "design, kept to expose the paper's misprints; its results carry a warning on stderr)")
+    s.add_argument(
+        "states",
+        help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
+        "one row per sample, coordinates in block order [phi..., psi..., l...]",
+    )
+    default_method = _default_method()  # the same as the library's prepare()
+    s.add_argument(
+        "--method",
+        default=default_method,
+        help=f"one of: {', '.join(method_names())} (default: {default_method}, as prepare()'s; matrix-paper is eq. (18) as printed: WRONG in 3D by "
+        "design, kept to expose the paper's misprints; its results carry a warning on stderr)",
+    )
     add_limit_args(s)
     s.set_defaults(func=cmd_inverse)
 
@@ -41,19 +47,30 @@ def _default_method() -> str:
 
 def add_limit_args(s: argparse.ArgumentParser) -> None:
     """``--budget``, ``--max-memory``, ``--max-time`` of ``inverse`` and ``forward``."""
-    s.add_argument("--budget", type=budget_arg, default=None, metavar="SECONDS",
-                   help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)")
+    s.add_argument(
+        "--budget",
+        type=budget_arg,
+        default=None,
+        metavar="SECONDS",
+        help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)",
+    )
     s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
-    s.add_argument("--max-time", type=seconds_arg, default=None, metavar="SECONDS",
-                   help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS "
-                        "(default: no limit)")
+    s.add_argument(
+        "--max-time",
+        type=seconds_arg,
+        default=None,
+        metavar="SECONDS",
+        help="refuse (one line, before any work) a method whose estimated time exceeds SECONDS (default: no limit)",
+    )
 
 
 def refuse_budget(args: argparse.Namespace) -> None:
     """``--budget`` is lagrange's derivation budget: with another method it would be silently ignored."""
     if args.budget is not None and args.method != "lagrange":
-        raise ValueError(f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
-                         "nothing (limit its time with --max-time)")
+        raise ValueError(
+            f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
+            "nothing (limit its time with --max-time)"
+        )
 
 
 def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -73,8 +90,10 @@ def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.nd
         raise ValueError(f"{what}: expected an object with keys ['q', 'qd', '{third}'], got {got}")
     try:
         return as_states(mech, data["q"], data["qd"], data[third], source=what)
-    except ValueError as e:   # as_states calls its third array qdd
-        raise ValueError(str(e).replace("field 'qdd'", f"field '{third}'").replace("qdd must", f"{third} must")) from None
+    except ValueError as e:  # as_states calls its third array qdd
+        raise ValueError(
+            str(e).replace("field 'qdd'", f"field '{third}'").replace("qdd must", f"{third} must")
+        ) from None
 
 
 def _read_npz(path: str, what: str) -> dict:
@@ -83,7 +102,7 @@ def _read_npz(path: str, what: str) -> dict:
     from exo_bench.models.loading import regular_file
     from exo_bench.models.prepared import usable_memory
 
-    p = regular_file(path, what)   # the same checks and messages as every other file we read
+    p = regular_file(path, what)  # the same checks and messages as every other file we read
     try:
         with zipfile.ZipFile(p) as zf:
             size = sum(i.file_size for i in zf.infolist())
@@ -91,8 +110,10 @@ def _read_npz(path: str, what: str) -> dict:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     limit = usable_memory()
     if limit is not None and size > limit:
-        raise ValueError(f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
-                         "use (--max-memory does not raise this); split the batch")
+        raise ValueError(
+            f"{what}: its arrays take {size / 1e9:.1f} GB, more than the {limit / 1e9:.1f} GB a run may "
+            "use (--max-memory does not raise this); split the batch"
+        )
     try:
         with np.load(p, allow_pickle=False) as z:
             return {k: (z[k] if k in ("q", "qd", "qdd", "tau") else None) for k in z.files}
@@ -115,7 +136,7 @@ def _write_tau(method: str, tau: np.ndarray, out: TextIO, key: str = "tau") -> N
     the whole batch is built); non-finite values are null (JSON has no NaN)."""
     out.write(json.dumps({"method": method})[:-1] + f', "{key}": [')
     for s0 in range(0, tau.shape[0], 4096):
-        block = tau[s0:s0 + 4096]
+        block = tau[s0 : s0 + 4096]
         rows = [[None if not np.isfinite(x) else float(x) for x in row] for row in block]
         text = json.dumps(rows, allow_nan=False)[1:-1]
         out.write((", " if s0 else "") + text)
@@ -137,28 +158,32 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     # reading and writing count in the estimate; a .npz by its uncompressed arrays, from its headers
     from exo_bench.api.cost_model import check_reading
     from exo_bench.bench.cli.states_input import peek_states
+
     peek = peek_states(args.states, mech.dof)
     if peek.samples is not None:
-        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))   # before decompressing
+        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))  # before decompressing
     else:
         check_reading(args.states, peek.read_bytes, peek.read_seconds, limits)
     q, qd, qdd = _load_states(args.states, mech)
-    check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))   # before any work
+    check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))  # before any work
     model = prepare(mech, args.method, **options)
-    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)   # validated above
+    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)  # validated above
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
     count, first = 0, (0, 0)
-    for s0 in range(0, tau.shape[0], 65536):   # in row blocks: no (samples, dof) mask
-        bad = ~np.isfinite(tau[s0:s0 + 65536])
+    for s0 in range(0, tau.shape[0], 65536):  # in row blocks: no (samples, dof) mask
+        bad = ~np.isfinite(tau[s0 : s0 + 65536])
         if bad.any():
-            if count == 0:                # the first NaN/Inf
+            if count == 0:  # the first NaN/Inf
                 s, c = map(int, np.argwhere(bad)[0])
                 first = (s0 + s, c)
             count += int(bad.sum())
     if count:  # JSON has no NaN: write null, and say so on stderr (never a silent NaN)
-        print(f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
-              f"(first: sample {first[0]}, {force_names(mech)[first[1]]})", file=sys.stderr)
+        print(
+            f"exo-bench: warning: method {args.method!r} gave {count} NaN/Inf value(s), written as null "
+            f"(first: sample {first[0]}, {force_names(mech)[first[1]]})",
+            file=sys.stderr,
+        )
     _write_tau(args.method, tau, sys.stdout)
     return 0

@@ -30,15 +30,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
-    s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE",
-                   help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
-                        "(default: 80%% of the machine's available memory)")
+    s.add_argument(
+        "--max-memory",
+        type=size_arg,
+        default=None,
+        metavar="SIZE",
+        help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
+        "(default: 80%% of the machine's available memory)",
+    )
     s.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    return run_main_job(RunOptions(scenes=tuple(args.scenes), reports=reports_folder(args.reports), full=args.full,
-                                   max_memory=args.max_memory))
+    return run_main_job(
+        RunOptions(
+            scenes=tuple(args.scenes), reports=reports_folder(args.reports), full=args.full, max_memory=args.max_memory
+        )
+    )
 
 
 def print_summary(outcomes: list[SceneOutcome]) -> None:
@@ -51,7 +59,7 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
         table.add_column(col, no_wrap=col != "largest error", overflow="fold")
     for o in outcomes:
         for row in scene_rows(o):
-            table.add_row(*(escape(str(c)) for c in row))   # a reason's "[peers]" is text, not rich markup
+            table.add_row(*(escape(str(c)) for c in row))  # a reason's "[peers]" is text, not rich markup
     console = Console()
     if not console.is_terminal:
         console = Console(width=140)
@@ -66,12 +74,18 @@ def _suite_jobs() -> list[tuple[str, Callable[[Path, Path, bool], int]]]:
     from exo_bench.bench.studies import errata, stability
 
     return [
-        ("errata (exo-bench errata)",
-         lambda st, out, full: errata.run(ReportOptions(reports=st, full=full, published_to=out))),
-        ("benchmarks (exo-bench bench)",
-         lambda st, out, full: benchmark_reports.run(BenchOptions(reports=st, full=full, published_to=out))),
-        ("stability (exo-bench stability)",
-         lambda st, out, full: stability.run(StabilityOptions(reports=st, full=full, published_to=out))),
+        (
+            "errata (exo-bench errata)",
+            lambda st, out, full: errata.run(ReportOptions(reports=st, full=full, published_to=out)),
+        ),
+        (
+            "benchmarks (exo-bench bench)",
+            lambda st, out, full: benchmark_reports.run(BenchOptions(reports=st, full=full, published_to=out)),
+        ),
+        (
+            "stability (exo-bench stability)",
+            lambda st, out, full: stability.run(StabilityOptions(reports=st, full=full, published_to=out)),
+        ),
     ]
 
 
@@ -108,17 +122,27 @@ def run_main_job(options: RunOptions) -> int:
     limits = Limits(memory=options.max_memory)
     from exo_bench.bench.output.files import output_target
     from exo_bench.bench.output.publish import MANIFEST, SUMMARY
-    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):   # before any work: no FIFO there
+
+    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):  # before any work: no FIFO there
         output_target(out / name)
     set_run_id(new_run_id())
-    command = "exo-bench run" + (" --full" if full else "") + ("" if not options.scenes else " " + " ".join(options.scenes))
+    command = (
+        "exo-bench run" + (" --full" if full else "") + ("" if not options.scenes else " " + " ".join(options.scenes))
+    )
     _warn_known_wrong(scenes)
     outcomes: list[SceneOutcome] = []
     written: list[Path] = []
     job_errors: list[str] = []
-    with staging_dir(out) as staging, Progress(TextColumn("{task.description}"), BarColumn(),
-                                               TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
-                                               transient=False) as progress:
+    with (
+        staging_dir(out) as staging,
+        Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed}/{task.total}"),
+            TimeElapsedColumn(),
+            transient=False,
+        ) as progress,
+    ):
         task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
             progress.update(task, description=f"scene {sc.name}")
@@ -127,7 +151,7 @@ def run_main_job(options: RunOptions) -> int:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
                 o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
-                for f in staging.iterdir():   # its partial files never replace the earlier run's
+                for f in staging.iterdir():  # its partial files never replace the earlier run's
                     if f.name not in staged and f.is_file():
                         f.unlink(missing_ok=True)
             outcomes.append(o)
@@ -140,18 +164,27 @@ def run_main_job(options: RunOptions) -> int:
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
-        if jobs or any(not o.error for o in outcomes):   # nothing ran: the folder is left exactly as it was
+        if jobs or any(not o.error for o in outcomes):  # nothing ran: the folder is left exactly as it was
             rows = {o.scene.name: scene_rows(o) for o in outcomes}
-            written = publish_run(staging, out, rows, command, read_manifest(out),
-                                  failed=frozenset(o.scene.name for o in outcomes if o.error))
-    if written:   # nothing ran (every scene refused or failed): the error lines below say it all
+            written = publish_run(
+                staging,
+                out,
+                rows,
+                command,
+                read_manifest(out),
+                failed=frozenset(o.scene.name for o in outcomes if o.error),
+            )
+    if written:  # nothing ran (every scene refused or failed): the error lines below say it all
         print_summary(outcomes)
     for p in written:
         print(f"wrote {p}")
     failed = [o for o in outcomes if o.error]
-    for o in failed:   # one line each on stderr; summary.md keeps the scene's earlier rows
-        print(f"exo-bench: error: scene {o.scene.name!r} failed: {o.error} (its earlier rows and files in "
-              f"{str(out)!r} are kept)", file=sys.stderr)
+    for o in failed:  # one line each on stderr; summary.md keeps the scene's earlier rows
+        print(
+            f"exo-bench: error: scene {o.scene.name!r} failed: {o.error} (its earlier rows and files in "
+            f"{str(out)!r} are kept)",
+            file=sys.stderr,
+        )
     for line in job_errors:
         print(f"exo-bench: error: {line}", file=sys.stderr)
     return 2 if failed else 1 if job_errors else 0

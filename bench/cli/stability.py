@@ -11,8 +11,11 @@ from exo_bench.bench.studies.options import StabilityOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("stability", help="where each method breaks (extreme cases vs the 50-digit reference) and the "
-                       "forward-dynamics round trip; write stability.md and its plots")
+    s = sub.add_parser(
+        "stability",
+        help="where each method breaks (extreme cases vs the 50-digit reference) and the "
+        "forward-dynamics round trip; write stability.md and its plots",
+    )
     s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     add_cluster_args(s)
@@ -25,5 +28,6 @@ def cmd_stability(args: argparse.Namespace) -> int:
     opts = StabilityOptions(reports=reports_folder(args.reports), full=args.full, cluster=cluster_options(args))
     if opts.cluster is not None:
         from exo_bench.bench.cluster.commands import stability_evaluator
+
         opts = dataclasses.replace(opts, evaluate=stability_evaluator(opts))
     return report_job(run, opts, "exo-bench stability")

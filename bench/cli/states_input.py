@@ -71,7 +71,7 @@ def npz_header(path: str | Path, what: str) -> dict[str, tuple[tuple[int, ...], 
                 out[info.filename[:-4]] = (tuple(int(x) for x in shape), np.dtype(dtype), info.compress_type)
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
-    except ValueError as e:   # a member that is not a .npy array
+    except ValueError as e:  # a member that is not a .npy array
         raise ValueError(f"{what}: cannot read the arrays: {str(e).splitlines()[0]}") from None
     except (OSError, NotImplementedError, RuntimeError) as e:
         raise ValueError(f"{what}: cannot read: {getattr(e, 'strerror', None) or e}") from None
@@ -103,7 +103,7 @@ def peek_states(path: str, dof: int) -> StatesFile:
         samples.add(shape[0] if len(shape) == 2 else 1)
         count = int(np.prod(shape))
         nbytes = count * dtype.itemsize
-        total += nbytes + (0 if dtype == np.float64 else 8 * count)   # the float64 copy of another dtype
+        total += nbytes + (0 if dtype == np.float64 else 8 * count)  # the float64 copy of another dtype
         rate = NPZ_STORED_BYTES_PER_SECOND if compress == zipfile.ZIP_STORED else NPZ_DEFLATED_BYTES_PER_SECOND
         seconds += nbytes / rate
     if len(samples) > 1:

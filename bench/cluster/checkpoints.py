@@ -1,5 +1,6 @@
 """Checkpoints of a sweep: the code a sweep measures (:func:`code_key`), a folder per code, a file per
 finished row (written atomically), so that a sweep run again after an interruption runs only the missing rows."""
+
 from __future__ import annotations
 
 import json
@@ -21,11 +22,13 @@ def code_key(repo: Path = REPO) -> str:
     import hashlib
 
     try:
-        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "HEAD"], capture_output=True, text=True,
-                              timeout=10)
+        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10)
         if head.returncode == 0 and head.stdout.strip():
-            diff = subprocess.run(["git", "-C", str(repo), "diff", "HEAD", "--", ".", ":!reports", ":!README.md"],
-                                  capture_output=True, timeout=30).stdout
+            diff = subprocess.run(
+                ["git", "-C", str(repo), "diff", "HEAD", "--", ".", ":!reports", ":!README.md"],
+                capture_output=True,
+                timeout=30,
+            ).stdout
             return head.stdout.strip()[:12] + (f"-dirty-{hashlib.sha256(diff).hexdigest()[:8]}" if diff else "")
     except (OSError, subprocess.SubprocessError):
         pass
@@ -48,7 +51,6 @@ def default_checkpoints(reports: Path) -> Path:
     return Path(reports).resolve().parent / ".exo-bench-sweep"
 
 
-
 def load_checkpoint(folder: Path, key: str) -> dict | None:
     p = folder / f"{_rows.safe_name(key)}.json"
     try:
@@ -56,4 +58,3 @@ def load_checkpoint(folder: Path, key: str) -> dict | None:
     except (OSError, ValueError):
         return None
     return rec if rec.get("key") == key and rec.get("status") in FINAL else None
-

@@ -84,9 +84,10 @@ def cluster(scheduler: str | None = None, workers: int | None = None):
         return
     n = workers or os.cpu_count() or 1
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")   # "port 8787 in use" and the like: we start no dashboard anyway
-        lc = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                          silence_logs=logging.CRITICAL)
+        warnings.simplefilter("ignore")  # "port 8787 in use" and the like: we start no dashboard anyway
+        lc = LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.CRITICAL
+        )
     try:
         client = Client(lc)
         try:
@@ -112,11 +113,11 @@ def cancel_tasks(client, futures) -> None:
 # ----------------------------------------------------------------------------- the sweep
 @dataclass
 class SweepOutcome:
-    merged: dict                                  # the pytest-benchmark JSON of the whole sweep
-    skips: list[dict]                             # skipped or failed benchmarks with reasons
-    rows: list[dict]                              # every row's record, in collection order
+    merged: dict  # the pytest-benchmark JSON of the whole sweep
+    skips: list[dict]  # skipped or failed benchmarks with reasons
+    rows: list[dict]  # every row's record, in collection order
     ran: list[str] = field(default_factory=list)  # rows run now
-    resumed: list[str] = field(default_factory=list)   # rows read from checkpoints
+    resumed: list[str] = field(default_factory=list)  # rows read from checkpoints
     seconds: float = 0.0
     workers: int = 0
 
@@ -125,15 +126,26 @@ def enumerate_rows(files: list[str], sweep: str, repo: Path = REPO, pytest_args:
     """The rows of the benchmark files (``pytest --collect-only --rows-json``), in collection order."""
     with tempfile.TemporaryDirectory(prefix="exo-bench-rows-") as d:
         path = Path(d) / "rows.json"
-        cmd = [sys.executable, "-m", "pytest", *files, "--collect-only", "-q", "-p", "no:cacheprovider",
-               f"--rows-json={path}", f"--sweep={sweep}", *pytest_args]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pytest",
+            *files,
+            "--collect-only",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            f"--rows-json={path}",
+            f"--sweep={sweep}",
+            *pytest_args,
+        ]
         r = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, stdin=subprocess.DEVNULL)
         if r.returncode != 0 or not path.exists():
-            raise ValueError(f"collecting the benchmark rows failed (pytest exit code {r.returncode}): "
-                             f"{failure_lines(r.stdout + r.stderr)}")
+            raise ValueError(
+                f"collecting the benchmark rows failed (pytest exit code {r.returncode}): "
+                f"{failure_lines(r.stdout + r.stderr)}"
+            )
         return _rows.read_rows_json(path)
-
-
 
 
 def progress_bar(total: int, enabled: bool):
@@ -141,8 +153,15 @@ def progress_bar(total: int, enabled: bool):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     console = Console()
-    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                    console=console, disable=not enabled, transient=False)
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not enabled,
+        transient=False,
+    )
 
 
 def _chains(rows: list[dict], chained) -> dict[str, str]:
@@ -173,10 +192,22 @@ def _priority(row: dict) -> int:
     return 10 * (row.get("n") or 0) + (row.get("dim") or 0)
 
 
-def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str | None = None,
-              workers: int | None = None, budget: float | None = None, pytest_args: tuple = (),
-              repo: Path = REPO, only=None, chained=CHAINED, progress: bool = True, on_result=None,
-              log=print) -> SweepOutcome:
+def run_sweep(
+    files: list[str],
+    sweep: str,
+    *,
+    checkpoints: Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    budget: float | None = None,
+    pytest_args: tuple = (),
+    repo: Path = REPO,
+    only=None,
+    chained=CHAINED,
+    progress: bool = True,
+    on_result=None,
+    log=print,
+) -> SweepOutcome:
     """Run every row of the benchmark ``files`` on a Dask cluster (see the module docstring).
 
     ``checkpoints``: the base folder of the checkpoints (a subfolder per :func:`code_key`);
@@ -209,8 +240,10 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
             records[r["key"]] = rec
             resumed.append(r["key"])
     todo = _rows.schedule_order([r for r in rows if r["key"] not in records])
-    log(f"sweep {sweep}: {len(rows)} rows, {len(resumed)} already done at code {code} "
-        f"(checkpoints in {folder}), {len(todo)} to run")
+    log(
+        f"sweep {sweep}: {len(rows)} rows, {len(resumed)} already done at code {code} "
+        f"(checkpoints in {folder}), {len(todo)} to run"
+    )
     ran, nworkers = [], 0
     if todo:
         folder.mkdir(parents=True, exist_ok=True)
@@ -222,8 +255,10 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
                 task = bar.add_task("", total=len(todo))
 
                 def describe():
-                    bar.update(task, description=f"rows: {counts['done']} done, {len(running)} running, "
-                                                 f"{counts['failed']} failed")
+                    bar.update(
+                        task,
+                        description=f"rows: {counts['done']} done, {len(running)} running, {counts['failed']} failed",
+                    )
 
                 def started(event):
                     msg = event[1] if isinstance(event, tuple) else event
@@ -240,11 +275,25 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
                 # runs the largest rows first anyway (priority)
                 for r in sorted(todo, key=lambda r: (r["key"] not in prior_of, r.get("n") or 0)):
                     p = prior_of.get(r["key"])
-                    prior = submitted[p] if p in submitted else (
-                        {k: records[p].get(k) for k in ("skips", "inherited")} if p in records else None)
-                    f = client.submit(run_row, r, sweep, budget, code, tuple(pytest_args), where, prior,
-                                      key=f"exo-bench-row-{_rows.safe_name(r['key'])}-{uuid.uuid4().hex[:8]}",
-                                      pure=False, retries=RETRIES, priority=_priority(r))
+                    prior = (
+                        submitted[p]
+                        if p in submitted
+                        else ({k: records[p].get(k) for k in ("skips", "inherited")} if p in records else None)
+                    )
+                    f = client.submit(
+                        run_row,
+                        r,
+                        sweep,
+                        budget,
+                        code,
+                        tuple(pytest_args),
+                        where,
+                        prior,
+                        key=f"exo-bench-row-{_rows.safe_name(r['key'])}-{uuid.uuid4().hex[:8]}",
+                        pure=False,
+                        retries=RETRIES,
+                        priority=_priority(r),
+                    )
                     futures[f] = r
                     submitted[r["key"]] = f
                 try:
@@ -253,9 +302,17 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
                         try:
                             rec = f.result()
                         except Exception as e:  # noqa: BLE001 - KilledWorker after repeated deaths, ...
-                            rec = {"key": r["key"], "nodeids": r["nodeids"], "status": "error",
-                                   "reason": f"{type(e).__name__}: {str(e).strip().splitlines()[0] if str(e).strip() else ''}",
-                                   "host": None, "cpu": None, "seconds": 0.0, "benchmark_json": None, "skips": []}
+                            rec = {
+                                "key": r["key"],
+                                "nodeids": r["nodeids"],
+                                "status": "error",
+                                "reason": f"{type(e).__name__}: {str(e).strip().splitlines()[0] if str(e).strip() else ''}",
+                                "host": None,
+                                "cpu": None,
+                                "seconds": 0.0,
+                                "benchmark_json": None,
+                                "skips": [],
+                            }
                         if rec["status"] in FINAL:
                             atomic_write(folder / f"{_rows.safe_name(r['key'])}.json", json.dumps(rec))
                         records[r["key"]] = rec
@@ -268,7 +325,7 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
                             log(f"row {r['key']}: {rec['status']}: {rec['reason']}")
                         if on_result is not None:
                             on_result(rec)
-                except BaseException:   # Ctrl-C (or a failing callback): cancel every task, then close
+                except BaseException:  # Ctrl-C (or a failing callback): cancel every task, then close
                     cancel_tasks(client, list(futures))
                     raise
                 finally:
@@ -276,7 +333,13 @@ def run_sweep(files: list[str], sweep: str, *, checkpoints: Path, scheduler: str
                         client.unsubscribe_topic(TOPIC)
     ordered = [records[r["key"]] for r in rows if r["key"] in records]
     merged, skips = _rows.merge(ordered)
-    merged["sweep"] = {"profile": sweep, "code": code, "workers": nworkers, "scheduler": scheduler or "local",
-                       "seconds": time.perf_counter() - t0, "ran": len(ran), "resumed": len(resumed)}
+    merged["sweep"] = {
+        "profile": sweep,
+        "code": code,
+        "workers": nworkers,
+        "scheduler": scheduler or "local",
+        "seconds": time.perf_counter() - t0,
+        "ran": len(ran),
+        "resumed": len(resumed),
+    }
     return SweepOutcome(merged, skips, ordered, ran, resumed, time.perf_counter() - t0, nworkers)
-

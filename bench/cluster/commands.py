@@ -1,5 +1,6 @@
 """``exo-bench bench --full`` and ``exo-bench stability --full`` on the cluster: the sweep's rows and the
 stability study's parts as tasks (:mod:`exo_bench.bench.cluster.cluster`), then their reports."""
+
 from __future__ import annotations
 
 import contextlib
@@ -14,7 +15,15 @@ from exo_bench.bench.studies.options import ClusterOptions, Evaluator, Stability
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO, atomic_write
 from exo_bench.bench.cluster.checkpoints import checkpoint_dir, code_key, default_checkpoints, load_checkpoint
-from exo_bench.bench.cluster.cluster import RETRIES, cancel_tasks, progress_bar, check_scheduler, cluster, enumerate_rows, run_sweep
+from exo_bench.bench.cluster.cluster import (
+    RETRIES,
+    cancel_tasks,
+    progress_bar,
+    check_scheduler,
+    cluster,
+    enumerate_rows,
+    run_sweep,
+)
 from exo_bench.bench.cluster.tasks import stability_task
 
 
@@ -30,15 +39,24 @@ def bench_run(options: BenchOptions) -> int:
     command = "exo-bench bench" + (" --full" if full else "")
     check_scheduler(where.scheduler)
     only = None
-    if options.rows:                      # a selection: its own report folder, the same checkpoints
+    if options.rows:  # a selection: its own report folder, the same checkpoints
         only = selected_rows(sweep, list(options.rows))
         command += "".join(f" --rows '{p}'" for p in options.rows)
-    outcome = run_sweep(["bench"], sweep, checkpoints=default_checkpoints(out), scheduler=where.scheduler,
-                        workers=where.workers, only=only)
+    outcome = run_sweep(
+        ["bench"],
+        sweep,
+        checkpoints=default_checkpoints(out),
+        scheduler=where.scheduler,
+        workers=where.workers,
+        only=only,
+    )
     if only is not None:
         out = out / "selected-rows"
-    print(f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
-          f"from checkpoints, {outcome.seconds:.0f} s", flush=True)
+    print(
+        f"sweep {sweep}: {len(outcome.ran)} rows run on {outcome.workers} worker(s), {len(outcome.resumed)} "
+        f"from checkpoints, {outcome.seconds:.0f} s",
+        flush=True,
+    )
     _write_reports(outcome.merged, outcome.skips, out, sweep, command, options.update_readme)
     return 0
 
@@ -51,8 +69,10 @@ def selected_rows(sweep: str, patterns: list[str]) -> list[str]:
     keys = [r["key"] for r in enumerate_rows(["bench"], sweep)]
     only = [k for k in keys if any(fnmatchcase(k, p) for p in patterns)]
     if not only:
-        raise ValueError(f"--rows: no row of the {sweep} sweep matches {', '.join(map(repr, patterns))}; "
-                         f"rows look like {', '.join(keys[:3])} ({len(keys)} rows)")
+        raise ValueError(
+            f"--rows: no row of the {sweep} sweep matches {', '.join(map(repr, patterns))}; "
+            f"rows look like {', '.join(keys[:3])} ({len(keys)} rows)"
+        )
     return only
 
 
@@ -69,8 +89,14 @@ def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: st
         return br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)
 
 
-def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: Path | None = None,
-                       repo: Path = REPO, update_readme: bool = False) -> list[Path]:
+def render_checkpoints(
+    code: str,
+    out: Path,
+    sweep: str = "full",
+    checkpoints: Path | None = None,
+    repo: Path = REPO,
+    update_readme: bool = False,
+) -> list[Path]:
     """The benchmark reports again, from the rows a sweep measured at ``code`` (its checkpoints),
     with this process's report code: for a change to how the reports are drawn, without measuring
     again. Every row of the profile must be there (a ValueError names the missing ones); the reports
@@ -81,19 +107,22 @@ def render_checkpoints(code: str, out: Path, sweep: str = "full", checkpoints: P
     records = {r["key"]: load_checkpoint(folder, r["key"]) for r in rows}
     missing = [k for k, v in records.items() if v is None]
     if missing:
-        raise ValueError(f"render: {len(missing)} of {len(rows)} rows have no checkpoint at code {code} in {folder} "
-                         f"(first: {missing[0]}); run the sweep at that code first")
+        raise ValueError(
+            f"render: {len(missing)} of {len(rows)} rows have no checkpoint at code {code} in {folder} "
+            f"(first: {missing[0]}); run the sweep at that code first"
+        )
     merged, skips = _rows.merge([rec for rec in records.values() if rec is not None])
     merged["sweep"] = {"profile": sweep, "code": code, "rendered_at": code_key(repo), "resumed": len(rows)}
-    command = (f"exo-bench bench {'--full' if sweep == 'full' else ''}".strip()
-               + f" (rows measured at {code}, reports rendered again at {code_key(repo)})")
+    command = (
+        f"exo-bench bench {'--full' if sweep == 'full' else ''}".strip()
+        + f" (rows measured at {code}, reports rendered again at {code_key(repo)})"
+    )
     from exo_bench.bench.output.publish import record_files, snapshot
 
     before = snapshot(out)
     written = _write_reports(merged, skips, out, sweep, command, update_readme)
-    record_files(out, before, command)   # runs.json and summary.md say which run made each file
+    record_files(out, before, command)  # runs.json and summary.md say which run made each file
     return written
-
 
 
 def stability_evaluator(options: StabilityOptions) -> Evaluator:
@@ -117,13 +146,25 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
             with contextlib.suppress(OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
                 results[part] = pickle.loads((folder / f"{tag(part)}.pickle").read_bytes())
         todo = [p for p in parts if p not in results]
-        log(f"stability {profile.name}: {len(parts)} parts, {len(parts) - len(todo)} from checkpoints, "
-            f"{len(todo)} to run")
+        log(
+            f"stability {profile.name}: {len(parts)} parts, {len(parts) - len(todo)} from checkpoints, "
+            f"{len(todo)} to run"
+        )
         if todo:
             folder.mkdir(parents=True, exist_ok=True)
             with cluster(where.scheduler, where.workers) as client:
-                futures = {client.submit(stability_task, p, profile.name, methods, pure=False, retries=RETRIES,
-                                         key=f"exo-bench-stability-{tag(p)}-{uuid.uuid4().hex[:8]}"): p for p in todo}
+                futures = {
+                    client.submit(
+                        stability_task,
+                        p,
+                        profile.name,
+                        methods,
+                        pure=False,
+                        retries=RETRIES,
+                        key=f"exo-bench-stability-{tag(p)}-{uuid.uuid4().hex[:8]}",
+                    ): p
+                    for p in todo
+                }
                 try:
                     with progress_bar(len(todo), True) as bar:
                         task = bar.add_task("stability parts", total=len(todo))
@@ -135,8 +176,9 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
                 except BaseException:
                     cancel_tasks(client, list(futures))
                     raise
-        categories = {c.__name__: c for c in (study.StabilityWarning, study.UnusableMethodWarning,
-                                              cases.IllConditionedWarning)}
+        categories = {
+            c.__name__: c for c in (study.StabilityWarning, study.UnusableMethodWarning, cases.IllConditionedWarning)
+        }
         for part in parts:
             for cat, msg in results[part][1]:
                 warnings.warn(msg, categories.get(cat, UserWarning), stacklevel=2)

@@ -1,5 +1,6 @@
 """The tasks a cluster's workers run: one benchmark row in a pytest subprocess (:func:`run_row`) and one part
 of the stability study (:func:`stability_task`)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -35,7 +36,7 @@ def _death_signal():
         prctl = ctypes.CDLL(None, use_errno=True).prctl
     except (OSError, AttributeError):
         return None
-    return lambda: prctl(1, signal.SIGKILL)   # PR_SET_PDEATHSIG = 1
+    return lambda: prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
 
 
 def host_and_cpu() -> tuple[str, str]:
@@ -55,8 +56,15 @@ def failure_lines(output: str) -> str:
     return tail[-1] if tail else "no output"
 
 
-def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytest_args: tuple = (),
-            repo: str | None = None, prior: dict | None = None) -> dict:
+def run_row(
+    row: dict,
+    sweep: str,
+    budget: float,
+    code: str | None = None,
+    pytest_args: tuple = (),
+    repo: str | None = None,
+    prior: dict | None = None,
+) -> dict:
     """Run one row (every benchmark of it) in a pytest subprocess; its record (see :func:`exo_bench.bench.perf.rows.merge`).
 
     Runs on a worker. ``code`` is the client's :func:`code_key`: a worker running other code refuses
@@ -66,14 +74,24 @@ def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytes
     t0 = time.perf_counter()
     host, cpu = host_and_cpu()
     inherited = ((prior.get("skips") or []) + (prior.get("inherited") or [])) if prior else []
-    rec = {"key": row["key"], "nodeids": row.get("nodeids", []), "host": host, "cpu": cpu, "status": "error",
-           "reason": "", "seconds": 0.0, "benchmark_json": None, "skips": [], "machine_info": None,
-           "inherited": [s for s in inherited if any(p[0] == _rows.OVER_BUDGET for p in s.get("params") or [])]}
+    rec = {
+        "key": row["key"],
+        "nodeids": row.get("nodeids", []),
+        "host": host,
+        "cpu": cpu,
+        "status": "error",
+        "reason": "",
+        "seconds": 0.0,
+        "benchmark_json": None,
+        "skips": [],
+        "machine_info": None,
+        "inherited": [s for s in inherited if any(p[0] == _rows.OVER_BUDGET for p in s.get("params") or [])],
+    }
     try:
         from distributed import get_worker
 
         get_worker().log_event(TOPIC, {"row": row["key"], "event": "start", "host": host})
-    except (ImportError, ValueError):   # not on a Dask worker (a direct call)
+    except (ImportError, ValueError):  # not on a Dask worker (a direct call)
         pass
     where = Path(repo) if repo else REPO
     if code is not None:
@@ -83,26 +101,50 @@ def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytes
             return rec
     with tempfile.TemporaryDirectory(prefix="exo-bench-row-") as d:
         bjson, sjson, pjson = Path(d) / "benchmarks.json", Path(d) / "skips.json", Path(d) / "prior-skips.json"
-        cmd = [sys.executable, "-m", "pytest", row["file"], "--row", row["key"], "-q", "-rfE", "-p", "no:cacheprovider",
-               "--benchmark-enable", f"--benchmark-json={bjson}", f"--skips-json={sjson}", f"--sweep={sweep}",
-               *pytest_args]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pytest",
+            row["file"],
+            "--row",
+            row["key"],
+            "-q",
+            "-rfE",
+            "-p",
+            "no:cacheprovider",
+            "--benchmark-enable",
+            f"--benchmark-json={bjson}",
+            f"--skips-json={sjson}",
+            f"--sweep={sweep}",
+            *pytest_args,
+        ]
         if rec["inherited"]:
             pjson.write_text(json.dumps(rec["inherited"]))
             cmd.append(f"--prior-skips={pjson}")
-        proc = subprocess.Popen(cmd, cwd=where, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                stdin=subprocess.DEVNULL, start_new_session=True,
-                                env={**os.environ, "COLUMNS": "400"},   # failure lines in full in the summary
-                                preexec_fn=_death_signal())
+        proc = subprocess.Popen(
+            cmd,
+            cwd=where,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            env={**os.environ, "COLUMNS": "400"},  # failure lines in full in the summary
+            preexec_fn=_death_signal(),
+        )
         try:
             output, _ = proc.communicate(timeout=budget)
         except subprocess.TimeoutExpired:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
-            rec.update(status="over budget", reason=f"over the row budget of {budget:g} s (killed)",
-                       seconds=time.perf_counter() - t0)
+            rec.update(
+                status="over budget",
+                reason=f"over the row budget of {budget:g} s (killed)",
+                seconds=time.perf_counter() - t0,
+            )
             return rec
-        except BaseException:   # the task is cancelled or the worker closes: no orphan keeps running
+        except BaseException:  # the task is cancelled or the worker closes: no orphan keeps running
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGKILL)
             raise
@@ -110,19 +152,18 @@ def run_row(row: dict, sweep: str, budget: float, code: str | None = None, pytes
         if bjson.exists():
             data = json.loads(bjson.read_text())
             for b in data.get("benchmarks", []):
-                b.get("stats", {}).pop("data", None)   # the per-round lists: megabytes; the statistics stay
+                b.get("stats", {}).pop("data", None)  # the per-round lists: megabytes; the statistics stay
             rec["benchmark_json"] = data
             rec["machine_info"] = data.get("machine_info")
         if sjson.exists():
             rec["skips"] = json.loads(sjson.read_text())
         if proc.returncode == 0:
             rec["status"] = "ok"
-        elif proc.returncode == 1:   # pytest ran the row to its end; some of its tests failed
+        elif proc.returncode == 1:  # pytest ran the row to its end; some of its tests failed
             rec.update(status="failed", reason=failure_lines(output))
         else:
             rec.update(status="error", reason=f"pytest exit code {proc.returncode}: {failure_lines(output)}")
     return rec
-
 
 
 # ----------------------------------------------------------------------------- exo-bench stability
@@ -144,12 +185,12 @@ def stability_task(part: str, profile_name: str, methods: list[str]):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if part == "forward":
-            res = forward_evaluation.run_forward(profile, methods, lambda msg: None,
-                                                 PreparedSet(evaluation.method_options(profile)))
+            res = forward_evaluation.run_forward(
+                profile, methods, lambda msg: None, PreparedSet(evaluation.method_options(profile))
+            )
         else:
             name = part.split(":", 1)[1]
             make = cases.FAMILIES[name]
             doc = " ".join((make.__doc__ or "").split())
             res = evaluation.evaluate_family(name, make(profile), methods, {}, doc, evaluation.method_options(profile))
     return res, [(w.category.__name__, str(w.message)) for w in caught]
-

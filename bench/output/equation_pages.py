@@ -37,8 +37,10 @@ class _Clock:
 
     def _message(self, what: str) -> str:
         m = self.mech
-        return (f"equations of {m.name!r} (n={m.nlinks} links, dim={m.dim}) as {self.fmt}: composing and generating "
-                f"{what}, over the budget of {self.budget:g} s; raise it with --budget SECONDS")
+        return (
+            f"equations of {m.name!r} (n={m.nlinks} links, dim={m.dim}) as {self.fmt}: composing and generating "
+            f"{what}, over the budget of {self.budget:g} s; raise it with --budget SECONDS"
+        )
 
     def check(self, phase: str) -> None:
         t = time.perf_counter() - self.start
@@ -60,7 +62,7 @@ MD_ELEMENTS = 200
 def md_matrices(mech):
     from exo_bench.models.equation_form import blocks, matrix_names
 
-    count = len(blocks(mech.dim)) * len(matrix_names(mech.dim)) * mech.nlinks ** 2
+    count = len(blocks(mech.dim)) * len(matrix_names(mech.dim)) * mech.nlinks**2
     if count <= MD_ELEMENTS:
         return None
     return ("A", "B", "P") if mech.dim == 3 else ("A", "Lambda", "P")
@@ -79,12 +81,16 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     parts = export_latex.element_parts(mech, True)
     header = provenance(f"exo-bench run {scene.name}")
     title = f"Equations of motion of scene `{scene.name}` ({mech.name})"
-    md = latex_document.document(mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech),
-                               matrices_shown=md_matrices(mech))
-    tex = latex_document.document(mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts,
-                                eq4=eq4_pair(mech))
-    return [atomic_write(staging / f"equations-{scene.name}.md", md),
-            atomic_write(staging / f"equations-{scene.name}.tex", tex)]
+    md = latex_document.document(
+        mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech), matrices_shown=md_matrices(mech)
+    )
+    tex = latex_document.document(
+        mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts, eq4=eq4_pair(mech)
+    )
+    return [
+        atomic_write(staging / f"equations-{scene.name}.md", md),
+        atomic_write(staging / f"equations-{scene.name}.tex", tex),
+    ]
 
 
 def _seconds(x: float) -> str:

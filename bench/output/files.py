@@ -23,9 +23,14 @@ from pathlib import Path
 
 def kind_of(mode: int) -> str:
     """``st_mode`` in words: "a FIFO", "a character device", ..."""
-    for test, name in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISDIR, "a folder"),
-                       (stat.S_ISREG, "a regular file")):
+    for test, name in (
+        (stat.S_ISFIFO, "a FIFO"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISREG, "a regular file"),
+    ):
         if test(mode):
             return name
     return "not a regular file"
@@ -45,8 +50,8 @@ def output_target(path: str | Path, label: str = "") -> Path:
         lst = os.lstat(p)
     except FileNotFoundError:
         return p
-    except OSError as e:   # a name too long, a loop of links, a component that is a file
-        if getattr(e, "errno", None) == errno.ENOTDIR:   # handled where the folder is made
+    except OSError as e:  # a name too long, a loop of links, a component that is a file
+        if getattr(e, "errno", None) == errno.ENOTDIR:  # handled where the folder is made
             return p
         raise ValueError(f"{who}: not a usable path to write ({e.strerror or e})") from None
     if stat.S_ISLNK(lst.st_mode):
@@ -54,16 +59,20 @@ def output_target(path: str | Path, label: str = "") -> Path:
         try:
             st = os.stat(p)
         except FileNotFoundError:
-            raise ValueError(f"{who}: is a symlink to {target!r}, which does not exist; refusing to write "
-                             "through a dangling link (remove it or point it at a file)") from None
+            raise ValueError(
+                f"{who}: is a symlink to {target!r}, which does not exist; refusing to write "
+                "through a dangling link (remove it or point it at a file)"
+            ) from None
         except OSError as e:
             raise ValueError(f"{who}: is a symlink that cannot be followed ({e.strerror or e})") from None
         if stat.S_ISREG(st.st_mode):
             return Path(target)
         if stat.S_ISDIR(st.st_mode):
             raise ValueError(f"{text}: expected a file to write, got a folder")
-        raise ValueError(f"{who}: is a symlink to {target!r}, which is {kind_of(st.st_mode)}; only a regular "
-                         "file or nothing is ever replaced")
+        raise ValueError(
+            f"{who}: is a symlink to {target!r}, which is {kind_of(st.st_mode)}; only a regular "
+            "file or nothing is ever replaced"
+        )
     if stat.S_ISREG(lst.st_mode):
         return p
     if stat.S_ISDIR(lst.st_mode):
@@ -83,7 +92,7 @@ def _own_command(path: Path) -> str:
         with open(path, encoding="utf-8", errors="replace") as f:
             for _, line in zip(range(10), f):
                 if line.startswith(GENERATED):
-                    return line[len(GENERATED):].split("`", 1)[0]
+                    return line[len(GENERATED) :].split("`", 1)[0]
     except OSError:
         return ""
     return ""
@@ -173,7 +182,7 @@ def _alive(owner: str) -> bool | None:
     except (PermissionError, ValueError, OverflowError):
         return None
     start = _start_time(pid)
-    return not (start and parts[1] and start != parts[1])   # the pid was reused by another process
+    return not (start and parts[1] and start != parts[1])  # the pid was reused by another process
 
 
 #: A staging folder without an owner mark (an older version's) is taken as stale after this long.
@@ -188,8 +197,9 @@ def stale_staging(out: Path) -> tuple[list[Path], list[Path]]:
     stale: list[Path] = []
     unknown: list[Path] = []
     try:
-        entries = [d for d in Path(out).iterdir() if d.name.startswith(".staging-") and d.is_dir()
-                   and not d.is_symlink()]
+        entries = [
+            d for d in Path(out).iterdir() if d.name.startswith(".staging-") and d.is_dir() and not d.is_symlink()
+        ]
     except OSError:
         return [], []
     for d in entries:
@@ -217,8 +227,14 @@ def clean_stale_staging(out: Path) -> None:
     for d in stale:
         shutil.rmtree(d, ignore_errors=True)
     if stale:
-        print(f"exo-bench: warning: removed {len(stale)} staging folder(s) left in {str(out)!r} by a run that was "
-              f"killed ({', '.join(d.name for d in stale)})", file=sys.stderr)
+        print(
+            f"exo-bench: warning: removed {len(stale)} staging folder(s) left in {str(out)!r} by a run that was "
+            f"killed ({', '.join(d.name for d in stale)})",
+            file=sys.stderr,
+        )
     if unknown:
-        print(f"exo-bench: warning: left {len(unknown)} staging folder(s) in {str(out)!r} whose run may still be "
-              f"going on ({', '.join(d.name for d in unknown)}); remove them by hand if it is not", file=sys.stderr)
+        print(
+            f"exo-bench: warning: left {len(unknown)} staging folder(s) in {str(out)!r} whose run may still be "
+            f"going on ({', '.join(d.name for d in unknown)}); remove them by hand if it is not",
+            file=sys.stderr,
+        )

@@ -6,15 +6,28 @@ eq. (4) with both signs."""
 from __future__ import annotations
 
 
-from exo_bench.matrix_method.export.latex import (BLOCK, MATRIX, ElementParts, element_name, Latex, aggregate_definitions, aggregate_symbols,
-                                                  element_parts, elements, eq4_rows, shortest)
+from exo_bench.matrix_method.export.latex import (
+    BLOCK,
+    MATRIX,
+    ElementParts,
+    element_name,
+    Latex,
+    aggregate_definitions,
+    aggregate_symbols,
+    element_parts,
+    elements,
+    eq4_rows,
+    shortest,
+)
 from exo_bench.models.equation_form import blocks, matrix_names
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import symbols_for
 
 
-NOTATION_TEXT = (r"$C_i = \cos\varphi_i$, $S_i = \sin\varphi_i$, $C_{ij} = \cos(\varphi_i - \varphi_j)$, "
-                 r"$S_{ij} = \sin(\varphi_i - \varphi_j)$, $C^{\psi}_i = \cos\psi_i$, $S^{\psi}_i = \sin\psi_i$")
+NOTATION_TEXT = (
+    r"$C_i = \cos\varphi_i$, $S_i = \sin\varphi_i$, $C_{ij} = \cos(\varphi_i - \varphi_j)$, "
+    r"$S_{ij} = \sin(\varphi_i - \varphi_j)$, $C^{\psi}_i = \cos\psi_i$, $S^{\psi}_i = \sin\psi_i$"
+)
 
 
 def legend(mech: Mechanism, symbolic_parameters: bool) -> list[str]:
@@ -32,9 +45,16 @@ def legend(mech: Mechanism, symbolic_parameters: bool) -> list[str]:
     return lines
 
 
-def document(mech: Mechanism, symbolic_parameters: bool, kind: str, header: str, title: str | None = None,
-             matrices_shown: tuple[str, ...] | None = None, eq4: tuple[Mechanism, Mechanism] | None = None,
-             parts: ElementParts | None = None) -> str:
+def document(
+    mech: Mechanism,
+    symbolic_parameters: bool,
+    kind: str,
+    header: str,
+    title: str | None = None,
+    matrices_shown: tuple[str, ...] | None = None,
+    eq4: tuple[Mechanism, Mechanism] | None = None,
+    parts: ElementParts | None = None,
+) -> str:
     """The Markdown page (``kind="md"``) or standalone LaTeX (``kind="tex"``) of every element of
     eq. (5)/(17) of ``mech`` (``matrices_shown``: a subset of the matrices, ``P`` included by name).
     ``header``: Markdown provenance text (the Markdown page only). ``eq4``: the serial and the
@@ -69,26 +89,38 @@ def document(mech: Mechanism, symbolic_parameters: bool, kind: str, header: str,
     if md:
         out.extend([f"# {title}", "", header, ""])
     s = mech.sign
-    rates = "A phi'' + B psi'' + Lambda l'' + D (phi'^2) + E (psi'^2) + 2 G (phi' psi') + 2 H (phi' l') + 2 K (psi' l') + g P" \
-        if mech.dim == 3 else "A phi'' + Lambda l'' + D (phi'^2) + 2 H (phi' l') + g P"
-    para(f"Mechanism `{mech.name}`: {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)} (-1: the support "
-         f"point), branch signs {list(s)}. Eq. ({5 if mech.dim == 2 else 17}) of Borisov & Chigarev, block k "
-         f"(k = {', '.join(blocks(mech.dim))}): `{rates} = M_k` (`F` for k = l), every matrix composed by the matrix "
-         "method from its closed forms (`exo_bench.matrix_method`) and checked against Pinocchio and Lagrange "
-         "(tests/test_equations_export.py). Right-hand sides are generalised forces of the absolute angles "
-         "(the paper's joint moments: `M_1 - M_2` for phi_1 of a chain).")
-    para("Notation: " + NOTATION_TEXT + "; dots are time derivatives. Every element is the sign product "
-         "s_i s_j (a minus sign at a branch point), the coefficient mu_ij of eq. (6) in the aggregates "
-         "(zeta_i, eta_i, theta_i), and a geometric factor; links on different branches give 0. "
-         + ("Coefficients are named symbols (values below)." if symbolic_parameters else
-            "Coefficients are this mechanism's numbers (the nearest double of the exact value)."))
+    rates = (
+        "A phi'' + B psi'' + Lambda l'' + D (phi'^2) + E (psi'^2) + 2 G (phi' psi') + 2 H (phi' l') + 2 K (psi' l') + g P"
+        if mech.dim == 3
+        else "A phi'' + Lambda l'' + D (phi'^2) + 2 H (phi' l') + g P"
+    )
+    para(
+        f"Mechanism `{mech.name}`: {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)} (-1: the support "
+        f"point), branch signs {list(s)}. Eq. ({5 if mech.dim == 2 else 17}) of Borisov & Chigarev, block k "
+        f"(k = {', '.join(blocks(mech.dim))}): `{rates} = M_k` (`F` for k = l), every matrix composed by the matrix "
+        "method from its closed forms (`exo_bench.matrix_method`) and checked against Pinocchio and Lagrange "
+        "(tests/test_equations_export.py). Right-hand sides are generalised forces of the absolute angles "
+        "(the paper's joint moments: `M_1 - M_2` for phi_1 of a chain)."
+    )
+    para(
+        "Notation: " + NOTATION_TEXT + "; dots are time derivatives. Every element is the sign product "
+        "s_i s_j (a minus sign at a branch point), the coefficient mu_ij of eq. (6) in the aggregates "
+        "(zeta_i, eta_i, theta_i), and a geometric factor; links on different branches give 0. "
+        + (
+            "Coefficients are named symbols (values below)."
+            if symbolic_parameters
+            else "Coefficients are this mechanism's numbers (the nearest double of the exact value)."
+        )
+    )
     heading(2, "Aggregates (eq. (6))")
     math([ln for ln in legend(mech, symbolic_parameters)])
     if eq4 is not None:
         heading(2, "Eq. (4): the two-link model, upper signs serial (Fig. 2a), lower signs branched (Fig. 2b)")
         which = "upper" if mech.sign[1] > 0 else "lower"
-        para(f"This page's model `{mech.name}` takes the {which} signs. Composed here from the closed forms; "
-             "reports/errata.md compares it with eq. (4) as printed.")
+        para(
+            f"This page's model `{mech.name}` takes the {which} signs. Composed here from the closed forms; "
+            "reports/errata.md compares it with eq. (4) as printed."
+        )
         math(eq4_rows(*eq4))
     for block in blocks(mech.dim):
         heading(2, f"Block {block}: the equations of " + ("F" if block == "l" else f"M_{block}"))
@@ -125,6 +157,17 @@ def _tex_text(text: str) -> str:
 
 
 def _tex_wrap(title: str, body: str) -> str:
-    return "\n".join([r"\documentclass[10pt]{article}", r"\usepackage[a4paper,landscape,margin=1cm]{geometry}",
-                      r"\usepackage{amsmath}", r"\allowdisplaybreaks", r"\begin{document}",
-                      rf"\section*{{{_tex_text(title)}}}", "", body, r"\end{document}", ""])
+    return "\n".join(
+        [
+            r"\documentclass[10pt]{article}",
+            r"\usepackage[a4paper,landscape,margin=1cm]{geometry}",
+            r"\usepackage{amsmath}",
+            r"\allowdisplaybreaks",
+            r"\begin{document}",
+            rf"\section*{{{_tex_text(title)}}}",
+            "",
+            body,
+            r"\end{document}",
+            "",
+        ]
+    )

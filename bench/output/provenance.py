@@ -34,7 +34,7 @@ def atomic_path(path: str | Path):
     error or Ctrl-C it is removed, so that no half-written file is ever left."""
     from exo_bench.bench.output.files import output_target
 
-    path = output_target(path)   # nothing or a regular file, never a FIFO, a device, a socket
+    path = output_target(path)  # nothing or a regular file, never a FIFO, a device, a socket
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -80,8 +80,12 @@ def save_figure(fig, path: str | Path, dpi: int = PNG_DPI) -> Path:
     import io
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": "exo-bench",
-                                                      "Description": f"exo-bench run {current_run_id()}"})
+    fig.savefig(
+        buf,
+        format="png",
+        dpi=dpi,
+        metadata={"Software": "exo-bench", "Description": f"exo-bench run {current_run_id()}"},
+    )
     return atomic_write(path, buf.getvalue())
 
 
@@ -119,16 +123,18 @@ def run_id_of(path: str | Path) -> str | None:
 
     path = Path(path)
     try:
-        if not path.is_file():   # a FIFO or a device would block or never end
+        if not path.is_file():  # a FIFO or a device would block or never end
             return None
         if path.suffix == ".md":
             with open(path, encoding="utf-8", errors="replace") as f:
                 for _, line in zip(range(40), f):
                     if line.startswith(RUN_LINE):
-                        return line[len(RUN_LINE):].strip().strip("`") or None
+                        return line[len(RUN_LINE) :].strip().strip("`") or None
         elif path.suffix == ".png":
             head = path.read_bytes()[:65536]
-            m = re.search(rb"exo-bench run ([0-9]{8}T[0-9]{6}Z-[0-9a-f]{4})", head)   # 4 hex digits, then binary (the CRC)
+            m = re.search(
+                rb"exo-bench run ([0-9]{8}T[0-9]{6}Z-[0-9a-f]{4})", head
+            )  # 4 hex digits, then binary (the CRC)
             return m.group(1).decode() if m else None
     except OSError:
         return None
@@ -150,12 +156,27 @@ def _version(pkg: str) -> str:
 
 def _git_commit() -> str:
     try:
-        out = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
-                             text=True, timeout=5)
+        out = subprocess.run(
+            ["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=5
+        )
         # Generated files (reports/, the README's inserted table) do not make the code "uncommitted".
-        dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=no", "--",
-                                ".", ":!reports", ":!README.md"],
-                               capture_output=True, text=True, timeout=5).stdout.strip()
+        dirty = subprocess.run(
+            [
+                "git",
+                "-C",
+                str(REPO),
+                "status",
+                "--porcelain",
+                "--untracked-files=no",
+                "--",
+                ".",
+                ":!reports",
+                ":!README.md",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
         return (out.stdout.strip() or "unknown") + (" (with uncommitted changes)" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
@@ -204,18 +225,21 @@ def writable_folder(value, label: str) -> Path:
     p = Path(text)
     try:
         for parent in [p, *p.parents]:
-            if parent.is_symlink() and not parent.exists():   # a dangling link: mkdir would say "File exists"
+            if parent.is_symlink() and not parent.exists():  # a dangling link: mkdir would say "File exists"
                 where = "is" if parent == p else f"lies under {str(parent)!r}, which is"
-                raise ValueError(f"{label} {text!r}: expected a folder, but it {where} a symlink to "
-                                 f"{os.path.realpath(parent)!r}, which does not exist")
+                raise ValueError(
+                    f"{label} {text!r}: expected a folder, but it {where} a symlink to "
+                    f"{os.path.realpath(parent)!r}, which does not exist"
+                )
             if parent.exists():
                 if not parent.is_dir():
                     what = "a file" if parent.is_file() else "a device, FIFO or socket"
                     where = f"is {what}" if parent == p else f"lies under {str(parent)!r}, which is {what}"
                     raise ValueError(f"{label} {text!r}: expected a folder, but it {where}")
                 if not os.access(parent, os.W_OK | os.X_OK):
-                    raise ValueError(f"{label} {text!r}: the folder {str(parent)!r} cannot be written "
-                                     "(permission denied)")
+                    raise ValueError(
+                        f"{label} {text!r}: the folder {str(parent)!r} cannot be written (permission denied)"
+                    )
                 break
     except OSError as e:  # a name too long, a loop of links, ...
         raise ValueError(f"{label} {text!r}: not a usable folder ({e.strerror or e})") from None

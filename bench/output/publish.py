@@ -37,7 +37,7 @@ def staging_dir(out: Path) -> Iterator[Path]:
     from exo_bench.bench.output.files import clean_stale_staging, mark_owner
 
     out.mkdir(parents=True, exist_ok=True)
-    clean_stale_staging(out)   # what a killed run left (bench/output/files.py)
+    clean_stale_staging(out)  # what a killed run left (bench/output/files.py)
     d = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:
         mark_owner(d)
@@ -73,29 +73,51 @@ def summary_markdown(command: str, manifest: dict | None = None, folder: Path | 
     each with its run), and which run produced each report file."""
     manifest = manifest if manifest is not None else new_manifest()
     scenes = {k: dict(v) for k, v in manifest.get("scenes", {}).items()}
-    lines = ["# Summary: every scene, every method", "", provenance(command), "",
-             "Largest error: against the 50-digit reference (Lagrange in mpmath; d'Alembert in mpmath beyond sympy's "
-             "reach; each scene report names it) on a subsample where the scene asks for it "
-             "(`ref50`), otherwise the largest difference relative to the scene's reference method (`vs <method>`). "
-             "Quantities are generalised forces of the paper's absolute coordinates. `run`: the run that produced "
-             "the row (a run of some scenes replaces only their rows).", ""]
-    pending = [(rid, r) for rid, r in manifest.get("runs", {}).items() if r.get("status") in ("publishing", "interrupted")]
+    lines = [
+        "# Summary: every scene, every method",
+        "",
+        provenance(command),
+        "",
+        "Largest error: against the 50-digit reference (Lagrange in mpmath; d'Alembert in mpmath beyond sympy's "
+        "reach; each scene report names it) on a subsample where the scene asks for it "
+        "(`ref50`), otherwise the largest difference relative to the scene's reference method (`vs <method>`). "
+        "Quantities are generalised forces of the paper's absolute coordinates. `run`: the run that produced "
+        "the row (a run of some scenes replaces only their rows).",
+        "",
+    ]
+    pending = [
+        (rid, r) for rid, r in manifest.get("runs", {}).items() if r.get("status") in ("publishing", "interrupted")
+    ]
     for rid, r in pending:
-        lines += [f"**Run `{rid}` (`{r.get('command', '?')}`) was interrupted while its files were being published**: "
-                  f"the files marked `{rid}` below are from it, the others from earlier runs.", ""]
+        lines += [
+            f"**Run `{rid}` (`{r.get('command', '?')}`) was interrupted while its files were being published**: "
+            f"the files marked `{rid}` below are from it, the others from earlier runs.",
+            "",
+        ]
     lines += [SUMMARY_HEADER[0] + " run |", SUMMARY_HEADER[1] + "---|"]
     for name in sorted(scenes):
         for row in scenes[name]["rows"]:
             rid = scenes[name]["run"]
-            lines.append("| " + " | ".join(_cell(c) for c in row) + " | "
-                         + (f"`{rid}`" if rid != "unknown" else "unknown (before run identifiers)") + " |")
+            lines.append(
+                "| "
+                + " | ".join(_cell(c) for c in row)
+                + " | "
+                + (f"`{rid}`" if rid != "unknown" else "unknown (before run identifiers)")
+                + " |"
+            )
     files = manifest.get("files", {})
     names = sorted(set(files) | ({f.name for f in Path(folder).iterdir() if _is_report(f)} if folder else set()))
     names = [n for n in names if n not in (SUMMARY, MANIFEST)]
     if names:
-        lines += ["", "## Report files", "",
-                  "Which run produced each file of this folder (`runs.json` holds the same, machine-readable).", "",
-                  "| file | run | command |", "|---|---|---|"]
+        lines += [
+            "",
+            "## Report files",
+            "",
+            "Which run produced each file of this folder (`runs.json` holds the same, machine-readable).",
+            "",
+            "| file | run | command |",
+            "|---|---|---|",
+        ]
         runs = manifest.get("runs", {})
         for n in names:
             own = run_id_of(Path(folder) / n) if folder and (Path(folder) / n).exists() else None
@@ -103,8 +125,9 @@ def summary_markdown(command: str, manifest: dict | None = None, folder: Path | 
             rid = own or planned
             if planned and planned != own and runs.get(planned, {}).get("status") in ("publishing", "interrupted"):
                 earlier = f"`{own}`" if own else "an earlier run"
-                shown = (f"`{planned}` if published before the interruption, else {earlier}"
-                         + (" (the file's own mark says which)" if own or n.endswith((".md", ".png")) else ""))
+                shown = f"`{planned}` if published before the interruption, else {earlier}" + (
+                    " (the file's own mark says which)" if own or n.endswith((".md", ".png")) else ""
+                )
                 rid = planned
             elif rid is None:
                 shown = "unknown (written before run identifiers)"
@@ -130,15 +153,17 @@ def read_manifest(out: Path) -> dict:
     """``runs.json`` of a reports folder; for a folder written before run identifiers, the scene
     rows of its ``summary.md`` (marked as of an unknown run)."""
     p = Path(out) / MANIFEST
-    if p.is_file():   # never open a FIFO or a device (it would block or never end)
+    if p.is_file():  # never open a FIFO or a device (it would block or never end)
         try:
             data = json.loads(p.read_text())
             if isinstance(data, dict) and data.get("format") == 1:
                 return data
         except (OSError, ValueError):
             pass
-        print(f"exo-bench: warning: {p} is not a manifest this version can read; its runs are listed as unknown",
-              file=sys.stderr)
+        print(
+            f"exo-bench: warning: {p} is not a manifest this version can read; its runs are listed as unknown",
+            file=sys.stderr,
+        )
     m = new_manifest()
     old = Path(out) / SUMMARY
     if old.is_file():
@@ -148,7 +173,12 @@ def read_manifest(out: Path) -> dict:
             return m
         for line in text.splitlines():
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if line.startswith("| ") and len(cells) >= 5 and cells[0] not in ("scene", "") and not cells[0].startswith("-"):
+            if (
+                line.startswith("| ")
+                and len(cells) >= 5
+                and cells[0] not in ("scene", "")
+                and not cells[0].startswith("-")
+            ):
                 m["scenes"].setdefault(cells[0], {"run": "unknown", "rows": []})["rows"].append(cells[:5])
         if m["scenes"]:
             m["runs"]["unknown"] = {"command": "a run before run identifiers", "status": "complete"}
@@ -170,24 +200,33 @@ def _signals_held() -> Iterator[None]:
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
-def publish_run(staging: Path, out: Path, scene_rows: dict[str, list[list[str]]], command: str,
-                manifest: dict, failed: frozenset[str] = frozenset()) -> list[Path]:
+def publish_run(
+    staging: Path,
+    out: Path,
+    scene_rows: dict[str, list[list[str]]],
+    command: str,
+    manifest: dict,
+    failed: frozenset[str] = frozenset(),
+) -> list[Path]:
     """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
     ``summary.md``: first both saying the run is being published, then the files (atomic renames),
     then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile."""
     run_id = current_run_id()
     files = sorted(f for f in staging.iterdir() if _is_report(f))
     manifest = json.loads(json.dumps(manifest))
-    for r in manifest.setdefault("runs", {}).values():   # an earlier run killed while publishing
+    for r in manifest.setdefault("runs", {}).values():  # an earlier run killed while publishing
         if r.get("status") == "publishing":
             r["status"] = "interrupted"
-    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "publishing",
-                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    manifest.setdefault("runs", {})[run_id] = {
+        "command": command,
+        "status": "publishing",
+        "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()),
+    }
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for name, rows in scene_rows.items():
         if name in failed and manifest.get("scenes", {}).get(name, {}).get("rows"):
-            continue   # a refused or failed scene keeps the rows of the run that last ran it
+            continue  # a refused or failed scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[name] = {"run": run_id, "rows": rows}
     _prune(manifest, out)
     done = []
@@ -205,8 +244,11 @@ def _prune(manifest: dict, out: Path) -> None:
     """Forget files that are no longer in the folder (and are not being published) and runs that
     no scene row and no file refers to any more."""
     files = manifest.get("files", {})
-    for name in [n for n, f in files.items() if not (Path(out) / n).exists()
-                 and manifest.get("runs", {}).get(f.get("run"), {}).get("status") != "publishing"]:
+    for name in [
+        n
+        for n, f in files.items()
+        if not (Path(out) / n).exists() and manifest.get("runs", {}).get(f.get("run"), {}).get("status") != "publishing"
+    ]:
         del files[name]
     used = {v.get("run") for v in manifest.get("scenes", {}).values()} | {f.get("run") for f in files.values()}
     runs = manifest.get("runs", {})
@@ -227,8 +269,11 @@ def record_files(out: Path, before: dict[str, int], command: str) -> None:
         return
     manifest = read_manifest(out)
     run_id = current_run_id()
-    manifest.setdefault("runs", {})[run_id] = {"command": command, "status": "complete",
-                                               "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime())}
+    manifest.setdefault("runs", {})[run_id] = {
+        "command": command,
+        "status": "complete",
+        "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()),
+    }
     for n in changed:
         manifest.setdefault("files", {})[n] = {"run": run_id}
     _prune(manifest, out)

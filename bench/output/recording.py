@@ -31,13 +31,29 @@ import numpy as np
 import rerun as rr
 from matplotlib.colors import to_rgb
 
-from exo_bench.bench.output.figures.scene_figures import (trail_points, curve_colors, force_labels, generalised_moment_labels, generalised_moments,
-                         link_color, moment_labels, moments_and_forces, nonfinite_notes,
-                         reference_method)
+from exo_bench.bench.output.figures.scene_figures import (
+    trail_points,
+    curve_colors,
+    force_labels,
+    generalised_moment_labels,
+    generalised_moments,
+    link_color,
+    moment_labels,
+    moments_and_forces,
+    nonfinite_notes,
+    reference_method,
+)
 from exo_bench.bench.output.provenance import machine_info
-from exo_bench.bench.output.recording_layout import (TRAIL_SECONDS, _group_entity,
-                                                     _groups, blueprint, mass_radii, trail_entity, trail_indices,
-                                                     world_positions)
+from exo_bench.bench.output.recording_layout import (
+    TRAIL_SECONDS,
+    _group_entity,
+    _groups,
+    blueprint,
+    mass_radii,
+    trail_entity,
+    trail_indices,
+    world_positions,
+)
 from exo_bench.bench.output.rerun_viewer import rerun_executable, screenshot, verify_recording
 
 if TYPE_CHECKING:
@@ -59,9 +75,18 @@ def _rgb(color: str) -> tuple[int, int, int]:
     return tuple(int(round(255 * c)) for c in to_rgb(color))
 
 
-_COLOUR_NAMES = {"#1f77b4": "blue", "#d62728": "red", "#2ca02c": "green", "#ff7f0e": "orange",
-                 "#9467bd": "purple", "#8c564b": "brown", "#e377c2": "pink", "#17becf": "cyan",
-                 "#bcbd22": "olive", "#7f7f7f": "grey"}
+_COLOUR_NAMES = {
+    "#1f77b4": "blue",
+    "#d62728": "red",
+    "#2ca02c": "green",
+    "#ff7f0e": "orange",
+    "#9467bd": "purple",
+    "#8c564b": "brown",
+    "#e377c2": "pink",
+    "#17becf": "cyan",
+    "#bcbd22": "olive",
+    "#7f7f7f": "grey",
+}
 
 
 def _colour_name(color: str) -> str:
@@ -82,10 +107,13 @@ def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
     ref = reference_method(study)
     commit = machine_info()["commit"]
     agreement = study.agreement() if ref == study.reference else {}
-    lines = [f"# {study.name}: {study.motion_label}", "",
-             f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
-             f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
-             f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`."]
+    lines = [
+        f"# {study.name}: {study.motion_label}",
+        "",
+        f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
+        f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
+        f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`.",
+    ]
     if loads:
         lines += ["", "## Loads", "", loads]
     lines += ["", "## Methods", "", f"Methods: {', '.join(ok) if ok else 'none succeeded'}; reference: {ref}."]
@@ -97,74 +125,120 @@ def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
         elif m in agreement and m != ref:
             lines.append(f"- {m}: max |τ − τ_{ref}| / max |τ_{ref}| = {agreement[m]:.2e}")
     lines += [f"- **{w}**" for w in nonfinite_notes(study)]
-    lines += ["", "## Quantities", "",
-              "- `moments/`: the **joint moments** τ_joint = G⁻ᵀ τ (N·m) about the joints of Pinocchio's model "
-              "(`L<k>_phi`: relative azimuth φ_k − φ_parent; `L<k>_psi`: elevation ψ_k) — the paper's Fig. 7, "
-              "grouped by the scale of their maxima. Only the reference method's curves are shown at first; the "
-              "other methods' curves (paler) are hidden, click their legend entries to show them.",
-              "- `forces/`: the **rod forces** F_k (N) along each rod — the paper's Fig. 8; the same in joint and "
-              "absolute coordinates (l_k maps to itself).",
-              "- `generalised/`: the paper's **generalised moments** of the absolute angles (eq. 4 has M1 − M2 on φ1), "
-              "reference method only.",
-              "- `differences/`: method − reference, in joint moments and rod forces.",
-              "- `world/`: rods, point masses (radius ∝ mass^⅓), the support point O, trails of the last "
-              f"{TRAIL_SECONDS:g} s of {', '.join(trail_points(mech))}"
-              + ("; the planar model is drawn in the x–z plane, z up." if mech.dim == 2 else "; z up.")
-              + " Link colours: " + ", ".join(f"{i + 1} {mech.names[i]} {_colour_name(link_color(i))}"
-                                              for i in range(mech.nlinks)) + ".",
-              "", f"Written by exo-bench at commit {commit} with rerun-sdk {rr.__version__}."]
-    values = {"scene": study.name, "model": mech.name, "motion": study.motion_label,
-              "rerun_sdk_version": rr.__version__, "exo_bench_commit": commit,
-              "methods": list(study.results), "methods_ok": ok, "reference": ref or "",
-              "samples": int(study.motion.t.shape[0]), "conventions": CONVENTIONS}
+    lines += [
+        "",
+        "## Quantities",
+        "",
+        "- `moments/`: the **joint moments** τ_joint = G⁻ᵀ τ (N·m) about the joints of Pinocchio's model "
+        "(`L<k>_phi`: relative azimuth φ_k − φ_parent; `L<k>_psi`: elevation ψ_k) — the paper's Fig. 7, "
+        "grouped by the scale of their maxima. Only the reference method's curves are shown at first; the "
+        "other methods' curves (paler) are hidden, click their legend entries to show them.",
+        "- `forces/`: the **rod forces** F_k (N) along each rod — the paper's Fig. 8; the same in joint and "
+        "absolute coordinates (l_k maps to itself).",
+        "- `generalised/`: the paper's **generalised moments** of the absolute angles (eq. 4 has M1 − M2 on φ1), "
+        "reference method only.",
+        "- `differences/`: method − reference, in joint moments and rod forces.",
+        "- `world/`: rods, point masses (radius ∝ mass^⅓), the support point O, trails of the last "
+        f"{TRAIL_SECONDS:g} s of {', '.join(trail_points(mech))}"
+        + ("; the planar model is drawn in the x–z plane, z up." if mech.dim == 2 else "; z up.")
+        + " Link colours: "
+        + ", ".join(f"{i + 1} {mech.names[i]} {_colour_name(link_color(i))}" for i in range(mech.nlinks))
+        + ".",
+        "",
+        f"Written by exo-bench at commit {commit} with rerun-sdk {rr.__version__}.",
+    ]
+    values = {
+        "scene": study.name,
+        "model": mech.name,
+        "motion": study.motion_label,
+        "rerun_sdk_version": rr.__version__,
+        "exo_bench_commit": commit,
+        "methods": list(study.results),
+        "methods_ok": ok,
+        "reference": ref or "",
+        "samples": int(study.motion.t.shape[0]),
+        "conventions": CONVENTIONS,
+    }
     return "\n".join(lines) + "\n", values
 
 
 # ----------------------------------------------------------------------------- writing
-def _send_series(stream: rr.RecordingStream, entity: str, times: rr.TimeColumn, values: np.ndarray,
-                 names: list[str], colors: list, width: float, visible: bool = True) -> None:
+def _send_series(
+    stream: rr.RecordingStream,
+    entity: str,
+    times: rr.TimeColumn,
+    values: np.ndarray,
+    names: list[str],
+    colors: list,
+    width: float,
+    visible: bool = True,
+) -> None:
     """All samples of one entity's curves in one call, and their static styling."""
     stream.send_columns(entity, indexes=[times], columns=rr.Scalars.columns(scalars=values))
-    stream.log(entity, rr.SeriesLines(names=names, colors=colors, widths=[width] * len(names),
-                                      visible_series=[visible] * len(names)), static=True)
+    stream.log(
+        entity,
+        rr.SeriesLines(names=names, colors=colors, widths=[width] * len(names), visible_series=[visible] * len(names)),
+        static=True,
+    )
 
 
 def _log_world(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) -> None:
     mech = study.mechanism
     S, n = study.motion.t.shape[0], mech.nlinks
-    P = world_positions(mech, study.motion.q)                         # (S, n, 3, 3)
-    origin = getattr(study.motion, "origin", None)                    # a walking motion: where O stands
+    P = world_positions(mech, study.motion.q)  # (S, n, 3, 3)
+    origin = getattr(study.motion, "origin", None)  # a walking motion: where O stands
     if origin is not None:
-        P = P + (origin if mech.dim == 3 else np.stack([origin[:, 0], 0 * origin[:, 0], origin[:, 1]], -1))[:, None, None]
+        P = (
+            P
+            + (origin if mech.dim == 3 else np.stack([origin[:, 0], 0 * origin[:, 0], origin[:, 1]], -1))[:, None, None]
+        )
     P = P.astype(np.float32)
     link_rgb = [_rgb(link_color(i)) for i in range(n)]
     stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    stream.log("world/support", rr.Points3D([[0.0, 0.0, 0.0]], radii=0.03, colors=[(0, 0, 0)],
-                                            labels=["O (support point)"]), static=True)
+    stream.log(
+        "world/support",
+        rr.Points3D([[0.0, 0.0, 0.0]], radii=0.03, colors=[(0, 0, 0)], labels=["O (support point)"]),
+        static=True,
+    )
     # Rods: one strip from the start to the end of every link, per sample.
     strips = np.stack([P[:, :, 0], P[:, :, 2]], axis=2).reshape(S * n, 2, 3)
-    stream.send_columns("world/rods", indexes=[times],
-                        columns=rr.LineStrips3D.columns(strips=strips).partition([n] * S))
-    stream.log("world/rods", rr.LineStrips3D.from_fields(colors=link_rgb, radii=[0.012] * n,
-                                                         labels=[f"{i + 1} {mech.names[i]}" for i in range(n)],
-                                                         show_labels=False),
-               static=True)
+    stream.send_columns(
+        "world/rods", indexes=[times], columns=rr.LineStrips3D.columns(strips=strips).partition([n] * S)
+    )
+    stream.log(
+        "world/rods",
+        rr.LineStrips3D.from_fields(
+            colors=link_rgb, radii=[0.012] * n, labels=[f"{i + 1} {mech.names[i]}" for i in range(n)], show_labels=False
+        ),
+        static=True,
+    )
     # Point masses: three per link, sized by mass.
-    stream.send_columns("world/masses", indexes=[times],
-                        columns=rr.Points3D.columns(positions=P.reshape(S * n * 3, 3)).partition([3 * n] * S))
+    stream.send_columns(
+        "world/masses",
+        indexes=[times],
+        columns=rr.Points3D.columns(positions=P.reshape(S * n * 3, 3)).partition([3 * n] * S),
+    )
     labels = [f"m{i + 1},{b} = {mech.masses[i][b]:.4g} kg ({mech.names[i]})" for i in range(n) for b in range(3)]
-    stream.log("world/masses", rr.Points3D.from_fields(radii=mass_radii(mech), colors=[c for c in link_rgb for _ in range(3)],
-                                                       labels=labels, show_labels=False), static=True)
+    stream.log(
+        "world/masses",
+        rr.Points3D.from_fields(
+            radii=mass_radii(mech), colors=[c for c in link_rgb for _ in range(3)], labels=labels, show_labels=False
+        ),
+        static=True,
+    )
     # Trails: the recent path of the trail points.
     idx = trail_indices(study.motion.t)
     for name, (i, b) in trail_points(mech).items():
-        path = P[idx, i, b]                                           # (S, points, 3)
+        path = P[idx, i, b]  # (S, points, 3)
         entity = f"world/trails/{trail_entity(name)}"
-        stream.send_columns(entity, indexes=[times],
-                            columns=rr.LineStrips3D.columns(strips=path).partition([1] * S))
-        stream.log(entity, rr.LineStrips3D.from_fields(
-            colors=[(200, 200, 200)], radii=[0.004], labels=[f"{name}, last {TRAIL_SECONDS:g} s"], show_labels=False),
-            static=True)
+        stream.send_columns(entity, indexes=[times], columns=rr.LineStrips3D.columns(strips=path).partition([1] * S))
+        stream.log(
+            entity,
+            rr.LineStrips3D.from_fields(
+                colors=[(200, 200, 200)], radii=[0.004], labels=[f"{name}, last {TRAIL_SECONDS:g} s"], show_labels=False
+            ),
+            static=True,
+        )
 
 
 def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) -> None:
@@ -172,8 +246,10 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
     ok = study.ok_methods()
     ref = reference_method(study)
     order = [ref] + [m for m in ok if m != ref] if ref else []
-    for part, root, labels, kind in ((0, "moments", moment_labels(mech), "moments"),
-                                     (1, "forces", force_labels(mech), "forces")):
+    for part, root, labels, kind in (
+        (0, "moments", moment_labels(mech), "moments"),
+        (1, "forces", force_labels(mech), "forces"),
+    ):
         groups, data = _groups(study, part)
         colors = curve_colors(mech, kind)
         entities = [(_group_entity(groups, g), list(groups.groups[g])) for g in range(len(groups.groups))]
@@ -181,20 +257,40 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
             entities.append(("zero", list(groups.zero)))
         for k, m in enumerate(order):
             for entity, cols in entities:
-                _send_series(stream, f"{root}/{entity}/{m}", times, data[m][:, cols],
-                             [f"{labels[j]} ({m})" for j in cols], [_lighter(colors[j], k) for j in cols],
-                             2.0 if k == 0 else 1.2, visible=k == 0)
+                _send_series(
+                    stream,
+                    f"{root}/{entity}/{m}",
+                    times,
+                    data[m][:, cols],
+                    [f"{labels[j]} ({m})" for j in cols],
+                    [_lighter(colors[j], k) for j in cols],
+                    2.0 if k == 0 else 1.2,
+                    visible=k == 0,
+                )
             if m != ref:
                 diff = moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]
-                _send_series(stream, f"differences/{root}/{m}", times, diff,
-                             [f"Δ{labels[j]} ({m} − {ref})" for j in range(len(labels))],
-                             [_rgb(c) for c in colors], 1.2)
+                _send_series(
+                    stream,
+                    f"differences/{root}/{m}",
+                    times,
+                    diff,
+                    [f"Δ{labels[j]} ({m} − {ref})" for j in range(len(labels))],
+                    [_rgb(c) for c in colors],
+                    1.2,
+                )
     # The paper's generalised moments, for the reference method only (the others differ from it by
     # G^T times their joint differences, which are recorded above).
     gl = generalised_moment_labels(mech)
     gcol = [_rgb(link_color(j % mech.nlinks + (5 if j >= mech.nlinks else 0))) for j in range(len(gl))]
-    _send_series(stream, f"generalised/{ref}", times, generalised_moments(mech, study.results[ref].tau),
-                 [f"{x} ({ref})" for x in gl], gcol, 2.0)
+    _send_series(
+        stream,
+        f"generalised/{ref}",
+        times,
+        generalised_moments(mech, study.results[ref].tau),
+        [f"{x} ({ref})" for x in gl],
+        gcol,
+        2.0,
+    )
 
 
 def write_recording(study: Study, path: str | Path, loads: str | None = None) -> Path:
@@ -215,10 +311,23 @@ def write_recording(study: Study, path: str | Path, loads: str | None = None) ->
         if study.ok_methods():
             _log_series(stream, study, times)
         stream.flush()
-        stream.disconnect()   # closes the file sink and writes the footer
+        stream.disconnect()  # closes the file sink and writes the footer
     return Path(path)
 
 
-__all__ = ["screenshot", "APPLICATION_ID", "CONVENTIONS", "TIMELINE", "blueprint", "mass_radii", "reference_method",
-           "rerun_executable", "trail_entity", "trail_indices", "trail_points", "verify_recording", "world_positions",
-           "write_recording"]
+__all__ = [
+    "screenshot",
+    "APPLICATION_ID",
+    "CONVENTIONS",
+    "TIMELINE",
+    "blueprint",
+    "mass_radii",
+    "reference_method",
+    "rerun_executable",
+    "trail_entity",
+    "trail_indices",
+    "trail_points",
+    "verify_recording",
+    "world_positions",
+    "write_recording",
+]

@@ -13,8 +13,13 @@ import re
 import numpy as np
 import rerun.blueprint as rrb
 
-from exo_bench.bench.output.figures.scene_figures import (SCALE_RATIO, group_by_scale, moments_and_forces,
-                                                          reference_method, scale_caption)
+from exo_bench.bench.output.figures.scene_figures import (
+    SCALE_RATIO,
+    group_by_scale,
+    moments_and_forces,
+    reference_method,
+    scale_caption,
+)
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
 
@@ -43,7 +48,7 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
     frame itself. Before ``seconds`` have passed the trail starts at the first sample."""
     S = t.shape[0]
     dt = float(np.median(np.diff(t))) if S > 1 else 1.0
-    back = np.round(np.linspace(seconds / dt, 0.0, points)).astype(int)   # samples back, within dt/2 of exact
+    back = np.round(np.linspace(seconds / dt, 0.0, points)).astype(int)  # samples back, within dt/2 of exact
     return np.clip(np.arange(S)[:, None] - back[None, :], 0, S - 1)
 
 
@@ -63,7 +68,7 @@ def _groups(study: Study, part: int) -> tuple:
     ok = study.ok_methods()
     if not ok:
         return None, {}
-    taus = {m: study.results[m].tau for m in ok}      # ok methods: each produced tau
+    taus = {m: study.results[m].tau for m in ok}  # ok methods: each produced tau
     data = {m: moments_and_forces(study.mechanism, tau)[part] for m, tau in taus.items() if tau is not None}
     # Groups follow the reference method's scales; the other methods' curves share its groups.
     ref_method = reference_method(study)
@@ -88,41 +93,66 @@ def blueprint(study: Study) -> rrb.Blueprint:
     lo, hi = P.reshape(-1, 3).min(axis=0), P.reshape(-1, 3).max(axis=0)
     centre = 0.5 * (lo + hi)
     size = float(max(hi - lo)) or 1.0
-    eye = rrb.EyeControls3D(position=centre + np.array([0.62, -1.2, 0.2]) * size, look_target=centre,
-                            eye_up=[0.0, 0.0, 1.0])
+    eye = rrb.EyeControls3D(
+        position=centre + np.array([0.62, -1.2, 0.2]) * size, look_target=centre, eye_up=[0.0, 0.0, 1.0]
+    )
     left = rrb.Vertical(
-        rrb.Spatial3DView(origin="world", name=f"{study.name}: rods, point masses (radius ∝ mass^⅓), trails",
-                          eye_controls=eye, line_grid=rrb.LineGrid3D(visible=True, spacing=0.1)),
+        rrb.Spatial3DView(
+            origin="world",
+            name=f"{study.name}: rods, point masses (radius ∝ mass^⅓), trails",
+            eye_controls=eye,
+            line_grid=rrb.LineGrid3D(visible=True, spacing=0.1),
+        ),
         rrb.TextDocumentView(origin="meta", name="About this recording"),
-        row_shares=[3, 2])
+        row_shares=[3, 2],
+    )
     right: list = []
     if ok:
         mg, _ = _groups(study, 0)
         fg, _ = _groups(study, 1)
-        moment_views = [rrb.TimeSeriesView(origin=f"moments/{_group_entity(mg, g)}",
-                                           name=f"Joint moments, {scale_caption(mg, g, 'N·m', 'M')}")
-                        for g in range(len(mg.groups))]
+        moment_views = [
+            rrb.TimeSeriesView(
+                origin=f"moments/{_group_entity(mg, g)}", name=f"Joint moments, {scale_caption(mg, g, 'N·m', 'M')}"
+            )
+            for g in range(len(mg.groups))
+        ]
         if mg.zero:
-            moment_views.append(rrb.TimeSeriesView(origin="moments/zero",
-                                                   name="Joint moments ≈ 0 (max below 1e-9 of the largest, N·m)"))
-        force_views = [rrb.TimeSeriesView(origin=f"forces/{_group_entity(fg, g)}",
-                                          name=f"Rod forces, {scale_caption(fg, g, 'N', 'F')}")
-                       for g in range(len(fg.groups))]
+            moment_views.append(
+                rrb.TimeSeriesView(origin="moments/zero", name="Joint moments ≈ 0 (max below 1e-9 of the largest, N·m)")
+            )
+        force_views = [
+            rrb.TimeSeriesView(
+                origin=f"forces/{_group_entity(fg, g)}", name=f"Rod forces, {scale_caption(fg, g, 'N', 'F')}"
+            )
+            for g in range(len(fg.groups))
+        ]
         if fg.zero:
-            force_views.append(rrb.TimeSeriesView(origin="forces/zero",
-                                                  name="Rod forces ≈ 0 (max below 1e-9 of the largest, N)"))
-        right.append(rrb.Tabs(
-            rrb.Grid(*moment_views, grid_columns=2 if len(moment_views) > 2 else len(moment_views),
-                     name="Joint moments τ_joint = G⁻ᵀτ (N·m), Fig. 7"),
-            rrb.TimeSeriesView(origin="generalised",
-                               name="Generalised moments τ of the absolute angles (N·m), the paper's eq. 4"),
-            active_tab=0, name="moments"))
+            force_views.append(
+                rrb.TimeSeriesView(origin="forces/zero", name="Rod forces ≈ 0 (max below 1e-9 of the largest, N)")
+            )
+        right.append(
+            rrb.Tabs(
+                rrb.Grid(
+                    *moment_views,
+                    grid_columns=2 if len(moment_views) > 2 else len(moment_views),
+                    name="Joint moments τ_joint = G⁻ᵀτ (N·m), Fig. 7",
+                ),
+                rrb.TimeSeriesView(
+                    origin="generalised", name="Generalised moments τ of the absolute angles (N·m), the paper's eq. 4"
+                ),
+                active_tab=0,
+                name="moments",
+            )
+        )
         right.append(rrb.Horizontal(*force_views, name="Rod forces F (N), Fig. 8"))
         if len(ok) > 1:
-            right.append(rrb.Horizontal(
-                rrb.TimeSeriesView(origin="differences/moments", name=f"Δ joint moments, method − {ref} (N·m)"),
-                rrb.TimeSeriesView(origin="differences/forces", name=f"Δ rod forces, method − {ref} (N)"),
-                name="differences"))
+            right.append(
+                rrb.Horizontal(
+                    rrb.TimeSeriesView(origin="differences/moments", name=f"Δ joint moments, method − {ref} (N·m)"),
+                    rrb.TimeSeriesView(origin="differences/forces", name=f"Δ rod forces, method − {ref} (N)"),
+                    name="differences",
+                )
+            )
     else:
         right.append(rrb.TextDocumentView(origin="meta", name="No method produced tau"))
     return rrb.Blueprint(

@@ -27,7 +27,9 @@ def verify_recording(path: str | Path) -> str:
     res = subprocess.run([str(exe), "rrd", "verify", str(path)], capture_output=True, text=True, timeout=120)
     report = (res.stdout + res.stderr).strip()
     if res.returncode != 0 or "1 file verified without error" not in report:
-        raise ValueError(f"{path}: rerun rrd verify failed (exit {res.returncode}): {report.splitlines()[-1:] or report}")
+        raise ValueError(
+            f"{path}: rerun rrd verify failed (exit {res.returncode}): {report.splitlines()[-1:] or report}"
+        )
     return report
 
 
@@ -50,8 +52,12 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
     png = Path(png)
     with tempfile.TemporaryDirectory() as tmp:
         shot = Path(tmp) / "shot.png"
-        res = subprocess.run([str(exe), "--renderer", "vulkan", "--window-size", size, "--screenshot-to", str(shot),
-                              str(path)], capture_output=True, text=True, timeout=timeout)
+        res = subprocess.run(
+            [str(exe), "--renderer", "vulkan", "--window-size", size, "--screenshot-to", str(shot), str(path)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
         if res.returncode != 0 or not shot.exists():
             last = (res.stderr or res.stdout).strip().splitlines()[-1:] or ["no output"]
             raise OSError(f"screenshot of {path}: rerun exited {res.returncode}: {last[0]}")

@@ -59,16 +59,26 @@ def calibration_table(points=None) -> str:
     """Measured against estimated, as a Markdown table (``python -m exo_bench.bench.perf.calibration``)."""
     from exo_bench.models.presets import chain
 
-    points = points or [(m, n, d, s) for m in preference() + ("matrix-paper",) if m != "lagrange"
-                        for d in (2, 3) for n in (5, 25, 100) for s in (1, 2000)]
-    rows = ["| method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |",
-            "|---|---|---|---|---|---|---|---|"]
+    points = points or [
+        (m, n, d, s)
+        for m in preference() + ("matrix-paper",)
+        if m != "lagrange"
+        for d in (2, 3)
+        for n in (5, 25, 100)
+        for s in (1, 2000)
+    ]
+    rows = [
+        "| method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for m, n, d, s in points:
         got = measure(m, n, d, s)
         est = estimate(chain(n, d), m, s)
-        rows.append(f"| {m} | {d} | {n} | {s} | {(got['setup_bytes'] + got['run_bytes']) / 1e6:.1f} | "
-                    f"{(est.memory - BASE_BYTES) / 1e6:.1f} | {got['setup_seconds'] + got['run_seconds']:.3g} | "
-                    f"{est.seconds:.3g} |")
+        rows.append(
+            f"| {m} | {d} | {n} | {s} | {(got['setup_bytes'] + got['run_bytes']) / 1e6:.1f} | "
+            f"{(est.memory - BASE_BYTES) / 1e6:.1f} | {got['setup_seconds'] + got['run_seconds']:.3g} | "
+            f"{est.seconds:.3g} |"
+        )
     return "\n".join(rows)
 
 

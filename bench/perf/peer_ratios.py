@@ -46,14 +46,23 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
     if not present:
         return []
     refs = [r for r in REFERENCES if r in set(inv["method"].map(_base))]
-    out = ["## The rigid-body engines as peers", "",
-           "What each engine's row times:", ""] + [f"- `{e}`: {ENGINES[e]}." for e in present]
-    out += ["", "Per call, `bare engine` is the engine's own calls on preallocated joint coordinates (`pin.rnea "
-            "(bare)`, `mj_rne (bare)`, `CalcInverseDynamics (bare)`: no G maps, no wrapper) and `overhead` the "
-            "method's time beyond them (the G maps, the prepared model's call, the per-sample loop)."]
-    out += ["", "Each row's time as a multiple of the fastest row of " + " and of ".join(f"`{r}`" for r in refs)
-            + " on the same model in this run (that row named); above 1: the engine is slower."
-            + ("" if "newton-euler" in refs else " (No `newton-euler` rows in this run.)"), ""]
+    out = ["## The rigid-body engines as peers", "", "What each engine's row times:", ""] + [
+        f"- `{e}`: {ENGINES[e]}." for e in present
+    ]
+    out += [
+        "",
+        "Per call, `bare engine` is the engine's own calls on preallocated joint coordinates (`pin.rnea "
+        "(bare)`, `mj_rne (bare)`, `CalcInverseDynamics (bare)`: no G maps, no wrapper) and `overhead` the "
+        "method's time beyond them (the G maps, the prepared model's call, the per-sample loop).",
+    ]
+    out += [
+        "",
+        "Each row's time as a multiple of the fastest row of "
+        + " and of ".join(f"`{r}`" for r in refs)
+        + " on the same model in this run (that row named); above 1: the engine is slower."
+        + ("" if "newton-euler" in refs else " (No `newton-euler` rows in this run.)"),
+        "",
+    ]
     modes = [(False, "per call", "us_per_call"), (True, "batched", "us_per_sample")]
     for is_batched, label, value in modes:
         if batched is not None and is_batched != batched:
@@ -62,8 +71,12 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
         if sub.empty:
             continue
         bare = not is_batched and bool(set(BARE.values()) & set(sub["method"]))
-        head = (f"| {label} | model | us | " + ("bare engine us | overhead us | " if bare else "")
-                + " | ".join(f"x {r}" for r in refs) + " |")
+        head = (
+            f"| {label} | model | us | "
+            + ("bare engine us | overhead us | " if bare else "")
+            + " | ".join(f"x {r}" for r in refs)
+            + " |"
+        )
         lines = [head, "|---|---|---|" + ("---|---|" if bare else "") + "---|" * len(refs)]
         for mech in sorted(sub["mechanism"].unique(), key=lambda m: (m != "exo5-3d", m)):
             at = sub[sub["mechanism"] == mech]
@@ -80,7 +93,7 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
                     if bare:
                         b_row = at[at["method"] == BARE[e]]
                         b_us = float(b_row[value].iloc[0]) if not b_row.empty else np.nan
-                        extra = ("- | - | " if np.isnan(b_us) else f"{b_us:.3g} | {r[value] - b_us:.3g} | ")
+                        extra = "- | - | " if np.isnan(b_us) else f"{b_us:.3g} | {r[value] - b_us:.3g} | "
                     lines.append(f"| `{r['method']}` | {mech} | {r[value]:.3g} | " + extra + " | ".join(cells) + " |")
         if len(lines) > 2:
             out += [f"### {label.capitalize()}", ""] + lines + [""]

@@ -27,8 +27,10 @@ def missing() -> str | None:
     """Why the PyDy row cannot run here, or None when it can."""
     absent = [m for m in ("pydy", "Cython", "setuptools") if importlib.util.find_spec(m) is None]
     if absent:
-        return (f"PyDy Cython peer not installed ({', '.join(absent)} missing): "
-                "pip install 'exo-bench[peers]' to run this row")
+        return (
+            f"PyDy Cython peer not installed ({', '.join(absent)} missing): "
+            "pip install 'exo-bench[peers]' to run this row"
+        )
     if not (shutil.which("cc") or shutil.which("gcc")):
         return "PyDy Cython peer: no C compiler (cc/gcc) on PATH"
     return None
@@ -62,8 +64,9 @@ def pydy_cython(mech: Mechanism) -> PydyFunction:
     eqs = compose_equations(mech)
     t1 = time.perf_counter()
     S = symbols_for(mech.nlinks, mech.dim)
-    gen = CythonMatrixGenerator([list(S.q), list(S.qd), list(S.qdd)], [sp.Matrix(eqs)],
-                                prefix=f"exo_bench_pydy_{mech.dim}d{mech.nlinks}")
+    gen = CythonMatrixGenerator(
+        [list(S.q), list(S.qd), list(S.qdd)], [sp.Matrix(eqs)], prefix=f"exo_bench_pydy_{mech.dim}d{mech.nlinks}"
+    )
     fn = gen.compile()
     f = PydyFunction(call=fn, seconds=time.perf_counter() - t0, compose_seconds=t1 - t0)
     _CACHE[mech] = f

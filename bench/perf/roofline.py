@@ -48,15 +48,26 @@ class Counted(float):
         Counted.tally[kind] += 1
         return Counted(fn(float(self), float(other)))
 
-    def __add__(self, o): return self._op(o, "add", lambda a, b: a + b)
-    def __radd__(self, o): return self._op(o, "add", lambda a, b: b + a)
-    def __sub__(self, o): return self._op(o, "add", lambda a, b: a - b)
-    def __rsub__(self, o): return self._op(o, "add", lambda a, b: b - a)
-    def __mul__(self, o): return self._op(o, "mul", lambda a, b: a * b)
-    def __rmul__(self, o): return self._op(o, "mul", lambda a, b: b * a)
+    def __add__(self, o):
+        return self._op(o, "add", lambda a, b: a + b)
+
+    def __radd__(self, o):
+        return self._op(o, "add", lambda a, b: b + a)
+
+    def __sub__(self, o):
+        return self._op(o, "add", lambda a, b: a - b)
+
+    def __rsub__(self, o):
+        return self._op(o, "add", lambda a, b: b - a)
+
+    def __mul__(self, o):
+        return self._op(o, "mul", lambda a, b: a * b)
+
+    def __rmul__(self, o):
+        return self._op(o, "mul", lambda a, b: b * a)
 
     def __neg__(self):
-        return Counted(-float(self))      # a sign flip: no arithmetic
+        return Counted(-float(self))  # a sign flip: no arithmetic
 
 
 def _counting_math():
@@ -64,7 +75,9 @@ def _counting_math():
         def f(x):
             Counted.tally["trig"] += 1
             return Counted(fn(float(x)))
+
         return f
+
     return types.SimpleNamespace(cos=trig(math.cos), sin=trig(math.sin))
 
 
@@ -131,7 +144,7 @@ def _sincos_loop(a, out, reps):
     for _ in range(reps):
         for i in range(a.shape[0]):
             x = a[i]
-            c, s = math.cos(x), math.sin(x)        # as the kernel: cf, sf = math.cos(phi), math.sin(phi)
+            c, s = math.cos(x), math.sin(x)  # as the kernel: cf, sf = math.cos(phi), math.sin(phi)
             out[i] = c * s
     return out[0]
 
@@ -156,9 +169,11 @@ def scalar_rate(scale: int = 1) -> float:
 def throughput(scale: int = 1) -> dict[str, float]:
     """This CPU's scalar and SIMD multiply-add rate and ``sin`` rate, per second, from numba loops
     (module docstring); ``scale`` multiplies the loop lengths."""
-    x, y = 0.999999, 1e-7                      # |x| < 1: the values stay bounded
+    x, y = 0.999999, 1e-7  # |x| < 1: the values stay bounded
     if getattr(numba.config, "SLP_VECTORIZE", False):
-        raise RuntimeError("limit: numba's SLP vectorizer is on (NUMBA_SLP_VECTORIZE): the scalar rate would be a SIMD one")
+        raise RuntimeError(
+            "limit: numba's SLP vectorizer is on (NUMBA_SLP_VECTORIZE): the scalar rate would be a SIMD one"
+        )
     scalar = scalar_rate(scale)
     a = np.random.default_rng(0).uniform(-np.pi, np.pi, 1024)
     reps = 2000 * scale
@@ -176,6 +191,8 @@ def estimate(count: dict[str, int], rates: dict[str, float]) -> dict[str, float]
     """Seconds of one sample at the measured rates: its flops at the scalar and at the SIMD rate,
     each plus its ``trig / 2`` sin-cos pairs (scalar calls either way)."""
     trig = count["trig"] / 2 / rates["sincos_per_s"]
-    return {"scalar_s": count["flops"] / rates["scalar_flops_per_s"] + trig,
-            "simd_s": count["flops"] / rates["simd_flops_per_s"] + trig,
-            "trig_s": trig}
+    return {
+        "scalar_s": count["flops"] / rates["scalar_flops_per_s"] + trig,
+        "simd_s": count["flops"] / rates["simd_flops_per_s"] + trig,
+        "trig_s": trig,
+    }

@@ -29,8 +29,13 @@ __all__ = ["count_newton_euler_simd", "estimate_simd"]
 def _rebind(fn, **names):
     """``fn``'s Python function with some of its globals or closure variables replaced (the kernel's
     functions are closures of :func:`exo_bench.models.newton_euler.simd.build`)."""
-    cells = None if fn.__closure__ is None else tuple(
-        types.CellType(names[v]) if v in names else c for v, c in zip(fn.__code__.co_freevars, fn.__closure__))
+    cells = (
+        None
+        if fn.__closure__ is None
+        else tuple(
+            types.CellType(names[v]) if v in names else c for v, c in zip(fn.__code__.co_freevars, fn.__closure__)
+        )
+    )
     return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__, fn.__defaults__, cells)
 
 
@@ -44,8 +49,9 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
 
     trig = _rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor))
     start = _rebind(simd._start_points.py_func)
-    forward = _rebind((simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
-                      sincos_reduced=trig, _start_points=start)
+    forward = _rebind(
+        (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func, sincos_reduced=trig, _start_points=start
+    )
     backward = simd._backward.py_func
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
@@ -55,7 +61,7 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     W = np.empty(n * ROWS * LANES, dtype=object)
     F = np.empty(n * FROWS * LANES, dtype=object)
     Counted.tally = {"add": 0, "mul": 0, "trig": 0}
-    _rows_in_by_link.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)          # moves only
+    _rows_in_by_link.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
     forward(t, Counted(float(mech.g)), 1, W, F)
     backward(t, mech.dim, 1, W, F)
     _rows_out_by_link.py_func(o, 0, 1, n, mech.dim, F)

@@ -35,11 +35,13 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 
     trig = fast_trig.sincos_reduced
-    counted_trig = types.FunctionType(trig.__code__, {**trig.__globals__,
-                                                      "math": types.SimpleNamespace(floor=_floor)}, trig.__name__)
+    counted_trig = types.FunctionType(
+        trig.__code__, {**trig.__globals__, "math": types.SimpleNamespace(floor=_floor)}, trig.__name__
+    )
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
-    counted_compute = types.FunctionType(compute.__code__, {**compute.__globals__, "sincos_reduced": counted_trig},
-                                         compute.__name__)
+    counted_compute = types.FunctionType(
+        compute.__code__, {**compute.__globals__, "sincos_reduced": counted_trig}, compute.__name__
+    )
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
     p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))
@@ -48,7 +50,7 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     W = np.empty(n * compiled_simd.ROWS * compiled_simd.LANES, dtype=object)
     F = np.empty(n * compiled_simd.FROWS * compiled_simd.LANES, dtype=object)
     Counted.tally = {"add": 0, "mul": 0, "trig": 0}
-    compiled_simd._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)        # moves only
+    compiled_simd._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
     counted_compute(p, 1, W, F)
     compiled_simd._rows_out.py_func(o, 0, 1, n, mech.dim, F)
     tally = dict(Counted.tally)

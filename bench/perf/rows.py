@@ -39,8 +39,14 @@ def row_fields(item) -> dict:
     file = nodeid.split("::", 1)[0]
     params = dict(getattr(getattr(item, "callspec", None), "params", {}) or {})
     for value in params.values():
-        if (isinstance(value, tuple) and len(value) == 4 and isinstance(value[0], str)
-                and isinstance(value[1], int) and isinstance(value[2], int) and isinstance(value[3], str)):
+        if (
+            isinstance(value, tuple)
+            and len(value) == 4
+            and isinstance(value[0], str)
+            and isinstance(value[1], int)
+            and isinstance(value[2], int)
+            and isinstance(value[3], str)
+        ):
             _method, n, dim, topology = value
             return {"file": file, "dim": dim, "n": n, "topology": topology}
     if isinstance(params.get("n"), int) and isinstance(params.get("dim"), int):
@@ -58,13 +64,26 @@ def row_key(item, profile: str) -> str:
 
 
 def add_options(parser) -> None:
-    parser.addoption("--row", action="append", default=None, metavar="KEY",
-                     help="run only the benchmarks of this row (repeatable; keys from --rows-json)")
-    parser.addoption("--rows-json", default=None, metavar="PATH",
-                     help="write the rows of the collected benchmarks (key, file, node ids) to PATH")
-    parser.addoption("--prior-skips", default=None, metavar="PATH",
-                     help="skips of the rows before this one in its chain (a JSON list as --skips-json writes): "
-                          "methods over budget at a smaller n are skipped here without trying")
+    parser.addoption(
+        "--row",
+        action="append",
+        default=None,
+        metavar="KEY",
+        help="run only the benchmarks of this row (repeatable; keys from --rows-json)",
+    )
+    parser.addoption(
+        "--rows-json",
+        default=None,
+        metavar="PATH",
+        help="write the rows of the collected benchmarks (key, file, node ids) to PATH",
+    )
+    parser.addoption(
+        "--prior-skips",
+        default=None,
+        metavar="PATH",
+        help="skips of the rows before this one in its chain (a JSON list as --skips-json writes): "
+        "methods over budget at a smaller n are skipped here without trying",
+    )
 
 
 #: The user property by which a benchmark says it was skipped over budget, as
@@ -118,11 +137,11 @@ def record_peak_memory(config, output_json: dict) -> None:
         return
     try:
         import resource
-    except ImportError:   # not POSIX
+    except ImportError:  # not POSIX
         return
     import sys
 
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss   # KiB on Linux, bytes on macOS
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux, bytes on macOS
     output_json["peak_rss_mb"] = peak / 1e6 if sys.platform == "darwin" else peak * 1024 / 1e6
 
 
@@ -178,8 +197,11 @@ def merge(results: list[dict]) -> tuple[dict, list[dict]]:
         skips += r.get("skips") or []
         if r.get("status") not in ("ok", None):
             done = {b["fullname"] for b in data.get("benchmarks", [])} | {s["nodeid"] for s in r.get("skips") or []}
-            skips += [{"nodeid": nid, "reason": f"row {r['status']}: {r.get('reason')}", "params": []}
-                      for nid in r.get("nodeids", []) if nid not in done]
+            skips += [
+                {"nodeid": nid, "reason": f"row {r['status']}: {r.get('reason')}", "params": []}
+                for nid in r.get("nodeids", [])
+                if nid not in done
+            ]
     merged = {k: v for k, v in (top or {}).items() if k not in ("benchmarks", "peak_rss_mb")}
     merged.setdefault("machine_info", {})
     merged["machine_info"] = {**merged["machine_info"], "hosts": hosts}
@@ -197,8 +219,10 @@ def ratio(num: float, den: float, host_num: str | None, host_den: str | None, wh
     """``num / den``, refused (:class:`CrossHostRatio`) when the two timings come from different
     hosts; ``None`` hosts (a single-process run, which is one host) are accepted."""
     if host_num is not None and host_den is not None and host_num != host_den:
-        raise CrossHostRatio(f"{what}: refusing to divide a timing from host {host_num!r} by one from "
-                             f"host {host_den!r}; ratios compare timings of one row, which runs on one host")
+        raise CrossHostRatio(
+            f"{what}: refusing to divide a timing from host {host_num!r} by one from "
+            f"host {host_den!r}; ratios compare timings of one row, which runs on one host"
+        )
     return num / den
 
 
@@ -221,13 +245,15 @@ def check_ratio_groups(df) -> None:
     method = d["method"].astype(str) if "method" in d else ""
     d = d.assign(within=method.where(d["kind"].isin(WITHIN_METHOD), "") if "method" in d else "")
     cols = [c for c in RATIO_GROUP if c in d]
-    d = d[cols + ["host"]].astype(str)   # NaN and mixed types as text, so that groupby keeps every row
+    d = d[cols + ["host"]].astype(str)  # NaN and mixed types as text, so that groupby keeps every row
     for key, g in d.groupby(cols, dropna=False):
         hosts = sorted(set(g["host"]) - {"None", "nan"})
         if len(hosts) > 1:
             name = ", ".join(f"{c}={v}" for c, v in zip(cols, key if isinstance(key, tuple) else (key,)))
-            raise CrossHostRatio(f"benchmark group ({name}) has timings from hosts {', '.join(hosts)}: "
-                                 "its ratios would divide timings of different hosts; rerun those rows")
+            raise CrossHostRatio(
+                f"benchmark group ({name}) has timings from hosts {', '.join(hosts)}: "
+                "its ratios would divide timings of different hosts; rerun those rows"
+            )
 
 
 def read_rows_json(path: str | Path) -> list[dict]:

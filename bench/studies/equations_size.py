@@ -98,50 +98,73 @@ def size_report(options: ReportOptions) -> int:
                         reason = getattr(e, "skip_reason", None) or f"{type(e).__name__}: {e}"
                         over[key] = f"over the budget of {budget:g} s at n = {n}"
                         rows.append((dim, kind, n, route, None, reason.splitlines()[0]))
-                    print(f"size: {dim}D {kind} n={n} {route}: {rows[-1][4] or rows[-1][5]}", file=sys.stderr,
-                          flush=True)
+                    print(
+                        f"size: {dim}D {kind} n={n} {route}: {rows[-1][4] or rows[-1][5]}", file=sys.stderr, flush=True
+                    )
     cmd = "exo-bench equations --size-report" + (" --full" if full else "")
-    lines = ["# The size of the equations: the matrix method against Lagrange", "", provenance(cmd), "",
-             "Are the paper's matrices a more compact form of the same equations, and by how much? For chains "
-             f"(`presets.chain`) and seeded random trees (`presets.random_tree(n, dim, seed=n)`) of n = {ns[0]}..{ns[-1]} "
-             "links, the inverse dynamics tau composed three ways: the matrix method (eq. (5)/(17), "
-             "`matrix_method.symbolic.compose_equations`), our Lagrange II derivation (`lagrange.derive`) and "
-             "sympy's `LagrangesMethod` (`lagrange.peer`), each with the mechanism's numbers. `ops`: "
-             "`sympy.count_ops` of tau after `sympy.cse` (temporaries and outputs); `C lines`: the header and "
-             "source `exo-bench equations --format c` writes for the three functions (tau, M, h) from that route's "
-             "tau; `compose s`: composing tau (and, for the matrix method, the matrices); `generate s`: CSE, "
-             "counting and C printing. The three routes give the same equations (tests/test_equations_export.py "
-             "and tests/test_symbolic.py check it); only their form differs. A route over its budget "
-             f"({budget:g} s per point for Lagrange's routes, {budget * MATRIX_BUDGET_FACTOR:g} s for the matrix "
-             "method's) is not run for larger n. Times are one run on a shared machine "
-             "(indicative; ratios within one run).", ""]
+    lines = [
+        "# The size of the equations: the matrix method against Lagrange",
+        "",
+        provenance(cmd),
+        "",
+        "Are the paper's matrices a more compact form of the same equations, and by how much? For chains "
+        f"(`presets.chain`) and seeded random trees (`presets.random_tree(n, dim, seed=n)`) of n = {ns[0]}..{ns[-1]} "
+        "links, the inverse dynamics tau composed three ways: the matrix method (eq. (5)/(17), "
+        "`matrix_method.symbolic.compose_equations`), our Lagrange II derivation (`lagrange.derive`) and "
+        "sympy's `LagrangesMethod` (`lagrange.peer`), each with the mechanism's numbers. `ops`: "
+        "`sympy.count_ops` of tau after `sympy.cse` (temporaries and outputs); `C lines`: the header and "
+        "source `exo-bench equations --format c` writes for the three functions (tau, M, h) from that route's "
+        "tau; `compose s`: composing tau (and, for the matrix method, the matrices); `generate s`: CSE, "
+        "counting and C printing. The three routes give the same equations (tests/test_equations_export.py "
+        "and tests/test_symbolic.py check it); only their form differs. A route over its budget "
+        f"({budget:g} s per point for Lagrange's routes, {budget * MATRIX_BUDGET_FACTOR:g} s for the matrix "
+        "method's) is not run for larger n. Times are one run on a shared machine "
+        "(indicative; ratios within one run).",
+        "",
+    ]
     ratio_lines = []
     for dim in (2, 3):
         for kind in ("chain", "tree"):
             for n in ns:
                 got = {r[3]: r[4] for r in rows if r[:3] == (dim, kind, n) and r[4]}
                 if "matrix" in got and "lagrange" in got:
-                    ratio_lines.append((dim, kind, n, got["lagrange"]["ops"] / got["matrix"]["ops"],
-                                        got["LagrangesMethod"]["ops"] / got["matrix"]["ops"]
-                                        if "LagrangesMethod" in got else None,
-                                        got["lagrange"]["compose"] / max(got["matrix"]["compose"], 1e-9)))
+                    ratio_lines.append(
+                        (
+                            dim,
+                            kind,
+                            n,
+                            got["lagrange"]["ops"] / got["matrix"]["ops"],
+                            got["LagrangesMethod"]["ops"] / got["matrix"]["ops"] if "LagrangesMethod" in got else None,
+                            got["lagrange"]["compose"] / max(got["matrix"]["compose"], 1e-9),
+                        )
+                    )
     if ratio_lines:
-        lines += ["## The answer, per model: Lagrange's size over the matrix method's", "",
-                  "| dim | kind | n | ops: lagrange / matrix | ops: LagrangesMethod / matrix | compose s: lagrange / matrix |",
-                  "|---|---|---|---|---|---|"]
+        lines += [
+            "## The answer, per model: Lagrange's size over the matrix method's",
+            "",
+            "| dim | kind | n | ops: lagrange / matrix | ops: LagrangesMethod / matrix | compose s: lagrange / matrix |",
+            "|---|---|---|---|---|---|",
+        ]
         for dim, kind, n, r1, r2, r3 in ratio_lines:
             lines.append(f"| {dim}D | {kind} | {n} | {r1:.2f} | {'' if r2 is None else f'{r2:.2f}'} | {r3:.1f} |")
         lines.append("")
-    lines += ["## Every measurement", "", "| dim | kind | n | route | ops after CSE | C lines | compose s | generate s | note |",
-              "|---|---|---|---|---|---|---|---|---|"]
+    lines += [
+        "## Every measurement",
+        "",
+        "| dim | kind | n | route | ops after CSE | C lines | compose s | generate s | note |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for dim, kind, n, route, r, note in rows:
         if r:
-            lines.append(f"| {dim}D | {kind} | {n} | {route} | {r['ops']} | {r['c_lines']} | {r['compose']:.3g} | "
-                         f"{r['generate']:.3g} | {note} |")
+            lines.append(
+                f"| {dim}D | {kind} | {n} | {route} | {r['ops']} | {r['c_lines']} | {r['compose']:.3g} | "
+                f"{r['generate']:.3g} | {note} |"
+            )
         else:
             lines.append(f"| {dim}D | {kind} | {n} | {route} | | | | | not run: {note.replace('|', '/')} |")
     from exo_bench.bench.output.files import announce_narrower, narrower_names
-    names = narrower_names(out, ["equations_size.md", "equations_size.png"], full)   # never over a --full run's
+
+    names = narrower_names(out, ["equations_size.md", "equations_size.png"], full)  # never over a --full run's
     announce_narrower(out, names, "equation size reports")
     lines += ["", f"![operations after CSE against n, log-log]({names['equations_size.png']})", ""]
     out.mkdir(parents=True, exist_ok=True)

@@ -39,17 +39,17 @@ MEANING = {
 }
 ROD_MEANING = {
     "stance": "the axial load yes (the body weight and its vertical acceleration); the net joint force no: "
-              "it includes the horizontal force that stops and reverses the body",
+    "it includes the horizontal force that stops and reverses the body",
     "swing": "order of magnitude: the swing leg's weight and its swing",
 }
 
 
 @dataclass(frozen=True)
 class JointRow:
-    link: int                      # 0-based
+    link: int  # 0-based
     joint: str
-    sagittal: float                # peak |sagittal net joint moment|, N·m/kg
-    magnitude: float               # peak |net joint moment| (all axes), N·m/kg
+    sagittal: float  # peak |sagittal net joint moment|, N·m/kg
+    magnitude: float  # peak |net joint moment| (all axes), N·m/kg
     normative: Normative | None
     meaning: str
 
@@ -58,8 +58,8 @@ class JointRow:
 class RodRow:
     link: int
     rod: str
-    force: float                   # peak |F_k|, body weights
-    joint_force: float             # peak |net joint force| at the rod's start, body weights
+    force: float  # peak |F_k|, body weights
+    joint_force: float  # peak |net joint force| at the rod's start, body weights
     normative: Normative | None
     meaning: str
 
@@ -67,13 +67,13 @@ class RodRow:
 @dataclass(frozen=True)
 class Plausibility:
     body_mass: float
-    weight: float                  # N: the body weight, mass times the mechanism's g
+    weight: float  # N: the body weight, mass times the mechanism's g
     reference: str
     joints: tuple[JointRow, ...]
     rods: tuple[RodRow, ...]
-    hip_travel: float | None       # m, forward range of the hip (branch point) over the motion
-    com_acceleration: float        # m/s^2, peak horizontal acceleration of the centre of mass
-    walker: bool                   # the links are the exoskeleton's (stance and swing legs)
+    hip_travel: float | None  # m, forward range of the hip (branch point) over the motion
+    com_acceleration: float  # m/s^2, peak horizontal acceleration of the centre of mass
+    walker: bool  # the links are the exoskeleton's (stance and swing legs)
 
 
 def _reference(study: Study) -> str | None:
@@ -111,8 +111,16 @@ def plausibility(study: Study) -> Plausibility | None:
         jn = WINTER.moments[role[1]] if role and role[1] else None
         fn = WINTER.forces[role[2]] if role and role[2] else None
         joints.append(JointRow(i, joint, float(sag[i]), float(mag[i]), jn, MEANING[role[3]] if role else ""))
-        rods.append(RodRow(i, f"F{i + 1} {name}", float(rod_peak[i]), float(jf[i]), fn,
-                           (ROD_MEANING[role[3]] if fn else "no counterpart in Winter's tables") if role else ""))
+        rods.append(
+            RodRow(
+                i,
+                f"F{i + 1} {name}",
+                float(rod_peak[i]),
+                float(jf[i]),
+                fn,
+                (ROD_MEANING[role[3]] if fn else "no counterpart in Winter's tables") if role else "",
+            )
+        )
     P = point_mass_positions(mech, mo.q)
     A = point_mass_accelerations(mech, mo.q, mo.qd, mo.qdd)
     a_com = np.einsum("ib,sibd->sd", mech.mass_array, A) / mass
@@ -153,49 +161,80 @@ def limitations(p: Plausibility) -> list[str]:
 
 def markdown(p: Plausibility) -> str:
     """The scene report's section: two tables and the limitations."""
-    lines = ["## Plausibility: the loads beside level walking", "",
-             f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, "
-             f"about the joint; `models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and "
-             f"peak rod forces ({p.reference}) in body weights (BW = {p.weight:.0f} N), beside the "
-             f"normative peak of the joint each plays in level walking ({SHORT_SOURCE}).", "",
-             "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
-             "| model / normative | comparable? |", "|---|---|---|---|---|---|"]
+    lines = [
+        "## Plausibility: the loads beside level walking",
+        "",
+        f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, "
+        f"about the joint; `models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and "
+        f"peak rod forces ({p.reference}) in body weights (BW = {p.weight:.0f} N), beside the "
+        f"normative peak of the joint each plays in level walking ({SHORT_SOURCE}).",
+        "",
+        "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
+        "| model / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in p.joints:
         norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
-        lines.append(f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | {_ratio(r.sagittal, r.normative)} "
-                     f"| {r.meaning or '—'} |")
-    lines += ["", "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
-              "force (BW) | net joint force / normative | comparable? |", "|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | {_ratio(r.sagittal, r.normative)} "
+            f"| {r.meaning or '—'} |"
+        )
+    lines += [
+        "",
+        "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
+        "force (BW) | net joint force / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in p.rods:
         norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
-        lines.append(f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | {_ratio(r.joint_force, r.normative)} "
-                     f"| {r.meaning or '—'} |")
-    lines += ["", "The rod force is the actuator's force along the rod; the net joint force is the whole force the "
-              "parent side exerts at the joint (its magnitude), like Winter's intersegmental force."]
+        lines.append(
+            f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | {_ratio(r.joint_force, r.normative)} "
+            f"| {r.meaning or '—'} |"
+        )
+    lines += [
+        "",
+        "The rod force is the actuator's force along the rod; the net joint force is the whole force the "
+        "parent side exerts at the joint (its magnitude), like Winter's intersegmental force.",
+    ]
     if p.walker:
         lines += ["", "Where this five-rod point-mass model cannot match a real gait:", ""]
         lines += [f"- {x}" for x in limitations(p)]
     else:
-        lines += ["", "This mechanism's links are not the exoskeleton's stance and swing legs, so no joint has a "
-                  "normative value."]
+        lines += [
+            "",
+            "This mechanism's links are not the exoskeleton's stance and swing legs, so no joint has a "
+            "normative value.",
+        ]
     return "\n".join(lines) + "\n"
 
 
 def text(p: Plausibility) -> str:
     """A compact version for the rerun recording's description (Markdown)."""
-    lines = [f"Peak net joint moments (N·m/kg of {p.body_mass:.4g} kg) and rod forces (body weights)"
-             + (f" beside level walking ({SHORT_SOURCE}):" if p.walker else ":"), ""]
+    lines = [
+        f"Peak net joint moments (N·m/kg of {p.body_mass:.4g} kg) and rod forces (body weights)"
+        + (f" beside level walking ({SHORT_SOURCE}):" if p.walker else ":"),
+        "",
+    ]
     for r in p.joints:
         norm = f", walking {r.normative.value:.2f} ({_ratio(r.sagittal, r.normative)})" if r.normative else ""
         lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
     for r in p.rods:
-        norm = (f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
-                f"({_ratio(r.joint_force, r.normative)})") if r.normative else ""
+        norm = (
+            (
+                f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
+                f"({_ratio(r.joint_force, r.normative)})"
+            )
+            if r.normative
+            else ""
+        )
         lines.append(f"- {r.rod}: {r.force:.2f} BW along the rod{norm}")
     if p.walker:
-        lines += ["", "Not comparable with walking: the stance ankle and knee moments (no feet, no double support, "
-                  f"a periodic single-support phase: the hip moves {p.hip_travel:.2f} m forward and back over the "
-                  "support point). See the scene report for the reasons."]
+        lines += [
+            "",
+            "Not comparable with walking: the stance ankle and knee moments (no feet, no double support, "
+            f"a periodic single-support phase: the hip moves {p.hip_travel:.2f} m forward and back over the "
+            "support point). See the scene report for the reasons.",
+        ]
     return "\n".join(lines)
 
 

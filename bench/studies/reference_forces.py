@@ -12,7 +12,7 @@ import numpy as np
 from exo_bench.models.mechanism import Mechanism
 
 DPS = 50
-LAGRANGE_MAX_LINKS = {2: 6, 3: 5}   # beyond these, deriving costs more than a report should wait
+LAGRANGE_MAX_LINKS = {2: 6, 3: 5}  # beyond these, deriving costs more than a report should wait
 
 
 def reference(mech: Mechanism, q, qd, qdd, budget: float = 30.0) -> tuple[np.ndarray, str]:

@@ -40,8 +40,7 @@ def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     mo = study.motion
     rate = energy_rate(scene.mechanism, f, mo.t)
     scale = max(float(np.abs(rate).max()), 1e-300)
-    return {m: finite_max(np.abs((study.results[m].tau * mo.qd).sum(1) - rate)) / scale
-            for m in study.ok_methods()}
+    return {m: finite_max(np.abs((study.results[m].tau * mo.qd).sum(1) - rate)) / scale for m in study.ok_methods()}
 
 
 REFERENCE_SUBSAMPLE = 16
@@ -83,25 +82,38 @@ def disagreement_notes(study: Study) -> list[str]:
         d = np.abs(study.difference(m))
         d[~np.isfinite(d)] = -1.0
         s_, c = np.unravel_index(int(np.argmax(d)), d.shape)
-        notes.append(f"**{m} disagrees with {study.reference}** by {rel:.1e} of the largest |tau| (largest at "
-                     f"t = {study.motion.t[s_]:.4g} s, {study.force_names[c]})"
-                     + (f": {why}." if (why := _why_it_disagrees(m)) else "."))
+        notes.append(
+            f"**{m} disagrees with {study.reference}** by {rel:.1e} of the largest |tau| (largest at "
+            f"t = {study.motion.t[s_]:.4g} s, {study.force_names[c]})"
+            + (f": {why}." if (why := _why_it_disagrees(m)) else ".")
+        )
     return notes
 
 
 def _scene_table(o: SceneOutcome) -> str:
     sc, st = o.scene, o.study
     mech = sc.mechanism
-    lines = [f"# Scene `{sc.name}`", "", provenance(f"exo-bench run {sc.name}"), "",
-             sc.description, "",
-             f"- **mechanism**: `{mech.name}`, {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)}, "
-             f"signs {list(mech.sign)}, total mass {mech.total_mass:.4g} kg",
-             f"- **motion**: {sc.motion_label()}",
-             f"- **methods**: {', '.join(sc.methods)}; agreement is measured against `{sc.reference}`",
-             "- **quantities**: generalised forces of the paper's absolute coordinates "
-             "(`M_phi`, `M_psi` in N·m, `F` in N), not joint moments", ""]
-    lines += ["| method | status | setup s | us/sample | max rel. diff vs " + sc.reference +
-              " | power balance | abs. error vs 50-digit | rel. error vs 50-digit |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# Scene `{sc.name}`",
+        "",
+        provenance(f"exo-bench run {sc.name}"),
+        "",
+        sc.description,
+        "",
+        f"- **mechanism**: `{mech.name}`, {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)}, "
+        f"signs {list(mech.sign)}, total mass {mech.total_mass:.4g} kg",
+        f"- **motion**: {sc.motion_label()}",
+        f"- **methods**: {', '.join(sc.methods)}; agreement is measured against `{sc.reference}`",
+        "- **quantities**: generalised forces of the paper's absolute coordinates "
+        "(`M_phi`, `M_psi` in N·m, `F` in N), not joint moments",
+        "",
+    ]
+    lines += [
+        "| method | status | setup s | us/sample | max rel. diff vs "
+        + sc.reference
+        + " | power balance | abs. error vs 50-digit | rel. error vs 50-digit |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     agree = st.agreement()
     for m in sc.methods:
         r = st.results[m]
@@ -114,15 +126,25 @@ def _scene_table(o: SceneOutcome) -> str:
         pb = o.power_balance.get(m)
         ae, re_ = o.reference_error.get(m, (None, None))
         fmt = lambda x: "" if x is None else f"{x:.2e}"
-        lines.append(f"| {m} | {status} | {r.setup_seconds:.3g} | {r.seconds_per_sample * 1e6:.2f} | {fmt(agree.get(m))} | {fmt(pb)} | "
-                     f"{fmt(ae)} | {fmt(re_)} |")
-    lines += ["", "`setup s`: the first call (building the model, deriving, compiling), timed apart from the batch. "
-              "`power balance`: max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|, with T and Pi summed over the "
-              "point masses (models/kinematics.py) and differentiated by a sixth-order central difference.", ""]
+        lines.append(
+            f"| {m} | {status} | {r.setup_seconds:.3g} | {r.seconds_per_sample * 1e6:.2f} | {fmt(agree.get(m))} | {fmt(pb)} | "
+            f"{fmt(ae)} | {fmt(re_)} |"
+        )
+    lines += [
+        "",
+        "`setup s`: the first call (building the model, deriving, compiling), timed apart from the batch. "
+        "`power balance`: max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|, with T and Pi summed over the "
+        "point masses (models/kinematics.py) and differentiated by a sixth-order central difference.",
+        "",
+    ]
     ref = st.results.get(sc.reference)
     if ref is not None and ref.ok:
-        lines += [f"Peak values along the motion ({sc.reference}):", "",
-                  "| quantity | min | max | max abs |", "|---|---|---|---|"]
+        lines += [
+            f"Peak values along the motion ({sc.reference}):",
+            "",
+            "| quantity | min | max | max abs |",
+            "|---|---|---|---|",
+        ]
         for k, name in enumerate(st.force_names):
             col = ref.tau[:, k]
             lines.append(f"| {name} | {col.min():.4g} | {col.max():.4g} | {np.abs(col).max():.4g} |")
@@ -134,6 +156,7 @@ def _scene_table(o: SceneOutcome) -> str:
         lines += ["", markdown(plausibility(st)).rstrip("\n")]
     if sc.motion["kind"] == "step" and st.ok_methods():
         from exo_bench.bench.studies.step.report import markdown as step_markdown  # the predicted step's own section
+
         lines += ["", step_markdown(sc, st).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
@@ -147,18 +170,29 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     t0 = time.perf_counter()
     check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
     motion = scene.build_motion()
-    o.study = run_methods(scene.name, scene.mechanism, motion, scene.motion_label(), list(scene.methods),
-                          reference=scene.reference, limits=limits)
+    o.study = run_methods(
+        scene.name,
+        scene.mechanism,
+        motion,
+        scene.motion_label(),
+        list(scene.methods),
+        reference=scene.reference,
+        limits=limits,
+    )
     for m, r in o.study.results.items():
         if r.ok and not np.isfinite(r.tau).all():
-            o.notes.append(f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
-                           "(see the stability report for where this method is unusable)")
+            o.notes.append(
+                f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
+                "(see the stability report for where this method is unusable)"
+            )
     o.notes += disagreement_notes(o.study)
     o.power_balance = power_balance(scene, o.study)
     if scene.wants("reference-error"):
         try:
             o.reference_error = reference_errors(o.study)
-            o.notes.append(f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples")
+            o.notes.append(
+                f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples"
+            )
         except Exception as e:  # noqa: BLE001
             reason = getattr(e, "skip_reason", None) or one_line(e)
             o.notes.append(f"50-digit reference skipped: {reason}")
@@ -168,10 +202,14 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         o.files.append(p)
     figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
     if figures and o.study.ok_methods():
-        from exo_bench.bench.output.figures import scene_figures as plots  # matplotlib only for scenes that ask for figures
+        from exo_bench.bench.output.figures import (
+            scene_figures as plots,
+        )  # matplotlib only for scenes that ask for figures
+
         for kind in figures:
-            if kind == "kinogram" and getattr(o.study.motion, "origin", None) is not None:   # a walking motion
+            if kind == "kinogram" and getattr(o.study.motion, "origin", None) is not None:  # a walking motion
                 from exo_bench.bench.studies.step.figures import walking_kinogram
+
                 fig = walking_kinogram(o.study)
             else:
                 fig = plots.scene_figure(o.study, kind)
@@ -181,14 +219,18 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
     if scene.wants("equations"):
         from exo_bench.bench.output.equation_pages import scene_pages  # only for scenes that ask for it
+
         o.files += scene_pages(scene, staging)
     if scene.wants("recording"):
         from exo_bench.bench.output import recording  # rerun only for scenes that ask for a recording
         from exo_bench.bench.studies.plausibility import plausibility, text
 
         loads = plausibility(o.study)
-        if loads is not None and getattr(o.study.motion, "origin", None) is not None:   # the predicted step: its own loads text
+        if (
+            loads is not None and getattr(o.study.motion, "origin", None) is not None
+        ):  # the predicted step: its own loads text
             from exo_bench.bench.studies.step.report import text as step_text
+
             loads_text = step_text(o.study)
         else:
             loads_text = None if loads is None else text(loads)
@@ -220,5 +262,3 @@ def scene_rows(o: SceneOutcome) -> list[list[str]]:
         pb = o.power_balance.get(m)
         rows.append([o.scene.name, m, err, f"{r.seconds_per_sample * 1e6:.2f}", "" if pb is None else f"{pb:.1e}"])
     return rows
-
-

@@ -43,12 +43,29 @@ import numpy as np
 
 from exo_bench.models.loading import load_mechanism, read_json, read_toml
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import (DEFAULT_GAIT, GAITS, GaitParams, Motion, from_arrays, gait, planar_gait,
-                                     smooth_random_motion)
+from exo_bench.models.motion import (
+    DEFAULT_GAIT,
+    GAITS,
+    GaitParams,
+    Motion,
+    from_arrays,
+    gait,
+    planar_gait,
+    smooth_random_motion,
+)
 
 SHIPPED = Path(__file__).resolve().parent / "scenes"
-OUTPUTS = ("table", "reference-error", "moments", "forces", "kinogram", "differences", "overview", "recording",
-           "equations")
+OUTPUTS = (
+    "table",
+    "reference-error",
+    "moments",
+    "forces",
+    "kinogram",
+    "differences",
+    "overview",
+    "recording",
+    "equations",
+)
 MOTIONS = ("gait", "planar-gait", "smooth-random", "states", "step")  # step: bench/studies/step/scene.py
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
 _MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait", "steps"}
@@ -73,15 +90,20 @@ class Scene:
     def motion_label(self) -> str:
         k = self.motion["kind"]
         if k == "gait":
-            return (f"gait of eq. (26), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
-                    f"{self.motion['samples_per_period']} samples")
+            return (
+                f"gait of eq. (26), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
+                f"{self.motion['samples_per_period']} samples"
+            )
         if k == "planar-gait":
-            return (f"planar gait (eq. 26, sagittal), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
-                    f"{self.motion['samples_per_period']} samples")
+            return (
+                f"planar gait (eq. 26, sagittal), {self.motion['gait_name']}, {self.motion['periods']:g} period(s) x "
+                f"{self.motion['samples_per_period']} samples"
+            )
         if k == "smooth-random":
             return f"smooth random motion (seed {self.motion['seed']}), {self.motion['samples']} samples"
         if k == "step":
             from exo_bench.bench.studies.step.scene import label
+
             return label(self.motion)
         return f"states from {self.motion['file']}"
 
@@ -105,6 +127,7 @@ class Scene:
             return int(self.motion["samples"])
         if k == "step":
             from exo_bench.bench.studies.step.scene import samples
+
             return samples(self.motion)
         return len(self.motion["data"]["t"])
 
@@ -120,10 +143,17 @@ class Scene:
             return self.motion_function()(t)
         if k == "step":
             from exo_bench.bench.studies.step.scene import build
+
             return build(self.motion, self.mechanism)
         data = self.motion["data"]
-        return from_arrays(self.mechanism, data["t"], data["q"], data["qd"], data["qdd"],
-                           source=f"{self.path}: motion.file {self.motion['file']!r}")
+        return from_arrays(
+            self.mechanism,
+            data["t"],
+            data["q"],
+            data["qd"],
+            data["qdd"],
+            source=f"{self.path}: motion.file {self.motion['file']!r}",
+        )
 
 
 def _err(path: Path, field_: str, expected: str, got: Any) -> ValueError:
@@ -189,8 +219,13 @@ def load_scene(spec: str | Path) -> Scene:
     if not isinstance(name, str) or not name:
         raise _err(path, "name", "a non-empty string", name)
     if name.startswith(".") or any(ch in "/\\" or ord(ch) < 32 or ord(ch) == 127 for ch in name):
-        raise _err(path, "name", "a name usable as a file name (it names the scene's reports: no '/', '\\', control "
-                   "characters or leading '.')", name)
+        raise _err(
+            path,
+            "name",
+            "a name usable as a file name (it names the scene's reports: no '/', '\\', control "
+            "characters or leading '.')",
+            name,
+        )
     return Scene(name, path, desc, mech, tuple(methods), reference, tuple(outputs), motion)
 
 
@@ -206,17 +241,27 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
     out: dict[str, Any] = {"kind": kind}
     if kind == "step":
         from exo_bench.bench.studies.step.scene import load_motion
+
         return load_motion(path, m, mech)
     if kind in ("gait", "planar-gait"):
         if kind == "gait" and (mech.dim != 3 or mech.nlinks != 5):
-            raise _err(path, "motion.kind", "'gait' only for a 3D five-link mechanism (eq. 26)",
-                       f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism")
+            raise _err(
+                path,
+                "motion.kind",
+                "'gait' only for a 3D five-link mechanism (eq. 26)",
+                f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism",
+            )
         if kind == "planar-gait" and (mech.dim != 2 or mech.nlinks > 5):
-            raise _err(path, "motion.kind", "'planar-gait' only for a 2D mechanism of at most five links",
-                       f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism")
+            raise _err(
+                path,
+                "motion.kind",
+                "'planar-gait' only for a 2D mechanism of at most five links",
+                f"{kind} with a {mech.dim}D {mech.nlinks}-link mechanism",
+            )
         out["periods"] = _number(path, "motion.periods", m.get("periods", 1.0), lo=0)
-        out["samples_per_period"] = _number(path, "motion.samples_per_period", m.get("samples_per_period", 1000),
-                                            lo=1, integer=True)
+        out["samples_per_period"] = _number(
+            path, "motion.samples_per_period", m.get("samples_per_period", 1000), lo=1, integer=True
+        )
         spec = m.get("gait", {})
         named = isinstance(spec, str)
         spec = {"base": spec} if named else spec
@@ -232,7 +277,9 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
                 raise _err(path, f"motion.gait.{k}", f"one of {sorted(names | {'base'})}", k)
             if isinstance(v, list):
                 default = getattr(GAITS[base], k)
-                if len(v) != len(default) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+                if len(v) != len(default) or not all(
+                    isinstance(x, (int, float)) and not isinstance(x, bool) for x in v
+                ):
                     raise _err(path, f"motion.gait.{k}", f"a list of {len(default)} numbers", v)
                 overrides = {**overrides, k: tuple(float(x) for x in v)}
             else:
@@ -242,8 +289,12 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
         out["gait_name"] = base + (f" with {', '.join(sorted(overrides))} changed" if overrides else "")
         S = int(round(out["samples_per_period"] * out["periods"]))
         if S < MIN_SAMPLES:
-            raise _err(path, "motion.periods", f"periods x samples_per_period >= {MIN_SAMPLES} samples (derivatives "
-                       "and plots need at least two)", f"{out['periods']} x {out['samples_per_period']} = {S} sample(s)")
+            raise _err(
+                path,
+                "motion.periods",
+                f"periods x samples_per_period >= {MIN_SAMPLES} samples (derivatives and plots need at least two)",
+                f"{out['periods']} x {out['samples_per_period']} = {S} sample(s)",
+            )
     elif kind == "smooth-random":
         out["duration"] = _number(path, "motion.duration", m.get("duration", 2.0), lo=0)
         out["samples"] = _number(path, "motion.samples", m.get("samples", 400), lo=1, integer=True)
@@ -257,14 +308,20 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
             raise _err(path, "motion.file", "an existing file", str(p))
         data = read_json(p, f"{path}: field 'motion.file' ({p})")
         if not isinstance(data, dict) or not {"t", "q", "qd", "qdd"} <= data.keys():
-            raise _err(path, "motion.file", "an object with keys t, q, qd, qdd",
-                       sorted(data) if isinstance(data, dict) else type(data).__name__)
+            raise _err(
+                path,
+                "motion.file",
+                "an object with keys t, q, qd, qdd",
+                sorted(data) if isinstance(data, dict) else type(data).__name__,
+            )
         out["file"], out["data"] = f, data
         source = f"{path}: motion.file {f!r}"
         motion = from_arrays(mech, _times(source, data["t"]), data["q"], data["qd"], data["qdd"], source=source)
         if motion.q.shape[0] < MIN_SAMPLES:
-            raise ValueError(f"{source}: expected at least {MIN_SAMPLES} samples (derivatives and plots need two), "
-                             f"got {motion.q.shape[0]}")
+            raise ValueError(
+                f"{source}: expected at least {MIN_SAMPLES} samples (derivatives and plots need two), "
+                f"got {motion.q.shape[0]}"
+            )
     return out
 
 
@@ -280,13 +337,18 @@ def _probe_gait(path: Path, kind: str, mech: Mechanism, params, period_given: bo
     for label in ("q", "qd", "qdd"):
         a = np.asarray(getattr(mo, label), dtype=float)
         if not np.isfinite(a).all():
-            raise _err(path, key, f"a gait whose {label} is finite in float64 (a period T this short makes the rates "
-                       f"overflow)", params.T)
+            raise _err(
+                path,
+                key,
+                f"a gait whose {label} is finite in float64 (a period T this short makes the rates overflow)",
+                params.T,
+            )
     try:
         as_states(mech, mo.q, mo.qd, mo.qdd, source=str(path))
     except ValueError as e:
-        raise _err(path, key, f"a gait whose forces stay within float64 ({str(e).split(': ', 1)[-1]})",
-                   params.T) from None
+        raise _err(
+            path, key, f"a gait whose forces stay within float64 ({str(e).split(': ', 1)[-1]})", params.T
+        ) from None
 
 
 def _times(source: str, t: Any) -> np.ndarray:
@@ -303,8 +365,10 @@ def _times(source: str, t: Any) -> np.ndarray:
     steps = np.flatnonzero(np.diff(a) <= 0)
     if steps.size:
         k = int(steps[0]) + 1
-        raise ValueError(f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {float(a[k - 1])!r} "
-                         f"then t[{k}] = {float(a[k])!r}")
+        raise ValueError(
+            f"{source}: field 't': expected strictly increasing times, got t[{k - 1}] = {float(a[k - 1])!r} "
+            f"then t[{k}] = {float(a[k])!r}"
+        )
     return a
 
 

@@ -20,11 +20,11 @@ from exo_bench.models.motion import Motion
 @dataclass
 class MethodResult:
     method: str
-    tau: np.ndarray | None = None                 # (S, dof) generalised forces, paper's coordinates
+    tau: np.ndarray | None = None  # (S, dof) generalised forces, paper's coordinates
     seconds_per_sample: float | None = None
-    setup_seconds: float | None = None            # one-time cost: building models, deriving, compiling
-    skipped: str | None = None                    # why the method was not run (over budget, ...)
-    error: str | None = None                      # one line: why it failed
+    setup_seconds: float | None = None  # one-time cost: building models, deriving, compiling
+    skipped: str | None = None  # why the method was not run (over budget, ...)
+    error: str | None = None  # one line: why it failed
 
     @property
     def ok(self) -> bool:
@@ -39,7 +39,7 @@ class Study:
     motion_label: str
     results: dict[str, MethodResult] = field(default_factory=dict)
     reference: str = "pinocchio"
-    reference_label: str = ""                     # which 50-digit reference the errors were measured against
+    reference_label: str = ""  # which 50-digit reference the errors were measured against
 
     @property
     def force_names(self) -> list[str]:
@@ -86,19 +86,28 @@ class UnusableMethodWarning(StabilityWarning):
     forward dynamics does not reproduce a motion."""
 
 
-def run_methods(name: str, mech: Mechanism, motion: Motion, motion_label: str, methods: list[str],
-                reference: str = "pinocchio", options: dict[str, dict] | None = None, limits=None) -> Study:
+def run_methods(
+    name: str,
+    mech: Mechanism,
+    motion: Motion,
+    motion_label: str,
+    methods: list[str],
+    reference: str = "pinocchio",
+    options: dict[str, dict] | None = None,
+    limits=None,
+) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and
     does not stop the others. ``options``: method -> its :func:`prepare` options. A method whose
     estimated memory or time exceeds ``limits`` (:class:`exo_bench.api.cost_model.Limits`; default: a share
     of the available memory) is recorded as skipped with the estimate, before it runs."""
     from exo_bench.api.cost_model import check
+
     study = Study(name, mech, motion, motion_label, reference=reference)
     S = motion.q.shape[0]
     options = options or {}
     for m in methods:
         try:
-            check(mech, m, S, options.get(m, {}), limits)    # refuse before any work (ResourceLimit: a skip)
+            check(mech, m, S, options.get(m, {}), limits)  # refuse before any work (ResourceLimit: a skip)
             t0 = time.perf_counter()
             model = prepare(mech, m, **options.get(m, {}))  # build / derive / compile once
             setup = time.perf_counter() - t0

@@ -29,7 +29,7 @@ class CostModel:
     setup_seconds: Callable[[Mechanism, dict], float]
     sample_seconds: Callable[[int, int], float]
     note: Callable[[Mechanism, dict], str] = lambda m, o: ""
-    call_seconds: float = 1e-4          # per call (chunk): Python and numpy overhead
+    call_seconds: float = 1e-4  # per call (chunk): Python and numpy overhead
     #: Seconds to compile the serial and the parallel numba kernel of one dimension when numba's
     #: cache is empty (None: no compiled kernel). Paid once per machine (and per edit of a
     #: kernel's source), so it is named in the note and not added to the seconds: a time limit
@@ -60,13 +60,13 @@ def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
     from exo_bench.models.urdf import pinocchio_data_bytes
 
     threads = int(options.get("threads", 1) or 1)
-    count = 1 + (threads + 1 if threads > 1 else 0)      # this thread's Data, the pool's and its construction's copy
+    count = 1 + (threads + 1 if threads > 1 else 0)  # this thread's Data, the pool's and its construction's copy
     return pinocchio_data_bytes(mech), count
 
 
 def _pin_setup_bytes(mech, options):
     one, count = _pin_data(mech, options)
-    return one * count + 120_000 * mech.nlinks + 2 * 2**20   # the model: <= 90 kB per link (3D n = 100: 9 MB)
+    return one * count + 120_000 * mech.nlinks + 2 * 2**20  # the model: <= 90 kB per link (3D n = 100: 9 MB)
 
 
 def _pin_setup_seconds(mech, options):
@@ -88,7 +88,7 @@ def _pin_note(mech, options):
 
 
 def _matrix_setup(mech, options):
-    return F8 * 8 * mech.nlinks**2 + 2**20                  # coupling and gravity coefficients, several n x n
+    return F8 * 8 * mech.nlinks**2 + 2**20  # coupling and gravity coefficients, several n x n
 
 
 #: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
@@ -96,6 +96,8 @@ def _matrix_setup(mech, options):
 #: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
 #: depend on the state of the cache.
 NUMBA_BYTES = 128 * 2**20
+
+
 def _numba(options: dict) -> bool:
     return options.get("kernel", "numba") == "numba"
 
@@ -107,21 +109,39 @@ def _compiled_setup_bytes(mech, options):
 def _compiled_note(compile_seconds: float, what):
     """The note of a method with a numba kernel: ``what`` dominates, and the first use compiles in
     up to ``compile_seconds``."""
+
     def note(mech, options):
         if not _numba(options):
             return what(mech) + "; numpy kernel"
-        return (what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
-                f"{compile_seconds:g} s (then cached on disk)")
+        return (
+            what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
+            f"{compile_seconds:g} s (then cached on disk)"
+        )
+
     return note
 
 
 #: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
 LAGRANGE_POINTS: dict[tuple[int, int], tuple[float, float]] = {
-    (1, 2): (0.19, 9.1e6), (2, 2): (0.14, 10.2e6), (3, 2): (0.24, 11.8e6), (4, 2): (0.42, 14.1e6),
-    (5, 2): (0.87, 17.5e6), (6, 2): (1.14, 23.0e6), (8, 2): (3.38, 39.7e6), (10, 2): (4.15, 69.9e6),
-    (15, 2): (15.9, 245.7e6), (20, 2): (42.6, 673.8e6), (30, 2): (174.7, 3066.1e6),
-    (1, 3): (0.14, 9.4e6), (2, 3): (0.28, 12.4e6), (3, 3): (0.57, 16.9e6), (4, 3): (1.57, 25.0e6),
-    (5, 3): (2.79, 37.1e6), (6, 3): (3.56, 55.7e6), (8, 3): (8.37, 122.2e6), (10, 3): (17.4, 241.9e6),
+    (1, 2): (0.19, 9.1e6),
+    (2, 2): (0.14, 10.2e6),
+    (3, 2): (0.24, 11.8e6),
+    (4, 2): (0.42, 14.1e6),
+    (5, 2): (0.87, 17.5e6),
+    (6, 2): (1.14, 23.0e6),
+    (8, 2): (3.38, 39.7e6),
+    (10, 2): (4.15, 69.9e6),
+    (15, 2): (15.9, 245.7e6),
+    (20, 2): (42.6, 673.8e6),
+    (30, 2): (174.7, 3066.1e6),
+    (1, 3): (0.14, 9.4e6),
+    (2, 3): (0.28, 12.4e6),
+    (3, 3): (0.57, 16.9e6),
+    (4, 3): (1.57, 25.0e6),
+    (5, 3): (2.79, 37.1e6),
+    (6, 3): (3.56, 55.7e6),
+    (8, 3): (8.37, 122.2e6),
+    (10, 3): (17.4, 241.9e6),
 }
 
 
@@ -174,44 +194,61 @@ def _recurrence_setup_seconds(mech, options):
 # Compile times measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
 # matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up.
 PINOCCHIO = CostModel(
-    _pin_setup_bytes, _pin_setup_seconds,
+    _pin_setup_bytes,
+    _pin_setup_seconds,
     sample_seconds=lambda n, d: (0.6 + (3.0 if d == 2 else 5.5) * n) * 1e-6,
-    note=_pin_note)
+    note=_pin_note,
+)
 LAGRANGE = CostModel(
-    lambda m, o: _lagrange(m, 1), lambda m, o: _lagrange(m, 0),
+    lambda m, o: _lagrange(m, 1),
+    lambda m, o: _lagrange(m, 0),
     sample_seconds=lambda n, d: (0.5 + 0.05 * d * n * n) * 1e-6,
-    note=lambda m, o: "the sympy derivation")
+    note=lambda m, o: "the sympy derivation",
+)
 MATRIX = CostModel(
-    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    _compiled_setup_bytes,
+    lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
     sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
     note=_compiled_note(10.0, lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
-    compile_seconds=10.0, numba_speed=0.5)
+    compile_seconds=10.0,
+    numba_speed=0.5,
+)
 MATRIX_PAPER = CostModel(
-    _matrix_setup, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    _matrix_setup,
+    lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
     sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
-    note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})")
+    note=lambda m, o: f"every n x n matrix of eq. (17) per sample (n = {m.nlinks})",
+)
 RECURRENCE = CostModel(
-    _recurrence_setup_bytes, _recurrence_setup_seconds,
+    _recurrence_setup_bytes,
+    _recurrence_setup_seconds,
     sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
     note=_compiled_note(10.0, lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
-    compile_seconds=10.0)
+    compile_seconds=10.0,
+)
 MATRIX_FACTORED = CostModel(
-    _compiled_setup_bytes, lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-    sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,   # 3D n = 20, 50 at 40,000 samples (issue 26)
+    _compiled_setup_bytes,
+    lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
+    sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,  # 3D n = 20, 50 at 40,000 samples (issue 26)
     note=_compiled_note(4.0, lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
-    compile_seconds=4.0)
+    compile_seconds=4.0,
+)
 # The peers (extra [peers]): a Python loop over samples into MuJoCo / Drake. Peak RSS growth of
 # prepare + one call on 3D chains of 10 and 100 links: MuJoCo 12 / 33 MB, Drake 16 / 50 MB; per
 # sample on the shared 2-core machine (noisy, rounded up): MuJoCo 27-70 us at n = 5, ~1.1 ms at
 # n = 100; Drake 40-170 us at n = 5, 2-4 ms at n = 100.
 MUJOCO = CostModel(
-    lambda m, o: 16 * 2**20 + 300_000 * m.nlinks, lambda m, o: 0.6 + 5e-3 * m.nlinks,
+    lambda m, o: 16 * 2**20 + 300_000 * m.nlinks,
+    lambda m, o: 0.6 + 5e-3 * m.nlinks,
     sample_seconds=lambda n, d: (20.0 + 12.0 * n) * 1e-6,
-    note=lambda m, o: "a Python loop over mj_rne, one MjData")
+    note=lambda m, o: "a Python loop over mj_rne, one MjData",
+)
 DRAKE = CostModel(
-    lambda m, o: 20 * 2**20 + 450_000 * m.nlinks, lambda m, o: 0.8 + 2e-3 * m.nlinks,
+    lambda m, o: 20 * 2**20 + 450_000 * m.nlinks,
+    lambda m, o: 0.8 + 2e-3 * m.nlinks,
     sample_seconds=lambda n, d: (40.0 + (20.0 if d == 2 else 40.0) * n) * 1e-6,
-    note=lambda m, o: "a Python loop over CalcInverseDynamics, one Context")
+    note=lambda m, o: "a Python loop over CalcInverseDynamics, one Context",
+)
 # newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample; its numpy kernel
 # holds a few dozen (n, dim, samples) arrays. Not calibrated yet: rounded-up bounds. Compile time
 # 11.7 s (serial and parallel, one dim) on the busy machine, rounded up.
@@ -220,4 +257,5 @@ NEWTON_EULER = CostModel(
     lambda m, o: 0.01 + 2e-6 * m.nlinks,
     sample_seconds=lambda n, d: (1.0 + 0.05 * d * n) * 1e-6,
     note=_compiled_note(15.0, lambda m: f"O(n) per sample, two passes over the tree (n = {m.nlinks})"),
-    compile_seconds=15.0)
+    compile_seconds=15.0,
+)

@@ -112,12 +112,12 @@ class Estimate:
     method: str
     samples: int
     setup_bytes: float
-    array_bytes: float          # q, qd, qdd and tau of the whole batch
-    chunk_bytes: float          # one chunk's temporaries
+    array_bytes: float  # q, qd, qdd and tau of the whole batch
+    chunk_bytes: float  # one chunk's temporaries
     seconds: float
     setup_seconds: float
     note: str = ""
-    io_bytes: float = 0.0       # the peak of reading the states (before the method's work starts)
+    io_bytes: float = 0.0  # the peak of reading the states (before the method's work starts)
 
     @property
     def memory(self) -> float:
@@ -127,8 +127,9 @@ class Estimate:
         return f"about {_size(self.memory)} and {_seconds(self.seconds)}"
 
 
-def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
-             io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
+def estimate(
+    mech: Mechanism, method: str, samples: int = 1, options: dict | None = None, io: tuple[float, float] = (0.0, 0.0)
+) -> Estimate:
     """The estimated peak memory and seconds of ``samples`` samples of ``method`` on ``mech``
     through a prepared model, including the setup (see the module docstring); ``io``: the peak
     bytes of reading the states and the seconds of reading them and writing tau
@@ -137,8 +138,9 @@ def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | Non
     model = METHODS[method].cost if method in METHODS else None
     io_bytes, io_seconds = (float(x) for x in io)
     if model is None:  # a method registered without a cost model: its arrays only
-        return Estimate(method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, io_seconds, 0.0, "no cost model",
-                        io_bytes)
+        return Estimate(
+            method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, io_seconds, 0.0, "no cost model", io_bytes
+        )
     n, d = mech.nlinks, mech.dim
     chunk = min(max(samples, 1), chunk_samples(mech, method))
     calls = math.ceil(max(samples, 1) / chunk)
@@ -150,8 +152,17 @@ def estimate(mech: Mechanism, method: str, samples: int = 1, options: dict | Non
         # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
         per_sample *= model.numba_speed
     seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
-    return Estimate(method, samples, float(model.setup_bytes(mech, options)), 4.0 * F8 * mech.dof * samples,
-                    float(chunk_bytes), float(seconds), float(setup_s), model.note(mech, options), io_bytes)
+    return Estimate(
+        method,
+        samples,
+        float(model.setup_bytes(mech, options)),
+        4.0 * F8 * mech.dof * samples,
+        float(chunk_bytes),
+        float(seconds),
+        float(setup_s),
+        model.note(mech, options),
+        io_bytes,
+    )
 
 
 class ResourceLimit(ValueError):
@@ -178,8 +189,10 @@ class Limits:
         if self.memory is not None:
             return float(self.memory), self.memory_source or "--max-memory"
         usable = usable_memory()
-        return ((None if usable is None else float(usable)),
-                f"{USABLE_SHARE:.0%} of the available memory; set the limit with --max-memory")
+        return (
+            (None if usable is None else float(usable)),
+            f"{USABLE_SHARE:.0%} of the available memory; set the limit with --max-memory",
+        )
 
 
 def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | None:
@@ -191,9 +204,11 @@ def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | N
 
         budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)
         valid = not isinstance(budget, bool) and isinstance(budget, (int, float)) and budget > 0
-        if valid and est.setup_seconds > budget:   # (not a budget: the method's constructor says so)
-            return (f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS, "
-                    "or prepare()'s option budget)")
+        if valid and est.setup_seconds > budget:  # (not a budget: the method's constructor says so)
+            return (
+                f"its derivation alone over the budget of {_seconds(budget)} (raise it with --budget SECONDS, "
+                "or prepare()'s option budget)"
+            )
     mem, mem_src = limits.memory_limit()
     if mem is not None and est.memory > mem:
         return f"over the memory limit of {_size(mem)} ({mem_src})"
@@ -202,8 +217,14 @@ def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | N
     return None
 
 
-def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str = "",
-                   options: dict[str, dict] | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate | None:
+def fitting_method(
+    mech: Mechanism,
+    samples: int,
+    limits: Limits,
+    exclude: str = "",
+    options: dict[str, dict] | None = None,
+    io: tuple[float, float] = (0.0, 0.0),
+) -> Estimate | None:
     """The first method of :func:`~exo_bench.api.methods.preference` whose estimate is within the limits."""
     for m in preference():
         if m == exclude:
@@ -214,8 +235,14 @@ def fitting_method(mech: Mechanism, samples: int, limits: Limits, exclude: str =
     return None
 
 
-def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None = None,
-          limits: Limits | None = None, io: tuple[float, float] = (0.0, 0.0)) -> Estimate:
+def check(
+    mech: Mechanism,
+    method: str,
+    samples: int = 1,
+    options: dict | None = None,
+    limits: Limits | None = None,
+    io: tuple[float, float] = (0.0, 0.0),
+) -> Estimate:
     """The estimate of ``method``, or :class:`ResourceLimit` when it exceeds ``limits``: one line
     naming the method, the estimate and what dominates it, the limit and how to raise it, and a
     method that fits (or that none does, and why). ``io``: see :func:`estimate`."""
@@ -226,7 +253,7 @@ def check(mech: Mechanism, method: str, samples: int = 1, options: dict | None =
         return est
     size = f"n={mech.nlinks} links, dim={mech.dim}, {samples} sample(s)"
     note = f" ({est.note})" if est.note else ""
-    if io[1] > 0.05 * est.seconds:   # named where it matters
+    if io[1] > 0.05 * est.seconds:  # named where it matters
         note += f" (reading the states and writing tau: {_seconds(io[1])} of it)"
     msg = f"method {method!r} on {mech.name!r} ({size}) needs {est.describe()}{note}, {over}"
     alt = fitting_method(mech, samples, limits, exclude=method, io=io)
@@ -249,13 +276,20 @@ def check_reading(path: str, read_bytes: float, read_seconds: float, limits: Lim
     limits = limits or Limits()
     mem, src = limits.memory_limit()
     need = BASE_BYTES + read_bytes
-    over = (f"over the memory limit of {_size(mem)} ({src})" if mem is not None and need > mem else
-            f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
-            if limits.seconds is not None and read_seconds > limits.seconds else None)
+    over = (
+        f"over the memory limit of {_size(mem)} ({src})"
+        if mem is not None and need > mem
+        else f"over the time limit of {_seconds(limits.seconds)} (--max-time)"
+        if limits.seconds is not None and read_seconds > limits.seconds
+        else None
+    )
     if over:
-        raise ResourceLimit(f"states {path!r}: reading it needs about {_size(need)} and {_seconds(read_seconds)} "
-                            f"(JSON), {over}; give the states as a .npz archive (read about 20 times faster) or "
-                            "split the batch", "memory" if "memory" in over else "time")
+        raise ResourceLimit(
+            f"states {path!r}: reading it needs about {_size(need)} and {_seconds(read_seconds)} "
+            f"(JSON), {over}; give the states as a .npz archive (read about 20 times faster) or "
+            "split the batch",
+            "memory" if "memory" in over else "time",
+        )
 
 
 #: Arrays a scene's motion and study hold per sample and coordinate: t, q, qd, qdd, and per
@@ -270,8 +304,11 @@ def check_samples(mech: Mechanism, samples: int, limits: Limits | None = None, w
     need = BASE_BYTES + SCENE_ARRAYS * F8 * (mech.dof + 1) * max(samples, 0)
     mem, src = limits.memory_limit()
     if mem is not None and need > mem:
-        raise ResourceLimit(f"{what}: {samples} samples of {mech.dof} coordinates need about {_size(need)} of arrays, "
-                            f"over the memory limit of {_size(mem)} ({src}); use fewer samples", "memory")
+        raise ResourceLimit(
+            f"{what}: {samples} samples of {mech.dof} coordinates need about {_size(need)} of arrays, "
+            f"over the memory limit of {_size(mem)} ({src}); use fewer samples",
+            "memory",
+        )
     return need
 
 

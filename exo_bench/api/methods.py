@@ -74,60 +74,121 @@ class MethodSpec:
 _WRONG_18 = "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"
 
 #: Every method, by name, in the order reports list them.
-METHODS: dict[str, MethodSpec] = {s.name: s for s in (
-    MethodSpec("pinocchio", "exo_bench.models.pinocchio_backend", "PinocchioRNEA",
-               "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
-               colour="#1b9e77", cost=cost.PINOCCHIO, fit_rank=3,
-               engine_row="a Python loop over `pin.rnea` per sample (the G maps one matmul over the batch; "
-                          "`pinocchio-parallel`: `rneaInParallel` on a ModelPool)",
-               bare_row="pin.rnea (bare)"),
-    MethodSpec("lagrange", "exo_bench.lagrange.prepared", "LagrangeModel",
-               "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
-               "(options: budget, interrupt)",
-               colour="#e6ab02", cost=cost.LAGRANGE, fit_rank=5),
-    MethodSpec("matrix", "exo_bench.matrix_method.prepared", "MatrixProducts",
-               "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
-               "no division), then the products with the rates; compiled loops (option kernel: numba, the "
-               "default, or numpy)",
-               colour="#d95f02", cost=cost.MATRIX, kernels=NUMBA_NUMPY, fit_rank=2, composes_within_budget=True,
-               derivatives_are_its_own=True),
-    MethodSpec("matrix-factored", "exo_bench.matrix_method.prepared", "MatrixFactored",
-               "the matrix method's equations in factored form (no matrix formed); compiled loops "
-               "(option kernel: numba, the default, or numpy)",
-               colour="#7570b3", cost=cost.MATRIX_FACTORED, kernels=NUMBA_NUMPY, fit_rank=0,
-               derivatives_are_its_own=True),
-    MethodSpec("matrix-paper", "exo_bench.matrix_method.prepared", "MatrixPaper",
-               "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)",
-               colour="#e7298a", cost=cost.MATRIX_PAPER, known_wrong=_WRONG_18,
-               why_it_disagrees="it evaluates eq. (18) exactly as printed, misprints included: see "
-                                "reports/errata.md (3D g^l and k^l) and reports/stability.md"),
-    MethodSpec("recurrence", "exo_bench.matrix_method.prepared", "Recurrence",
-               "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
-               "loops (option kernel: numba, the default, or numpy)",
-               colour="#66a61e", cost=cost.RECURRENCE, kernels=NUMBA_NUMPY, fit_rank=4, composes_within_budget=True,
-               derivatives_are_its_own=True),
-    MethodSpec("newton-euler", "exo_bench.models.newton_euler.prepared", "NewtonEuler",
-               "O(n) passes over the tree in the rod vectors r_i = s_i l_i u_i (M = J^T M_r J, M_r constant), "
-               "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, or numpy)",
-               colour="#b15928", cost=cost.NEWTON_EULER, kernels=NUMBA_NUMPY, fit_rank=1),
-    MethodSpec("mujoco", "exo_bench.models.mujoco_backend", "MujocoRNE",
-               "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
-               "a Python loop over the samples (optional extra [peers])",
-               colour="#a6761d", cost=cost.MUJOCO,
-               engine_row="a Python loop over MuJoCo's `mj_kinematics`, `mj_comPos`, `mj_comVel` and `mj_rne` per "
-                          "sample (four calls through the bindings each), on the exported MJCF with every constraint "
-                          "off; the G maps one matmul over the batch",
-               bare_row="mj_rne (bare)"),
-    MethodSpec("drake", "exo_bench.models.drake_backend", "DrakeID",
-               "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
-               "a Python loop over the samples (optional extra [peers])",
-               colour="#1f78b4", cost=cost.DRAKE,
-               engine_row="a Python loop over Drake's `SetPositions`, `SetVelocities`, `CalcInverseDynamics` and "
-                          "`CalcGravityGeneralizedForces` per sample (four calls through pybind11, each checking and "
-                          "invalidating the context's cache), on a plant built in code; the G maps one matmul over "
-                          "the batch",
-               bare_row="CalcInverseDynamics (bare)"),
-)}
+METHODS: dict[str, MethodSpec] = {
+    s.name: s
+    for s in (
+        MethodSpec(
+            "pinocchio",
+            "exo_bench.models.pinocchio_backend",
+            "PinocchioRNEA",
+            "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
+            colour="#1b9e77",
+            cost=cost.PINOCCHIO,
+            fit_rank=3,
+            engine_row="a Python loop over `pin.rnea` per sample (the G maps one matmul over the batch; "
+            "`pinocchio-parallel`: `rneaInParallel` on a ModelPool)",
+            bare_row="pin.rnea (bare)",
+        ),
+        MethodSpec(
+            "lagrange",
+            "exo_bench.lagrange.prepared",
+            "LagrangeModel",
+            "Lagrange II derived with sympy from the point masses' T and Pi, lambdified to numpy with cse "
+            "(options: budget, interrupt)",
+            colour="#e6ab02",
+            cost=cost.LAGRANGE,
+            fit_rank=5,
+        ),
+        MethodSpec(
+            "matrix",
+            "exo_bench.matrix_method.prepared",
+            "MatrixProducts",
+            "the matrix method: every matrix of eqs. (5)/(17) from the closed forms (corrected eq. (18), "
+            "no division), then the products with the rates; compiled loops (option kernel: numba, the "
+            "default, or numpy)",
+            colour="#d95f02",
+            cost=cost.MATRIX,
+            kernels=NUMBA_NUMPY,
+            fit_rank=2,
+            composes_within_budget=True,
+            derivatives_are_its_own=True,
+        ),
+        MethodSpec(
+            "matrix-factored",
+            "exo_bench.matrix_method.prepared",
+            "MatrixFactored",
+            "the matrix method's equations in factored form (no matrix formed); compiled loops "
+            "(option kernel: numba, the default, or numpy)",
+            colour="#7570b3",
+            cost=cost.MATRIX_FACTORED,
+            kernels=NUMBA_NUMPY,
+            fit_rank=0,
+            derivatives_are_its_own=True,
+        ),
+        MethodSpec(
+            "matrix-paper",
+            "exo_bench.matrix_method.prepared",
+            "MatrixPaper",
+            "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)",
+            colour="#e7298a",
+            cost=cost.MATRIX_PAPER,
+            known_wrong=_WRONG_18,
+            why_it_disagrees="it evaluates eq. (18) exactly as printed, misprints included: see "
+            "reports/errata.md (3D g^l and k^l) and reports/stability.md",
+        ),
+        MethodSpec(
+            "recurrence",
+            "exo_bench.matrix_method.prepared",
+            "Recurrence",
+            "the recurrence of eqs. (22)-(26) for trees, then the products of eq. (5)/(17); compiled "
+            "loops (option kernel: numba, the default, or numpy)",
+            colour="#66a61e",
+            cost=cost.RECURRENCE,
+            kernels=NUMBA_NUMPY,
+            fit_rank=4,
+            composes_within_budget=True,
+            derivatives_are_its_own=True,
+        ),
+        MethodSpec(
+            "newton-euler",
+            "exo_bench.models.newton_euler.prepared",
+            "NewtonEuler",
+            "O(n) passes over the tree in the rod vectors r_i = s_i l_i u_i (M = J^T M_r J, M_r constant), "
+            "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, or numpy)",
+            colour="#b15928",
+            cost=cost.NEWTON_EULER,
+            kernels=NUMBA_NUMPY,
+            fit_rank=1,
+        ),
+        MethodSpec(
+            "mujoco",
+            "exo_bench.models.mujoco_backend",
+            "MujocoRNE",
+            "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
+            "a Python loop over the samples (optional extra [peers])",
+            colour="#a6761d",
+            cost=cost.MUJOCO,
+            engine_row="a Python loop over MuJoCo's `mj_kinematics`, `mj_comPos`, `mj_comVel` and `mj_rne` per "
+            "sample (four calls through the bindings each), on the exported MJCF with every constraint "
+            "off; the G maps one matmul over the batch",
+            bare_row="mj_rne (bare)",
+        ),
+        MethodSpec(
+            "drake",
+            "exo_bench.models.drake_backend",
+            "DrakeID",
+            "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
+            "a Python loop over the samples (optional extra [peers])",
+            colour="#1f78b4",
+            cost=cost.DRAKE,
+            engine_row="a Python loop over Drake's `SetPositions`, `SetVelocities`, `CalcInverseDynamics` and "
+            "`CalcGravityGeneralizedForces` per sample (four calls through pybind11, each checking and "
+            "invalidating the context's cache), on a plant built in code; the G maps one matmul over "
+            "the batch",
+            bare_row="CalcInverseDynamics (bare)",
+        ),
+    )
+}
 
 
 def method_names() -> list[str]:
@@ -160,8 +221,11 @@ def known_wrong() -> dict[str, str]:
 
 def compiled_methods() -> tuple[str, ...]:
     """Methods whose default kernel is compiled by numba (the matrix family), best first."""
-    ranked = sorted((s.fit_rank if s.fit_rank is not None else len(METHODS), i, s.name)
-                    for i, s in enumerate(METHODS.values()) if s.compiled)
+    ranked = sorted(
+        (s.fit_rank if s.fit_rank is not None else len(METHODS), i, s.name)
+        for i, s in enumerate(METHODS.values())
+        if s.compiled
+    )
     return tuple(name for _, _, name in ranked)
 
 
@@ -189,5 +253,7 @@ def known_wrong_warning(method: str, dim: int) -> str | None:
         return None
     if dim == 3:
         return f"exo-bench: warning: method {method!r}: {s.known_wrong}"
-    return (f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
-            "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)")
+    return (
+        f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
+        "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)"
+    )

@@ -23,12 +23,15 @@ def _derivatives(mechanism: Mechanism, method: str) -> Any:
     from exo_bench.matrix_method.derivatives import derivatives_of, source_text  # CasADi only when asked
 
     spec = METHODS.get(method)
-    source = source_text(method, evaluates_these=spec is not None and spec.derivatives_are_its_own,
-                         known_wrong=spec is not None and spec.known_wrong is not None)
+    source = source_text(
+        method,
+        evaluates_these=spec is not None and spec.derivatives_are_its_own,
+        known_wrong=spec is not None and spec.known_wrong is not None,
+    )
     return derivatives_of(mechanism, method, source)
 
 
-prepared.derivative_provider = _derivatives   # every prepared model's .derivatives (models.prepared)
+prepared.derivative_provider = _derivatives  # every prepared model's .derivatives (models.prepared)
 
 
 def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: Any) -> PreparedModel:
@@ -42,7 +45,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     naming the estimate and the budget).
     """
     cls = method_class(method)
-    if method == "lagrange":   # refuse up front a derivation estimated over its budget or the memory
+    if method == "lagrange":  # refuse up front a derivation estimated over its budget or the memory
         from exo_bench.api.cost_model import check
 
         check(mechanism, method, 1, options)
@@ -53,7 +56,9 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
             import inspect
 
             known = [p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "mechanism")]
-            raise ValueError(f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}") from None
+            raise ValueError(
+                f"{method}: unknown option(s) {sorted(options)}: expected among {known or 'none'}"
+            ) from None
         raise
     return model
 

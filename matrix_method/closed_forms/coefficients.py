@@ -57,9 +57,9 @@ def increments(mech: Mechanism, k: int, zeta_k, eta_k, theta_k, dtype=float):
     """
     idx = np.array(sorted(mech.ancestors[k]) + [k], dtype=int)
     s = np.array([mech.sign[i] for i in idx], dtype=dtype)
-    dc = np.outer(s, s) * theta_k               # First term: old block, ancestors only
-    dc[-1, :] = dc[:, -1] = s * s[-1] * eta_k   # Second term: the new row and column
-    dc[-1, -1] = zeta_k                         # Third term: the corner
+    dc = np.outer(s, s) * theta_k  # First term: old block, ancestors only
+    dc[-1, :] = dc[:, -1] = s * s[-1] * eta_k  # Second term: the new row and column
+    dc[-1, -1] = zeta_k  # Third term: the corner
     dnu = s * theta_k
     dnu[-1] = s[-1] * eta_k
     return idx, dc, dnu
@@ -108,8 +108,10 @@ def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):
     mu, nu = coupling_entries(mech, zeta, eta, theta, zero=zero)
     s = mech.sign
     related = mech.ancestor_or_self
-    c = [[(s[i] * s[j]) * mu[i][j] if i != j and (related[i, j] or related[j, i]) else mu[i][j]
-          for j in range(n)] for i in range(n)]          # the diagonal has s_i^2 = 1, unrelated links zero
+    c = [
+        [(s[i] * s[j]) * mu[i][j] if i != j and (related[i, j] or related[j, i]) else mu[i][j] for j in range(n)]
+        for i in range(n)
+    ]  # the diagonal has s_i^2 = 1, unrelated links zero
     return c, [s[k] * nu[k] for k in range(n)]
 
 

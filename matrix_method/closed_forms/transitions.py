@@ -48,8 +48,7 @@ from exo_bench.matrix_method.closed_forms import planar
 
 
 #: The planar elements whose quotient by ``cos(phi_i - phi_j)`` the transitions use.
-QUOTIENTS = {"a_phi_par": ("phi", "A"), "h_phi_par": ("phi", "H"), "lam_l_par": ("l", "Lambda"),
-             "d_l_par": ("l", "D")}
+QUOTIENTS = {"a_phi_par": ("phi", "A"), "h_phi_par": ("phi", "H"), "lam_l_par": ("l", "Lambda"), "d_l_par": ("l", "D")}
 
 
 def transition_inputs(planar_now, planar_straight, li, lj, ci, si, cj, sj) -> SimpleNamespace:
@@ -297,10 +296,8 @@ def p_l(nu_s, li, cpsi, spsi):
 #: The corrected transitions of eq. (18) by block and matrix name; ``D`` of block l is
 #: :func:`d_l`, which takes the transposed 3D ``H_phi`` instead of the namespace.
 PAIRS = {
-    "phi": {"A": a_phi, "B": b_phi, "Lambda": lam_phi, "D": d_phi, "E": e_phi, "G": g_phi, "H": h_phi,
-            "K": k_phi},
-    "psi": {"A": a_psi, "B": b_psi, "Lambda": lam_psi, "D": d_psi, "E": e_psi, "G": g_psi, "H": h_psi,
-            "K": k_psi},
+    "phi": {"A": a_phi, "B": b_phi, "Lambda": lam_phi, "D": d_phi, "E": e_phi, "G": g_phi, "H": h_phi, "K": k_phi},
+    "psi": {"A": a_psi, "B": b_psi, "Lambda": lam_psi, "D": d_psi, "E": e_psi, "G": g_psi, "H": h_psi, "K": k_psi},
     "l": {"A": a_l, "B": b_l, "Lambda": lam_l, "D": d_l, "E": e_l, "G": g_l, "H": h_l, "K": k_l},
 }
 GRAVITY = {"phi": p_phi, "psi": p_psi, "l": p_l}

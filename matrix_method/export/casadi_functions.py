@@ -60,8 +60,9 @@ def require_casadi():
     try:
         import casadi
     except ImportError:
-        raise ValueError(f"CasADi is not installed: it is the optional extra '{EXTRA}' "
-                         f"(pip install 'exo-bench[{EXTRA}]')") from None
+        raise ValueError(
+            f"CasADi is not installed: it is the optional extra '{EXTRA}' (pip install 'exo-bench[{EXTRA}]')"
+        ) from None
     return casadi
 
 
@@ -91,7 +92,7 @@ def symbolic_inverse_dynamics(mech: Mechanism, q, qd, qdd, ca=None, params=None)
     ca = ca or require_casadi()
     kernel = numeric._factored_2d if mech.dim == 2 else numeric._factored_3d
     if params is None:
-        c = ca.sparsify(ca.DM(np.asarray(signed_coupling(mech))))   # links on different branches: no term
+        c = ca.sparsify(ca.DM(np.asarray(signed_coupling(mech))))  # links on different branches: no term
         nu_s, g = ca.DM(np.asarray(signed_gravity(mech))), float(mech.g)
     else:
         n = mech.nlinks
@@ -127,8 +128,10 @@ class CasadiEquations:
 
     def __init__(self, mechanism: Mechanism, parameters: bool = False):
         if not isinstance(mechanism, Mechanism):
-            raise ValueError(f"casadi functions: expected a Mechanism (exo_bench.Mechanism or "
-                             f"exo_bench.load_mechanism), got {type(mechanism).__name__}")
+            raise ValueError(
+                f"casadi functions: expected a Mechanism (exo_bench.Mechanism or "
+                f"exo_bench.load_mechanism), got {type(mechanism).__name__}"
+            )
         ca = require_casadi()
         self._ca = ca
         self.mechanism = mechanism
@@ -195,8 +198,11 @@ class CasadiEquations:
     def inverse_dynamics_derivatives(self):
         """``(q, qd, qdd) -> (d tau/d q, d tau/d qd, M)``, each ``(dof, dof)``."""
         ca = self._ca
-        return self._function("inverse_dynamics_derivatives", [self.q, self.qd, self.qdd],
-                              [ca.jacobian(self.tau, self.q), ca.jacobian(self.tau, self.qd), self.M])
+        return self._function(
+            "inverse_dynamics_derivatives",
+            [self.q, self.qd, self.qdd],
+            [ca.jacobian(self.tau, self.q), ca.jacobian(self.tau, self.qd), self.M],
+        )
 
     @cached_property
     def forward_dynamics_derivatives(self):
@@ -212,8 +218,9 @@ class CasadiEquations:
         a = ca.solve(M, tau - self.bias_forces(q, qd, *p), "qr")
         jq, jqd, _ = self.inverse_dynamics_derivatives(q, qd, a, *p)
         sol = ca.solve(M, ca.horzcat(jq, jqd, ca.MX.eye(d)), "qr")
-        return self._function("forward_dynamics_derivatives", [q, qd, tau],
-                              [a, -sol[:, :d], -sol[:, d:2 * d], sol[:, 2 * d:]])
+        return self._function(
+            "forward_dynamics_derivatives", [q, qd, tau], [a, -sol[:, :d], -sol[:, d : 2 * d], sol[:, 2 * d :]]
+        )
 
     def functions(self) -> dict:
         """``name -> casadi.Function`` for every function of :data:`FUNCTIONS`."""
@@ -259,7 +266,7 @@ class CasadiEquations:
         out = []
         for k, r in enumerate(res):
             r = np.asarray(r)
-            x = r.T if f.size2_out(k) == 1 else r.reshape(d, S, d).transpose(1, 0, 2)   # columns -> samples
+            x = r.T if f.size2_out(k) == 1 else r.reshape(d, S, d).transpose(1, 0, 2)  # columns -> samples
             out.append(x[0] if single else x)
         return tuple(out)
 
@@ -275,7 +282,9 @@ def casadi_functions(mechanism: Mechanism, parameters: bool = False) -> CasadiEq
     return CasadiEquations(mechanism, parameters)
 
 
-def export_files(mech: Mechanism, stem: str, version: str, header: str = "", parameters: bool = False) -> dict[str, str]:
+def export_files(
+    mech: Mechanism, stem: str, version: str, header: str = "", parameters: bool = False
+) -> dict[str, str]:
     """``file name -> text`` of ``exo-bench equations MECH --format casadi [--symbolic-parameters]``:
     every function as ``<stem>_<function>.casadi`` and the loader note ``<stem>_casadi.md``
     (nothing written)."""
@@ -295,25 +304,44 @@ def loader_note(mech: Mechanism, stem: str, version: str, header: str = "", para
         f"Eq. (5)/(17) of the matrix method for `{mech.name}` ({mech.dim}D, {mech.nlinks} links, {mech.dof} "
         f"coordinates), written by exo-bench {version} from the factored closed forms that its method "
         "`matrix-factored` runs (`matrix_method/export/casadi_functions.py`). Each file is one `casadi.Function` "
-        "(`Function.save`); CasADi alone reads it back, exo-bench is not needed:", "",
-        "```python", "import casadi as ca", "",
+        "(`Function.save`); CasADi alone reads it back, exo-bench is not needed:",
+        "",
+        "```python",
+        "import casadi as ca",
+        "",
         f"ID = ca.Function.load('{stem}_inverse_dynamics.casadi')   # (q, qd, qdd) -> tau",
         "tau = ID(q, qd, qdd)            # numbers, or SX/MX symbols in an optimal-control problem",
-        "tau_batch = ID(Q, QD, QDD)      # (dof, samples) columns: CasADi maps the function", "```", "",
-        "| file | inputs | outputs |", "|---|---|---|"]
+        "tau_batch = ID(Q, QD, QDD)      # (dof, samples) columns: CasADi maps the function",
+        "```",
+        "",
+        "| file | inputs | outputs |",
+        "|---|---|---|",
+    ]
     extra = ", params" if parameters else ""
     for name, (ins, outs) in FUNCTIONS.items():
         lines.append(f"| `{stem}_{name}.casadi` | {', '.join(ins)}{extra} | {', '.join(outs)} |")
-    lines += ["", f"Vectors are columns of {mech.dof} in block order: q = [{', '.join(names)}] "
-              "(rad and m; the paper's absolute angles), qd and qdd their rates, "
-              f"tau = [{', '.join(forces)}] (N m and N). Matrices are (dof, dof): `dtau_dq[i, j] = d tau_i / d q_j`.",
-              *(["", f"`params` ({4 * mech.nlinks + 1}): [{', '.join(parameter_names(mech))}] (kg, fractions of the "
-                  f"length, m/s^2); this mechanism's values: [{', '.join(f'{x:.17g}' for x in parameter_values(mech))}]. "
-                  "The tree, its signs and the dimension are fixed."] if parameters else []),
-              "", "`inverse_dynamics`, `mass_matrix`, `bias_forces` and `inverse_dynamics_derivatives` are SX "
-              "functions (`Function.expand`-able, e.g. for IPOPT); `forward_dynamics` and "
-              "`forward_dynamics_derivatives` are MX functions that factorise M at run time (CasADi's sparse QR). "
-              "At a singular configuration (a rod of length zero; in 3D a vertical rod, cos psi = 0) M is singular "
-              "and forward dynamics is not defined. In an optimal-control problem, the constraint "
-              "`inverse_dynamics(q, qd, qdd) == tau` needs no solve.", ""]
+    lines += [
+        "",
+        f"Vectors are columns of {mech.dof} in block order: q = [{', '.join(names)}] "
+        "(rad and m; the paper's absolute angles), qd and qdd their rates, "
+        f"tau = [{', '.join(forces)}] (N m and N). Matrices are (dof, dof): `dtau_dq[i, j] = d tau_i / d q_j`.",
+        *(
+            [
+                "",
+                f"`params` ({4 * mech.nlinks + 1}): [{', '.join(parameter_names(mech))}] (kg, fractions of the "
+                f"length, m/s^2); this mechanism's values: [{', '.join(f'{x:.17g}' for x in parameter_values(mech))}]. "
+                "The tree, its signs and the dimension are fixed.",
+            ]
+            if parameters
+            else []
+        ),
+        "",
+        "`inverse_dynamics`, `mass_matrix`, `bias_forces` and `inverse_dynamics_derivatives` are SX "
+        "functions (`Function.expand`-able, e.g. for IPOPT); `forward_dynamics` and "
+        "`forward_dynamics_derivatives` are MX functions that factorise M at run time (CasADi's sparse QR). "
+        "At a singular configuration (a rod of length zero; in 3D a vertical rod, cos psi = 0) M is singular "
+        "and forward dynamics is not defined. In an optimal-control problem, the constraint "
+        "`inverse_dynamics(q, qd, qdd) == tau` needs no solve.",
+        "",
+    ]
     return "\n".join(lines)

@@ -27,8 +27,13 @@ import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
 from exo_bench.matrix_method.symbolic.polynomials import generators
-from exo_bench.matrix_method.symbolic.compose import (planar_entries, planar_gravity, spatial_entries, spatial_gravity,
-                                              to_matrices)
+from exo_bench.matrix_method.symbolic.compose import (
+    planar_entries,
+    planar_gravity,
+    spatial_entries,
+    spatial_gravity,
+    to_matrices,
+)
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries, symbolic_aggregates
 from exo_bench.models.aggregates import aggregates
 from exo_bench.models.equation_form import RATES, blocks, matrix_names
@@ -88,7 +93,7 @@ def element_parts(mech: Mechanism, symbolic_parameters: bool = False) -> Element
         zeta, eta, theta = aggregate_symbols(n)
     else:
         zeta, eta, theta = symbolic_aggregates(mech, symbols_for(n, mech.dim), False)
-    coef, grav_coef = signed_coupling_entries(mech, zeta, eta, theta, zero=sp.S.Zero)   # c_ij and nu_i s_i, once
+    coef, grav_coef = signed_coupling_entries(mech, zeta, eta, theta, zero=sp.S.Zero)  # c_ij and nu_i s_i, once
     return ElementParts(mech, geometry, coef, grav_coef, symbolic_parameters)
 
 
@@ -183,8 +188,9 @@ class Latex:
         names = symbol_names(mech)
         names.update({s: s.name for s in self.rep.values() if isinstance(s, sp.Symbol)})
         names.update({(-s): (-s).name for s in self.rep.values() if not isinstance(s, sp.Symbol)})
-        self.printer = _Printer({"symbol_names": {k: v for k, v in names.items() if isinstance(k, sp.Symbol)},
-                                 "mul_symbol": None})
+        self.printer = _Printer(
+            {"symbol_names": {k: v for k, v in names.items() if isinstance(k, sp.Symbol)}, "mul_symbol": None}
+        )
 
     def __call__(self, e) -> str:
         e = _numbers_as_floats(sp.sympify(e).xreplace(self.rep))
@@ -217,8 +223,9 @@ def element_name(block: str, name: str, i: int, j: int | None = None) -> str:
     return f"{LETTER[name]}^{{{BLOCK[block]}}}_{{{idx}}}"
 
 
-def elements(mech: Mechanism, symbolic_parameters: bool = False, parts: ElementParts | None = None
-             ) -> dict[str, dict[str, dict[tuple, str]]]:
+def elements(
+    mech: Mechanism, symbolic_parameters: bool = False, parts: ElementParts | None = None
+) -> dict[str, dict[str, dict[tuple, str]]]:
     """``block -> matrix -> (i, j) -> LaTeX`` of every element of eq. (5)/(17) (``P``: ``(i,)``)."""
     parts = parts or element_parts(mech, symbolic_parameters)
     L = Latex(mech)
@@ -227,8 +234,11 @@ def elements(mech: Mechanism, symbolic_parameters: bool = False, parts: ElementP
     for block in blocks(mech.dim):
         out[block] = {}
         for name in matrix_names(mech.dim):
-            out[block][name] = {(i, j): L.product(parts.coefficient[i][j], parts.geometry[block][name][i, j])
-                                for i in range(n) for j in range(n)}
+            out[block][name] = {
+                (i, j): L.product(parts.coefficient[i][j], parts.geometry[block][name][i, j])
+                for i in range(n)
+                for j in range(n)
+            }
         out[block]["P"] = {(i,): L.product(parts.gravity[i], parts.geometry[block]["P"][i, 0]) for i in range(n)}
     return out
 
@@ -259,10 +269,16 @@ def _terms(mech: Mechanism, parts: ElementParts, block: str, i: int):
             c = -c if sign < 0 else c
             if not gm.is_Add and gm.could_extract_minus_sign():
                 sign, gm = -sign, -gm
-            body = " ".join(x for x in [str(k) if k != 1 else "",
-                                        rf"\left({L(c)}\right)" if c.is_Add else ("" if c == 1 else L(c)),
-                                        rf"\left({L(gm)}\right)" if gm.is_Add else ("" if gm == 1 else L(gm)),
-                                        rate] if x)
+            body = " ".join(
+                x
+                for x in [
+                    str(k) if k != 1 else "",
+                    rf"\left({L(c)}\right)" if c.is_Add else ("" if c == 1 else L(c)),
+                    rf"\left({L(gm)}\right)" if gm.is_Add else ("" if gm == 1 else L(gm)),
+                    rate,
+                ]
+                if x
+            )
             out.append(((name, j), sign, body))
     c, gm = parts.gravity[i], parts.geometry[block]["P"][i, 0]
     if c != 0 and gm != 0:
@@ -270,8 +286,15 @@ def _terms(mech: Mechanism, parts: ElementParts, block: str, i: int):
         c = -c if sign < 0 else c
         if not gm.is_Add and gm.could_extract_minus_sign():
             sign, gm = -sign, -gm
-        body = " ".join(x for x in [rf"\left({L(c)}\right)" if c.is_Add else L(c), "g",
-                                    rf"\left({L(gm)}\right)" if gm.is_Add else L(gm)] if x)
+        body = " ".join(
+            x
+            for x in [
+                rf"\left({L(c)}\right)" if c.is_Add else L(c),
+                "g",
+                rf"\left({L(gm)}\right)" if gm.is_Add else L(gm),
+            ]
+            if x
+        )
         out.append((("P", i), sign, body))
     return out
 

@@ -61,7 +61,14 @@ from exo_bench.matrix_method.closed_forms import factored, planar, transitions a
 from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
 from exo_bench.models.numba_threads import (  # noqa: F401 - shared with models.newton_euler, re-exported
-    JIT, PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK, THREADING_LAYER, _PARALLEL, _threading_layer, run)
+    JIT,
+    PARALLEL_MIN_SAMPLES,
+    SAMPLES_PER_TASK,
+    THREADING_LAYER,
+    _PARALLEL,
+    _threading_layer,
+    run,
+)
 
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
@@ -83,7 +90,7 @@ def _generate(name: str, params: str, lines: list[str], functions: dict[str, Any
     names this file, so numba's cache is keyed on it and on the modules of ``functions``."""
     src = f"def {name}({params}):\n" + "".join(f"    {line}\n" for line in lines)
     namespace = dict(functions)
-    exec(compile(src, __file__, "exec"), namespace)   # noqa: S102 - the call list of PAIRS, generated
+    exec(compile(src, __file__, "exec"), namespace)  # noqa: S102 - the call list of PAIRS, generated
     fn = namespace[name]
     fn.__module__ = __name__
     fn.__doc__ = f"Generated from the closed forms' tables: ``{params}``; " + "; ".join(lines)
@@ -91,8 +98,7 @@ def _generate(name: str, params: str, lines: list[str], functions: dict[str, Any
     return fn
 
 
-def _element_writer(name: str, op: str, prefix: str, elements: tuple, params: str, args: str,
-                    skip: tuple = ()) -> Any:
+def _element_writer(name: str, op: str, prefix: str, elements: tuple, params: str, args: str, skip: tuple = ()) -> Any:
     fns = {f"{prefix}_{f.__name__}": f for f in elements}
     lines = [f"out[{m}, i, j] {op} {prefix}_{f.__name__}({args})" for m, f in enumerate(elements) if f not in skip]
     return _generate(name, f"out, i, j, {params}", lines, fns)
@@ -160,27 +166,35 @@ def compile_times(kernels: dict, args: dict) -> dict[str, dict]:
         t0 = time.perf_counter()
         k(*args[name])
         dt = time.perf_counter() - t0
-        out[name] = {"seconds": dt, "cache_hits": int(sum(k.stats.cache_hits.values())),
-                     "cache_misses": int(sum(k.stats.cache_misses.values()))}
+        out[name] = {
+            "seconds": dt,
+            "cache_hits": int(sum(k.stats.cache_hits.values())),
+            "cache_misses": int(sum(k.stats.cache_misses.values())),
+        }
     return out
 
 
-
 # ------------------------------------------------------------------ drivers generated from one template
-_SERIAL_DRIVER = '''\
+_SERIAL_DRIVER = """\
 def {name}(p, {extra}q, qd, qdd, o):
     {samples}(p, {extra}q, qd, qdd, o, 0, q.shape[0] // ({dim} * p.shape[0]){tail})
-'''
-_PARALLEL_DRIVER = '''\
+"""
+_PARALLEL_DRIVER = """\
 def {name}_parallel(p, {extra}q, qd, qdd, o):
     S = q.shape[0] // ({dim} * p.shape[0])
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         {samples}(p, {extra}q, qd, qdd, o, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK){tail})
-'''
+"""
 
 
-def drivers(module: str, prefix: str, method: str, samples: dict[int, Any], extra: tuple[str, ...] = (),
-            dim_argument: bool = False) -> dict[int, tuple[Any, Any]]:
+def drivers(
+    module: str,
+    prefix: str,
+    method: str,
+    samples: dict[int, Any],
+    extra: tuple[str, ...] = (),
+    dim_argument: bool = False,
+) -> dict[int, tuple[Any, Any]]:
     """``{dim: (serial driver, parallel driver)}`` of a kernel module, from one template: the serial
     driver runs every sample of the flat states through ``samples[dim](p, *extra, q, qd, qdd, o, start,
     stop[, dim])``, the parallel one runs tasks of :data:`SAMPLES_PER_TASK` samples over numba's threads.
@@ -199,12 +213,25 @@ def drivers(module: str, prefix: str, method: str, samples: dict[int, Any], extr
         name = f"{prefix}_{dim}d"
         fields = dict(name=name, extra=args, samples=fn.__name__, dim=dim, tail=f", {dim}" if dim_argument else "")
         namespace = {fn.__name__: fn, "prange": prange, "SAMPLES_PER_TASK": SAMPLES_PER_TASK}
-        exec(compile(_SERIAL_DRIVER.format(**fields) + _PARALLEL_DRIVER.format(**fields), mod.__file__, "exec"), namespace)  # noqa: S102
+        exec(
+            compile(_SERIAL_DRIVER.format(**fields) + _PARALLEL_DRIVER.format(**fields), mod.__file__, "exec"),
+            namespace,
+        )  # noqa: S102
         pair = []
-        for fname, doc, parallel in ((name, f"Method ``{method}``, {'planar' if dim == 2 else 'spatial'}: every sample "
-                                            "of the flat states, in turn, into ``o``.", False),
-                                     (f"{name}_parallel", f":func:`{name}` with tasks of :data:`exo_bench.matrix_method."
-                                      "numba_kernels.common.SAMPLES_PER_TASK` samples over numba's threads.", True)):
+        for fname, doc, parallel in (
+            (
+                name,
+                f"Method ``{method}``, {'planar' if dim == 2 else 'spatial'}: every sample "
+                "of the flat states, in turn, into ``o``.",
+                False,
+            ),
+            (
+                f"{name}_parallel",
+                f":func:`{name}` with tasks of :data:`exo_bench.matrix_method."
+                "numba_kernels.common.SAMPLES_PER_TASK` samples over numba's threads.",
+                True,
+            ),
+        ):
             f = namespace[fname]
             f.__module__, f.__qualname__, f.__doc__ = module, fname, doc
             kernel = njit(parallel=True, **JIT)(f) if parallel else njit(**JIT)(f)

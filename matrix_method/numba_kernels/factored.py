@@ -73,8 +73,7 @@ def _sample_3d(p, x, xd, xdd, o, s0, k):
             f1 += cij * k[1, j]
             f2 += cij * k[2, j]
         cf, sf, cp, sp, l = k[3, i], k[4, i], k[5, i], k[6, i], x[s0 + 2 * n + i]
-        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = forces_3d(l, cf, sf, cp, sp, f0, f1, f2,
-                                                                p[i, n + 1] * p[i, n])
+        o[s0 + i], o[s0 + n + i], o[s0 + 2 * n + i] = forces_3d(l, cf, sf, cp, sp, f0, f1, f2, p[i, n + 1] * p[i, n])
 
 
 @njit(**JIT)

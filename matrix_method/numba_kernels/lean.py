@@ -30,8 +30,16 @@ from exo_bench.matrix_method.numba_kernels.factored import factored_2d, factored
 
 @njit(**JIT)
 def _fits(q, qd, qdd, o, dof):
-    return (q.shape[0] == dof and qd.shape[0] == dof and qdd.shape[0] == dof and o.shape[0] == dof
-            and q.strides[0] == 8 and qd.strides[0] == 8 and qdd.strides[0] == 8 and o.strides[0] == 8)
+    return (
+        q.shape[0] == dof
+        and qd.shape[0] == dof
+        and qdd.shape[0] == dof
+        and o.shape[0] == dof
+        and q.strides[0] == 8
+        and qd.strides[0] == 8
+        and qdd.strides[0] == 8
+        and o.strides[0] == 8
+    )
 
 
 @njit(**JIT)
@@ -76,15 +84,23 @@ def c_call(dim: int, params: np.ndarray, fallback, dof: int):
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c
 
     f8 = np.dtype(np.float64)
-    if not (params.dtype is f8 and params.flags.c_contiguous and params.shape == (params.shape[0], params.shape[0] + 2)):
+    if not (
+        params.dtype is f8 and params.flags.c_contiguous and params.shape == (params.shape[0], params.shape[0] + 2)
+    ):
         return None
-    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, compiled_lean_c.CFUNCS[dim].address,
-                               params.ctypes.data, dof, params.shape[0])
+    call = _lean_call.LeanCall(
+        fallback, params, np.ndarray, f8, compiled_lean_c.CFUNCS[dim].address, params.ctypes.data, dof, params.shape[0]
+    )
     ro = np.zeros(dof)
     ro.flags.writeable = False
-    probes = [(np.zeros(dof), (1, dof, 8, True, True, True)), (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
-              (ro, (1, dof, 8, False, True, True)), (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
-              (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)), (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True))]
+    probes = [
+        (np.zeros(dof), (1, dof, 8, True, True, True)),
+        (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
+        (ro, (1, dof, 8, False, True, True)),
+        (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
+        (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)),
+        (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True)),
+    ]
     if any(call.probe(a) != want for a, want in probes):
         return None
     return call

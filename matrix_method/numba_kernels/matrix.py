@@ -23,9 +23,18 @@ import numpy as np
 from numba import njit
 
 from exo_bench.matrix_method.closed_forms import transitions as spatial
-from exo_bench.matrix_method.numba_kernels.common import (JIT, drivers, PLANAR_FIELDS, RATES_2D, RATES_3D, Transition,
-                                                           set_planar, set_planar_gravity, set_spatial,
-                                                           set_spatial_gravity)
+from exo_bench.matrix_method.numba_kernels.common import (
+    JIT,
+    drivers,
+    PLANAR_FIELDS,
+    RATES_2D,
+    RATES_3D,
+    Transition,
+    set_planar,
+    set_planar_gravity,
+    set_spatial,
+    set_spatial_gravity,
+)
 
 # The layouts the kernels index by number (checked here, so that a reordering of the closed-form
 # tables cannot silently mismatch): planar matrix m of block b at index 4 b + m.
@@ -69,14 +78,31 @@ def spatial_matrices(p, x, s0, pl, ps, nu_s, m3, P3, cs):
     for i in range(n):
         li, ci, si = x[s0 + 2 * n + i], cs[0, i], cs[1, i]
         for j in range(n):
-            t = Transition(pl[0, i, j], pl[1, i, j], pl[2, i, j], pl[3, i, j], pl[4, i, j], pl[5, i, j],
-                           pl[6, i, j], pl[7, i, j], ps[0, i, j], ps[3, i, j], ps[5, i, j], ps[6, i, j],
-                           li, x[s0 + 2 * n + j], ci, si, cs[0, j], cs[1, j])
+            t = Transition(
+                pl[0, i, j],
+                pl[1, i, j],
+                pl[2, i, j],
+                pl[3, i, j],
+                pl[4, i, j],
+                pl[5, i, j],
+                pl[6, i, j],
+                pl[7, i, j],
+                ps[0, i, j],
+                ps[3, i, j],
+                ps[5, i, j],
+                ps[6, i, j],
+                li,
+                x[s0 + 2 * n + j],
+                ci,
+                si,
+                cs[0, j],
+                cs[1, j],
+            )
             set_spatial(m3, i, j, t)
         set_spatial_gravity(P3, i, nu_s[i], li, ci, si)
     for i in range(n):
         for j in range(n):
-            m3[19, i, j] = spatial.d_l(m3[6, j, i])             # D_l = -(H_phi)^T
+            m3[19, i, j] = spatial.d_l(m3[6, j, i])  # D_l = -(H_phi)^T
 
 
 @njit(**JIT)

@@ -22,7 +22,14 @@ import numpy as np
 from numba import njit
 
 from exo_bench.matrix_method.closed_forms.coefficients import recurrence_increments
-from exo_bench.matrix_method.numba_kernels.common import JIT, RATES_2D, RATES_3D, add_planar, add_planar_gravity, drivers
+from exo_bench.matrix_method.numba_kernels.common import (
+    JIT,
+    RATES_2D,
+    RATES_3D,
+    add_planar,
+    add_planar_gravity,
+    drivers,
+)
 from exo_bench.matrix_method.numba_kernels.matrix import products, spatial_matrices
 from exo_bench.models.mechanism import Mechanism
 
@@ -38,7 +45,7 @@ def tables(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
     sizes = [len(mech.ancestors[k]) + 1 for k in range(n)]
     ptr = np.cumsum([0] + sizes)
     ints = np.empty(n + 1 + int(ptr[-1]), dtype=np.int64)
-    ints[:n + 1] = ptr
+    ints[: n + 1] = ptr
     # written step by step into one array: the tables are alive once (n^3 / 3 floats for a chain,
     # 2.7 GB at n = 1000), never as blocks, their flattened copies and a concatenation at once
     floats = np.empty(sum(m * m + m for m in sizes))
@@ -46,9 +53,9 @@ def tables(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
     for k in range(n):
         idx, dc, dnu = recurrence_increments(mech, k)
         m = len(idx)
-        ints[n + 1 + ptr[k]:n + 1 + ptr[k + 1]] = idx
-        floats[at:at + m * m] = dc.ravel()
-        floats[at + m * m:at + m * m + m] = dnu
+        ints[n + 1 + ptr[k] : n + 1 + ptr[k + 1]] = idx
+        floats[at : at + m * m] = dc.ravel()
+        floats[at + m * m : at + m * m + m] = dnu
         at += m * m + m
     ints.flags.writeable = floats.flags.writeable = False
     return ints, floats
@@ -66,7 +73,7 @@ def planar_recurrence(p, ints, floats, x, s0, dim, pl, ps, pP, nus, geo):
     nus[:] = 0.0
     if dim == 3:
         ps[:] = 0.0
-    for i in range(n):                                  # C_ij, S_ij once per sample
+    for i in range(n):  # C_ij, S_ij once per sample
         for j in range(n):
             d = x[s0 + i] - x[s0 + j]
             geo[0, i, j] = math.cos(d)
@@ -82,8 +89,8 @@ def planar_recurrence(p, ints, floats, x, s0, dim, pl, ps, pP, nus, geo):
                 lj = x[lo + j]
                 dc = floats[off + a * m + b]
                 C, S = geo[0, i, j], geo[1, i, j]
-                add_planar(pl, i, j, dc, li, lj, C, S)                      # delta X_n (25)
-                if dim == 3:                                                # the straightened model
+                add_planar(pl, i, j, dc, li, lj, C, S)  # delta X_n (25)
+                if dim == 3:  # the straightened model
                     add_planar(ps, i, j, dc, li, lj, 1.0, 0.0)
             dnu = floats[off + m * m + a]
             phi = x[s0 + i]
@@ -98,15 +105,24 @@ def _sample(p, ints, floats, q, qd, qdd, o, s0, dim, pl, ps, pP, nus, geo, m3, P
     if dim == 2:
         products(p, qd, qdd, o, s0, pl, pP, RATES_2D, xr)
     else:
-        spatial_matrices(p, q, s0, pl, ps, nus, m3, P3, cs)           # eq. (26): 2D A_n+1 -> 3D A_n+1
+        spatial_matrices(p, q, s0, pl, ps, nus, m3, P3, cs)  # eq. (26): 2D A_n+1 -> 3D A_n+1
         products(p, qd, qdd, o, s0, m3, P3, RATES_3D, xr)
 
 
 @njit(**JIT)
 def _scratch(n, dim):
     m3 = np.empty((24 if dim == 3 else 0, n, n))
-    return (np.empty((8, n, n)), np.empty((8, n, n)), np.empty((2, n)), np.empty(n), np.empty((2, n, n)), m3,
-            np.empty((3, n)), np.empty((2, n)), np.empty((8, n)))
+    return (
+        np.empty((8, n, n)),
+        np.empty((8, n, n)),
+        np.empty((2, n)),
+        np.empty(n),
+        np.empty((2, n, n)),
+        m3,
+        np.empty((3, n)),
+        np.empty((2, n)),
+        np.empty((8, n)),
+    )
 
 
 @njit(**JIT)
@@ -119,5 +135,6 @@ def _samples(p, ints, floats, q, qd, qdd, o, start, stop, dim):
 
 
 #: dim -> (serial kernel, parallel kernel): recurrence_2d, recurrence_2d_parallel, recurrence_3d, recurrence_3d_parallel
-KERNELS = drivers(__name__, "recurrence", "recurrence", {2: _samples, 3: _samples}, extra=("ints", "floats"),
-                  dim_argument=True)
+KERNELS = drivers(
+    __name__, "recurrence", "recurrence", {2: _samples, 3: _samples}, extra=("ints", "floats"), dim_argument=True
+)

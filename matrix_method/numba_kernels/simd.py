@@ -53,8 +53,42 @@ from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.fast_trig import RANGE, sincos_reduced
 from exo_bench.models.simd_blocks import (  # noqa: F401 - the shared layout, re-exported under its old names
-    CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN, LEN2, O0, O1, O2, PHI, PSI, ROWS,
-    SF, SHARES_PER_THREAD, SP, U, V1, V2, W1, W2, _rows_in, _rows_in_by_link, _rows_out, _rows_out_by_link, run)
+    CF,
+    CP,
+    F0,
+    F1,
+    F2,
+    FROWS,
+    K0,
+    K1,
+    K2,
+    L1,
+    L1_2,
+    L2,
+    L2_2,
+    LANES,
+    LEN,
+    LEN2,
+    O0,
+    O1,
+    O2,
+    PHI,
+    PSI,
+    ROWS,
+    SF,
+    SHARES_PER_THREAD,
+    SP,
+    U,
+    V1,
+    V2,
+    W1,
+    W2,
+    _rows_in,
+    _rows_in_by_link,
+    _rows_out,
+    _rows_out_by_link,
+    run,
+)
 
 
 @njit(**JIT)
@@ -63,7 +97,7 @@ def _compute_3d(p, m, W, F):
     n = p.shape[0]
     B = LANES
     outside = 0
-    for j in range(n):                                   # 2. sin, cos, kappa_j
+    for j in range(n):  # 2. sin, cos, kappa_j
         w = j * ROWS * B
         for s in range(m):
             phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
@@ -73,9 +107,19 @@ def _compute_3d(p, m, W, F):
             outside += (0 if okf else 1) + (0 if okp else 1)
             W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
             W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
-                W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
-                W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s], cf, sf, cp, sp)
-    if outside:                                          #    libm for the angles beyond RANGE (and NaN)
+                W[w + LEN * B + s],
+                W[w + W1 * B + s],
+                W[w + V1 * B + s],
+                W[w + L1 * B + s],
+                W[w + W2 * B + s],
+                W[w + V2 * B + s],
+                W[w + L2 * B + s],
+                cf,
+                sf,
+                cp,
+                sp,
+            )
+    if outside:  #    libm for the angles beyond RANGE (and NaN)
         for j in range(n):
             w = j * ROWS * B
             for s in range(m):
@@ -84,9 +128,19 @@ def _compute_3d(p, m, W, F):
                     cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
                     W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
                     W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
-                        W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
-                        W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s], cf, sf, cp, sp)
-    for i in range(n):                                   # 3. f_i = sum_j c_ij kappa_j
+                        W[w + LEN * B + s],
+                        W[w + W1 * B + s],
+                        W[w + V1 * B + s],
+                        W[w + L1 * B + s],
+                        W[w + W2 * B + s],
+                        W[w + V2 * B + s],
+                        W[w + L2 * B + s],
+                        cf,
+                        sf,
+                        cp,
+                        sp,
+                    )
+    for i in range(n):  # 3. f_i = sum_j c_ij kappa_j
         f = i * FROWS * B
         for s in range(m):
             F[f + F0 * B + s] = 0.0
@@ -99,12 +153,20 @@ def _compute_3d(p, m, W, F):
                 F[f + F0 * B + s] += c * W[w + K0 * B + s]
                 F[f + F1 * B + s] += c * W[w + K1 * B + s]
                 F[f + F2 * B + s] += c * W[w + K2 * B + s]
-    for i in range(n):                                   # 4. the forces of link i
+    for i in range(n):  # 4. the forces of link i
         f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
         for s in range(m):
             F[f + O0 * B + s], F[f + O1 * B + s], F[f + O2 * B + s] = forces_3d(
-                W[w + LEN * B + s], W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s],
-                F[f + F0 * B + s], F[f + F1 * B + s], F[f + F2 * B + s], gnu)
+                W[w + LEN * B + s],
+                W[w + CF * B + s],
+                W[w + SF * B + s],
+                W[w + CP * B + s],
+                W[w + SP * B + s],
+                F[f + F0 * B + s],
+                F[f + F1 * B + s],
+                F[f + F2 * B + s],
+                gnu,
+            )
 
 
 @njit(**JIT)
@@ -114,7 +176,7 @@ def _compute_2d(p, m, W, F):
     n = p.shape[0]
     B = LANES
     outside = 0
-    for j in range(n):                                   # 2. sin, cos, kappa_j
+    for j in range(n):  # 2. sin, cos, kappa_j
         w = j * ROWS * B
         for s in range(m):
             phi = W[w + PHI * B + s]
@@ -123,9 +185,15 @@ def _compute_2d(p, m, W, F):
             outside += 0 if okf else 1
             W[w + CF * B + s], W[w + SF * B + s] = cf, sf
             W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s], W[w + W2 * B + s],
-                W[w + L2_2 * B + s], cf, sf)
-    if outside:                                          #    libm for the angles beyond RANGE (and NaN)
+                W[w + LEN2 * B + s],
+                W[w + W1 * B + s],
+                W[w + L1_2 * B + s],
+                W[w + W2 * B + s],
+                W[w + L2_2 * B + s],
+                cf,
+                sf,
+            )
+    if outside:  #    libm for the angles beyond RANGE (and NaN)
         for j in range(n):
             w = j * ROWS * B
             for s in range(m):
@@ -134,9 +202,15 @@ def _compute_2d(p, m, W, F):
                     cf, sf = math.cos(phi), math.sin(phi)
                     W[w + CF * B + s], W[w + SF * B + s] = cf, sf
                     W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                        W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s], W[w + W2 * B + s],
-                        W[w + L2_2 * B + s], cf, sf)
-    for i in range(n):                                   # 3. f_i = sum_j c_ij kappa_j
+                        W[w + LEN2 * B + s],
+                        W[w + W1 * B + s],
+                        W[w + L1_2 * B + s],
+                        W[w + W2 * B + s],
+                        W[w + L2_2 * B + s],
+                        cf,
+                        sf,
+                    )
+    for i in range(n):  # 3. f_i = sum_j c_ij kappa_j
         f = i * FROWS * B
         for s in range(m):
             F[f + F0 * B + s] = 0.0
@@ -147,11 +221,12 @@ def _compute_2d(p, m, W, F):
             for s in range(m):
                 F[f + F0 * B + s] += c * W[w + K0 * B + s]
                 F[f + F1 * B + s] += c * W[w + K1 * B + s]
-    for i in range(n):                                   # 4. the forces of link i
+    for i in range(n):  # 4. the forces of link i
         f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
         for s in range(m):
             F[f + O0 * B + s], F[f + O1 * B + s] = forces_2d(
-                W[w + LEN2 * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu)
+                W[w + LEN2 * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu
+            )
 
 
 @njit(**JIT)

@@ -29,7 +29,6 @@ from exo_bench.models import equation_form
 from exo_bench.models.mechanism import Mechanism, as_states, split
 
 
-
 def blocks(mech: Mechanism) -> tuple[str, ...]:
     return equation_form.blocks(mech.dim)
 
@@ -61,7 +60,7 @@ def _planar(mech: Mechanism, phi, l, cos, sin, c, nu_s) -> dict[str, dict[str, n
 def _straight(mech: Mechanism, q: np.ndarray) -> np.ndarray:
     """The same configuration with every ``phi = 0`` (all planar links parallel)."""
     q = np.array(q, dtype=float)
-    q[:, :mech.nlinks] = 0.0
+    q[:, : mech.nlinks] = 0.0
     return q
 
 
@@ -86,8 +85,9 @@ def spatial_from_planar(psi: np.ndarray, l: np.ndarray, flat: dict, straight: di
     ``nu_s``: the gravity coefficients of the planar ``P`` (``2D p^phi_i = nu_s_i l_i cos phi_i``),
     which :data:`exo_bench.matrix_method.closed_forms.transitions.GRAVITY` evaluates at ``phi_i -> psi_i``."""
     cp, sp = np.cos(psi), np.sin(psi)
-    t = spatial.transition_inputs(flat, straight, l[:, :, None], l[:, None, :],
-                                  cp[:, :, None], sp[:, :, None], cp[:, None, :], sp[:, None, :])
+    t = spatial.transition_inputs(
+        flat, straight, l[:, :, None], l[:, None, :], cp[:, :, None], sp[:, :, None], cp[:, None, :], sp[:, None, :]
+    )
     out: dict[str, dict[str, np.ndarray]] = {b: {} for b in ("phi", "psi", "l")}
     for block, fns in spatial.PAIRS.items():
         for name, f in fns.items():
@@ -107,7 +107,7 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
     second = {"phi": phi_dd, "psi": psi_dd, "l": l_dd}
     rows = []
     for block in blocks(mech):
-        tau = mech.g * mats[block]["P"]                                 # gravity
+        tau = mech.g * mats[block]["P"]  # gravity
         for name, m in mats[block].items():
             if name == "P":
                 continue
@@ -122,8 +122,9 @@ def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
     """Eq. (5) / (17): the mass matrix ``(S, dof, dof)`` assembled from the matrices multiplying the
     second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.equation_form.ACCELERATION`)."""
     bl = blocks(mech)
-    return np.concatenate([np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2)
-                           for r in bl], axis=1)
+    return np.concatenate(
+        [np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2) for r in bl], axis=1
+    )
 
 
 def in_tiles(mech: Mechanism, build, q, qd, qdd, tile: int | None = None) -> np.ndarray:
@@ -214,19 +215,19 @@ def _factored_2d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     :class:`NumpyOps`; any namespace with the same three functions, e.g. CasADi's)."""
     phi, l, w, ld, wdd, ldd = x[:n], x[n:], xd[:n], xd[n:], xdd[:n], xdd[n:]
     cf, sf = ops.cos_sin(phi)
-    f = ops.couple(c, list(kappa_2d(l, w, ld, wdd, ldd, cf, sf)))       # sum_j c_ij kappa_j
+    f = ops.couple(c, list(kappa_2d(l, w, ld, wdd, ldd, cf, sf)))  # sum_j c_ij kappa_j
     return ops.rows(list(forces_2d(l, cf, sf, f[0], f[1], g * nu_s)))
 
 
 def _factored_3d(n, g, c, nu_s, x, xd, xdd, ops=NUMPY_OPS):
     """The spatial kernel of :func:`inverse_dynamics` on ``(dof, B)`` blocks (``ops`` as in
     :func:`_factored_2d`)."""
-    phi, psi, l = x[:n], x[n:2 * n], x[2 * n:]
-    w, v, ld = xd[:n], xd[n:2 * n], xd[2 * n:]
-    wdd, vdd, ldd = xdd[:n], xdd[n:2 * n], xdd[2 * n:]
+    phi, psi, l = x[:n], x[n : 2 * n], x[2 * n :]
+    w, v, ld = xd[:n], xd[n : 2 * n], xd[2 * n :]
+    wdd, vdd, ldd = xdd[:n], xdd[n : 2 * n], xdd[2 * n :]
     cf, sf = ops.cos_sin(phi)
     cp, sp = ops.cos_sin(psi)
-    f = ops.couple(c, list(kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))   # sum_j c_ij kappa_j, per axis
+    f = ops.couple(c, list(kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)))  # sum_j c_ij kappa_j, per axis
     return ops.rows(list(forces_3d(l, cf, sf, cp, sp, f[0], f[1], f[2], g * nu_s)))
 
 
@@ -266,9 +267,9 @@ def paper_matrices(mech: Mechanism, q, table=None, exact: bool = False) -> dict[
     t = printed.transition_namespace(mech, q, flat, cos=cos, sin=sin)
     out: dict[str, dict[str, np.ndarray]] = {b: {} for b in ("phi", "psi", "l")}
     with np.errstate(invalid="ignore", divide="ignore"):
-        for f in table:                    # in printed order: later lines may use earlier 3D ones
+        for f in table:  # in printed order: later lines may use earlier 3D ones
             if f.fn is None:
-                continue                   # the mu lines name the right-hand sides, no matrix
+                continue  # the mu lines name the right-hand sides, no matrix
             value = f.fn(t)
             shape = q.shape[:1] + ((mech.nlinks,) if f.name == "P" else (mech.nlinks, mech.nlinks))
             out[f.block][f.name] = np.broadcast_to(value, shape).astype(object if exact else float)
@@ -293,6 +294,10 @@ def warn_paper_nan(tau: np.ndarray, stacklevel: int = 2) -> np.ndarray:
     bad = np.isnan(tau).any(axis=1)
     if bad.any():
         idx = np.flatnonzero(bad)
-        warnings.warn(f"matrix-paper: eq. (18) as printed divides 0/0 at {idx.size} sample(s) "
-                      f"(first: {idx[:5].tolist()}); their forces are NaN", RuntimeWarning, stacklevel=stacklevel + 1)
+        warnings.warn(
+            f"matrix-paper: eq. (18) as printed divides 0/0 at {idx.size} sample(s) "
+            f"(first: {idx[:5].tolist()}); their forces are NaN",
+            RuntimeWarning,
+            stacklevel=stacklevel + 1,
+        )
     return tau

@@ -35,7 +35,7 @@ def planar_entries(G: Generators, c, pairs, straight: bool = False):
     """Eq. (5): ``block -> name -> {(i, j): element}`` over ``pairs`` (those with ``c_ij != 0``),
     ring elements. ``straight``: the straightened model (``phi_i = phi_j``: ``C = 1, S = 0``)."""
     out = {b: {name: {} for name in PLANAR_NAMES} for b in ("phi", "l")}
-    for (i, j) in pairs:
+    for i, j in pairs:
         C, Sn = (1, 0) if straight else (G.C(i, j), G.S(i, j))
         li, lj = G["l", i], G["l", j]
         for block, fns in planar.PAIRS.items():
@@ -46,31 +46,36 @@ def planar_entries(G: Generators, c, pairs, straight: bool = False):
 
 def planar_gravity(G: Generators, nu_s, links):
     """Eq. (5): ``block -> {i: p_i}`` for the links ``links``."""
-    return {block: {i: f(nu_s[i], G["l", i], G["cphi", i], G["sphi", i]) for i in links}
-            for block, f in planar.GRAVITY.items()}
+    return {
+        block: {i: f(nu_s[i], G["l", i], G["cphi", i], G["sphi", i]) for i in links}
+        for block, f in planar.GRAVITY.items()
+    }
 
 
 def spatial_entries(G: Generators, now, straight, pairs):
     """Eq. (18), corrected: the 3D elements of ``pairs`` from the planar ones (``now``) and the
     straightened planar ones (the quotients), ``block -> name -> {(i, j): element}``."""
     out = {b: {name: {} for name in SPATIAL_NAMES} for b in ("phi", "psi", "l")}
-    for (i, j) in pairs:
+    for i, j in pairs:
         pick = lambda src: {b: {name: src[b][name][(i, j)] for name in PLANAR_NAMES} for b in src}
-        t = spatial.transition_inputs(pick(now), pick(straight), G["l", i], G["l", j],
-                                      G["cpsi", i], G["spsi", i], G["cpsi", j], G["spsi", j])
+        t = spatial.transition_inputs(
+            pick(now), pick(straight), G["l", i], G["l", j], G["cpsi", i], G["spsi", i], G["cpsi", j], G["spsi", j]
+        )
         for block, fns in spatial.PAIRS.items():
             for name, f in fns.items():
                 if (block, name) != ("l", "D"):
                     out[block][name][(i, j)] = f(t)
-    for (i, j) in pairs:
+    for i, j in pairs:
         if (j, i) in out["phi"]["H"]:
-            out["l"]["D"][(i, j)] = spatial.d_l(out["phi"]["H"][(j, i)])     # D_l = -(H_phi)^T
+            out["l"]["D"][(i, j)] = spatial.d_l(out["phi"]["H"][(j, i)])  # D_l = -(H_phi)^T
     return out
 
 
 def spatial_gravity(G: Generators, nu_s, links):
-    return {block: {i: f(nu_s[i], G["l", i], G["cpsi", i], G["spsi", i]) for i in links}
-            for block, f in spatial.GRAVITY.items()}
+    return {
+        block: {i: f(nu_s[i], G["l", i], G["cpsi", i], G["spsi", i]) for i in links}
+        for block, f in spatial.GRAVITY.items()
+    }
 
 
 def _ring_form(mech: Mechanism, G: Generators):
@@ -114,12 +119,13 @@ def matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, di
 def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
     """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j, from the rate
     table :data:`exo_bench.models.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
+
     def rate(name: str, j: int):
         factor, r = RATES[name]
         if len(r) == 1:
             return G["dd" + r[0], j]
         x = G["d" + r[0], j] ** 2 if r[0] == r[1] else G["d" + r[0], j] * G["d" + r[1], j]
-        return x if factor == 1 else int(factor) * x      # an integer keeps the ring exact
+        return x if factor == 1 else int(factor) * x  # an integer keeps the ring exact
 
     return {name: [rate(name, j) for j in range(n)] for name in matrix_names(dim)}
 

@@ -69,7 +69,7 @@ def _mul(number, factors) -> sp.Expr:
     if not args:
         return number
     if len(args) == 1 and args[0].is_Add and number != 1:
-        return Mul(number, args[0])          # sympy distributes a number over a lone sum
+        return Mul(number, args[0])  # sympy distributes a number over a lone sum
     if number == 1:
         return args[0] if len(args) == 1 else Mul._from_args(args, is_commutative=True)
     return Mul._from_args((number,) + args, is_commutative=True)
@@ -236,7 +236,7 @@ class Generators:
                 add(("C", i, j), sp.cos(d))
                 s = sp.sin(d)
                 sign = 1
-                if isinstance(s, Mul):            # -sin(phi_j - phi_i)
+                if isinstance(s, Mul):  # -sin(phi_j - phi_i)
                     sign, s = -1, -s
                 self._pair_sign[(i, j)] = sign
                 add(("S", i, j), s)
@@ -246,7 +246,7 @@ class Generators:
             pk = [("m", i, b) for i in range(n) for b in range(3)] + [("n", i) for i in range(n)] + [("g",)]
             po = [S.m[i][b] for i in range(n) for b in range(3)] + list(S.n) + [S.g]
             self._param_basis = _Basis(po)
-            self._param = {k: Coefficient({(idx,): 1}) for idx, k in enumerate(pk)}   # integer coefficients
+            self._param = {k: Coefficient({(idx,): 1}) for idx, k in enumerate(pk)}  # integer coefficients
         self._coefficients: dict = {}
 
     # ------------------------------------------------------------ elements
@@ -280,8 +280,9 @@ class Generators:
     def parameters(self, mech: Mechanism):
         """Per link ``(m0, m1, m2, n)``: parameter polynomials, or exact numbers."""
         if self.symbolic_parameters:
-            return [tuple(self._param[("m", i, b)] for b in range(3)) + (self._param[("n", i)],)
-                    for i in range(mech.nlinks)]
+            return [
+                tuple(self._param[("m", i, b)] for b in range(3)) + (self._param[("n", i)],) for i in range(mech.nlinks)
+            ]
         return [tuple(Fraction(x) for x in (*mech.masses[i], mech.n[i])) for i in range(mech.nlinks)]
 
     def gravity(self, mech: Mechanism):
@@ -297,7 +298,7 @@ class Generators:
         hit = self._coefficients.get(key)
         if hit is None:
             if len(c.terms) == 1:
-                (m, k), = c.terms.items()
+                ((m, k),) = c.terms.items()
                 hit = (_rational(k), self._param_basis.factors(m))
             else:
                 ks = [Fraction(k) for k in c.terms.values()]
@@ -306,8 +307,9 @@ class Generators:
                     num = gcd(num, k.numerator)
                     den = den * k.denominator // gcd(den, k.denominator)
                 content = Fraction(num, den)
-                add = _add([_mul(_rational(Fraction(k) / content), self._param_basis.factors(m))
-                            for m, k in c.terms.items()])
+                add = _add(
+                    [_mul(_rational(Fraction(k) / content), self._param_basis.factors(m)) for m, k in c.terms.items()]
+                )
                 hit = (_rational(content), [add])
             self._coefficients[key] = hit
         return hit[0], list(hit[1])
@@ -315,7 +317,7 @@ class Generators:
     def expr(self, p) -> sp.Expr:
         """A Poly (or a plain number) as sympy's canonical expression."""
         if isinstance(p, Coefficient):
-            p = Poly({(): p} if p != 0 else {})          # a constant element, e.g. 2D lambda^l_ii
+            p = Poly({(): p} if p != 0 else {})  # a constant element, e.g. 2D lambda^l_ii
         if not isinstance(p, Poly):
             return _rational(p) if isinstance(p, (int, Fraction)) else sp.sympify(p)
         terms = []

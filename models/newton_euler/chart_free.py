@@ -66,15 +66,16 @@ def rod_loads_from_joint_loads(mech: Mechanism, q, joint_moments: np.ndarray, ax
             carried[:, p] -= joint_moments[:, c]
     u = mech.sign_array[None, :, None] * r / np.sqrt(l2)[..., None]
     along = mech.sign_array[None, :, None] * u * axial[..., None]
-    if mech.dim == 2:      # (M e_z) x r = M (-r_y, r_x)
+    if mech.dim == 2:  # (M e_z) x r = M (-r_y, r_x)
         perp = carried[..., None] * np.stack([-r[..., 1], r[..., 0]], axis=-1)
     else:
         perp = np.cross(carried, r)
     return along + perp / l2[..., None]
 
 
-def paper_coordinates(mech: Mechanism, r: np.ndarray, v: np.ndarray,
-                      near: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def paper_coordinates(
+    mech: Mechanism, r: np.ndarray, v: np.ndarray, near: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q, qd (S, dof)`` from rod vectors ``r`` and rates ``v`` ``(S, n, dim)``, and a mask ``(S, n)``
     of the rods where the chart is defined (``l > 0``; 3D: ``|cos psi| > COS_VERTICAL``). The angles
     of a rod outside the chart are NaN and its mask entry False.
@@ -99,18 +100,19 @@ def paper_coordinates(mech: Mechanism, r: np.ndarray, v: np.ndarray,
             if near is not None:
                 wrap = lambda a: np.angle(np.exp(1j * a))
                 other_phi, other_psi = phi + np.pi, np.pi - psi
-                flip = (np.abs(wrap(other_phi - near[:, :n])) + np.abs(other_psi - near[:, n:2 * n])
-                        < np.abs(wrap(phi - near[:, :n])) + np.abs(psi - near[:, n:2 * n]))
+                flip = np.abs(wrap(other_phi - near[:, :n])) + np.abs(other_psi - near[:, n : 2 * n]) < np.abs(
+                    wrap(phi - near[:, :n])
+                ) + np.abs(psi - near[:, n : 2 * n])
                 phi, psi = np.where(flip, other_phi, phi), np.where(flip, other_psi, psi)
             q = np.concatenate([phi, psi, l], axis=1)
         else:
             q = np.concatenate([phi, l], axis=1)
-        if near is not None:                  # the turn of phi nearest the reference
+        if near is not None:  # the turn of phi nearest the reference
             q[:, :n] = near[:, :n] + np.angle(np.exp(1j * (q[:, :n] - near[:, :n])))
         tree = prepare_tree(mech)
         qd = passes.coordinate_rates(tree, mech.dim, q, np.moveaxis(v, 0, 2))
     bad = np.tile(~ok, mech.dim)
-    bad[:, -n:] = False                       # the length is defined everywhere
+    bad[:, -n:] = False  # the length is defined everywhere
     q[:, :-n][bad[:, :-n]] = np.nan
     qd[bad] = np.nan
     return q, qd, ok
@@ -125,9 +127,9 @@ def end_points(mech: Mechanism, r: np.ndarray) -> np.ndarray:
 class RodSimulation:
     """The outcome of :func:`simulate_rods`: accepted steps of ``y = [r, r']`` (flattened per rod)."""
 
-    t: np.ndarray              # (N,)
-    r: np.ndarray              # (N, n, dim)
-    v: np.ndarray              # (N, n, dim)
+    t: np.ndarray  # (N,)
+    r: np.ndarray  # (N, n, dim)
+    v: np.ndarray  # (N, n, dim)
     rtol: float
     atol: float
     nfev: int
@@ -139,8 +141,16 @@ class RodSimulation:
         return self.status == "ok"
 
 
-def simulate_rods(mech: Mechanism, r0: np.ndarray, v0: np.ndarray, t_span: tuple[float, float], loads,
-                  rtol: float = 1e-10, atol: float = 1e-12, dense: bool = True) -> RodSimulation:
+def simulate_rods(
+    mech: Mechanism,
+    r0: np.ndarray,
+    v0: np.ndarray,
+    t_span: tuple[float, float],
+    loads,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    dense: bool = True,
+) -> RodSimulation:
     """Integrate ``M_r r'' = loads(t, r, v) - g_r`` from ``(r0, v0)`` (``(n, dim)`` each) with scipy's
     DOP853 at ``rtol``/``atol``. ``loads(t, r, v)`` returns ``(n, dim)``. A singular ``M_r`` (a link
     whose end point moves no mass) is refused with a ValueError naming the link."""
@@ -154,15 +164,23 @@ def simulate_rods(mech: Mechanism, r0: np.ndarray, v0: np.ndarray, t_span: tuple
     gr[:, -1] = mech.g * tree.nu
 
     def rhs(t, y):
-        r, v = y[:n * d].reshape(n, d), y[n * d:].reshape(n, d)
+        r, v = y[: n * d].reshape(n, d), y[n * d :].reshape(n, d)
         a = solve_coupling(tree, np.asarray(loads(t, r, v), dtype=float) - gr)
         return np.concatenate([v.ravel(), a.ravel()])
 
     y0 = np.concatenate([np.asarray(r0, float).ravel(), np.asarray(v0, float).ravel()])
     sol = solve_ivp(rhs, t_span, y0, method="DOP853", rtol=rtol, atol=atol, dense_output=dense)
     Y = sol.y.T
-    return RodSimulation(sol.t, Y[:, :n * d].reshape(-1, n, d), Y[:, n * d:].reshape(-1, n, d), rtol, atol,
-                         int(sol.nfev), "ok" if sol.status == 0 else f"failed: {sol.message}", sol.sol)
+    return RodSimulation(
+        sol.t,
+        Y[:, : n * d].reshape(-1, n, d),
+        Y[:, n * d :].reshape(-1, n, d),
+        rtol,
+        atol,
+        int(sol.nfev),
+        "ok" if sol.status == 0 else f"failed: {sol.message}",
+        sol.sol,
+    )
 
 
 #: The round trip's integrator tolerances: DOP853 (8th order) at these keeps the global error of a
@@ -176,10 +194,10 @@ class RoundTrip:
     """The paper's gait through inverse dynamics and the chart-free forward simulation."""
 
     period: float
-    trunk_psi: float                    # psi_5 along the gait: exactly pi/2
-    max_position_error: float           # m, over every point mass and every accepted step
-    max_coordinate_error: float         # m: l cos psi |dphi|, l |dpsi|, |dl| where the chart is defined
-    vertical_rods: int                  # rods outside the chart at the start (the trunk)
+    trunk_psi: float  # psi_5 along the gait: exactly pi/2
+    max_position_error: float  # m, over every point mass and every accepted step
+    max_coordinate_error: float  # m: l cos psi |dphi|, l |dpsi|, |dl| where the chart is defined
+    vertical_rods: int  # rods outside the chart at the start (the trunk)
     steps: int
     nfev: int
     rtol: float
@@ -187,8 +205,9 @@ class RoundTrip:
     status: str
 
 
-def gait_round_trip(mech: Mechanism | None = None, rtol: float = ROUND_TRIP_RTOL,
-                    atol: float = ROUND_TRIP_ATOL) -> RoundTrip:
+def gait_round_trip(
+    mech: Mechanism | None = None, rtol: float = ROUND_TRIP_RTOL, atol: float = ROUND_TRIP_ATOL
+) -> RoundTrip:
     """Eq. (26) with the trunk exactly vertical (``psi_5 = pi/2``): the loads ``f(t) = M_r r'' + g_r``
     along the gait (inverse dynamics), then the chart-free simulation from the gait's initial
     ``(r, r')`` over one period; the point masses' positions against the gait's."""
@@ -215,12 +234,22 @@ def gait_round_trip(mech: Mechanism | None = None, rtol: float = ROUND_TRIP_RTOL
     cols = np.concatenate([np.tile(ok, mech.dim - 1), np.ones_like(ok)], axis=1)
     # an angle's error as the displacement it makes at the rod's end (l cos psi dphi, l dpsi): near a
     # vertical crossing the azimuth itself is ill-conditioned (the chart's fault), the rod is not
-    l, cpsi = ref.q[:, -n:], np.abs(np.cos(ref.q[:, n:2 * n]))
+    l, cpsi = ref.q[:, -n:], np.abs(np.cos(ref.q[:, n : 2 * n]))
     lever = np.concatenate([l * cpsi, l, np.ones_like(l)], axis=1)
     coord = float((np.abs(q - ref.q) * lever)[cols].max())
-    return RoundTrip(T, float(ref.q[0, 2 * n - 1]), pos, coord, int((~ok[0]).sum()), len(sim.t) - 1, sim.nfev,
-                     rtol, atol, sim.status)
+    return RoundTrip(
+        T, float(ref.q[0, 2 * n - 1]), pos, coord, int((~ok[0]).sum()), len(sim.t) - 1, sim.nfev, rtol, atol, sim.status
+    )
 
 
-__all__ = ["RodSimulation", "RoundTrip", "end_points", "gait_round_trip", "paper_coordinates", "rod_loads",
-           "rod_loads_from_joint_loads", "rod_vectors", "simulate_rods"]
+__all__ = [
+    "RodSimulation",
+    "RoundTrip",
+    "end_points",
+    "gait_round_trip",
+    "paper_coordinates",
+    "rod_loads",
+    "rod_loads_from_joint_loads",
+    "rod_vectors",
+    "simulate_rods",
+]

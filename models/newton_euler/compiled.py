@@ -59,8 +59,9 @@ def _rod(t, dim, x, xd, xdd, s0, k, w, with_qdd):
             wdd, vdd, ldd = xdd[s0 + k], xdd[s0 + n + k], xdd[s0 + 2 * n + k]
         else:
             wdd, vdd, ldd = 0.0, 0.0, 0.0
-        a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, xd[s0 + k], xd[s0 + n + k], xd[s0 + 2 * n + k],
-                                            wdd, vdd, ldd)
+        a0, a1, a2 = el.rod_acceleration_3d(
+            cf, sf, cp, sp, l, xd[s0 + k], xd[s0 + n + k], xd[s0 + 2 * n + k], wdd, vdd, ldd
+        )
     w[_KAPPA] = s * a0
     w[_KAPPA + 1] = s * a1
     w[_KAPPA + 2] = s * a2
@@ -72,7 +73,7 @@ def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
     its start point's acceleration ``A_k = A_p + kappa_p``, with ``g up``), the backward pass (subtree
     sums ``D``), ``tau_k = J_k^T F_k``."""
     n = t.shape[1]
-    for k in range(n):                         # forward pass, roots first
+    for k in range(n):  # forward pass, roots first
         w = W[k]
         _rod(t, dim, x, xd, xdd, s0, k, w, True)
         p = int(t[_PARENT, k])
@@ -88,7 +89,7 @@ def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
         w[_D] = 0.0
         w[_D + 1] = 0.0
         w[_D + 2] = 0.0
-    for k in range(n - 1, -1, -1):             # backward pass, leaves first
+    for k in range(n - 1, -1, -1):  # backward pass, leaves first
         w = W[k]
         zeta, eta, theta = t[_ZETA, k], t[_ETA, k], t[_THETA, k]
         f0 = el.rod_force(zeta, eta, w[_A], w[_KAPPA], w[_D])
@@ -120,29 +121,30 @@ def _forward_sample(t, g, dim, x, xd, tau, o, s0, W):
     n = t.shape[1]
     for k in range(n):
         w = W[k]
-        _rod(t, dim, x, xd, xd, s0, k, w, False)          # kappa <- J' q'
+        _rod(t, dim, x, xd, xd, s0, k, w, False)  # kappa <- J' q'
         s = t[_SIGN, k]
         if dim == 2:
             b0, b1 = el.unproject_2d(w[0], w[1], x[s0 + n + k], tau[s0 + k], tau[s0 + n + k])
             b2 = 0.0
         else:
-            b0, b1, b2 = el.unproject_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k],
-                                         tau[s0 + k], tau[s0 + n + k], tau[s0 + 2 * n + k])
+            b0, b1, b2 = el.unproject_3d(
+                w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], tau[s0 + k], tau[s0 + n + k], tau[s0 + 2 * n + k]
+            )
         w[_A] = s * b0
         w[_A + 1] = s * b1
         w[_A + 2] = s * b2
-        w[_A + dim - 1] -= g * t[_NU, k]        # - g_r: gravity along up
+        w[_A + dim - 1] -= g * t[_NU, k]  # - g_r: gravity along up
         w[_D] = w[_A]
         w[_D + 1] = w[_A + 1]
         w[_D + 2] = w[_A + 2]
-    for k in range(n - 1, -1, -1):             # z <- L^-1 T^-T b, leaves first
+    for k in range(n - 1, -1, -1):  # z <- L^-1 T^-T b, leaves first
         p = int(t[_PARENT, k])
         if p >= 0:
             w, wp, lk = W[k], W[p], t[_MULT, k]
             wp[_D] -= w[_A] + lk * w[_D]
             wp[_D + 1] -= w[_A + 1] + lk * w[_D + 1]
             wp[_D + 2] -= w[_A + 2] + lk * w[_D + 2]
-    for k in range(n):                         # y <- D^-1 z - L^T y, roots first; then r'' and q''
+    for k in range(n):  # y <- D^-1 z - L^T y, roots first; then r'' and q''
         w = W[k]
         p = int(t[_PARENT, k])
         d, lk = t[_PIVOT, k], t[_MULT, k]

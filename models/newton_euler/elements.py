@@ -25,8 +25,8 @@ def rod_acceleration_2d(cf, sf, l, w, ld, wdd, ldd):
     """``d2/dt2 (l u)`` of a planar rod: ``J q'' + J' q'`` (unsigned), as ``(x, y)``.
 
     ``(l u)'' = l'' u + 2 l' phi' e_phi + l phi'' e_phi - l phi'^2 u``."""
-    radial = ldd - l * w * w                  # along u: l'' and the centripetal -l phi'^2
-    tangent = 2.0 * ld * w + l * wdd          # along e_phi: l phi'' and 2 phi' l'
+    radial = ldd - l * w * w  # along u: l'' and the centripetal -l phi'^2
+    tangent = 2.0 * ld * w + l * wdd  # along e_phi: l phi'' and 2 phi' l'
     return radial * cf - tangent * sf, radial * sf + tangent * cf
 
 
@@ -36,12 +36,11 @@ def rod_acceleration_3d(cf, sf, cp, sp, l, w, v, ld, wdd, vdd, ldd):
     With ``u_phi = cos psi e_phi``, ``u_psi = e_psi``, ``u_phiphi = -cos psi (cos phi, sin phi, 0)``,
     ``u_phipsi = -sin psi e_phi``, ``u_psipsi = -u``: ``(l u)'' = l'' u + 2 l' (u_phi phi' + u_psi psi')
     + l (u_phi phi'' + u_psi psi'' + u_phiphi phi'^2 + 2 u_phipsi phi' psi' + u_psipsi psi'^2)``."""
-    along_u = ldd - l * v * v                  # u l'' and l u_psipsi psi'^2 = -l u psi'^2
-    along_psi = 2.0 * ld * v + l * vdd         # e_psi: l psi'' and 2 psi' l'
-    horizontal = (along_u - l * w * w) * cp - along_psi * sp           # along (cos phi, sin phi, 0)
-    azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp   # along e_phi
-    return (horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf,
-            along_u * sp + along_psi * cp)
+    along_u = ldd - l * v * v  # u l'' and l u_psipsi psi'^2 = -l u psi'^2
+    along_psi = 2.0 * ld * v + l * vdd  # e_psi: l psi'' and 2 psi' l'
+    horizontal = (along_u - l * w * w) * cp - along_psi * sp  # along (cos phi, sin phi, 0)
+    azimuthal = (2.0 * ld * w + l * wdd) * cp - 2.0 * l * w * v * sp  # along e_phi
+    return (horizontal * cf - azimuthal * sf, horizontal * sf + azimuthal * cf, along_u * sp + along_psi * cp)
 
 
 def project_2d(cf, sf, l, fx, fy):
@@ -52,7 +51,7 @@ def project_2d(cf, sf, l, fx, fy):
 
 def project_3d(cf, sf, cp, sp, l, fx, fy, fz):
     """``J^T F`` of a spatial rod (unsigned): ``(M_phi, M_psi, F_l)`` of a force ``F`` conjugate to ``r``."""
-    radial = cf * fx + sf * fy                 # along (cos phi, sin phi, 0)
+    radial = cf * fx + sf * fy  # along (cos phi, sin phi, 0)
     return l * cp * (cf * fy - sf * fx), l * (cp * fz - sp * radial), cp * radial + sp * fz
 
 
@@ -67,7 +66,7 @@ def unproject_3d(cf, sf, cp, sp, l, tw, tv, tl):
     """``J^-T tau`` of a spatial rod (unsigned): ``F = e_phi tw / (l cos psi) + e_psi tv / l + u tl``;
     singular at ``l = 0`` and ``cos psi = 0``."""
     a, b = tw / (l * cp), tv / l
-    horizontal = tl * cp - b * sp               # along (cos phi, sin phi, 0)
+    horizontal = tl * cp - b * sp  # along (cos phi, sin phi, 0)
     return horizontal * cf - a * sf, horizontal * sf + a * cf, tl * sp + b * cp
 
 
@@ -96,5 +95,15 @@ def subtree_share(theta, eta, a, kappa, d):
     return theta * a + eta * kappa + d
 
 
-ELEMENTS = (rod_acceleration_2d, rod_acceleration_3d, project_2d, project_3d, unproject_2d, unproject_3d,
-            rates_2d, rates_3d, rod_force, subtree_share)
+ELEMENTS = (
+    rod_acceleration_2d,
+    rod_acceleration_3d,
+    project_2d,
+    project_3d,
+    unproject_2d,
+    unproject_3d,
+    rates_2d,
+    rates_3d,
+    rod_force,
+    subtree_share,
+)

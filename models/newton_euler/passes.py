@@ -32,7 +32,7 @@ def _trig(dim, n, q):
     cf, sf = np.cos(q[:, :n]).T, np.sin(q[:, :n]).T
     if dim == 2:
         return cf, sf, None, None
-    return cf, sf, np.cos(q[:, n:2 * n]).T, np.sin(q[:, n:2 * n]).T
+    return cf, sf, np.cos(q[:, n : 2 * n]).T, np.sin(q[:, n : 2 * n]).T
 
 
 def rod_accelerations(tree: Tree, dim: int, q, qd, qdd, trig=None) -> np.ndarray:
@@ -44,8 +44,9 @@ def rod_accelerations(tree: Tree, dim: int, q, qd, qdd, trig=None) -> np.ndarray
     if dim == 2:
         a = el.rod_acceleration_2d(cf, sf, X[n:], Xd[:n], Xd[n:], Xdd[:n], Xdd[n:])
     else:
-        a = el.rod_acceleration_3d(cf, sf, cp, sp, X[2 * n:], Xd[:n], Xd[n:2 * n], Xd[2 * n:],
-                                   Xdd[:n], Xdd[n:2 * n], Xdd[2 * n:])
+        a = el.rod_acceleration_3d(
+            cf, sf, cp, sp, X[2 * n :], Xd[:n], Xd[n : 2 * n], Xd[2 * n :], Xdd[:n], Xdd[n : 2 * n], Xdd[2 * n :]
+        )
     return np.stack([s * c for c in a], axis=1)
 
 
@@ -54,15 +55,15 @@ def rod_forces(tree: Tree, dim: int, g: float, kappa: np.ndarray) -> np.ndarray:
     accelerations ``kappa`` ``(n, dim, S)`` (see the module docstring)."""
     n = kappa.shape[0]
     parent, zeta, eta, theta = tree.parent, tree.zeta, tree.eta, tree.theta
-    A = np.zeros_like(kappa)                   # start-point accelerations, roots first
+    A = np.zeros_like(kappa)  # start-point accelerations, roots first
     for k in range(n):
         p = parent[k]
         if p >= 0:
             A[k] = A[p] + kappa[p]
-    A[:, dim - 1] += g                         # A + g up: the weight enters like an acceleration
+    A[:, dim - 1] += g  # A + g up: the weight enters like an acceleration
     D = np.zeros_like(kappa)
     F = np.empty_like(kappa)
-    for k in range(n - 1, -1, -1):             # leaves first
+    for k in range(n - 1, -1, -1):  # leaves first
         F[k] = el.rod_force(zeta[k], eta[k], A[k], kappa[k], D[k])
         p = parent[k]
         if p >= 0:
@@ -105,7 +106,7 @@ def rod_loads(tree: Tree, dim: int, q, tau) -> np.ndarray:
     if dim == 2:
         f = el.unproject_2d(cf, sf, l, T[:n], T[n:])
     else:
-        f = el.unproject_3d(cf, sf, cp, sp, l, T[:n], T[n:2 * n], T[2 * n:])
+        f = el.unproject_3d(cf, sf, cp, sp, l, T[:n], T[n : 2 * n], T[2 * n :])
     return np.stack([s * x for x in f], axis=1)
 
 
@@ -124,7 +125,7 @@ def coordinate_rates(tree: Tree, dim: int, q, v) -> np.ndarray:
 
 def forward_dynamics(tree: Tree, dim: int, g: float, q, qd, tau) -> np.ndarray:
     """``qdd (S, dof)`` with ``M(q) qdd + h(q, qd) = tau``, O(n) per sample (module docstring)."""
-    bias = rod_accelerations(tree, dim, q, qd, np.zeros_like(q))          # J' q'
+    bias = rod_accelerations(tree, dim, q, qd, np.zeros_like(q))  # J' q'
     rdd = rod_vector_accelerations(tree, dim, g, rod_loads(tree, dim, q, tau))
     return coordinate_rates(tree, dim, q, rdd - bias)
 
@@ -135,7 +136,7 @@ def jacobian_columns(tree: Tree, dim: int, q) -> np.ndarray:
     S = q.shape[0]
     out = np.empty((S, dim * n, dim))
     eye = np.eye(dim)
-    for c in range(dim):                       # J^T e_c, column by column of the identity
+    for c in range(dim):  # J^T e_c, column by column of the identity
         F = np.broadcast_to(eye[c][None, :, None], (n, dim, S))
         out[:, :, c] = _project(tree, dim, _trig(dim, n, q), q[:, -n:].T, F)
     return out

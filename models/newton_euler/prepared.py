@@ -25,8 +25,7 @@ from exo_bench.models.numba_threads import run
 from exo_bench.models.prepared import PreparedModel, unchecked_states
 from exo_bench.models.unchecked import unchecked_forward
 from exo_bench.models.simd_blocks import run as run_simd
-from exo_bench.models.singularity import (COS_VERTICAL, SingularConfigurationError, vertical_reason,
-                                          zero_length_reason)
+from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, vertical_reason, zero_length_reason
 
 #: The values of the option ``kernel``: compiled loops, or the numpy reference.
 KERNEL_CHOICES = ("numba", "numpy")
@@ -41,8 +40,10 @@ class NewtonEuler(PreparedModel):
 
     def __init__(self, mechanism: Mechanism, kernel: str = "numba"):
         if not isinstance(kernel, str) or kernel not in KERNEL_CHOICES:
-            raise ValueError(f"{self.method}: option 'kernel': expected one of "
-                             f"{', '.join(map(repr, KERNEL_CHOICES))}, got {kernel!r}")
+            raise ValueError(
+                f"{self.method}: option 'kernel': expected one of "
+                f"{', '.join(map(repr, KERNEL_CHOICES))}, got {kernel!r}"
+            )
         super().__init__(mechanism, kernel=kernel)
         self.kernel = kernel
         self._numpy = kernel == "numpy"
@@ -60,20 +61,25 @@ class NewtonEuler(PreparedModel):
         self.batch_kernel = simd.kernel_for(int(self.table.shape[1]))
         self.batch_args = (self.table, self._g, self._dim)
         #: Why ``M_r`` is singular (every configuration), or None.
-        self.singular_mass = (None if self.tree.singular < 0
-                              else singular_mass_reason(mechanism, int(self.tree.singular)))
+        self.singular_mass = (
+            None if self.tree.singular < 0 else singular_mass_reason(mechanism, int(self.tree.singular))
+        )
 
     # ------------------------------------------------------------------ the kernels
     def _compiled(self, q, qd, y, forward: bool, out=None):
-        o = np.empty(q.shape) if out is None else out          # C-ordered whatever q is: reshape(-1) is a view
+        o = np.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
         samples = q.shape[0] if q.ndim == 2 else 1
         if not forward and samples >= simd.MIN_SAMPLES:
-            run_simd(self.batch_kernel, self.batch_args, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1),
-                     samples)
+            run_simd(
+                self.batch_kernel, self.batch_args, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1), samples
+            )
             return o
-        run(compiled.newton_euler, compiled.newton_euler_parallel,
+        run(
+            compiled.newton_euler,
+            compiled.newton_euler_parallel,
             (self.table, self._g, self._dim, forward, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1)),
-            q.shape[0] if q.ndim == 2 else 1)
+            q.shape[0] if q.ndim == 2 else 1,
+        )
         return o
 
     def _inverse_dynamics(self, q, qd, qdd):
@@ -87,7 +93,7 @@ class NewtonEuler(PreparedModel):
         return self._compiled(q, qd, tau, True)
 
     def _mass_matrix(self, q):
-        return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)   # n x n: the output's order
+        return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)  # n x n: the output's order
 
     def _bias_forces(self, q, qd):
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
@@ -96,19 +102,19 @@ class NewtonEuler(PreparedModel):
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
-        unchecked_states(self.method, self._dof, (q, qd, qdd), out)    # memory safety: layout, shapes, out
-        if q.ndim == 1:                            # one sample: the serial kernel on the arrays as given
+        unchecked_states(self.method, self._dof, (q, qd, qdd), out)  # memory safety: layout, shapes, out
+        if q.ndim == 1:  # one sample: the serial kernel on the arrays as given
             o = np.empty(q.shape) if out is None else out
             self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
             return o
-        return self._compiled(q, qd, qdd, False, out)   # O(n) scratch: no chunks needed
+        return self._compiled(q, qd, qdd, False, out)  # O(n) scratch: no chunks needed
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
 
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
             return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
-        unchecked_forward(self.method, self._dof, q, qd, tau, out)      # memory safety: layout, shapes, out
+        unchecked_forward(self.method, self._dof, q, qd, tau, out)  # memory safety: layout, shapes, out
         if q.ndim == 1:
             o = np.empty(q.shape) if out is None else out
             self.serial_kernel(*self._forward_args, q, qd, tau, o)
@@ -129,8 +135,10 @@ class NewtonEuler(PreparedModel):
         if rows.size == 0 and not reasons:
             return
         out = [f"sample 0: {r}" for r in reasons]
-        for s in rows[:16]:                       # enough to name; the count says the rest
-            for i in np.flatnonzero(bad[s] | vertical[s]):     # link by link, as singular_reasons orders them
-                out.append(f"sample {s}: " + (zero_length_reason(mech, int(i)) if bad[s, i]
-                                              else vertical_reason(mech, int(i), psi[s, i])))
+        for s in rows[:16]:  # enough to name; the count says the rest
+            for i in np.flatnonzero(bad[s] | vertical[s]):  # link by link, as singular_reasons orders them
+                out.append(
+                    f"sample {s}: "
+                    + (zero_length_reason(mech, int(i)) if bad[s, i] else vertical_reason(mech, int(i), psi[s, i]))
+                )
         raise SingularConfigurationError(out)

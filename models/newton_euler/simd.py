@@ -50,9 +50,37 @@ from numba.extending import register_jitable
 from exo_bench.models.fast_trig import RANGE, sincos_reduced
 from exo_bench.models.newton_euler import elements as el
 from exo_bench.models.numba_threads import JIT
-from exo_bench.models.simd_blocks import (CF, CP, F0, F1, F2, FROWS, K0, K1, K2, L1, L1_2, L2, L2_2, LANES, LEN,
-                                          LEN2, O0, O1, O2, PHI, PSI, ROWS, SF, SP, V1, V2, W1, W2,
-                                          by_link_transposes)
+from exo_bench.models.simd_blocks import (
+    CF,
+    CP,
+    F0,
+    F1,
+    F2,
+    FROWS,
+    K0,
+    K1,
+    K2,
+    L1,
+    L1_2,
+    L2,
+    L2_2,
+    LANES,
+    LEN,
+    LEN2,
+    O0,
+    O1,
+    O2,
+    PHI,
+    PSI,
+    ROWS,
+    SF,
+    SP,
+    V1,
+    V2,
+    W1,
+    W2,
+    by_link_transposes,
+)
 
 for _f in el.ELEMENTS:
     register_jitable(_f)
@@ -88,10 +116,10 @@ def build(lanes: int) -> SimpleNamespace:
         The loops index per-link views (``Fk``, ``Fp``, ``Wp``): with the offsets of links ``k`` and ``p``
         folded into the views' pointers LLVM vectorises them (indexing the whole arrays at runtime
         offsets, it did not, measured with ``inspect_asm``)."""
-        Fk = F[k * FROWS * B:(k + 1) * FROWS * B]
+        Fk = F[k * FROWS * B : (k + 1) * FROWS * B]
         p = int(t[_PARENT, k])
         if p >= 0:
-            Fp, Wp = F[p * FROWS * B:(p + 1) * FROWS * B], W[p * ROWS * B:(p + 1) * ROWS * B]
+            Fp, Wp = F[p * FROWS * B : (p + 1) * FROWS * B], W[p * ROWS * B : (p + 1) * ROWS * B]
             for s in range(m):
                 Fk[O0 * B + s] = Fp[O0 * B + s] + Wp[K0 * B + s]
                 Fk[O1 * B + s] = Fp[O1 * B + s] + Wp[K1 * B + s]
@@ -110,11 +138,11 @@ def build(lanes: int) -> SimpleNamespace:
         in :func:`_start_points`."""
         n = t.shape[1]
         for k in range(n - 1, -1, -1):
-            Wk, Fk = W[k * ROWS * B:(k + 1) * ROWS * B], F[k * FROWS * B:(k + 1) * FROWS * B]
+            Wk, Fk = W[k * ROWS * B : (k + 1) * ROWS * B], F[k * FROWS * B : (k + 1) * FROWS * B]
             zeta, eta, theta, s_k = t[_ZETA, k], t[_ETA, k], t[_THETA, k], t[_SIGN, k]
             p = int(t[_PARENT, k])
             if p >= 0:
-                Fp = F[p * FROWS * B:(p + 1) * FROWS * B]
+                Fp = F[p * FROWS * B : (p + 1) * FROWS * B]
                 for s in range(m):
                     Fp[F0 * B + s] += el.subtree_share(theta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
                     Fp[F1 * B + s] += el.subtree_share(theta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
@@ -124,8 +152,9 @@ def build(lanes: int) -> SimpleNamespace:
                     f0 = el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s])
                     f1 = el.rod_force(zeta, eta, Fk[O1 * B + s], Wk[K1 * B + s], Fk[F1 * B + s])
                     f2 = el.rod_force(zeta, eta, Fk[O2 * B + s], Wk[K2 * B + s], Fk[F2 * B + s])
-                    m0, m1, m2 = el.project_3d(Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s],
-                                               Wk[LEN * B + s], f0, f1, f2)
+                    m0, m1, m2 = el.project_3d(
+                        Wk[CF * B + s], Wk[SF * B + s], Wk[CP * B + s], Wk[SP * B + s], Wk[LEN * B + s], f0, f1, f2
+                    )
                     Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = s_k * m0, s_k * m1, s_k * m2
             else:
                 for s in range(m):
@@ -150,18 +179,38 @@ def build(lanes: int) -> SimpleNamespace:
                 outside += (0 if okf else 1) + (0 if okp else 1)
                 W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
                 a0, a1, a2 = el.rod_acceleration_3d(
-                    cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s], W[w + L1 * B + s],
-                    W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+                    cf,
+                    sf,
+                    cp,
+                    sp,
+                    W[w + LEN * B + s],
+                    W[w + W1 * B + s],
+                    W[w + V1 * B + s],
+                    W[w + L1 * B + s],
+                    W[w + W2 * B + s],
+                    W[w + V2 * B + s],
+                    W[w + L2 * B + s],
+                )
                 W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
-            if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+            if outside:  # libm for this link's angles beyond RANGE (and NaN)
                 for s in range(m):
                     phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
                     if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
                         cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
                         W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
                         a0, a1, a2 = el.rod_acceleration_3d(
-                            cf, sf, cp, sp, W[w + LEN * B + s], W[w + W1 * B + s], W[w + V1 * B + s],
-                            W[w + L1 * B + s], W[w + W2 * B + s], W[w + V2 * B + s], W[w + L2 * B + s])
+                            cf,
+                            sf,
+                            cp,
+                            sp,
+                            W[w + LEN * B + s],
+                            W[w + W1 * B + s],
+                            W[w + V1 * B + s],
+                            W[w + L1 * B + s],
+                            W[w + W2 * B + s],
+                            W[w + V2 * B + s],
+                            W[w + L2 * B + s],
+                        )
                         W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
             _start_points(t, g, 3, k, m, W, F)
 
@@ -179,17 +228,31 @@ def build(lanes: int) -> SimpleNamespace:
                 sf, cf = sincos_reduced(phi if okf else 0.0)
                 outside += 0 if okf else 1
                 W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s], W[w + L1_2 * B + s],
-                                                W[w + W2 * B + s], W[w + L2_2 * B + s])
+                a0, a1 = el.rod_acceleration_2d(
+                    cf,
+                    sf,
+                    W[w + LEN2 * B + s],
+                    W[w + W1 * B + s],
+                    W[w + L1_2 * B + s],
+                    W[w + W2 * B + s],
+                    W[w + L2_2 * B + s],
+                )
                 W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, 0.0
-            if outside:                                # libm for this link's angles beyond RANGE (and NaN)
+            if outside:  # libm for this link's angles beyond RANGE (and NaN)
                 for s in range(m):
                     phi = W[w + PHI * B + s]
                     if not abs(phi) <= RANGE:
                         cf, sf = math.cos(phi), math.sin(phi)
                         W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                        a0, a1 = el.rod_acceleration_2d(cf, sf, W[w + LEN2 * B + s], W[w + W1 * B + s],
-                                                        W[w + L1_2 * B + s], W[w + W2 * B + s], W[w + L2_2 * B + s])
+                        a0, a1 = el.rod_acceleration_2d(
+                            cf,
+                            sf,
+                            W[w + LEN2 * B + s],
+                            W[w + W1 * B + s],
+                            W[w + L1_2 * B + s],
+                            W[w + W2 * B + s],
+                            W[w + L2_2 * B + s],
+                        )
                         W[w + K0 * B + s], W[w + K1 * B + s] = s_k * a0, s_k * a1
             _start_points(t, g, 2, k, m, W, F)
 
@@ -214,13 +277,24 @@ def build(lanes: int) -> SimpleNamespace:
             _backward(t, dim, m, W, F)
             rows_out(o, s0, m, n, dim, F)
 
-    return SimpleNamespace(lanes=lanes, _start_points=_start_points, _backward=_backward, _forward_3d=_forward_3d,
-                           _forward_2d=_forward_2d, _scratch=_scratch, simd_inverse=simd_inverse)
+    return SimpleNamespace(
+        lanes=lanes,
+        _start_points=_start_points,
+        _backward=_backward,
+        _forward_3d=_forward_3d,
+        _forward_2d=_forward_2d,
+        _scratch=_scratch,
+        simd_inverse=simd_inverse,
+    )
 
 
 _WIDE = build(LANES)
-_start_points, _backward, _forward_3d, _forward_2d = (_WIDE._start_points, _WIDE._backward, _WIDE._forward_3d,
-                                                      _WIDE._forward_2d)
+_start_points, _backward, _forward_3d, _forward_2d = (
+    _WIDE._start_points,
+    _WIDE._backward,
+    _WIDE._forward_3d,
+    _WIDE._forward_2d,
+)
 _scratch, simd_inverse = _WIDE._scratch, _WIDE.simd_inverse
 
 #: Blocks of this many samples for mechanisms of at least :data:`NARROW_FROM_LINKS` links.

@@ -59,8 +59,20 @@ class Tree:
     def table(self) -> np.ndarray:
         """The numbers as one C-ordered ``(8, n)`` float array for the compiled kernels: rows
         ``parent, sign, zeta, eta, theta, nu, pivot, multiplier``."""
-        t = np.ascontiguousarray(np.stack([self.parent.astype(float), self.sign, self.zeta, self.eta, self.theta,
-                                           self.nu, self.pivot, self.multiplier]))
+        t = np.ascontiguousarray(
+            np.stack(
+                [
+                    self.parent.astype(float),
+                    self.sign,
+                    self.zeta,
+                    self.eta,
+                    self.theta,
+                    self.nu,
+                    self.pivot,
+                    self.multiplier,
+                ]
+            )
+        )
         t.flags.writeable = False
         return t
 
@@ -104,10 +116,12 @@ def factor_end_point_mass(mech: Mechanism) -> tuple[np.ndarray, np.ndarray, int]
 
 def singular_mass_reason(mech: Mechanism, k: int) -> str:
     """Why ``M_r`` is singular at link ``k`` (0-based), in the words of :mod:`exo_bench.models.singularity`."""
-    return (massless_reason(mech, k) if (mech.masses[k][1] == 0 and mech.masses[k][2] == 0
-                                         and k not in mech.parent)
-            else f"link {k + 1} ({mech.names[k]}): zero mass: no mass moves with its end point while the other "
-                 "end points are held (M_r is singular)")
+    return (
+        massless_reason(mech, k)
+        if (mech.masses[k][1] == 0 and mech.masses[k][2] == 0 and k not in mech.parent)
+        else f"link {k + 1} ({mech.names[k]}): zero mass: no mass moves with its end point while the other "
+        "end points are held (M_r is singular)"
+    )
 
 
 def prepare_tree(mech: Mechanism) -> Tree:
@@ -115,14 +129,23 @@ def prepare_tree(mech: Mechanism) -> Tree:
     array: ``nu_k = eta_k + Theta(k)`` of :mod:`exo_bench.models.aggregates` with the descendant masses
     ``Theta`` summed leaves first)."""
     zeta, eta, theta = link_aggregates(mech)
-    below = np.zeros(mech.nlinks)                # Theta(k): the mass of k's strict descendants
+    below = np.zeros(mech.nlinks)  # Theta(k): the mass of k's strict descendants
     for k in range(mech.nlinks - 1, -1, -1):
         p = mech.parent[k]
         if p >= 0:
             below[p] += theta[k] + below[k]
     pivot, mult, singular = factor_end_point_mass(mech)
-    return Tree(np.asarray(mech.parent, dtype=np.int64), mech.sign_array.copy(), zeta, eta, theta,
-                eta + below, pivot, mult, singular)
+    return Tree(
+        np.asarray(mech.parent, dtype=np.int64),
+        mech.sign_array.copy(),
+        zeta,
+        eta,
+        theta,
+        eta + below,
+        pivot,
+        mult,
+        singular,
+    )
 
 
 def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
@@ -133,20 +156,20 @@ def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
     n = b.shape[0]
     parent, d, lk = tree.parent, tree.pivot, tree.multiplier
     z = b.copy()
-    for k in range(n - 1, -1, -1):            # T^-T: subtract each child's entry from its parent's
+    for k in range(n - 1, -1, -1):  # T^-T: subtract each child's entry from its parent's
         p = parent[k]
         if p >= 0:
             z[p] -= b[k]
-    for k in range(n - 1, -1, -1):            # L^-1, leaves first
+    for k in range(n - 1, -1, -1):  # L^-1, leaves first
         p = parent[k]
         if p >= 0:
             z[p] -= lk[k] * z[k]
     y = np.empty_like(z)
-    for k in range(n):                        # D^-1 L^-T, roots first
+    for k in range(n):  # D^-1 L^-T, roots first
         p = parent[k]
         y[k] = z[k] / d[k] - (lk[k] * y[p] if p >= 0 else 0.0)
     x = y.copy()
-    for k in range(n):                        # T^-1: one difference with the parent
+    for k in range(n):  # T^-1: one difference with the parent
         p = parent[k]
         if p >= 0:
             x[k] = y[k] - y[p]

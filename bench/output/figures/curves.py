@@ -38,8 +38,8 @@ class ScaleGroups:
     """Curves grouped by the scale of their absolute maxima, as in the paper's Figs. 7 and 8."""
 
     groups: tuple[tuple[int, ...], ...]  # curve indices per panel, largest scale first, each by decreasing max
-    zero: tuple[int, ...]                 # curves that are zero (max below ZERO_FRACTION of the largest)
-    maxima: np.ndarray                    # max |value| of every curve
+    zero: tuple[int, ...]  # curves that are zero (max below ZERO_FRACTION of the largest)
+    maxima: np.ndarray  # max |value| of every curve
 
 
 def group_by_scale(maxima, ratio: float = SCALE_RATIO, zero_fraction: float = ZERO_FRACTION) -> ScaleGroups:
@@ -99,8 +99,11 @@ def _methods_line(study: Study) -> str:
 
 
 def _not_run_line(study: Study) -> str:
-    bad = [f"{m}: skipped ({r.skipped})" if r.skipped else f"{m}: failed ({r.error})"
-           for m, r in study.results.items() if not r.ok]
+    bad = [
+        f"{m}: skipped ({r.skipped})" if r.skipped else f"{m}: failed ({r.error})"
+        for m, r in study.results.items()
+        if not r.ok
+    ]
     return "; ".join(bad)
 
 
@@ -111,8 +114,10 @@ def nonfinite_notes(study: Study) -> list[str]:
         bad = ~np.isfinite(study.results[m].tau)
         if bad.any():
             rows = np.flatnonzero(bad.any(axis=1))
-            out.append(f"WARNING: {m} returned {int(bad.sum())} non-finite value(s) at {rows.size} instant(s), "
-                       f"first at t = {study.motion.t[rows[0]]:.4g} s; they are not drawn")
+            out.append(
+                f"WARNING: {m} returned {int(bad.sum())} non-finite value(s) at {rows.size} instant(s), "
+                f"first at t = {study.motion.t[rows[0]]:.4g} s; they are not drawn"
+            )
     return out
 
 
@@ -123,7 +128,9 @@ def _style_of(ok: list[str], ref: str | None, m: str):
 
 def _style_name(ok, ref, m) -> str:
     st = _style_of(ok, ref, m)
-    return {"--": "dashed", ":": "dotted", "-.": "dash-dot"}.get(st, "patterned") if isinstance(st, str) else "patterned"
+    return (
+        {"--": "dashed", ":": "dotted", "-.": "dash-dot"}.get(st, "patterned") if isinstance(st, str) else "patterned"
+    )
 
 
 def _check_ok(study: Study) -> None:
@@ -146,17 +153,29 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
     if kind == "moments":
         data = {m: moments_and_forces(mech, study.results[m].tau)[0] for m in ok}
         labels, unit, sym = moment_labels(mech), "N·m", "M"
-        what = ("Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
-                "about each joint's own angle (" + ("relative azimuth φ_k − φ_parent, absolute elevation ψ_k"
-                                                    if mech.dim == 3 else "relative angle φ_k − φ_parent")
-                + "), not the generalised forces of the absolute angles"
-                + ("\n(Mψ of a link with children is its joint's moment minus its children's: net joint moments "
-                   "are in the scene report)" if mech.dim == 3 else ""))
+        what = (
+            "Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
+            "about each joint's own angle ("
+            + (
+                "relative azimuth φ_k − φ_parent, absolute elevation ψ_k"
+                if mech.dim == 3
+                else "relative angle φ_k − φ_parent"
+            )
+            + "), not the generalised forces of the absolute angles"
+            + (
+                "\n(Mψ of a link with children is its joint's moment minus its children's: net joint moments "
+                "are in the scene report)"
+                if mech.dim == 3
+                else ""
+            )
+        )
     else:
         data = {m: moments_and_forces(mech, study.results[m].tau)[1] for m in ok}
         labels, unit, sym = force_labels(mech), "N", "F"
-        what = ("Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
-                "(the same in joint and in absolute coordinates: l_k maps to itself)")
+        what = (
+            "Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
+            "(the same in joint and in absolute coordinates: l_k maps to itself)"
+        )
     t = study.motion.t
     # The reference's scales decide the panels; other methods overlay it. NaN are reported, not grouped.
     finite = np.where(np.isfinite(data[ref]), np.abs(data[ref]), 0.0)
@@ -164,8 +183,10 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
     rows = max(len(groups.groups), 1)
     notes = [_methods_line(study) + f"; panels grouped by the scale of max |{sym}| (each spans at most {ratio:g}×)"]
     if groups.zero:
-        notes.append(f"zero throughout (max |{sym}| < {ZERO_FRACTION:g} of the largest): "
-                     + ", ".join(labels[j] for j in groups.zero))
+        notes.append(
+            f"zero throughout (max |{sym}| < {ZERO_FRACTION:g} of the largest): "
+            + ", ".join(labels[j] for j in groups.zero)
+        )
     if _not_run_line(study):
         notes.append("not shown: " + _not_run_line(study))
     notes = _wrap_notes(notes + nonfinite_notes(study))
@@ -176,21 +197,34 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
         idx = groups.groups[g] if groups.groups else ()
         for j in idx:
             for m in ok:
-                ax.plot(t, data[m][:, j], color=curve_color[j], ls=_style_of(ok, ref, m),
-                        lw=1.8 if m == ref else 1.2, label=labels[j] if m == ref else None, gid=f"{m}:{labels[j]}")
+                ax.plot(
+                    t,
+                    data[m][:, j],
+                    color=curve_color[j],
+                    ls=_style_of(ok, ref, m),
+                    lw=1.8 if m == ref else 1.2,
+                    label=labels[j] if m == ref else None,
+                    gid=f"{m}:{labels[j]}",
+                )
         ax.set_ylabel(f"{sym} ({unit})", fontsize=TEXT_PT)
-        ax.set_title(scale_caption(groups, g, unit, sym) if groups.groups else "all zero", loc="left",
-                     fontsize=TEXT_PT)
+        ax.set_title(scale_caption(groups, g, unit, sym) if groups.groups else "all zero", loc="left", fontsize=TEXT_PT)
         ax.grid(True, alpha=0.3)
         ax.axhline(0.0, color="k", lw=0.6, alpha=0.5)
         ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=TEXT_PT, frameon=False)
         ax.set_xlim(t[0], t[-1])
         ax.tick_params(labelsize=TEXT_PT)
     axes[-1].set_xlabel("time t (s)", fontsize=TEXT_PT)
-    if len(ok) > 1:   # line style = method, outside the plots
+    if len(ok) > 1:  # line style = method, outside the plots
         handles = [Line2D([], [], color="0.3", ls=_style_of(ok, ref, m)) for m in ok]
-        fig.legend(handles, ok, loc="outside right lower", fontsize=TEXT_PT, title="method (line style)",
-                   title_fontsize=TEXT_PT, frameon=False)
+        fig.legend(
+            handles,
+            ok,
+            loc="outside right lower",
+            fontsize=TEXT_PT,
+            title="method (line style)",
+            title_fontsize=TEXT_PT,
+            frameon=False,
+        )
     fig.suptitle(_header(study, what), fontsize=TITLE_PT)
     _write_notes(note_ax, notes)
     return fig
@@ -224,8 +258,9 @@ def _wrap_notes(lines: list[str], width: int = NOTE_WIDTH) -> list[str]:
 def _write_notes(ax, lines: list[str]) -> None:
     """The (wrapped) notes in the strip below the plots. The text takes no part in the layout: a long
     line would otherwise make constrained layout shrink the whole column of plots to fit it."""
-    txt = ax.text(0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=TEXT_PT,
-                  color="0.2")
+    txt = ax.text(
+        0.0, 1.0, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=TEXT_PT, color="0.2"
+    )
     txt.set_in_layout(False)
 
 
@@ -257,9 +292,10 @@ def differences_figure(study: Study) -> Figure | None:
     if ref is None or not others:
         return None
     mech, t = study.mechanism, study.motion.t
-    notes = [f"reference: {ref}; one colour per method (legend); log scale: an instant where a method equals "
-             f"{ref} exactly (Δ = 0) leaves a gap"] + (["not shown: " + _not_run_line(study)]
-                                                       if _not_run_line(study) else [])
+    notes = [
+        f"reference: {ref}; one colour per method (legend); log scale: an instant where a method equals "
+        f"{ref} exactly (Δ = 0) leaves a gap"
+    ] + (["not shown: " + _not_run_line(study)] if _not_run_line(study) else [])
     notes = _wrap_notes(notes + nonfinite_notes(study))
     fig = Figure(figsize=(11.5, 5.6 + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, 2, len(notes))
@@ -272,8 +308,14 @@ def differences_figure(study: Study) -> Figure | None:
             if dmax == 0.0:
                 ax.plot([], [], color=color, label=f"{m} − {ref}: identical (0)")
                 continue
-            ax.semilogy(t, np.where(d > 0, d, np.nan), color=color, lw=1.2, gid=f"diff:{m}",
-                        label=f"{m} − {ref}: max {dmax:.2g} {unit}\n({dmax / scale:.1e} of the largest {ref} value)")
+            ax.semilogy(
+                t,
+                np.where(d > 0, d, np.nan),
+                color=color,
+                lw=1.2,
+                gid=f"diff:{m}",
+                label=f"{m} − {ref}: max {dmax:.2g} {unit}\n({dmax / scale:.1e} of the largest {ref} value)",
+            )
         name = "joint moments ΔM" if part == 0 else "rod forces ΔF"
         ax.set_ylabel(f"max |Δ| ({unit})", fontsize=TEXT_PT)
         ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=TEXT_PT)
@@ -282,7 +324,11 @@ def differences_figure(study: Study) -> Figure | None:
         ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
     axes[-1].set_xlabel("time t (s)", fontsize=TEXT_PT)
     axes[-1].set_xlim(t[0], t[-1])
-    fig.suptitle(_header(study, f"Differences between methods, method − {ref}, in the joint moments τ_joint = G⁻ᵀ τ "
-                                "and rod forces"), fontsize=TITLE_PT)
+    fig.suptitle(
+        _header(
+            study, f"Differences between methods, method − {ref}, in the joint moments τ_joint = G⁻ᵀ τ and rod forces"
+        ),
+        fontsize=TITLE_PT,
+    )
     _write_notes(note_ax, notes)
     return fig

@@ -53,19 +53,37 @@ def projections(mech: Mechanism) -> list[Projection]:
     coordinates are (no "walking direction": a user's mechanism need not walk)."""
     if mech.dim == 2:
         return [Projection("plane of the model (x–y)", "x–y plane", (0, 1), ("x (m)", "y (m), up"))]
-    return [Projection("sagittal projection (x–z)", "sagittal (x–z)", (0, 2), ("x (m)", "z (m), up")),
-            Projection("frontal projection (y–z)", "frontal (y–z)", (1, 2), ("y (m)", "z (m), up"))]
+    return [
+        Projection("sagittal projection (x–z)", "sagittal (x–z)", (0, 2), ("x (m)", "z (m), up")),
+        Projection("frontal projection (y–z)", "frontal (y–z)", (1, 2), ("y (m)", "z (m), up")),
+    ]
 
 
 def _draw_frame(ax, mech: Mechanism, P: np.ndarray, proj: Projection, area: np.ndarray, alpha: float, gid: str):
     """One frame in place: rods from start to end, point masses with area ∝ mass."""
     hx, vx = proj.axes
     for i in range(mech.nlinks):
-        ax.plot([P[i, 0, hx], P[i, 2, hx]], [P[i, 0, vx], P[i, 2, vx]], color=link_color(i), lw=2.2, alpha=alpha,
-                solid_capstyle="round", zorder=2, gid=f"rod:{gid}:{i}")
-    ax.scatter(P[:, :, hx].ravel(), P[:, :, vx].ravel(), s=area.ravel(),
-               c=[link_color(i) for i in range(mech.nlinks) for _ in range(3)], edgecolors="k", linewidths=0.5,
-               alpha=alpha, zorder=3, gid=f"masses:{gid}")
+        ax.plot(
+            [P[i, 0, hx], P[i, 2, hx]],
+            [P[i, 0, vx], P[i, 2, vx]],
+            color=link_color(i),
+            lw=2.2,
+            alpha=alpha,
+            solid_capstyle="round",
+            zorder=2,
+            gid=f"rod:{gid}:{i}",
+        )
+    ax.scatter(
+        P[:, :, hx].ravel(),
+        P[:, :, vx].ravel(),
+        s=area.ravel(),
+        c=[link_color(i) for i in range(mech.nlinks) for _ in range(3)],
+        edgecolors="k",
+        linewidths=0.5,
+        alpha=alpha,
+        zorder=3,
+        gid=f"masses:{gid}",
+    )
 
 
 def ground_label(mech: Mechanism) -> str:
@@ -91,7 +109,7 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
     height 0 through O (:func:`ground_label`: the floor only for a model standing on a stance leg)."""
     mech = study.mechanism
     idx = kinogram_frames(study, frames)
-    P = point_mass_positions(mech, study.motion.q[idx])          # (F, n, 3, dim)
+    P = point_mass_positions(mech, study.motion.q[idx])  # (F, n, 3, dim)
     F = len(idx)
     projs = projections(mech)
     masses = mech.mass_array
@@ -103,14 +121,18 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
     span = lambda a: hi[a] - lo[a]
     vert = projs[0].axes[1]
     cell = max(span(projs[0].axes[0]), 0.3)
-    small = min(1.6, 14.0 / (F * cell))                  # inches per metre in the frame panels
+    small = min(1.6, 14.0 / (F * cell))  # inches per metre in the frame panels
     width = max(F * cell * small + 1.5, 11.0)
-    inch = min(4.4, 0.6 * width / sum(span(p.axes[0]) for p in projs))   # inches per metre in the overlay
+    inch = min(4.4, 0.6 * width / sum(span(p.axes[0]) for p in projs))  # inches per metre in the overlay
     fig = Figure(figsize=(width, span(vert) * (inch + small) + 3.4), layout="constrained")
     top, bottom = fig.subfigures(2, 1, height_ratios=[span(vert) * inch + 1.3, span(vert) * small + 1.4])
     ratios = [span(p.axes[0]) for p in projs]
-    grid = top.subplots(1, len(projs) + 1, squeeze=False,
-                        gridspec_kw={"width_ratios": ratios + [max(0.25 * sum(ratios), width / inch - sum(ratios))]})[0]
+    grid = top.subplots(
+        1,
+        len(projs) + 1,
+        squeeze=False,
+        gridspec_kw={"width_ratios": ratios + [max(0.25 * sum(ratios), width / inch - sum(ratios))]},
+    )[0]
     overlay, note = grid[:-1], grid[-1]
     for ax, proj in zip(overlay, projs):
         hx, vx = proj.axes
@@ -126,19 +148,25 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
         ax.tick_params(labelsize=TEXT_PT)
         ax.locator_params(axis="x", nbins=4)
     note.set_axis_off()
-    how = ["How to read: every frame is drawn where it is. The support point O (▲) stays at the origin and no "
-           "frame is shifted, so the model does not walk away: link 1 stays on O for the whole motion.",
-           "", f"Left: all {F} frames overlaid in each projection; the first frame is the palest "
-           f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
-           "", "Below: the same frames one per panel, left to right in time, at one common scale.",
-           "", "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
-           f"the grey dashed line: {ground_label(mech)}."]
+    how = [
+        "How to read: every frame is drawn where it is. The support point O (▲) stays at the origin and no "
+        "frame is shifted, so the model does not walk away: link 1 stays on O for the whole motion.",
+        "",
+        f"Left: all {F} frames overlaid in each projection; the first frame is the palest "
+        f"(opacity {KINOGRAM_FIRST_ALPHA:g}), the last is opaque.",
+        "",
+        "Below: the same frames one per panel, left to right in time, at one common scale.",
+        "",
+        "Rods run from the start to the end of each link; the dots are the point masses, area ∝ mass; "
+        f"the grey dashed line: {ground_label(mech)}.",
+    ]
     # wrapped to the note's column by hand: the text takes no part in the layout (constrained layout
     # would otherwise shrink the plots beside it to make room for a long line)
     chars = max(30, int((width - inch * sum(ratios) - 1.0) * 72 / (0.6 * TEXT_PT)))
     text = "\n".join("\n".join(textwrap.wrap(line, chars)) if line else "" for line in how)
-    note.text(0.06, 0.95, text, transform=note.transAxes, ha="left", va="top", fontsize=TEXT_PT,
-              color="0.15").set_in_layout(False)
+    note.text(
+        0.06, 0.95, text, transform=note.transAxes, ha="left", va="top", fontsize=TEXT_PT, color="0.15"
+    ).set_in_layout(False)
     panels = bottom.subplots(1, F, sharey=True, squeeze=False)[0]
     proj = projs[0]
     hx, vx = proj.axes
@@ -153,16 +181,26 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
         ax.tick_params(labelsize=TEXT_PT)
         ax.locator_params(axis="x", nbins=3)
     panels[0].set_ylabel(proj.labels[1], fontsize=TEXT_PT)
-    bottom.suptitle(f"The same {F} frames one per panel, {proj.name}, left to right in time", fontsize=TEXT_PT,
-                    x=0.01, ha="left")
-    handles = [Line2D([], [], color=link_color(i), lw=2.2, label=f"link {i + 1}: {mech.names[i]}")
-               for i in range(mech.nlinks)]
-    handles += [Line2D([], [], color="0.45", ls="--", label=ground_label(mech)),
-                Line2D([], [], color="k", marker="^", ls="none", label="support point O")]
+    bottom.suptitle(
+        f"The same {F} frames one per panel, {proj.name}, left to right in time", fontsize=TEXT_PT, x=0.01, ha="left"
+    )
+    handles = [
+        Line2D([], [], color=link_color(i), lw=2.2, label=f"link {i + 1}: {mech.names[i]}") for i in range(mech.nlinks)
+    ]
+    handles += [
+        Line2D([], [], color="0.45", ls="--", label=ground_label(mech)),
+        Line2D([], [], color="k", marker="^", ls="none", label="support point O"),
+    ]
     fig.legend(handles=handles, fontsize=TEXT_PT, loc="outside lower center", ncols=min(len(handles), 7), frameon=False)
-    fig.suptitle(_header(study, f"Kinogram (paper's Fig. 9): {F} frames over {t[-1] - t[0]:.2f} s, drawn in place "
-                                f"(the support point O is fixed; frames are not shifted); dot area ∝ point mass "
-                                f"(largest {masses.max():.3g} kg)"), fontsize=TITLE_PT)
+    fig.suptitle(
+        _header(
+            study,
+            f"Kinogram (paper's Fig. 9): {F} frames over {t[-1] - t[0]:.2f} s, drawn in place "
+            f"(the support point O is fixed; frames are not shifted); dot area ∝ point mass "
+            f"(largest {masses.max():.3g} kg)",
+        ),
+        fontsize=TITLE_PT,
+    )
     return fig
 
 
@@ -178,7 +216,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     mech, t = study.mechanism, study.motion.t
     ok, ref = study.ok_methods(), reference_method(study)
     fig = Figure(figsize=(16, 9), layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.15, wspace=0.12)   # room for the 3D panel's z label
+    fig.get_layout_engine().set(w_pad=0.15, wspace=0.12)  # room for the 3D panel's z label
     gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1.45])
     ax3 = fig.add_subplot(gs[:, 0], projection="3d")
     s = int(round(frame * (len(t) - 1)))
@@ -188,16 +226,31 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     handles = []
     for i in range(mech.nlinks):
         a, b = P3[s, i, 0], P3[s, i, 2]
-        handles += ax3.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color=link_color(i), lw=3,
-                            label=f"link {i + 1}: {mech.names[i]}")
-        ax3.scatter(P3[s, i, :, 0], P3[s, i, :, 1], P3[s, i, :, 2], s=masses[i] / masses.max() * 220,
-                    color=link_color(i), edgecolors="k", depthshade=False)
+        handles += ax3.plot(
+            [a[0], b[0]], [a[1], b[1]], [a[2], b[2]], color=link_color(i), lw=3, label=f"link {i + 1}: {mech.names[i]}"
+        )
+        ax3.scatter(
+            P3[s, i, :, 0],
+            P3[s, i, :, 1],
+            P3[s, i, :, 2],
+            s=masses[i] / masses.max() * 220,
+            color=link_color(i),
+            edgecolors="k",
+            depthshade=False,
+        )
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
     back = max(int(round(0.2 / dt)), 1)
     for k, (name, (link, beta)) in enumerate(trail_points(mech).items()):
-        w = P3[max(s - back, 0): s + 1, link, beta]
-        handles += ax3.plot(w[:, 0], w[:, 1], w[:, 2], color="k", lw=1.2, ls=("--", ":", "-.")[k % 3],
-                            label=f"trail: {name}, last 0.2 s")
+        w = P3[max(s - back, 0) : s + 1, link, beta]
+        handles += ax3.plot(
+            w[:, 0],
+            w[:, 1],
+            w[:, 2],
+            color="k",
+            lw=1.2,
+            ls=("--", ":", "-.")[k % 3],
+            label=f"trail: {name}, last 0.2 s",
+        )
     handles += [ax3.scatter([0], [0], [0], marker="^", color="k", s=60, label="support point O")]
     span = float(np.ptp(P3[..., 2])) or 1.0
     c = P3[s].reshape(-1, 3).mean(axis=0)
@@ -216,8 +269,11 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     fig.legend(handles=handles, loc="outside lower left", fontsize=TEXT_PT, ncols=3, frameon=False)
     M = moments_and_forces(mech, study.results[ref].tau)
     for r, (vals, labels, unit, sym, title) in enumerate(
-            ((M[0], moment_labels(mech), "N·m", "M", "joint moments τ_joint = G⁻ᵀ τ"),
-             (M[1], force_labels(mech), "N", "F", "rod forces F"))):
+        (
+            (M[0], moment_labels(mech), "N·m", "M", "joint moments τ_joint = G⁻ᵀ τ"),
+            (M[1], force_labels(mech), "N", "F", "rod forces F"),
+        )
+    ):
         ax = fig.add_subplot(gs[r, 1])
         inv = curve_colors(mech, "moments" if r == 0 else "forces")
         for j in range(vals.shape[1]):
@@ -226,8 +282,13 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
         ax.set_title(f"{title} ({ref})", loc="left", fontsize=TEXT_PT)
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=TEXT_PT)
-        ax.legend(fontsize=TEXT_PT, ncols=2 if vals.shape[1] > 6 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5),
-                  frameon=False)
+        ax.legend(
+            fontsize=TEXT_PT,
+            ncols=2 if vals.shape[1] > 6 else 1,
+            loc="center left",
+            bbox_to_anchor=(1.0, 0.5),
+            frameon=False,
+        )
         ax.set_xlim(t[0], t[-1])
         ax.tick_params(labelbottom=False)
     ax = fig.add_subplot(gs[2, 1])
@@ -236,8 +297,11 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
         tj = joint_quantities(mech, study.results[m].tau - study.results[ref].tau)
         d = np.abs(tj).max(axis=1)
         ax.semilogy(t, np.where(d > 0, d, np.nan), color=method_color(m, ok), label=f"{m} − {ref}", gid=f"diff:{m}")
-    ax.set_title("differences: largest |method − reference| over all joints"
-                 if others else "differences: only one method ran", loc="left", fontsize=TEXT_PT)
+    ax.set_title(
+        "differences: largest |method − reference| over all joints" if others else "differences: only one method ran",
+        loc="left",
+        fontsize=TEXT_PT,
+    )
     ax.set_ylabel("max |Δ| (N·m or N)", fontsize=TEXT_PT)
     if others:
         ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
@@ -246,14 +310,20 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     ax.set_xlabel("time t (s)", fontsize=TEXT_PT)
     ax.set_xlim(t[0], t[-1])
     what = f"Overview in the layout of the rerun recording: moments and forces of {ref}" + (
-        f"; differences of {', '.join(others)} from it" if others else "")
+        f"; differences of {', '.join(others)} from it" if others else ""
+    )
     fig.suptitle(_header(study, what), fontsize=TITLE_PT)
     return fig
 
 
 # ----------------------------------------------------------------------------- saving
 #: Anatomical names of link ends, for the exoskeleton's link names only.
-_ANATOMY = {"stance_thigh": "hip", "swing_shin": "swing ankle", "stance_shin": "stance knee", "swing_thigh": "swing knee"}
+_ANATOMY = {
+    "stance_thigh": "hip",
+    "swing_shin": "swing ankle",
+    "stance_shin": "stance knee",
+    "swing_thigh": "swing knee",
+}
 
 
 def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
@@ -266,6 +336,7 @@ def trail_points(mech: Mechanism) -> dict[str, tuple[int, int]]:
     reversed links gets the free end of its last link, its tip (``"tip (hand end)"`` for a user's
     arm whose last link is ``hand``).
     """
+
     def name(i: int) -> str:
         n = mech.names[i]
         return f"{n} end" + (f" ({_ANATOMY[n]})" if n in _ANATOMY else "")

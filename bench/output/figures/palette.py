@@ -11,8 +11,18 @@ from exo_bench.api.methods import method_colour
 if TYPE_CHECKING:
     pass
 
-LINK_COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
-           "#bcbd22", "#7f7f7f")
+LINK_COLORS = (
+    "#1f77b4",
+    "#d62728",
+    "#2ca02c",
+    "#ff7f0e",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+    "#7f7f7f",
+)
 
 
 #: Colours of methods not in the method table (its MethodSpec.colour), in order of appearance.

@@ -28,16 +28,41 @@ from matplotlib.figure import Figure
 
 # The figures' parts, one responsibility each, re-exported here as the scene figures' interface.
 from exo_bench.bench.output.figures.curves import (  # noqa: F401
-    SCALE_RATIO, ZERO_FRACTION, ScaleGroups, curve_colors, differences_figure, forces_figure, group_by_scale,
-    moments_figure, nonfinite_notes, reference_method, scale_caption)
+    SCALE_RATIO,
+    ZERO_FRACTION,
+    ScaleGroups,
+    curve_colors,
+    differences_figure,
+    forces_figure,
+    group_by_scale,
+    moments_figure,
+    nonfinite_notes,
+    reference_method,
+    scale_caption,
+)
 from exo_bench.bench.output.figures.kinogram import (  # noqa: F401
-    KINOGRAM_FIRST_ALPHA, KINOGRAM_MAX_AREA, Projection, ground_label, kinogram_figure, kinogram_frames, overview_figure,
-    projections, trail_points)
+    KINOGRAM_FIRST_ALPHA,
+    KINOGRAM_MAX_AREA,
+    Projection,
+    ground_label,
+    kinogram_figure,
+    kinogram_frames,
+    overview_figure,
+    projections,
+    trail_points,
+)
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color  # noqa: F401
 from exo_bench.bench.output.provenance import save_figure  # noqa: F401 (re-exported: the scene figures' writer)
 from exo_bench.models.joint_coordinates import (  # noqa: F401
-    JointBasis, force_labels, generalised_moment_labels, generalised_moments, joint_basis, joint_quantities,
-    moment_labels, moments_and_forces)
+    JointBasis,
+    force_labels,
+    generalised_moment_labels,
+    generalised_moments,
+    joint_basis,
+    joint_quantities,
+    moment_labels,
+    moments_and_forces,
+)
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study
@@ -50,8 +75,13 @@ FIGURES = ("moments", "forces", "kinogram", "differences", "overview")
 def scene_figure(study: Study, kind: str) -> Figure | None:
     """The figure ``kind`` (one of :data:`FIGURES`) of a study; None for differences with fewer than
     two methods."""
-    make = {"moments": moments_figure, "forces": forces_figure, "kinogram": kinogram_figure,
-            "differences": differences_figure, "overview": overview_figure}
+    make = {
+        "moments": moments_figure,
+        "forces": forces_figure,
+        "kinogram": kinogram_figure,
+        "differences": differences_figure,
+        "overview": overview_figure,
+    }
     if kind not in make:
         raise ValueError(f"scene figure: field 'kind': expected one of {', '.join(FIGURES)}, got {kind!r}")
     return make[kind](study)
@@ -62,9 +92,11 @@ def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, fr
     methods, ``-differences.png``; return the paths written."""
     out = Path(out_dir)
     prefix = prefix or study.name
-    paths = [save_figure(moments_figure(study), out / f"{prefix}-moments.png"),
-             save_figure(forces_figure(study), out / f"{prefix}-forces.png"),
-             save_figure(kinogram_figure(study, frames), out / f"{prefix}-kinogram.png")]
+    paths = [
+        save_figure(moments_figure(study), out / f"{prefix}-moments.png"),
+        save_figure(forces_figure(study), out / f"{prefix}-forces.png"),
+        save_figure(kinogram_figure(study, frames), out / f"{prefix}-kinogram.png"),
+    ]
     diff = differences_figure(study)
     if diff is not None:
         paths.append(save_figure(diff, out / f"{prefix}-differences.png"))
@@ -72,9 +104,34 @@ def write_plots(study: Study, out_dir: str | Path, prefix: str | None = None, fr
 
 
 __all__ = [
-    "FIGURES", "JointBasis", "Projection", "ScaleGroups", "TEXT_PT", "curve_colors",
-    "differences_figure", "force_labels", "forces_figure", "generalised_moment_labels", "generalised_moments",
-    "ground_label", "group_by_scale", "joint_basis", "joint_quantities", "kinogram_figure", "kinogram_frames", "link_color",
-    "method_color", "moment_labels", "moments_and_forces", "moments_figure", "nonfinite_notes", "overview_figure",
-    "projections", "reference_method", "save_figure", "scene_figure", "trail_points", "write_plots",
+    "FIGURES",
+    "JointBasis",
+    "Projection",
+    "ScaleGroups",
+    "TEXT_PT",
+    "curve_colors",
+    "differences_figure",
+    "force_labels",
+    "forces_figure",
+    "generalised_moment_labels",
+    "generalised_moments",
+    "ground_label",
+    "group_by_scale",
+    "joint_basis",
+    "joint_quantities",
+    "kinogram_figure",
+    "kinogram_frames",
+    "link_color",
+    "method_color",
+    "moment_labels",
+    "moments_and_forces",
+    "moments_figure",
+    "nonfinite_notes",
+    "overview_figure",
+    "projections",
+    "reference_method",
+    "save_figure",
+    "scene_figure",
+    "trail_points",
+    "write_plots",
 ]

@@ -19,17 +19,68 @@ the verdicts, the singular points and the gait), ``report`` (the Markdown, and :
 ``exo-bench errata`` job). This package re-exports their public names.
 """
 
-from exo_bench.bench.studies.errata.cases import (CHAIN_LENGTHS, SAMPLES, SEED, TREES, chains, prefix,
-                                         prefix_states, singular_configuration, spatial_models)
-from exo_bench.bench.studies.errata.witnesses import (LagrangeWitness, PinocchioWitness, form_residual,
-                                             pinocchio_matrices)
-from exo_bench.bench.studies.errata.evaluation import (TOLERANCE, Check, Results, Singular, Verdict,
-                                              check_all, check_branch_rule, check_equation, check_matrix,
-                                              check_singular, check_transition, compute, gait_effect)
+from exo_bench.bench.studies.errata.cases import (
+    CHAIN_LENGTHS,
+    SAMPLES,
+    SEED,
+    TREES,
+    chains,
+    prefix,
+    prefix_states,
+    singular_configuration,
+    spatial_models,
+)
+from exo_bench.bench.studies.errata.witnesses import (
+    LagrangeWitness,
+    PinocchioWitness,
+    form_residual,
+    pinocchio_matrices,
+)
+from exo_bench.bench.studies.errata.evaluation import (
+    TOLERANCE,
+    Check,
+    Results,
+    Singular,
+    Verdict,
+    check_all,
+    check_branch_rule,
+    check_equation,
+    check_matrix,
+    check_singular,
+    check_transition,
+    compute,
+    gait_effect,
+)
 from exo_bench.bench.studies.errata.report import render, run, write_report
 
-__all__ = ["CHAIN_LENGTHS", "SAMPLES", "SEED", "TREES", "chains", "prefix", "prefix_states", "singular_configuration",
-           "spatial_models", "LagrangeWitness", "PinocchioWitness", "form_residual", "pinocchio_matrices",
-           "TOLERANCE", "Check", "Results", "Singular", "Verdict", "check_all", "check_branch_rule", "check_equation",
-           "check_matrix", "check_singular", "check_transition", "compute", "gait_effect", "render", "run",
-           "write_report"]
+__all__ = [
+    "CHAIN_LENGTHS",
+    "SAMPLES",
+    "SEED",
+    "TREES",
+    "chains",
+    "prefix",
+    "prefix_states",
+    "singular_configuration",
+    "spatial_models",
+    "LagrangeWitness",
+    "PinocchioWitness",
+    "form_residual",
+    "pinocchio_matrices",
+    "TOLERANCE",
+    "Check",
+    "Results",
+    "Singular",
+    "Verdict",
+    "check_all",
+    "check_branch_rule",
+    "check_equation",
+    "check_matrix",
+    "check_singular",
+    "check_transition",
+    "compute",
+    "gait_effect",
+    "render",
+    "run",
+    "write_report",
+]

@@ -27,13 +27,19 @@ def states(mech: Mechanism, seed: int):
 
 def prefix(mech: Mechanism, n: int) -> Mechanism:
     """The model of the first n links."""
-    return mech.replace(parent=mech.parent[:n], sign=mech.sign[:n], masses=mech.masses[:n], n=mech.n[:n],
-                        names=mech.names[:n], name=f"{mech.name}[:{n}]")
+    return mech.replace(
+        parent=mech.parent[:n],
+        sign=mech.sign[:n],
+        masses=mech.masses[:n],
+        n=mech.n[:n],
+        names=mech.names[:n],
+        name=f"{mech.name}[:{n}]",
+    )
 
 
 def prefix_states(mech: Mechanism, q: np.ndarray, n: int) -> np.ndarray:
     N = mech.nlinks
-    return np.concatenate([q[:, b * N:b * N + n] for b in range(mech.dim)], axis=1)
+    return np.concatenate([q[:, b * N : b * N + n] for b in range(mech.dim)], axis=1)
 
 
 def planar_states(mech: Mechanism, q: np.ndarray) -> np.ndarray:
@@ -86,6 +92,18 @@ def singular_configuration() -> tuple[Mechanism, np.ndarray]:
     ``cos phi_1 = 0``, ``sin phi_2 = 0`` and ``cos(phi_1 - phi_2) = 0``, and ``l_3 = 0`` (a rod
     retracted to zero length, the divisor of the printed ``k^l``); exact sympy numbers."""
     mech = chain(3, 3, seed=SEED)
-    q = np.array([sp.pi / 2, sp.S.Zero, sp.pi / 4, sp.Rational(1, 3), sp.Rational(-1, 5), sp.Rational(2, 7),
-                  sp.Rational(1, 2), sp.Rational(3, 4), sp.S.Zero], dtype=object)
+    q = np.array(
+        [
+            sp.pi / 2,
+            sp.S.Zero,
+            sp.pi / 4,
+            sp.Rational(1, 3),
+            sp.Rational(-1, 5),
+            sp.Rational(2, 7),
+            sp.Rational(1, 2),
+            sp.Rational(3, 4),
+            sp.S.Zero,
+        ],
+        dtype=object,
+    )
     return mech, q

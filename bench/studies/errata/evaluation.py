@@ -12,7 +12,12 @@ import numpy as np
 import sympy as sp
 
 from exo_bench.bench.studies.errata import cases
-from exo_bench.bench.studies.errata.witnesses import LagrangeWitness, PinocchioWitness, form_residual, pinocchio_matrices
+from exo_bench.bench.studies.errata.witnesses import (
+    LagrangeWitness,
+    PinocchioWitness,
+    form_residual,
+    pinocchio_matrices,
+)
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import printed
 from exo_bench.matrix_method.printed import Printed
@@ -32,11 +37,11 @@ class Check:
 
     model: str
     witness: str
-    error: float = math.nan            # largest |printed - witness|
-    scale: float = math.nan            # largest |witness| (the error is relative to it)
-    corrected: float = math.nan        # relative error of the corrected form, if any
-    method: float = math.nan           # relative error of the matrix method's element (eq. 18 lines)
-    nan: int = 0                       # NaN entries of the printed form
+    error: float = math.nan  # largest |printed - witness|
+    scale: float = math.nan  # largest |witness| (the error is relative to it)
+    corrected: float = math.nan  # relative error of the corrected form, if any
+    method: float = math.nan  # relative error of the matrix method's element (eq. 18 lines)
+    nan: int = 0  # NaN entries of the printed form
     skipped: str = ""
 
     @property
@@ -138,15 +143,22 @@ def check_transition(f: Printed, witnesses, models=None) -> Verdict:
                 value = np.broadcast_to(f.fn(t), ref.shape)
                 corr = np.broadcast_to(f.corrected(t), ref.shape) if f.corrected else None
             err, _ = _rel(value, ref)
-            out = dict(error=err, scale=scale, nan=int(np.isnan(value).sum()),
-                       method=_rel(numeric.matrices(mech, q)[f.block][f.name], ref)[0] / scale)
+            out = dict(
+                error=err,
+                scale=scale,
+                nan=int(np.isnan(value).sum()),
+                method=_rel(numeric.matrices(mech, q)[f.block][f.name], ref)[0] / scale,
+            )
             if corr is not None:
                 out["corrected"] = _rel(corr, ref)[0] / scale
             return out
+
         _run(witnesses, mech, fn, v)
     if f.printed_dim == 2:
-        v.note = ("The printed left side is a 2D element; the witnesses' planar models have no psi block "
-                  f"(the left side {'exists' if v.label_exists else 'does not exist'}). " + f.reading)
+        v.note = (
+            "The printed left side is a 2D element; the witnesses' planar models have no psi block "
+            f"(the left side {'exists' if v.label_exists else 'does not exist'}). " + f.reading
+        )
     elif f.reading:
         v.note = f.reading
     return v
@@ -162,7 +174,7 @@ def check_equation(f: Printed, witnesses) -> Verdict:
         def fn(w):
             if rows == "A phi'' row 1":
                 A = w.matrices(mech, q)["phi"]["A"]
-                ref = np.einsum("sj,sj->s", A[:, 0, :], qdd[:, :mech.nlinks])[:, None]
+                ref = np.einsum("sj,sj->s", A[:, 0, :], qdd[:, : mech.nlinks])[:, None]
             else:
                 ref = w.equations(mech, q, qd, qdd)
                 ref = ref if rows is None else ref[:, rows]
@@ -172,6 +184,7 @@ def check_equation(f: Printed, witnesses) -> Verdict:
             if f.corrected:
                 out["corrected"] = _rel(f.corrected(x), ref)[0] / scale
             return out
+
         _run(witnesses, mech, fn, v)
     return v
 
@@ -184,7 +197,7 @@ def check_matrix(f: Printed, witnesses) -> Verdict:
 
         def fn(w):
             ref = w.matrices(mech, q)["phi"]["A"]
-            if smaller is not None:                      # A_{n+1} - (A_n padded), eqs. (23)-(24)
+            if smaller is not None:  # A_{n+1} - (A_n padded), eqs. (23)-(24)
                 n = smaller.nlinks
                 pad = np.zeros_like(ref)
                 pad[:, :n, :n] = w.matrices(smaller, cases.prefix_states(mech, q, n))["phi"]["A"]
@@ -192,6 +205,7 @@ def check_matrix(f: Printed, witnesses) -> Verdict:
             value = f.fn(x)
             err, scale = _rel(value, ref)
             return dict(error=err, scale=scale, nan=int(np.isnan(value).sum()))
+
         _run(witnesses, mech, fn, v)
     return v
 
@@ -213,6 +227,7 @@ def check_branch_rule(witnesses) -> dict[str, Verdict]:
                     s = np.where(np.arange(1, branched.nlinks + 1) >= 3, -1.0, 1.0) if name == "P" else sigma
                     err = max(err, float(np.abs(s * a[blk][name] - b[blk][name]).max()))
             return dict(error=err, scale=scale)
+
         _run(witnesses, branched, fn, v)
         out[reading] = v
     return out
@@ -232,10 +247,10 @@ def check_all(witnesses=None) -> list[Verdict]:
 class Singular:
     key: str
     divides_by: tuple[str, ...]
-    exact_nan: int            # NaN entries of the printed form, exact arithmetic
-    float_nan: int            # NaN entries at the nearest doubles
-    float_error: float        # relative error of the finite printed entries at the nearest doubles
-    matrix_error: float       # relative error of the matrix method (division-free) there
+    exact_nan: int  # NaN entries of the printed form, exact arithmetic
+    float_nan: int  # NaN entries at the nearest doubles
+    float_error: float  # relative error of the finite printed entries at the nearest doubles
+    matrix_error: float  # relative error of the matrix method (division-free) there
 
 
 def check_singular() -> list[Singular]:
@@ -257,9 +272,16 @@ def check_singular() -> list[Singular]:
         r = ref[f.block][f.name]
         scale = _scale(r, ref)
         finite = np.isfinite(fl)
-        out.append(Singular(f.key, f.divides_by, sum(1 for x in e if x is sp.nan or x in (sp.zoo, sp.oo, -sp.oo)),
-                            int((~finite).sum()), float(np.abs(fl - r)[finite].max()) / scale,
-                            float(np.abs(ours[f.block][f.name] - r).max()) / scale))
+        out.append(
+            Singular(
+                f.key,
+                f.divides_by,
+                sum(1 for x in e if x is sp.nan or x in (sp.zoo, sp.oo, -sp.oo)),
+                int((~finite).sum()),
+                float(np.abs(fl - r)[finite].max()) / scale,
+                float(np.abs(ours[f.block][f.name] - r).max()) / scale,
+            )
+        )
     return out
 
 
@@ -272,7 +294,7 @@ def gait_effect(samples: int = 111) -> dict:
     mo = gait(mech, np.linspace(0.0, T, samples))
     ref = pb.inverse_dynamics(mech, mo.q, mo.qd, mo.qdd)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)      # the NaNs are counted below
+        warnings.simplefilter("ignore", RuntimeWarning)  # the NaNs are counted below
         paper = numeric.inverse_dynamics_paper(mech, mo.q, mo.qd, mo.qdd)
     ours = numeric.inverse_dynamics(mech, mo.q, mo.qd, mo.qdd)
     n = mech.nlinks
@@ -281,8 +303,10 @@ def gait_effect(samples: int = 111) -> dict:
         cols = slice(k * n, (k + 1) * n)
         r, p = ref[:, cols], paper[:, cols]
         finite = np.isfinite(p).all(axis=1)
-        out[block] = (float(np.abs(p[finite] - r[finite]).max() / np.abs(r).max()) if finite.any() else math.nan,
-                      int((~finite).sum()))
+        out[block] = (
+            float(np.abs(p[finite] - r[finite]).max() / np.abs(r).max()) if finite.any() else math.nan,
+            int((~finite).sum()),
+        )
     out["matrix"] = float(np.abs(ours - ref).max() / np.abs(ref).max())
     return out
 

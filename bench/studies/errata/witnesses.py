@@ -1,5 +1,4 @@
-"""Errata study, the witnesses: Lagrange and Pinocchio, and every matrix of eq. (5)/(17) read off them.
-"""
+"""Errata study, the witnesses: Lagrange and Pinocchio, and every matrix of eq. (5)/(17) read off them."""
 
 from __future__ import annotations
 
@@ -60,8 +59,19 @@ def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np
                 m[name] = np.stack([h[j, idx[(a,)], :, rows(b)] - h0[:, rows(b)] for j in range(n)], -1)
         for (a, c), name in mixed.items():
             if a in off and c in off:
-                m[name] = np.stack([0.5 * (h[j, idx[(a, c)], :, rows(b)] - h[j, idx[(a,)], :, rows(b)]
-                                           - h[j, idx[(c,)], :, rows(b)] + h0[:, rows(b)]) for j in range(n)], -1)
+                m[name] = np.stack(
+                    [
+                        0.5
+                        * (
+                            h[j, idx[(a, c)], :, rows(b)]
+                            - h[j, idx[(a,)], :, rows(b)]
+                            - h[j, idx[(c,)], :, rows(b)]
+                            + h0[:, rows(b)]
+                        )
+                        for j in range(n)
+                    ],
+                    -1,
+                )
         out[b] = m
     return out
 
@@ -95,8 +105,11 @@ def _lagrange_compiled(mech: Mechanism, budget: float):
 
     d = derive(mech, symbolic_parameters=False, budget=budget)
     S = d.symbols
-    mats = {(b, name): (M.shape, sp.lambdify(list(S.q), list(M), modules="numpy", cse=True))
-            for b, ms in d.matrices.items() for name, M in ms.items()}
+    mats = {
+        (b, name): (M.shape, sp.lambdify(list(S.q), list(M), modules="numpy", cse=True))
+        for b, ms in d.matrices.items()
+        for name, M in ms.items()
+    }
     eqs = sp.lambdify(list(S.q + S.qd + S.qdd), list(d.equations), modules="numpy", cse=True)
     return mats, eqs
 

@@ -49,52 +49,78 @@ class IllConditionedWarning(StabilityWarning):
 @dataclass(frozen=True)
 class Profile:
     name: str
-    samples: int                          # states per case
-    distances: tuple[float, ...]          # from pi/2 (vertical rods) and from eq. (18)'s singularities
-    lengths: tuple[float, ...]            # scale of every rod
-    one_length: tuple[float, ...]         # length of link 2 alone
-    ratios: tuple[float, ...]             # mass ratio swing leg / rest
+    samples: int  # states per case
+    distances: tuple[float, ...]  # from pi/2 (vertical rods) and from eq. (18)'s singularities
+    lengths: tuple[float, ...]  # scale of every rod
+    one_length: tuple[float, ...]  # length of link 2 alone
+    ratios: tuple[float, ...]  # mass ratio swing leg / rest
     large_n: tuple[int, ...]
-    periods: tuple[float, ...]            # gait period T (s)
-    lagrange_budget: float                # seconds of symbolic work per mechanism for `lagrange`
-    wp_rtols: tuple[float, ...]           # round-trip work-precision grid (gait), every integrator
-    rt_rtols: tuple[float, ...]           # the other round-trip cases (DOP853 and Radau)
-    rt_integrators: tuple[str, ...]       # integrators of the other round-trip cases
-    method_rtol: float                    # per-method round trip (DOP853)
+    periods: tuple[float, ...]  # gait period T (s)
+    lagrange_budget: float  # seconds of symbolic work per mechanism for `lagrange`
+    wp_rtols: tuple[float, ...]  # round-trip work-precision grid (gait), every integrator
+    rt_rtols: tuple[float, ...]  # the other round-trip cases (DOP853 and Radau)
+    rt_integrators: tuple[str, ...]  # integrators of the other round-trip cases
+    method_rtol: float  # per-method round trip (DOP853)
     energy_rtols: tuple[float, ...]
     stiff_k: tuple[float, ...]
     stiff_mass_scales: tuple[float, ...]  # tiny masses, at k = 1e4
     stiff_rtol: float
-    stiff_budget: int                     # right-hand-side evaluations before an integrator gives up
+    stiff_budget: int  # right-hand-side evaluations before an integrator gives up
     full_cases: bool = False
-    method_seconds: float = 120.0         # wall time per method per forward-dynamics run
-    rt_cases: tuple[str, ...] = ()        # round-trip cases to run (empty: all of bench.forward.round_trip_cases)
+    method_seconds: float = 120.0  # wall time per method per forward-dynamics run
+    rt_cases: tuple[str, ...] = ()  # round-trip cases to run (empty: all of bench.forward.round_trip_cases)
     method_cases: tuple[str, ...] = ("exo5-2d planar gait", "tree4-3d random motion")  # every method's M, h
-    energy_cases: tuple[str, ...] = ()    # conservative cases to run (empty: all)
-    stiff_reference_rtol: float = 1e-9    # Radau reference of the stiff runs
-    stiff_seconds: float = 30.0           # wall time per stiff run (and its reference)
+    energy_cases: tuple[str, ...] = ()  # conservative cases to run (empty: all)
+    stiff_reference_rtol: float = 1e-9  # Radau reference of the stiff runs
+    stiff_seconds: float = 30.0  # wall time per stiff run (and its reference)
 
 
-QUICK = Profile("quick", samples=3, distances=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 0.0),
-                lengths=(0.0, 1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6), one_length=(0.0, 1e-9, 1e-6, 1e-3, 1e3, 1e6),
-                ratios=(1e-6, 1e-3, 1.0, 1e3, 1e6), large_n=(50, 100), periods=(1.1, 0.1, 0.01),
-                lagrange_budget=10.0, wp_rtols=(1e-4, 1e-6, 1e-8, 1e-10, 1e-12), rt_rtols=(1e-6, 1e-8, 1e-10),
-                rt_integrators=("DOP853", "Radau"), method_rtol=1e-8, energy_rtols=(1e-5, 1e-7, 1e-9),
-                stiff_k=(1e4, 1e6, 1e8), stiff_mass_scales=(1e-4,), stiff_rtol=1e-6, stiff_budget=20_000,
-                method_seconds=60.0)
+QUICK = Profile(
+    "quick",
+    samples=3,
+    distances=(1e-2, 1e-4, 1e-6, 1e-8, 1e-10, 1e-12, 0.0),
+    lengths=(0.0, 1e-9, 1e-6, 1e-3, 1.0, 1e3, 1e6),
+    one_length=(0.0, 1e-9, 1e-6, 1e-3, 1e3, 1e6),
+    ratios=(1e-6, 1e-3, 1.0, 1e3, 1e6),
+    large_n=(50, 100),
+    periods=(1.1, 0.1, 0.01),
+    lagrange_budget=10.0,
+    wp_rtols=(1e-4, 1e-6, 1e-8, 1e-10, 1e-12),
+    rt_rtols=(1e-6, 1e-8, 1e-10),
+    rt_integrators=("DOP853", "Radau"),
+    method_rtol=1e-8,
+    energy_rtols=(1e-5, 1e-7, 1e-9),
+    stiff_k=(1e4, 1e6, 1e8),
+    stiff_mass_scales=(1e-4,),
+    stiff_rtol=1e-6,
+    stiff_budget=20_000,
+    method_seconds=60.0,
+)
 
 
-FULL = Profile("full", samples=8, distances=(1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10,
-                                             1e-11, 1e-12, 1e-13, 0.0),
-               lengths=(0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1e-1, 1.0, 10.0, 1e3, 1e6),
-               one_length=(0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1e3, 1e6),
-               ratios=(1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0, 1e2, 1e3, 1e4, 1e5, 1e6),
-               large_n=(50, 100), periods=(1.1, 0.5, 0.3, 0.1, 0.03, 0.01, 0.003), lagrange_budget=120.0,
-               wp_rtols=(1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
-               rt_rtols=(1e-6, 1e-8, 1e-10, 1e-12), rt_integrators=("RK45", "DOP853", "Radau", "BDF"),
-               method_rtol=1e-10, energy_rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
-               stiff_k=(1e3, 1e4, 1e5, 1e6, 1e7, 1e8), stiff_mass_scales=(1e-2, 1e-4, 1e-6), stiff_rtol=1e-6,
-               stiff_budget=200_000, full_cases=True, method_seconds=600.0, stiff_seconds=120.0)
+FULL = Profile(
+    "full",
+    samples=8,
+    distances=(1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 0.0),
+    lengths=(0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1e-1, 1.0, 10.0, 1e3, 1e6),
+    one_length=(0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1e3, 1e6),
+    ratios=(1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0, 1e2, 1e3, 1e4, 1e5, 1e6),
+    large_n=(50, 100),
+    periods=(1.1, 0.5, 0.3, 0.1, 0.03, 0.01, 0.003),
+    lagrange_budget=120.0,
+    wp_rtols=(1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12),
+    rt_rtols=(1e-6, 1e-8, 1e-10, 1e-12),
+    rt_integrators=("RK45", "DOP853", "Radau", "BDF"),
+    method_rtol=1e-10,
+    energy_rtols=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+    stiff_k=(1e3, 1e4, 1e5, 1e6, 1e7, 1e8),
+    stiff_mass_scales=(1e-2, 1e-4, 1e-6),
+    stiff_rtol=1e-6,
+    stiff_budget=200_000,
+    full_cases=True,
+    method_seconds=600.0,
+    stiff_seconds=120.0,
+)
 
 
 # ----------------------------------------------------------------------------- cases
@@ -103,9 +129,9 @@ class Case:
     """A scene-like extreme case: a mechanism and states ``(samples, dof)``."""
 
     family: str
-    series: str                 # sub-series within the family (one line in the plots)
-    label: str                  # this case within the series
-    x: float                    # the swept parameter (distance, length, ratio, n, T)
+    series: str  # sub-series within the family (one line in the plots)
+    label: str  # this case within the series
+    x: float  # the swept parameter (distance, length, ratio, n, T)
     mechanism: Mechanism
     q: np.ndarray
     qd: np.ndarray
@@ -138,7 +164,7 @@ def family_near_vertical(p: Profile) -> list[Case]:
     out = []
     for k, d in enumerate(p.distances):
         q, qd, qdd = random_states(mech, p.samples, 100 + k)
-        q[:, n:2 * n] = math.pi / 2 - d
+        q[:, n : 2 * n] = math.pi / 2 - d
         out.append(Case("near-vertical rods", "psi = pi/2 - d", f"d = {_fmt(d)}", d, mech, q, qd, qdd))
     return out
 
@@ -160,8 +186,9 @@ def family_removable(p: Profile) -> list[Case]:
                 q[:, :n] = rng.choice([-1.0, 1.0], (p.samples, n)) * math.pi / 2 + d
             else:
                 q[:, :n] = d
-            out.append(Case("removable singularities of eq. (18)", series, f"{series}, d = {_fmt(d)}", d,
-                            mech, q, qd, qdd))
+            out.append(
+                Case("removable singularities of eq. (18)", series, f"{series}, d = {_fmt(d)}", d, mech, q, qd, qdd)
+            )
     return out
 
 
@@ -177,8 +204,9 @@ def family_lengths(p: Profile) -> list[Case]:
         # Rates of the lengths scale with them, so that the motion stays the same shape.
         qd[:, -n:] *= L
         qdd[:, -n:] *= L
-        out.append(Case("very short and very long rods", "every rod ~ L", f"every rod ~ L = {_fmt(L)} m", L,
-                        mech, q, qd, qdd))
+        out.append(
+            Case("very short and very long rods", "every rod ~ L", f"every rod ~ L = {_fmt(L)} m", L, mech, q, qd, qdd)
+        )
     for k, L in enumerate(p.one_length):
         q, qd, qdd = random_states(mech, p.samples, 600 + k)
         q[:, mech.dof - n + 1] = L  # l_2
@@ -243,4 +271,3 @@ FAMILIES = {
     "large n": family_large_n,
     "fast gaits": family_fast_gaits,
 }
-

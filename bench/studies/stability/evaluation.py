@@ -13,7 +13,16 @@ import warnings
 import numpy as np
 
 from exo_bench.api import PreparedSet
-from exo_bench.bench.studies.stability.cases import COND_ILL, COND_SINGULAR, Case, FAMILIES, IllConditionedWarning, Profile, REL_DEGRADED, REL_UNUSABLE
+from exo_bench.bench.studies.stability.cases import (
+    COND_ILL,
+    COND_SINGULAR,
+    Case,
+    FAMILIES,
+    IllConditionedWarning,
+    Profile,
+    REL_DEGRADED,
+    REL_UNUSABLE,
+)
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
 from exo_bench.models import forward_dynamics as fd
@@ -53,10 +62,10 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
 @dataclass
 class MethodRow:
     method: str
-    status: str = "ok"                # ok, skipped, failed, missing
+    status: str = "ok"  # ok, skipped, failed, missing
     reason: str = ""
-    abs_err: float = math.nan         # max |tau - ref| over finite entries
-    rel_err: float = math.nan         # abs_err / max |ref|
+    abs_err: float = math.nan  # max |tau - ref| over finite entries
+    rel_err: float = math.nan  # abs_err / max |ref|
     nonfinite: int = 0
     seconds: float = math.nan
 
@@ -74,10 +83,10 @@ class CaseResult:
     case: Case
     reference: str
     rows: dict[str, MethodRow]
-    cond_raw: float                   # max over samples
+    cond_raw: float  # max over samples
     cond_eq: float
-    cond_mu: float                    # cond(D^-1/2 mu D^-1/2): what cond_eq is in exact arithmetic
-    singular: list[str]               # exact causes, "sample s: ..." (at most a few)
+    cond_mu: float  # cond(D^-1/2 mu D^-1/2): what cond_eq is in exact arithmetic
+    singular: list[str]  # exact causes, "sample s: ..." (at most a few)
     singular_samples: int
 
     @property
@@ -106,8 +115,9 @@ def _memo_skip(memo: dict, method: str, mech: Mechanism) -> str | None:
     return None
 
 
-def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
-                  models: PreparedSet | None = None) -> CaseResult:
+def evaluate_case(
+    case: Case, methods: list[str], memo: dict | None = None, models: PreparedSet | None = None
+) -> CaseResult:
     """Every method on one case, against the reference; the mass matrix's condition and exact
     singularities. ``memo`` carries skips across cases: a method over its budget on a mechanism
     is not tried again on one of the same structure or with at least as many links in the same
@@ -147,8 +157,10 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
             if skip:
                 row.status, row.reason = "skipped", str(skip)
                 memo[(m, mech.dim, mech.parent, mech.sign)] = (
-                    mech.nlinks, f"{skip} (on {mech.name}; not retried on the same structure or on "
-                                 f"{mech.dim}D models of {mech.nlinks} links or more)")
+                    mech.nlinks,
+                    f"{skip} (on {mech.name}; not retried on the same structure or on "
+                    f"{mech.dim}D models of {mech.nlinks} links or more)",
+                )
             else:
                 row.status, row.reason = "failed", one_line(e)
             rows[m] = row
@@ -163,8 +175,16 @@ def evaluate_case(case: Case, methods: list[str], memo: dict | None = None,
     raw, eq = fd.condition_numbers(M)
     reasons = fd.singular_reasons(mech, case.q)
     flat = [f"sample {s}: {r}" for s, rs in enumerate(reasons) for r in rs]
-    return CaseResult(case, label, rows, float(raw.max()), float(eq.max()), equilibrated_mu_condition(mech),
-                      flat[:3], sum(1 for rs in reasons if rs))
+    return CaseResult(
+        case,
+        label,
+        rows,
+        float(raw.max()),
+        float(eq.max()),
+        equilibrated_mu_condition(mech),
+        flat[:3],
+        sum(1 for rs in reasons if rs),
+    )
 
 
 def equilibrated_mu_condition(mech: Mechanism) -> float:
@@ -184,7 +204,7 @@ class FamilyResult:
     doc: str
     results: list[CaseResult]
     seconds: float
-    warnings: dict[str, str] = field(default_factory=dict)    # method -> why it is unusable here
+    warnings: dict[str, str] = field(default_factory=dict)  # method -> why it is unusable here
     mass_warning: str = ""
 
     def worst(self, method: str) -> tuple[str, MethodRow | None, CaseResult | None]:
@@ -197,8 +217,11 @@ class FamilyResult:
                 continue
             v = row.verdict
             r = _VERDICT_ORDER[v]
-            if r > rank or (r == rank and v in ("ok", "degraded", "unusable")
-                            and (row.nonfinite, row.rel_err) > (best[1].nonfinite, best[1].rel_err)):
+            if r > rank or (
+                r == rank
+                and v in ("ok", "degraded", "unusable")
+                and (row.nonfinite, row.rel_err) > (best[1].nonfinite, best[1].rel_err)
+            ):
                 best, rank = (v, row, cr), r
         return best
 
@@ -206,8 +229,14 @@ class FamilyResult:
         return max((cr.fd_verdict for cr in self.results), key=_FD_ORDER.get, default="ok")
 
 
-def evaluate_family(name: str, cases: list[Case], methods: list[str], memo: dict | None = None,
-                    doc: str = "", options: dict[str, dict] | None = None) -> FamilyResult:
+def evaluate_family(
+    name: str,
+    cases: list[Case],
+    methods: list[str],
+    memo: dict | None = None,
+    doc: str = "",
+    options: dict[str, dict] | None = None,
+) -> FamilyResult:
     """Evaluate every case; warn (:class:`UnusableMethodWarning`, :class:`IllConditionedWarning`)
     once per unusable method and once for an ill-conditioned or singular family."""
     t0 = time.perf_counter()
@@ -221,9 +250,11 @@ def evaluate_family(name: str, cases: list[Case], methods: list[str], memo: dict
         if bad:
             nan = sum(cr.rows[m].nonfinite for cr in bad)
             worst = max(bad, key=lambda cr: (cr.rows[m].nonfinite, cr.rows[m].rel_err))
-            msg = (f"method {m!r} is unusable on {name}: {len(bad)} of {len(res.results)} cases "
-                   f"({nan} NaN/Inf values; worst: {worst.case.label}, "
-                   f"{_nan_or_rel(worst.rows[m])})")
+            msg = (
+                f"method {m!r} is unusable on {name}: {len(bad)} of {len(res.results)} cases "
+                f"({nan} NaN/Inf values; worst: {worst.case.label}, "
+                f"{_nan_or_rel(worst.rows[m])})"
+            )
             res.warnings[m] = msg
             warnings.warn(msg, UnusableMethodWarning, stacklevel=2)
     fdw = res.fd_worst()
@@ -231,9 +262,11 @@ def evaluate_family(name: str, cases: list[Case], methods: list[str], memo: dict
         counts = {v: sum(cr.fd_verdict == v for cr in res.results) for v in _FD_ORDER if v != "ok"}
         parts = ", ".join(f"{c} {v}" for v, c in sorted(counts.items(), key=lambda kv: -_FD_ORDER[kv[0]]) if c)
         first = next(cr for cr in res.results if cr.fd_verdict == fdw)
-        msg = (f"mass matrix on {name}: {parts} of {len(res.results)} cases (forward dynamics undefined where "
-               f"singular, losing digits elsewhere; worst first at {first.case.label}: "
-               f"{first.singular[0] if first.singular else f'cond(M) {first.cond_raw:.1e}'})")
+        msg = (
+            f"mass matrix on {name}: {parts} of {len(res.results)} cases (forward dynamics undefined where "
+            f"singular, losing digits elsewhere; worst first at {first.case.label}: "
+            f"{first.singular[0] if first.singular else f'cond(M) {first.cond_raw:.1e}'})"
+        )
         res.mass_warning = msg
         warnings.warn(msg, IllConditionedWarning, stacklevel=2)
     return res
@@ -259,4 +292,3 @@ def evaluate_families(profile: Profile, methods: list[str], log=print) -> list[F
         doc = " ".join((make.__doc__ or "").split())
         out.append(evaluate_family(name, make(profile), methods, memo, doc, method_options(profile)))
     return out
-

@@ -39,11 +39,14 @@ def _xpos(xs: np.ndarray) -> np.ndarray:
     return np.where(xs > 0, xs, zero_at)
 
 
-_XLABELS = {"near-vertical rods": "distance from vertical d = pi/2 - psi (rad)",
-            "removable singularities of eq. (18)": "distance d from the singularity (rad)",
-            "very short and very long rods": "rod length L (m)",
-            "mass ratios": "mass ratio r: swing leg masses x r (dimensionless)",
-            "large n": "number of links n (links)", "fast gaits": "gait period T (s)"}
+_XLABELS = {
+    "near-vertical rods": "distance from vertical d = pi/2 - psi (rad)",
+    "removable singularities of eq. (18)": "distance d from the singularity (rad)",
+    "very short and very long rods": "rod length L (m)",
+    "mass ratios": "mass ratio r: swing leg masses x r (dimensionless)",
+    "large n": "number of links n (links)",
+    "fast gaits": "gait period T (s)",
+}
 
 
 def _swept(families: list[FamilyResult]) -> list[FamilyResult]:
@@ -89,7 +92,7 @@ def _family_panels(families: list[FamilyResult]):
     fams = _swept(families)
     fig = Figure(figsize=(15, 10.5), layout="constrained")
     axes = fig.subplots(2, 3).ravel()
-    for ax in axes[len(fams):]:
+    for ax in axes[len(fams) :]:
         ax.set_visible(False)
     panels = []
     for ax, fr in zip(axes, fams):
@@ -113,25 +116,37 @@ def families_figure(families: list[FamilyResult], methods: list[str]):
         for m in methods:
             color = method_color(m, methods)
             for si, s in enumerate(series):
-                crs = sorted([cr for cr in cases if cr.case.series == s and m in cr.rows and cr.rows[m].status == "ok"],
-                             key=lambda cr: xmap[id(cr)])
+                crs = sorted(
+                    [cr for cr in cases if cr.case.series == s and m in cr.rows and cr.rows[m].status == "ok"],
+                    key=lambda cr: xmap[id(cr)],
+                )
                 if not crs:
                     continue
                 xs = np.array([xmap[id(cr)] for cr in crs])
                 ys = np.array([np.nan if cr.rows[m].nonfinite else max(cr.rows[m].rel_err, FLOOR) for cr in crs])
-                ax.loglog(xs, ys, color=color, ls="-", marker=_SERIES_MARKERS[si % len(_SERIES_MARKERS)], ms=4,
-                          lw=1, label=m)
+                ax.loglog(
+                    xs, ys, color=color, ls="-", marker=_SERIES_MARKERS[si % len(_SERIES_MARKERS)], ms=4, lw=1, label=m
+                )
                 bad = [i for i, cr in enumerate(crs) if cr.rows[m].nonfinite]
                 if bad:
-                    ax.scatter(xs[bad], np.full(len(bad), 1.0), marker="x", color=color, s=50, zorder=5,
-                               label=f"NaN/Inf, drawn at 1 ({m})")
+                    ax.scatter(
+                        xs[bad],
+                        np.full(len(bad), 1.0),
+                        marker="x",
+                        color=color,
+                        s=50,
+                        zorder=5,
+                        label=f"NaN/Inf, drawn at 1 ({m})",
+                    )
         ax.axhline(REL_UNUSABLE, **THRESHOLD_HIGH, label=f"unusable above {REL_UNUSABLE:.0e}")
         ax.axhline(REL_DEGRADED, **THRESHOLD_LOW, label=f"degraded above {REL_DEGRADED:.0e}")
         ax.set_ylim(FLOOR / 3, 30)
         style_axes(ax, _xlabel(fr, cases), "relative error vs 50 digits (dimensionless)", _series_title(fr, series))
     legend_outside(fig, title="methods (colours) and thresholds (dashed)", below=True)
-    fig.suptitle(f"Inverse dynamics: max |tau - ref| / max |ref| per case (exactly 0 drawn at {FLOOR:.0e})",
-                 fontsize=FONT_MIN + 2)
+    fig.suptitle(
+        f"Inverse dynamics: max |tau - ref| / max |ref| per case (exactly 0 drawn at {FLOOR:.0e})",
+        fontsize=FONT_MIN + 2,
+    )
     return fig
 
 
@@ -146,20 +161,38 @@ def conditioning_figure(families: list[FamilyResult]):
             crs = sorted([cr for cr in cases if cr.case.series == s], key=lambda cr: xmap[id(cr)])
             xs = np.array([xmap[id(cr)] for cr in crs])
             marker = _SERIES_MARKERS[si % len(_SERIES_MARKERS)]
-            for attr, color, lab in (("cond_raw", _SERIES_COLOURS[0], "cond(M), SI units"),
-                                     ("cond_eq", _SERIES_COLOURS[2], "equilibrated cond(D^-1/2 M D^-1/2), D = diag M")):
+            for attr, color, lab in (
+                ("cond_raw", _SERIES_COLOURS[0], "cond(M), SI units"),
+                ("cond_eq", _SERIES_COLOURS[2], "equilibrated cond(D^-1/2 M D^-1/2), D = diag M"),
+            ):
                 v = np.array([getattr(cr, attr) for cr in crs])
-                ax.loglog(xs, np.where(np.isfinite(v), v, np.nan), color=color, ls="-", marker=marker, ms=4, lw=1,
-                          label=lab)
+                ax.loglog(
+                    xs, np.where(np.isfinite(v), v, np.nan), color=color, ls="-", marker=marker, ms=4, lw=1, label=lab
+                )
                 inf = ~np.isfinite(v)
                 if inf.any():
-                    ax.scatter(xs[inf], np.full(inf.sum(), top), marker="^", color=color, s=30, zorder=5,
-                               label=f"{lab.split(',')[0]} = inf (drawn at the top)")
+                    ax.scatter(
+                        xs[inf],
+                        np.full(inf.sum(), top),
+                        marker="^",
+                        color=color,
+                        s=30,
+                        zorder=5,
+                        label=f"{lab.split(',')[0]} = inf (drawn at the top)",
+                    )
             sing = [i for i, cr in enumerate(crs) if cr.singular_samples]
             if sing:
                 ys = [crs[i].cond_raw if math.isfinite(crs[i].cond_raw) else top for i in sing]
-                ax.scatter(xs[sing], ys, marker="o", facecolors="none", edgecolors=_SERIES_COLOURS[1], s=70, zorder=6,
-                           label="singular (exact cause)")
+                ax.scatter(
+                    xs[sing],
+                    ys,
+                    marker="o",
+                    facecolors="none",
+                    edgecolors=_SERIES_COLOURS[1],
+                    s=70,
+                    zorder=6,
+                    label="singular (exact cause)",
+                )
         ax.axhline(COND_SINGULAR, **THRESHOLD_HIGH, label=f"numerically singular from {COND_SINGULAR:.0e}")
         ax.axhline(COND_ILL, **THRESHOLD_LOW, label=f"ill-conditioned from {COND_ILL:.0e}")
         ax.set_ylim(1, top * 10)

@@ -41,7 +41,8 @@ ROUND_TRIP_RULE = (
     "perturbation grows by at most G(H) = max_t ||Phi_q(t)||_inf over the horizon H). Why 2 E: if the "
     "tighter run's deviation is at most half the first run's (any convergent method whose error follows the "
     "tolerance, here 100x tighter), then err <= E + err/2. If the controls did not reproduce the motion, "
-    "q* would not solve the ODE and the deviation would not shrink with the tolerance: the rule fails.")
+    "q* would not solve the ODE and the deviation would not shrink with the tolerance: the rule fails."
+)
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -78,17 +79,39 @@ def round_trip_cases(full: bool = False) -> list[RoundTripCase]:
     e2 = exo5(2)
     t2, t3 = random_tree(4, 2, 5), random_tree(4, 3, 5)
     cases = [
-        RoundTripCase("exo5-2d planar gait", e2, lambda t: planar_gait(e2, t), 0.3,
-                      "eq. (26) in the sagittal plane, T = 1.1 s, first 0.3 s"),
-        RoundTripCase("tree4-2d random motion", t2, lambda t: smooth_random_motion(t2, t, 3), 1.0,
-                      "smooth random motion (seed 3) of random_tree(4, 2, 5), 1 s"),
-        RoundTripCase("tree4-3d random motion", t3, lambda t: smooth_random_motion(t3, t, 3), 1.0,
-                      "smooth random motion (seed 3) of random_tree(4, 3, 5), 1 s"),
+        RoundTripCase(
+            "exo5-2d planar gait",
+            e2,
+            lambda t: planar_gait(e2, t),
+            0.3,
+            "eq. (26) in the sagittal plane, T = 1.1 s, first 0.3 s",
+        ),
+        RoundTripCase(
+            "tree4-2d random motion",
+            t2,
+            lambda t: smooth_random_motion(t2, t, 3),
+            1.0,
+            "smooth random motion (seed 3) of random_tree(4, 2, 5), 1 s",
+        ),
+        RoundTripCase(
+            "tree4-3d random motion",
+            t3,
+            lambda t: smooth_random_motion(t3, t, 3),
+            1.0,
+            "smooth random motion (seed 3) of random_tree(4, 3, 5), 1 s",
+        ),
     ]
     if full:
         t5 = random_tree(6, 3, 11)
-        cases.append(RoundTripCase("tree6-3d random motion", t5, lambda t: smooth_random_motion(t5, t, 4), 1.0,
-                                   "smooth random motion (seed 4) of random_tree(6, 3, 11), 1 s"))
+        cases.append(
+            RoundTripCase(
+                "tree6-3d random motion",
+                t5,
+                lambda t: smooth_random_motion(t5, t, 4),
+                1.0,
+                "smooth random motion (seed 4) of random_tree(6, 3, 11), 1 s",
+            )
+        )
     return cases
 
 
@@ -129,11 +152,29 @@ def conservative_cases() -> list[SpringCase]:
     q3 = np.concatenate([rng.uniform(-math.pi, math.pi, n), rng.uniform(-0.8, 0.8, n), rng.uniform(0.4, 1.0, n)])
     qd3 = rng.uniform(-1.0, 1.0, 3 * n) * np.r_[np.ones(2 * n), 0.1 * np.ones(n)]
     return [
-        SpringCase("exo5-2d passive fall", e2, g.q[0], g.qd[0], 2e3, 0.0, g.q[0, -5:], 0.5,
-                   "the five-link exoskeleton released from the gait's initial state, rods on springs "
-                   "k = 2e3 N/m at their initial length, 0.5 s"),
-        SpringCase("tree4-3d passive swing", t3, q3, qd3, 2e3, 0.0, q3[-n:], 1.0,
-                   "random_tree(4, 3, 5) from a seeded random state, rods on springs k = 2e3 N/m, 1 s"),
+        SpringCase(
+            "exo5-2d passive fall",
+            e2,
+            g.q[0],
+            g.qd[0],
+            2e3,
+            0.0,
+            g.q[0, -5:],
+            0.5,
+            "the five-link exoskeleton released from the gait's initial state, rods on springs "
+            "k = 2e3 N/m at their initial length, 0.5 s",
+        ),
+        SpringCase(
+            "tree4-3d passive swing",
+            t3,
+            q3,
+            qd3,
+            2e3,
+            0.0,
+            q3[-n:],
+            1.0,
+            "random_tree(4, 3, 5) from a seeded random state, rods on springs k = 2e3 N/m, 1 s",
+        ),
     ]
 
 
@@ -158,7 +199,15 @@ def stiff_case(k: float, mass_scale: float = 1.0, horizon: float = 1.0) -> Sprin
     mech, q0 = hanging_chain(mass_scale)
     mu = np.diag(coupling(mech))
     c = 2.0 * np.sqrt(k * mu)
-    return SpringCase(f"{mech.name}, k = {k:.0e}", mech, q0, np.zeros_like(q0), k, c, q0[-3:], horizon,
-                      f"{mech.name}: rods on critically damped springs k = {k:.0e} N/m, "
-                      f"fastest rod mode {math.sqrt(k / mu.min()):.2e} rad/s")
-
+    return SpringCase(
+        f"{mech.name}, k = {k:.0e}",
+        mech,
+        q0,
+        np.zeros_like(q0),
+        k,
+        c,
+        q0[-3:],
+        horizon,
+        f"{mech.name}: rods on critically damped springs k = {k:.0e} N/m, "
+        f"fastest rod mode {math.sqrt(k / mu.min()):.2e} rad/s",
+    )

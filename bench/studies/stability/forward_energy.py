@@ -20,8 +20,8 @@ def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndar
     """``dE/dy (N, m)`` by central differences (one batched energy call)."""
     N, m = y.shape
     d = m // 2
-    steps = h * np.maximum(1.0, np.abs(y))                             # (N, m)
-    Y = np.repeat(y[:, None, :], 2 * m, axis=1)                        # (N, 2m, m)
+    steps = h * np.maximum(1.0, np.abs(y))  # (N, m)
+    Y = np.repeat(y[:, None, :], 2 * m, axis=1)  # (N, 2m, m)
     idx = np.arange(m)
     Y[:, idx, idx] += steps
     Y[:, m + idx, idx] -= steps
@@ -43,12 +43,22 @@ def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
     return float((grad * sc).sum() * math.sqrt(m))
 
 
-def _simulate_spring(case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None,
-                     **budget) -> fd.Simulation:   # budget: max_evaluations, max_seconds (and jacobian)
+def _simulate_spring(
+    case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None, **budget
+) -> fd.Simulation:  # budget: max_evaluations, max_seconds (and jacobian)
     """A spring case integrated from its initial state over its horizon with ``method``'s ``M`` and
     ``h`` (atol = ``ATOL_FACTOR`` rtol); ``budget``: ``max_evaluations``, ``max_seconds``."""
-    return fd.simulate(_models(models)(case.mechanism, method), case.q0, case.qd0, (0.0, case.horizon),
-                       case.controls, integrator, rtol, ATOL_FACTOR * rtol, **budget)
+    return fd.simulate(
+        _models(models)(case.mechanism, method),
+        case.q0,
+        case.qd0,
+        (0.0, case.horizon),
+        case.controls,
+        integrator,
+        rtol,
+        ATOL_FACTOR * rtol,
+        **budget,
+    )
 
 
 @dataclass
@@ -57,8 +67,8 @@ class EnergyRun:
     integrator: str
     rtol: float
     sim: fd.Simulation
-    drift: float = math.nan          # max_k |E(t_k) - E(0)|, J
-    scale: float = math.nan          # max kinetic energy reached, J
+    drift: float = math.nan  # max_k |E(t_k) - E(0)|, J
+    scale: float = math.nan  # max kinetic energy reached, J
     bound: float = math.nan
 
     @property
@@ -66,8 +76,14 @@ class EnergyRun:
         return self.sim.ok and self.drift <= self.bound
 
 
-def energy_drift(case: SpringCase, integrator: str, rtol: float, method: str = "pinocchio",
-                 max_seconds: float | None = None, models: PreparedSet | None = None) -> EnergyRun:
+def energy_drift(
+    case: SpringCase,
+    integrator: str,
+    rtol: float,
+    method: str = "pinocchio",
+    max_seconds: float | None = None,
+    models: PreparedSet | None = None,
+) -> EnergyRun:
     mech = case.mechanism
     d = mech.dof
     sim = _simulate_spring(case, integrator, rtol, method, models, max_seconds=max_seconds)
@@ -86,9 +102,9 @@ class StiffRun:
     integrator: str
     rtol: float
     sim: fd.Simulation
-    stiffness: float                 # fastest rod rate sqrt(k / mu_ii), 1/s
-    cond: float = math.nan           # cond(M) at the initial state
-    error: float = math.nan          # |q(H) - q_ref(H)|, against a tight Radau run
+    stiffness: float  # fastest rod rate sqrt(k / mu_ii), 1/s
+    cond: float = math.nan  # cond(M) at the initial state
+    error: float = math.nan  # |q(H) - q_ref(H)|, against a tight Radau run
     energy_change: float = math.nan  # max_k E(t_k) - E(0), J: the dampers only dissipate, so <= 0 up to rounding
 
     @property
@@ -96,12 +112,28 @@ class StiffRun:
         return self.sim.ok
 
 
-def stiff_run(case: SpringCase, integrator: str, rtol: float, max_evaluations: int, reference=None,
-              method: str = "pinocchio", max_seconds: float | None = None,
-              models: PreparedSet | None = None, jacobian: str = "finite-difference") -> StiffRun:
+def stiff_run(
+    case: SpringCase,
+    integrator: str,
+    rtol: float,
+    max_evaluations: int,
+    reference=None,
+    method: str = "pinocchio",
+    max_seconds: float | None = None,
+    models: PreparedSet | None = None,
+    jacobian: str = "finite-difference",
+) -> StiffRun:
     mech = case.mechanism
-    sim = _simulate_spring(case, integrator, rtol, method, models, max_evaluations=max_evaluations,
-                           max_seconds=max_seconds, jacobian=jacobian)
+    sim = _simulate_spring(
+        case,
+        integrator,
+        rtol,
+        method,
+        models,
+        max_evaluations=max_evaluations,
+        max_seconds=max_seconds,
+        jacobian=jacobian,
+    )
     mu = np.diag(coupling(mech))
     cond = float(fd.condition_numbers(_models(models)(mech, "pinocchio").mass_matrix(case.q0[None]))[0][0])
     run = StiffRun(case.name, integrator, rtol, sim, float(math.sqrt(case.k / mu.min())), cond)

@@ -1,5 +1,4 @@
-"""Forward-dynamics study, the figures: work-precision diagrams and stiff rods.
-"""
+"""Forward-dynamics study, the figures: work-precision diagrams and stiff rods."""
 
 from __future__ import annotations
 
@@ -13,11 +12,17 @@ from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
 
 
 #: One colour and marker per integrator, the same in every figure (no threshold is drawn here).
-INTEGRATOR_STYLE = {"RK45": ("#1f77b4", "o"), "DOP853": ("#ff7f0e", "s"), "Radau": ("#2ca02c", "^"),
-                    "BDF": ("#d62728", "v")}
+INTEGRATOR_STYLE = {
+    "RK45": ("#1f77b4", "o"),
+    "DOP853": ("#ff7f0e", "s"),
+    "Radau": ("#2ca02c", "^"),
+    "BDF": ("#d62728", "v"),
+}
 #: What the numbers beside the work-precision points are (legend title and report caption).
-RTOL_LABELS = ("integrator (number beside each point: k, for rtol = 1e-k;\nRadau and BDF: scipy's finite-difference "
-               "Jacobian unless marked analytic)")
+RTOL_LABELS = (
+    "integrator (number beside each point: k, for rtol = 1e-k;\nRadau and BDF: scipy's finite-difference "
+    "Jacobian unless marked analytic)"
+)
 
 
 #: The suffix of a series run with the analytic Jacobian (same colour as its integrator, dotted, hollow).
@@ -52,11 +57,21 @@ def work_precision_figure(panels: list[tuple[str, str, dict[str, list[tuple]]]])
                 color, marker = _style(integ)
                 analytic = integ.endswith(ANALYTIC)
                 r, e, s = map(np.array, zip(*[(p[0], p[1], p[y_at]) for p in sorted(pts)]))
-                ax.loglog(e, s, marker=marker, color=color, label=integ,
-                          ms=5, lw=1, ls=":" if analytic else "-", mfc="none" if analytic else color)
+                ax.loglog(
+                    e,
+                    s,
+                    marker=marker,
+                    color=color,
+                    label=integ,
+                    ms=5,
+                    lw=1,
+                    ls=":" if analytic else "-",
+                    mfc="none" if analytic else color,
+                )
                 for ri, ei, si in zip(r, e, s):
-                    ax.annotate(f"{-math.log10(ri):.0f}", (ei, si), fontsize=FONT_MIN, xytext=(3, 3),
-                                textcoords="offset points")
+                    ax.annotate(
+                        f"{-math.log10(ri):.0f}", (ei, si), fontsize=FONT_MIN, xytext=(3, 3), textcoords="offset points"
+                    )
             style_axes(ax, xlabel, ylabel, title)
     legend_outside(fig, title=RTOL_LABELS)
     return fig
@@ -78,8 +93,9 @@ def stiff_figure(runs: list[StiffRun]):
         y = [r.sim.nfev for r in rs]
         color, marker = _style(integ)
         if tiny:
-            ax.scatter(x, y, marker=marker, facecolors="none", edgecolors=color, s=50,
-                       label=f"{integ}, tiny masses (k = 1e4)")
+            ax.scatter(
+                x, y, marker=marker, facecolors="none", edgecolors=color, s=50, label=f"{integ}, tiny masses (k = 1e4)"
+            )
         else:
             ax.loglog(x, y, marker=marker, color=color, label=f"{integ}, stiff k", ms=5, lw=1)
         for r in rs:
@@ -90,8 +106,12 @@ def stiff_figure(runs: list[StiffRun]):
         ax.scatter([], [], marker="X", color="black", s=60, label="gave up (evaluation budget)")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    style_axes(ax, "fastest rod rate sqrt(k / m) (1/s)", "right-hand-side evaluations (count)",
-               "stiff rods: cost of one horizon")
+    style_axes(
+        ax,
+        "fastest rod rate sqrt(k / m) (1/s)",
+        "right-hand-side evaluations (count)",
+        "stiff rods: cost of one horizon",
+    )
     legend_outside(fig, title="integrator")
     return fig
 
@@ -118,10 +138,13 @@ def forward_figures(res: ForwardResults) -> dict[str, object]:
     for r in res.analytic_stiff:
         if r.solved and res.stiff_wp and r.case == res.stiff_wp[0].case:
             st_series.setdefault(r.integrator + ANALYTIC, []).append((r.rtol, r.error, r.sim.seconds, r.sim.nfev))
-    panels = [(f"round trip: {first}", "max |q - q*| (rad, m)", rt_series),
-              (f"energy drift: {e_first}", "max |E - E0| / max T (dimensionless)", en_series)]
+    panels = [
+        (f"round trip: {first}", "max |q - q*| (rad, m)", rt_series),
+        (f"energy drift: {e_first}", "max |E - E0| / max T (dimensionless)", en_series),
+    ]
     if st_series:
         panels.append((f"stiff: {res.stiff_wp[0].case}", "max |q(H) - q_ref(H)| (rad, m)", st_series))
-    return {"stability-work-precision.png": work_precision_figure(panels),
-            "stability-stiff.png": stiff_figure(res.stiff)}
-
+    return {
+        "stability-work-precision.png": work_precision_figure(panels),
+        "stability-stiff.png": stiff_figure(res.stiff),
+    }

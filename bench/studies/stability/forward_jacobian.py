@@ -30,9 +30,9 @@ class Pair:
     case: str
     integrator: str
     rtol: float
-    error_name: str              # what ``error`` measures
-    fd: object                   # fd.Simulation with scipy's finite differences
-    analytic: object             # fd.Simulation with the analytic Jacobian
+    error_name: str  # what ``error`` measures
+    fd: object  # fd.Simulation with scipy's finite differences
+    analytic: object  # fd.Simulation with the analytic Jacobian
     fd_error: float
     analytic_error: float
 
@@ -73,8 +73,7 @@ def pairs(res: ForwardResults) -> list[Pair]:
     for a in res.analytic_stiff:
         f = fd_stiff.get((a.case, a.integrator, a.rtol))
         if f is not None:
-            out.append(Pair(a.case, a.integrator, a.rtol, "|q(H) - q_ref(H)| (rad, m)", f.sim, a.sim, f.error,
-                            a.error))
+            out.append(Pair(a.case, a.integrator, a.rtol, "|q(H) - q_ref(H)| (rad, m)", f.sim, a.sim, f.error, a.error))
     return out
 
 
@@ -89,11 +88,13 @@ def verdict(ps: list[Pair]) -> str:
     both = [p for p in ok if p.fewer and p.same_tolerance]
     saved = [1 - p.analytic.nfev / p.fd.nfev for p in ok]
     yes = len(both) == len(ok)
-    text = (f"**{'Yes' if yes else 'Not everywhere'}: the analytic Jacobian reached the same tolerance in fewer "
-            f"right-hand-side evaluations in {len(both)} of {len(ok)} pairs** ({len(fewer)} used fewer evaluations, "
-            f"{len(same)} reached an error within {SAME_ERROR:g}x of the finite-difference run's); it saved "
-            f"{100 * min(saved):.0f}% to {100 * max(saved):.0f}% of the evaluations (the 2 dof columns of each of "
-            "scipy's finite-difference Jacobians).")
+    text = (
+        f"**{'Yes' if yes else 'Not everywhere'}: the analytic Jacobian reached the same tolerance in fewer "
+        f"right-hand-side evaluations in {len(both)} of {len(ok)} pairs** ({len(fewer)} used fewer evaluations, "
+        f"{len(same)} reached an error within {SAME_ERROR:g}x of the finite-difference run's); it saved "
+        f"{100 * min(saved):.0f}% to {100 * max(saved):.0f}% of the evaluations (the 2 dof columns of each of "
+        "scipy's finite-difference Jacobians)."
+    )
     return text + "".join(" " + reason(p) for p in ok if not (p.fewer and p.same_tolerance))
 
 
@@ -102,17 +103,21 @@ def reason(p: Pair) -> str:
     analytic run took more evaluations, from when each run evaluated its Jacobian (:func:`stale_window`)."""
     if not p.fewer:
         other_fd = p.fd.nfev - p.fd.jacobian_columns
-        text = (f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, scipy's {p.fd.njev} finite-difference Jacobians "
-                f"cost only {p.fd.jacobian_columns} of {p.fd.nfev} evaluations "
-                f"({100 * p.fd.jacobian_columns / p.fd.nfev:.1f}%, all an analytic Jacobian can save), while the "
-                f"analytic run took {p.analytic.steps} steps against {p.fd.steps} and "
-                f"{p.analytic.nfev - other_fd:+d} stage and Newton evaluations.")
+        text = (
+            f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, scipy's {p.fd.njev} finite-difference Jacobians "
+            f"cost only {p.fd.jacobian_columns} of {p.fd.nfev} evaluations "
+            f"({100 * p.fd.jacobian_columns / p.fd.nfev:.1f}%, all an analytic Jacobian can save), while the "
+            f"analytic run took {p.analytic.steps} steps against {p.fd.steps} and "
+            f"{p.analytic.nfev - other_fd:+d} stage and Newton evaluations."
+        )
         w = stale_window(p)
         if w is None:
             return text + " A different step sequence, not the Jacobian, decided the count."
         return text + " " + w
-    return (f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, the errors differ by more than {SAME_ERROR:g}x "
-            f"({sci(p.fd_error)} against {sci(p.analytic_error)}).")
+    return (
+        f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, the errors differ by more than {SAME_ERROR:g}x "
+        f"({sci(p.fd_error)} against {sci(p.analytic_error)})."
+    )
 
 
 def _digits(ts) -> int:
@@ -130,8 +135,7 @@ def stale_window(p: Pair) -> str | None:
     iterations (3 right-hand-side evaluations each for Radau's three stages). None without the runs'
     recorded times, or when the analytic run did not hold the older Jacobian where it spent more."""
     fd_run, an = p.fd, p.analytic
-    if not (len(fd_run.jacobian_times) and len(an.jacobian_times) and len(fd_run.call_times)
-            and len(an.call_times)):
+    if not (len(fd_run.jacobian_times) and len(an.jacobian_times) and len(fd_run.call_times) and len(an.call_times)):
         return None
     end = fd_run.t[-1]
     edges = np.unique(np.concatenate([fd_run.jacobian_times, an.jacobian_times, [end]]))
@@ -141,14 +145,15 @@ def stale_window(p: Pair) -> str | None:
     calls = {id(s): np.histogram(s.call_times, edges)[0] for s in (fd_run, an)}
     steps = {id(s): np.histogram(s.t[:-1], edges)[0] for s in (fd_run, an)}
     # the time of the Jacobian each run holds in each interval
-    held = {id(s): s.jacobian_times[np.searchsorted(s.jacobian_times, edges[:-1], side="right") - 1]
-            for s in (fd_run, an)}
+    held = {
+        id(s): s.jacobian_times[np.searchsorted(s.jacobian_times, edges[:-1], side="right") - 1] for s in (fd_run, an)
+    }
     older = (held[id(an)] < held[id(fd_run)]) & (steps[id(an)] + steps[id(fd_run)] > 0)
     extra = int((calls[id(an)] - calls[id(fd_run)])[older].sum())
     if not older.any() or extra <= 0:
         return None
     spans: list[tuple[float, float]] = []
-    for i in np.flatnonzero(older):              # contiguous intervals as one span
+    for i in np.flatnonzero(older):  # contiguous intervals as one span
         a, b = edges[i], min(edges[i + 1], end)
         spans[-1:] = [(spans[-1][0], b)] if spans and i > 0 and older[i - 1] else spans[-1:] + [(a, b)]
     n_an, n_fd = int(steps[id(an)][older].sum()), int(steps[id(fd_run)][older].sum())
@@ -159,13 +164,16 @@ def stale_window(p: Pair) -> str | None:
         return ", ".join(f"{t:.{nd}g}" for t in ts)
 
     where = ", ".join(f"t = {a:.{nd}g} to {b:.{nd}g} s" for a, b in spans)
-    return (f"Jacobians were evaluated at t = {_times(an.jacobian_times)} s (analytic) and "
-            f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
-            f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
-            f"against {n_fd} and {c_an / max(n_an, 1):.2f} evaluations per step against {c_fd / max(n_fd, 1):.2f}, "
-            f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). " + _reuse_rule(p.integrator)
-            + ": when each run re-evaluated it, not the Jacobian's accuracy (exact to round-off, "
-            "tests/test_analytic_jacobian.py), decided the count.")
+    return (
+        f"Jacobians were evaluated at t = {_times(an.jacobian_times)} s (analytic) and "
+        f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
+        f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
+        f"against {n_fd} and {c_an / max(n_an, 1):.2f} evaluations per step against {c_fd / max(n_fd, 1):.2f}, "
+        f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). "
+        + _reuse_rule(p.integrator)
+        + ": when each run re-evaluated it, not the Jacobian's accuracy (exact to round-off, "
+        "tests/test_analytic_jacobian.py), decided the count."
+    )
 
 
 def _reuse_rule(integrator: str) -> str:
@@ -173,45 +181,61 @@ def _reuse_rule(integrator: str) -> str:
     if integrator == "Radau":
         from scipy.integrate._ivp.radau import MU_REAL
 
-        return ("scipy's Radau re-evaluates the Jacobian it holds only after a step whose Newton iteration needed "
-                "more than 2 iterations with a last contraction rate above 1e-3, or after one that failed, and "
-                f"its error estimate passes through ({MU_REAL:.4g}/h I - J)^-1 of the Jacobian held (hence the "
-                "different steps)")
+        return (
+            "scipy's Radau re-evaluates the Jacobian it holds only after a step whose Newton iteration needed "
+            "more than 2 iterations with a last contraction rate above 1e-3, or after one that failed, and "
+            f"its error estimate passes through ({MU_REAL:.4g}/h I - J)^-1 of the Jacobian held (hence the "
+            "different steps)"
+        )
     return f"scipy's {integrator} re-evaluates the Jacobian it holds only after a Newton iteration that failed"
 
 
 def jacobian_markdown(res: ForwardResults) -> list[str]:
     """The report section: the table of pairs and the verdict."""
     ps = pairs(res)
-    L = ["", "### Implicit integrators: analytic against finite-difference Jacobians", "",
-         "Radau and BDF need df/dy of f = [qd, qdd]. scipy estimates it by finite differences of the vectorised "
-         "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
-         "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
-         "from `model.derivatives` (CasADi's differentiation of the matrix method's factored closed forms, "
-         "`matrix_method/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
-         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation. Same case, "
-         "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "
-         "stiff case against the Radau reference. 'Same tolerance' means both runs finished and their errors "
-         f"agree within {SAME_ERROR:g}x.", ""]
+    L = [
+        "",
+        "### Implicit integrators: analytic against finite-difference Jacobians",
+        "",
+        "Radau and BDF need df/dy of f = [qd, qdd]. scipy estimates it by finite differences of the vectorised "
+        "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
+        "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
+        "from `model.derivatives` (CasADi's differentiation of the matrix method's factored closed forms, "
+        "`matrix_method/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
+        "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation. Same case, "
+        "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "
+        "stiff case against the Radau reference. 'Same tolerance' means both runs finished and their errors "
+        f"agree within {SAME_ERROR:g}x.",
+        "",
+    ]
     if res.analytic_notes:
         L += [f"- {n}" for n in res.analytic_notes] + [""]
     if not ps:
         return L + ["No analytic runs in this report."]
-    L += [verdict(ps), "",
-          "| case | integrator | rtol | RHS evals FD | of them in FD Jacobians | RHS evals analytic | saved | "
-          "Jacobians FD / analytic | steps FD / analytic | seconds FD / analytic | error FD | error analytic | "
-          "same tolerance, fewer evals |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    L += [
+        verdict(ps),
+        "",
+        "| case | integrator | rtol | RHS evals FD | of them in FD Jacobians | RHS evals analytic | saved | "
+        "Jacobians FD / analytic | steps FD / analytic | seconds FD / analytic | error FD | error analytic | "
+        "same tolerance, fewer evals |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for p in ps:
         if not p.both_ok:
-            L.append(f"| {p.case} | {p.integrator} | {p.rtol:.0e} | {p.fd.status} | | {p.analytic.status} | | | | | | | "
-                     "no |")
+            L.append(
+                f"| {p.case} | {p.integrator} | {p.rtol:.0e} | {p.fd.status} | | {p.analytic.status} | | | | | | | no |"
+            )
             continue
-        L.append(f"| {p.case} | {p.integrator} | {p.rtol:.0e} | {p.fd.nfev} | {p.fd.jacobian_columns} | {p.analytic.nfev} | "
-                 f"{100 * (1 - p.analytic.nfev / p.fd.nfev):.0f}% | {p.fd.njev} / {p.analytic.njev} | "
-                 f"{p.fd.steps} / {p.analytic.steps} | {p.fd.seconds:.2f} / {p.analytic.seconds:.2f} | "
-                 f"{sci(p.fd_error)} | {sci(p.analytic_error)} | "
-                 f"{'yes' if p.fewer and p.same_tolerance else '**no**'} |")
-    L += ["", "Seconds are one run on a shared machine: the analytic Jacobian is one CasADi evaluation of the "
-          "derivatives and one LU solve per Jacobian, in Python; its gain shows in the evaluation count."]
+        L.append(
+            f"| {p.case} | {p.integrator} | {p.rtol:.0e} | {p.fd.nfev} | {p.fd.jacobian_columns} | {p.analytic.nfev} | "
+            f"{100 * (1 - p.analytic.nfev / p.fd.nfev):.0f}% | {p.fd.njev} / {p.analytic.njev} | "
+            f"{p.fd.steps} / {p.analytic.steps} | {p.fd.seconds:.2f} / {p.analytic.seconds:.2f} | "
+            f"{sci(p.fd_error)} | {sci(p.analytic_error)} | "
+            f"{'yes' if p.fewer and p.same_tolerance else '**no**'} |"
+        )
+    L += [
+        "",
+        "Seconds are one run on a shared machine: the analytic Jacobian is one CasADi evaluation of the "
+        "derivatives and one LU solve per Jacobian, in Python; its gain shows in the evaluation count.",
+    ]
     return L

@@ -21,9 +21,9 @@ from exo_bench.models.presets import random_tree
 class TermsRow:
     mechanism: str
     method: str
-    source: str                      # "exposed" or "from inverse dynamics"
+    source: str  # "exposed" or "from inverse dynamics"
     status: str = "ok"
-    m_rel: float = math.nan          # max |M - M_crba| / max |M_crba|
+    m_rel: float = math.nan  # max |M - M_crba| / max |M_crba|
     h_rel: float = math.nan
     seconds: float = math.nan
 
@@ -45,7 +45,7 @@ def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | 
         for m, via in plan:
             try:
                 model = models(mech, m)
-            except ImportError as e:   # a missing module is a row, not a crash
+            except ImportError as e:  # a missing module is a row, not a crash
                 rows.append(TermsRow(mech.name, m, "", "missing: " + one_line(e)))
                 continue
             except Exception as e:  # noqa: BLE001 - over budget or failing to prepare: a row
@@ -53,8 +53,15 @@ def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | 
                 rows.append(TermsRow(mech.name, m, "", f"skipped: {skip}" if skip else "failed: " + one_line(e)))
                 continue
             exposed = (not via) and model.native_terms
-            row = TermsRow(mech.name, m, "exposed (CRBA, nonLinearEffects)" if m == "pinocchio" and exposed
-                           else "exposed" if exposed else "from inverse dynamics")
+            row = TermsRow(
+                mech.name,
+                m,
+                "exposed (CRBA, nonLinearEffects)"
+                if m == "pinocchio" and exposed
+                else "exposed"
+                if exposed
+                else "from inverse dynamics",
+            )
             try:
                 t0 = time.perf_counter()
                 M, h = fd.mass_matrix_and_bias(model, q, qd, via_inverse_dynamics=via)
@@ -71,8 +78,8 @@ def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | 
 @dataclass
 class SingularDemo:
     case: str
-    inverse: str                      # what inverse dynamics gives there
-    forward: str                      # what forward dynamics says
+    inverse: str  # what inverse dynamics gives there
+    forward: str  # what forward dynamics says
 
 
 def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
@@ -85,14 +92,16 @@ def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
     g = gait(e3, np.array([0.0]))
     q, qd, qdd = random_states(e3, 1, 5)
     q0 = q.copy()
-    q0[0, -4] = 0.0   # l_2 = 0
+    q0[0, -4] = 0.0  # l_2 = 0
     m = list(e3.masses)
     m[3] = (m[3][0], 0.0, 0.0)
     massless = e3.replace(masses=tuple(m), name="exo5-3d, massless swing shin")
     out = []
-    for label, mech, (a, b, c) in (("exo5-3d gait of eq. (26) at t = 0 (trunk at psi5 = pi/2)", e3, (g.q, g.qd, g.qdd)),
-                                   ("exo5-3d, random state with l2 = 0", e3, (q0, qd, qdd)),
-                                   ("exo5-3d with a massless swing shin", massless, (q, qd, qdd))):
+    for label, mech, (a, b, c) in (
+        ("exo5-3d gait of eq. (26) at t = 0 (trunk at psi5 = pi/2)", e3, (g.q, g.qd, g.qdd)),
+        ("exo5-3d, random state with l2 = 0", e3, (q0, qd, qdd)),
+        ("exo5-3d with a massless swing shin", massless, (q, qd, qdd)),
+    ):
         model = models(mech, "pinocchio")
         tau = model.inverse_dynamics(a, b, c)
         inv = "finite" if np.isfinite(tau).all() else "NaN/Inf"

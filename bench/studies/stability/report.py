@@ -12,7 +12,17 @@ import warnings
 from exo_bench.bench.studies.options import StabilityOptions
 from exo_bench.api import PreparedSet
 from exo_bench.bench.output.provenance import sci
-from exo_bench.bench.studies.stability.cases import BASELINE, COND_ILL, COND_SINGULAR, EPS, FULL, Profile, QUICK, REL_DEGRADED, REL_UNUSABLE
+from exo_bench.bench.studies.stability.cases import (
+    BASELINE,
+    COND_ILL,
+    COND_SINGULAR,
+    EPS,
+    FULL,
+    Profile,
+    QUICK,
+    REL_DEGRADED,
+    REL_UNUSABLE,
+)
 from exo_bench.bench.studies.stability.evaluation import FamilyResult, MethodRow, evaluate_families, method_options
 from exo_bench.bench.studies.stability.figures import conditioning_figure, families_figure
 from exo_bench.bench.studies.study import StabilityWarning
@@ -26,45 +36,53 @@ def baseline_level(families: list[FamilyResult]) -> tuple[float, list[str]]:
     if base is None:
         return math.nan, []
     ok = sorted({m for cr in base.results for m, r in cr.rows.items() if r.status == "ok"} - set(base.warnings))
-    level = max((cr.rows[m].rel_err for cr in base.results for m in ok if m in cr.rows
-                 and math.isfinite(cr.rows[m].rel_err)), default=math.nan)
+    level = max(
+        (cr.rows[m].rel_err for cr in base.results for m in ok if m in cr.rows and math.isfinite(cr.rows[m].rel_err)),
+        default=math.nan,
+    )
     return level, ok
 
 
 def thresholds_markdown(families: list[FamilyResult] | None = None, tightest_rtol: float = 1e-12) -> str:
     eps = EPS
     level, ok = baseline_level(families or [])
-    measured = (f"measured here: {', '.join(ok)} stay below {level:.1e} on the {BASELINE}, i.e. within "
-                f"{level / eps:.0f} ulp" if ok else "no baseline measured in this run")
-    return "\n".join([
-        "## Thresholds, and why", "",
-        f"- **Inverse dynamics unusable**: any NaN/Inf, or a relative error (max |tau - ref| / max |ref| over the "
-        f"case) above **{REL_UNUSABLE:.0e}**. A backward-stable float64 evaluation of these sums is accurate to "
-        f"a modest multiple of eps = {eps:.1e} ({measured}); {REL_UNUSABLE:.0e} means that about "
-        f"{math.log10(REL_UNUSABLE / eps):.0f} of the 16 significant digits are lost, and it is two orders below the resolution of a good joint torque sensor (assumed 1e-4 of full "
-        "scale), so the error would start to show in the controls.",
-        f"- **Inverse dynamics degraded**: relative error above **{REL_DEGRADED:.0e}**: still usable for control, "
-        "not for cross-validation of implementations at the 1e-12 level.",
-        f"- **Forward dynamics ill-conditioned**: cond(M) (2-norm, SI units) at or above **{COND_ILL:.0e}**. "
-        f"Every method delivers M to normwise accuracy only (relative to its largest entry; the near-vertical "
-        f"rows below show Pinocchio's small entries lost), so qdd is accurate to about cond(M) * eps: "
-        f"{COND_ILL * eps:.1e} at the threshold, already above the tightest integrator tolerance of this report "
-        f"({tightest_rtol:.0e}): the linear algebra, not the integrator, then limits accuracy. cond(M) also measures the "
-        "spread of the inertias, hence of the time scales (frequencies go like 1/sqrt(inertia)): at 1e6 they span "
-        "three orders of magnitude and the ODE turns stiff.",
-        f"- **Forward dynamics numerically singular**: cond(M) at or above **{COND_SINGULAR:.0e}**: "
-        f"cond * eps = {COND_SINGULAR * eps:.1e}, fewer than four correct digits in qdd.",
-        "- **Forward dynamics singular**: an exact cause, found without thresholds on a condition number "
-        "(`models.forward_dynamics.singular_reasons`): a rod of length 0, a vertical rod (|cos psi| <= "
-        f"{fd.COS_VERTICAL:.0e}, i.e. within a few ulp of pi/2: the float nearest pi/2 has cos = 6.1e-17), or a "
-        "link whose coordinates move no mass. Inverse dynamics is still defined there; forward dynamics is not, "
-        "and `models.forward_dynamics.accelerations` raises `SingularConfigurationError` naming the link.",
-        "- **cond_eq** = cond(D^-1/2 M D^-1/2), D = diag(M), is in exact arithmetic the same at every "
-        "configuration: cond(mu_s) of the equilibrated mass distribution matrix (column `cond(mu_s)`), because "
-        "D^-1/2 M D^-1/2 is orthogonally similar to mu_s (x) I (see `condition_numbers`). Where the computed "
-        "cond_eq departs from cond(mu_s), the computed M has lost its small entries.",
-        "",
-    ])
+    measured = (
+        f"measured here: {', '.join(ok)} stay below {level:.1e} on the {BASELINE}, i.e. within {level / eps:.0f} ulp"
+        if ok
+        else "no baseline measured in this run"
+    )
+    return "\n".join(
+        [
+            "## Thresholds, and why",
+            "",
+            f"- **Inverse dynamics unusable**: any NaN/Inf, or a relative error (max |tau - ref| / max |ref| over the "
+            f"case) above **{REL_UNUSABLE:.0e}**. A backward-stable float64 evaluation of these sums is accurate to "
+            f"a modest multiple of eps = {eps:.1e} ({measured}); {REL_UNUSABLE:.0e} means that about "
+            f"{math.log10(REL_UNUSABLE / eps):.0f} of the 16 significant digits are lost, and it is two orders below the resolution of a good joint torque sensor (assumed 1e-4 of full "
+            "scale), so the error would start to show in the controls.",
+            f"- **Inverse dynamics degraded**: relative error above **{REL_DEGRADED:.0e}**: still usable for control, "
+            "not for cross-validation of implementations at the 1e-12 level.",
+            f"- **Forward dynamics ill-conditioned**: cond(M) (2-norm, SI units) at or above **{COND_ILL:.0e}**. "
+            f"Every method delivers M to normwise accuracy only (relative to its largest entry; the near-vertical "
+            f"rows below show Pinocchio's small entries lost), so qdd is accurate to about cond(M) * eps: "
+            f"{COND_ILL * eps:.1e} at the threshold, already above the tightest integrator tolerance of this report "
+            f"({tightest_rtol:.0e}): the linear algebra, not the integrator, then limits accuracy. cond(M) also measures the "
+            "spread of the inertias, hence of the time scales (frequencies go like 1/sqrt(inertia)): at 1e6 they span "
+            "three orders of magnitude and the ODE turns stiff.",
+            f"- **Forward dynamics numerically singular**: cond(M) at or above **{COND_SINGULAR:.0e}**: "
+            f"cond * eps = {COND_SINGULAR * eps:.1e}, fewer than four correct digits in qdd.",
+            "- **Forward dynamics singular**: an exact cause, found without thresholds on a condition number "
+            "(`models.forward_dynamics.singular_reasons`): a rod of length 0, a vertical rod (|cos psi| <= "
+            f"{fd.COS_VERTICAL:.0e}, i.e. within a few ulp of pi/2: the float nearest pi/2 has cos = 6.1e-17), or a "
+            "link whose coordinates move no mass. Inverse dynamics is still defined there; forward dynamics is not, "
+            "and `models.forward_dynamics.accelerations` raises `SingularConfigurationError` naming the link.",
+            "- **cond_eq** = cond(D^-1/2 M D^-1/2), D = diag(M), is in exact arithmetic the same at every "
+            "configuration: cond(mu_s) of the equilibrated mass distribution matrix (column `cond(mu_s)`), because "
+            "D^-1/2 M D^-1/2 is orthogonally similar to mu_s (x) I (see `condition_numbers`). Where the computed "
+            "cond_eq departs from cond(mu_s), the computed M has lost its small entries.",
+            "",
+        ]
+    )
 
 
 def _cell(row: MethodRow | None) -> str:
@@ -80,12 +98,16 @@ def _cell(row: MethodRow | None) -> str:
 
 
 def family_summary_markdown(families: list[FamilyResult], methods: list[str]) -> str:
-    lines = ["## Summary: every family, every method", "",
-             "Worst case of each method over each family, against the 50-digit reference. The relative error of a "
-             "case is max |tau - ref| / max |ref| over its samples and coordinates (abs in N m or N); NaN/Inf "
-             "entries are counted apart and left out of the errors.", "",
-             "| family | method | verdict | cases run | max abs error | max rel error | NaN/Inf | where (worst case) |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "## Summary: every family, every method",
+        "",
+        "Worst case of each method over each family, against the 50-digit reference. The relative error of a "
+        "case is max |tau - ref| / max |ref| over its samples and coordinates (abs in N m or N); NaN/Inf "
+        "entries are counted apart and left out of the errors.",
+        "",
+        "| family | method | verdict | cases run | max abs error | max rel error | NaN/Inf | where (worst case) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for fr in families:
         for m in methods:
             verdict, row, cr = fr.worst(m)
@@ -98,14 +120,21 @@ def family_summary_markdown(families: list[FamilyResult], methods: list[str]) ->
             amax = max((c.rows[m].abs_err for c in ran if math.isfinite(c.rows[m].abs_err)), default=math.nan)
             rmax = max((c.rows[m].rel_err for c in ran if math.isfinite(c.rows[m].rel_err)), default=math.nan)
             skipped = [c for c in fr.results if m in c.rows and c.rows[m].status != "ok"]
-            where = cr.case.label + (f"; skipped/failed on {len(skipped)}: {skipped[0].rows[m].reason}"
-                                     if skipped else "")
+            where = cr.case.label + (
+                f"; skipped/failed on {len(skipped)}: {skipped[0].rows[m].reason}" if skipped else ""
+            )
             vtxt = f"**{verdict}**" if verdict in ("unusable", "failed") else verdict
-            lines.append(f"| {fr.name} | {m} | {vtxt} | {len(ran)}/{len(fr.results)} | {sci(amax)} | {sci(rmax)} | "
-                         f"{nan} | {where} |")
-    lines += ["", "Mass matrix (from Pinocchio's CRBA) over each family:", "",
-              "| family | forward dynamics | cases flagged | cond(M) range | cond_eq range | cond(mu_s) range |",
-              "|---|---|---|---|---|---|"]
+            lines.append(
+                f"| {fr.name} | {m} | {vtxt} | {len(ran)}/{len(fr.results)} | {sci(amax)} | {sci(rmax)} | "
+                f"{nan} | {where} |"
+            )
+    lines += [
+        "",
+        "Mass matrix (from Pinocchio's CRBA) over each family:",
+        "",
+        "| family | forward dynamics | cases flagged | cond(M) range | cond_eq range | cond(mu_s) range |",
+        "|---|---|---|---|---|---|",
+    ]
     for fr in families:
         v = fr.fd_worst()
         flagged = [cr for cr in fr.results if cr.fd_verdict != "ok"]
@@ -114,28 +143,46 @@ def family_summary_markdown(families: list[FamilyResult], methods: list[str]) ->
         mus = [cr.cond_mu for cr in fr.results]
         rng = lambda xs: f"{sci(min(xs))} .. {sci(max(xs))}"
         vtxt = f"**{v}**" if v != "ok" else v
-        lines.append(f"| {fr.name} | {vtxt} | {len(flagged)}/{len(fr.results)} | {rng(raws)} | {rng(eqs)} | {rng(mus)} |")
+        lines.append(
+            f"| {fr.name} | {vtxt} | {len(flagged)}/{len(fr.results)} | {rng(raws)} | {rng(eqs)} | {rng(mus)} |"
+        )
     return "\n".join(lines) + "\n"
 
 
 def family_detail_markdown(fr: FamilyResult, methods: list[str]) -> str:
     refs = sorted({cr.reference for cr in fr.results})
-    lines = [f"### {fr.name}", "", fr.doc, "",
-             f"Reference: {'; '.join(refs)}. {len(fr.results)} cases, {fr.results[0].case.q.shape[0]} or more "
-             f"samples each; {fr.seconds:.1f} s. Cells: relative error (bold: unusable, italic: degraded).", "",
-             "| case | cond(M) | cond_eq | cond(mu_s) | forward dynamics | " + " | ".join(methods) + " |",
-             "|---|---|---|---|---|" + "---|" * len(methods)]
+    lines = [
+        f"### {fr.name}",
+        "",
+        fr.doc,
+        "",
+        f"Reference: {'; '.join(refs)}. {len(fr.results)} cases, {fr.results[0].case.q.shape[0]} or more "
+        f"samples each; {fr.seconds:.1f} s. Cells: relative error (bold: unusable, italic: degraded).",
+        "",
+        "| case | cond(M) | cond_eq | cond(mu_s) | forward dynamics | " + " | ".join(methods) + " |",
+        "|---|---|---|---|---|" + "---|" * len(methods),
+    ]
     for cr in fr.results:
         fdv = cr.fd_verdict if cr.fd_verdict == "ok" else f"**{cr.fd_verdict}**"
-        lines.append(f"| {cr.case.label} | {sci(cr.cond_raw)} | {sci(cr.cond_eq)} | {sci(cr.cond_mu)} | {fdv} | "
-                     + " | ".join(_cell(cr.rows.get(m)) for m in methods) + " |")
+        lines.append(
+            f"| {cr.case.label} | {sci(cr.cond_raw)} | {sci(cr.cond_eq)} | {sci(cr.cond_mu)} | {fdv} | "
+            + " | ".join(_cell(cr.rows.get(m)) for m in methods)
+            + " |"
+        )
     sing = [cr for cr in fr.results if cr.singular]
     if sing:
         lines += ["", "Singular configurations detected (first cause per case):", ""]
-        lines += [f"- {cr.case.label}: {cr.singular[0]}" + (f" ({cr.singular_samples} samples)"
-                                                              if cr.singular_samples > 1 else "") for cr in sing]
-    other = [(cr, m, cr.rows[m]) for cr in fr.results for m in methods
-             if m in cr.rows and cr.rows[m].status in ("failed", "missing")]
+        lines += [
+            f"- {cr.case.label}: {cr.singular[0]}"
+            + (f" ({cr.singular_samples} samples)" if cr.singular_samples > 1 else "")
+            for cr in sing
+        ]
+    other = [
+        (cr, m, cr.rows[m])
+        for cr in fr.results
+        for m in methods
+        if m in cr.rows and cr.rows[m].status in ("failed", "missing")
+    ]
     if other:
         lines += ["", "Methods that failed or are missing:", ""]
         seen = set()
@@ -157,63 +204,91 @@ def findings_markdown(families: list[FamilyResult], methods: list[str], forward=
             continue
         base = next((fr for fr in fams if fr.name == BASELINE), None)
         if base is not None:
-            L.append(f"- **`{m}` is unusable already on the {BASELINE}: it is wrong, not unstable.** "
-                     f"{base.warnings[m]}")
+            L.append(
+                f"- **`{m}` is unusable already on the {BASELINE}: it is wrong, not unstable.** {base.warnings[m]}"
+            )
             L += [f"  - {fr.warnings[m]}" for fr in fams if fr is not base]
         elif fams:
             L.append(f"- **`{m}` breaks on {', '.join(fr.name for fr in fams)}.**")
             L += [f"  - {fr.warnings[m]}" for fr in fams]
         for rt in fails:
-            L.append(f"  - **forward dynamics from `{m}`'s M and h does not reproduce the motion ({rt.case}): "
-                     f"deviation {rt.error:.1e} > tolerance {rt.tolerance:.1e}**")
+            L.append(
+                f"  - **forward dynamics from `{m}`'s M and h does not reproduce the motion ({rt.case}): "
+                f"deviation {rt.error:.1e} > tolerance {rt.tolerance:.1e}**"
+            )
     ok = [m for m in methods if not any(m in fr.warnings for fr in families)]
     if ok:
-        L.append(f"- {', '.join(f'`{m}`' for m in ok)}: usable on every family where they ran "
-                 f"(relative error at most {max((cr.rows[m].rel_err for fr in families for cr in fr.results for m in ok if m in cr.rows and math.isfinite(cr.rows[m].rel_err)), default=math.nan):.1e}, "
-                 "no NaN/Inf); see the summary for skips.")
+        L.append(
+            f"- {', '.join(f'`{m}`' for m in ok)}: usable on every family where they ran "
+            f"(relative error at most {max((cr.rows[m].rel_err for fr in families for cr in fr.results for m in ok if m in cr.rows and math.isfinite(cr.rows[m].rel_err)), default=math.nan):.1e}, "
+            "no NaN/Inf); see the summary for skips."
+        )
     L += [f"- **{fr.mass_warning}**" for fr in families if fr.mass_warning]
     return "\n".join(L)
 
 
-def report_markdown(profile: Profile, methods: list[str], families: list[FamilyResult], forward,
-                    seconds: float, figures: list[str]) -> str:
+def report_markdown(
+    profile: Profile, methods: list[str], families: list[FamilyResult], forward, seconds: float, figures: list[str]
+) -> str:
     from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR
     from exo_bench.bench.studies.stability.forward_report import forward_markdown
     from exo_bench.bench.output.provenance import provenance
 
     refs = sorted({cr.reference for fr in families for cr in fr.results})
-    L = ["# Numerical stability: where each method breaks", "",
-         provenance("exo-bench stability" + (" --full" if profile.full_cases else "")), "",
-         f"- **profile**: {profile.name} ({profile.samples} states per case"
-         f"{'; `exo-bench stability --full` runs the whole sweep' if not profile.full_cases else ''}); "
-         f"total {seconds:.0f} s on this machine",
-         f"- **methods** (the registry at run time): {', '.join(methods)}",
-         f"- **reference**: {'; '.join(refs)}",
-         f"- **lagrange symbolic budget**: {profile.lagrange_budget:g} s "
-         "per mechanism (over it, the method is recorded as skipped with the reason)",
-         "- **quantities**: generalised forces of the paper's absolute coordinates (M_phi, M_psi in N m, F in N)", ""]
+    L = [
+        "# Numerical stability: where each method breaks",
+        "",
+        provenance("exo-bench stability" + (" --full" if profile.full_cases else "")),
+        "",
+        f"- **profile**: {profile.name} ({profile.samples} states per case"
+        f"{'; `exo-bench stability --full` runs the whole sweep' if not profile.full_cases else ''}); "
+        f"total {seconds:.0f} s on this machine",
+        f"- **methods** (the registry at run time): {', '.join(methods)}",
+        f"- **reference**: {'; '.join(refs)}",
+        f"- **lagrange symbolic budget**: {profile.lagrange_budget:g} s "
+        "per mechanism (over it, the method is recorded as skipped with the reason)",
+        "- **quantities**: generalised forces of the paper's absolute coordinates (M_phi, M_psi in N m, F in N)",
+        "",
+    ]
     L += ["## Findings", "", findings_markdown(families, methods, forward), ""]
-    L += [thresholds_markdown(families, min(profile.wp_rtols)), family_summary_markdown(families, methods),
-          "## Families in detail", ""]
+    L += [
+        thresholds_markdown(families, min(profile.wp_rtols)),
+        family_summary_markdown(families, methods),
+        "## Families in detail",
+        "",
+    ]
     L += [family_detail_markdown(fr, methods) for fr in families]
-    L += [f"![relative errors per family]({figures[0]})", "",
-          "Relative error of each method per case against the 50-digit reference, one panel per family; "
-          "markers tell a family's sub-series apart (named in the panel title); dashed lines are the "
-          f"thresholds (grey: degraded above {REL_DEGRADED:.0e}, black: unusable above {REL_UNUSABLE:.0e}); "
-          "crosses at 1 mark cases where the method returned NaN/Inf.", "",
-          f"![condition numbers per family]({figures[1]})", "",
-          "Condition number of the mass matrix (CRBA) per case, raw (SI units) and equilibrated; dashed "
-          f"lines: ill-conditioned from {COND_ILL:.0e} (grey), numerically singular from {COND_SINGULAR:.0e} "
-          "(black); open circles: an exact cause of singularity was found.", ""]
+    L += [
+        f"![relative errors per family]({figures[0]})",
+        "",
+        "Relative error of each method per case against the 50-digit reference, one panel per family; "
+        "markers tell a family's sub-series apart (named in the panel title); dashed lines are the "
+        f"thresholds (grey: degraded above {REL_DEGRADED:.0e}, black: unusable above {REL_UNUSABLE:.0e}); "
+        "crosses at 1 mark cases where the method returned NaN/Inf.",
+        "",
+        f"![condition numbers per family]({figures[1]})",
+        "",
+        "Condition number of the mass matrix (CRBA) per case, raw (SI units) and equilibrated; dashed "
+        f"lines: ill-conditioned from {COND_ILL:.0e} (grey), numerically singular from {COND_SINGULAR:.0e} "
+        "(black); open circles: an exact cause of singularity was found.",
+        "",
+    ]
     L += [forward_markdown(forward)]
-    L += [f"![work-precision]({figures[2]})", "",
-          "Work-precision: run time against the error reached, one line per integrator through its "
-          "tolerances; the number beside each point is k for the requested rtol = 1e-k "
-          f"(atol = rtol x {ATOL_FACTOR:g}).", "",
-          f"![stiff rods]({figures[3]})", "",
-          "Stiff rods: right-hand-side evaluations for one horizon against the fastest rod rate; "
-          "black crosses mark runs that gave up at the evaluation budget.", ""]
+    L += [
+        f"![work-precision]({figures[2]})",
+        "",
+        "Work-precision: run time against the error reached, one line per integrator through its "
+        "tolerances; the number beside each point is k for the requested rtol = 1e-k "
+        f"(atol = rtol x {ATOL_FACTOR:g}).",
+        "",
+        f"![stiff rods]({figures[3]})",
+        "",
+        "Stiff rods: right-hand-side evaluations for one horizon against the fastest rod rate; "
+        "black crosses mark runs that gave up at the evaluation budget.",
+        "",
+    ]
     from exo_bench.bench.studies.stability.chart_free_report import chart_free_markdown, chart_free_results
+
     L += [chart_free_markdown(chart_free_results(families))]
     return "\n".join(L)
 
@@ -242,11 +317,14 @@ def run(options: StabilityOptions) -> int:
         else:
             families = evaluate_families(profile, methods, log)
             forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
-    figs = {"stability-families.png": families_figure(families, methods),
-            "stability-conditioning.png": conditioning_figure(families)}
+    figs = {
+        "stability-families.png": families_figure(families, methods),
+        "stability-conditioning.png": conditioning_figure(families),
+    }
     figs.update(forward_figures(forward))
     # a quick run never replaces a --full run's report: it writes stability-quick.md beside it
     from exo_bench.bench.output.files import announce_narrower, narrower_names
+
     names = narrower_names(Path(options.published_to or out), [*figs, "stability.md"], options.full)
     announce_narrower(out, names, "stability reports")
     written = [save_figure(fig, out / names[name]) for name, fig in figs.items()]
@@ -259,9 +337,10 @@ def run(options: StabilityOptions) -> int:
     bad_rt = [rt for rt in forward.round_trips if rt.verdict == "FAIL"]
     bad_en = [r for r in forward.energy if r.sim.ok and not r.passed]
     for rt in bad_rt:
-        print(f"round trip FAILED: {rt.case}, {rt.method}, {rt.integrator} rtol {rt.rtol:g}: deviation "
-              f"{rt.error:.2e} > tolerance {rt.tolerance:.2e}")
+        print(
+            f"round trip FAILED: {rt.case}, {rt.method}, {rt.integrator} rtol {rt.rtol:g}: deviation "
+            f"{rt.error:.2e} > tolerance {rt.tolerance:.2e}"
+        )
     for r in bad_en:
         print(f"energy drift above its bound: {r.case}, {r.integrator} rtol {r.rtol:g}: {r.drift:.2e} > {r.bound:.2e}")
     return 1 if bad_rt or bad_en else 0
-

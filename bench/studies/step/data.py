@@ -74,13 +74,26 @@ def save(solution, mech: Mechanism, path: Path | None = None, provenance: dict |
     from exo_bench.bench.output.provenance import atomic_path
 
     path = Path(path) if path is not None else path_of(mech.name)
-    meta = {"mechanism": mech.name, "settings": solution.settings.to_dict(), "solver": solution.stats,
-            **(provenance or {})}
+    meta = {
+        "mechanism": mech.name,
+        "settings": solution.settings.to_dict(),
+        "solver": solution.stats,
+        **(provenance or {}),
+    }
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez_compressed(f, t=solution.t, q=solution.q, qd=solution.qd, qdd=solution.qdd, tau=solution.tau,
-                                moments=solution.moments, forces=solution.forces, meta=np.array(json.dumps(meta)))
+            np.savez_compressed(
+                f,
+                t=solution.t,
+                q=solution.q,
+                qd=solution.qd,
+                qdd=solution.qdd,
+                tau=solution.tau,
+                moments=solution.moments,
+                forces=solution.forces,
+                meta=np.array(json.dumps(meta)),
+            )
     return path
 
 
@@ -89,11 +102,15 @@ def load(mechanism: str | Path) -> StoredStep:
     p = Path(mechanism) if str(mechanism).endswith(".npz") else path_of(str(mechanism))
     if not p.exists():
         known = ", ".join(sorted(x.name.removesuffix("-step.npz") for x in DATA.glob("*-step.npz")))
-        raise ValueError(f"step: no stored step {str(mechanism)!r} (stored: {known or 'none'}; "
-                         "solve one with exo-bench gait --solve)")
+        raise ValueError(
+            f"step: no stored step {str(mechanism)!r} (stored: {known or 'none'}; "
+            "solve one with exo-bench gait --solve)"
+        )
     with np.load(p, allow_pickle=False) as z:
         meta = json.loads(str(z["meta"]))
-        arrays = {k: np.ascontiguousarray(z[k], dtype=float) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")}
+        arrays = {
+            k: np.ascontiguousarray(z[k], dtype=float) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")
+        }
     return StoredStep(meta["mechanism"], StepSettings.from_dict(meta["settings"]), meta=meta, **arrays)
 
 
@@ -115,10 +132,18 @@ def violations(step: StoredStep, mech: Mechanism) -> dict[str, float]:
     e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)
     out = {}
     out["grid (equal intervals)"] = float(np.abs(t - np.linspace(0, step.duration, K)).max())
-    out["Hermite-Simpson: midpoint positions"] = float(np.abs(q[m_] - (q[e] + q[o]) / 2 - h / 8 * (qd[e] - qd[o])).max())
-    out["Hermite-Simpson: midpoint rates"] = float(np.abs(qd[m_] - (qd[e] + qd[o]) / 2 - h / 8 * (qdd[e] - qdd[o])).max())
-    out["Hermite-Simpson: positions (Simpson)"] = float(np.abs(q[o] - q[e] - h / 6 * (qd[e] + 4 * qd[m_] + qd[o])).max())
-    out["Hermite-Simpson: rates (Simpson)"] = float(np.abs(qd[o] - qd[e] - h / 6 * (qdd[e] + 4 * qdd[m_] + qdd[o])).max())
+    out["Hermite-Simpson: midpoint positions"] = float(
+        np.abs(q[m_] - (q[e] + q[o]) / 2 - h / 8 * (qd[e] - qd[o])).max()
+    )
+    out["Hermite-Simpson: midpoint rates"] = float(
+        np.abs(qd[m_] - (qd[e] + qd[o]) / 2 - h / 8 * (qdd[e] - qdd[o])).max()
+    )
+    out["Hermite-Simpson: positions (Simpson)"] = float(
+        np.abs(q[o] - q[e] - h / 6 * (qd[e] + 4 * qd[m_] + qd[o])).max()
+    )
+    out["Hermite-Simpson: rates (Simpson)"] = float(
+        np.abs(qd[o] - qd[e] - h / 6 * (qdd[e] + 4 * qdd[m_] + qdd[o])).max()
+    )
     S = swap_matrix(mech)
     out["leg swap: coordinates"] = float(np.abs(q[0] - S @ q[-1]).max())
     out["leg swap: rates"] = float(np.abs(qd[0] - S @ qd[-1]).max())
@@ -129,9 +154,9 @@ def violations(step: StoredStep, mech: Mechanism) -> dict[str, float]:
     out["landing point (one step length ahead)"] = float(np.abs(P[-1, 3, 2] - target).max())
     out["landing velocity (no impact)"] = float(np.abs(V[-1, 3, 2]).max())
     lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
-    z = P[:, 2:4, :, -1].reshape(K, 6)                  # the swing leg's six point masses, height
-    out["swing leg above the floor"] = _excess(-z[1:K - 1])
-    out[f"swing-leg clearance >= {s.clearance * 100:g} cm"] = _excess(s.clearance - z[lo:hi + 1])
+    z = P[:, 2:4, :, -1].reshape(K, 6)  # the swing leg's six point masses, height
+    out["swing leg above the floor"] = _excess(-z[1 : K - 1])
+    out[f"swing-leg clearance >= {s.clearance * 100:g} cm"] = _excess(s.clearance - z[lo : hi + 1])
     out["hip moves forward"] = _excess(-V[:, 1, 2, 0])
     _, F = net_joint_loads(mech, q, qd, qdd)
     bw = mech.total_mass * mech.g
@@ -174,7 +199,7 @@ def walking_motion(step: StoredStep, mech: Mechanism, steps: int = 2) -> Walking
     ts, qs, qds, qdds, origins = [], [], [], [], []
     mirror = np.ones(mech.dof)
     if mech.dim == 3:
-        mirror[:mech.nlinks] = -1.0
+        mirror[: mech.nlinks] = -1.0
     foot = point_mass_positions(mech, step.q[-1:])[0, 3, 2]
     O = np.zeros(mech.dim)
     for k in range(steps):
@@ -189,9 +214,25 @@ def walking_motion(step: StoredStep, mech: Mechanism, steps: int = 2) -> Walking
         if mech.dim == 3 and k % 2:
             land[1] = -land[1]
         O = O + land
-    return WalkingMotion(np.concatenate(ts), np.concatenate(qs), np.concatenate(qds), np.concatenate(qdds),
-                         origin=np.concatenate(origins))
+    return WalkingMotion(
+        np.concatenate(ts),
+        np.concatenate(qs),
+        np.concatenate(qds),
+        np.concatenate(qdds),
+        origin=np.concatenate(origins),
+    )
 
 
-__all__ = ["DATA", "REPRODUCE_TOL", "StoredStep", "WalkingMotion", "hip_path", "load", "lowest_swing_mass",
-           "path_of", "save", "violations", "walking_motion"]
+__all__ = [
+    "DATA",
+    "REPRODUCE_TOL",
+    "StoredStep",
+    "WalkingMotion",
+    "hip_path",
+    "load",
+    "lowest_swing_mass",
+    "path_of",
+    "save",
+    "violations",
+    "walking_motion",
+]

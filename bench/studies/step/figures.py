@@ -41,9 +41,16 @@ def walking_kinogram(study: Study, frames_per_step: int = FRAMES_PER_STEP) -> Fi
     W = world_points(study)
     k_of = step_index(study)
     steps = int(k_of.max()) + 1
-    idx = np.unique(np.concatenate([np.flatnonzero(k_of == k)[np.linspace(0, np.count_nonzero(k_of == k) - 1,
-                                                                               frames_per_step).round().astype(int)]
-                                    for k in range(steps)]))
+    idx = np.unique(
+        np.concatenate(
+            [
+                np.flatnonzero(k_of == k)[
+                    np.linspace(0, np.count_nonzero(k_of == k) - 1, frames_per_step).round().astype(int)
+                ]
+                for k in range(steps)
+            ]
+        )
+    )
     proj = projections(mech)[0]
     hx, vx = proj.axes
     masses = mech.mass_array
@@ -66,8 +73,15 @@ def walking_kinogram(study: Study, frames_per_step: int = FRAMES_PER_STEP) -> Fi
         for i in range(mech.nlinks):
             c = link_color(PHYSICAL[i] if k % 2 else i)
             P = W[s_, i]
-            ax.plot([P[0, hx], P[2, hx]], [P[0, vx], P[2, vx]], color=c, lw=2.0, solid_capstyle="round", zorder=2,
-                    gid=f"rod:{s_}:{i}")
+            ax.plot(
+                [P[0, hx], P[2, hx]],
+                [P[0, vx], P[2, vx]],
+                color=c,
+                lw=2.0,
+                solid_capstyle="round",
+                zorder=2,
+                gid=f"rod:{s_}:{i}",
+            )
             ax.scatter(P[:, hx], P[:, vx], s=area[i], c=[c] * 3, edgecolors="k", linewidths=0.4, zorder=3)
     ax.set_xlim(lo, hi)
     ax.set_ylim(-0.05, top)
@@ -75,21 +89,28 @@ def walking_kinogram(study: Study, frames_per_step: int = FRAMES_PER_STEP) -> Fi
     ax.set_xlabel(proj.labels[0] + ", walking direction", fontsize=TEXT_PT)
     ax.set_ylabel(proj.labels[1], fontsize=TEXT_PT)
     ax.tick_params(labelsize=TEXT_PT)
-    handles = [Line2D([], [], color=link_color(0), lw=2, label="leg A shin (stance in step 1, swing in step 2)"),
-               Line2D([], [], color=link_color(1), lw=2, label="leg A thigh"),
-               Line2D([], [], color=link_color(2), lw=2, label="leg B thigh (swing in step 1, stance in step 2)"),
-               Line2D([], [], color=link_color(3), lw=2, label="leg B shin"),
-               Line2D([], [], color=link_color(4), lw=2, label="trunk"),
-               Line2D([], [], color="k", ls=":", label="hip path"),
-               Line2D([], [], color="0.3", ls="-.", label="swing foot path"),
-               Line2D([], [], color="k", marker="^", ls="none", label="stance feet (support point O of each step)"),
-               Line2D([], [], color="0.45", ls="--", label="floor")]
+    handles = [
+        Line2D([], [], color=link_color(0), lw=2, label="leg A shin (stance in step 1, swing in step 2)"),
+        Line2D([], [], color=link_color(1), lw=2, label="leg A thigh"),
+        Line2D([], [], color=link_color(2), lw=2, label="leg B thigh (swing in step 1, stance in step 2)"),
+        Line2D([], [], color=link_color(3), lw=2, label="leg B shin"),
+        Line2D([], [], color=link_color(4), lw=2, label="trunk"),
+        Line2D([], [], color="k", ls=":", label="hip path"),
+        Line2D([], [], color="0.3", ls="-.", label="swing foot path"),
+        Line2D([], [], color="k", marker="^", ls="none", label="stance feet (support point O of each step)"),
+        Line2D([], [], color="0.45", ls="--", label="floor"),
+    ]
     fig.legend(handles=handles, fontsize=TEXT_PT, loc="outside lower center", ncols=3, frameon=False)
     t = study.motion.t
-    fig.suptitle(_header(study, f"Kinogram drawn as it walks: {steps} step(s) over {t[-1] - t[0]:.2f} s, "
-                                f"{frames_per_step} frames per step at their place in the world ({proj.name}); each "
-                                "step after the first is the stored one mirrored (legs exchanged); dot area ∝ point mass"),
-                 fontsize=TITLE_PT)
+    fig.suptitle(
+        _header(
+            study,
+            f"Kinogram drawn as it walks: {steps} step(s) over {t[-1] - t[0]:.2f} s, "
+            f"{frames_per_step} frames per step at their place in the world ({proj.name}); each "
+            "step after the first is the stored one mirrored (legs exchanged); dot area ∝ point mass",
+        ),
+        fontsize=TITLE_PT,
+    )
     return fig
 
 

@@ -106,13 +106,13 @@ class Solution:
     """A solved step: the collocation points and the optimiser's loads there."""
 
     settings: StepSettings
-    t: np.ndarray            # (2N + 1,) nodes and midpoints
-    q: np.ndarray            # (2N + 1, dof)
+    t: np.ndarray  # (2N + 1,) nodes and midpoints
+    q: np.ndarray  # (2N + 1, dof)
     qd: np.ndarray
     qdd: np.ndarray
-    tau: np.ndarray          # (2N + 1, dof) the optimiser's inverse dynamics
-    moments: np.ndarray      # (2N + 1, n) in 2D, (2N + 1, n, 3) in 3D: net joint moments
-    forces: np.ndarray       # (2N + 1, n, dim): net joint forces
+    tau: np.ndarray  # (2N + 1, dof) the optimiser's inverse dynamics
+    moments: np.ndarray  # (2N + 1, n) in 2D, (2N + 1, n, 3) in 3D: net joint moments
+    forces: np.ndarray  # (2N + 1, n, dim): net joint forces
     stats: dict = field(default_factory=dict)
 
     @property
@@ -146,11 +146,16 @@ def swap_matrix(mech: Mechanism) -> np.ndarray:
 
 
 def _check(mech: Mechanism, settings: StepSettings) -> None:
-    if mech.nlinks != 5 or mech.dim != settings.dim or mech.names[:5] != (
-            "stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk"):
-        raise ValueError(f"step: mechanism {mech.name!r}: expected the five-link exoskeleton exo5-{settings.dim}d "
-                         f"(stance shin, stance thigh, swing thigh, swing shin, trunk), got {mech.dim}D with links "
-                         f"{list(mech.names)}")
+    if (
+        mech.nlinks != 5
+        or mech.dim != settings.dim
+        or mech.names[:5] != ("stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk")
+    ):
+        raise ValueError(
+            f"step: mechanism {mech.name!r}: expected the five-link exoskeleton exo5-{settings.dim}d "
+            f"(stance shin, stance thigh, swing thigh, swing shin, trunk), got {mech.dim}D with links "
+            f"{list(mech.names)}"
+        )
     if settings.intervals < 50:
         raise ValueError(f"step: field 'intervals': expected >= 50, got {settings.intervals}")
 
@@ -225,7 +230,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
         Q, V, A = Xq, Xv, Xa
     h = T / N
     # Hermite-Simpson, separated form
-    e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)      # interval starts, midpoints, ends
+    e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)  # interval starts, midpoints, ends
     opti.subject_to(Xq[:, m_] == (Xq[:, e] + Xq[:, o]) / 2 + h / 8 * (Xv[:, e] - Xv[:, o]))
     opti.subject_to(Xv[:, m_] == (Xv[:, e] + Xv[:, o]) / 2 + h / 8 * (Xa[:, e] - Xa[:, o]))
     opti.subject_to(Xq[:, o] - Xq[:, e] == h / 6 * (Xv[:, e] + 4 * Xv[:, m_] + Xv[:, o]))
@@ -236,9 +241,9 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     Sf = S[free, free]
     opti.subject_to(Xq[:, 0] == ca.mtimes(Sf, Xq[:, K - 1]))
     opti.subject_to(Xv[:, 0] == ca.mtimes(Sf, Xv[:, K - 1]))
-    ankle = lambda X, j: X[(3 * 3 + 2) * dim: (3 * 3 + 3) * dim, j]     # link 4, end mass
+    ankle = lambda X, j: X[(3 * 3 + 2) * dim : (3 * 3 + 3) * dim, j]  # link 4, end mass
     target = [s.speed * T] + [0.0] * (dim - 1)
-    axes = [0, dim - 1] if planar3d else list(range(dim))     # planar 3D: y is 0 identically
+    axes = [0, dim - 1] if planar3d else list(range(dim))  # planar 3D: y is 0 identically
     opti.subject_to(ankle(P, K - 1)[axes] == ca.vertcat(*target)[axes])
     opti.subject_to(ankle(Pd, K - 1)[axes] == 0)
     # swing foot clearance: every swing-leg point mass (links 3 and 4), vertical axis
@@ -246,17 +251,17 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     for i in (2, 3):
         for b in range(3):
             z = P[(3 * i + b) * dim + dim - 1, :]
-            opti.subject_to(z[1:K - 1] >= 0)     # at 0 and T the landing conditions fix the foot's height
-            opti.subject_to(z[lo:hi + 1] >= s.clearance)
+            opti.subject_to(z[1 : K - 1] >= 0)  # at 0 and T the landing conditions fix the foot's height
+            opti.subject_to(z[lo : hi + 1] >= s.clearance)
     # the hip (end of link 2) moves forward
     opti.subject_to(Pd[(3 * 1 + 2) * dim, :] >= 0)
     # ground reaction at O: pushes, in the friction cone
     Fx, Fz = F[0, :], F[dim - 1, :]
     opti.subject_to(Fz >= s.min_support * bw)
-    if dim == 2 or planar3d:   # the lateral force is 0 identically in a planar step: a linear cone
+    if dim == 2 or planar3d:  # the lateral force is 0 identically in a planar step: a linear cone
         opti.subject_to(opti.bounded(-s.friction * Fz, Fx, s.friction * Fz))
     else:
-        opti.subject_to(Fx ** 2 + F[1, :] ** 2 <= (s.friction * Fz) ** 2)
+        opti.subject_to(Fx**2 + F[1, :] ** 2 <= (s.friction * Fz) ** 2)
     # joint ranges and rod strokes
     ang = angle_rows(mech)
     th = [Q[int(r), :] for r in ang]
@@ -278,8 +283,11 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
                 opti.subject_to(opti.bounded(-s.azimuth, Q[i, :], s.azimuth))
     opti.subject_to(opti.bounded(s.duration[0], T, s.duration[1]))
     # objective: Simpson average of the effort
-    L_ = s.w_moment * ca.sum1((M / mass) ** 2) + s.w_force * ca.sum1((tau[dof - n:, :] / bw) ** 2) \
-        + s.w_accel * ca.sum1(A ** 2)
+    L_ = (
+        s.w_moment * ca.sum1((M / mass) ** 2)
+        + s.w_force * ca.sum1((tau[dof - n :, :] / bw) ** 2)
+        + s.w_accel * ca.sum1(A**2)
+    )
     wts = np.ones(K)
     wts[1::2] = 4.0
     wts[2:-1:2] = 2.0
@@ -290,10 +298,18 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     opti.set_initial(Xq, q0[:, free].T)
     opti.set_initial(Xv, qd0[:, free].T)
     opti.set_initial(Xa, qdd0[:, free].T)
-    opts = {"ipopt.tol": s.tol, "ipopt.constr_viol_tol": 1e-10, "ipopt.acceptable_iter": 0,
-            "ipopt.bound_relax_factor": 0.0, "ipopt.max_iter": 3000, "ipopt.mu_strategy": "adaptive",
-            "ipopt.print_level": 5 if verbose else 0, "print_time": verbose, "ipopt.sb": "yes",
-            "expand": True}   # SX: the exact Hessian costs half of the MX one here
+    opts = {
+        "ipopt.tol": s.tol,
+        "ipopt.constr_viol_tol": 1e-10,
+        "ipopt.acceptable_iter": 0,
+        "ipopt.bound_relax_factor": 0.0,
+        "ipopt.max_iter": 3000,
+        "ipopt.mu_strategy": "adaptive",
+        "ipopt.print_level": 5 if verbose else 0,
+        "print_time": verbose,
+        "ipopt.sb": "yes",
+        "expand": True,
+    }  # SX: the exact Hessian costs half of the MX one here
     opti.solver("ipopt", opts)
     t_start = time.perf_counter()
     try:
@@ -304,8 +320,10 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     seconds = time.perf_counter() - t_start
     st = opti.stats()
     if not ok:
-        raise RuntimeError(f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
-                           f"{st.get('iter_count')} iterations ({seconds:.1f} s)")
+        raise RuntimeError(
+            f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
+            f"{st.get('iter_count')} iterations ({seconds:.1f} s)"
+        )
     Tv = float(sol.value(T))
     t = np.linspace(0.0, Tv, K)
     q, qd, qdd = (np.atleast_2d(sol.value(X)).T for X in (Q, V, A))
@@ -313,10 +331,15 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     Mv = np.asarray(sol.value(M)).T
     Fv = np.asarray(sol.value(F)).T.reshape(K, n, dim)
     Mv = Mv.reshape(K, n, 3) if dim == 3 else Mv.reshape(K, n)
-    stats = {"status": st.get("return_status"), "success": bool(st.get("success")),
-             "iterations": int(st.get("iter_count")), "solve_seconds": seconds,
-             "objective": float(sol.value(opti.f)), "casadi": ca.__version__,
-             "constraint_violation": _ipopt_violation(opti, sol)}
+    stats = {
+        "status": st.get("return_status"),
+        "success": bool(st.get("success")),
+        "iterations": int(st.get("iter_count")),
+        "solve_seconds": seconds,
+        "objective": float(sol.value(opti.f)),
+        "casadi": ca.__version__,
+        "constraint_violation": _ipopt_violation(opti, sol),
+    }
     return Solution(s, t, q, qd, qdd, tau_v, Mv, Fv, stats)
 
 

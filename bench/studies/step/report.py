@@ -45,7 +45,7 @@ class _Along:
         self.M, self.F = net_joint_loads(mech, mo.q, mo.qd, mo.qdd)
         self.Mn = np.linalg.norm(self.M, axis=-1) if mech.dim == 3 else np.abs(self.M)
         self.Fn = np.linalg.norm(self.F, axis=-1)
-        self.A = np.linalg.norm(point_mass_accelerations(mech, mo.q, mo.qd, mo.qdd), axis=-1)   # (S, n, 3)
+        self.A = np.linalg.norm(point_mass_accelerations(mech, mo.q, mo.qd, mo.qdd), axis=-1)  # (S, n, 3)
         th = mo.q[:, data.angle_rows(mech)]
         self.knee = (np.degrees(th[:, 1] - th[:, 0]).max(), np.degrees(th[:, 2] - th[:, 3]).max())
         s = stored.settings
@@ -56,8 +56,17 @@ class _Along:
 
     def when(self, s: int) -> str:
         x = (self.t[s] % self.T) / self.T if self.t[s] < self.t[-1] else 1.0
-        phase = ("lift-off" if x < 0.1 else "touch-down" if x > 0.9 else "mid-step" if 0.35 < x < 0.65 else
-                 "early step" if x < 0.5 else "late step")
+        phase = (
+            "lift-off"
+            if x < 0.1
+            else "touch-down"
+            if x > 0.9
+            else "mid-step"
+            if 0.35 < x < 0.65
+            else "early step"
+            if x < 0.5
+            else "late step"
+        )
         return f"t = {self.t[s]:.3f} s, {100 * x:.0f} % of the step ({phase})"
 
     def lever(self, k: int, s: int) -> float:
@@ -68,25 +77,32 @@ def _joint_reason(al: _Along, k: int, name: str, ratio: float) -> str:
     role = ROLES[name]
     s = int(np.argmax(al.Mn[:, k]))
     wl = _winter_lever(role[1])
-    lever = (f"the net joint force passes {100 * al.lever(k, s):.1f} cm from the joint at the peak"
-             + (f" (Winter's peak moment over peak force: {100 * wl:.1f} cm)" if wl else ""))
+    lever = f"the net joint force passes {100 * al.lever(k, s):.1f} cm from the joint at the peak" + (
+        f" (Winter's peak moment over peak force: {100 * wl:.1f} cm)" if wl else ""
+    )
     if ratio > FACTOR:
         return f"**{ratio:.1f}× Winter's**: peak at {al.when(s)}; {lever}"
     if k == 0:
-        return (f"**no push-off: a point foot.** In walking the ankle moment is the ground reaction's moment "
-                f"about the ankle, the centre of pressure rolling forward under the foot; here the centre of "
-                f"pressure is the ankle O itself, and the ankle moment is an actuator's that the optimiser uses "
-                f"only where it lowers the effort: {lever}; peak at {al.when(s)}")
+        return (
+            f"**no push-off: a point foot.** In walking the ankle moment is the ground reaction's moment "
+            f"about the ankle, the centre of pressure rolling forward under the foot; here the centre of "
+            f"pressure is the ankle O itself, and the ankle moment is an actuator's that the optimiser uses "
+            f"only where it lowers the effort: {lever}; peak at {al.when(s)}"
+        )
     if k in (1, 4):
         what = "knee" if k == 1 else "hip"
-        return (f"**the stance leg is a strut on telescopic rods**: {lever}. The stance knee flexes at most "
-                f"{al.knee[0]:.1f}° and the stance rods change length by up to {100 * al.stroke[0]:.1f} and "
-                f"{100 * al.stroke[1]:.1f} cm (limit ±{100 * al.limit:g} cm), so the body rides on the rods' axial "
-                f"forces and the {what} carries little moment; in walking the loaded knee flexes about 15-20° and "
-                f"the ground reaction passes well off the joints; peak at {al.when(s)}")
-    return (f"**the swing leg swings with a small moment**: peak at {al.when(s)}; {lever}; the swing knee flexes at most "
-            f"{al.knee[1]:.1f}° and the swing rods change length by up to {100 * al.stroke[2]:.1f} and "
-            f"{100 * al.stroke[3]:.1f} cm, shortening the leg for clearance instead of flexing the knee")
+        return (
+            f"**the stance leg is a strut on telescopic rods**: {lever}. The stance knee flexes at most "
+            f"{al.knee[0]:.1f}° and the stance rods change length by up to {100 * al.stroke[0]:.1f} and "
+            f"{100 * al.stroke[1]:.1f} cm (limit ±{100 * al.limit:g} cm), so the body rides on the rods' axial "
+            f"forces and the {what} carries little moment; in walking the loaded knee flexes about 15-20° and "
+            f"the ground reaction passes well off the joints; peak at {al.when(s)}"
+        )
+    return (
+        f"**the swing leg swings with a small moment**: peak at {al.when(s)}; {lever}; the swing knee flexes at most "
+        f"{al.knee[1]:.1f}° and the swing rods change length by up to {100 * al.stroke[2]:.1f} and "
+        f"{100 * al.stroke[3]:.1f} cm, shortening the leg for clearance instead of flexing the knee"
+    )
 
 
 def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
@@ -95,13 +111,17 @@ def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
 
     links = list(subtree(al.mech, k))
     acc = float(al.A[s, links].max())
-    what = (f"peak at {al.when(s)}, where a point mass of the {al.mech.names[k]}'s subtree accelerates at "
-            f"{acc:.0f} m/s² ({acc / al.mech.g:.1f} g)")
+    what = (
+        f"peak at {al.when(s)}, where a point mass of the {al.mech.names[k]}'s subtree accelerates at "
+        f"{acc:.0f} m/s² ({acc / al.mech.g:.1f} g)"
+    )
     if ratio > FACTOR and k in (2, 3):
-        return (f"**{ratio:.1f}× Winter's: the swing foot starts and stops at rest** (no impact at touch-down, the "
-                f"old stance foot at lift-off) and must clear {100 * 0.01:g} cm within the lift-off and touch-down "
-                f"windows; {what}; the swing rods change length by up to {100 * al.stroke[2]:.1f} and "
-                f"{100 * al.stroke[3]:.1f} cm. Winter's swing leg leaves the floor already moving, after push-off")
+        return (
+            f"**{ratio:.1f}× Winter's: the swing foot starts and stops at rest** (no impact at touch-down, the "
+            f"old stance foot at lift-off) and must clear {100 * 0.01:g} cm within the lift-off and touch-down "
+            f"windows; {what}; the swing rods change length by up to {100 * al.stroke[2]:.1f} and "
+            f"{100 * al.stroke[3]:.1f} cm. Winter's swing leg leaves the floor already moving, after push-off"
+        )
     if ratio > FACTOR:
         return f"**{ratio:.1f}× Winter's**: {what}"
     return f"**{ratio:.2f}× Winter's**: {what}"
@@ -109,8 +129,11 @@ def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
 
 def plausibility_tables(p: Plausibility, al: _Along) -> list[str]:
     """The two tables of :func:`exo_bench.bench.studies.plausibility.markdown` with computed reasons in the last column."""
-    lines = ["| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
-             "| model / normative | comparable? |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
+        "| model / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in p.joints:
         name = al.mech.names[r.link]
         ratio = _ratio(r.sagittal, r.normative)
@@ -121,10 +144,16 @@ def plausibility_tables(p: Plausibility, al: _Along) -> list[str]:
             why = f"yes: within {FACTOR:g}× of Winter's"
         else:
             why = _joint_reason(al, r.link, name, ratio)
-        lines.append(f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | "
-                     f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |")
-    lines += ["", "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
-              "force (BW) | net joint force / normative | comparable? |", "|---|---|---|---|---|---|"]
+        lines.append(
+            f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | "
+            f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |"
+        )
+    lines += [
+        "",
+        "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
+        "force (BW) | net joint force / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in p.rods:
         name = al.mech.names[r.link]
         ratio = _ratio(r.joint_force, r.normative)
@@ -135,8 +164,10 @@ def plausibility_tables(p: Plausibility, al: _Along) -> list[str]:
             why = f"yes: within {FACTOR:g}× of Winter's"
         else:
             why = _rod_reason(al, r.link, name, ratio)
-        lines.append(f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | "
-                     f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |")
+        lines.append(
+            f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | "
+            f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |"
+        )
     return lines
 
 
@@ -158,8 +189,13 @@ def _settings_lines(st: data.StoredStep) -> list[str]:
         f"- **joint ranges**: knee flexion (thigh angle − shin angle, both legs) in [{d(s.knee[0])}, {d(s.knee[1])}] "
         f"(no hyperextension); hip (thigh − trunk) in [{d(s.hip[0])}, {d(s.hip[1])}]; leg segments in "
         f"[{d(s.segment[0])}, {d(s.segment[1])}] and trunk in [{d(s.trunk[0])}, {d(s.trunk[1])}] from the walking "
-        f"direction" + ("; azimuths fixed at 0 (a sagittal step: every leg rod passes the vertical, where eq. (7)'s "
-                        "chart is singular)" if s.dim == 3 and s.azimuth == 0 else ""),
+        f"direction"
+        + (
+            "; azimuths fixed at 0 (a sagittal step: every leg rod passes the vertical, where eq. (7)'s "
+            "chart is singular)"
+            if s.dim == 3 and s.azimuth == 0
+            else ""
+        ),
         f"- **rod strokes**: ±{100 * s.stroke:g} cm about the rest lengths {list(s.rest_lengths)} m (shin, thigh, "
         "trunk; both legs alike)",
         f"- **ground reaction** at O pushes (vertical ≥ {s.min_support:g} BW) within a friction cone μ = {s.friction:g}; "
@@ -185,25 +221,39 @@ def markdown(scene, study: Study) -> str:
     from exo_bench.models.kinematics import point_mass_velocities
 
     hipv = point_mass_velocities(mech, stored.q, stored.qd)[:, 1, 2, 0]
-    lines = ["## The predicted step", "",
-             f"One step of `{mech.name}` solved by direct collocation with IPOPT (`bench/studies/step/problem.py`), stored "
-             f"as `bench/studies/step/data/{stored.mechanism}-step.npz`; the scene walks {scene.motion['steps']} step(s), each "
-             "after the first the stored one mirrored with the support point moved to the new foot. Solve it again "
-             f"with `exo-bench gait --solve --dim {mech.dim}`.", ""]
+    lines = [
+        "## The predicted step",
+        "",
+        f"One step of `{mech.name}` solved by direct collocation with IPOPT (`bench/studies/step/problem.py`), stored "
+        f"as `bench/studies/step/data/{stored.mechanism}-step.npz`; the scene walks {scene.motion['steps']} step(s), each "
+        "after the first the stored one mirrored with the support point moved to the new foot. Solve it again "
+        f"with `exo-bench gait --solve --dim {mech.dim}`.",
+        "",
+    ]
     lines += _settings_lines(stored)
-    lines += ["", f"**Solved** at commit {meta.get('commit', '?')} on {meta.get('date', '?')}: IPOPT "
-              f"`{sv.get('status')}` after {sv.get('iterations')} iterations in {sv.get('solve_seconds', float('nan')):.1f} s "
-              f"(on a shared 2-core host; CasADi {sv.get('casadi')}), objective {sv.get('objective', float('nan')):.6g}, "
-              f"largest constraint violation as CasADi evaluates it {sv.get('constraint_violation', float('nan')):.1e}.", "",
-              "**Every constraint re-evaluated** in numpy from the stored arrays with models/kinematics.py and "
-              "models/joint_loads.py (largest violation; 0 = met with margin):", "",
-              "| constraint | largest violation |", "|---|---|"]
+    lines += [
+        "",
+        f"**Solved** at commit {meta.get('commit', '?')} on {meta.get('date', '?')}: IPOPT "
+        f"`{sv.get('status')}` after {sv.get('iterations')} iterations in {sv.get('solve_seconds', float('nan')):.1f} s "
+        f"(on a shared 2-core host; CasADi {sv.get('casadi')}), objective {sv.get('objective', float('nan')):.6g}, "
+        f"largest constraint violation as CasADi evaluates it {sv.get('constraint_violation', float('nan')):.1e}.",
+        "",
+        "**Every constraint re-evaluated** in numpy from the stored arrays with models/kinematics.py and "
+        "models/joint_loads.py (largest violation; 0 = met with margin):",
+        "",
+        "| constraint | largest violation |",
+        "|---|---|",
+    ]
     lines += [f"| {k} | {v:.1e} |" for k, v in viol.items()]
-    lines += ["", f"**Along the step**: the hip advances {hip[-1, 0] - hip[0, 0]:.4f} m (one step length, "
-              f"{stored.step_length:.4f} m) from {hip[0, 0]:+.3f} m to {hip[-1, 0]:+.3f} m over O, its forward "
-              f"velocity never below {hipv.min():.3f} m/s; its height stays within [{hip[:, -1].min():.3f}, "
-              f"{hip[:, -1].max():.3f}] m. The lowest swing-leg point mass is {100 * low[lo:hi + 1].min():.2f} cm above the "
-              f"floor at its lowest between lift-off and touch-down.", ""]
+    lines += [
+        "",
+        f"**Along the step**: the hip advances {hip[-1, 0] - hip[0, 0]:.4f} m (one step length, "
+        f"{stored.step_length:.4f} m) from {hip[0, 0]:+.3f} m to {hip[-1, 0]:+.3f} m over O, its forward "
+        f"velocity never below {hipv.min():.3f} m/s; its height stays within [{hip[:, -1].min():.3f}, "
+        f"{hip[:, -1].max():.3f}] m. The lowest swing-leg point mass is {100 * low[lo : hi + 1].min():.2f} cm above the "
+        f"floor at its lowest between lift-off and touch-down.",
+        "",
+    ]
     # every method against the optimiser's loads, on the first step's points
     tau_opt = stored.tau
     scale = float(np.abs(tau_opt).max())
@@ -212,46 +262,69 @@ def markdown(scene, study: Study) -> str:
         diff = np.abs(study.results[m].tau[:K] - tau_opt)
         bad = int(np.count_nonzero(~np.isfinite(diff)))
         d = float(diff[np.isfinite(diff)].max()) if bad < diff.size else float("nan")
-        note = (f" over the finite entries; **{bad} NaN/Inf entries** (see the notes above)" if bad else "")
+        note = f" over the finite entries; **{bad} NaN/Inf entries** (see the notes above)" if bad else ""
         rows.append(f"| {m} | {d:.2e}{note} | {d / scale:.1e} |")
-    lines += ["**Every method against the optimiser's loads** (the CasADi inverse dynamics stored with the step), "
-              f"on the first step's {K} points:", "", "| method | max abs. difference (N·m or N) | relative to the largest optimiser load |",
-              "|---|---|---|"] + rows
+    lines += [
+        "**Every method against the optimiser's loads** (the CasADi inverse dynamics stored with the step), "
+        f"on the first step's {K} points:",
+        "",
+        "| method | max abs. difference (N·m or N) | relative to the largest optimiser load |",
+        "|---|---|---|",
+    ] + rows
     p = plausibility(study)
     al = _Along(study, stored)
-    lines += ["", "## Plausibility: the loads beside level walking", "",
-              f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, about the joint; "
-              f"`models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
-              f"in body weights (BW = {p.weight:.0f} N), beside the normative peak of the joint each plays in level "
-              f"walking ({SHORT_SOURCE}). `comparable?` says yes within a factor of {FACTOR:g} either way, and otherwise "
-              "gives the reason computed from the step.", ""]
+    lines += [
+        "",
+        "## Plausibility: the loads beside level walking",
+        "",
+        f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, about the joint; "
+        f"`models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
+        f"in body weights (BW = {p.weight:.0f} N), beside the normative peak of the joint each plays in level "
+        f"walking ({SHORT_SOURCE}). `comparable?` says yes within a factor of {FACTOR:g} either way, and otherwise "
+        "gives the reason computed from the step.",
+        "",
+    ]
     lines += plausibility_tables(p, al)
-    lines += ["", "The rod force is the actuator's force along the rod; the net joint force is the whole force the parent "
-              "side exerts at the joint (its magnitude), like Winter's intersegmental force.", "",
-              "Where this step still differs from walking:", "",
-              "- **No feet, no double support.** The stance leg stands on a point; the swap is instantaneous, so one leg "
-              "carries the body through the whole step. Winter's stance peaks fall in double support and push-off, "
-              "which this model does not have.",
-              "- **Telescopic rods.** The effort counts rod forces, not rod motion: a rod's stroke costs only the force "
-              "that accelerates it, so the optimiser shortens and lengthens the legs (within the stated stroke) where "
-              "a human flexes the knee and rolls over the foot.",
-              f"- Normative values: {SOURCE}; one subject, one stride: a factor of about 1.5 is within normal variation "
-              "between people."]
+    lines += [
+        "",
+        "The rod force is the actuator's force along the rod; the net joint force is the whole force the parent "
+        "side exerts at the joint (its magnitude), like Winter's intersegmental force.",
+        "",
+        "Where this step still differs from walking:",
+        "",
+        "- **No feet, no double support.** The stance leg stands on a point; the swap is instantaneous, so one leg "
+        "carries the body through the whole step. Winter's stance peaks fall in double support and push-off, "
+        "which this model does not have.",
+        "- **Telescopic rods.** The effort counts rod forces, not rod motion: a rod's stroke costs only the force "
+        "that accelerates it, so the optimiser shortens and lengthens the legs (within the stated stroke) where "
+        "a human flexes the knee and rolls over the foot.",
+        f"- Normative values: {SOURCE}; one subject, one stride: a factor of about 1.5 is within normal variation "
+        "between people.",
+    ]
     return "\n".join(lines) + "\n"
 
 
 def text(study: Study) -> str:
     """A compact version for the rerun recording's description."""
     p = plausibility(study)
-    lines = [f"Peak net joint moments (N·m/kg of {p.body_mass:.4g} kg) and net joint forces (body weights) along the "
-             f"predicted step, beside level walking ({SHORT_SOURCE}); the scene report gives the reason for every "
-             f"peak outside {FACTOR:g}× of Winter's:", ""]
+    lines = [
+        f"Peak net joint moments (N·m/kg of {p.body_mass:.4g} kg) and net joint forces (body weights) along the "
+        f"predicted step, beside level walking ({SHORT_SOURCE}); the scene report gives the reason for every "
+        f"peak outside {FACTOR:g}× of Winter's:",
+        "",
+    ]
     for r in p.joints:
         norm = f", walking {r.normative.value:.2f} ({r.sagittal / r.normative.value:.2f}×)" if r.normative else ""
         lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
     for r in p.rods:
-        norm = (f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
-                f"({r.joint_force / r.normative.value:.2f}×)") if r.normative else ""
+        norm = (
+            (
+                f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
+                f"({r.joint_force / r.normative.value:.2f}×)"
+            )
+            if r.normative
+            else ""
+        )
         lines.append(f"- {r.rod}: {r.force:.2f} BW along the rod{norm}")
     return "\n".join(lines)
 

@@ -30,9 +30,12 @@ def load_motion(path: Path, m: dict, mech: Mechanism) -> dict:
     except ValueError as e:
         raise ValueError(f"{path}: field 'motion.kind': {e}") from None
     if stored.settings.dim != mech.dim or mech.names != tuple(
-            ("stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk")):
-        raise ValueError(f"{path}: field 'mechanism': expected the exoskeleton of the stored step "
-                         f"{stored.mechanism!r}, got {mech.name!r}")
+        ("stance_shin", "stance_thigh", "swing_thigh", "swing_shin", "trunk")
+    ):
+        raise ValueError(
+            f"{path}: field 'mechanism': expected the exoskeleton of the stored step "
+            f"{stored.mechanism!r}, got {mech.name!r}"
+        )
     return {"kind": "step", "steps": steps, "stored": stored}
 
 
@@ -43,9 +46,11 @@ def samples(motion: dict) -> int:
 
 def label(motion: dict) -> str:
     st = motion["stored"]
-    return (f"predicted step (direct collocation, bench/studies/step/data/{st.mechanism}-step.npz): {motion['steps']} step(s) "
-            f"of {st.duration:.3f} s and {st.step_length:.3f} m at {st.settings.speed:g} m/s, "
-            f"{len(st.t)} collocation points each")
+    return (
+        f"predicted step (direct collocation, bench/studies/step/data/{st.mechanism}-step.npz): {motion['steps']} step(s) "
+        f"of {st.duration:.3f} s and {st.step_length:.3f} m at {st.settings.speed:g} m/s, "
+        f"{len(st.t)} collocation points each"
+    )
 
 
 def build(motion: dict, mech: Mechanism):

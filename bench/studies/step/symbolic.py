@@ -67,7 +67,7 @@ def _kinematics(mech: Mechanism, q, qd, qdd):
     v = ca.jtimes(P, q, qd)
     a = ca.jtimes(v, q, qd) + ca.jtimes(v, qd, qdd)
     d = mech.dim
-    return p, [v[d * k: d * (k + 1)] for k in range(len(p))], [a[d * k: d * (k + 1)] for k in range(len(p))]
+    return p, [v[d * k : d * (k + 1)] for k in range(len(p))], [a[d * k : d * (k + 1)] for k in range(len(p))]
 
 
 def _mass_forces(mech: Mechanism, a: list) -> list:
@@ -82,8 +82,13 @@ def kinematics_function(mech: Mechanism) -> ca.Function:
     """``(p, v, a) = K(q, qd, qdd)``: every point mass's position, velocity and acceleration."""
     q, qd, qdd = (ca.SX.sym(s, mech.dof) for s in ("q", "qd", "qdd"))
     p, v, a = _kinematics(mech, q, qd, qdd)
-    return ca.Function(f"{_ident(mech)}_kinematics", [q, qd, qdd], [ca.vertcat(*p), ca.vertcat(*v), ca.vertcat(*a)],
-                       ["q", "qd", "qdd"], ["p", "v", "a"])
+    return ca.Function(
+        f"{_ident(mech)}_kinematics",
+        [q, qd, qdd],
+        [ca.vertcat(*p), ca.vertcat(*v), ca.vertcat(*a)],
+        ["q", "qd", "qdd"],
+        ["p", "v", "a"],
+    )
 
 
 def _cross(a, b):
@@ -110,8 +115,9 @@ def net_loads_function(mech: Mechanism) -> ca.Function:
                 F += fj
         Ms.append(m)
         Fs.append(F)
-    return ca.Function(f"{_ident(mech)}_net_loads", [q, qd, qdd], [ca.vertcat(*Ms), ca.vertcat(*Fs)],
-                       ["q", "qd", "qdd"], ["M", "F"])
+    return ca.Function(
+        f"{_ident(mech)}_net_loads", [q, qd, qdd], [ca.vertcat(*Ms), ca.vertcat(*Fs)], ["q", "qd", "qdd"], ["M", "F"]
+    )
 
 
 __all__ = ["inverse_dynamics_function", "kinematics_function", "net_loads_function"]
