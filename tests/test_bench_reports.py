@@ -172,3 +172,23 @@ def test_readme_goals_are_replaced_between_markers_only():
     assert "- Batched: 0.05 us per sample: **met**." in out and "## Issue 23" not in out and "`cmd`" in out
     assert readme_with_goals(readme, [], "cmd") == readme  # no figures (the row did not run): unchanged
     assert readme_with_goals("no markers", lines, "cmd") == "no markers"
+
+
+def test_a_run_without_inverse_rows_publishes_its_reports_without_the_figures(tmp_path):
+    """`exo-bench bench --rows '*test_simd.py*'` (one row, no inverse-dynamics rows) failed after
+    measuring: it published the error-against-run-time figure that nothing had drawn."""
+    import json
+
+    from exo_bench.bench.perf.reports.benchmark_reports import write_reports
+
+    staging, out = tmp_path / "staging", tmp_path / "out"
+    staging.mkdir(), out.mkdir()
+    bjson = staging / "benchmarks-full.json"
+    bjson.write_text(json.dumps({"benchmarks": [], "machine_info": {}}))
+    sjson = staging / "skips.json"
+    sjson.write_text("[]")
+    published = write_reports(bjson, sjson, staging, out, "full", "exo-bench bench --rows x")
+    names = {p.name for p in published}
+    assert {"error_vs_runtime.md", "scaling.md", "paper_table.md"} <= names, names
+    assert "No numeric inverse-dynamics rows" in (out / "error_vs_runtime.md").read_text()
+    assert not any(p.suffix == ".png" and not p.exists() for p in published)

@@ -23,23 +23,25 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 
-from exo_bench.api.methods import compiled_methods
 from exo_bench.bench.perf.options import BenchOptions
 
-from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
-from exo_bench.bench.perf.rows import check_ratio_groups
+from exo_bench.bench.output.provenance import REPO, atomic_write
+
 # The reports, one module each (re-exported: the benchmark reports' interface).
 from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
 from exo_bench.bench.perf.reports.loading import _inverse, load
 from exo_bench.bench.perf.reports.paper_table import (  # noqa: F401
-    PAPER_TABLE, README_END, README_START, _verdict, goals, paper_table, readme_with_table)
+    PAPER_TABLE,
+    README_END,
+    README_START,
+    _verdict,
+    goals,
+    paper_table,
+    readme_with_table,
+)
 from exo_bench.bench.perf.reports.scaling import crossover, fit_exponent, scaling, speed_goals  # noqa: F401
 from exo_bench.bench.output.publish import publish, staging_dir
-
-
 
 
 def _strip_raw_timings(path: Path) -> None:
@@ -62,8 +64,16 @@ def report_names(out: Path, sweep: str) -> dict[str, str]:
     return narrower_names(out, REPORT_FILES, sweep == "full")
 
 
-def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str, command: str,
-                  update_readme: bool = False, published_to: Path | None = None) -> list[Path]:
+def write_reports(
+    bjson: Path,
+    sjson: Path,
+    staging: Path,
+    out: Path,
+    sweep: str,
+    command: str,
+    update_readme: bool = False,
+    published_to: Path | None = None,
+) -> list[Path]:
     """Every report of the benchmark suite from its pytest-benchmark JSON ``bjson`` and the skip
     reasons ``sjson`` (both in ``staging``), published into ``out`` together; the README's paper
     table only with ``update_readme``. Used by the serial run and by the Dask sweep alike.
@@ -73,17 +83,28 @@ def write_reports(bjson: Path, sjson: Path, staging: Path, out: Path, sweep: str
     _strip_raw_timings(bjson)
     names = report_names(Path(published_to) if published_to else out, sweep)
     if names["scaling.md"] != "scaling.md":
-        print(f"{out}: the benchmark reports there come from a full run; this {sweep} run writes "
-              f"{', '.join(v for v in names.values() if v.endswith('.md'))} beside them", flush=True)
+        print(
+            f"{out}: the benchmark reports there come from a full run; this {sweep} run writes "
+            f"{', '.join(v for v in names.values() if v.endswith('.md'))} beside them",
+            flush=True,
+        )
     st = {n: staging / v for n, v in names.items()}
     text = paper_table(df, skips, command)
     atomic_write(st["paper_table.md"], text)
     inv = _inverse(df)
     g12 = speed_goals(inv, skips) if not inv.empty and "topology" in inv else []
-    atomic_write(st["error_vs_runtime.md"], error_vs_runtime(df, skips, command, st["error_vs_runtime.png"])
-                 + "\n" + "\n".join(goals(df)) + "\n\n" + "\n".join(g12) + "\n")
+    atomic_write(
+        st["error_vs_runtime.md"],
+        error_vs_runtime(df, skips, command, st["error_vs_runtime.png"])
+        + "\n"
+        + "\n".join(goals(df))
+        + "\n\n"
+        + "\n".join(g12)
+        + "\n",
+    )
     atomic_write(st["scaling.md"], scaling(df, skips, command, st["scaling.png"]))
-    published = publish([*st.values(), bjson], out)
+    # a figure is drawn only where its report has rows (a selection of rows may have none): publish what exists
+    published = publish([f for f in [*st.values(), bjson] if f.exists()], out)
     for p in published:
         print(f"wrote {p}")
     if update_readme and names["paper_table.md"] == "paper_table.md" and (REPO / "README.md").exists():
@@ -105,9 +126,20 @@ def run(options: BenchOptions) -> int:
     command = "exo-bench bench" + (" --full" if full else "")
     with staging_dir(out) as st:
         bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
-        cmd = [sys.executable, "-m", "pytest", str(REPO / "bench"), "-q", "-p", "no:cacheprovider",
-               "--benchmark-enable", f"--benchmark-json={bjson}", f"--skips-json={sjson}", f"--sweep={sweep}",
-               "--benchmark-columns=min,median,rounds"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "pytest",
+            str(REPO / "bench"),
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "--benchmark-enable",
+            f"--benchmark-json={bjson}",
+            f"--skips-json={sjson}",
+            f"--sweep={sweep}",
+            "--benchmark-columns=min,median,rounds",
+        ]
         print("running:", " ".join(cmd[2:]), flush=True)
         r = subprocess.run(cmd, cwd=REPO)
         if r.returncode not in (0,) or not bjson.exists():

@@ -53,54 +53,74 @@ def newton_euler_goals(df: pd.DataFrame) -> list[str]:
     fwd = _per_sample(df, "forward-batched")
     if (inv.empty or NE not in set(inv["method"])) and fwd.empty:
         return []
-    out = ["## Goals (issue 22): newton-euler, O(n) from M = J^T M_r J", "",
-           "3D serial chains, batched, microseconds per sample; ratios compare rows of this one run.", ""]
+    out = [
+        "## Goals (issue 22): newton-euler, O(n) from M = J^T M_r J",
+        "",
+        "3D serial chains, batched, microseconds per sample; ratios compare rows of this one run.",
+        "",
+    ]
     ne = inv[inv["method"] == NE].groupby("n")["us_per_sample"].min() if not inv.empty else pd.Series(dtype=float)
     lo, hi = EXPONENT_RANGE
     sel = ne[(ne.index >= lo) & (ne.index <= hi)]
     if lo in sel.index and hi in sel.index:
         p = _fit(np.array(sel.index, float), sel.to_numpy())
-        out.append(f"- Growth of `{NE}` from n = {lo} to {hi} ({len(sel)} points): p = {p:.2f}, goal at most "
-                   f"{GOAL_EXPONENT}: {_met(p <= GOAL_EXPONENT)}.")
+        out.append(
+            f"- Growth of `{NE}` from n = {lo} to {hi} ({len(sel)} points): p = {p:.2f}, goal at most "
+            f"{GOAL_EXPONENT}: {_met(p <= GOAL_EXPONENT)}."
+        )
     else:
-        out.append(f"- Growth from n = {lo} to {hi}: not measured in this run (n = "
-                   f"{', '.join(map(str, sorted(ne.index))) or 'none'}; the full profile has it).")
-    fac = inv[inv["method"] == FACTORED].groupby("n")["us_per_sample"].min() if not inv.empty else pd.Series(dtype=float)
+        out.append(
+            f"- Growth from n = {lo} to {hi}: not measured in this run (n = "
+            f"{', '.join(map(str, sorted(ne.index))) or 'none'}; the full profile has it)."
+        )
+    fac = (
+        inv[inv["method"] == FACTORED].groupby("n")["us_per_sample"].min() if not inv.empty else pd.Series(dtype=float)
+    )
     for n, goal in ((100, GOAL_VS_FACTORED_100), (1000, GOAL_VS_FACTORED_1000)):
         if n in ne.index and n in fac.index:
             r = fac[n] / ne[n]
-            out.append(f"- n = {n}: `{FACTORED}` {fac[n]:.3g} us, `{NE}` {ne[n]:.3g} us per sample: {r:.3g}x faster, "
-                       f"goal at least {goal:g}x: {_met(r >= goal)}.")
+            out.append(
+                f"- n = {n}: `{FACTORED}` {fac[n]:.3g} us, `{NE}` {ne[n]:.3g} us per sample: {r:.3g}x faster, "
+                f"goal at least {goal:g}x: {_met(r >= goal)}."
+            )
         else:
             out.append(f"- n = {n} against `{FACTORED}`: not measured in this run.")
     f = fwd.groupby(["method", "n"])["us_per_sample"].min() if not fwd.empty else pd.Series(dtype=float)
     if (NE, 100) in f.index and (PIN_FORWARD, 100) in f.index:
         r = f[(PIN_FORWARD, 100)] / f[(NE, 100)]
-        out.append(f"- Forward dynamics, n = 100: `{PIN_FORWARD}` {f[(PIN_FORWARD, 100)]:.3g} us, `{NE}` "
-                   f"{f[(NE, 100)]:.3g} us per sample: {r:.3g}x faster, goal at least {GOAL_FORWARD_VS_PIN:g}x: "
-                   f"{_met(r >= GOAL_FORWARD_VS_PIN)}.")
+        out.append(
+            f"- Forward dynamics, n = 100: `{PIN_FORWARD}` {f[(PIN_FORWARD, 100)]:.3g} us, `{NE}` "
+            f"{f[(NE, 100)]:.3g} us per sample: {r:.3g}x faster, goal at least {GOAL_FORWARD_VS_PIN:g}x: "
+            f"{_met(r >= GOAL_FORWARD_VS_PIN)}."
+        )
     else:
         out.append("- Forward dynamics at n = 100 against Pinocchio CRBA + Cholesky: not measured in this run.")
     mem = df[df["group"].astype(str) == "memory-newton-euler"] if "group" in df else pd.DataFrame()
     big = mem[mem["n"] == 10_000] if not mem.empty else mem
     if not big.empty:
         mb = float(big["peak_rss_mb"].max())
-        out.append(f"- n = 10,000 in 3D, inverse then forward dynamics ({int(big['samples'].iloc[0])} samples) in a "
-                   f"fresh process: peak resident set {mb:.0f} MB, goal under {GOAL_MEMORY_MB:g} MB: "
-                   f"{_met(mb < GOAL_MEMORY_MB)}.")
+        out.append(
+            f"- n = 10,000 in 3D, inverse then forward dynamics ({int(big['samples'].iloc[0])} samples) in a "
+            f"fresh process: peak resident set {mb:.0f} MB, goal under {GOAL_MEMORY_MB:g} MB: "
+            f"{_met(mb < GOAL_MEMORY_MB)}."
+        )
     else:
         done = ", ".join(f"n = {int(r.n)}: {r.peak_rss_mb:.0f} MB" for r in mem.itertuples()) if not mem.empty else ""
         out.append("- n = 10,000 in under 1 GB: not measured in this run" + (f" ({done})" if done else "") + ".")
     out.append("")
     if not fwd.empty:
         ns = sorted(fwd["n"].unique())
-        out += ["### Forward dynamics per sample", "",
-                "Microseconds per sample of one batched `forward_dynamics(q, qd, tau, check=False)` on 3D chains "
-                "(bench/test_forward_dynamics.py; backward error asserted); last column: bytes per sample traced "
-                "during the call (numpy's arrays, the result's 8 dof bytes included; numba's O(n) scratch per block "
-                "is not traced) at the largest n of the row.", "",
-                "| method | " + " | ".join(f"n={n}" for n in ns) + " | exponent p | bytes/sample |",
-                "|---|" + "---|" * (len(ns) + 2)]
+        out += [
+            "### Forward dynamics per sample",
+            "",
+            "Microseconds per sample of one batched `forward_dynamics(q, qd, tau, check=False)` on 3D chains "
+            "(bench/test_forward_dynamics.py; backward error asserted); last column: bytes per sample traced "
+            "during the call (numpy's arrays, the result's 8 dof bytes included; numba's O(n) scratch per block "
+            "is not traced) at the largest n of the row.",
+            "",
+            "| method | " + " | ".join(f"n={n}" for n in ns) + " | exponent p | bytes/sample |",
+            "|---|" + "---|" * (len(ns) + 2),
+        ]
         for m, g in fwd.groupby("method"):
             s = g.groupby("n")["us_per_sample"].min()
             cells = [f"{s[n]:.3g}" if n in s.index else "skipped" for n in ns]

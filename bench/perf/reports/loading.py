@@ -5,12 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from exo_bench.api.methods import compiled_methods
-from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
 from exo_bench.bench.perf.rows import check_ratio_groups
+
 
 def load(json_path: Path, skips_path: Path | None = None) -> tuple[pd.DataFrame, list[dict], dict]:
     data = json.loads(Path(json_path).read_text())
@@ -18,11 +16,18 @@ def load(json_path: Path, skips_path: Path | None = None) -> tuple[pd.DataFrame,
     for b in data.get("benchmarks", []):
         info = dict(b.get("extra_info", {}))
         st = b["stats"]
-        info.update(group=b["group"], name=b["name"], median=st["median"], min=st["min"], mean=st["mean"],
-                    rounds=st["rounds"], iqr=st.get("iqr", float("nan")))
+        info.update(
+            group=b["group"],
+            name=b["name"],
+            median=st["median"],
+            min=st["min"],
+            mean=st["mean"],
+            rounds=st["rounds"],
+            iqr=st.get("iqr", float("nan")),
+        )
         rows.append(info)
     skips = json.loads(Path(skips_path).read_text()) if skips_path and Path(skips_path).exists() else []
-    check_ratio_groups(pd.DataFrame(rows))   # never a ratio of timings from two hosts (bench/perf/rows.py)
+    check_ratio_groups(pd.DataFrame(rows))  # never a ratio of timings from two hosts (bench/perf/rows.py)
     return pd.DataFrame(rows), skips, data.get("machine_info", {})
 
 
@@ -34,14 +39,14 @@ def _base(row_name: str) -> str:
 def _kernel(row_name: str) -> str:
     """What the row name says in brackets after the method (``"matrix (numba)"`` -> ``"numba"``,
     ``"pin.rnea (bare)"`` -> ``"bare"``, ``"pinocchio"`` -> ``""``)."""
-    return str(row_name)[len(_base(row_name)):].strip(" ()")
+    return str(row_name)[len(_base(row_name)) :].strip(" ()")
 
 
 def _inverse(df: pd.DataFrame) -> pd.DataFrame:
     if df.empty or "batched" not in df:
         return pd.DataFrame()
     inv = df[df["group"].str.startswith("inverse")].copy()
-    inv["batched"] = inv["batched"].astype(bool)   # object dtype beside the compose rows; ~ needs bools
+    inv["batched"] = inv["batched"].astype(bool)  # object dtype beside the compose rows; ~ needs bools
     inv["us_per_sample"] = inv["median"] / inv["samples"] * 1e6
     return inv
 

@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 
-from exo_bench.api.methods import compiled_methods
-from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
-from exo_bench.bench.perf.rows import check_ratio_groups
 from exo_bench.bench.perf.reports.loading import _base, _kernel
 
-def _log_log_by_dim(png: Path, draw, xlabel: str, ylabel: str, title: str, panel_title: str = "{dim}D",
-                    note: str = "") -> None:
+
+def _log_log_by_dim(
+    png: Path, draw, xlabel: str, ylabel: str, title: str, panel_title: str = "{dim}D", note: str = ""
+) -> None:
     """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel.
     One legend for both panels, outside the data (right of them), and ``note`` under the panels."""
     from matplotlib.figure import Figure
@@ -25,7 +21,8 @@ def _log_log_by_dim(png: Path, draw, xlabel: str, ylabel: str, title: str, panel
     axes = fig.subplots(1, 2, sharey=True)
     for ax, dim in zip(axes, (2, 3)):
         draw(ax, dim)
-        ax.set_xscale("log"); ax.set_yscale("log")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
         ax.set_xlabel(xlabel, fontsize=TEXT_PT)
         ax.set_title(panel_title.format(dim=dim), fontsize=TITLE_PT)
         ax.tick_params(labelsize=TEXT_PT)
@@ -49,5 +46,7 @@ def _style(method: str, methods) -> dict:
     from exo_bench.bench.output.figures.scene_figures import method_color
 
     bases = sorted({_base(m) for m in methods})
-    return {"color": method_color(_base(method), bases),
-            "ls": {"numba": "-", "numpy": "--", "": "-"}.get(_kernel(method), "-.")}
+    return {
+        "color": method_color(_base(method), bases),
+        "ls": {"numba": "-", "numpy": "--", "": "-"}.get(_kernel(method), "-."),
+    }

@@ -3,15 +3,13 @@ exponents, the crossover n against Pinocchio, the kernels' compile time, and whe
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from exo_bench.api.methods import matrix_family
-from exo_bench.bench.output.provenance import REPO, atomic_write, provenance
-from exo_bench.bench.perf.rows import check_ratio_groups
+from exo_bench.bench.output.provenance import provenance
 from exo_bench.bench.perf.reports import simd_goals
 from exo_bench.bench.perf.reports.loading import _base, _inverse, _skips_md
 from exo_bench.bench.perf.reports.plotting import _log_log_by_dim, _style
@@ -48,16 +46,16 @@ PYDY = "pydy-cython"
 
 
 #: Issue 12's goals (ratios from one run on one machine).
-GOAL12_PER_CALL_VS_RNEA = 0.5      # matrix-factored per call, exo5-3d, at most this x bare pin.rnea
+GOAL12_PER_CALL_VS_RNEA = 0.5  # matrix-factored per call, exo5-3d, at most this x bare pin.rnea
 
 
-GOAL12_US_PER_SAMPLE = 0.15        # matrix-factored batched, exo5-3d, 10,000 samples
+GOAL12_US_PER_SAMPLE = 0.15  # matrix-factored batched, exo5-3d, 10,000 samples
 
 
-GOAL12_VS_PIN_BATCHED = 30.0       # ... at least this much faster than Pinocchio's best batched path
+GOAL12_VS_PIN_BATCHED = 30.0  # ... at least this much faster than Pinocchio's best batched path
 
 
-GOAL12_REL_ERR = 1e-14             # every row, against the 50-digit reference
+GOAL12_REL_ERR = 1e-14  # every row, against the 50-digit reference
 
 
 def _met(ok: bool) -> str:
@@ -72,44 +70,62 @@ def _pin_best_batched(d: pd.DataFrame) -> pd.Series:
 
 def speed_goals(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
     """Issue 12's goals, each met or not met with the measured ratio (rows of this run only)."""
-    out = ["## Goals (issue 12)", "", "Ratios compare rows of this one run on this one machine "
-           "(indicative where the machine was shared).", ""]
+    out = [
+        "## Goals (issue 12)",
+        "",
+        "Ratios compare rows of this one run on this one machine (indicative where the machine was shared).",
+        "",
+    ]
     exo = inv[inv["mechanism"] == "exo5-3d"]
     per = exo[~exo["batched"]].set_index("method")["median"] * 1e6
     bat = exo[exo["batched"]].set_index("method")["us_per_sample"]
     if FAST in per.index and PIN_BARE in per.index:
         r = per[FAST] / per[PIN_BARE]
-        out.append(f"- Per call, exo5-3d, `check=False`: `{FAST}` {per[FAST]:.3g} us, bare `pin.rnea` "
-                   f"{per[PIN_BARE]:.3g} us: {r:.2f}x, goal at most {GOAL12_PER_CALL_VS_RNEA}x: "
-                   f"{_met(r <= GOAL12_PER_CALL_VS_RNEA)}.")
+        out.append(
+            f"- Per call, exo5-3d, `check=False`: `{FAST}` {per[FAST]:.3g} us, bare `pin.rnea` "
+            f"{per[PIN_BARE]:.3g} us: {r:.2f}x, goal at most {GOAL12_PER_CALL_VS_RNEA}x: "
+            f"{_met(r <= GOAL12_PER_CALL_VS_RNEA)}."
+        )
     else:
         out.append(f"- Per call against bare `pin.rnea`: not measured in this run (`{FAST}` or `{PIN_BARE}` missing).")
     if FAST in per.index and PYDY in per.index:
         r = per[FAST] / per[PYDY]
-        out.append(f"- Per call, exo5-3d: `{FAST}` {per[FAST]:.3g} us, PyDy's Cython code {per[PYDY]:.3g} us: "
-                   f"{r:.2f}x, goal at most 1x: {_met(r <= 1.0)}.")
+        out.append(
+            f"- Per call, exo5-3d: `{FAST}` {per[FAST]:.3g} us, PyDy's Cython code {per[PYDY]:.3g} us: "
+            f"{r:.2f}x, goal at most 1x: {_met(r <= 1.0)}."
+        )
     else:
-        out.append(f"- Per call against PyDy's Cython code: not measured in this run (PyDy row skipped: "
-                   "`pip install 'exo-bench[peers]'`).")
+        out.append(
+            "- Per call against PyDy's Cython code: not measured in this run (PyDy row skipped: "
+            "`pip install 'exo-bench[peers]'`)."
+        )
     if FAST in bat.index:
         us = bat[FAST]
         samples = int(exo[exo["batched"] & (exo["method"] == FAST)]["samples"].iloc[0])
-        out.append(f"- Batched, exo5-3d, {samples:,} samples: `{FAST}` {us:.3g} us/sample, goal at most "
-                   f"{GOAL12_US_PER_SAMPLE} us: {_met(us <= GOAL12_US_PER_SAMPLE)}"
-                   + ("" if samples >= 10_000 else " (quick profile: fewer samples than the goal's 10,000)") + ".")
+        out.append(
+            f"- Batched, exo5-3d, {samples:,} samples: `{FAST}` {us:.3g} us/sample, goal at most "
+            f"{GOAL12_US_PER_SAMPLE} us: {_met(us <= GOAL12_US_PER_SAMPLE)}"
+            + ("" if samples >= 10_000 else " (quick profile: fewer samples than the goal's 10,000)")
+            + "."
+        )
         pin = {m: bat[m] for m in ("pinocchio", "pinocchio-parallel") if m in bat.index}
         if pin:
             best = min(pin, key=lambda m: pin[m])
             threads = exo[exo["batched"] & (exo["method"] == best)]["threads"].iloc[0] if "threads" in exo else ""
             r = pin[best] / us
-            out.append(f"- Batched, exo5-3d: Pinocchio's best batched path `{best}`"
-                       + (f" ({threads} threads)" if best == "pinocchio-parallel" and threads != "" else "")
-                       + f" {pin[best]:.3g} us/sample, {r:.3g}x slower than `{FAST}`; goal at least "
-                       f"{GOAL12_VS_PIN_BATCHED:g}x: {_met(r >= GOAL12_VS_PIN_BATCHED)}.")
+            out.append(
+                f"- Batched, exo5-3d: Pinocchio's best batched path `{best}`"
+                + (f" ({threads} threads)" if best == "pinocchio-parallel" and threads != "" else "")
+                + f" {pin[best]:.3g} us/sample, {r:.3g}x slower than `{FAST}`; goal at least "
+                f"{GOAL12_VS_PIN_BATCHED:g}x: {_met(r >= GOAL12_VS_PIN_BATCHED)}."
+            )
     else:
         out.append(f"- Batched, exo5-3d: no `{FAST}` row in this run.")
-    big = inv[inv["batched"] & (inv["dim"] == 3) & (inv["n"] == 100) & (inv["topology"] == "chain")] \
-        if "topology" in inv else inv.iloc[:0]
+    big = (
+        inv[inv["batched"] & (inv["dim"] == 3) & (inv["n"] == 100) & (inv["topology"] == "chain")]
+        if "topology" in inv
+        else inv.iloc[:0]
+    )
     fam = [f"{m} (numba)" for m in matrix_family()]
     if big.empty:
         out.append("- n = 100 in 3D, batched: not in this profile (`exo-bench bench --full`).")
@@ -117,17 +133,23 @@ def speed_goals(inv: pd.DataFrame, skips: list[dict]) -> list[str]:
         done = set(big["method"])
         missing = [m for m in fam if m not in done]
         slow = sorted(m for m in set(inv["method"]) if _base(m) in matrix_family() and m not in fam and m not in done)
-        out.append(f"- n = 100 in 3D, batched: every matrix-family method (compiled, the default kernel) finishes: "
-                   f"{_met(not missing)}" + (f" (skipped: {', '.join(missing)})" if missing else f" ({', '.join(fam)})")
-                   + (f"; over the time budget: {', '.join(slow)}" if slow else "") + ".")
+        out.append(
+            f"- n = 100 in 3D, batched: every matrix-family method (compiled, the default kernel) finishes: "
+            f"{_met(not missing)}"
+            + (f" (skipped: {', '.join(missing)})" if missing else f" ({', '.join(fam)})")
+            + (f"; over the time budget: {', '.join(slow)}" if slow else "")
+            + "."
+        )
     ok = inv[~((inv["method"] == "matrix-paper") & (inv["dim"] == 3) & (inv["n"] > 1))]
     worst = ok.loc[ok["max_rel_err"].idxmax()] if not ok.empty else None
     if worst is not None:
         over = ok[ok["max_rel_err"] > GOAL12_REL_ERR]
-        out.append(f"- Error at most {GOAL12_REL_ERR:g} relative against the 50-digit reference on every row "
-                   f"(matrix-paper in 3D excepted: wrong by design): largest {worst['max_rel_err']:.1e} "
-                   f"(`{worst['method']}`, {worst['mechanism']}, {'batched' if worst['batched'] else 'per call'}): "
-                   f"{_met(over.empty)}" + ("" if over.empty else f" ({len(over)} rows above)") + ".")
+        out.append(
+            f"- Error at most {GOAL12_REL_ERR:g} relative against the 50-digit reference on every row "
+            f"(matrix-paper in 3D excepted: wrong by design): largest {worst['max_rel_err']:.1e} "
+            f"(`{worst['method']}`, {worst['mechanism']}, {'batched' if worst['batched'] else 'per call'}): "
+            f"{_met(over.empty)}" + ("" if over.empty else f" ({len(over)} rows above)") + "."
+        )
     return out + [""]
 
 
@@ -137,7 +159,7 @@ def _table(sub: pd.DataFrame, value: str, cols: list, fmt=lambda v: f"{v:.3g}", 
     lines = [head, "|---|" + "---|" * (len(cols) + (1 if exponent else 0))]
     for method, g in sub.groupby("method"):
         cells, ns, ts = [], [], []
-        for label, mech in cols:
+        for _label, mech in cols:
             r = g[g["mechanism"] == mech]
             if r.empty:
                 cells.append("skipped")
@@ -145,7 +167,8 @@ def _table(sub: pd.DataFrame, value: str, cols: list, fmt=lambda v: f"{v:.3g}", 
                 v = float(r[value].iloc[0])
                 cells.append(fmt(v))
                 if mech.startswith("chain"):
-                    ns.append(int(r["n"].iloc[0])); ts.append(v)
+                    ns.append(int(r["n"].iloc[0]))
+                    ts.append(v)
         p = f" | {fit_exponent(np.array(ns, float), np.array(ts, float)):.2f}" if exponent else ""
         lines.append(f"| {method} | " + " | ".join(cells) + p + " |")
     return lines
@@ -156,12 +179,17 @@ def compile_section(df: pd.DataFrame) -> list[str]:
     if c.empty or "compile" not in c:
         return []
     info = c.iloc[0]["compile"]
-    out = ["## Compile time of the compiled kernels", "",
-           "First call of each numba kernel on exo5-3d in a fresh process with an empty numba cache (compiling), "
-           "and in a second process with that cache (loading the machine code): numba's on-disk cache means "
-           "a user pays the compile once per machine (and after an edit of the kernel's file). The first kernel "
-           "loaded in a process also pays numba's own start-up.", "",
-           "| method | driver | first call, empty cache (s) | first call, from the cache (ms) |", "|---|---|---|---|"]
+    out = [
+        "## Compile time of the compiled kernels",
+        "",
+        "First call of each numba kernel on exo5-3d in a fresh process with an empty numba cache (compiling), "
+        "and in a second process with that cache (loading the machine code): numba's on-disk cache means "
+        "a user pays the compile once per machine (and after an edit of the kernel's file). The first kernel "
+        "loaded in a process also pays numba's own start-up.",
+        "",
+        "| method | driver | first call, empty cache (s) | first call, from the cache (ms) |",
+        "|---|---|---|---|",
+    ]
     for m, drivers in info.items():
         for d, v in drivers.items():
             out.append(f"| {m} | {d} | {v['first_call_s']:.2f} | {v['from_cache_s'] * 1e3:.1f} |")
@@ -174,33 +202,41 @@ def limit_section(df: pd.DataFrame, inv: pd.DataFrame) -> list[str]:
         return []
     r = lim.iloc[0]
     count, rates, est, threads = r["count"], r["rates"], r["estimate"], int(r["numba_threads"])
-    out = ["## Where the limit is", "",
-           "One exo5-3d sample of the factored kernel (`matrix_method/numba_kernels/factored.py`), counted by running the "
-           "kernel's own per-sample function on counting floats (`bench/perf/roofline.py`; the counting run gives the "
-           "compiled kernel's forces bit for bit):", "",
-           f"- {count['add']} additions/subtractions and {count['mul']} multiplications ({count['flops']} flops), "
-           f"{count['trig']} transcendental calls (cos, sin).",
-           f"- This CPU, one core, measured with numba loops compiled like the kernels (`bench/perf/roofline.py`): "
-           f"{rates['scalar_flops_per_s'] / 1e9:.3g} Gflop/s scalar, {rates['simd_flops_per_s'] / 1e9:.3g} Gflop/s "
-           f"SIMD (multiply-adds), {rates['sincos_per_s'] / 1e6:.3g} M angles/s for `cos` and `sin` of one angle "
-           f"({1e9 / rates['sincos_per_s']:.3g} ns each pair).",
-           f"- Estimate for one sample on one core: {est['scalar_s'] * 1e9:.3g} ns with the flops scalar, "
-           f"{est['simd_s'] * 1e9:.3g} ns with the flops at the SIMD rate (of which {est['trig_s'] * 1e9:.3g} ns are "
-           f"the {count['trig'] // 2} angles); on the {threads} threads numba uses, "
-           f"{est['scalar_s'] / threads * 1e9:.3g} and {est['simd_s'] / threads * 1e9:.3g} ns per sample."]
+    out = [
+        "## Where the limit is",
+        "",
+        "One exo5-3d sample of the factored kernel (`matrix_method/numba_kernels/factored.py`), counted by running the "
+        "kernel's own per-sample function on counting floats (`bench/perf/roofline.py`; the counting run gives the "
+        "compiled kernel's forces bit for bit):",
+        "",
+        f"- {count['add']} additions/subtractions and {count['mul']} multiplications ({count['flops']} flops), "
+        f"{count['trig']} transcendental calls (cos, sin).",
+        f"- This CPU, one core, measured with numba loops compiled like the kernels (`bench/perf/roofline.py`): "
+        f"{rates['scalar_flops_per_s'] / 1e9:.3g} Gflop/s scalar, {rates['simd_flops_per_s'] / 1e9:.3g} Gflop/s "
+        f"SIMD (multiply-adds), {rates['sincos_per_s'] / 1e6:.3g} M angles/s for `cos` and `sin` of one angle "
+        f"({1e9 / rates['sincos_per_s']:.3g} ns each pair).",
+        f"- Estimate for one sample on one core: {est['scalar_s'] * 1e9:.3g} ns with the flops scalar, "
+        f"{est['simd_s'] * 1e9:.3g} ns with the flops at the SIMD rate (of which {est['trig_s'] * 1e9:.3g} ns are "
+        f"the {count['trig'] // 2} angles); on the {threads} threads numba uses, "
+        f"{est['scalar_s'] / threads * 1e9:.3g} and {est['simd_s'] / threads * 1e9:.3g} ns per sample.",
+    ]
     exo = inv[(inv["mechanism"] == "exo5-3d") & (inv["method"] == FAST)] if not inv.empty else inv
     bat, per = exo[exo["batched"]], exo[~exo["batched"]]
     if not bat.empty:
         us = float(bat["us_per_sample"].iloc[0])
-        out.append(f"- Measured, batched on {threads} threads: {us * 1e3:.3g} ns per sample: "
-                   f"{us * 1e-6 / (est['scalar_s'] / threads):.2g}x the scalar estimate, "
-                   f"{us * 1e-6 / (est['simd_s'] / threads):.2g}x the SIMD estimate (on a machine shared with "
-                   "other jobs the threads do not get whole cores: compare with one core's estimate, "
-                   f"{us * 1e-6 / est['scalar_s']:.2g}x and {us * 1e-6 / est['simd_s']:.2g}x).")
+        out.append(
+            f"- Measured, batched on {threads} threads: {us * 1e3:.3g} ns per sample: "
+            f"{us * 1e-6 / (est['scalar_s'] / threads):.2g}x the scalar estimate, "
+            f"{us * 1e-6 / (est['simd_s'] / threads):.2g}x the SIMD estimate (on a machine shared with "
+            "other jobs the threads do not get whole cores: compare with one core's estimate, "
+            f"{us * 1e-6 / est['scalar_s']:.2g}x and {us * 1e-6 / est['simd_s']:.2g}x)."
+        )
     if not per.empty:
         t = float(per["median"].iloc[0])
-        out.append(f"- Measured per call (one sample, from Python): {t * 1e9:.3g} ns, {t / est['scalar_s']:.2g}x the "
-                   "scalar estimate: the rest is the call (numba's dispatch of the arrays, the model's method).")
+        out.append(
+            f"- Measured per call (one sample, from Python): {t * 1e9:.3g} ns, {t / est['scalar_s']:.2g}x the "
+            "scalar estimate: the rest is the call (numba's dispatch of the arrays, the model's method)."
+        )
     return out + [""]
 
 
@@ -212,17 +248,28 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
     lines += speed_goals(inv, skips)
-    from exo_bench.bench.perf.reports.goals_newton_euler import newton_euler_goals   # newton-euler's goals and forward table
+    from exo_bench.bench.perf.reports.goals_newton_euler import (
+        newton_euler_goals,
+    )  # newton-euler's goals and forward table
+
     lines += newton_euler_goals(df)
     per = inv[~inv["batched"]].copy()
     per["us_per_call"] = per["median"] * 1e6
     if not per.empty:
-        cols = [("exo5-3d", "exo5-3d")] + [(f"{d}D n={n}", f"chain{n}-{d}d") for d in (2, 3)
-                                            for n in sorted(per[per["topology"] == "chain"]["n"].unique())]
-        lines += ["## Per call", "", "Microseconds per call, one sample, `check=False`, into a preallocated `out` "
-                  "(`pin.rnea (bare)`: Pinocchio's own cost on preallocated joint coordinates; `pydy-cython`: PyDy's "
-                  "Cython code of the same composed equations; `mujoco`, `drake`: the engines, what their rows time "
-                  "below). Models: exo5-3d and serial chains of n links.", ""]
+        cols = [("exo5-3d", "exo5-3d")] + [
+            (f"{d}D n={n}", f"chain{n}-{d}d")
+            for d in (2, 3)
+            for n in sorted(per[per["topology"] == "chain"]["n"].unique())
+        ]
+        lines += [
+            "## Per call",
+            "",
+            "Microseconds per call, one sample, `check=False`, into a preallocated `out` "
+            "(`pin.rnea (bare)`: Pinocchio's own cost on preallocated joint coordinates; `pydy-cython`: PyDy's "
+            "Cython code of the same composed equations; `mujoco`, `drake`: the engines, what their rows time "
+            "below). Models: exo5-3d and serial chains of n links.",
+            "",
+        ]
         lines += _table(per, "us_per_call", cols)
         if PIN_BARE in set(per["method"]):
             lines += ["", "The same, as a multiple of bare `pin.rnea` on the same model:", ""]
@@ -234,19 +281,30 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     bat = inv[inv["batched"]]
     if not bat.empty:
         samples = int(bat["samples"].max())
-        lines += ["## Batched", "", f"Microseconds per sample, one call for {samples:,} samples along a smooth random "
-                  "motion; exponent p fits cost ~ n^p over the chains with n >= 2.", ""]
+        lines += [
+            "## Batched",
+            "",
+            f"Microseconds per sample, one call for {samples:,} samples along a smooth random "
+            "motion; exponent p fits cost ~ n^p over the chains with n >= 2.",
+            "",
+        ]
         for dim in sorted(bat["dim"].unique()):
             d = bat[bat["dim"] == dim]
             cols = [(f"n={n}", f"chain{n}-{dim}d") for n in sorted(d[d["topology"] == "chain"]["n"].unique())]
             if dim == 3:
                 cols = [("exo5-3d", "exo5-3d")] + cols
             lines += [f"### {dim}D", ""] + _table(d, "us_per_sample", cols, exponent=True) + [""]
-    lines += ["## Crossover against Pinocchio", "",
-              "The smallest n of the chains from which Pinocchio is faster than the row and stays faster "
-              "(batched: Pinocchio's best batched path at each n; per call: bare `pin.rnea`).", ""]
-    for label, sub, pin_of in (("batched", bat, _pin_best_batched),
-                               ("per call", per, lambda d: d[d["method"] == PIN_BARE].groupby("n")["us_per_call"].min())):
+    lines += [
+        "## Crossover against Pinocchio",
+        "",
+        "The smallest n of the chains from which Pinocchio is faster than the row and stays faster "
+        "(batched: Pinocchio's best batched path at each n; per call: bare `pin.rnea`).",
+        "",
+    ]
+    for label, sub, pin_of in (
+        ("batched", bat, _pin_best_batched),
+        ("per call", per, lambda d: d[d["method"] == PIN_BARE].groupby("n")["us_per_call"].min()),
+    ):
         chains = sub[sub["topology"] == "chain"] if not sub.empty else sub
         value = "us_per_sample" if label == "batched" else "us_per_call"
         for dim in sorted(chains["dim"].unique()) if not chains.empty else []:
@@ -262,7 +320,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     lines += engine_section(inv)
     lines += compile_section(df)
     lines += limit_section(df, inv)
-    lines += simd_goals.report_lines(df)         # issue 23 (bench/test_simd.py)
+    lines += simd_goals.report_lines(df)  # issue 23 (bench/test_simd.py)
     lines += _skips_md(skips, "test_inverse")
     _plot_scaling(inv[inv["topology"] == "chain"], png)
     lines += ["", f"![scaling]({png.name})"]
@@ -276,12 +334,24 @@ def _plot_scaling(chains: pd.DataFrame, png: Path) -> None:
         for (method, batched), g in chains[chains["dim"] == dim].groupby(["method", "batched"]):
             g = g.sort_values("n")
             st = _style(method, methods)
-            ax.plot(g["n"], g["us_per_sample"] * 1e-6, marker="o" if batched else "x",
-                    ls=st["ls"] if batched else ":", color=st["color"], ms=5,
-                    label=f"{method} ({'batched' if batched else 'per call'})")
+            ax.plot(
+                g["n"],
+                g["us_per_sample"] * 1e-6,
+                marker="o" if batched else "x",
+                ls=st["ls"] if batched else ":",
+                color=st["color"],
+                ms=5,
+                label=f"{method} ({'batched' if batched else 'per call'})",
+            )
 
-    _log_log_by_dim(png, draw, "number of links n", "seconds per sample (median)",
-                    "Inverse dynamics: cost against n", panel_title="{dim}D serial chains",
-                    note="Colour: the method (as in every figure); line: numba kernel solid, numpy kernel dashed, "
-                         "others dash-dot; o = batched (per sample of one batched call), x and dotted = one sample "
-                         "per call.")
+    _log_log_by_dim(
+        png,
+        draw,
+        "number of links n",
+        "seconds per sample (median)",
+        "Inverse dynamics: cost against n",
+        panel_title="{dim}D serial chains",
+        note="Colour: the method (as in every figure); line: numba kernel solid, numpy kernel dashed, "
+        "others dash-dot; o = batched (per sample of one batched call), x and dotted = one sample "
+        "per call.",
+    )

@@ -75,6 +75,7 @@ def _with_threads(fn, threads: int):
             fn()
         finally:
             numba.set_num_threads(before)
+
     return run
 
 
@@ -119,8 +120,12 @@ print(json.dumps({"seconds": float(np.median(t)), "layer": layer, "threads": num
 def _trap(samples: int, rounds: int) -> dict:
     res = {}
     for mode in ("normal", "omp-first"):
-        r = subprocess.run([sys.executable, "-c", _TRAP, mode, str(samples), str(rounds), OMP_FIRST], capture_output=True,
-                           text=True, timeout=600)
+        r = subprocess.run(
+            [sys.executable, "-c", _TRAP, mode, str(samples), str(rounds), OMP_FIRST],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         if r.returncode != 0:
             return {"error": (r.stderr.strip().splitlines() or ["?"])[-1]}
         res[mode] = json.loads(r.stdout.strip().splitlines()[-1])
@@ -128,8 +133,7 @@ def _trap(samples: int, rounds: int) -> dict:
     return res
 
 
-def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bool = True,
-            trap: bool = True) -> dict:
+def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bool = True, trap: bool = True) -> dict:
     """Every figure of the goals (module docstring), in this process (the trap in two subprocesses)."""
     from exo_bench import prepare
     from exo_bench.bench.perf import roofline as limit, roofline_simd as limit_simd, peers
@@ -152,6 +156,7 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     def pin_call(t):
         def run():
             pin_out[t] = pins[t].inverse_dynamics(q, qd, qdd, check=False)
+
         return run
 
     ne = prepare(mech, "newton-euler")
@@ -163,11 +168,11 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
         "per_sample_kernel_1t": lambda: model.serial_kernel(p, *flat, ref_out),
     }
     for fn in batched.values():
-        fn()                                     # compile or load, first-use costs
+        fn()  # compile or load, first-use costs
     res = {"samples": samples, "mechanism": mech.name}
     t = _interleaved(batched, rounds)
-    res.update({k: v / samples * 1e6 for k, v in t.items()})            # us per sample
-    pin_rounds = max(3, rounds // 10)                                    # Pinocchio is ~100x slower
+    res.update({k: v / samples * 1e6 for k, v in t.items()})  # us per sample
+    pin_rounds = max(3, rounds // 10)  # Pinocchio is ~100x slower
     for fn in (pin_call(k) for k in pins):
         fn()
     tp = _interleaved({f"pinocchio_{k}t": pin_call(k) for k in pins}, pin_rounds)
@@ -183,6 +188,7 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     def per_call():
         for _ in range(calls):
             idf(q0, qd0, qdd0, check=False, out=o0)
+
     single = {"per_call": per_call}
     why = peers.missing() if pydy else "not asked (pydy=False)"
     if not why:
@@ -193,12 +199,14 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
         def pydy_call():
             for _ in range(calls):
                 call(q0, qd0, qdd0, po)
+
         single["pydy_per_call"] = pydy_call
     res["pydy_missing"] = why
     ts = _interleaved(single, rounds)
-    res.update({k: v / calls * 1e6 for k, v in ts.items()})                # us per call
+    res.update({k: v / calls * 1e6 for k, v in ts.items()})  # us per call
     # the errors, against the 50-digit reference (bench/studies/reference_forces.py), bound as the benchmark's
     from exo_bench.bench.studies.reference_forces import reference
+
     idx = np.unique(np.linspace(0, samples - 1, 12).round().astype(int))
     want, label = reference(mech, q[idx], qd[idx], qdd[idx])
     bound = 16 * np.finfo(float).eps * mech.dof * np.abs(want).max()
@@ -211,18 +219,22 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
         res["pydy_err"] = float(np.abs(po - one[0]).max())
     # the limit
     count, tau = limit_simd.count_simd(mech, q0, qd0, qdd0)
-    assert np.array_equal(tau, model.inverse_dynamics(q0[None], qd0[None], qdd0[None], check=False)[0]), \
+    assert np.array_equal(tau, model.inverse_dynamics(q0[None], qd0[None], qdd0[None], check=False)[0]), (
         "the counted run is not what the SIMD kernel computes"
+    )
     rates = limit.throughput()
     res["count"], res["rates"] = count, rates
     res["limit_1t_us"] = limit_simd.estimate_simd(count, rates, 1) * 1e6
     res["limit_2t_us"] = limit_simd.estimate_simd(count, rates, 2) * 1e6
     from exo_bench.bench.perf.roofline_newton_euler import count_newton_euler_simd
+
     ne_count, ne_tau = count_newton_euler_simd(mech, q0, qd0, qdd0)
     from exo_bench.models.newton_euler.simd import MIN_SAMPLES
-    rep = [np.repeat(a[None], MIN_SAMPLES, axis=0) for a in (q0, qd0, qdd0)]       # a batch on the SIMD path
-    assert np.array_equal(ne_tau, ne.inverse_dynamics(*rep, check=False)[0]), \
+
+    rep = [np.repeat(a[None], MIN_SAMPLES, axis=0) for a in (q0, qd0, qdd0)]  # a batch on the SIMD path
+    assert np.array_equal(ne_tau, ne.inverse_dynamics(*rep, check=False)[0]), (
         "the counted run is not what newton-euler's SIMD kernel computes"
+    )
     res["newton_euler_count"] = ne_count
     res["newton_euler_limit_1t_us"] = limit_simd.estimate_simd(ne_count, rates, 1) * 1e6
     if trap:
@@ -236,52 +248,72 @@ def _met(ok: bool) -> str:
 
 def goals_lines(r: dict) -> list[str]:
     """Issue 23's goals from :func:`measure`'s figures, each met or not with its ratio."""
-    out = ["## Issue 23: kernels at the hardware limit", "",
-           f"exo5-3d, {r['samples']:,} samples, one process (`python -m exo_bench.bench.perf.reports.simd_goals`; "
-           "medians of interleaved rounds). Batched: `matrix-factored (numba)`'s public call on (samples, dof) "
-           "arrays, which runs the kernel that vectorises across samples (`matrix_method/numba_kernels/simd.py`). "
-           f"Errors against the {r['reference']}: batched {r['batched_err']:.2g}, per call {r['per_call_err']:.2g} "
-           f"(bound {r['err_bound']:.2g}).", ""]
+    out = [
+        "## Issue 23: kernels at the hardware limit",
+        "",
+        f"exo5-3d, {r['samples']:,} samples, one process (`python -m exo_bench.bench.perf.reports.simd_goals`; "
+        "medians of interleaved rounds). Batched: `matrix-factored (numba)`'s public call on (samples, dof) "
+        "arrays, which runs the kernel that vectorises across samples (`matrix_method/numba_kernels/simd.py`). "
+        f"Errors against the {r['reference']}: batched {r['batched_err']:.2g}, per call {r['per_call_err']:.2g} "
+        f"(bound {r['err_bound']:.2g}).",
+        "",
+    ]
     us1, us2 = r["batched_1t"], r["batched_2t"]
     c = r["count"]
     if "newton_euler_batched_1t" in r:
         ne1, ne_lim = r["newton_euler_batched_1t"], r["newton_euler_limit_1t_us"]
         fastest = "newton-euler" if ne1 < us1 else "matrix-factored"
         best = min(us1, ne1)
-        out.append(f"- Batched goal on the faster method's public call, **`{fastest} (numba)`**: {best:.3g} us per "
-                   f"sample (one thread), goal at most {GOAL_US_PER_SAMPLE} us: {_met(best <= GOAL_US_PER_SAMPLE)}.")
-        out.append(f"- `newton-euler (numba)` batched, one thread (models/newton_euler/simd.py): {ne1:.3g} us per "
-                   f"sample, {ne1 / us1:.2f}x `matrix-factored`'s; {ne1 / ne_lim:.2f}x its counted limit "
-                   f"({r['newton_euler_count']['flops']} flops per sample: {ne_lim * 1e3:.3g} ns); error "
-                   f"{r['newton_euler_batched_err']:.2g} (bound {r['err_bound']:.2g}).")
-    out.append(f"- `matrix-factored (numba)` batched, one thread: {us1:.3g} us per sample, goal at most {GOAL_US_PER_SAMPLE} us: "
-               f"{_met(us1 <= GOAL_US_PER_SAMPLE)}; {us1 / r['limit_1t_us']:.2f}x the counted limit "
-               f"({c['flops']} flops per sample, sin and cos as arithmetic, at "
-               f"{r['rates']['simd_flops_per_s'] / 1e9:.3g} Gflop/s SIMD: {r['limit_1t_us'] * 1e3:.3g} ns), goal at "
-               f"most {GOAL_X_LIMIT}x: {_met(us1 <= GOAL_X_LIMIT * r['limit_1t_us'])}. The per-sample kernel it "
-               f"replaced: {r['per_sample_kernel_1t']:.3g} us ({r['per_sample_kernel_1t'] / us1:.2g}x slower).")
-    out.append(f"- Batched, two threads: {us2:.3g} us per sample, {us2 / r['limit_2t_us']:.2f}x the limit on two "
-               f"cores ({r['limit_2t_us'] * 1e3:.3g} ns).")
+        out.append(
+            f"- Batched goal on the faster method's public call, **`{fastest} (numba)`**: {best:.3g} us per "
+            f"sample (one thread), goal at most {GOAL_US_PER_SAMPLE} us: {_met(best <= GOAL_US_PER_SAMPLE)}."
+        )
+        out.append(
+            f"- `newton-euler (numba)` batched, one thread (models/newton_euler/simd.py): {ne1:.3g} us per "
+            f"sample, {ne1 / us1:.2f}x `matrix-factored`'s; {ne1 / ne_lim:.2f}x its counted limit "
+            f"({r['newton_euler_count']['flops']} flops per sample: {ne_lim * 1e3:.3g} ns); error "
+            f"{r['newton_euler_batched_err']:.2g} (bound {r['err_bound']:.2g})."
+        )
+    out.append(
+        f"- `matrix-factored (numba)` batched, one thread: {us1:.3g} us per sample, goal at most {GOAL_US_PER_SAMPLE} us: "
+        f"{_met(us1 <= GOAL_US_PER_SAMPLE)}; {us1 / r['limit_1t_us']:.2f}x the counted limit "
+        f"({c['flops']} flops per sample, sin and cos as arithmetic, at "
+        f"{r['rates']['simd_flops_per_s'] / 1e9:.3g} Gflop/s SIMD: {r['limit_1t_us'] * 1e3:.3g} ns), goal at "
+        f"most {GOAL_X_LIMIT}x: {_met(us1 <= GOAL_X_LIMIT * r['limit_1t_us'])}. The per-sample kernel it "
+        f"replaced: {r['per_sample_kernel_1t']:.3g} us ({r['per_sample_kernel_1t'] / us1:.2g}x slower)."
+    )
+    out.append(
+        f"- Batched, two threads: {us2:.3g} us per sample, {us2 / r['limit_2t_us']:.2f}x the limit on two "
+        f"cores ({r['limit_2t_us'] * 1e3:.3g} ns)."
+    )
     x = r["pinocchio_best_us"] / us1
-    out.append(f"- Against Pinocchio's best batched path here (`{r['pinocchio_best']}`, {r['pinocchio_best_us']:.3g} "
-               f"us per sample): {x:.3g}x faster per sample (one thread), goal at least {GOAL_VS_PINOCCHIO:g}x: "
-               f"{_met(x >= GOAL_VS_PINOCCHIO)}.")
+    out.append(
+        f"- Against Pinocchio's best batched path here (`{r['pinocchio_best']}`, {r['pinocchio_best_us']:.3g} "
+        f"us per sample): {x:.3g}x faster per sample (one thread), goal at least {GOAL_VS_PINOCCHIO:g}x: "
+        f"{_met(x >= GOAL_VS_PINOCCHIO)}."
+    )
     pc = r["per_call"]
-    line = (f"- Per call, one sample, 1-D arrays, `check=False`, `out=`: {pc:.3g} us, goal at most "
-            f"{GOAL_PER_CALL_US} us: {_met(pc <= GOAL_PER_CALL_US)}")
+    line = (
+        f"- Per call, one sample, 1-D arrays, `check=False`, `out=`: {pc:.3g} us, goal at most "
+        f"{GOAL_PER_CALL_US} us: {_met(pc <= GOAL_PER_CALL_US)}"
+    )
     if "pydy_per_call" in r:
         ratio = pc / r["pydy_per_call"]
-        line += (f"; PyDy's Cython code {r['pydy_per_call']:.3g} us in the same process: {ratio:.2f}x, goal at most "
-                 f"{GOAL_VS_PYDY}x: {_met(ratio <= GOAL_VS_PYDY)}.")
+        line += (
+            f"; PyDy's Cython code {r['pydy_per_call']:.3g} us in the same process: {ratio:.2f}x, goal at most "
+            f"{GOAL_VS_PYDY}x: {_met(ratio <= GOAL_VS_PYDY)}."
+        )
     else:
         line += f"; against PyDy: not measured ({r['pydy_missing']}): **not met** (unmeasured)."
     out.append(line)
     trap = r.get("trap") or {}
     if "ratio" in trap:
-        out.append(f"- numba's OpenMP threads started first by the user's code: the batch took "
-                   f"{trap['omp-first']['seconds'] * 1e3:.3g} ms against {trap['normal']['seconds'] * 1e3:.3g} ms "
-                   f"normally ({trap['ratio']:.2f}x; layer then `{trap['omp-first']['layer']}`, "
-                   f"{trap['omp-first']['threads']} threads), goal at most {GOAL_TRAP}x: {_met(trap['ratio'] <= GOAL_TRAP)}.")
+        out.append(
+            f"- numba's OpenMP threads started first by the user's code: the batch took "
+            f"{trap['omp-first']['seconds'] * 1e3:.3g} ms against {trap['normal']['seconds'] * 1e3:.3g} ms "
+            f"normally ({trap['ratio']:.2f}x; layer then `{trap['omp-first']['layer']}`, "
+            f"{trap['omp-first']['threads']} threads), goal at most {GOAL_TRAP}x: {_met(trap['ratio'] <= GOAL_TRAP)}."
+        )
     else:
         out.append(f"- Threading trap: not measured ({trap.get('error', 'not asked')}): **not met** (unmeasured).")
     return out + [""]
@@ -315,14 +347,20 @@ def readme_with_goals(readme: str, lines: list[str], command: str) -> str:
 def main(argv=None) -> int:
     import argparse
 
-    ap = argparse.ArgumentParser(prog="python -m exo_bench.bench.perf.reports.simd_goals", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        prog="python -m exo_bench.bench.perf.reports.simd_goals", description=__doc__.splitlines()[0]
+    )
     ap.add_argument("--samples", type=int, default=10_000)
     ap.add_argument("--rounds", type=int, default=30)
     ap.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    ap.add_argument("--markdown", default=None,
-                    help="also write them as a report with its provenance (e.g. reports/simd-goals.md)")
-    ap.add_argument("--update-readme", action="store_true",
-                    help="also replace the figures in the checkout's README.md (its simd-goals block)")
+    ap.add_argument(
+        "--markdown", default=None, help="also write them as a report with its provenance (e.g. reports/simd-goals.md)"
+    )
+    ap.add_argument(
+        "--update-readme",
+        action="store_true",
+        help="also replace the figures in the checkout's README.md (its simd-goals block)",
+    )
     a = ap.parse_args(argv)
     r = measure(a.samples, a.rounds)
     if a.json:
@@ -333,14 +371,20 @@ def main(argv=None) -> int:
         from exo_bench.bench.output.provenance import atomic_write, provenance
 
         command = "python -m exo_bench.bench.perf.reports.simd_goals --markdown " + a.markdown
-        atomic_write(a.markdown, "# The kernels against the hardware limit (issue 23)\n\n" + provenance(command)
-                     + "\n" + "\n".join(goals_lines(r)).replace("## Issue 23: kernels at the hardware limit\n", "")
-                     + "\n")
+        atomic_write(
+            a.markdown,
+            "# The kernels against the hardware limit (issue 23)\n\n"
+            + provenance(command)
+            + "\n"
+            + "\n".join(goals_lines(r)).replace("## Issue 23: kernels at the hardware limit\n", "")
+            + "\n",
+        )
     if a.update_readme:
         from exo_bench.bench.output.provenance import REPO, atomic_write
 
         command = "python -m exo_bench.bench.perf.reports.simd_goals" + " ".join(
-            [""] + (["--markdown", a.markdown] if a.markdown else []) + ["--update-readme"])
+            [""] + (["--markdown", a.markdown] if a.markdown else []) + ["--update-readme"]
+        )
         readme = (REPO / "README.md").read_text()
         updated = readme_with_goals(readme, goals_lines(r), command)
         if updated != readme:
