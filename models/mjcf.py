@@ -86,6 +86,42 @@ REST_LENGTH = 0.5
 #: armature to 0): see the module docstring.
 UNDO_ARMATURE = 1e-6
 
+#: The deepest element MuJoCo's XML parser (tinyxml2, TINYXML2_MAX_ELEMENT_DEPTH) reads: deeper, it
+#: refuses the file ("Element nesting is too deep"). Each link nests two bodies inside its parent's
+#: end body, so a chain of more than 248 links cannot be read from MJCF (measured with MuJoCo 4.0).
+MJCF_MAX_DEPTH = 500
+
+
+def nesting_depth(mech: Mechanism) -> int:
+    """The depth of the deepest element in :func:`to_mjcf`'s text: ``mujoco > worldbody`` (2), then
+    per link of tree depth d (roots 0) its body at 3 + 2d, its end body at 4 + 2d and what that
+    holds at 5 + 2d."""
+    depth = [0] * mech.nlinks
+    for i in range(mech.nlinks):  # parents come before their children
+        p = mech.parent[i]
+        depth[i] = 0 if p < 0 else depth[p] + 1
+    return 5 + 2 * max(depth, default=0)
+
+
+class MjcfTooDeep(ValueError):
+    """The MJCF of a mechanism nests deeper than MuJoCo's parser reads (:data:`MJCF_MAX_DEPTH`);
+    ``skip_reason`` is the same line, so the benchmark rows skip with it."""
+
+    def __init__(self, mech: Mechanism):
+        depth = nesting_depth(mech)
+        self.skip_reason = (
+            f"the MJCF of {mech.name!r} nests {depth} elements deep; MuJoCo's XML parser (tinyxml2) reads at most "
+            f"{MJCF_MAX_DEPTH}: each link nests two bodies deeper, so at most {(MJCF_MAX_DEPTH - 5) // 2 + 1} "
+            "links in a chain from the support point"
+        )
+        super().__init__(self.skip_reason)
+
+
+def check_nesting(mech: Mechanism) -> None:
+    """:class:`MjcfTooDeep` where MuJoCo would refuse the MJCF of ``mech`` for its depth."""
+    if nesting_depth(mech) > MJCF_MAX_DEPTH:
+        raise MjcfTooDeep(mech)
+
 
 def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]", "_", name)
@@ -105,28 +141,35 @@ class JointMap:
     bodies: tuple[tuple[str, str | None, str], ...]
 
 
+def _depth_first(mech: Mechanism):
+    """``(link, entering)`` events of a depth-first walk of the tree, roots in order: each link is
+    entered before its children and left after them. Iterative, so a chain of thousands of links
+    (whose MJCF nests as deep) needs no recursion."""
+    stack = [(i, True) for i in reversed(range(mech.nlinks)) if mech.parent[i] < 0]
+    while stack:
+        i, entering = stack.pop()
+        yield i, entering
+        if entering:
+            stack.append((i, False))
+            stack.extend((c, True) for c in reversed(mech.children[i]))
+
+
 def _joint_rows(mech: Mechanism) -> list[tuple[str, dict[int, float]]]:
     """``(joint name, {paper column: coefficient})`` in the order of the file (depth first)."""
     n = mech.nlinks
     psi0, l0 = n, (2 if mech.dim == 3 else 1) * n
     rows: list[tuple[str, dict[int, float]]] = []
-
-    def visit(i: int) -> None:
+    for i, entering in _depth_first(mech):
         k, p = link_prefix(mech, i), mech.parent[i]
-        if mech.dim == 3 and p >= 0:
-            rows.append((f"{k}_undo", {psi0 + p: -1.0}))
-        rows.append((f"{k}_phi", {i: 1.0} if p < 0 else {i: 1.0, p: -1.0}))
-        if mech.dim == 3:
-            rows.append((f"{k}_psi", {psi0 + i: 1.0}))
-        rows.append((f"{k}_len", {l0 + i: 1.0}))
-        for c in mech.children[i]:
-            visit(c)
-        if mech.masses[i][1] > 0.0:
+        if entering:
+            if mech.dim == 3 and p >= 0:
+                rows.append((f"{k}_undo", {psi0 + p: -1.0}))
+            rows.append((f"{k}_phi", {i: 1.0} if p < 0 else {i: 1.0, p: -1.0}))
+            if mech.dim == 3:
+                rows.append((f"{k}_psi", {psi0 + i: 1.0}))
+            rows.append((f"{k}_len", {l0 + i: 1.0}))
+        elif mech.masses[i][1] > 0.0:
             rows.append((f"{k}_mid", {l0 + i: float(mech.n[i])}))
-
-    for i in range(n):
-        if mech.parent[i] < 0:
-            visit(i)
     return rows
 
 
@@ -184,12 +227,29 @@ def to_mjcf(mech: Mechanism) -> str:
         '    <geom type="sphere" size="0.03" rgba="0.2 0.2 0.2 1"/>',
     ]
 
-    def body(i: int, depth: int) -> None:
-        pad = "  " * depth
+    depth = {}
+    for i, entering in _depth_first(mech):
         k, p = link_prefix(mech, i), mech.parent[i]
+        if p < 0:
+            depth[i] = 2
+        elif entering:
+            depth[i] = depth[p] + 2
+        pad = "  " * depth[i]
         s = mech.sign[i]
         m0, m1, m2 = mech.masses[i]
         half = REST_LENGTH / 2
+        if not entering:  # after the children: close the end body, then the middle mass
+            out.append(f"{pad}  </body>")
+            if m1 > 0.0:
+                ref = float(mech.n[i]) * REST_LENGTH
+                out.append(f'{pad}  <body name="{k}_mid" pos="{s * ref!r} 0 0">')
+                out.append(f'{pad}    <joint name="{k}_mid" type="slide" axis="{s} 0 0" ref="{ref!r}"/>')
+                out.append(
+                    f"{pad}    {_inertial(m1)}<!-- sliding middle mass m1, at n l -->" + _sphere(m1, "0.1 0.5 0.8 1")
+                )
+                out.append(f"{pad}  </body>")
+            out.append(f"{pad}</body>")
+            continue
         out.append(
             f"{pad}<!-- link {i + 1}: {mech.names[i]}, parent {p + 1 if p >= 0 else 'support'}, "
             f"sign {s:+d}, n = {float(mech.n[i])!r} -->"
@@ -212,22 +272,7 @@ def to_mjcf(mech: Mechanism) -> str:
             f'{pad}    <geom type="capsule" fromto="0 0 0 {-s * half!r} 0 0" size="0.008" rgba="0.7 0.7 0.8 1"/>'
             + _sphere(m2, "0.85 0.4 0.1 1")
         )
-        for c in mech.children[i]:
-            body(c, depth + 2)
-        out.append(f"{pad}  </body>")
-        if m1 > 0.0:
-            ref = float(mech.n[i]) * REST_LENGTH
-            out.append(f'{pad}  <body name="{k}_mid" pos="{s * ref!r} 0 0">')
-            out.append(f'{pad}    <joint name="{k}_mid" type="slide" axis="{s} 0 0" ref="{ref!r}"/>')
-            out.append(
-                f"{pad}    {_inertial(m1)}<!-- sliding middle mass m1, at n l -->" + _sphere(m1, "0.1 0.5 0.8 1")
-            )
-            out.append(f"{pad}  </body>")
-        out.append(f"{pad}</body>")
 
-    for i in range(mech.nlinks):
-        if mech.parent[i] < 0:
-            body(i, 2)
     out.append("  </worldbody>")
     ties = []
     for i in range(mech.nlinks):

@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.mjcf import JointMap, joint_map, to_mjcf
+from exo_bench.models.mjcf import JointMap, check_nesting, joint_map, to_mjcf
 from exo_bench.models.prepared import MissingExtra, PreparedModel
 
 EXTRA = "pip install 'exo-bench[peers]'"
@@ -109,6 +109,7 @@ def exact_model(mech: Mechanism, model) -> None:
 def load_model(mech: Mechanism) -> MujocoModel:
     """Compile (once per mechanism) the exported MJCF and make it exact (:func:`exact_model`)."""
     mujoco = import_mujoco()
+    check_nesting(mech)  # MjcfTooDeep: deeper than MuJoCo's XML parser reads
     model = compile_mjcf(to_mjcf(mech), f"MJCF of {mech.name!r}")
     exact_model(mech, model)
     jm = joint_map(mech)

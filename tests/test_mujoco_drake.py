@@ -348,3 +348,39 @@ def test_zero_point_masses_are_exactly_zero(method, dim):
 def test_exported_mjcf_with_zero_masses_loads_and_places_its_bodies(tmp_path):
     _need("mujoco")
     test_exported_mjcf_bodies_are_the_point_masses(_with_zero_masses(random_tree(6, 3, 73)), tmp_path)
+
+
+def test_the_mjcf_nesting_depth_is_the_one_mujocos_parser_refuses_beyond_its_limit():
+    """A chain nests two bodies per link: MuJoCo's XML parser (tinyxml2) reads 248 links and refuses
+    249 ("Element nesting is too deep"). The suite predicts that depth (models.mjcf.nesting_depth),
+    the `mujoco` method refuses deeper trees with the reason before any work (the benchmark row
+    skips with it), and the export itself builds any depth without recursion (a 1000-link chain
+    raised RecursionError in the full sweep)."""
+    from exo_bench.models.mjcf import MJCF_MAX_DEPTH, MjcfTooDeep, nesting_depth
+    from exo_bench.models.presets import chain
+
+    assert nesting_depth(chain(248, 3)) <= MJCF_MAX_DEPTH < nesting_depth(chain(249, 3))
+    assert to_mjcf(chain(1000, 2)).count("<body ") == 3000  # start, end and middle: no RecursionError
+    with pytest.raises(MjcfTooDeep, match=r"'chain249-3d' nests 501 elements deep; .* at most 500") as e:
+        prepare(chain(249, 3), "mujoco")
+    assert e.value.skip_reason == str(e.value)
+    _need("mujoco")
+    import mujoco
+
+    mujoco.MjModel.from_xml_string(to_mjcf(chain(248, 3)))  # the deepest MuJoCo reads
+    with pytest.raises(ValueError, match="nesting is too deep"):
+        mujoco.MjModel.from_xml_string(to_mjcf(chain(249, 3)))
+
+
+def test_the_mjcf_command_refuses_a_tree_too_deep_for_mujoco_in_one_line(tmp_path):
+    from exo_bench.models.presets import chain
+
+    path = tmp_path / "deep.json"
+    path.write_text(chain(249, 3).to_json())
+    r = subprocess.run(
+        [sys.executable, "-m", "exo_bench.bench.cli", "mjcf", str(path), "-o", str(tmp_path / "deep.xml")],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+    assert "nests 501 elements deep" in r.stderr and not (tmp_path / "deep.xml").exists()

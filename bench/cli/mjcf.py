@@ -35,6 +35,10 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
 
         output_target(args.output, "mjcf -o")  # never a FIFO, a device, a socket (bench/output/files.py)
         writable_folder(Path(args.output).resolve().parent, "-o")
+    if not args.no_check:
+        from exo_bench.models.mjcf import check_nesting
+
+        check_nesting(mech)  # a ValueError before any work, where MuJoCo's parser would refuse the depth
     text = to_mjcf(mech)
     if not args.no_check:
         from exo_bench.models.mujoco_backend import compile_mjcf
