@@ -5,8 +5,9 @@ Goals, on 3D chains, from one run of the full sweep (``exo-bench bench --full``)
 
 * the batched cost of ``newton-euler (numba)`` grows like n^p with p <= :data:`GOAL_EXPONENT` from
   n = 20 to n = 1000;
-* it is at least :data:`GOAL_VS_FACTORED_100` x faster per sample than ``matrix-factored (numba)``
-  at n = 100 and :data:`GOAL_VS_FACTORED_1000` x at n = 1000;
+* it is at least :data:`GOAL_VS_FACTORED_100` x faster per sample than ``matrix-factored`` at
+  n = 100 and :data:`GOAL_VS_FACTORED_1000` x at n = 1000, against that method's fastest kernel in
+  the run (its numpy kernel, BLAS on the O(n^2) products, overtakes its numba kernel at large n);
 * its forward dynamics at n = 100 is at least :data:`GOAL_FORWARD_VS_PIN` x faster per sample than
   Pinocchio's CRBA + Cholesky;
 * n = 10,000 runs inverse and forward dynamics in under :data:`GOAL_MEMORY_MB` MB (the whole
@@ -19,7 +20,6 @@ import numpy as np
 import pandas as pd
 
 NE = "newton-euler (numba)"
-FACTORED = "matrix-factored (numba)"
 PIN_FORWARD = "pinocchio (CRBA + Cholesky)"
 GOAL_EXPONENT = 1.05
 GOAL_VS_FACTORED_100 = 2.0
@@ -73,18 +73,22 @@ def newton_euler_goals(df: pd.DataFrame) -> list[str]:
             f"- Growth from n = {lo} to {hi}: not measured in this run (n = "
             f"{', '.join(map(str, sorted(ne.index))) or 'none'}; the full profile has it)."
         )
-    fac = (
-        inv[inv["method"] == FACTORED].groupby("n")["us_per_sample"].min() if not inv.empty else pd.Series(dtype=float)
-    )
+    facs = inv[inv["method"].astype(str).str.startswith("matrix-factored (")] if not inv.empty else inv
     for n, goal in ((100, GOAL_VS_FACTORED_100), (1000, GOAL_VS_FACTORED_1000)):
-        if n in ne.index and n in fac.index:
-            r = fac[n] / ne[n]
+        at = facs[facs["n"] == n] if not facs.empty else facs
+        if n in ne.index and not at.empty:
+            # judged against matrix-factored's fastest kernel at this n (its numpy kernel wins at large n)
+            kernels = at.groupby("method")["us_per_sample"].min().sort_values()
+            best, t = str(kernels.index[0]), float(kernels.iloc[0])
+            r = t / ne[n]
+            others = "; ".join(f"`{m}` {v:.3g} us, {v / ne[n]:.3g}x" for m, v in kernels.iloc[1:].items())
             out.append(
-                f"- n = {n}: `{FACTORED}` {fac[n]:.3g} us, `{NE}` {ne[n]:.3g} us per sample: {r:.3g}x faster, "
-                f"goal at least {goal:g}x: {_met(r >= goal)}."
+                f"- n = {n}: `{NE}` {ne[n]:.3g} us per sample; `matrix-factored`'s fastest kernel here, `{best}`, "
+                f"{t:.3g} us: {r:.3g}x faster, goal at least {goal:g}x: {_met(r >= goal)}"
+                + (f" ({others})." if others else ".")
             )
         else:
-            out.append(f"- n = {n} against `{FACTORED}`: not measured in this run.")
+            out.append(f"- n = {n} against `matrix-factored`: not measured in this run.")
     f = fwd.groupby(["method", "n"])["us_per_sample"].min() if not fwd.empty else pd.Series(dtype=float)
     if (NE, 100) in f.index and (PIN_FORWARD, 100) in f.index:
         r = f[(PIN_FORWARD, 100)] / f[(NE, 100)]
