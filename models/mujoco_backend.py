@@ -108,8 +108,8 @@ def exact_model(mech: Mechanism, model) -> None:
 @lru_cache(maxsize=64)
 def load_model(mech: Mechanism) -> MujocoModel:
     """Compile (once per mechanism) the exported MJCF and make it exact (:func:`exact_model`)."""
+    check_nesting(mech)  # MjcfTooDeep: deeper than MuJoCo's XML parser reads (known without MuJoCo)
     mujoco = import_mujoco()
-    check_nesting(mech)  # MjcfTooDeep: deeper than MuJoCo's XML parser reads
     model = compile_mjcf(to_mjcf(mech), f"MJCF of {mech.name!r}")
     exact_model(mech, model)
     jm = joint_map(mech)
@@ -156,6 +156,7 @@ class MujocoRNE(PreparedModel):
 
     def __init__(self, mechanism: Mechanism):
         super().__init__(mechanism)
+        check_nesting(mechanism)  # the depth MuJoCo cannot read is refused with or without MuJoCo
         self._mj = import_mujoco()
         mm = load_model(mechanism)
         self.mj_model = mm.model
