@@ -92,23 +92,27 @@ UNDO_ARMATURE = 1e-6
 MJCF_MAX_DEPTH = 500
 
 
+def _tree_depths(mech: Mechanism) -> list[int]:
+    """Each link's depth in the tree (roots 0), in O(n): a parent comes before its children."""
+    depth = [0] * mech.nlinks
+    for i in range(mech.nlinks):
+        p = mech.parent[i]
+        depth[i] = 0 if p < 0 else depth[p] + 1
+    return depth
+
+
 def nesting_depth(mech: Mechanism) -> int:
     """The depth of the deepest element in :func:`to_mjcf`'s text: ``mujoco > worldbody`` (2), then
     per link of tree depth d (roots 0) its body at 3 + 2d, its end body at 4 + 2d and what that
     holds at 5 + 2d."""
-    depth = [0] * mech.nlinks
-    for i in range(mech.nlinks):  # parents come before their children
-        p = mech.parent[i]
-        depth[i] = 0 if p < 0 else depth[p] + 1
-    return 5 + 2 * max(depth, default=0)
+    return 5 + 2 * max(_tree_depths(mech), default=0)
 
 
 class MjcfTooDeep(ValueError):
     """The MJCF of a mechanism nests deeper than MuJoCo's parser reads (:data:`MJCF_MAX_DEPTH`);
     ``skip_reason`` is the same line, so the benchmark rows skip with it."""
 
-    def __init__(self, mech: Mechanism):
-        depth = nesting_depth(mech)
+    def __init__(self, mech: Mechanism, depth: int):
         self.skip_reason = (
             f"the MJCF of {mech.name!r} nests {depth} elements deep; MuJoCo's XML parser (tinyxml2) reads at most "
             f"{MJCF_MAX_DEPTH}: each link nests two bodies deeper, so at most {(MJCF_MAX_DEPTH - 5) // 2 + 1} "
@@ -119,8 +123,9 @@ class MjcfTooDeep(ValueError):
 
 def check_nesting(mech: Mechanism) -> None:
     """:class:`MjcfTooDeep` where MuJoCo would refuse the MJCF of ``mech`` for its depth."""
-    if nesting_depth(mech) > MJCF_MAX_DEPTH:
-        raise MjcfTooDeep(mech)
+    depth = nesting_depth(mech)
+    if depth > MJCF_MAX_DEPTH:
+        raise MjcfTooDeep(mech, depth)
 
 
 def _safe(name: str) -> str:
@@ -227,14 +232,10 @@ def to_mjcf(mech: Mechanism) -> str:
         '    <geom type="sphere" size="0.03" rgba="0.2 0.2 0.2 1"/>',
     ]
 
-    depth = {}
+    depth = _tree_depths(mech)
     for i, entering in _depth_first(mech):
         k, p = link_prefix(mech, i), mech.parent[i]
-        if p < 0:
-            depth[i] = 2
-        elif entering:
-            depth[i] = depth[p] + 2
-        pad = "  " * depth[i]
+        pad = "  " * (2 + 2 * depth[i])
         s = mech.sign[i]
         m0, m1, m2 = mech.masses[i]
         half = REST_LENGTH / 2

@@ -156,9 +156,8 @@ class MujocoRNE(PreparedModel):
 
     def __init__(self, mechanism: Mechanism):
         super().__init__(mechanism)
-        check_nesting(mechanism)  # the depth MuJoCo cannot read is refused with or without MuJoCo
+        mm = load_model(mechanism)  # first: a depth MuJoCo cannot read is refused with or without MuJoCo
         self._mj = import_mujoco()
-        mm = load_model(mechanism)
         self.mj_model = mm.model
         self.G = np.ascontiguousarray(mm.G)
         self.GT = np.ascontiguousarray(mm.G.T)
