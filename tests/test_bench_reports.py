@@ -215,3 +215,16 @@ def test_newton_euler_goals_are_judged_against_matrix_factoreds_fastest_kernel()
     assert "n = 100: `newton-euler (numba)` 3 us" in text and "`matrix-factored (numba)`, 7 us: 2.33x faster" in text
     assert "`matrix-factored (numpy)`, 300 us: 10x faster, goal at least 20x: **not met**" in text
     assert "`matrix-factored (numba)` 700 us, 23.3x" in text  # the slower kernel, stated beside
+
+
+def test_the_readme_is_rewritten_only_when_a_block_changes(tmp_path, monkeypatch):
+    from exo_bench.bench.output import provenance
+    from exo_bench.bench.perf.reports.readme_blocks import replace_block, rewrite_readme
+
+    monkeypatch.setattr(provenance, "REPO", tmp_path)
+    assert rewrite_readme(lambda r: r + "x") is False  # no README.md: nothing written
+    readme = tmp_path / "README.md"
+    readme.write_text("a\n<!-- b:start -->\nold\n<!-- b:end -->\n")
+    assert rewrite_readme(lambda r: replace_block(r, "b", "old")) is False
+    assert rewrite_readme(lambda r: replace_block(r, "b", "new")) is True
+    assert readme.read_text() == "a\n<!-- b:start -->\nnew\n<!-- b:end -->\n"

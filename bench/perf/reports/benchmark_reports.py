@@ -107,13 +107,12 @@ def write_reports(
     published = publish([f for f in [*st.values(), bjson] if f.exists()], out)
     for p in published:
         print(f"wrote {p}")
-    if update_readme and names["paper_table.md"] == "paper_table.md" and (REPO / "README.md").exists():
+    if update_readme and names["paper_table.md"] == "paper_table.md":
+        from exo_bench.bench.perf.reports.readme_blocks import rewrite_readme
         from exo_bench.bench.perf.reports.simd_goals import readme_with_goals, report_lines
 
-        readme = (REPO / "README.md").read_text()
-        updated = readme_with_goals(readme_with_table(readme, text, command), report_lines(df), command)
-        if updated != readme:
-            atomic_write(REPO / "README.md", updated)
+        simd = report_lines(df)
+        if rewrite_readme(lambda readme: readme_with_goals(readme_with_table(readme, text, command), simd, command)):
             print(f"updated the paper table and issue 23's figures in {REPO / 'README.md'}")
     return published
 

@@ -6,6 +6,8 @@ README without them is returned unchanged."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 
 def markers(name: str) -> tuple[str, str]:
     """The start and end markers of block ``name``."""
@@ -29,3 +31,19 @@ def inserted_by(command: str, details: str) -> str:
 
     info = machine_info()
     return f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); {details}._"
+
+
+def rewrite_readme(update: Callable[[str], str]) -> bool:
+    """Apply ``update`` to the checkout's README.md and write it (atomically) only if it changed;
+    whether it did. Nothing happens where there is no README.md (an installed package)."""
+    from exo_bench.bench.output.provenance import REPO, atomic_write
+
+    path = REPO / "README.md"
+    if not path.exists():
+        return False
+    readme = path.read_text()
+    updated = update(readme)
+    if updated == readme:
+        return False
+    atomic_write(path, updated)
+    return True

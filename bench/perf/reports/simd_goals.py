@@ -362,6 +362,7 @@ def main(argv=None) -> int:
         help="also replace the figures in the checkout's README.md (its simd-goals block)",
     )
     a = ap.parse_args(argv)
+    command = " ".join(["python -m exo_bench.bench.perf.reports.simd_goals", *(sys.argv[1:] if argv is None else argv)])
     r = measure(a.samples, a.rounds)
     if a.json:
         with open(a.json, "w") as f:
@@ -370,7 +371,6 @@ def main(argv=None) -> int:
     if a.markdown:
         from exo_bench.bench.output.provenance import atomic_write, provenance
 
-        command = "python -m exo_bench.bench.perf.reports.simd_goals --markdown " + a.markdown
         atomic_write(
             a.markdown,
             "# The kernels against the hardware limit (issue 23)\n\n"
@@ -380,16 +380,10 @@ def main(argv=None) -> int:
             + "\n",
         )
     if a.update_readme:
-        from exo_bench.bench.output.provenance import REPO, atomic_write
+        from exo_bench.bench.perf.reports.readme_blocks import rewrite_readme
 
-        command = "python -m exo_bench.bench.perf.reports.simd_goals" + " ".join(
-            [""] + (["--markdown", a.markdown] if a.markdown else []) + ["--update-readme"]
-        )
-        readme = (REPO / "README.md").read_text()
-        updated = readme_with_goals(readme, goals_lines(r), command)
-        if updated != readme:
-            atomic_write(REPO / "README.md", updated)
-            print(f"updated issue 23's figures in {REPO / 'README.md'}")
+        if rewrite_readme(lambda readme: readme_with_goals(readme, goals_lines(r), command)):
+            print("updated issue 23's figures in README.md")
     return 0
 
 
