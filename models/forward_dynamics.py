@@ -28,7 +28,8 @@ a condition number), and :func:`condition_numbers` measures how close to singula
 explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
 so the implicit integrators' finite-difference Jacobian costs one batched call per column block;
 ``jacobian="analytic"`` gives them :func:`make_jacobian` instead (the forward-dynamics derivatives
-of ``model.derivatives`` and the controls' ``jacobian``), which costs no right-hand-side evaluation.
+of ``model.derivatives`` and the controls' ``jacobian``), which costs no right-hand-side evaluation
+and is therefore re-evaluated after every accepted step (:mod:`exo_bench.models.implicit_integrators`).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from exo_bench.models.implicit_integrators import CURRENT_JACOBIAN
 from exo_bench.models.mechanism import Mechanism, as_states, split
 from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
@@ -207,7 +209,7 @@ class Simulation:
     )  # dense output (scipy OdeSolution) when asked for
     jacobian: str = "finite-difference"  # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
     jacobian_columns: int = 0  # of nfev, the columns spent on scipy's finite-difference Jacobians
-    # implicit integrators: the times at which the Jacobian was evaluated, and of every single-column
+    # implicit integrators: the times at which the Jacobian was evaluated (in order), and of every single-column
     # right-hand-side call (stages, Newton iterations, step ends; what the stability report's Jacobian
     # comparison explains its counts with)
     jacobian_times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -341,7 +343,8 @@ def simulate(
     """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
 
     ``jacobian`` (implicit integrators): ``"finite-difference"`` (scipy's, from the vectorised
-    right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`).
+    right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`, kept current:
+    re-evaluated after every accepted step, :mod:`exo_bench.models.implicit_integrators`).
 
     ``atol`` defaults to ``rtol * 1e-3`` (a state component of 1e-3 rad or mm counts as small).
     The initial state is validated and checked for a singular mass matrix (then
@@ -380,10 +383,9 @@ def simulate(
             return analytic_jac(t, y)
 
         kw["jac"] = jac
+    method = CURRENT_JACOBIAN[integrator] if jacobian == "analytic" else integrator
     try:
-        r = solve_ivp(
-            rhs, t_span, y0, method=integrator, rtol=rtol, atol=atol, vectorized=True, dense_output=dense, **kw
-        )
+        r = solve_ivp(rhs, t_span, y0, method=method, rtol=rtol, atol=atol, vectorized=True, dense_output=dense, **kw)
         steps_t, steps_y = list(r.t), list(r.y.T)
         njev, nlu = int(r.njev), int(r.nlu)
         sol = r.sol
@@ -412,6 +414,6 @@ def simulate(
         sol,
         jacobian,
         count["jacobian_columns"],
-        np.unique(np.asarray(count["jacobian_times"])),
+        np.asarray(count["jacobian_times"]),
         np.asarray(count["times"]),
     )

@@ -119,6 +119,47 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
         assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea
 
 
+def test_the_analytic_jacobian_is_current_at_every_step():
+    """models.implicit_integrators: with the analytic Jacobian, Radau holds the Jacobian of the state it
+    steps from (one evaluation at t0 and one per accepted step, none stale), BDF at least as many, and
+    each is the Jacobian at its state: the recorded times are the accepted steps' times. Fails if a scipy
+    release renames the attributes the refresh replaces (the count would fall back to scipy's rule, a
+    handful per run)."""
+    case = stiff_case(1e6)
+    model = prepare(case.mechanism, "matrix-factored")
+    for integ in fd.IMPLICIT:
+        a = fd.simulate(
+            model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, 1e-6, 1e-8, jacobian="analytic"
+        )
+        f = fd.simulate(model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, 1e-6, 1e-8)
+        assert a.ok and f.ok and a.steps > 50
+        if integ == "Radau":
+            assert a.njev == a.steps + 1
+            np.testing.assert_array_equal(a.jacobian_times, a.t)
+        else:
+            assert a.njev >= a.steps + 1
+            assert set(a.t) <= set(a.jacobian_times)
+        assert f.njev < f.steps / 2, "scipy's own rule (finite differences) holds its Jacobian across steps"
+
+
+@pytest.mark.parametrize("integ", fd.IMPLICIT)
+def test_fewer_evaluations_on_the_planar_gait_at_tight_tolerance(integ):
+    """The stability report's round trip (exo5-2d planar gait, Pinocchio's M and h, the prescribed
+    controls) at rtol 1e-12, where under scipy's Jacobian-reuse rule the analytic Radau run took more
+    evaluations than finite differences: with the Jacobian kept current it takes fewer, and reaches the
+    prescribed motion within the report's factor of the finite-difference run's error."""
+    from exo_bench.bench.studies.stability.forward_cases import round_trip_cases
+    from exo_bench.bench.studies.stability.forward_jacobian import SAME_ERROR
+    from exo_bench.bench.studies.stability.forward_round_trip import round_trip_run
+
+    case = round_trip_cases()[0]
+    d = case.mechanism.dof
+    f, a = (round_trip_run(case, integ, 1e-12, jacobian=j) for j in fd.JACOBIANS)
+    assert f.ok and a.ok and a.nfev < f.nfev
+    ef, ea = (np.abs(s.q(d) - case.motion_of_t(s.t).q).max() for s in (f, a))
+    assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea
+
+
 def test_bad_jacobian_options():
     case = stiff_case(1e4)
     model = prepare(case.mechanism, "matrix-factored")

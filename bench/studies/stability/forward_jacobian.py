@@ -7,7 +7,8 @@ differences of the vectorised right-hand side: ``2 dof`` more evaluations per Ja
 (:func:`exo_bench.models.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
 ``model.derivatives`` (CasADi's differentiation of the factored closed forms,
 :mod:`exo_bench.matrix_method.derivatives`) and the controls' own derivatives, and costs no right-hand-side
-evaluation. Each analytic run is paired with the finite-difference run of the same case,
+evaluation, so it is re-evaluated after every accepted step (:mod:`exo_bench.models.implicit_integrators`).
+Each analytic run is paired with the finite-difference run of the same case,
 integrator and tolerance (:func:`pairs`), and the report says whether it reached the same
 tolerance in fewer evaluations (:func:`verdict`).
 """
@@ -17,7 +18,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 
 from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
@@ -92,102 +92,28 @@ def verdict(ps: list[Pair]) -> str:
         f"**{'Yes' if yes else 'Not everywhere'}: the analytic Jacobian reached the same tolerance in fewer "
         f"right-hand-side evaluations in {len(both)} of {len(ok)} pairs** ({len(fewer)} used fewer evaluations, "
         f"{len(same)} reached an error within {SAME_ERROR:g}x of the finite-difference run's); it saved "
-        f"{100 * min(saved):.0f}% to {100 * max(saved):.0f}% of the evaluations (the 2 dof columns of each of "
-        "scipy's finite-difference Jacobians)."
+        f"{100 * min(saved):.0f}% to {100 * max(saved):.0f}% of the evaluations: the 2 dof columns of each of "
+        "scipy's finite-difference Jacobians, and Newton iterations, since the analytic Jacobian is the current "
+        "state's at every step."
     )
     return text + "".join(" " + reason(p) for p in ok if not (p.fewer and p.same_tolerance))
 
 
 def reason(p: Pair) -> str:
-    """Why a pair is not 'fewer evaluations at the same tolerance', from its counts and, where the
-    analytic run took more evaluations, from when each run evaluated its Jacobian (:func:`stale_window`)."""
+    """Why a pair is not 'fewer evaluations at the same tolerance', from its counts."""
     if not p.fewer:
         other_fd = p.fd.nfev - p.fd.jacobian_columns
-        text = (
+        return (
             f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, scipy's {p.fd.njev} finite-difference Jacobians "
             f"cost only {p.fd.jacobian_columns} of {p.fd.nfev} evaluations "
             f"({100 * p.fd.jacobian_columns / p.fd.nfev:.1f}%, all an analytic Jacobian can save), while the "
             f"analytic run took {p.analytic.steps} steps against {p.fd.steps} and "
             f"{p.analytic.nfev - other_fd:+d} stage and Newton evaluations."
         )
-        w = stale_window(p)
-        if w is None:
-            return text + " A different step sequence, not the Jacobian, decided the count."
-        return text + " " + w
     return (
         f"At {p.case}, {p.integrator}, rtol {p.rtol:.0e}, the errors differ by more than {SAME_ERROR:g}x "
         f"({sci(p.fd_error)} against {sci(p.analytic_error)})."
     )
-
-
-def _digits(ts) -> int:
-    """The fewest significant digits (at least 4) that tell the times ``ts`` apart."""
-    ts = sorted(set(float(t) for t in ts))
-    return next((p for p in range(4, 17) if len({f"{t:.{p}g}" for t in ts}) == len(ts)), 17)
-
-
-def stale_window(p: Pair) -> str | None:
-    """Where the analytic run spent its extra evaluations: the time during which its Jacobian in use
-    was older than the finite-difference run's, with each run's steps and evaluations per step there.
-    scipy reuses a Jacobian across steps and re-evaluates it only when a step's Newton iteration
-    needed more than 2 iterations with a last contraction rate above 1e-3 (Radau), or after a failed
-    Newton iteration (both), so the two runs hold Jacobians of different ages; a staler one costs Newton
-    iterations (3 right-hand-side evaluations each for Radau's three stages). None without the runs'
-    recorded times, or when the analytic run did not hold the older Jacobian where it spent more."""
-    fd_run, an = p.fd, p.analytic
-    if not (len(fd_run.jacobian_times) and len(an.jacobian_times) and len(fd_run.call_times) and len(an.call_times)):
-        return None
-    end = fd_run.t[-1]
-    edges = np.unique(np.concatenate([fd_run.jacobian_times, an.jacobian_times, [end]]))
-    if len(edges) < 2:
-        return None
-    edges[-1] = np.nextafter(end, np.inf)
-    calls = {id(s): np.histogram(s.call_times, edges)[0] for s in (fd_run, an)}
-    steps = {id(s): np.histogram(s.t[:-1], edges)[0] for s in (fd_run, an)}
-    # the time of the Jacobian each run holds in each interval
-    held = {
-        id(s): s.jacobian_times[np.searchsorted(s.jacobian_times, edges[:-1], side="right") - 1] for s in (fd_run, an)
-    }
-    older = (held[id(an)] < held[id(fd_run)]) & (steps[id(an)] + steps[id(fd_run)] > 0)
-    extra = int((calls[id(an)] - calls[id(fd_run)])[older].sum())
-    if not older.any() or extra <= 0:
-        return None
-    spans: list[tuple[float, float]] = []
-    for i in np.flatnonzero(older):  # contiguous intervals as one span
-        a, b = edges[i], min(edges[i + 1], end)
-        spans[-1:] = [(spans[-1][0], b)] if spans and i > 0 and older[i - 1] else spans[-1:] + [(a, b)]
-    n_an, n_fd = int(steps[id(an)][older].sum()), int(steps[id(fd_run)][older].sum())
-    c_an, c_fd = int(calls[id(an)][older].sum()), int(calls[id(fd_run)][older].sum())
-    nd = _digits([*fd_run.jacobian_times, *an.jacobian_times, *(x for span in spans for x in span)])
-
-    def _times(ts) -> str:
-        return ", ".join(f"{t:.{nd}g}" for t in ts)
-
-    where = ", ".join(f"t = {a:.{nd}g} to {b:.{nd}g} s" for a, b in spans)
-    return (
-        f"Jacobians were evaluated at t = {_times(an.jacobian_times)} s (analytic) and "
-        f"{_times(fd_run.jacobian_times)} s (finite-difference). During {where}, the analytic run held the "
-        f"older Jacobian (from t = {_times(np.unique(held[id(an)][older]))} s): there it took {n_an} steps "
-        f"against {n_fd} and {c_an / max(n_an, 1):.2f} evaluations per step against {c_fd / max(n_fd, 1):.2f}, "
-        f"{extra:+d} evaluations in all (the whole run: {p.analytic.nfev - p.fd.nfev:+d}). "
-        + _reuse_rule(p.integrator)
-        + ": when each run re-evaluated it, not the Jacobian's accuracy (exact to round-off, "
-        "tests/test_analytic_jacobian.py), decided the count."
-    )
-
-
-def _reuse_rule(integrator: str) -> str:
-    """scipy's rule for re-evaluating a Jacobian it holds (scipy/integrate/_ivp/radau.py, bdf.py)."""
-    if integrator == "Radau":
-        from scipy.integrate._ivp.radau import MU_REAL
-
-        return (
-            "scipy's Radau re-evaluates the Jacobian it holds only after a step whose Newton iteration needed "
-            "more than 2 iterations with a last contraction rate above 1e-3, or after one that failed, and "
-            f"its error estimate passes through ({MU_REAL:.4g}/h I - J)^-1 of the Jacobian held (hence the "
-            "different steps)"
-        )
-    return f"scipy's {integrator} re-evaluates the Jacobian it holds only after a Newton iteration that failed"
 
 
 def jacobian_markdown(res: ForwardResults) -> list[str]:
@@ -202,7 +128,10 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
         "from `model.derivatives` (CasADi's differentiation of the matrix method's factored closed forms, "
         "`matrix_method/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
-        "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation. Same case, "
+        "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
+        "re-evaluated after every accepted step (`models/implicit_integrators.py`; scipy's own rule, made for "
+        "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
+        "Newton iterations, at tight tolerances more than the finite-difference Jacobians cost). Same case, "
         "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "
         "stiff case against the Radau reference. 'Same tolerance' means both runs finished and their errors "
         f"agree within {SAME_ERROR:g}x.",
