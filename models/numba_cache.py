@@ -63,12 +63,24 @@ def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, alwa
     inlined_sources_hash.cache_clear()
 
 
+#: The modules of this layer that the kernels of every family compile in: the branch-free sin/cos, the
+#: blocks of samples (its transposes) and the jit options. Keyed for every kernel folder (a folder
+#: that does not use one recompiles for nothing after an edit to it; one that does never serves stale
+#: code): their functions are imported by name into the kernel files, not registered through
+#: :func:`inline`, and an edit to ``sincos_reduced`` once left the cached SIMD kernels of both
+#: families on the old sin/cos.
+SHARED_SOURCES = tuple(
+    Path(__file__).resolve().parent / f for f in ("fast_trig.py", "simd_blocks.py", "numba_threads.py")
+)
+
+
 def inlined_sources(kernel_dir: str | Path) -> list[Path]:
-    """The source files the kernels of ``kernel_dir`` depend on: every module of that folder and the
-    modules of the element functions registered for it."""
+    """The source files the kernels of ``kernel_dir`` depend on: every module of that folder, the
+    modules of the element functions registered for it, and :data:`SHARED_SOURCES`."""
     folder = Path(kernel_dir).resolve()
     own = sorted(p.resolve() for p in folder.glob("*.py"))
-    return own + [Path(p) for p in KERNEL_DIRS.get(folder, {}) if Path(p) not in own]
+    extra = [Path(p) for p in KERNEL_DIRS.get(folder, {})] + list(SHARED_SOURCES)
+    return own + list(dict.fromkeys(p for p in extra if p not in own))
 
 
 @functools.cache
@@ -119,3 +131,59 @@ class KernelSourceLocator(_CacheLocator):
 
 if KernelSourceLocator not in _CacheImpl._locator_classes:
     _CacheImpl._locator_classes.insert(0, KernelSourceLocator)
+
+
+# --------------------------------------------------------------------------- closures' index keys
+def _describe(value: Any, depth: int = 0) -> Any:
+    """A description of a closure cell's value that is the same in every process: a compiled or
+    plain function by its module, qualified name, bytecode, constants and (recursively) its own cells;
+    numbers, strings and tuples by value. ``None`` where there is none (then numba's key is kept)."""
+    fn = getattr(value, "py_func", value)
+    if inspect.isfunction(fn):
+        if depth > 8:
+            return None
+        cells = tuple(_describe(c.cell_contents, depth + 1) for c in fn.__closure__ or ())
+        if any(c is None for c in cells):
+            return None
+        return ("function", fn.__module__, fn.__qualname__, _code(fn.__code__), cells)
+    if isinstance(value, (bool, int, float, str, bytes, type(None))):
+        return (type(value).__name__, repr(value))
+    if isinstance(value, tuple):
+        items = tuple(_describe(v, depth + 1) for v in value)
+        return None if any(i is None for i in items) else ("tuple", items)
+    return None
+
+
+def _code(code: Any) -> tuple:
+    """A code object by its bytecode and constants (nested code objects alike: their repr holds an address)."""
+    consts = tuple(_code(c) if inspect.iscode(c) else repr(c) for c in code.co_consts)
+    return (code.co_code, consts)
+
+
+_numba_index_key = caching.FunctionCache._index_key
+
+
+def _index_key(self, sig, codegen):
+    """numba's index key, except for the closures of a registered kernel folder: numba hashes a
+    closure's cells by pickling them, and a cell holding another kernel (a dispatcher) pickles with a
+    random per-process id, so such a kernel (newton-euler's SIMD kernels, closures of ``build(lanes)``
+    that call each other) never hit the cache: each process recompiled it (2-3 s) and added a new
+    machine-code file to the cache folder. Here those cells are hashed by :func:`_describe`: the same
+    in every process, and different for different block sizes or bytecode."""
+    key = _numba_index_key(self, sig, codegen)
+    fn = self._py_func
+    if fn.__closure__ is None:
+        return key
+    try:
+        folder = Path(inspect.getfile(fn)).resolve().parent
+    except (OSError, TypeError):
+        return key
+    if folder not in KERNEL_DIRS:
+        return key
+    cells = _describe(fn)
+    if cells is None:
+        return key
+    return (key[0], key[1], (key[2][0], hashlib.sha256(repr(cells).encode()).hexdigest()))
+
+
+caching.FunctionCache._index_key = _index_key

@@ -1,4 +1,4 @@
-"""numba's cache of the newton-euler kernels is keyed on their whole folder (models/numba_cache.py,
+"""numba's cache of the kernels is keyed on their whole folder and the shared sources (models/numba_cache.py,
 registered by models/numba_threads.py): an edit to an element function in models/newton_euler/elements.py,
 which the kernels of compiled.py inline, recompiles them instead of loading the stale machine code."""
 
@@ -43,3 +43,48 @@ def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path):
     tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
     assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
     assert np.abs(tau_after - edited).max() <= 1e-12 * np.abs(edited).max()
+
+
+_PROBE_TRIG = """
+import json
+
+import numpy as np
+from exo_bench import prepare, presets
+from exo_bench.models import fast_trig
+from exo_bench.matrix_method.numba_kernels import simd as factored_simd
+from exo_bench.models.newton_euler import simd as ne_simd
+mech = presets.exo5(dim=3)
+q = np.linspace(0.1, 0.9, 40 * mech.dof).reshape(40, mech.dof)
+out = {"file": fast_trig.__file__}
+for method, kernel in (("matrix-factored", factored_simd.simd_3d), ("newton-euler", ne_simd.kernel_for(mech.nlinks))):
+    m = prepare(mech, method)
+    out[method] = m.inverse_dynamics(q, q, q, check=False).tolist()
+    out[method + " numpy"] = prepare(mech, method, kernel="numpy").inverse_dynamics(q, q, q).tolist()
+    out[method + " misses"] = int(sum(kernel.stats.cache_misses.values()))
+print(json.dumps(out))
+"""
+
+
+def test_an_edit_to_the_shared_sin_cos_recompiles_both_families_simd_kernels(tmp_path):
+    """models/fast_trig.py is outside both kernel folders, and the SIMD kernels of ``matrix-factored`` and
+    ``newton-euler`` import its ``sincos_reduced`` by name (models/numba_cache.py, SHARED_SOURCES). In a
+    copy of the package: run both batched kernels (cached), spoil the sine polynomial's first
+    coefficient, run again: both recompile and their forces move away from the numpy references (which
+    use numpy's sin/cos) by far more than the error model."""
+    pkg, probe = package_copy_prober(tmp_path, _PROBE_TRIG)
+    probe()
+    before = probe()
+    methods = ("matrix-factored", "newton-euler")
+    assert all(before[m + " misses"] == 0 for m in methods), before
+    trig_py = pkg / "models" / "fast_trig.py"
+    text = trig_py.read_text()
+    old = "S1 = -1.66666666666666324348e-01"
+    assert text.count(old) == 1
+    trig_py.write_text(text.replace(old, "S1 = -1.7e-01"))
+    after = probe()
+    for m in methods:
+        assert after[m + " misses"] >= 1, (m, after[m + " misses"])
+        tau_before, tau_after, ref = (np.asarray(x[k]) for x, k in ((before, m), (after, m), (after, m + " numpy")))
+        scale = np.abs(ref).max()
+        assert np.abs(tau_before - ref).max() <= 1e-12 * scale
+        assert np.abs(tau_after - ref).max() > 1e-6 * scale, m
