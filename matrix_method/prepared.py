@@ -125,6 +125,15 @@ class _WithNumbaKernel(_MatrixFamily):
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
 
+    def _one_sample(self, q, qd, qdd) -> np.ndarray:
+        """One sample (1-D arrays, validated, as ``(1, dof)``): the serial kernel, as with ``check=False``
+        (the batched kernel's sin and cos differ from libm's by up to 2 ulp)."""
+        if self._numpy:
+            return self._inverse_dynamics(q, qd, qdd)
+        o = np.empty((1, self._dof))
+        self.serial_kernel(*self.kernel_args, *(np.ascontiguousarray(a[0]) for a in (q, qd, qdd)), o[0])
+        return o
+
     def _compiled(self, q, qd, qdd, out=None):
         """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
         ``out`` (C-ordered) or a new array."""

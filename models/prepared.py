@@ -219,8 +219,10 @@ class PreparedModel:
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
             if out is not None:
                 check_out(out, q.shape[1:] if single else q.shape, self.method)
-            tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
-            tau = tau[0] if single else tau
+            if single:
+                tau = self._one_sample(q, qd, qdd)[0]
+            else:
+                tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         else:
             unchecked_states(self.method, self._dof, (q, qd, qdd), out)
             if q.ndim == 1:
@@ -233,6 +235,12 @@ class PreparedModel:
             return tau
         out[...] = tau
         return out
+
+    def _one_sample(self, q, qd, qdd) -> np.ndarray:
+        """The inverse dynamics of one validated sample given as 1-D arrays, on ``(1, dof)`` arrays:
+        :meth:`_inverse_dynamics`; a method whose ``check=False`` call runs another kernel on a 1-D
+        sample runs that one here too, so that ``check`` never changes the result."""
+        return self._inverse_dynamics(q, qd, qdd)
 
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""

@@ -3,7 +3,7 @@ one-sample entry (matrix_method/numba_kernels/lean.py) of ``matrix-factored (num
 
 **Error model** (that of tests/test_compiled.py): the SIMD kernel does the per-sample kernel's
 operations in the same order, except that its sines and cosines come from
-matrix_method/numba_kernels/fast_trig.py (within 1 ulp of libm's); the numpy reference takes them from
+matrix_method/numba_kernels/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy reference takes them from
 ``tan(x/2)`` (a few 1e-16 absolute) and sums ``c @ kappa`` in BLAS's order. Every force is a sum of
 O(dof) terms of at most a few ``max|tau|``, so the kernels differ by at most ``k * eps * dof *
 max|tau|``, below ``1e-14 * max|tau|`` for ``dof <= 24``: the bound asserted. Against the per-sample

@@ -3,7 +3,7 @@
 
 **Error model**: that of tests/conftest.py (``K eps term_scale``), as for the per-sample kernel: the
 SIMD kernel does the per-sample kernel's operations in the same order (the same element functions),
-except that its sines and cosines come from models/fast_trig.py (within 1 ulp of libm's); the numpy
+except that its sines and cosines come from models/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy
 reference takes numpy's. Where an angle falls back to libm (beyond ``fast_trig.RANGE``) the SIMD
 kernel equals the per-sample kernel to the bit.
 

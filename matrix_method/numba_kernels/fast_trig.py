@@ -7,6 +7,26 @@ share it; this module keeps the matrix family's name for it.
 
 from __future__ import annotations
 
-from exo_bench.models.fast_trig import RANGE, ULPS, in_range, sincos, sincos_array, sincos_into, sincos_reduced
+from exo_bench.models.fast_trig import (
+    JOINT_RANGE,
+    JOINT_ULPS,
+    RANGE,
+    ULPS,
+    in_range,
+    sincos,
+    sincos_array,
+    sincos_into,
+    sincos_reduced,
+)
 
-__all__ = ["RANGE", "ULPS", "in_range", "sincos", "sincos_array", "sincos_into", "sincos_reduced"]
+__all__ = [
+    "JOINT_RANGE",
+    "JOINT_ULPS",
+    "RANGE",
+    "ULPS",
+    "in_range",
+    "sincos",
+    "sincos_array",
+    "sincos_into",
+    "sincos_reduced",
+]
