@@ -22,11 +22,58 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from exo_bench.models.numba_threads import JIT, PARALLEL_MIN_SAMPLES
 
 _jit = njit(**JIT)
+
+
+def _prefetcher(write: int):
+    @intrinsic
+    def prefetch(typingctx, arr, idx):
+        sig = types.void(arr, idx)
+
+        def codegen(context, builder, signature, args):
+            ary = context.make_array(signature.args[0])(context, builder, args[0])
+            ptr = builder.gep(ary.data, [args[1]])
+            i32 = ir.IntType(32)
+            fn = cgutils.get_or_insert_function(
+                builder.module, ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32]), "llvm.prefetch.p0"
+            )
+            builder.call(fn, [ptr, ir.Constant(i32, write), ir.Constant(i32, 3), ir.Constant(i32, 1)])
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    return prefetch
+
+
+#: ``prefetch(arr, idx)``: ask for the cache line of ``arr[idx]`` (LLVM's ``llvm.prefetch``, kept in
+#: every level), to read or to write. No bounds check: a prefetch never faults.
+prefetch_read, prefetch_write = _prefetcher(0), _prefetcher(1)
+
+#: doubles per cache line
+LINE = 8
+
+
+@_jit
+def prefetch_share(q, qd, qdd, o, lo, hi, share, shares):
+    """Prefetch share ``share`` of ``shares`` of the cache lines of the flat elements ``lo .. hi - 1`` of
+    the states (to read) and of the result (to write): a kernel calls it once per link with the next
+    block's elements, so the lines arrive while this block computes, a few per link."""
+    per = -(-(hi - lo) // (shares * LINE)) * LINE
+    a = lo + share * per
+    b = min(hi, a + per)
+    for i in range(a, b, LINE):
+        prefetch_read(q, i)
+        prefetch_read(qd, i)
+        prefetch_read(qdd, i)
+        prefetch_write(o, i)
+
 
 #: Samples computed at once (a multiple of every SIMD width: 2, 4, 8 doubles).
 LANES = 32

@@ -39,6 +39,10 @@ def _rebind(fn, **names):
     return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__, fn.__defaults__, cells)
 
 
+def _no_prefetch(*args) -> None:
+    """The prefetches of the next block (no arithmetic, and no memory in this counting run)."""
+
+
 def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the newton-euler SIMD kernel on ``mech`` (module docstring),
     and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
@@ -50,7 +54,10 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     trig = _rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor))
     start = _rebind(simd._start_points.py_func)
     forward = _rebind(
-        (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func, sincos_reduced=trig, _start_points=start
+        (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
+        sincos_reduced=trig,
+        _start_points=start,
+        prefetch_share=_no_prefetch,
     )
     backward = simd._backward.py_func
     n = mech.nlinks
@@ -62,7 +69,7 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     F = np.empty(n * FROWS * LANES, dtype=object)
     Counted.tally = {"add": 0, "mul": 0, "trig": 0}
     _rows_in_by_link.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
-    forward(t, Counted(float(mech.g)), 1, W, F)
+    forward(t, Counted(float(mech.g)), 1, W, F, x, xd, xdd, o, 0, 0)
     backward(t, mech.dim, 1, W, F)
     _rows_out_by_link.py_func(o, 0, 1, n, mech.dim, F)
     tally = dict(Counted.tally)
