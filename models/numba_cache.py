@@ -186,4 +186,4 @@ def _index_key(self, sig, codegen):
     return (key[0], key[1], (key[2][0], hashlib.sha256(repr(cells).encode()).hexdigest()))
 
 
-caching.FunctionCache._index_key = _index_key
+caching.FunctionCache._index_key = _index_key  # type: ignore[method-assign]
