@@ -39,7 +39,7 @@ from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.kernel_choice import KERNEL_CHOICES, kernel_option  # noqa: F401 (KERNEL_CHOICES re-exported)
 from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.prepared import PreparedModel, unchecked_states
+from exo_bench.models.prepared import PreparedModel, SerialKernelModel, unchecked_states
 
 _F8 = np.dtype(np.float64)
 
@@ -85,7 +85,7 @@ class _MatrixFamily(PreparedModel):
         return numeric.generalised_forces(self._mechanism, self.matrices(q), qd, np.zeros_like(q))
 
 
-class _WithNumbaKernel(_MatrixFamily):
+class _WithNumbaKernel(_MatrixFamily, SerialKernelModel):
     """A matrix-family model with the option ``kernel`` (``"numba"`` or ``"numpy"``). Subclasses set
     :attr:`_kernels` (dim -> serial, parallel compiled kernels) and may add per-mechanism kernel
     arguments in :meth:`_kernel_extra`."""
@@ -116,23 +116,12 @@ class _WithNumbaKernel(_MatrixFamily):
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
         unchecked_states(self.method, self._dof, (q, qd, qdd), out)  # memory safety: layout, shapes, out
         if q.ndim == 1:  # one sample: the serial kernel on the arrays as given
-            o = np.empty(q.shape) if out is None else out
-            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
-            return o
+            return self._serial(q, qd, qdd, out)
         if out is None:  # a batch: the compiled kernel, no chunks (O(n^2) scratch)
             return self._inverse_dynamics(q, qd, qdd)
         return self._compiled(q, qd, qdd, out)
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
-
-    def _one_sample(self, q, qd, qdd) -> np.ndarray:
-        """One sample (1-D arrays, validated, as ``(1, dof)``): the serial kernel, as with ``check=False``
-        (the batched kernel's sin and cos differ from libm's by up to 2 ulp)."""
-        if self._numpy:
-            return self._inverse_dynamics(q, qd, qdd)
-        o = np.empty((1, self._dof))
-        self.serial_kernel(*self.kernel_args, *(np.ascontiguousarray(a[0]) for a in (q, qd, qdd)), o[0])
-        return o
 
     def _compiled(self, q, qd, qdd, out=None):
         """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into

@@ -380,3 +380,25 @@ def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
         ) from None
     y = np.linalg.solve(L, (r * b)[..., None])
     return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]
+
+
+class SerialKernelModel(PreparedModel):
+    """A prepared model with a compiled per-sample kernel ``serial_kernel(*kernel_args, q, qd, qdd, out)``
+    on flat 1-D arrays (the matrix family's numba kernels, ``newton-euler``) and the option
+    ``kernel="numpy"`` (``_numpy``): one sample given as 1-D arrays runs that kernel, with ``check=False``
+    (:meth:`_serial`) and ``check=True`` (:meth:`_one_sample`) alike, so that ``check`` never changes the
+    result (the batched kernels' sin and cos differ from libm's by up to 2 ulp)."""
+
+    serial_kernel: Callable[..., Any]
+    kernel_args: tuple
+    _numpy: bool
+
+    def _serial(self, q, qd, qdd, out=None) -> np.ndarray:
+        o = np.empty(q.shape) if out is None else out
+        self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
+        return o
+
+    def _one_sample(self, q, qd, qdd) -> np.ndarray:
+        if self._numpy:
+            return self._inverse_dynamics(q, qd, qdd)
+        return self._serial(*(np.ascontiguousarray(a[0]) for a in (q, qd, qdd)))[None]

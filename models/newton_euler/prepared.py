@@ -22,7 +22,7 @@ from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
 from exo_bench.models.numba_threads import run
-from exo_bench.models.prepared import PreparedModel, unchecked_states
+from exo_bench.models.prepared import PreparedModel, SerialKernelModel, unchecked_states
 from exo_bench.models.unchecked import unchecked_forward
 from exo_bench.models.simd_blocks import run as run_simd
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, vertical_reason, zero_length_reason
@@ -31,7 +31,7 @@ from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationErro
 KERNEL_CHOICES = ("numba", "numpy")
 
 
-class NewtonEuler(PreparedModel):
+class NewtonEuler(SerialKernelModel):
     """Method ``newton-euler``: a forward pass of the point masses' accelerations and a backward
     pass of the subtree sums of ``m (a + g up)``, O(n) per sample; forward dynamics by the tree
     factor of ``M_r``, O(n) per sample."""
@@ -104,21 +104,10 @@ class NewtonEuler(PreparedModel):
             return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
         unchecked_states(self.method, self._dof, (q, qd, qdd), out)  # memory safety: layout, shapes, out
         if q.ndim == 1:  # one sample: the serial kernel on the arrays as given
-            o = np.empty(q.shape) if out is None else out
-            self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
-            return o
+            return self._serial(q, qd, qdd, out)
         return self._compiled(q, qd, qdd, False, out)  # O(n) scratch: no chunks needed
 
     inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
-
-    def _one_sample(self, q, qd, qdd) -> np.ndarray:
-        """One sample (1-D arrays, validated, as ``(1, dof)``): the serial kernel, as with ``check=False``
-        (the batched kernel's sin and cos differ from libm's by up to 2 ulp)."""
-        if self._numpy:
-            return self._inverse_dynamics(q, qd, qdd)
-        o = np.empty((1, self._dof))
-        self.serial_kernel(*self.kernel_args, *(np.ascontiguousarray(a[0]) for a in (q, qd, qdd)), o[0])
-        return o
 
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
         if check or self._numpy:
