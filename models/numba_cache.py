@@ -70,7 +70,7 @@ def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, alwa
 #: :func:`inline`, and an edit to ``sincos_reduced`` once left the cached SIMD kernels of both
 #: families on the old sin/cos.
 SHARED_SOURCES = tuple(
-    Path(__file__).resolve().parent / f for f in ("fast_trig.py", "simd_blocks.py", "numba_threads.py")
+    Path(__file__).resolve().parent / f for f in ("fast_trig.py", "simd_blocks.py", "simd_tiles.py", "numba_threads.py")
 )
 
 

@@ -5,11 +5,11 @@ libm's ``sin`` and ``cos`` per angle: nothing is vectorised. This kernel compute
 samples at once, each step a loop over the samples that LLVM turns into SIMD instructions:
 
 1. **transpose in**: a block of the user's ``(samples, dof)`` states (flat, C-ordered: they go in
-   unchanged) into per-link rows of :data:`LANES` samples, ``W[(j * ROWS + r) * LANES + s]``, one row
-   of ``W`` at a time (:func:`exo_bench.models.simd_blocks._rows_in_by_link`; the sample-at-a-time
-   order, :func:`exo_bench.models.simd_blocks._rows_in`, stores at a 4 KiB stride: by link, 3D chains
-   of n = 20 and 100 took 0.94-0.99x and 0.83-0.86x the time per sample, exo5-3d 0.94-1.03x, one
-   thread, best of 7 interleaved, four runs on the shared machine at load 1.2-1.6);
+   unchanged) into per-link rows of :data:`LANES` samples, ``W[(j * ROWS + r) * LANES + s]``: a whole
+   block in tiles of 8 samples x 8 columns through SIMD registers, a partial block one row of ``W`` at
+   a time (:func:`exo_bench.models.simd_blocks.block_transposes`). exo5-3d, 10,000 samples, one
+   thread, the whole kernel: 44.3 ns per sample against 51.7 with the loops alone (whose column
+   reads LLVM makes gathers), the quiet machine, one run each;
 2. **per link j**: ``sin``/``cos`` of its angles in branch-free arithmetic
    (:func:`exo_bench.matrix_method.numba_kernels.fast_trig.sincos_reduced`; the angles beyond its range, and NaN, are
    redone with libm by a scalar loop that only they enter) and ``kappa_j``
@@ -17,7 +17,7 @@ samples at once, each step a loop over the samples that LLVM turns into SIMD ins
 3. ``f_i = sum_j c_ij kappa_j``: one multiply-add per sample per (i, j, axis), summed in the same
    order as the per-sample kernel;
 4. **per link i**: the forces (:func:`exo_bench.matrix_method.closed_forms.factored.forces_3d`), then **transpose
-   out** into the user's ``(samples, dof)`` result.
+   out** into the user's ``(samples, dof)`` result (tiles again for a whole block).
 
 A ``(dof, samples)`` entry (copying rows of the caller's arrays instead of transposing) was tried
 and measured 3x slower here: a block then reads 45 rows of exo5-3d at once (and writes 15), more
@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 
 from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
@@ -88,6 +87,9 @@ from exo_bench.models.simd_blocks import (  # noqa: F401 - the shared layout, re
     V2,
     W1,
     W2,
+    _block_rows_in,
+    _block_rows_out,
+    _block_scratch,
     _rows_in,
     _rows_in_by_link,
     _rows_out,
@@ -235,26 +237,21 @@ def _compute_2d(p, m, W, F):
 
 
 @njit(**JIT)
-def _scratch(n):
-    return np.empty(n * ROWS * LANES), np.empty(n * FROWS * LANES)
-
-
-@njit(**JIT)
 def simd_3d(p, q, qd, qdd, o, start, stop):
     """Samples ``start .. stop - 1`` of the flat spatial ``(samples, dof)`` states into ``o``,
     :data:`LANES` at a time."""
     n = p.shape[0]
-    W, F = _scratch(n)
+    W, F, T = _block_scratch(n, 3)
     for s0 in range(start, stop, LANES):
         if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
-            _rows_in_by_link(q, qd, qdd, s0, LANES, n, 3, W)
+            _block_rows_in(q, qd, qdd, s0, LANES, n, 3, W, T)
             _compute_3d(p, LANES, W, F)
-            _rows_out_by_link(o, s0, LANES, n, 3, F)
+            _block_rows_out(o, s0, LANES, n, 3, F, T)
         else:
             m = stop - s0
-            _rows_in_by_link(q, qd, qdd, s0, m, n, 3, W)
+            _block_rows_in(q, qd, qdd, s0, m, n, 3, W, T)
             _compute_3d(p, m, W, F)
-            _rows_out_by_link(o, s0, m, n, 3, F)
+            _block_rows_out(o, s0, m, n, 3, F, T)
 
 
 @njit(**JIT)
@@ -262,17 +259,17 @@ def simd_2d(p, q, qd, qdd, o, start, stop):
     """Samples ``start .. stop - 1`` of the flat planar ``(samples, dof)`` states into ``o``,
     :data:`LANES` at a time."""
     n = p.shape[0]
-    W, F = _scratch(n)
+    W, F, T = _block_scratch(n, 2)
     for s0 in range(start, stop, LANES):
         if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
-            _rows_in_by_link(q, qd, qdd, s0, LANES, n, 2, W)
+            _block_rows_in(q, qd, qdd, s0, LANES, n, 2, W, T)
             _compute_2d(p, LANES, W, F)
-            _rows_out_by_link(o, s0, LANES, n, 2, F)
+            _block_rows_out(o, s0, LANES, n, 2, F, T)
         else:
             m = stop - s0
-            _rows_in_by_link(q, qd, qdd, s0, m, n, 2, W)
+            _block_rows_in(q, qd, qdd, s0, m, n, 2, W, T)
             _compute_2d(p, m, W, F)
-            _rows_out_by_link(o, s0, m, n, 2, F)
+            _block_rows_out(o, s0, m, n, 2, F, T)
 
 
 #: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states

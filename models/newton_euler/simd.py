@@ -7,7 +7,9 @@ that LLVM turns into SIMD instructions, in the layout of :mod:`exo_bench.models.
 with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
 
 1. **transpose in** a block of the user's flat ``(samples, dof)`` states into per-link rows of ``W``
-   (:func:`exo_bench.models.simd_blocks._rows_in_by_link`);
+   (:func:`exo_bench.models.simd_blocks.block_transposes`: tiles of 8 x 8 through SIMD registers for a
+   whole block; 3D chains of n = 5, 100, 1000, one thread, the quiet machine: 68, 1548 and 16,800 ns
+   per sample against 88, 1778 and 20,300 with the loops alone);
 2. **forward pass, roots first**, one loop over the samples per link ``k``: ``sin``/``cos`` of its
    angles in branch-free arithmetic (:func:`exo_bench.models.fast_trig.sincos_reduced`), the rod's
    ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`), its
@@ -17,7 +19,7 @@ with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
    kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`),
    written over ``A_k`` (no longer read);
-4. **transpose out** into the user's ``(samples, dof)`` result (:func:`exo_bench.models.simd_blocks._rows_out_by_link`).
+4. **transpose out** into the user's ``(samples, dof)`` result (the same tiles, the other way).
 
 Rows of ``F`` per link: ``D`` in ``F0..F2``, ``A`` and then ``tau`` in ``O0..O2``. The physics is the
 element functions the per-sample kernel calls, with the same operations in the same order: the
@@ -59,7 +61,6 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
@@ -95,7 +96,7 @@ from exo_bench.models.simd_blocks import (
     V2,
     W1,
     W2,
-    by_link_transposes,
+    block_transposes,
     prefetch_share,
 )
 
@@ -124,7 +125,7 @@ def build(lanes: int) -> SimpleNamespace:
     constant: a runtime block size left the loops scalar, 2.5-3x slower); :func:`kernel_for` picks
     the block size for a mechanism."""
     B = lanes
-    rows_in, rows_out = by_link_transposes(lanes)
+    scratch, rows_in, rows_out = block_transposes(lanes)
 
     @_jit
     def _start_points(t, g, dim, k, m, W, F):
@@ -276,20 +277,16 @@ def build(lanes: int) -> SimpleNamespace:
             prefetch_share(q, qd, qdd, o, lo, hi, k, n)
 
     @_jit
-    def _scratch(n):
-        return np.empty(n * ROWS * B), np.empty(n * FROWS * B)
-
-    @_jit
-    def _block(t, g, dim, q, qd, qdd, o, s0, m, n, W, F, stop):
+    def _block(t, g, dim, q, qd, qdd, o, s0, m, n, W, F, T, stop):
         """1-4 for the ``m`` samples from ``s0``; the next block's lines prefetched during the forward pass."""
-        rows_in(q, qd, qdd, s0, m, n, dim, W)
+        rows_in(q, qd, qdd, s0, m, n, dim, W, T)
         lo, hi = (s0 + m) * dim * n, min(stop, s0 + m + B) * dim * n
         if dim == 3:
             _forward_3d(t, g, m, W, F, q, qd, qdd, o, lo, hi)
         else:
             _forward_2d(t, g, m, W, F, q, qd, qdd, o, lo, hi)
         _backward(t, dim, m, W, F)
-        rows_out(o, s0, m, n, dim, F)
+        rows_out(o, s0, m, n, dim, F, T)
 
     @_jit
     def simd_inverse(p, q, qd, qdd, o, start, stop):
@@ -297,12 +294,12 @@ def build(lanes: int) -> SimpleNamespace:
         ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``."""
         t, g, dim = p
         n = t.shape[1]
-        W, F = _scratch(n)
+        W, F, T = scratch(n, dim)
         for s0 in range(start, stop, B):
             if stop - s0 >= B:  # a whole block: the trip counts are the constant B (module docstring)
-                _block(t, g, dim, q, qd, qdd, o, s0, B, n, W, F, stop)
+                _block(t, g, dim, q, qd, qdd, o, s0, B, n, W, F, T, stop)
             else:
-                _block(t, g, dim, q, qd, qdd, o, s0, stop - s0, n, W, F, stop)
+                _block(t, g, dim, q, qd, qdd, o, s0, stop - s0, n, W, F, T, stop)
 
     return SimpleNamespace(
         lanes=lanes,
@@ -310,7 +307,6 @@ def build(lanes: int) -> SimpleNamespace:
         _backward=_backward,
         _forward_3d=_forward_3d,
         _forward_2d=_forward_2d,
-        _scratch=_scratch,
         _block=_block,
         simd_inverse=simd_inverse,
     )
@@ -323,7 +319,7 @@ _start_points, _backward, _forward_3d, _forward_2d = (
     _WIDE._forward_3d,
     _WIDE._forward_2d,
 )
-_scratch, simd_inverse = _WIDE._scratch, _WIDE.simd_inverse
+simd_inverse = _WIDE.simd_inverse
 
 #: Blocks of this many samples for mechanisms of at least :data:`NARROW_FROM_LINKS` links.
 NARROW_LANES = 16
