@@ -27,7 +27,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from exo_bench.models.numba_threads import JIT, PARALLEL_MIN_SAMPLES
+from exo_bench.models.numba_threads import JIT
 from exo_bench.models.simd_tiles import TILE, tile_in, tile_out
 
 _jit = njit(**JIT)
@@ -244,10 +244,24 @@ def _pool(workers: int) -> ThreadPoolExecutor:
 #: Shares per thread of a split batch: the threads pull shares until none is left.
 SHARES_PER_THREAD = 8
 
+#: A batch of at least this many state elements (samples x dof) is split over threads by
+#: :func:`run`: the split costs 50-70 us per call here (a pool thread woken, the GIL passed at each
+#: share), so it pays from a few hundred us of work on. Two threads against one, the quiet 2-core
+#: machine, median of 15 interleaved: exo5-3d (15 dof) 4096 samples 1.44x the time, 8192 0.94x,
+#: 16,384 0.78x; 3D chain of 100, newton-euler, 128 samples (38,400 elements) 1.10x, 256 0.79x;
+#: chain of 1000, 32 samples 1.04x, 64 0.75x. A threshold in samples (4096, numba's parallel
+#: drivers') kept a 3D chain of 1000 (3000 dof, 15 us per sample) on one thread up to 4096 samples.
+PARALLEL_MIN_ELEMENTS = 2**17
+
+
+def parallel_min_samples(dof: int) -> int:
+    """The fewest samples of ``dof`` coordinates that :func:`run` splits over threads."""
+    return max(1, -(-PARALLEL_MIN_ELEMENTS // max(dof, 1)))
+
 
 def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None) -> None:
     """``kernel`` over a batch of flat states into ``o``: in the calling thread, or for at least
-    :data:`exo_bench.matrix_method.numba_kernels.common.PARALLEL_MIN_SAMPLES` samples over ``threads`` (default
+    :data:`PARALLEL_MIN_ELEMENTS` state elements (:func:`parallel_min_samples`) over ``threads`` (default
     ``numba.get_num_threads()``) threads: the calling thread and ``threads - 1`` of a pool pull
     shares of whole blocks (:data:`SHARES_PER_THREAD` per thread) until none is left, each share
     computed by one thread (the kernel releases the GIL). The calling thread waits only for shares
@@ -257,9 +271,10 @@ def run(kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None)
     10,000 exo5-3d samples took 0.1-0.7 us per sample against 0.09 on one thread; on a quiet
     machine it is the two cores' speed. ``numba.set_num_threads(1)`` keeps a batch on the calling
     thread."""
+    small = samples < parallel_min_samples(q.shape[0] // samples if samples else 1)
     if threads is None:
-        threads = numba.get_num_threads() if samples >= PARALLEL_MIN_SAMPLES else 1
-    if threads <= 1 or samples < PARALLEL_MIN_SAMPLES:
+        threads = 1 if small else numba.get_num_threads()
+    if threads <= 1 or small:
         kernel(params, q, qd, qdd, o, 0, samples)
         return
     size = -(-samples // (threads * SHARES_PER_THREAD * LANES)) * LANES

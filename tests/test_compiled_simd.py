@@ -21,13 +21,20 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.matrix_method.numba_kernels import common as compiled, simd as compiled_simd, fast_trig
+from exo_bench.matrix_method.numba_kernels import simd as compiled_simd, fast_trig
 from exo_bench.models.presets import chain, exo5, random_tree
+from exo_bench.models import simd_blocks
+from exo_bench.models.simd_blocks import parallel_min_samples
 
 TOL = 1e-14
 MECHS = [chain(1, 2), random_tree(6, 2, seed=0), chain(1, 3), chain(4, 3), random_tree(8, 3, seed=1), exo5(3)]
-L, P = compiled_simd.LANES, compiled.PARALLEL_MIN_SAMPLES
-SIZES = (1, L - 1, L, L + 1, 2 * L + 5, P - 1, P, P + L + 3)
+L = compiled_simd.LANES
+
+
+def _sizes(mech):
+    """Around the block and around the fewest samples that run() splits over threads."""
+    P = parallel_min_samples(mech.dof)
+    return tuple(sorted({1, L - 1, L, L + 1, 2 * L + 5, P - 1, P, P + L + 3} - {0}))
 
 
 def _states(mech, samples: int, seed: int):
@@ -49,7 +56,7 @@ def _close(got, want, what):
 def test_simd_batches_equal_the_numpy_reference(mech):
     fast, ref = prepare(mech, "matrix-factored"), prepare(mech, "matrix-factored", kernel="numpy")
     assert fast.batch_kernel is compiled_simd.KERNELS[mech.dim]  # what runs, by name
-    for k, S in enumerate(SIZES):
+    for k, S in enumerate(_sizes(mech)):
         q, qd, qdd = _states(mech, S, seed=k)
         want = ref.inverse_dynamics(q, qd, qdd)
         for check in (True, False):
@@ -66,6 +73,7 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(mech, threads):
     whoever computes it, so the result equals the one-thread result exactly."""
     model = prepare(mech, "matrix-factored")
     p = model.kernel_args[0]
+    P = parallel_min_samples(mech.dof)
     for S in (P - 1, P, P + 2 * L + 7):
         q, qd, qdd = _states(mech, S, seed=S)
         one, many = np.empty(q.shape), np.full(q.shape, np.nan)
@@ -234,3 +242,25 @@ def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
     want = np.empty(mech.dof)
     model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
     assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), want)
+
+
+@pytest.mark.parametrize("dof", [2, 15, 3000])
+def test_run_splits_a_batch_from_the_element_threshold_on(dof):
+    """simd_blocks.run splits from PARALLEL_MIN_ELEMENTS state elements on (a 3D chain of 1000 from
+    44 samples, exo5-3d from 8739), into shares of whole blocks that cover the batch once."""
+    calls = []
+
+    def spy(params, q, qd, qdd, o, start, stop):
+        calls.append((start, stop))
+
+    P = parallel_min_samples(dof)
+    assert (P - 1) * dof < simd_blocks.PARALLEL_MIN_ELEMENTS <= P * dof
+    for S, split in ((P - 1, False), (P, True), (P + 3 * L + 1, True)):
+        calls.clear()
+        x = np.zeros(S * dof)
+        simd_blocks.run(spy, None, x, x, x, x, S, threads=2)
+        assert (len(calls) > 1) == split, (S, calls)
+        shares = sorted(calls)
+        assert shares[0][0] == 0 and shares[-1][1] == S
+        assert all(a[1] == b[0] for a, b in zip(shares, shares[1:]))
+        assert all(start % L == 0 for start, _ in shares)

@@ -24,11 +24,10 @@ from exo_bench import prepare
 from exo_bench.models import fast_trig
 from exo_bench.models.motion import random_states
 from exo_bench.models.newton_euler import simd
-from exo_bench.models.numba_threads import PARALLEL_MIN_SAMPLES
 from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.simd_blocks import LANES, run
+from exo_bench.models.simd_blocks import LANES, parallel_min_samples, run
 
-T, L, P = simd.MIN_SAMPLES, LANES, PARALLEL_MIN_SAMPLES
+T, L = simd.MIN_SAMPLES, LANES
 SIZES = tuple(sorted({S for S in (1, 2, 7, 8, 9, T - 1, T, T + 1, L - 1, L, L + 1, 2 * L + 5, 3 * L + 17) if S >= 1}))
 
 
@@ -124,6 +123,7 @@ def test_angles_beyond_the_fast_range_take_libm_and_nan_stays_in_its_sample(dim)
 def test_every_thread_count_gives_the_serial_result_to_the_bit(dim, threads):
     m = random_tree(9, dim, 12 if dim == 3 else 11)
     model = prepare(m, "newton-euler")
+    P = parallel_min_samples(m.dof)  # the fewest samples run() splits
     for S in (P - 1, P, P + 2 * L + 7):
         q, qd, qdd = random_states(m, S, S)
         one, many = np.empty(q.shape), np.full(q.shape, np.nan)

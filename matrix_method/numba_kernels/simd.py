@@ -37,8 +37,8 @@ which LLVM checks once per loop at run time. Unit stride everywhere but in the t
 Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at most :data:`~exo_bench.models.fast_trig.ULPS` ulp
 each, :mod:`exo_bench.matrix_method.numba_kernels.fast_trig`): the same operations in the same order otherwise.
 
-**Threads.** :func:`run` splits a batch of at least :data:`exo_bench.matrix_method.numba_kernels.common.PARALLEL_MIN_SAMPLES` samples
-over ``numba.get_num_threads()`` threads (the caller's and a pool's), which pull shares of it and
+**Threads.** :func:`run` splits a batch of at least :data:`exo_bench.models.simd_blocks.PARALLEL_MIN_ELEMENTS` state elements
+(samples x dof) over ``numba.get_num_threads()`` threads (the caller's and a pool's), which pull shares of it and
 call the serial kernel on each (it releases the GIL): numba's threading layer is never entered, so the batch path runs
 at the same speed whichever layer numba picked or the user started first (OpenMP's spinning
 threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started them).
