@@ -20,7 +20,7 @@ import types
 import numpy as np
 
 from exo_bench.bench.perf.roofline import Counted
-from exo_bench.bench.perf.roofline_simd import _floor, estimate_simd
+from exo_bench.bench.perf.roofline_simd import _floor, _fma, estimate_simd
 from exo_bench.models.mechanism import Mechanism
 
 __all__ = ["count_newton_euler_simd", "estimate_simd"]
@@ -51,7 +51,7 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     from exo_bench.models.newton_euler.tree import prepare_tree
     from exo_bench.models.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
 
-    trig = _rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor))
+    trig = _rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
     start = _rebind(simd._start_points.py_func)
     forward = _rebind(
         (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,

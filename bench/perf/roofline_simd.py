@@ -3,8 +3,9 @@
 Counted like :func:`exo_bench.bench.perf.roofline.count_factored`: the kernel's own steps (their ``py_func``) run one
 sample on arrays of :class:`exo_bench.bench.perf.roofline.Counted` numbers, with the element functions and
 the branch-free ``sin``/``cos`` (:func:`exo_bench.matrix_method.numba_kernels.fast_trig.sincos_reduced`, whose ``floor`` is
-counted as one flop) as they are: every ``+``, ``-``, ``*`` and ``floor`` of the code that runs is
-counted, the arithmetic sine and cosine included; nothing is typed by hand. Not counted: the
+counted as one flop, and each fused multiply-add as two) as they are: every ``+``, ``-``, ``*`` and
+``floor`` of the code that runs is counted, the arithmetic sine and cosine included; nothing is typed
+by hand. Not counted: the
 comparisons and selects of the range check and of the quadrant (one per result, a few per
 angle), the loads and stores of the two transposes.
 
@@ -28,6 +29,15 @@ def _floor(x):
     return Counted(math.floor(float(x)))
 
 
+def _fma(a, b, c):
+    """A fused multiply-add (:func:`exo_bench.models.fast_trig.fma`), counted as the multiply and the add it does."""
+    from exo_bench.models.fast_trig import fma
+
+    Counted.tally["mul"] += 1
+    Counted.tally["add"] += 1
+    return Counted(fma(a, b, c))
+
+
 def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the SIMD kernel on ``mech`` (module docstring), and the
     forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
@@ -36,7 +46,7 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
 
     trig = fast_trig.sincos_reduced
     counted_trig = types.FunctionType(
-        trig.__code__, {**trig.__globals__, "math": types.SimpleNamespace(floor=_floor)}, trig.__name__
+        trig.__code__, {**trig.__globals__, "math": types.SimpleNamespace(floor=_floor), "fma": _fma}, trig.__name__
     )
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
     counted_compute = types.FunctionType(
