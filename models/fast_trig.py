@@ -98,7 +98,7 @@ def _llvm_fma(typingctx, a, b, c):
     return sig, codegen
 
 
-@overload(fma, jit_options={"cache": True})
+@overload(fma)
 def _fma_compiled(a, b, c):
     def impl(a, b, c):
         return _llvm_fma(float(a), float(b), float(c))
