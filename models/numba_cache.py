@@ -64,7 +64,7 @@ def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, alwa
 
 
 #: The modules of this layer that the kernels of every family compile in: the branch-free sin/cos, the
-#: blocks of samples (its transposes) and the jit options. Keyed for every kernel folder (a folder
+#: blocks of samples (their transposes, and the 8 x 8 SIMD tiles those move) and the jit options. Keyed for every kernel folder (a folder
 #: that does not use one recompiles for nothing after an edit to it; one that does never serves stale
 #: code): their functions are imported by name into the kernel files, not registered through
 #: :func:`inline`, and an edit to ``sincos_reduced`` once left the cached SIMD kernels of both
