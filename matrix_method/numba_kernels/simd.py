@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import math
 
-
 from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.fast_trig import RANGE, sincos_reduced
