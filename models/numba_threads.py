@@ -12,10 +12,12 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypedDict
 
 import numba
+from numba import njit
 
 from exo_bench.models import numba_cache
 
@@ -48,6 +50,28 @@ class JitOptions(TypedDict):
 
 
 JIT: JitOptions = {"cache": True, "nogil": True}
+
+
+def jit_for(lanes: int) -> Callable[[Callable[..., Any]], Any]:
+    """``njit(**JIT)`` for a closure of a kernel factory built for blocks of ``lanes`` samples, under a
+    qualified name that carries ``lanes`` (``build.<locals>._backward`` becomes ``..._backward_16lanes``).
+
+    numba names a compiled function's symbol after its qualified name and a per-process counter, and
+    :mod:`exo_bench.models.numba_cache` lets these closures hit the on-disk cache in every process.
+    The same closure built for 16 and for 32 lanes, each compiled first in a different process, could
+    then get the same symbol with different machine code, and a process that loaded both from the
+    cache called one for the other: ``newton-euler`` on a 3D chain of 900 links segfaulted after a
+    batch on exo5-3d, or LLVM aborted with "No name entry found!" (numba issue #10486). With the
+    block size in the name, two closures that share a symbol have the same source and block size, so
+    the same code. tests/test_kernel_cache.py reproduces the three processes."""
+
+    def decorate(fn: Callable[..., Any]) -> Any:
+        fn.__qualname__ = f"{fn.__qualname__}_{lanes}lanes"
+        return njit(**JIT)(fn)
+
+    return decorate
+
+
 #: Samples per task of the parallel driver (each task allocates its scratch once): a group of samples,
 #: not a coordinate block.
 SAMPLES_PER_TASK = 64

@@ -27,7 +27,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from exo_bench.models.numba_threads import JIT
+from exo_bench.models.numba_threads import JIT, jit_for
 from exo_bench.models.simd_tiles import TILE, tile_in, tile_out
 
 _jit = njit(**JIT)
@@ -124,7 +124,7 @@ def by_link_transposes(lanes: int):
     blocks of ``lanes`` samples (numba freezes ``lanes`` as a constant, as it does :data:`LANES`)."""
     B = lanes
 
-    @_jit
+    @jit_for(lanes)
     def _rows_in_by_link(q, qd, qdd, s0, m, n, blocks, W):
         """:func:`_rows_in` in the other loop order: per state ``(block k, link j)``, the ``m`` samples in
         turn, so that the stores run along a row of ``W`` and the loads along a column of the states
@@ -142,7 +142,7 @@ def by_link_transposes(lanes: int):
                     W[U(w + 3 * B + s)] = qd[U(c + s * dof)]
                     W[U(w + 6 * B + s)] = qdd[U(c + s * dof)]
 
-    @_jit
+    @jit_for(lanes)
     def _rows_out_by_link(o, s0, m, n, blocks, F):
         """:func:`_rows_out` in the loop order of :func:`_rows_in_by_link`: the loads along a row of ``F``."""
         dof = blocks * n
@@ -184,7 +184,7 @@ def block_transposes(lanes: int):
     assert B % TILE == 0, "blocks of whole tiles"
     by_link_in, by_link_out = by_link_transposes(lanes)
 
-    @_jit
+    @jit_for(lanes)
     def scratch(n, blocks):
         dof = blocks * n
         P = -(-dof // TILE) * TILE
@@ -197,7 +197,7 @@ def block_transposes(lanes: int):
                 T[c], T[P + c] = n * ROWS * B, 0
         return np.empty((n * ROWS + SPARE) * B), np.empty(n * FROWS * B), T
 
-    @_jit
+    @jit_for(lanes)
     def rows_in(q, qd, qdd, s0, m, n, blocks, W, T):
         """1. Samples ``s0 .. s0 + m - 1`` into the rows of ``W`` (:func:`_rows_in`'s layout)."""
         if m == B:
@@ -211,7 +211,7 @@ def block_transposes(lanes: int):
         else:
             by_link_in(q, qd, qdd, s0, m, n, blocks, W)
 
-    @_jit
+    @jit_for(lanes)
     def rows_out(o, s0, m, n, blocks, F, T):
         """5. The forces of ``F`` into samples ``s0 .. s0 + m - 1`` of ``o``."""
         if m == B:

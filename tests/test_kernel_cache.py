@@ -88,3 +88,42 @@ def test_an_edit_to_the_shared_sin_cos_recompiles_both_families_simd_kernels(tmp
         scale = np.abs(ref).max()
         assert np.abs(tau_before - ref).max() <= 1e-12 * scale
         assert np.abs(tau_after - ref).max() > 1e-6 * scale, m
+
+
+_PROBE_LANES = """
+import json
+import pathlib
+
+import numpy as np
+from exo_bench import prepare, presets
+from exo_bench.models import numba_threads
+from exo_bench.models.motion import smooth_random_motion
+
+out = {"file": numba_threads.__file__}
+for name in pathlib.Path("which.txt").read_text().split():
+    mech = presets.exo5(dim=3) if name == "wide" else presets.chain(900, 3)
+    mo = smooth_random_motion(mech, np.linspace(0.0, 3.0, 37), seed=1)
+    out[name] = prepare(mech, "newton-euler").inverse_dynamics(mo.q, mo.qd, mo.qdd, check=False).tolist()
+print(json.dumps(out))
+"""
+
+
+def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(tmp_path):
+    """newton-euler's SIMD kernel for blocks of 32 (exo5-3d) and of 16 samples (a 3D chain of 900),
+    each compiled first in its own process, then both loaded from the cache by a third process: each
+    computes its own mechanism's forces (numba names a symbol after the qualified name and a
+    per-process counter; without the block size in the name, models/numba_threads.jit_for, the third
+    process segfaulted or LLVM aborted)."""
+    from conftest import assert_forces_agree
+    from exo_bench import prepare, presets
+    from exo_bench.models.motion import smooth_random_motion
+
+    _, probe = package_copy_prober(tmp_path, _PROBE_LANES)
+    for which in ("narrow", "wide", "wide narrow"):
+        (tmp_path / "which.txt").write_text(which)
+        got = probe()
+    for name, mech in (("wide", presets.exo5(dim=3)), ("narrow", presets.chain(900, 3))):
+        mo = smooth_random_motion(mech, np.linspace(0.0, 3.0, 37), seed=1)
+        q, qd, qdd = mo.q, mo.qd, mo.qdd
+        ref = prepare(mech, "newton-euler", kernel="numpy").inverse_dynamics(q, qd, qdd)
+        assert_forces_agree(np.asarray(got[name]), ref, mech, q, qd, qdd, what=name)

@@ -61,12 +61,11 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
-from numba import njit
 from numba.extending import register_jitable
 
 from exo_bench.models.fast_trig import RANGE, sincos_reduced
 from exo_bench.models.newton_euler import elements as el
-from exo_bench.models.numba_threads import JIT
+from exo_bench.models.numba_threads import jit_for
 from exo_bench.models.simd_blocks import (
     CF,
     CP,
@@ -103,7 +102,6 @@ from exo_bench.models.simd_blocks import (
 for _f in el.ELEMENTS:
     register_jitable(_f)
 
-_jit = njit(**JIT)
 
 #: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
@@ -127,7 +125,7 @@ def build(lanes: int) -> SimpleNamespace:
     B = lanes
     scratch, rows_in, rows_out = block_transposes(lanes)
 
-    @_jit
+    @jit_for(lanes)
     def _start_points(t, g, dim, k, m, W, F):
         """2. (end) ``A_k = A_p + kappa_p`` (``g up`` at a root) into ``O0..O2`` of link ``k``, ``D_k = 0``.
 
@@ -149,7 +147,7 @@ def build(lanes: int) -> SimpleNamespace:
                 Fk[O0 * B + s], Fk[O1 * B + s], Fk[O2 * B + s] = 0.0, up1, up2
                 Fk[F0 * B + s], Fk[F1 * B + s], Fk[F2 * B + s] = 0.0, 0.0, 0.0
 
-    @_jit
+    @jit_for(lanes)
     def _backward(t, dim, m, W, F):
         """3. The backward pass of ``m`` samples: ``D_p += ...``, then ``f_k``, then ``tau_k`` over ``A_k``
         (3D: the ``F0..F2`` and ``O0..O2`` rows all used; 2D: the first two of each). Per-link views as
@@ -181,7 +179,7 @@ def build(lanes: int) -> SimpleNamespace:
                     m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
                     Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
-    @_jit
+    @jit_for(lanes)
     def _forward_3d(t, g, m, W, F, q, qd, qdd, o, lo, hi):
         """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
         angles beyond RANGE), then its start point."""
@@ -233,7 +231,7 @@ def build(lanes: int) -> SimpleNamespace:
             _start_points(t, g, 3, k, m, W, F)
             prefetch_share(q, qd, qdd, o, lo, hi, k, n)
 
-    @_jit
+    @jit_for(lanes)
     def _forward_2d(t, g, m, W, F, q, qd, qdd, o, lo, hi):
         """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
         row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
@@ -276,7 +274,7 @@ def build(lanes: int) -> SimpleNamespace:
             _start_points(t, g, 2, k, m, W, F)
             prefetch_share(q, qd, qdd, o, lo, hi, k, n)
 
-    @_jit
+    @jit_for(lanes)
     def _block(t, g, dim, q, qd, qdd, o, s0, m, n, W, F, T, stop):
         """1-4 for the ``m`` samples from ``s0``; the next block's lines prefetched during the forward pass."""
         rows_in(q, qd, qdd, s0, m, n, dim, W, T)
@@ -288,7 +286,7 @@ def build(lanes: int) -> SimpleNamespace:
         _backward(t, dim, m, W, F)
         rows_out(o, s0, m, n, dim, F, T)
 
-    @_jit
+    @jit_for(lanes)
     def simd_inverse(p, q, qd, qdd, o, start, stop):
         """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
         ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``."""
