@@ -126,7 +126,7 @@ class _WithNumbaKernel(_MatrixFamily, SerialKernelModel):
     def _compiled(self, q, qd, qdd, out=None):
         """The compiled kernel on ``(samples, dof)`` states (flattened: views when C-ordered), into
         ``out`` (C-ordered) or a new array."""
-        o = np.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
+        o = self._results.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
         compiled.run(
             self.serial_kernel,
             self.parallel_kernel,
@@ -238,7 +238,7 @@ class MatrixFactored(_WithNumbaKernel):
     def _compiled(self, q, qd, qdd, out=None):
         """The batched path: :attr:`batch_kernel` over ``(samples, dof)`` states (flat views), into
         ``out`` or a new C-ordered array, split over threads for large batches (:func:`exo_bench.matrix_method.numba_kernels.simd.run`)."""
-        o = np.empty(q.shape) if out is None else out
+        o = self._results.empty(q.shape) if out is None else out
         compiled_simd.run(
             self.batch_kernel,
             self.kernel_args[0],

@@ -51,6 +51,7 @@ from exo_bench.models.memory import (
     default_chunk_samples,
     usable_memory,
 )
+from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
 
@@ -134,6 +135,7 @@ class PreparedModel:
         self._options = dict(options)
         self._dof = mechanism.dof
         self._chunk = default_chunk_samples(mechanism.dof, self.sample_bytes(mechanism.nlinks, mechanism.dim))
+        self._results = ResultPool()  # new batched results, recycled once dropped (models/result_pool.py)
 
     @classmethod
     def sample_bytes(cls, nlinks: int, dim: int) -> float | None:

@@ -67,7 +67,7 @@ class NewtonEuler(SerialKernelModel):
 
     # ------------------------------------------------------------------ the kernels
     def _compiled(self, q, qd, y, forward: bool, out=None):
-        o = np.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
+        o = self._results.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
         samples = q.shape[0] if q.ndim == 2 else 1
         if not forward and samples >= simd.MIN_SAMPLES:
             run_simd(
