@@ -132,20 +132,38 @@ def quick_name(name: str) -> str:
     return f"{p.stem}-quick{p.suffix}"
 
 
-def narrower_names(out: Path, names, full: bool) -> dict[str, str]:
+def has_line(out: Path, names, line: str) -> bool:
+    """Whether a Markdown report of one of ``names`` in ``out`` has a line starting with ``line``."""
+    for n in names:
+        p = Path(out) / n
+        if n.endswith(".md") and p.is_file():
+            try:
+                text = p.read_text(errors="replace")
+            except OSError:
+                continue
+            if any(x.startswith(line) for x in text.splitlines()):
+                return True
+    return False
+
+
+def narrower_names(out: Path, names, full: bool, lacks: str = "") -> dict[str, str]:
     """``name -> the name to write`` in ``out``: the names themselves for a full run, or when no
-    ``--full`` run wrote any of them; else ``<name>-quick.<ext>`` for each (never over the wider run)."""
+    ``--full`` run wrote any of them; else ``<name>-quick.<ext>`` for each (never over the wider run).
+    ``lacks``: the start of a line that the report there may have and this run cannot write (a part
+    that needs an extra not installed here); a report there with it is wider too, full run or not."""
     names = list(names)
+    if lacks and has_line(out, names, lacks):
+        return {n: quick_name(n) for n in names}
     if full or not wider_run_there(out, names):
         return {n: n for n in names}
     return {n: quick_name(n) for n in names}
 
 
-def announce_narrower(out: Path, names: dict[str, str], what: str) -> None:
-    """One stdout line when a quick run writes beside a full run's reports."""
+def announce_narrower(out: Path, names: dict[str, str], what: str, why: str = "come from a full run") -> None:
+    """One stdout line when a narrower run writes beside a wider run's reports (``why`` they are wider)."""
     if any(k != v for k, v in names.items()):
         shown = ", ".join(v for v in names.values() if v.endswith(".md")) or ", ".join(names.values())
-        print(f"{out}: the {what} there come from a full run; this quick run writes {shown} beside them", flush=True)
+        print(f"{out}: the {what} there {why}; this run writes {shown} beside them", flush=True)
 
 
 # ------------------------------------------------------------------------------ stale staging folders
