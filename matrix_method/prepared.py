@@ -35,6 +35,7 @@ from exo_bench.matrix_method.numba_kernels import (
 )
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.numba_kernels import lean as compiled_lean, simd as compiled_simd
+from exo_bench.models.simd_blocks import ThreadScratch
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.kernel_choice import KERNEL_CHOICES, kernel_option  # noqa: F401 (KERNEL_CHOICES re-exported)
@@ -191,6 +192,8 @@ class MatrixFactored(_WithNumbaKernel):
         #: the batched path of ``kernel="numba"``: the kernel that vectorises across samples
         #: (:mod:`exo_bench.matrix_method.numba_kernels.simd`); one sample runs :attr:`serial_kernel`
         self.batch_kernel = compiled_simd.KERNELS[mechanism.dim]
+        #: Each thread's scratch for :attr:`batch_kernel`, reused from call to call.
+        self.batch_scratch = ThreadScratch(compiled_simd.scratch, mechanism.nlinks, mechanism.dim)
         self._lean = None  # the lean one-sample entry, resolved on first use
         n = mechanism.nlinks
         self._kernel = numeric._factored_2d if mechanism.dim == 2 else numeric._factored_3d
@@ -247,6 +250,7 @@ class MatrixFactored(_WithNumbaKernel):
             qdd.reshape(-1),
             o.reshape(-1),
             q.shape[0],
+            scratch=self.batch_scratch,
         )
         return o
 

@@ -175,7 +175,7 @@ class PreparedModel:
         S = arrays[0].shape[0]
         if S <= self._chunk:
             return fn(*arrays)
-        out = np.empty((S, *out_shape))
+        out = self._results.empty((S, *out_shape))
         for c in chunks(S, self._chunk):
             out[c] = fn(*(a[c] for a in arrays))
         return out
@@ -214,7 +214,10 @@ class PreparedModel:
         coordinates for states in block order ``[phi..., psi..., l...]``: ``(dof,)`` in gives
         ``(dof,)`` out, ``(samples, dof)`` gives ``(samples, dof)``. ``out``: a preallocated
         C-ordered float64 array of the result's shape, written and returned (a loop of calls then
-        allocates nothing: the compiled kernels write into it directly)."""
+        allocates nothing: the compiled kernels write into it directly). Without ``out``, a result of
+        4 MiB or more reuses the memory of one this model returned before, once nothing refers to that
+        one any more (:mod:`exo_bench.models.result_pool`: at most two stay allocated after the caller
+        dropped them)."""
         if check:
             single = np.ndim(q) == 1
             require_rates(self.method, qd, qdd)

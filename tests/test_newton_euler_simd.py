@@ -36,9 +36,9 @@ def _spy(model):
     calls = []
     kernel = model.batch_kernel
 
-    def counted(*args):
-        calls.append(args[-1] - args[-2])
-        return kernel(*args)
+    def counted(p, q, qd, qdd, o, start, stop, *scratch):
+        calls.append(stop - start)
+        return kernel(p, q, qd, qdd, o, start, stop, *scratch)
 
     model.batch_kernel = counted
     return calls

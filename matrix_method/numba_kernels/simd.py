@@ -236,11 +236,14 @@ def _compute_2d(p, m, W, F):
 
 
 @njit(**JIT)
-def simd_3d(p, q, qd, qdd, o, start, stop):
+def simd_3d(p, q, qd, qdd, o, start, stop, S=None):
     """Samples ``start .. stop - 1`` of the flat spatial ``(samples, dof)`` states into ``o``,
-    :data:`LANES` at a time."""
+    :data:`LANES` at a time; ``S``: the scratch of ``_block_scratch(n, 3)`` (kept per thread, :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
     n = p.shape[0]
-    W, F, T = _block_scratch(n, 3)
+    if S is None:
+        W, F, T = _block_scratch(n, 3)
+    else:
+        W, F, T = S
     for s0 in range(start, stop, LANES):
         if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
             _block_rows_in(q, qd, qdd, s0, LANES, n, 3, W, T)
@@ -254,11 +257,14 @@ def simd_3d(p, q, qd, qdd, o, start, stop):
 
 
 @njit(**JIT)
-def simd_2d(p, q, qd, qdd, o, start, stop):
+def simd_2d(p, q, qd, qdd, o, start, stop, S=None):
     """Samples ``start .. stop - 1`` of the flat planar ``(samples, dof)`` states into ``o``,
-    :data:`LANES` at a time."""
+    :data:`LANES` at a time; ``S``: the scratch of ``_block_scratch(n, 2)`` (kept per thread, :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
     n = p.shape[0]
-    W, F, T = _block_scratch(n, 2)
+    if S is None:
+        W, F, T = _block_scratch(n, 2)
+    else:
+        W, F, T = S
     for s0 in range(start, stop, LANES):
         if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
             _block_rows_in(q, qd, qdd, s0, LANES, n, 2, W, T)
@@ -271,5 +277,7 @@ def simd_2d(p, q, qd, qdd, o, start, stop):
             _block_rows_out(o, s0, m, n, 2, F, T)
 
 
-#: dim -> the kernel ``(params, q, qd, qdd, o, start, stop)`` on flat states
+#: dim -> the kernel ``(params, q, qd, qdd, o, start, stop[, S])`` on flat states
 KERNELS = {2: simd_2d, 3: simd_3d}
+#: ``scratch(n, blocks) -> (W, F, T)``: the kernels' scratch, the ``S`` they take
+scratch = _block_scratch

@@ -24,6 +24,7 @@ from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reaso
 from exo_bench.models.numba_threads import run
 from exo_bench.models.prepared import PreparedModel, SerialKernelModel, unchecked_states
 from exo_bench.models.unchecked import unchecked_forward
+from exo_bench.models.simd_blocks import ThreadScratch
 from exo_bench.models.simd_blocks import run as run_simd
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, vertical_reason, zero_length_reason
 
@@ -59,6 +60,10 @@ class NewtonEuler(SerialKernelModel):
         #: samples: the kernel that vectorises across samples, ``batch_kernel(batch_args, q, qd, qdd, out,
         #: start, stop)`` (:mod:`exo_bench.models.newton_euler.simd`), its block size chosen from the links.
         self.batch_kernel = simd.kernel_for(int(self.table.shape[1]))
+        #: Each thread's scratch for :attr:`batch_kernel`, reused from call to call.
+        self.batch_scratch = ThreadScratch(
+            simd.scratch_for(int(self.table.shape[1])), int(self.table.shape[1]), self._dim
+        )
         self.batch_args = (self.table, self._g, self._dim)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (
@@ -71,7 +76,14 @@ class NewtonEuler(SerialKernelModel):
         samples = q.shape[0] if q.ndim == 2 else 1
         if not forward and samples >= simd.MIN_SAMPLES:
             run_simd(
-                self.batch_kernel, self.batch_args, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1), samples
+                self.batch_kernel,
+                self.batch_args,
+                q.reshape(-1),
+                qd.reshape(-1),
+                y.reshape(-1),
+                o.reshape(-1),
+                samples,
+                scratch=self.batch_scratch,
             )
             return o
         run(

@@ -287,12 +287,17 @@ def build(lanes: int) -> SimpleNamespace:
         rows_out(o, s0, m, n, dim, F, T)
 
     @jit_for(lanes)
-    def simd_inverse(p, q, qd, qdd, o, start, stop):
+    def simd_inverse(p, q, qd, qdd, o, start, stop, S=None):
         """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
-        ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``."""
+        ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``; ``S``: the scratch
+        ``(W, F, T)`` of ``scratch(n, dim)`` (:class:`exo_bench.models.simd_blocks.ThreadScratch`), or
+        None to allocate it here."""
         t, g, dim = p
         n = t.shape[1]
-        W, F, T = scratch(n, dim)
+        if S is None:
+            W, F, T = scratch(n, dim)
+        else:
+            W, F, T = S
         for s0 in range(start, stop, B):
             if stop - s0 >= B:  # a whole block: the trip counts are the constant B (module docstring)
                 _block(t, g, dim, q, qd, qdd, o, s0, B, n, W, F, T, stop)
@@ -307,6 +312,7 @@ def build(lanes: int) -> SimpleNamespace:
         _forward_2d=_forward_2d,
         _block=_block,
         simd_inverse=simd_inverse,
+        scratch=scratch,
     )
 
 
@@ -337,3 +343,8 @@ def kernel_for(nlinks: int):
     :func:`simd_inverse` (blocks of :data:`LANES`), or from :data:`NARROW_FROM_LINKS` links on the same
     kernel compiled for blocks of :data:`NARROW_LANES`."""
     return _NARROW.simd_inverse if nlinks >= NARROW_FROM_LINKS else simd_inverse
+
+
+def scratch_for(nlinks: int):
+    """The ``scratch(n, blocks)`` of the kernel :func:`kernel_for` picks for ``nlinks`` links."""
+    return (_NARROW if nlinks >= NARROW_FROM_LINKS else _WIDE).scratch
