@@ -332,15 +332,16 @@ def report_lines(df) -> list[str]:
 README_BLOCK = "simd-goals"
 
 
-def readme_with_goals(readme: str, lines: list[str], command: str) -> str:
+def readme_with_goals(readme: str, lines: list[str], command: str, details: str = "reports/simd-goals.md") -> str:
     """The README with :func:`goals_lines`' figures (``lines``; the heading left out) in its
-    ``simd-goals`` block; unchanged when there are no figures or no block."""
+    ``simd-goals`` block, pointing to ``details``, the report of the same run (the sweep's: its
+    scaling.md); unchanged when there are no figures or no block."""
     from exo_bench.bench.perf.reports.readme_blocks import inserted_by, replace_block
 
     body = [ln for ln in lines if not ln.startswith("## ")]
     if not any(ln.strip() for ln in body):
         return readme
-    head = inserted_by(command, "one process, exo5-3d; details in [reports/simd-goals.md](reports/simd-goals.md)")
+    head = inserted_by(command, f"one process, exo5-3d; details in [{details}]({details})")
     return replace_block(readme, README_BLOCK, "\n".join([head, "", *body]).rstrip())
 
 
