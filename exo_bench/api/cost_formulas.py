@@ -19,6 +19,21 @@ F8 = 8  # bytes per float64
 BASE_BYTES = 16 * 2**20
 
 
+#: The load of the reference machine (the shared 2-core machine of CI and the sweeps): the recalibrated
+#: times below (``recurrence``, ``pinocchio``, ``matrix-factored``: 2026-11-24) are the quiet machine's
+#: fastest of repeated runs times this, the speed with a second job on its two cores (the older figures of
+#: the other methods were measured with other jobs running).
+LOADED = 2.0
+#: Bytes per second at which a large batch streams its arrays (``q, qd, qdd`` read, ``tau`` written
+#: and first touched): the per-sample time of a batch is at least its arrays' bytes over this (times
+#: :data:`LOADED`). Quiet, 2026-11-24, matrix-factored 3D, 40,000 samples (192 MB of arrays at n = 50):
+#: the first batch of a fresh process takes 0.065-0.076 s or 0.112-0.124 s at n = 50 (two modes, each
+#: in about half of the processes, clustered in time; 0.037 s at n = 30), and a warm process 1.4-1.5 us
+#: per sample at n = 50 (0.44 and 0.86 us in batches of 2000, which stay in cache): the slower mode,
+#: 1.65 GB/s over the four arrays.
+ARRAY_BANDWIDTH = 1.65e9
+
+
 # ------------------------------------------------------------------------------ per-method models
 @dataclass(frozen=True)
 class CostModel:
@@ -71,11 +86,11 @@ def _pin_setup_bytes(mech, options):
 
 def _pin_setup_seconds(mech, options):
     one, count = _pin_data(mech, options)
-    # pin.Data(model) zero-fills at ~2.7 GB/s (nv = 400), and the first call touches its pages again;
-    # building the model from the URDF costs ~2 ms per link. Measured in a fresh process (prepare and
-    # the first call): 0.35 s at 3D n = 50 (108 MB), 0.79 s at 3D n = 70 (296 MB); in a warm one
-    # 0.54 s at 2D n = 120 (469 MB) (tests/test_estimate_vs_measured.py holds these within 2x).
-    return one * count / 0.6e9 + 2e-3 * mech.nlinks
+    # pin.Data(model) zero-fills its pages and the first call touches them again: 2.2 GB/s with the
+    # page faults on the quiet machine, and 0.2 ms per link for the model. Measured in fresh processes
+    # (prepare and the first call, the fastest of four): 3D n = 30, 50, 70, 90 (30, 122, 319, 665 MB):
+    # 0.020, 0.061, 0.151, 0.305 s (tests/test_estimate_vs_measured.py holds these within 2x).
+    return LOADED * (one * count / 2.2e9 + 2e-4 * mech.nlinks)
 
 
 def _pin_note(mech, options):
@@ -178,9 +193,10 @@ def recurrence_table_floats(mech: Mechanism) -> int:
 #: 2.67 GB; before, the blocks, their flattened copies, the concatenation and its float64 copy made
 #: 10.6 GB there).
 RECURRENCE_TABLE_COPIES = 1.1
-#: Seconds per table float to build the tables (numpy per link; 2D n = 1000: 12.7 s for 3.3e8 floats
-#: on the 2-core machine under a second job).
-RECURRENCE_TABLE_SECONDS = 4e-8
+#: Seconds per table float to build the tables (numpy per link). Quiet, 2026-11-24: 0.8e-8 to 1.6e-8 at
+#: 2D n = 280, 2.3e-8 at 500, 2.0e-8 at 1000 (6.6 s for 3.3e8 floats; 12.7 s under a second job): 1.5e-8
+#: times :data:`LOADED`.
+RECURRENCE_TABLE_SECONDS = LOADED * 1.5e-8
 
 
 def _recurrence_setup_bytes(mech, options):
@@ -196,7 +212,8 @@ def _recurrence_setup_seconds(mech, options):
 PINOCCHIO = CostModel(
     _pin_setup_bytes,
     _pin_setup_seconds,
-    sample_seconds=lambda n, d: (0.6 + (3.0 if d == 2 else 5.5) * n) * 1e-6,
+    # per sample, warm, batches of 500 (quiet): 2D n = 5, 25, 100: 3.2, 13.2, 51.2 us; 3D: 5.2, 22.9, 95.7 us
+    sample_seconds=lambda n, d: LOADED * ((0.7 + 0.5 * n) if d == 2 else (0.5 + 0.95 * n)) * 1e-6,
     note=_pin_note,
 )
 LAGRANGE = CostModel(
@@ -222,14 +239,23 @@ MATRIX_PAPER = CostModel(
 RECURRENCE = CostModel(
     _recurrence_setup_bytes,
     _recurrence_setup_seconds,
-    sample_seconds=lambda n, d: (2.0 + (0.18 * n**2.52 if d == 2 else 0.11 * n**2.82)) * 1e-6,
+    # per sample, warm (quiet): 2D n = 5, 25, 100, 200: 1.58, 51.7, 1890, 14600 us (1000: 2.8 s);
+    # 3D: 2.39, 80.5, 3180, 25000 us
+    sample_seconds=lambda n, d: (
+        LOADED * ((1.0 + 0.03 * n**2 + 0.0018 * n**3) if d == 2 else (1.5 + 0.05 * n**2 + 0.003 * n**3)) * 1e-6
+    ),
     note=_compiled_note(10.0, lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
     compile_seconds=10.0,
 )
 MATRIX_FACTORED = CostModel(
     _compiled_setup_bytes,
-    lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
-    sample_seconds=lambda n, d: (1.5 + 0.0075 * n * n) * 1e-6,  # 3D n = 20, 50 at 40,000 samples (issue 26)
+    # prepare, warm (quiet): 3D n = 10, 50, 100, 200: 0.4, 2.6, 4.9, 17 ms
+    lambda m, o: LOADED * (0.001 + 4e-7 * m.nlinks**2),
+    # per sample, warm, batches of 2000 (quiet): 2D n = 5, 25, 100, 200: 0.070, 0.36, 2.28, 5.75 us;
+    # 3D: 0.090, 0.39, 2.99, 8.82 us (the SIMD kernels of issue 23; n = 1000 3D: 197 us in the full sweep)
+    sample_seconds=lambda n, d: (
+        LOADED * ((0.04 + 0.013 * n + 1.0e-4 * n**2) if d == 2 else (0.05 + 0.016 * n + 1.4e-4 * n**2)) * 1e-6
+    ),
     note=_compiled_note(4.0, lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
     compile_seconds=4.0,
 )
