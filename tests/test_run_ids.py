@@ -187,3 +187,46 @@ def test_the_run_of_a_png_is_read_back_exactly(tmp_path):
             assert run_id_of(tmp_path / "f.png") == rid
     finally:
         reporting.set_run_id(keep)
+
+
+def test_a_run_without_an_engine_goes_beside_the_reports_that_measured_it(tmp_path, monkeypatch, capsys):
+    """The README's first command installs no extra ``[peers]``: its run of a scene whose published
+    report measured MuJoCo and Drake must not replace that report with "not installed" rows. Here
+    matrix-factored stands for the engine: the second run cannot prepare it (MissingExtra, as a
+    missing engine raises), so the scene's files go beside as ``-quick`` and its summary rows stay
+    the first run's; once the engine is back, the scene's report is replaced as before. A scene
+    whose published rows never measured the method is replaced too."""
+    import exo_bench.bench.studies.study as study
+    from exo_bench.models.prepared import MissingExtra
+
+    a = _scene(tmp_path, "a", outputs='["table", "overview"]')
+    rep = tmp_path / "rep"
+    assert _run(rep, a) == 0
+    first = _runs(rep)["files"]["a.md"]["run"]
+    table = (rep / "a.md").read_text()
+    real = study.prepare
+
+    def no_engine(mech, method, **kw):
+        if method == "matrix-factored":
+            raise MissingExtra("matrix-factored: its engine is not installed (test)")
+        return real(mech, method, **kw)
+
+    monkeypatch.setattr(study, "prepare", no_engine)
+    capsys.readouterr()
+    assert _run(rep, a) == 0
+    out = capsys.readouterr().out
+    assert "have rows of matrix-factored, not installed here" in out and "a-quick.md" in out
+    assert (rep / "a.md").read_text() == table  # the wider report, untouched
+    assert "skipped: matrix-factored: its engine is not installed" in (rep / "a-quick.md").read_text()
+    assert (rep / "a-overview-quick.png").is_file()
+    runs = _runs(rep)
+    second = runs["files"]["a-quick.md"]["run"]
+    assert second != first and runs["files"]["a.md"]["run"] == first
+    assert _rows((rep / "summary.md").read_text()) == {"a": [first, first]}
+
+    b = _scene(tmp_path, "b")  # never measured with the engine: nothing wider to keep
+    assert _run(rep, b) == 0 and not (rep / "b-quick.md").exists()
+    monkeypatch.setattr(study, "prepare", real)
+    assert _run(rep, a) == 0
+    third = _runs(rep)["files"]["a.md"]["run"]
+    assert third not in (first, second) and _rows((rep / "summary.md").read_text())["a"] == [third, third]

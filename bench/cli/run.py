@@ -165,14 +165,17 @@ def run_main_job(options: RunOptions) -> int:
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
         if jobs or any(not o.error for o in outcomes):  # nothing ran: the folder is left exactly as it was
+            manifest = read_manifest(out)
+            narrower = _beside_wider(outcomes, manifest, staging, out)
             rows = {o.scene.name: scene_rows(o) for o in outcomes}
             written = publish_run(
                 staging,
                 out,
                 rows,
                 command,
-                read_manifest(out),
+                manifest,
                 failed=frozenset(o.scene.name for o in outcomes if o.error),
+                kept=narrower,
             )
     if written:  # nothing ran (every scene refused or failed): the error lines below say it all
         print_summary(outcomes)
@@ -188,6 +191,33 @@ def run_main_job(options: RunOptions) -> int:
     for line in job_errors:
         print(f"exo-bench: error: {line}", file=sys.stderr)
     return 2 if failed else 1 if job_errors else 0
+
+
+def _beside_wider(outcomes: list[SceneOutcome], manifest: dict, staging: Path, out: Path) -> frozenset[str]:
+    """The scenes whose published rows measured a method that this run skipped because its engine is not
+    installed here (the README's first command has no extra ``[peers]``): their staged files are renamed
+    ``<name>-quick.<ext>``, to be published beside the wider run's, and their summary rows stay the wider
+    run's; one stdout line each says so."""
+    from exo_bench.bench.output.files import announce_narrower, quick_name
+    from exo_bench.bench.studies.scene_run import lacking_here
+
+    narrower = []
+    for o in outcomes:
+        lacking = lacking_here(o, manifest.get("scenes", {}).get(o.scene.name, {}).get("rows", []))
+        if not lacking:
+            continue
+        names = {p.name: quick_name(p.name) for p in o.files}
+        for p in o.files:
+            p.rename(p.with_name(names[p.name]))
+        o.files = [p.with_name(names[p.name]) for p in o.files]
+        narrower.append(o.scene.name)
+        announce_narrower(
+            out,
+            names,
+            f"reports of scene {o.scene.name!r}",
+            f"have rows of {', '.join(lacking)}, not installed here",
+        )
+    return frozenset(narrower)
 
 
 def _warn_known_wrong(scenes: list[Scene]) -> None:

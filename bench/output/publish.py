@@ -207,10 +207,12 @@ def publish_run(
     command: str,
     manifest: dict,
     failed: frozenset[str] = frozenset(),
+    kept: frozenset[str] = frozenset(),
 ) -> list[Path]:
     """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
     ``summary.md``: first both saying the run is being published, then the files (atomic renames),
-    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile."""
+    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile. ``failed`` and
+    ``kept`` (narrower than the published run: bench/cli/run.py) scenes keep their earlier rows."""
     run_id = current_run_id()
     files = sorted(f for f in staging.iterdir() if _is_report(f))
     manifest = json.loads(json.dumps(manifest))
@@ -225,8 +227,8 @@ def publish_run(
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for name, rows in scene_rows.items():
-        if name in failed and manifest.get("scenes", {}).get(name, {}).get("rows"):
-            continue  # a refused or failed scene keeps the rows of the run that last ran it
+        if name in failed | kept and manifest.get("scenes", {}).get(name, {}).get("rows"):
+            continue  # a refused, failed or narrower scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[name] = {"run": run_id, "rows": rows}
     _prune(manifest, out)
     done = []

@@ -242,6 +242,16 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     return o
 
 
+def lacking_here(o: SceneOutcome, earlier: list[list[str]]) -> list[str]:
+    """The methods that ``earlier`` (the scene's summary rows of the run published before, from
+    ``runs.json``) measured and that this run skipped because their engine is not installed here.
+    When there are any, this run is narrower than the published one: it must not replace it."""
+    measured = {r[1] for r in earlier if len(r) >= 3 and not r[2].startswith(("skipped:", "failed:", "(scene"))}
+    if o.error or o.study is None:
+        return []
+    return [m for m, r in o.study.results.items() if r.missing_extra and m in measured]
+
+
 def scene_rows(o: SceneOutcome) -> list[list[str]]:
     """The summary rows of one scene's outcome: ``[scene, method, largest error, us/sample, power balance]``."""
     if o.error:

@@ -15,6 +15,7 @@ import numpy as np
 from exo_bench.api import prepare
 from exo_bench.models.mechanism import Mechanism, force_names
 from exo_bench.models.motion import Motion
+from exo_bench.models.prepared import MissingExtra
 
 
 @dataclass
@@ -24,6 +25,7 @@ class MethodResult:
     seconds_per_sample: float | None = None
     setup_seconds: float | None = None  # one-time cost: building models, deriving, compiling
     skipped: str | None = None  # why the method was not run (over budget, ...)
+    missing_extra: bool = False  # skipped because its engine is not installed here (MissingExtra)
     error: str | None = None  # one line: why it failed
 
     @property
@@ -119,7 +121,7 @@ def run_methods(
         except Exception as e:  # noqa: BLE001 - one failing method must not lose the others
             skip = getattr(e, "skip_reason", None)
             if skip:
-                study.results[m] = MethodResult(m, skipped=str(skip))
+                study.results[m] = MethodResult(m, skipped=str(skip), missing_extra=isinstance(e, MissingExtra))
             else:
                 study.results[m] = MethodResult(m, error=one_line(e))
     return study
