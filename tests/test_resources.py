@@ -200,3 +200,30 @@ def test_prepare_sets_the_calibrated_chunk():
     m = chain(60, 3)
     assert prepare(m, "matrix").chunk_samples == resources.chunk_samples(m, "matrix")
     assert prepare(m, "matrix").chunk_samples < prepare(m, "matrix-factored").chunk_samples
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_newton_euler_chunks_by_its_own_o_n_temporaries(dim):
+    """newton-euler keeps O(n) numbers per sample: its ``sample_bytes`` bounds the measured peak of its
+    numpy kernel's temporaries (tracemalloc, a validated batch in one chunk) and grows linearly, so
+    that a 1000-link chain is not cut into chunks of one sample (the O(n^2) default bound did that)."""
+    import tracemalloc
+
+    from exo_bench.models.newton_euler.prepared import NewtonEuler
+
+    mech, S = chain(100, dim), 200
+    q, qd, qdd = random_states(mech, S, 0)
+    model = prepare(mech, "newton-euler", kernel="numpy")
+    model.chunk_samples = S
+    model.inverse_dynamics(q[:2], qd[:2], qdd[:2])
+    tracemalloc.start()
+    try:
+        before, _ = tracemalloc.get_traced_memory()
+        tau = model.inverse_dynamics(q, qd, qdd)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert tau.shape == (S, mech.dof)
+    assert peak - before <= S * NewtonEuler.sample_bytes(100, dim)
+    assert NewtonEuler.sample_bytes(1000, dim) == 10 * NewtonEuler.sample_bytes(100, dim)
+    assert prepare(chain(1000, dim), "newton-euler").chunk_samples >= 100
