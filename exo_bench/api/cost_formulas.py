@@ -275,13 +275,15 @@ DRAKE = CostModel(
     sample_seconds=lambda n, d: (40.0 + (20.0 if d == 2 else 40.0) * n) * 1e-6,
     note=lambda m, o: "a Python loop over CalcInverseDynamics, one Context",
 )
-# newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample; its numpy kernel
-# holds a few dozen (n, dim, samples) arrays. Not calibrated yet: rounded-up bounds. Compile time
-# 11.7 s (serial and parallel, one dim) on the busy machine, rounded up.
+# newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample (its sample_bytes). Per
+# sample (quiet, batches of 2000, check=True, 2026-11-24): numpy kernel 2D n = 5, 100, 300: 0.77, 15.4,
+# 50.1 us; 3D: 0.83, 21.6, 73.2 us; the compiled kernel 0.07-0.13 of those (3D n = 100, 1000: 1.46,
+# 26.8 us). Compile time 11.7 s (serial and parallel, one dim) on the busy machine, rounded up.
 NEWTON_EULER = CostModel(
     lambda m, o: F8 * 16 * m.nlinks + 2**20 + (NUMBA_BYTES if _numba(o) else 0),
     lambda m, o: 0.01 + 2e-6 * m.nlinks,
-    sample_seconds=lambda n, d: (1.0 + 0.05 * d * n) * 1e-6,
+    sample_seconds=lambda n, d: LOADED * (0.2 + 0.08 * d * n) * 1e-6,
     note=_compiled_note(15.0, lambda m: f"O(n) per sample, two passes over the tree (n = {m.nlinks})"),
     compile_seconds=15.0,
+    numba_speed=0.12,
 )
