@@ -319,6 +319,17 @@ def power_balance_residual(inverse_dynamics, mech, seed: int) -> float:
     return float(np.abs(power - rate).max() / np.abs(rate).max())
 
 
+def run_in_threads(work, count: int) -> None:
+    """``work(k)`` for ``k = 0 .. count - 1``, each in its own thread, all started before any is joined."""
+    import threading
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(count)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+
+
 _INSTALLED: list[str] | None = None
 
 

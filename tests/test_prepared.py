@@ -9,11 +9,17 @@ scale, per sample and row).
 from __future__ import annotations
 
 import pickle
-import threading
 
 import numpy as np
 import pytest
-from conftest import assert_close, assert_forces_agree, installed_methods, mass_matrix_scale, term_scale
+from conftest import (
+    assert_close,
+    assert_forces_agree,
+    installed_methods,
+    mass_matrix_scale,
+    run_in_threads,
+    term_scale,
+)
 
 from exo_bench import load_mechanism, prepare, presets
 from exo_bench.models.motion import random_states
@@ -130,11 +136,7 @@ def test_one_model_serves_several_threads(name):
     def work(k):
         got[k] = [model.inverse_dynamics(*states[k]) for _ in range(20)]
 
-    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    run_in_threads(work, 4)
     for k in range(4):
         assert all(np.array_equal(g, want[k]) for g in got[k])
 

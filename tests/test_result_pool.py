@@ -7,6 +7,7 @@ import threading
 
 import numpy as np
 import pytest
+from conftest import run_in_threads
 
 from exo_bench import prepare
 from exo_bench.models.motion import smooth_random_motion
@@ -101,10 +102,6 @@ def test_threads_sharing_a_model_get_their_own_results():
         for _ in range(3):
             got[k] = model.inverse_dynamics(inputs[k], qd, qdd, check=False)
 
-    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    run_in_threads(work, 4)
     for k in range(4):
         assert np.array_equal(got[k], expected[k])
