@@ -67,11 +67,11 @@ class NewtonEuler(SerialKernelModel):
         #: The batched inverse dynamics of at least :data:`exo_bench.models.newton_euler.simd.MIN_SAMPLES`
         #: samples: the kernel that vectorises across samples, ``batch_kernel(batch_args, q, qd, qdd, out,
         #: start, stop)`` (:mod:`exo_bench.models.newton_euler.simd`), its block size chosen from the links.
-        self.batch_kernel = simd.kernel_for(int(self.table.shape[1]))
+        nlinks = int(self.table.shape[1])
+        blocks = simd.blocks_for(nlinks)
+        self.batch_kernel = blocks.simd_inverse
         #: Each thread's scratch for :attr:`batch_kernel`, reused from call to call.
-        self.batch_scratch = ThreadScratch(
-            simd.scratch_for(int(self.table.shape[1])), int(self.table.shape[1]), self._dim
-        )
+        self.batch_scratch = ThreadScratch(blocks.scratch, nlinks, self._dim)
         self.batch_args = (self.table, self._g, self._dim)
         #: Why ``M_r`` is singular (every configuration), or None.
         self.singular_mass = (

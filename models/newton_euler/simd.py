@@ -338,13 +338,15 @@ NARROW_FROM_LINKS = 800
 _NARROW = build(NARROW_LANES)
 
 
+def blocks_for(nlinks: int) -> SimpleNamespace:
+    """The :func:`build` for a mechanism of ``nlinks`` links: blocks of :data:`LANES` samples, or from
+    :data:`NARROW_FROM_LINKS` links on blocks of :data:`NARROW_LANES`; its ``simd_inverse`` is the
+    batched kernel and its ``scratch(n, blocks)`` that kernel's scratch."""
+    return _NARROW if nlinks >= NARROW_FROM_LINKS else _WIDE
+
+
 def kernel_for(nlinks: int):
     """The batched kernel ``(p, q, qd, qdd, o, start, stop)`` for a mechanism of ``nlinks`` links:
     :func:`simd_inverse` (blocks of :data:`LANES`), or from :data:`NARROW_FROM_LINKS` links on the same
-    kernel compiled for blocks of :data:`NARROW_LANES`."""
-    return _NARROW.simd_inverse if nlinks >= NARROW_FROM_LINKS else simd_inverse
-
-
-def scratch_for(nlinks: int):
-    """The ``scratch(n, blocks)`` of the kernel :func:`kernel_for` picks for ``nlinks`` links."""
-    return (_NARROW if nlinks >= NARROW_FROM_LINKS else _WIDE).scratch
+    kernel compiled for blocks of :data:`NARROW_LANES` (:func:`blocks_for`)."""
+    return blocks_for(nlinks).simd_inverse
