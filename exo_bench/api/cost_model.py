@@ -143,10 +143,9 @@ def estimate(
     options = dict(options or {})
     model = METHODS[method].cost if method in METHODS else None
     io_bytes, io_seconds = (float(x) for x in io)
+    array_bytes = 4.0 * F8 * mech.dof * samples  # q, qd, qdd and tau
     if model is None:  # a method registered without a cost model: its arrays only
-        return Estimate(
-            method, samples, 0.0, 4.0 * F8 * mech.dof * samples, 0.0, io_seconds, 0.0, "no cost model", io_bytes
-        )
+        return Estimate(method, samples, 0.0, array_bytes, 0.0, io_seconds, 0.0, "no cost model", io_bytes)
     n, d = mech.nlinks, mech.dim
     chunk = min(max(samples, 1), chunk_samples(mech, method))
     calls = math.ceil(max(samples, 1) / chunk)
@@ -158,13 +157,13 @@ def estimate(
         # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
         per_sample *= model.numba_speed
     # a large batch streams its arrays: no faster than ARRAY_BANDWIDTH (on the loaded reference machine)
-    per_sample = max(per_sample, 4.0 * F8 * mech.dof * samples * LOADED / ARRAY_BANDWIDTH)
+    per_sample = max(per_sample, array_bytes * LOADED / ARRAY_BANDWIDTH)
     seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
     return Estimate(
         method,
         samples,
         float(model.setup_bytes(mech, options)),
-        4.0 * F8 * mech.dof * samples,
+        array_bytes,
         float(chunk_bytes),
         float(seconds),
         float(setup_s),
