@@ -25,6 +25,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
+import issue34
 from exo_bench.bench.cli import app as cli
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5
@@ -1424,6 +1425,22 @@ def render(tmp: Path) -> str:
     ]
     for text, now, tests in ISSUE_26_ROWS:
         lines.append(f"| {esc(text)} | {esc(now)} | {tests} |")
+    lines += [
+        "",
+        "## The findings of issue 34",
+        "",
+        "Each finding of the probe of a fresh clone, with the tests that reproduce it (tests/issue34.py reads "
+        "them from the `case` marks; the answer now is the first test's docstring).",
+        "",
+        "| id | found | now | covered by |",
+        "|---|---|---|---|",
+    ]
+    marked = issue34.marked_tests()
+    for ident, text in issue34.FINDINGS.items():
+        tests = marked.get(ident, [])
+        now = next((summary for _, summary in tests if summary), "")
+        names = ", ".join(name for name, _ in tests) or "**no test yet: open**"
+        lines.append(f"| {ident} | {esc(text)} | {esc(now)} | {names} |")
     return "\n".join(lines) + "\n"
 
 
