@@ -17,7 +17,8 @@ from typing import Any, TextIO
 
 from exo_bench.bench.cli.arguments import reports_folder, size_arg
 from exo_bench.bench.output.provenance import new_run_id, set_run_id
-from exo_bench.bench.output.publish import publish_run, read_manifest, staging_dir
+from exo_bench.bench.output.publish import publish_run, staging_dir
+from exo_bench.bench.output.reports_lock import check_lock_file
 from exo_bench.bench.perf.options import BenchOptions
 from exo_bench.bench.studies.options import ReportOptions, RunOptions, StabilityOptions
 from exo_bench.bench.studies.scene_run import SceneOutcome, run_scene, scene_rows
@@ -125,6 +126,7 @@ def run_main_job(options: RunOptions) -> int:
 
     for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):  # before any work: no FIFO there
         output_target(out / name)
+    check_lock_file(out)  # a link or FIFO planted at the folder's lock file is refused now, not after the work
     set_run_id(new_run_id())
     command = (
         "exo-bench run" + (" --full" if full else "") + ("" if not options.scenes else " " + " ".join(options.scenes))
@@ -165,17 +167,14 @@ def run_main_job(options: RunOptions) -> int:
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
         if jobs or any(not o.error for o in outcomes):  # nothing ran: the folder is left exactly as it was
-            manifest = read_manifest(out)
-            narrower = _beside_wider(outcomes, manifest, staging, out)
             rows = {o.scene.name: scene_rows(o) for o in outcomes}
-            written = publish_run(
+            written = publish_run(  # under the folder's lock: concurrent runs publish in turn, losing nothing
                 staging,
                 out,
                 rows,
                 command,
-                manifest,
                 failed=frozenset(o.scene.name for o in outcomes if o.error),
-                kept=narrower,
+                narrower=lambda manifest: _beside_wider(outcomes, manifest, staging, out),
             )
     if written:  # nothing ran (every scene refused or failed): the error lines below say it all
         print_summary(outcomes)

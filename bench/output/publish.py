@@ -14,6 +14,10 @@ keeps, per scene, the summary rows of the run that last ran it and, per file, th
 ``summary.md`` is made from it, so ``exo-bench run SCENE`` replaces that scene's rows and keeps
 every other scene's, and lists which run produced each report file. A report command run on its
 own marks its files the same way (:func:`record_files`).
+
+**Concurrent runs lose nothing.** Both hold the reports folder's lock while they read, merge and
+write ``runs.json`` and ``summary.md`` and move their files in
+(:mod:`exo_bench.bench.output.reports_lock`); the work before runs unlocked, in parallel.
 """
 
 from __future__ import annotations
@@ -25,11 +29,12 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from exo_bench.bench.output.provenance import atomic_write, current_run_id, provenance, run_id_of
+from exo_bench.bench.output.reports_lock import reports_lock
 
 
 @contextmanager
@@ -205,14 +210,28 @@ def publish_run(
     out: Path,
     scene_rows: dict[str, list[list[str]]],
     command: str,
-    manifest: dict,
     failed: frozenset[str] = frozenset(),
-    kept: frozenset[str] = frozenset(),
+    narrower: Callable[[dict], frozenset[str]] | None = None,
 ) -> list[Path]:
     """Publish every finished file of the run from ``staging`` into ``out``, with ``runs.json`` and
     ``summary.md``: first both saying the run is being published, then the files (atomic renames),
-    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile. ``failed`` and
-    ``kept`` (narrower than the published run: bench/cli/run.py) scenes keep their earlier rows."""
+    then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile.
+
+    All of it under the folder's lock (:func:`exo_bench.bench.output.reports_lock.reports_lock`):
+    runs publishing into one folder at once go one after the other, and each reads ``runs.json``
+    as the one before left it and merges its own rows and files into it, so none is lost.
+    ``failed`` scenes keep their earlier rows; so do the scenes ``narrower(manifest)`` returns
+    (called under the lock with the folder's current manifest: bench/cli/run.py renames their
+    staged files to go beside the wider run's)."""
+    with reports_lock(out, command):
+        manifest = read_manifest(out)
+        kept = narrower(manifest) if narrower is not None else frozenset()
+        return _publish_locked(staging, out, scene_rows, command, manifest, failed | kept)
+
+
+def _publish_locked(
+    staging: Path, out: Path, scene_rows: dict[str, list[list[str]]], command: str, manifest: dict, keep: frozenset[str]
+) -> list[Path]:
     run_id = current_run_id()
     files = sorted(f for f in staging.iterdir() if _is_report(f))
     manifest = json.loads(json.dumps(manifest))
@@ -227,7 +246,7 @@ def publish_run(
     for f in files:
         manifest.setdefault("files", {})[f.name] = {"run": run_id}
     for name, rows in scene_rows.items():
-        if name in failed | kept and manifest.get("scenes", {}).get(name, {}).get("rows"):
+        if name in keep and manifest.get("scenes", {}).get(name, {}).get("rows"):
             continue  # a refused, failed or narrower scene keeps the rows of the run that last ran it
         manifest.setdefault("scenes", {})[name] = {"run": run_id, "rows": rows}
     _prune(manifest, out)
@@ -261,27 +280,34 @@ def _prune(manifest: dict, out: Path) -> None:
 def record_files(out: Path, before: dict[str, int], command: str) -> None:
     """After a standalone report command (``exo-bench errata``/``bench``/``stability``) wrote into
     ``out``: mark the files it changed (``before``: name -> mtime from :func:`snapshot`) with this
-    process's run in ``runs.json`` and rewrite ``summary.md``, keeping every scene's rows."""
+    process's run in ``runs.json`` and rewrite ``summary.md``, keeping every scene's rows. Under the
+    folder's lock, like :func:`publish_run`; a changed file whose own mark names another run was
+    published meanwhile by that run and stays its."""
     out = Path(out)
     if not out.is_dir():
         return
-    now = snapshot(out)
-    changed = [n for n, t in now.items() if before.get(n) != t and n not in (SUMMARY, MANIFEST)]
-    if not changed:
-        return
-    manifest = read_manifest(out)
     run_id = current_run_id()
-    manifest.setdefault("runs", {})[run_id] = {
-        "command": command,
-        "status": "complete",
-        "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()),
-    }
-    for n in changed:
-        manifest.setdefault("files", {})[n] = {"run": run_id}
-    _prune(manifest, out)
-    with _signals_held():
-        atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
-        atomic_write(out / SUMMARY, summary_markdown(command, manifest, out))
+    with reports_lock(out, command):
+        now = snapshot(out)
+        changed = [
+            n
+            for n, t in now.items()
+            if before.get(n) != t and n not in (SUMMARY, MANIFEST) and run_id_of(out / n) in (None, run_id)
+        ]
+        if not changed:
+            return
+        manifest = read_manifest(out)
+        manifest.setdefault("runs", {})[run_id] = {
+            "command": command,
+            "status": "complete",
+            "finished": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()),
+        }
+        for n in changed:
+            manifest.setdefault("files", {})[n] = {"run": run_id}
+        _prune(manifest, out)
+        with _signals_held():
+            atomic_write(out / MANIFEST, json.dumps(manifest, indent=1))
+            atomic_write(out / SUMMARY, summary_markdown(command, manifest, out))
 
 
 def snapshot(out: Path) -> dict[str, int]:
