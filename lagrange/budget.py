@@ -15,15 +15,26 @@ Every entry point of :mod:`lagrange` takes ``budget`` (seconds) and runs its wor
 Either way the caller gets :class:`BudgetExceeded`, whose ``skip_reason`` names the work, the
 model size (``n``, ``dim``) and the budget, so :func:`exo_bench.bench.studies.study.run_methods` records a skip.
 Nested budgets (``inverse_dynamics`` calling ``derive``) share the tighter end.
+
+The clock is injectable: :func:`budget_clock` (for this thread) or ``time_budget(..., clock=...)``
+replaces ``time.perf_counter`` by any function returning seconds, for example one that advances a
+fixed step per reading, so that a test makes a budget fire (or not) at a known cooperative check,
+whatever the machine's speed. Under an injected clock no SIGALRM is armed (the alarm counts real
+seconds): the cooperative checks are the only stop. Users keep the real clock and the alarm.
 """
 
 from __future__ import annotations
 
+import math
 import signal
 import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+
+#: Seconds since an arbitrary origin; ``time.perf_counter`` unless a test injects another.
+Clock = Callable[[], float]
 
 
 class BudgetExceeded(ValueError):
@@ -50,28 +61,36 @@ class BudgetAlarm(BaseException):
 
 @dataclass
 class Deadline:
-    """The end of a budget, checked cooperatively with :meth:`check`."""
+    """The end of a budget, checked cooperatively with :meth:`check`, read on ``clock``."""
 
     what: str
     nlinks: int
     dim: int
     budget: float
-    start: float = field(default_factory=time.perf_counter)
+    start: float = math.nan  # nan: the clock's reading when the deadline is made
     end: float = 0.0
     interrupts: bool = False  # True when SIGALRM is armed for this deadline
+    clock: Clock = time.perf_counter
 
     def __post_init__(self) -> None:
+        if math.isnan(self.start):
+            self.start = self.clock()
         self.end = self.start + self.budget
 
     @property
     def remaining(self) -> float:
-        return self.end - time.perf_counter()
+        return self.end - self.clock()
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds on this deadline's clock since it started."""
+        return self.clock() - self.start
 
     def exceeded(self, note: str = "") -> BudgetExceeded:
-        return BudgetExceeded(self.what, self.nlinks, self.dim, self.budget, time.perf_counter() - self.start, note)
+        return BudgetExceeded(self.what, self.nlinks, self.dim, self.budget, self.elapsed, note)
 
     def check(self) -> None:
-        if time.perf_counter() > self.end:
+        if self.clock() > self.end:
             raise self.exceeded()
 
 
@@ -91,6 +110,19 @@ def without_interrupts():
         _active.no_signals = before
 
 
+@contextmanager
+def budget_clock(clock: Clock) -> Iterator[None]:
+    """Within this block, this thread's budgets read ``clock`` instead of ``time.perf_counter``
+    and arm no SIGALRM: a deterministic stand-in for the wall clock (tests), e.g. one that
+    advances a fixed step per reading."""
+    before = getattr(_active, "clock", None)
+    _active.clock = clock
+    try:
+        yield
+    finally:
+        _active.clock = before
+
+
 def current_deadline() -> Deadline | None:
     """The innermost active deadline of this thread, if any."""
     stack = getattr(_active, "stack", None)
@@ -98,21 +130,25 @@ def current_deadline() -> Deadline | None:
 
 
 @contextmanager
-def time_budget(budget: float, what: str, nlinks: int, dim: int):
+def time_budget(budget: float, what: str, nlinks: int, dim: int, clock: Clock | None = None) -> Iterator[Deadline]:
     """Run the body within ``budget`` seconds or raise :class:`BudgetExceeded`.
 
     Yields the :class:`Deadline` to check cooperatively. Inside an enclosing budget the tighter
     of the two ends applies, and the exception names the enclosing work when that one runs out.
+    ``clock`` (default: the one of :func:`budget_clock`, else the enclosing budget's, else
+    ``time.perf_counter``) reads the seconds; any clock but ``time.perf_counter`` arms no SIGALRM.
     """
     if not 0 < budget < float("inf"):
         raise ValueError(f"{what}: field 'budget': expected a positive, finite number of seconds, got {budget!r}")
     outer = current_deadline()
-    dl = Deadline(what, nlinks, dim, float(budget))
-    if outer is not None and outer.end < dl.end:
+    clock = clock or getattr(_active, "clock", None) or (outer.clock if outer is not None else time.perf_counter)
+    dl = Deadline(what, nlinks, dim, float(budget), clock=clock)
+    if outer is not None and outer.clock is clock and outer.end < dl.end:
         # The enclosing budget ends first: it is the one that is exceeded.
-        dl = Deadline(outer.what, outer.nlinks, outer.dim, outer.budget, start=outer.start)
+        dl = Deadline(outer.what, outer.nlinks, outer.dim, outer.budget, start=outer.start, clock=clock)
     main = (
-        threading.current_thread() is threading.main_thread()
+        clock is time.perf_counter
+        and threading.current_thread() is threading.main_thread()
         and hasattr(signal, "setitimer")
         and not getattr(_active, "no_signals", False)
     )

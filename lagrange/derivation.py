@@ -199,12 +199,12 @@ def derive(
         if sym is None:
             if cache and key in _FAILED and dl.remaining <= _FAILED[key]:
                 raise dl.exceeded(note=f"; an earlier attempt ran {_FAILED[key]:.2f} s without finishing")
-            t0 = time.perf_counter()
+            t0 = dl.clock()  # the budget's clock (injectable: lagrange.budget.budget_clock)
             try:
                 sym = _derive_symbolic(st, engine, dl)
             except (BudgetExceeded, BudgetAlarm):  # a cooperative check or the SIGALRM interrupt
                 if cache:
-                    _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - t0)
+                    _FAILED[key] = max(_FAILED.get(key, 0.0), dl.clock() - t0)
                 raise
             if cache:
                 _SYMBOLIC[key] = sym

@@ -64,15 +64,17 @@ def lambdify_within_budget(
     if key not in _CACHE:
         budget = default_budget() if budget is None else budget
         with time_budget(budget, f"Lagrange II {what} (derivation and lambdify)", mech.nlinks, mech.dim) as dl:
-            if dl.remaining <= _FAILED.get(key, 0.0):
-                raise dl.exceeded(note=f"; an earlier attempt ran {_FAILED[key]:.2f} s without finishing")
+            if dl.remaining <= _FAILED.get(key, 0.0):  # no time left, or no more than an earlier attempt ran
+                raise dl.exceeded(
+                    note=f"; an earlier attempt ran {_FAILED[key]:.2f} s without finishing" if key in _FAILED else ""
+                )
             try:
                 d = derive(mech, symbolic_parameters=False, budget=budget)
                 args, exprs = build(d)
                 t0 = time.perf_counter()
                 fn = sp.lambdify(args, exprs, modules=modules, cse=True)
             except (BudgetExceeded, BudgetAlarm):
-                _FAILED[key] = max(_FAILED.get(key, 0.0), time.perf_counter() - dl.start)
+                _FAILED[key] = max(_FAILED.get(key, 0.0), dl.elapsed)
                 raise
             _CACHE[key] = Lambdified(fn, time.perf_counter() - t0)
     return _CACHE[key]
