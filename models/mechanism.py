@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from exo_bench.models.names import check_name
 from exo_bench.models.states import CHECK_ROWS, as_states, coordinate_names, force_names, split
 from exo_bench.models.validation import (
     _NEGATIVE_G,
@@ -222,8 +223,8 @@ class Mechanism:
             if not isinstance(link, dict):
                 raise ValueError(f"{where}: expected an object with keys {sorted(_LINK_KEYS)}, got {link!r}")
             nm = link.get("name")
-            if nm is not None and not isinstance(nm, str):
-                raise ValueError(f"{where}: field 'name': expected a string, got {nm!r}")
+            if nm is not None:
+                check_name(nm, f"{where}: field 'name'")
             where = f"{source}: {_where(i, nm)}"
             missing = _LINK_KEYS - link.keys()
             if missing:
@@ -249,7 +250,7 @@ class Mechanism:
             masses.append(tuple(m))
             frac.append(f)
             names.append(nm if nm is not None else f"link{i + 1}")
-        name = str(data.get("name", "mechanism"))
+        name = check_name(data.get("name", "mechanism"), f"{source}: field 'name'")  # not str(): no dict or number
         try:
             return cls(
                 dim=dim,

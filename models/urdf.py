@@ -23,16 +23,10 @@ mimic joint must come after the joint it mimics; ``len`` sorts before ``mid``.
 
 from __future__ import annotations
 
-import re
-from xml.sax.saxutils import quoteattr
-
+from exo_bench.models.encoders import xml_attr, xml_comment
 from exo_bench.models.mechanism import Mechanism
 
 _LIMIT = '<limit effort="1e6" velocity="1e6" lower="-1e3" upper="1e3"/>'
-
-
-def _safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_]", "_", name)
 
 
 def link_prefix(mech: Mechanism, i: int) -> str:
@@ -50,13 +44,6 @@ def _inertial(mass: float) -> str:
     )
 
 
-def _comment(text: str) -> str:
-    """``text`` as XML comment content: "--" may not occur in a comment, so "--" is written "- -"
-    (a link's name goes into the URDF only in this comment; the element names are generated)."""
-    text = re.sub(r"-(?=-)", "- ", text)
-    return text + " " if text.endswith("-") else text
-
-
 def _link(name: str, mass: float = 0.0, comment: str = "") -> str:
     c = f"<!-- {comment} -->" if comment else ""
     return f'  <link name="{name}">{c}{_inertial(mass)}</link>'
@@ -72,13 +59,13 @@ def _joint(name: str, kind: str, parent: str, child: str, axis: str, mimic: tupl
 
 def to_urdf(mech: Mechanism) -> str:
     """The URDF text of a mechanism (planar joints for 2D, spatial for 3D)."""
-    lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(_safe(mech.name))}>", '  <link name="support"/>']
+    lines = ['<?xml version="1.0"?>', f"<robot name={xml_attr(mech.name)}>", '  <link name="support"/>']
     for i in range(mech.nlinks):
         k = link_prefix(mech, i)
         p = mech.parent[i]
         m0, m1, m2 = mech.masses[i]
         lines.append(
-            f"  <!-- link {i + 1}: {_comment(mech.names[i])}, parent {p + 1 if p >= 0 else 'support'}, "
+            f"  <!-- link {i + 1}: {xml_comment(mech.names[i])}, parent {p + 1 if p >= 0 else 'support'}, "
             f"sign {mech.sign[i]:+d}, n = {mech.n[i]!r} -->"
         )
         base = f"{link_prefix(mech, p)}_end" if p >= 0 else "support"

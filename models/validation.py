@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from exo_bench.models.names import check_name
+
 if TYPE_CHECKING:
     from exo_bench.models.mechanism import Mechanism
 
@@ -77,7 +79,10 @@ def force_scale_log10(mech: Mechanism, length: float = 1.0, rate: float = 1.0, a
 
 
 def validate(m: Mechanism) -> None:
-    """Check every field once; messages name the link, the field, expected and actual."""
+    """Check every field once; messages name the link, the field, expected and actual. The
+    mechanism's own name first (:func:`exo_bench.models.names.check_name`): every message starts
+    with it."""
+    check_name(m.name, "mechanism: field 'name'")
     if m.dim not in (2, 3) or isinstance(m.dim, bool):
         raise ValueError(f"{m.name}: field 'dim': expected 2 or 3, got {m.dim!r}")
     if not _is_number(m.g) or not _finite(m.g):
@@ -94,12 +99,7 @@ def validate(m: Mechanism) -> None:
             )
     for i in range(n):
         where = f"{m.name}: {_where(i, m.names[i])}"
-        nm = m.names[i]
-        if not isinstance(nm, str) or any(ord(ch) < 32 or ord(ch) == 127 for ch in nm):
-            raise ValueError(
-                f"{where}: field 'name': expected a name without control characters (it is written "
-                f"into the URDF and the reports), got {nm!r}"
-            )
+        check_name(m.names[i], f"{where}: field 'name'")  # models/names.py: what every name may hold
         p = m.parent[i]
         if not isinstance(p, (int, np.integer)) or isinstance(p, bool) or not (-1 <= p < i):
             if i == 0:

@@ -784,7 +784,7 @@ CASES = [
         "mechanism-name-nul",
         "mechanism: a NUL character in a link name",
         lambda d: ["urdf", _mech(d, link2_name="thigh\0"), "-o", d / "u.urdf"],
-        "link 2 ('thigh\\x00'): field 'name': expected a name without control characters",
+        "link 2: field 'name': expected printable characters only, got a control character U+0000 at position 5",
         issue="26: smaller misses",
     ),
     Case(
@@ -820,7 +820,7 @@ CASES = [
     # ---------------------------------------------------------------- warnings and accepted edges (exit 0)
     Case(
         "mechanism-name-dashes",
-        "mechanism: '--' in a link name (written as '- -' in the URDF's comment)",
+        "mechanism: '--' in a link name (a JSON string in the URDF's comment, '--' as '\\u002d-')",
         lambda d: ["inverse", _mech(d, link2_name="thigh--left-"), _s5(d), "--method", "pinocchio"],
         "",
         rc=0,
@@ -1213,7 +1213,7 @@ def test_dashes_in_a_link_name_keep_the_urdf_valid(tmp_path):
     rc, out, err = run_cli(["urdf", _mech(tmp_path, link2_name="thigh--left-")])
     assert rc == 0 and err == ""
     ET.fromstring(out)  # parses: no "--" inside a comment
-    assert "thigh- -left- ," in out
+    assert '"thigh\\u002d-left-",' in out  # models/encoders.py xml_comment: json.loads gives the name back
 
 
 # ------------------------------------------------------------------------------ docs/errors.md

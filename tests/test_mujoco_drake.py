@@ -384,3 +384,50 @@ def test_the_mjcf_command_refuses_a_tree_too_deep_for_mujoco_in_one_line(tmp_pat
     )
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
     assert "nests 501 elements deep" in r.stderr and not (tmp_path / "deep.xml").exists()
+
+
+@pytest.mark.case("S1")
+def test_mujoco_forces_agree_on_hostile_names():
+    """MuJoCo compiles the MJCF of hostile mechanism and link names (XML, LaTeX, C and Python
+    metacharacters, `--`, comment ends, an injected body or include) with exactly the bodies of a
+    plain name, and its forces agree with matrix-factored's (a name once added a 50 kg body)."""
+    from hypothesis import HealthCheck, given, settings
+    from test_hostile_names import ACCEPTED
+
+    _need("mujoco")
+    from exo_bench.models.mujoco_backend import load_model
+
+    plain = fig2b(2).replace(name="plain", names=("a", "b"))
+
+    @given(name=ACCEPTED, link=ACCEPTED)
+    @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+    def check(name, link):
+        mech = plain.replace(name=name, names=(link, name))
+        model, ref = load_model(mech).model, load_model(plain).model
+        assert (model.nbody, model.njnt, model.nv) == (ref.nbody, ref.njnt, ref.nv)
+        assert abs(model.body_mass.sum() - mech.total_mass) < 1e-12
+        q, qd, qdd = random_states(mech, 6, 7)
+        tau = prepare(mech, "mujoco").inverse_dynamics(q, qd, qdd)
+        ref_tau = prepare(mech, "matrix-factored").inverse_dynamics(q, qd, qdd)
+        assert_forces_agree(tau, ref_tau, mech, q, qd, qdd, com_frame=True, what="mujoco vs matrix-factored")
+
+    check()
+
+
+@pytest.mark.case("U7")
+def test_mujoco_compile_memory_is_predicted_from_above():
+    """The memory predicted for compiling an MJCF (models.mjcf.compile_bytes) bounds MuJoCo's own
+    arena (mjModel.narena) from above, within 1.6 times, on chains, flat and random trees."""
+    _need("mujoco")
+    from exo_bench.models.mechanism import Mechanism
+    from exo_bench.models.mjcf import compile_bytes, mujoco_sizes
+    from exo_bench.models.mujoco_backend import compile_mjcf
+    from exo_bench.models.presets import chain
+
+    flat = lambda n, d, m1: Mechanism(d, 9.81, (-1,) * n, (1,) * n, ((1.0, m1, 1.0),) * n, (0.5,) * n)  # noqa: E731
+    mechs = [chain(n, d) for n in (1, 20, 120) for d in (2, 3)] + [random_tree(60, d, 3) for d in (2, 3)]
+    mechs += [flat(n, d, m1) for n in (10, 200) for d in (2, 3) for m1 in (0.0, 1.0)]
+    for mech in mechs:
+        model = compile_mjcf(to_mjcf(mech))
+        assert mujoco_sizes(mech) == (model.nv, model.neq), mech.name
+        assert model.narena <= compile_bytes(mech) <= 1.6 * model.narena, (mech.name, model.narena)

@@ -6,7 +6,9 @@
   writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python), ``<name>.h`` and
   ``<name>.c`` (c) or ``<name>_<function>.casadi`` and ``<name>_casadi.md`` (casadi: the
   ``casadi.Function`` files of :mod:`exo_bench.matrix_method.export.casadi_functions`, the optional
-  extra ``casadi``) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
+  extra ``casadi``; ``<name>``: the file stem of the mechanism's name, :func:`exo_bench.models.names.file_stem`;
+  the Python module and the C prefix never take a standard module's or header's name,
+  :mod:`exo_bench.models.encoders`) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
   of the set half-written). The work is estimated first (:func:`exo_bench.api.cost_model.equations_estimate`)
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.
@@ -25,6 +27,7 @@ import argparse
 from pathlib import Path
 
 from exo_bench.bench.cli.arguments import budget_arg, report_job
+from exo_bench.models.names import file_stem
 from exo_bench.bench.studies.options import ReportOptions
 
 from exo_bench.bench.output.equation_pages import (
@@ -112,12 +115,6 @@ def output_folder(value, option: str = "-o") -> Path:
     return writable_folder(value, f"equations {option}")
 
 
-def file_stem(name: str) -> str:
-    import re
-
-    return re.sub(r"[^0-9A-Za-z._-]", "_", name) or "mechanism"
-
-
 def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DEFAULT_BUDGET) -> dict[str, str]:
     """``file name -> text`` of the equations of ``mech`` in ``fmt`` (nothing written)."""
     import exo_bench
@@ -125,7 +122,7 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
     from exo_bench.bench.output import latex_document
 
     clock = _Clock(mech, fmt, budget)
-    stem = file_stem(mech.name)
+    stem = file_stem(mech.name)  # models/names.py: the one file-name encoder
     if fmt == "latex":
         parts = export_latex.element_parts(mech, symbolic_parameters)
         clock.check("composing")
@@ -144,7 +141,7 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
     if fmt == "python":
         text = export_code.python_module(es, exo_bench.__version__)
         clock.check("generating Python")
-        return {f"{export_code.c_identifier(mech.name)}.py": text}
+        return {f"{export_code.module_name(es)}.py": text}  # never numpy.py, math.py...
     prefix, h, c = export_code.c_sources(es, exo_bench.__version__)
     clock.check("generating C")
     return {f"{prefix}.h": h, f"{prefix}.c": c}
@@ -182,7 +179,7 @@ def _casadi_files(mech, stem: str, symbolic_parameters: bool, clock) -> dict[str
         mech,
         stem,
         exo_bench.__version__,
-        provenance(f"exo-bench equations {mech.name} --format casadi{flag}"),
+        provenance(f"exo-bench equations {shell_word(mech.name)} --format casadi{flag}"),
         symbolic_parameters,
     )
     clock.check("building and serialising the CasADi functions")
@@ -193,4 +190,11 @@ def _latex_header(mech, symbolic_parameters: bool) -> str:
     from exo_bench.bench.output.provenance import provenance
 
     flag = " --symbolic-parameters" if symbolic_parameters else ""
-    return provenance(f"exo-bench equations {mech.name} --format latex{flag}")
+    return provenance(f"exo-bench equations {shell_word(mech.name)} --format latex{flag}")
+
+
+def shell_word(name: str) -> str:
+    """``name`` as one word of the command line shown in the pages' provenance (shell quoting)."""
+    import shlex
+
+    return shlex.quote(name)

@@ -1,11 +1,16 @@
-"""``exo-bench mjcf MECHANISM [-o FILE] [--no-check]``: the MJCF (MuJoCo XML) of a mechanism, checked
-by compiling it with MuJoCo (extra [peers])."""
+"""``exo-bench mjcf MECHANISM [-o FILE] [--no-check] [--max-memory SIZE]``: the MJCF (MuJoCo XML) of a
+mechanism, checked by compiling it with MuJoCo (extra [peers]). Before any work, a tree too deep for
+MuJoCo's parser, or one whose compilation would need more memory than ``--max-memory`` (default: the
+usable memory, :func:`exo_bench.models.memory.usable_memory`), is refused in one line
+(:func:`exo_bench.models.mjcf.compile_bytes`)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+
+from exo_bench.bench.cli.arguments import size_arg
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -18,6 +23,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("-o", "--output", help="the .xml file to write (default: stdout)")
     s.add_argument(
         "--no-check", action="store_true", help="write it without compiling it in MuJoCo (MuJoCo not needed)"
+    )
+    s.add_argument(
+        "--max-memory",
+        type=size_arg,
+        default=None,
+        metavar="SIZE",
+        help="memory MuJoCo may use to compile the file, predicted before (default: 80%% of the available memory)",
     )
     s.set_defaults(func=cmd_mjcf)
 
@@ -39,6 +51,7 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
         from exo_bench.models.mjcf import check_nesting
 
         check_nesting(mech)  # a ValueError before any work, where MuJoCo's parser would refuse the depth
+        check_memory(mech, args.max_memory)
     text = to_mjcf(mech)
     if not args.no_check:
         from exo_bench.models.mujoco_backend import compile_mjcf
@@ -51,3 +64,26 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(text)
     return 0
+
+
+def check_memory(mech, limit: int | None) -> None:
+    """A ValueError, before any work, when compiling the MJCF of ``mech`` in MuJoCo would need more
+    than ``limit`` bytes (None: the usable memory; unknown: no check)."""
+    from exo_bench.models.memory import usable_memory
+    from exo_bench.models.mjcf import compile_bytes, mujoco_sizes
+
+    source = "--max-memory"
+    if limit is None:
+        limit, source = usable_memory(), "80% of the available memory; set the limit with --max-memory"
+    need = compile_bytes(mech)
+    if limit is not None and need > limit:
+        nv, neq = mujoco_sizes(mech)
+        raise ValueError(
+            f"mjcf: compiling the MJCF of {mech.name!r} ({mech.nlinks} links, {nv} MuJoCo coordinates, {neq} ties) "
+            f"needs about {_gib(need)} (MuJoCo's arena grows as nv^2), over the limit of {_gib(limit)} ({source}); "
+            "write it without compiling with --no-check"
+        )
+
+
+def _gib(x: float) -> str:
+    return f"{x / 2**30:,.1f} GiB" if x >= 2**30 else f"{x / 2**20:,.1f} MiB"

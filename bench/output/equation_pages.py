@@ -72,6 +72,8 @@ def md_matrices(mech):
 def scene_pages(scene, staging: Path) -> list[Path]:
     """The ``equations`` output of a scene: ``equations-<scene>.md`` and ``.tex`` with the
     aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
+    import shlex
+
     from exo_bench.bench.output.provenance import atomic_write, provenance
     from exo_bench.matrix_method.export import latex as export_latex
     from exo_bench.bench.output import latex_document
@@ -79,13 +81,14 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     mech = scene.mechanism
     _Clock(mech, "latex", DEFAULT_BUDGET)
     parts = export_latex.element_parts(mech, True)
-    header = provenance(f"exo-bench run {scene.name}")
-    title = f"Equations of motion of scene `{scene.name}` ({mech.name})"
+    header = provenance(f"exo-bench run {shlex.quote(scene.name)}")
+    Name = latex_document.Name
+    title = ("Equations of motion of scene ", Name(scene.name), " (", Name(mech.name), ")")
     md = latex_document.document(
         mech, True, "md", header, title=title, parts=parts, eq4=eq4_pair(mech), matrices_shown=md_matrices(mech)
     )
     tex = latex_document.document(
-        mech, True, "tex", "", title=f"Equations of motion of {mech.name}", parts=parts, eq4=eq4_pair(mech)
+        mech, True, "tex", "", title=("Equations of motion of ", Name(mech.name)), parts=parts, eq4=eq4_pair(mech)
     )
     return [
         atomic_write(staging / f"equations-{scene.name}.md", md),

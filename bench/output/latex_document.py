@@ -5,7 +5,10 @@ eq. (4) with both signs."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
 
+from exo_bench.models.encoders import latex_text, markdown_code
 from exo_bench.matrix_method.export.latex import (
     BLOCK,
     MATRIX,
@@ -22,6 +25,29 @@ from exo_bench.matrix_method.export.latex import (
 from exo_bench.models.equation_form import blocks, matrix_names
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import symbols_for
+
+
+@dataclass(frozen=True)
+class Name:
+    """A user's name (a mechanism's, a scene's) inside a page's prose: written by the page's encoder,
+    a Markdown code span (:func:`exo_bench.models.encoders.markdown_code`) or LaTeX text
+    (:func:`exo_bench.models.encoders.latex_text` in ``\\texttt``), never read as markup."""
+
+    value: str
+
+
+#: Prose of a page: the suite's own text (Markdown with ``$...$`` math) and names.
+Prose = Sequence["str | Name"]
+
+
+def md_prose(parts: Prose) -> str:
+    """Prose as Markdown: the suite's text as it is, each name a code span."""
+    return "".join(p if isinstance(p, str) else markdown_code(p.value) for p in parts)
+
+
+def tex_prose(parts: Prose) -> str:
+    """Prose as LaTeX: the suite's text by :func:`_tex_text`, each name as escaped text in ``\\texttt``."""
+    return "".join(_tex_text(p) if isinstance(p, str) else r"\texttt{" + latex_text(p.value) + "}" for p in parts)
 
 
 NOTATION_TEXT = (
@@ -50,7 +76,7 @@ def document(
     symbolic_parameters: bool,
     kind: str,
     header: str,
-    title: str | None = None,
+    title: Prose | None = None,
     matrices_shown: tuple[str, ...] | None = None,
     eq4: tuple[Mechanism, Mechanism] | None = None,
     parts: ElementParts | None = None,
@@ -58,7 +84,8 @@ def document(
     """The Markdown page (``kind="md"``) or standalone LaTeX (``kind="tex"``) of every element of
     eq. (5)/(17) of ``mech`` (``matrices_shown``: a subset of the matrices, ``P`` included by name).
     ``header``: Markdown provenance text (the Markdown page only). ``eq4``: the serial and the
-    branched two-link models, to write eq. (4) with both signs."""
+    branched two-link models, to write eq. (4) with both signs. ``title`` and every name in the prose
+    are :class:`Name` parts, encoded for the page's language."""
     if kind not in ("md", "tex"):
         raise ValueError(f"kind: expected 'md' or 'tex', got {kind!r}")
     parts = parts or element_parts(mech, symbolic_parameters)
@@ -66,7 +93,7 @@ def document(
     names = matrix_names(mech.dim) + ("P",)
     shown = tuple(m for m in names if matrices_shown is None or m in matrices_shown)
     md = kind == "md"
-    title = title or f"Equations of motion of {mech.name}"
+    title = title or ("Equations of motion of ", Name(mech.name))
     out: list[str] = []
 
     def heading(level: int, text: str):
@@ -76,8 +103,8 @@ def document(
             cmd = {1: "section*", 2: "subsection*", 3: "subsubsection*"}.get(level, "paragraph*")
             out.extend([f"\\{cmd}{{{_tex_text(text)}}}", ""])
 
-    def para(text: str):
-        out.extend([text if md else _tex_text(text), ""])
+    def para(*parts: str | Name):
+        out.extend([md_prose(parts) if md else tex_prose(parts), ""])
 
     def math(lines: list[str]):
         body = " \\\\\n".join(lines)
@@ -87,7 +114,7 @@ def document(
             out.extend(["\\begin{align*}", body, "\\end{align*}", ""])
 
     if md:
-        out.extend([f"# {title}", "", header, ""])
+        out.extend([f"# {md_prose(title)}", "", header, ""])
     s = mech.sign
     rates = (
         "A phi'' + B psi'' + Lambda l'' + D (phi'^2) + E (psi'^2) + 2 G (phi' psi') + 2 H (phi' l') + 2 K (psi' l') + g P"
@@ -95,12 +122,14 @@ def document(
         else "A phi'' + Lambda l'' + D (phi'^2) + 2 H (phi' l') + g P"
     )
     para(
-        f"Mechanism `{mech.name}`: {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)} (-1: the support "
+        "Mechanism ",
+        Name(mech.name),
+        f": {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)} (-1: the support "
         f"point), branch signs {list(s)}. Eq. ({5 if mech.dim == 2 else 17}) of Borisov & Chigarev, block k "
         f"(k = {', '.join(blocks(mech.dim))}): `{rates} = M_k` (`F` for k = l), every matrix composed by the matrix "
         "method from its closed forms (`exo_bench.matrix_method`) and checked against Pinocchio and Lagrange "
         "(tests/test_equations_export.py). Right-hand sides are generalised forces of the absolute angles "
-        "(the paper's joint moments: `M_1 - M_2` for phi_1 of a chain)."
+        "(the paper's joint moments: `M_1 - M_2` for phi_1 of a chain).",
     )
     para(
         "Notation: " + NOTATION_TEXT + "; dots are time derivatives. Every element is the sign product "
@@ -118,8 +147,10 @@ def document(
         heading(2, "Eq. (4): the two-link model, upper signs serial (Fig. 2a), lower signs branched (Fig. 2b)")
         which = "upper" if mech.sign[1] > 0 else "lower"
         para(
-            f"This page's model `{mech.name}` takes the {which} signs. Composed here from the closed forms; "
-            "reports/errata.md compares it with eq. (4) as printed."
+            "This page's model ",
+            Name(mech.name),
+            f" takes the {which} signs. Composed here from the closed forms; "
+            "reports/errata.md compares it with eq. (4) as printed.",
         )
         math(eq4_rows(*eq4))
     for block in blocks(mech.dim):
@@ -141,7 +172,8 @@ def document(
 
 
 def _tex_text(text: str) -> str:
-    """Markdown prose as LaTeX text: backticks dropped, special characters escaped (math kept)."""
+    """The suite's own Markdown prose as LaTeX text: backticks dropped, special characters escaped
+    (math kept). Never a user's name: those are :class:`Name` parts (:func:`tex_prose`)."""
     out, math_mode = [], False
     for ch in text.replace("`", ""):
         if ch == "$":
@@ -156,7 +188,7 @@ def _tex_text(text: str) -> str:
     return "".join(out)
 
 
-def _tex_wrap(title: str, body: str) -> str:
+def _tex_wrap(title: Prose, body: str) -> str:
     return "\n".join(
         [
             r"\documentclass[10pt]{article}",
@@ -164,7 +196,7 @@ def _tex_wrap(title: str, body: str) -> str:
             r"\usepackage{amsmath}",
             r"\allowdisplaybreaks",
             r"\begin{document}",
-            rf"\section*{{{_tex_text(title)}}}",
+            rf"\section*{{{tex_prose(title)}}}",
             "",
             body,
             r"\end{document}",

@@ -22,6 +22,7 @@ from exo_bench.bench.output.figures.scene_figures import (
 )
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.names import file_stem
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study
@@ -53,8 +54,9 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
 
 
 def trail_entity(name: str) -> str:
-    """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``)."""
-    return re.sub(r"_+", "_", re.sub(r"[^A-Za-z0-9]", "_", name)).strip("_")
+    """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``):
+    the file-name encoder's stem (:func:`exo_bench.models.names.file_stem`), its runs of ``_`` as one."""
+    return re.sub(r"_+", "_", file_stem(name)).strip("_") or "unnamed"
 
 
 def mass_radii(mech: Mechanism) -> np.ndarray:

@@ -40,7 +40,9 @@ import numpy as np
 
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling, signed_coupling, signed_gravity
+from exo_bench.models.encoders import markdown_code, python_string
 from exo_bench.models.mechanism import Mechanism, coordinate_names, force_names
+from exo_bench.models.names import file_stem
 
 #: The optional extra that installs CasADi, named in every error about it.
 EXTRA = "casadi"
@@ -288,6 +290,7 @@ def export_files(
     """``file name -> text`` of ``exo-bench equations MECH --format casadi [--symbolic-parameters]``:
     every function as ``<stem>_<function>.casadi`` and the loader note ``<stem>_casadi.md``
     (nothing written)."""
+    stem = file_stem(stem)  # the one file-name encoder (idempotent on a stem)
     files = {f"{stem}_{name}": text for name, text in casadi_functions(mech, parameters).serialized().items()}
     files[f"{stem}_casadi.md"] = loader_note(mech, stem, version, header, parameters)
     return files
@@ -297,11 +300,11 @@ def loader_note(mech: Mechanism, stem: str, version: str, header: str = "", para
     """The Markdown note written beside the ``.casadi`` files: what each holds and how to load it."""
     names = coordinate_names(mech)
     forces = force_names(mech)
-    lines = [f"# CasADi functions of {mech.name}", ""]
+    lines = [f"# CasADi functions of {markdown_code(mech.name)}", ""]  # a name is text, never Markdown
     if header:
         lines += [header, ""]
     lines += [
-        f"Eq. (5)/(17) of the matrix method for `{mech.name}` ({mech.dim}D, {mech.nlinks} links, {mech.dof} "
+        f"Eq. (5)/(17) of the matrix method for {markdown_code(mech.name)} ({mech.dim}D, {mech.nlinks} links, {mech.dof} "
         f"coordinates), written by exo-bench {version} from the factored closed forms that its method "
         "`matrix-factored` runs (`matrix_method/export/casadi_functions.py`). Each file is one `casadi.Function` "
         "(`Function.save`); CasADi alone reads it back, exo-bench is not needed:",
@@ -309,7 +312,7 @@ def loader_note(mech: Mechanism, stem: str, version: str, header: str = "", para
         "```python",
         "import casadi as ca",
         "",
-        f"ID = ca.Function.load('{stem}_inverse_dynamics.casadi')   # (q, qd, qdd) -> tau",
+        f"ID = ca.Function.load({python_string(stem + '_inverse_dynamics.casadi')})   # (q, qd, qdd) -> tau",
         "tau = ID(q, qd, qdd)            # numbers, or SX/MX symbols in an optimal-control problem",
         "tau_batch = ID(Q, QD, QDD)      # (dof, samples) columns: CasADi maps the function",
         "```",
