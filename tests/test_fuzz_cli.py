@@ -477,7 +477,7 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
         ["--max-memory", "2G", "--method", "pinocchio"] if args[1] == "CHAIN300" else []
     )
     r = subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=120, cwd=tmp_path
+        [sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=600, cwd=tmp_path
     )
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
@@ -503,7 +503,7 @@ def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
         ],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=600,
     )
     assert r.returncode == 0
     lines = r.stderr.strip().splitlines()
