@@ -21,7 +21,7 @@ from exo_bench.bench.output.publish import publish_run, staging_dir
 from exo_bench.bench.output.reports_lock import check_lock_file
 from exo_bench.bench.perf.options import BenchOptions
 from exo_bench.bench.studies.options import ReportOptions, RunOptions, StabilityOptions
-from exo_bench.bench.studies.scene_run import SceneOutcome, run_scene, scene_rows
+from exo_bench.bench.studies.scene_run import SceneOutcome, check_scene_files, run_scene, scene_files, scene_rows
 from exo_bench.bench.studies.scenes import Scene, load_scene, shipped_scene_names
 from exo_bench.bench.studies.study import one_line
 
@@ -119,12 +119,13 @@ def run_main_job(options: RunOptions) -> int:
     full = options.full
     names = list(options.scenes) or shipped_scene_names()
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
+    check_scene_files(scenes)  # no scene's reports land on the suite's or on another scene's
     jobs = _suite_jobs() if not options.scenes else []  # naming scenes runs just those scenes
     limits = Limits(memory=options.max_memory)
     from exo_bench.bench.output.files import output_target
     from exo_bench.bench.output.publish import MANIFEST, SUMMARY
 
-    for name in (SUMMARY, MANIFEST, *(f"{sc.name}.md" for sc in scenes)):  # before any work: no FIFO there
+    for name in (SUMMARY, MANIFEST, *(f for sc in scenes for f in scene_files(sc))):  # before any work: no FIFO there
         output_target(out / name)
     check_lock_file(out)  # a link or FIFO planted at the folder's lock file is refused now, not after the work
     set_run_id(new_run_id())

@@ -81,9 +81,10 @@ def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: st
     them (:func:`exo_bench.bench.perf.reports.benchmark_reports.write_reports`), published into ``out`` together."""
     from exo_bench.bench.perf.reports import benchmark_reports as br
     from exo_bench.bench.output.publish import staging_dir
+    from exo_bench.bench.output.suite_reports import benchmark_json
 
     with staging_dir(out) as st:
-        bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
+        bjson, sjson = st / benchmark_json(sweep), st / "skips.json"
         atomic_write(bjson, json.dumps(merged, indent=1))
         atomic_write(sjson, json.dumps(skips, indent=1))
         return br.write_reports(bjson, sjson, st, out, sweep, command, update_readme)

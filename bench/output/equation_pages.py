@@ -70,13 +70,14 @@ def md_matrices(mech):
 
 # ------------------------------------------------------------------------------ the scene output
 def scene_pages(scene, staging: Path) -> list[Path]:
-    """The ``equations`` output of a scene: ``equations-<scene>.md`` and ``.tex`` with the
-    aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
+    """The ``equations`` output of a scene: ``equations-<scene>.md`` and ``.tex`` (:func:`page_names`)
+    with the aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
     import shlex
 
     from exo_bench.bench.output.provenance import atomic_write, provenance
     from exo_bench.matrix_method.export import latex as export_latex
     from exo_bench.bench.output import latex_document
+    from exo_bench.models.names import file_stem
 
     mech = scene.mechanism
     _Clock(mech, "latex", DEFAULT_BUDGET)
@@ -90,10 +91,14 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     tex = latex_document.document(
         mech, True, "tex", "", title=("Equations of motion of ", Name(mech.name)), parts=parts, eq4=eq4_pair(mech)
     )
-    return [
-        atomic_write(staging / f"equations-{scene.name}.md", md),
-        atomic_write(staging / f"equations-{scene.name}.tex", tex),
-    ]
+    md_name, tex_name = page_names(file_stem(scene.name))
+    return [atomic_write(staging / md_name, md), atomic_write(staging / tex_name, tex)]
+
+
+def page_names(stem: str) -> tuple[str, str]:
+    """The files of a scene's ``equations`` output, for the scene's file stem (the file-name
+    encoder's: models/names.py ``file_stem``)."""
+    return f"equations-{stem}.md", f"equations-{stem}.tex"
 
 
 def _seconds(x: float) -> str:

@@ -33,6 +33,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from exo_bench.bench.output import suite_reports
 from exo_bench.bench.output.provenance import atomic_write, current_run_id, provenance, run_id_of
 from exo_bench.bench.output.reports_lock import reports_lock
 
@@ -143,7 +144,7 @@ def summary_markdown(command: str, manifest: dict | None = None, folder: Path | 
     return "\n".join(lines) + "\n"
 
 
-SUMMARY, MANIFEST = "summary.md", "runs.json"
+SUMMARY, MANIFEST = suite_reports.SUMMARY, suite_reports.MANIFEST
 
 
 def _is_report(p: Path) -> bool:
@@ -287,13 +288,18 @@ def record_files(out: Path, before: dict[str, int], command: str) -> None:
     if not out.is_dir():
         return
     run_id = current_run_id()
-    with reports_lock(out, command):
-        now = snapshot(out)
-        changed = [
+
+    def changed_here() -> list[str]:
+        return [
             n
-            for n, t in now.items()
+            for n, t in snapshot(out).items()
             if before.get(n) != t and n not in (SUMMARY, MANIFEST) and run_id_of(out / n) in (None, run_id)
         ]
+
+    if not changed_here():  # nothing written (an interrupted command): the folder stays as it was, no lock file
+        return
+    with reports_lock(out, command):
+        changed = changed_here()
         if not changed:
             return
         manifest = read_manifest(out)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 import time
 
+from exo_bench.bench.output.suite_reports import EQUATIONS_SIZE
 from exo_bench.bench.studies.options import ReportOptions
 
 
@@ -164,7 +165,7 @@ def size_report(options: ReportOptions) -> int:
             lines.append(f"| {dim}D | {kind} | {n} | {route} | | | | | not run: {note.replace('|', '/')} |")
     from exo_bench.bench.output.files import announce_narrower, narrower_names
 
-    names = narrower_names(out, ["equations_size.md", "equations_size.png"], full)  # never over a --full run's
+    names = narrower_names(out, EQUATIONS_SIZE, full)  # never over a --full run's
     announce_narrower(out, names, "equation size reports")
     lines += ["", f"![operations after CSE against n, log-log]({names['equations_size.png']})", ""]
     out.mkdir(parents=True, exist_ok=True)

@@ -16,6 +16,7 @@ import numpy as np
 from exo_bench.bench.output.provenance import atomic_write, provenance
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
+from exo_bench.models.names import file_stem
 
 
 @dataclass
@@ -161,6 +162,70 @@ def _scene_table(o: SceneOutcome) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: The outputs drawn as figures, one PNG each.
+FIGURES = ("moments", "forces", "kinogram", "differences", "overview")
+
+
+def scene_file(scene: Scene, output: str) -> str:
+    """The file of one output of a scene (``table``, a figure, ``recording``), named by the
+    file-name encoder (models/names.py ``file_stem``) from the scene's name."""
+    stem = file_stem(scene.name)
+    if output == "table":
+        return f"{stem}.md"
+    if output == "recording":
+        return f"{stem}.rrd"
+    if output in FIGURES:
+        return f"{stem}-{output}.png"
+    raise ValueError(f"scene {scene.name!r}: output {output!r} writes no file of its own")
+
+
+def scene_files(scene: Scene) -> list[str]:
+    """Every file the scene's outputs write into the reports folder (its ``equations`` pages:
+    :func:`exo_bench.bench.output.equation_pages.page_names`)."""
+    from exo_bench.bench.output.equation_pages import page_names
+
+    names = [scene_file(scene, k) for k in ("table", *FIGURES, "recording") if scene.wants(k)]
+    return names + (list(page_names(file_stem(scene.name))) if scene.wants("equations") else [])
+
+
+def check_scene_files(scenes: list[Scene]) -> None:
+    """Refuse, before any work, scenes whose reports would land on another's: a scene named like
+    one of the suite's own reports (bench/output/suite_reports.py: ``summary``, ``errata``, ...,
+    with their ``-quick`` names), or like a file that other scenes write (their ``-quick`` and
+    ``equations-`` pages), and two scenes of one run with one file name. Names are compared as
+    the file-name encoder writes them, ignoring case (file systems may fold it)."""
+    from exo_bench.bench.output.equation_pages import page_names
+    from exo_bench.bench.output.files import quick_name
+    from exo_bench.bench.output.suite_reports import suite_files
+
+    reserved = {Path(n).stem.casefold(): n for n in sorted(suite_files())}
+    pages_prefix = Path(page_names("x")[0]).stem.removesuffix("x").casefold()  # "equations-"
+    quick_suffix = Path(quick_name("x.md")).stem.removeprefix("x").casefold()  # "-quick"
+    taken: dict[str, Scene] = {}
+    for sc in scenes:
+        stem = file_stem(sc.name)
+        what = f"{sc.path}: field 'name': expected a scene name"
+        if stem.casefold() in reserved:
+            raise ValueError(
+                f"{what} other than the suite's own reports, got {sc.name!r}, which would take the name of the "
+                f"suite's own report {reserved[stem.casefold()]}"
+            )
+        if stem.casefold().startswith(pages_prefix) or stem.casefold().endswith(quick_suffix):
+            kind = "equations pages" if stem.casefold().startswith(pages_prefix) else "narrower runs' reports"
+            raise ValueError(
+                f"{what} that does not start with {pages_prefix!r} or end with {quick_suffix!r}, got {sc.name!r}, "
+                f"which would take the name of other scenes' {kind}"
+            )
+        for f in [f"{stem}.md", *scene_files(sc)]:  # its summary rows and page go by its name, output or not
+            other = taken.get(f.casefold())
+            if other is not None and other is not sc:
+                raise ValueError(
+                    f"{what} of its own in this run, got {sc.name!r}, which writes {f} as scene {other.name!r} "
+                    f"({other.path}) does (file names compared as written, ignoring case)"
+                )
+            taken[f.casefold()] = sc
+
+
 def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     """Run one scene, writing its outputs into ``staging``; never raises for a method's failure.
     ``limits`` (:class:`exo_bench.api.cost_model.Limits`): a method estimated beyond them is skipped."""
@@ -197,10 +262,10 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             reason = getattr(e, "skip_reason", None) or one_line(e)
             o.notes.append(f"50-digit reference skipped: {reason}")
     if scene.wants("table"):
-        p = staging / f"{scene.name}.md"
+        p = staging / scene_file(scene, "table")
         atomic_write(p, _scene_table(o))
         o.files.append(p)
-    figures = [k for k in ("moments", "forces", "kinogram", "differences", "overview") if scene.wants(k)]
+    figures = [k for k in FIGURES if scene.wants(k)]
     if figures and o.study.ok_methods():
         from exo_bench.bench.output.figures import (
             scene_figures as plots,
@@ -216,7 +281,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
-            o.files.append(plots.save_figure(fig, staging / f"{scene.name}-{kind}.png"))
+            o.files.append(plots.save_figure(fig, staging / scene_file(scene, kind)))
     if scene.wants("equations"):
         from exo_bench.bench.output.equation_pages import scene_pages  # only for scenes that ask for it
 
@@ -234,7 +299,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             loads_text = step_text(o.study)
         else:
             loads_text = None if loads is None else text(loads)
-        p = recording.write_recording(o.study, staging / f"{scene.name}.rrd", loads=loads_text)
+        p = recording.write_recording(o.study, staging / scene_file(scene, "recording"), loads=loads_text)
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
         o.files.append(p)

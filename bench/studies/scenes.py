@@ -43,6 +43,7 @@ import numpy as np
 
 from exo_bench.models.loading import load_mechanism, read_json, read_toml
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.names import check_name
 from exo_bench.models.motion import (
     DEFAULT_GAIT,
     GAITS,
@@ -202,6 +203,7 @@ def load_scene(spec: str | Path) -> Scene:
     for m in methods:
         if m not in METHODS:
             raise _err(path, "methods", f"names among {', '.join(METHODS)}", m)
+    _once(path, "methods", methods)
     reference = data.get("reference", methods[0])
     if reference not in methods:
         raise _err(path, "reference", f"one of the scene's methods {methods}", reference)
@@ -211,6 +213,7 @@ def load_scene(spec: str | Path) -> Scene:
     for o in outputs:
         if o not in OUTPUTS:
             raise _err(path, "outputs", f"names among {', '.join(OUTPUTS)}", o)
+    _once(path, "outputs", outputs)
     motion = _load_motion(path, data["motion"], mech)
     desc = data.get("description", "")
     if not isinstance(desc, str):
@@ -218,6 +221,7 @@ def load_scene(spec: str | Path) -> Scene:
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name:
         raise _err(path, "name", "a non-empty string", name)
+    check_name(name, f"{path}: field 'name'" + ("" if "name" in data else " (the file's name)"))
     if name.startswith(".") or any(ch in "/\\" or ord(ch) < 32 or ord(ch) == 127 for ch in name):
         raise _err(
             path,
@@ -227,6 +231,13 @@ def load_scene(spec: str | Path) -> Scene:
             name,
         )
     return Scene(name, path, desc, mech, tuple(methods), reference, tuple(outputs), motion)
+
+
+def _once(path: Path, field_: str, names: list[str]) -> None:
+    """Each name of a list at most once (a method or output named twice gave its rows twice)."""
+    twice = next((n for k, n in enumerate(names) if n in names[:k]), None)
+    if twice is not None:
+        raise ValueError(f"{path}: field '{field_}': expected each name once, got {twice!r} twice")
 
 
 def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:

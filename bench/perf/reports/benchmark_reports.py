@@ -42,6 +42,7 @@ from exo_bench.bench.perf.reports.paper_table import (  # noqa: F401
 )
 from exo_bench.bench.perf.reports.scaling import crossover, fit_exponent, scaling, speed_goals  # noqa: F401
 from exo_bench.bench.output.publish import publish, staging_dir
+from exo_bench.bench.output.suite_reports import BENCHMARK_REPORTS, benchmark_json
 
 
 def _strip_raw_timings(path: Path) -> None:
@@ -52,7 +53,7 @@ def _strip_raw_timings(path: Path) -> None:
     atomic_write(path, json.dumps(data, indent=1))
 
 
-REPORT_FILES = ("paper_table.md", "error_vs_runtime.md", "error_vs_runtime.png", "scaling.md", "scaling.png")
+REPORT_FILES = BENCHMARK_REPORTS  # the names: bench/output/suite_reports.py
 
 
 def report_names(out: Path, sweep: str) -> dict[str, str]:
@@ -126,7 +127,7 @@ def run(options: BenchOptions) -> int:
     out = options.folder.resolve()
     command = "exo-bench bench" + (" --full" if full else "")
     with staging_dir(out) as st:
-        bjson, sjson = st / f"benchmarks-{sweep}.json", st / "skips.json"
+        bjson, sjson = st / benchmark_json(sweep), st / "skips.json"
         cmd = [
             sys.executable,
             "-m",

@@ -8,6 +8,7 @@ from exo_bench.bench.studies.errata import cases
 from exo_bench.bench.studies.errata.evaluation import TOLERANCE, Results, Verdict, compute
 from exo_bench.bench.output import provenance as reporting
 from exo_bench.bench.output.provenance import atomic_write, provenance, sci
+from exo_bench.bench.output.suite_reports import ERRATA
 from exo_bench.matrix_method import printed
 
 
@@ -199,11 +200,11 @@ def write_report(path=None, results: Results | None = None):
     """Compute every check (unless ``results`` are given) and write ``reports/errata.md``
     atomically; returns the path."""
     text = render(results or compute())
-    return atomic_write(path or reporting.REPORTS / "errata.md", text)
+    return atomic_write(path or reporting.REPORTS / ERRATA, text)
 
 
 def run(options: ReportOptions) -> int:
     """``exo-bench errata [--reports DIR]`` (also a suite job of ``exo-bench run``)."""
-    path = write_report(options.folder / "errata.md")
+    path = write_report(options.folder / ERRATA)
     print(f"wrote {path}")
     return 0

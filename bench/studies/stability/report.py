@@ -317,25 +317,28 @@ def run(options: StabilityOptions) -> int:
         else:
             families = evaluate_families(profile, methods, log)
             forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
+    from exo_bench.bench.output.suite_reports import STABILITY_FIGURES
+
     figs = {
-        "stability-families.png": families_figure(families, methods),
-        "stability-conditioning.png": conditioning_figure(families),
+        STABILITY_FIGURES[0]: families_figure(families, methods),  # the names: bench/output/suite_reports.py
+        STABILITY_FIGURES[1]: conditioning_figure(families),
     }
     figs.update(forward_figures(forward))
     # a quick run never replaces a --full run's report, nor a run without casadi one with the analytic
     # Jacobian's runs (the main job on a machine without the extra): either writes stability-quick.md beside it
     from exo_bench.bench.output.files import announce_narrower, has_line, narrower_names
+    from exo_bench.bench.output.suite_reports import STABILITY_REPORT
     from exo_bench.bench.studies.stability.forward_jacobian import TABLE_HEAD
 
     published = Path(options.published_to or out)
     lacks = TABLE_HEAD if forward.analytic_notes else ""
-    names = narrower_names(published, [*figs, "stability.md"], options.full, lacks=lacks)
-    without = lacks and has_line(published, ["stability.md"], lacks)
+    names = narrower_names(published, [*figs, STABILITY_REPORT], options.full, lacks=lacks)
+    without = lacks and has_line(published, [STABILITY_REPORT], lacks)
     why = "have the analytic Jacobian's runs, which need the extra casadi" if without else "come from a full run"
     announce_narrower(out, names, "stability reports", why)
     written = [save_figure(fig, out / names[name]) for name, fig in figs.items()]
     text = report_markdown(profile, methods, families, forward, time.perf_counter() - t0, [names[n] for n in figs])
-    written.append(atomic_write(out / names["stability.md"], text))
+    written.append(atomic_write(out / names[STABILITY_REPORT], text))
     for p in written:
         print(f"wrote {p}")
     # Exit status: the suite's own physics (Pinocchio's round trips, energy bounds). A registered
