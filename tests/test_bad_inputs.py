@@ -1033,12 +1033,15 @@ def test_nothing_replaces_a_fifo_for_any_command_that_writes(tmp_path, monkeypat
         assert not list(d.glob(".staging-*")) and not list(d.glob(f".{name}.*")), name  # nothing half-written
 
 
-def test_a_symlink_to_a_regular_file_is_written_through_and_kept(tmp_path):
+@pytest.mark.case("S4")
+def test_a_symlink_to_a_regular_file_is_refused_and_the_file_kept(tmp_path):
+    """A symlink to a regular file named by ``-o`` is refused in one line naming the link (issue 26
+    wrote through it; issue 34 S4: a write never follows a link); the file it points to is kept."""
     target = _text(tmp_path, "old", "real.urdf")
     link = _link(tmp_path, target)
     rc, out, err = run_cli(["urdf", "fig1-2d", "-o", link])
-    assert rc == 0 and err == ""
-    assert link.is_symlink() and target.read_text().startswith("<?xml")
+    assert rc == 2 and f"urdf -o {str(link)!r}: is a symlink to {str(target)!r}" in err, err
+    assert link.is_symlink() and target.read_text() == "old"
 
 
 def test_a_refused_scene_keeps_the_earlier_rows_and_files_byte_for_byte(tmp_path):
@@ -1271,11 +1274,10 @@ ISSUE_26_ROWS = [
     (
         "2. `urdf -o` replaced a FIFO or a device node with a regular file",
         "refused in one line (exit 2) by the one writer behind every -o/--reports (bench/output/files.py); FIFOs, "
-        "devices, sockets and symlinks to them or to nothing are never replaced; a symlink to a regular file is "
-        "written through",
+        "devices, sockets and symlinks (to anything: issue 34 S4) are never replaced or written through",
         "test_bad_input[urdf-output-fifo], [urdf-output-link-to-fifo], [urdf-output-dangling-link], [mjcf-output-fifo], "
         "[equations-output-fifo], [reports-fifo], test_nothing_replaces_a_fifo_for_any_command_that_writes, "
-        "test_a_symlink_to_a_regular_file_is_written_through_and_kept",
+        "test_a_symlink_to_a_regular_file_is_refused_and_the_file_kept",
     ),
     (
         "4. `equations --size-report` replaced the `--full` equations_size.md; `stability` overwrote a `--full` "
@@ -1412,8 +1414,8 @@ def render(tmp: Path) -> str:
         "`models.mechanism.force_scale_log10`) are refused. Memory and time are estimated before any work "
         "(exo_bench/api/cost_model.py), reading the states and writing the forces included (a .npz by its uncompressed "
         "size, from its headers); the memory limit is 80 % of the available memory unless `--max-memory` says "
-        "otherwise. Files are written only over a regular file or nothing (FIFOs, devices, sockets and symlinks "
-        "to them or to nothing are refused), and a quick run writes `<name>-quick.<ext>` beside a `--full` run's "
+        "otherwise. Files are written only over a regular file or nothing (FIFOs, devices, sockets and any "
+        "symlink are refused), and a quick run writes `<name>-quick.<ext>` beside a `--full` run's "
         "report rather than over it.",
         "",
         "| input | exit | what the user sees | example | test |",

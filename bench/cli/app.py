@@ -68,6 +68,9 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt  # so that staging folders are removed on SIGTERM as on Ctrl-C
 
 
+#: The exit code when stdout's reader went away, as a shell reports a process ended by SIGPIPE (128 + 13).
+BROKEN_PIPE = 141
+
 #: The longest line an error prints: a user's value can be huge (a 400-digit integer, a long string).
 MAX_LINE = 500
 
@@ -157,7 +160,9 @@ def _main(argv, warnings) -> int:
         warnings.showwarning = _show_warning  # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
-            return int(args.func(args) or 0)
+            rc = int(args.func(args) or 0)
+            sys.stdout.flush()  # a reader gone (| head) shows here, not after main returned 0
+            return rc
         except _UsageError as e:
             print(_shorten(str(e).splitlines()[0] if str(e).strip() else "exo-bench: usage error"), file=sys.stderr)
             return 2
@@ -168,9 +173,12 @@ def _main(argv, warnings) -> int:
                 file=sys.stderr,
             )
             return 130
-        except BrokenPipeError:  # the reader of stdout went away (| head): nothing more to say
+        except BrokenPipeError:  # the reader of stdout went away (| head): the output is cut, never a success
             _silence_stdout()
-            return 0
+            print(
+                "exo-bench: error: stdout was closed before all the output was written (broken pipe)", file=sys.stderr
+            )
+            return BROKEN_PIPE
         except (ValueError, OSError, MemoryError, RecursionError) as e:
             print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             return 2

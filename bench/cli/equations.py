@@ -103,7 +103,7 @@ def cmd_equations(args: argparse.Namespace) -> int:
         raise ValueError("equations: expected a MECHANISM (a preset name or a JSON file)")
     out = output_folder(args.output)
     mech = load_mechanism(args.mechanism)
-    for p in write_equations(mech, args.format, out, args.symbolic_parameters, args.budget):
+    for p in write_equations(mech, args.format, out, args.symbolic_parameters, args.budget, [args.mechanism]):
         print(f"wrote {p}")
     return 0
 
@@ -148,20 +148,26 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
 
 
 def write_equations(
-    mech, fmt: str, out: Path, symbolic_parameters: bool = False, budget: float = DEFAULT_BUDGET
+    mech,
+    fmt: str,
+    out: Path,
+    symbolic_parameters: bool = False,
+    budget: float = DEFAULT_BUDGET,
+    inputs: list[str] | tuple = (),
 ) -> list[Path]:
-    """Render, then write every file atomically (all are rendered before the first is written)."""
+    """Render, then write every file atomically (all are rendered before the first is written) by
+    the one writer (bench/output/files.py: never through a link, never over one of ``inputs``)."""
     from contextlib import ExitStack
 
-    from exo_bench.bench.output.provenance import atomic_path
+    from exo_bench.bench.output.files import replace_atomically, write_all
 
     files = render(mech, fmt, symbolic_parameters, budget)
     out = Path(out)
     paths = []
     with ExitStack() as stack:  # every file renamed into place only when all were written
         for name, text in files.items():
-            tmp = stack.enter_context(atomic_path(out / name))
-            tmp.write_text(text)
+            _, fd = stack.enter_context(replace_atomically(out / name, inputs=inputs))
+            write_all(fd, text)
             paths.append(out / name)
     return paths
 

@@ -7,7 +7,6 @@ usable memory, :func:`exo_bench.models.memory.usable_memory`), is refused in one
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from exo_bench.bench.cli.arguments import size_arg
@@ -20,7 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "with MuJoCo (extra [peers])",
     )
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
-    s.add_argument("-o", "--output", help="the .xml file to write (default: stdout)")
+    s.add_argument("-o", "--output", help="the .xml file to write (default, or -: stdout)")
     s.add_argument(
         "--no-check", action="store_true", help="write it without compiling it in MuJoCo (MuJoCo not needed)"
     )
@@ -40,13 +39,15 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
     from exo_bench.models.loading import load_mechanism
     from exo_bench.models.mjcf import to_mjcf
 
+    from exo_bench.bench.output.files import STDOUT, checked_output, stream_of, write_output
+
+    out = STDOUT if args.output is None else args.output
     mech = load_mechanism(args.mechanism)
-    if args.output:
-        from exo_bench.bench.output.files import output_target
+    checked_output(out, "mjcf -o", [args.mechanism])  # never a link, a FIFO, its input (bench/output/files.py)
+    if stream_of(out) is None:
         from exo_bench.bench.output.provenance import writable_folder
 
-        output_target(args.output, "mjcf -o")  # never a FIFO, a device, a socket (bench/output/files.py)
-        writable_folder(Path(args.output).resolve().parent, "-o")
+        writable_folder(Path(out).resolve().parent, "-o")
     if not args.no_check:
         from exo_bench.models.mjcf import check_nesting
 
@@ -57,12 +58,7 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
         from exo_bench.models.mujoco_backend import compile_mjcf
 
         compile_mjcf(text, f"MJCF of {mech.name!r}")  # ValueError: MuJoCo missing, or refusing the file
-    if args.output:
-        from exo_bench.bench.output.provenance import atomic_write
-
-        atomic_write(args.output, text)
-    else:
-        sys.stdout.write(text)
+    write_output(out, text, "mjcf -o", [args.mechanism])
     return 0
 
 

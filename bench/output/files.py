@@ -1,10 +1,15 @@
-"""What every command may write over, and which name a narrower run writes under.
+"""What every command may write over, how it writes, and which name a narrower run writes under.
 
-* :func:`output_target`: the one check behind every file the suite writes (``-o``, ``--reports``,
-  the main job's publishing; :func:`exo_bench.bench.output.provenance.atomic_path` calls it). A file is written only
-  where there is nothing or a regular file. A FIFO, a device, a socket or a folder, or a symlink to
-  any of them or to nothing, is refused in one line (a ValueError, exit 2 from the CLI); a symlink
-  to a regular file is written through (the link stays, its file is replaced atomically).
+* :func:`write_output` / :func:`replace_atomically`: the one writer behind every file the suite
+  writes (``-o``, ``--reports``, the main job's publishing: :func:`move_into`;
+  :func:`exo_bench.bench.output.provenance.atomic_write` and ``atomic_path`` call it). A file is
+  written only where there is nothing or a regular file (:func:`output_target`): a symlink (to
+  anything), a FIFO, a device, a socket or a folder is refused in one line (a ValueError, exit 2
+  from the CLI), and so is the command's own input. The write goes to a new temporary file in the
+  same folder (``O_EXCL | O_NOFOLLOW``, relative to the folder's descriptor), renamed over the name:
+  never through a link planted there, never half-written; a replaced file keeps its mode, and every
+  OSError names the file. ``-o -``, and a path that is this process's stdout (``/dev/stdout`` into a
+  log), are written as a stream (:func:`stream_of`), never replaced.
 * :func:`narrower_names`: "a narrower run never overwrites a wider one", for every report. The
   benchmark reports started it (``bench.bench_reports.report_names``): when a report in the folder
   comes from a ``--full`` run (its entry in ``runs.json``, or its own provenance line), a quick run
@@ -18,6 +23,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 
@@ -36,15 +42,20 @@ def kind_of(mode: int) -> str:
     return "not a regular file"
 
 
-def output_target(path: str | Path, label: str = "") -> Path:
-    """The path to write for ``path``: ``path`` itself when nothing or a regular file is there, the
-    file a symlink points to when that is a regular file (or nothing under an existing folder is
-    refused: a dangling link); otherwise one ValueError line naming what is there. ``label``
-    prefixes the message (``"urdf -o"``)."""
+def output_target(path: str | Path, label: str = "", inputs=()) -> Path:
+    """``path`` itself when it may be written: nothing is there, or a regular file that is not one
+    of the command's ``inputs`` (paths it reads; a preset name is skipped). Otherwise one ValueError
+    line naming it: an empty path, a trailing slash (a folder), a folder, a FIFO, a device, a
+    socket, and ANY symlink, whatever it points to (a write never follows a link planted where a
+    file goes). ``label`` prefixes the message (``"urdf -o"``)."""
     text = str(path)
     who = f"{label} {text!r}" if label else text
+    if not text:
+        raise ValueError(f"{label or 'output'}: expected a file to write, got an empty path")
     if "\0" in text:
         raise ValueError(f"{who}: expected a file to write, got a path with a NUL character")
+    if text.endswith("/"):
+        raise ValueError(f"{who}: names a folder (it ends with '/'); expected a file to write")
     p = Path(text)
     try:
         lst = os.lstat(p)
@@ -55,29 +66,198 @@ def output_target(path: str | Path, label: str = "") -> Path:
             return p
         raise ValueError(f"{who}: not a usable path to write ({e.strerror or e})") from None
     if stat.S_ISLNK(lst.st_mode):
-        target = os.path.realpath(p)
-        try:
-            st = os.stat(p)
-        except FileNotFoundError:
-            raise ValueError(
-                f"{who}: is a symlink to {target!r}, which does not exist; refusing to write "
-                "through a dangling link (remove it or point it at a file)"
-            ) from None
-        except OSError as e:
-            raise ValueError(f"{who}: is a symlink that cannot be followed ({e.strerror or e})") from None
-        if stat.S_ISREG(st.st_mode):
-            return Path(target)
-        if stat.S_ISDIR(st.st_mode):
-            raise ValueError(f"{text}: expected a file to write, got a folder")
-        raise ValueError(
-            f"{who}: is a symlink to {target!r}, which is {kind_of(st.st_mode)}; only a regular "
-            "file or nothing is ever replaced"
-        )
-    if stat.S_ISREG(lst.st_mode):
-        return p
+        raise ValueError(_link_refusal(p, who))
     if stat.S_ISDIR(lst.st_mode):
         raise ValueError(f"{text}: expected a file to write, got a folder")
-    raise ValueError(f"{who}: is {kind_of(lst.st_mode)}; only a regular file or nothing is ever replaced")
+    if not stat.S_ISREG(lst.st_mode):
+        raise ValueError(f"{who}: is {kind_of(lst.st_mode)}; only a regular file or nothing is ever replaced")
+    for source in inputs:
+        try:
+            same = os.path.samefile(source, p)
+        except (OSError, ValueError, TypeError):  # a preset name, a missing file
+            continue
+        if same:
+            raise ValueError(
+                f"{who}: is the file this command reads ({str(source)!r}); refusing to overwrite its own input"
+            )
+    return p
+
+
+def _link_refusal(p: Path, who: str) -> str:
+    """The one line refusing the symlink ``p``: what it points to, and that it is never followed."""
+    target = os.path.realpath(p)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return (
+            f"{who}: is a symlink to {target!r}, which does not exist; refusing to write through a dangling "
+            "link (remove it or point it at a file)"
+        )
+    except OSError as e:
+        return f"{who}: is a symlink that cannot be followed ({e.strerror or e}); refusing to write through it"
+    what = "a folder" if stat.S_ISDIR(st.st_mode) else kind_of(st.st_mode)
+    if stat.S_ISREG(st.st_mode):
+        return (
+            f"{who}: is a symlink to {target!r}; a write never follows a link where a file goes "
+            "(remove the link, or name the file itself)"
+        )
+    return f"{who}: is a symlink to {target!r}, which is {what}; only a regular file or nothing is ever replaced"
+
+
+# ------------------------------------------------------------------------------ the one writer
+#: ``-o -``: the command's stdout.
+STDOUT = "-"
+
+
+def stream_of(path: str | Path):
+    """The text stream ``path`` means, or None for a file: ``-`` is stdout; a path that is this
+    process's stdout or stderr (``/dev/stdout``, ``/proc/self/fd/1``, the log file stdout is
+    appended to) is that stream, written as a stream and never replaced."""
+    import sys
+
+    text = str(path)
+    if text == STDOUT:
+        return sys.stdout
+    if not text or "\0" in text:
+        return None
+    try:
+        st = os.stat(text)
+    except (OSError, ValueError):
+        return None
+    for fd, stream in ((1, sys.stdout), (2, sys.stderr)):
+        try:
+            own = os.fstat(fd)
+        except OSError:
+            continue
+        if (own.st_dev, own.st_ino) == (st.st_dev, st.st_ino):
+            return stream
+    return None
+
+
+def write_output(path: str | Path, data: str | bytes, label: str = "", inputs=()) -> Path | None:
+    """The one writer of the command line: ``data`` to ``path`` atomically (:func:`replace_atomically`),
+    or to the stream ``path`` means (:func:`stream_of`: stdout, written and flushed, None returned)."""
+    stream = stream_of(path)
+    if stream is not None:
+        if isinstance(data, bytes):
+            stream.flush()
+            stream.buffer.write(data)
+        else:
+            stream.write(data)
+        stream.flush()
+        return None
+    with replace_atomically(path, label, inputs) as (_, fd):
+        write_all(fd, data)
+    return Path(path)
+
+
+def write_all(fd: int, data: str | bytes) -> None:
+    """All of ``data`` (text as UTF-8) to the descriptor ``fd``."""
+    view = memoryview(data.encode() if isinstance(data, str) else data)
+    while view:
+        view = view[os.write(fd, view) :]
+
+
+def checked_output(path: str | Path, label: str = "", inputs=()) -> None:
+    """Before any work: refuse in one line what :func:`write_output` would refuse (a stream is fine)."""
+    if stream_of(path) is None:
+        output_target(path, label, inputs)
+
+
+def _default_mode() -> int:
+    """0666 less the umask (read from /proc where it can be, without changing it)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def _named(e: OSError, path: Path) -> OSError:
+    """``e`` naming ``path`` (the file being written), not a temporary or nothing."""
+    return OSError(e.errno, e.strerror or str(e), str(path))
+
+
+@contextmanager
+def replace_atomically(path: str | Path, label: str = "", inputs=()):
+    """Yield ``(temporary path, its open descriptor)`` beside ``path``; on success the temporary
+    is renamed over ``path``, on any error or Ctrl-C removed (never a half-written file).
+
+    Safe in an output folder others may write: the folder is opened once and every step is taken
+    relative to it; the temporary is created new (``O_EXCL | O_NOFOLLOW``), the name is checked
+    again just before the rename (never a symlink: :func:`output_target`), and ``rename`` replaces
+    a name, never what a link there points to. A replaced file keeps its mode; a new one gets
+    0666 less the umask. Every OSError names ``path``."""
+    import secrets
+
+    p = output_target(path, label, inputs)
+    parent = p.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ValueError(f"{p}: cannot make its folder {str(parent)!r}: {e.strerror or e}") from None
+    try:
+        dfd = os.open(parent, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    except OSError as e:
+        raise _named(e, p) from None
+    fd, tmp = -1, ""
+    try:
+        try:
+            old = os.lstat(p.name, dir_fd=dfd)
+            mode = stat.S_IMODE(old.st_mode) if stat.S_ISREG(old.st_mode) else _default_mode()
+        except FileNotFoundError:
+            mode = _default_mode()
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+        for _ in range(100):
+            tmp = f".{p.name[:200]}.{secrets.token_hex(4)}.tmp"
+            try:
+                fd = os.open(tmp, flags, 0o600, dir_fd=dfd)
+                break
+            except FileExistsError:
+                continue
+        else:
+            raise OSError(errno.EEXIST, "cannot create a temporary file beside it", str(p))
+        try:
+            yield parent / tmp, fd
+            os.fchmod(fd, mode)
+        except OSError as e:
+            raise _named(e, p) from None
+        output_target(p, label)  # a link planted while the file was written is refused too
+        try:
+            os.replace(tmp, p.name, src_dir_fd=dfd, dst_dir_fd=dfd)
+        except OSError as e:
+            raise _named(e, p) from None
+        tmp = ""
+    finally:
+        if fd >= 0:
+            os.close(fd)
+        if tmp:
+            with suppress(OSError):
+                os.unlink(tmp, dir_fd=dfd)
+        os.close(dfd)
+
+
+def move_into(source: Path, target: Path) -> Path:
+    """Rename the finished file ``source`` (in the same file system) over ``target``, refusing
+    what :func:`output_target` refuses and keeping a replaced file's mode (the publisher's step)."""
+    target = output_target(target)
+    try:
+        old = os.lstat(target)
+        os.chmod(source, stat.S_IMODE(old.st_mode))
+    except FileNotFoundError:
+        pass
+    except OSError as e:
+        raise _named(e, target) from None
+    try:
+        os.replace(source, target)
+    except OSError as e:
+        raise _named(e, target) from None
+    return target
 
 
 # ------------------------------------------------------------------------------ narrower never overwrites wider

@@ -14,7 +14,6 @@ import os
 import platform
 import subprocess
 import sys
-import tempfile
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -30,34 +29,24 @@ REPORTS = Path("reports")
 @contextmanager
 def atomic_path(path: str | Path):
     """Yield a temporary path beside ``path`` for a writer that needs a file name (a rerun file
-    sink, a PNG renderer); on success it is renamed into place with ordinary permissions, on any
-    error or Ctrl-C it is removed, so that no half-written file is ever left."""
-    from exo_bench.bench.output.files import output_target
+    sink, a PNG renderer); on success it is renamed into place, on any error or Ctrl-C it is
+    removed, so that no half-written file is ever left. The one writer's rules hold
+    (:func:`exo_bench.bench.output.files.replace_atomically`): never through a symlink, a replaced
+    file keeps its mode, every error names ``path``."""
+    from exo_bench.bench.output.files import replace_atomically
 
-    path = output_target(path)  # nothing or a regular file, never a FIFO, a device, a socket
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ValueError(f"{path}: cannot make its folder {str(path.parent)!r}: {e.strerror or e}") from None
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; reports are ordinary files
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with replace_atomically(path) as (tmp, _):
+        yield tmp
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> Path:
     """Write to a temporary file beside ``path`` and rename it into place, so that an
-    error or Ctrl-C never leaves a half-written report."""
-    with atomic_path(path) as tmp:
-        if isinstance(data, bytes):
-            tmp.write_bytes(data)
-        else:
-            tmp.write_text(data)
+    error or Ctrl-C never leaves a half-written report (:func:`exo_bench.bench.output.files.write_output`'s
+    rules, without its streams: ``path`` is always a file)."""
+    from exo_bench.bench.output.files import replace_atomically, write_all
+
+    with replace_atomically(path) as (_, fd):
+        write_all(fd, data)
     return Path(path)
 
 
@@ -141,12 +130,6 @@ def run_id_of(path: str | Path) -> str | None:
     return None
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def _version(pkg: str) -> str:
     try:
         return metadata.version(pkg)
@@ -222,6 +205,8 @@ def writable_folder(value, label: str) -> Path:
     text = str(value)
     if not text.strip():
         raise ValueError(f"{label}: expected a folder, got an empty path")
+    if text == "-":
+        raise ValueError(f"{label} '-': expected a folder; stdout cannot take the several files this command writes")
     if "\0" in text:
         raise ValueError(f"{label} {text!r}: expected a folder, got a path with a NUL character")
     p = Path(text)

@@ -23,7 +23,6 @@ write ``runs.json`` and ``summary.md`` and move their files in
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import signal
 import sys
@@ -55,16 +54,11 @@ def staging_dir(out: Path) -> Iterator[Path]:
 def publish(files: list[Path], out: Path) -> list[Path]:
     """Move finished files from staging into ``out`` (an atomic rename each); each target is
     checked first (nothing but a regular file is ever replaced: bench/output/files.py)."""
-    from exo_bench.bench.output.files import output_target
+    from exo_bench.bench.output.files import move_into, output_target
 
     for f in files:
         output_target(out / f.name)
-    done = []
-    for f in files:
-        target = out / f.name
-        os.replace(f, target)
-        done.append(target)
-    return done
+    return [move_into(f, out / f.name) for f in files]  # never through a link; a replaced file keeps its mode
 
 
 SUMMARY_HEADER = ("| scene | method | largest error | us/sample | power balance |", "|---|---|---|---|---|")
