@@ -3,9 +3,13 @@
 Shipped scenes live in ``bench/studies/scenes/*.toml``; users pass their own file to ``exo-bench run``.
 Format (every key is checked; an error names the file and the field)::
 
+    name = "my-gait"                      # optional; the file's stem by default. It names the scene's
+                                          # reports (models/names.py file_stem), so it is refused when
+                                          # models/names.py check_name refuses it, and by exo-bench run
+                                          # when it is a suite report's name or another scene's of the run
     description = "the five-link exoskeleton along the gait of eq. (26)"
     mechanism = "exo5-3d"                 # a preset, or a JSON file relative to the scene file
-    methods = ["pinocchio", "matrix", "recurrence"]
+    methods = ["pinocchio", "matrix", "recurrence"]   # each at most once (so are the outputs)
     reference = "pinocchio"               # optional; the first method by default
     outputs = ["table", "reference-error", "moments", "forces", "kinogram", "differences", "overview",
                "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/cli/equations.py)
