@@ -97,7 +97,8 @@ def c_comment(value: str) -> str:
     """``value`` as text inside a C block comment: ``\\`` doubled, and ``*/`` (the comment's end),
     ``/*`` (gcc's -Wcomment) and ``??`` (a trigraph, read in C99) broken by a backslash."""
     text = value.replace("\\", "\\\\")
-    return text.replace("*/", "*\\/").replace("/*", "/\\*").replace("??", "?\\?")
+    text = text.replace("*/", "*\\/").replace("/*", "/\\*")
+    return re.sub(r"\?(?=\?)", r"?\\", text)  # "???/" -> "?\?\?/": no two "?" in a row
 
 
 #: The headers of the C standard library (C99 to C23): no generated header takes one of their names.

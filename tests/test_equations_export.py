@@ -95,7 +95,7 @@ print(sorted(m.split(".")[0] for m in sys.modules if not m.startswith("_"))[:0],
 
 def _run_python_module(tmp_path, mech, symbolic, q, qd, qdd):
     es = export_code.equation_set(mech, symbolic)
-    name = export_code.c_identifier(mech.name)
+    name = export_code.module_name(es)  # never a standard module's name, nor numpy's
     (tmp_path / f"{name}.py").write_text(export_code.python_module(es, exo_bench.__version__))
     (tmp_path / "run.py").write_text(RUNNER)
     arrays = {"q": q, "qd": qd, "qdd": qdd}

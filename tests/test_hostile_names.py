@@ -41,7 +41,7 @@ from exo_bench.models.urdf import to_urdf
 
 PIECES = [
     *'<>&"\'-\\{}$%#^_~|*/?`[]()!;:=@.,+',
-    "--", "-->", "<!--", "*/", "/*", "??/", '"""', "'''", "]]>", "&amp;", "&#x41;", "$$", "```", "\\\\",
+    "--", "-->", "<!--", "*/", "/*", "??/", "???/", "*/*", '"""', "'''", "]]>", "&amp;", "&#x41;", "$$", "```", "\\\\",
     "\\input{/etc/hostname}", "\\immediate\\write18{id}", '--><include file="/etc/passwd"/><!--',
     '<body name="X"><inertial pos="0 0 0" mass="50" diaginertia="1 1 1"/></body>', "</robot>",
     "numpy", "math", "os", "sys", "stdio", "import", "int", "#include <stdlib.h>", "__init__", "x",

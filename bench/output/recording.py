@@ -102,6 +102,8 @@ def _lighter(color: str, k: int) -> tuple[int, int, int]:
 
 # ----------------------------------------------------------------------------- description
 def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
+    from exo_bench.models.encoders import markdown_code, markdown_text
+
     mech = study.mechanism
     ok = study.ok_methods()
     ref = reference_method(study)
@@ -110,7 +112,8 @@ def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
     lines = [
         f"# {study.name}: {study.motion_label}",
         "",
-        f"Model `{mech.name}`: {mech.dim}D, {mech.nlinks} links ({', '.join(mech.names)}), "
+        f"Model {markdown_code(mech.name)}: {mech.dim}D, {mech.nlinks} links "
+        f"({', '.join(markdown_text(n) for n in mech.names)}), "
         f"total mass {mech.total_mass:.4g} kg. {study.motion.t.shape[0]} samples over "
         f"{study.motion.t[-1] - study.motion.t[0]:.4g} s on the timeline `{TIMELINE}`.",
     ]

@@ -16,6 +16,7 @@ import numpy as np
 from exo_bench.bench.output.provenance import atomic_write, provenance
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
+from exo_bench.models.encoders import markdown_code
 from exo_bench.models.names import file_stem
 
 
@@ -101,7 +102,7 @@ def _scene_table(o: SceneOutcome) -> str:
         "",
         sc.description,
         "",
-        f"- **mechanism**: `{mech.name}`, {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)}, "
+        f"- **mechanism**: {markdown_code(mech.name)}, {mech.dim}D, {mech.nlinks} link(s), parents {list(mech.parent)}, "
         f"signs {list(mech.sign)}, total mass {mech.total_mass:.4g} kg",
         f"- **motion**: {sc.motion_label()}",
         f"- **methods**: {', '.join(sc.methods)}; agreement is measured against `{sc.reference}`",
