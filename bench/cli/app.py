@@ -64,10 +64,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _terminate(signum, frame):
-    raise KeyboardInterrupt  # so that staging folders are removed on SIGTERM as on Ctrl-C
-
-
 #: The exit code when stdout's reader went away, as a shell reports a process ended by SIGPIPE (128 + 13).
 BROKEN_PIPE = 141
 
@@ -141,18 +137,14 @@ def _available() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import signal
+    """Run one command; SIGTERM ends it as Ctrl-C does (staging folders removed, exit 130), and an
+    interrupt swallowed where it landed still ends it so (:mod:`exo_bench.bench.output.interrupts`)."""
     import warnings
 
-    try:
-        previous = signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread (main() called from a thread): Ctrl-C handling only
-        previous = None
-    try:
+    from exo_bench.bench.output import interrupts
+
+    with interrupts.installed():  # outside the main thread: Python's own Ctrl-C handling only
         return _main(argv, warnings)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
 
 
 def _main(argv, warnings) -> int:
@@ -160,7 +152,7 @@ def _main(argv, warnings) -> int:
         warnings.showwarning = _show_warning  # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
-            rc = int(args.func(args) or 0)
+            rc = _run(args)
             sys.stdout.flush()  # a reader gone (| head) shows here, not after main returned 0
             return rc
         except _UsageError as e:
@@ -190,6 +182,20 @@ def _main(argv, warnings) -> int:
                     f"exo-bench: internal error: {type(e).__name__}: {_one_line(e)} (please report it)", file=sys.stderr
                 )
             return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command's exit code; a signal received meanwhile, even one swallowed where it landed (a
+    garbage-collection callback, a finaliser, a solver that polls for Ctrl-C), ends it as interrupted."""
+    from exo_bench.bench.output.interrupts import check
+
+    try:
+        code = int(args.func(args) or 0)
+    except Exception:
+        check()  # the interrupt, not what it caused, is what ended the command
+        raise
+    check()
+    return code
 
 
 def _silence_stdout() -> None:

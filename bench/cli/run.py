@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from exo_bench.bench.cli.arguments import reports_folder, size_arg
+from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import new_run_id, set_run_id
 from exo_bench.bench.output.publish import publish_run, staging_dir
 from exo_bench.bench.output.reports_lock import check_lock_file
@@ -148,6 +149,7 @@ def run_main_job(options: RunOptions) -> int:
     ):
         task = progress.add_task("scenes", total=len(scenes) + len(jobs))
         for sc in scenes:
+            check_interrupt()  # a signal swallowed where it landed (a finaliser) still stops the run
             progress.update(task, description=f"scene {sc.name}")
             staged = {f.name for f in staging.iterdir()}
             try:
@@ -160,6 +162,7 @@ def run_main_job(options: RunOptions) -> int:
             outcomes.append(o)
             progress.advance(task)
         for label, fn in jobs:
+            check_interrupt()
             progress.update(task, description=label)
             try:
                 with redirect_stdout(_StagingPaths(sys.stdout, staging, out)):
@@ -167,6 +170,7 @@ def run_main_job(options: RunOptions) -> int:
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
                 job_errors.append(f"{label} failed: {one_line(e)}")
             progress.advance(task)
+        check_interrupt()  # nothing is published after a signal
         if jobs or any(not o.error for o in outcomes):  # nothing ran: the folder is left exactly as it was
             rows = {o.scene.name: scene_rows(o) for o in outcomes}
             written = publish_run(  # under the folder's lock: concurrent runs publish in turn, losing nothing

@@ -39,6 +39,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.models.mechanism import Mechanism
 
 DEG = math.pi / 180
@@ -320,6 +321,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     seconds = time.perf_counter() - t_start
     st = opti.stats()
     if not ok:
+        check_interrupt()  # IPOPT stopped by Ctrl-C or SIGTERM: interrupted, not "did not solve"
         raise RuntimeError(
             f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
             f"{st.get('iter_count')} iterations ({seconds:.1f} s)"

@@ -1,0 +1,82 @@
+"""SIGINT and SIGTERM while a command runs: every interrupt is reported, none is lost.
+
+The command line installs one :class:`Interrupts` handler for both signals (:func:`installed`). It
+records the signal, then raises ``KeyboardInterrupt`` as Python's own Ctrl-C handler does, so that
+the work stops where it is and the staging folder is removed. Python cannot propagate an exception
+raised inside a garbage-collection callback, a finaliser (``__del__``) or a weakref callback: it
+prints "Exception ignored in ..." and goes on, so a signal that landed there was lost and the run
+finished with exit 0 (issue 34, T1); a solver that polls for Ctrl-C (CasADi's IPOPT) turns it into
+its own failure ("IPOPT did not solve", U3). The record survives both: :func:`check` raises
+``KeyboardInterrupt`` again at the commands' safe points (before each scene and before publishing,
+after each sweep row, after a failed solve, and when the command returns), so the command ends as
+interrupted (exit 130) and nothing is published after the signal. While installed, the unraisable
+hook keeps Python's report of the swallowed ``KeyboardInterrupt`` off stderr: the command's one line
+says "interrupted".
+
+The record is the handler object itself (``signal.getsignal``), so nothing module-level changes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sys
+from collections.abc import Iterator
+from types import FrameType
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupts:
+    """The handler of SIGINT and SIGTERM while a command runs: records the signal, then raises
+    ``KeyboardInterrupt`` (module docstring)."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def __call__(self, signum: int, frame: FrameType | None) -> None:
+        self.signum = signum
+        raise KeyboardInterrupt
+
+
+def pending() -> int | None:
+    """The signal an installed :class:`Interrupts` received (None: none, or none installed)."""
+    for s in SIGNALS:
+        h = signal.getsignal(s)
+        if isinstance(h, Interrupts) and h.signum is not None:
+            return h.signum
+    return None
+
+
+def check() -> None:
+    """A safe point: raise ``KeyboardInterrupt`` if a signal was received, even one whose own
+    ``KeyboardInterrupt`` was swallowed where it landed."""
+    if pending() is not None:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def installed() -> Iterator[Interrupts | None]:
+    """One :class:`Interrupts` for SIGINT and SIGTERM, and the unraisable hook that keeps a swallowed
+    interrupt's report off stderr; the previous handlers and hook are put back on exit. Outside the
+    main thread (where handlers cannot be set) nothing is installed and None is yielded."""
+    handler = Interrupts()
+    try:
+        previous = {s: signal.signal(s, handler) for s in SIGNALS}
+    except ValueError:  # not the main thread
+        yield None
+        return
+    hook = sys.unraisablehook
+
+    def quiet(unraisable) -> None:
+        if handler.signum is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            return  # reported as "interrupted" at the next safe point
+        hook(unraisable)
+
+    sys.unraisablehook = quiet
+    try:
+        yield handler
+    finally:
+        sys.unraisablehook = hook
+        for s, h in previous.items():
+            signal.signal(s, signal.SIG_DFL if h is None else h)  # None: a handler set from C
