@@ -145,6 +145,16 @@ def test_a_scene_named_like_another_scenes_pages_is_refused(tmp_path, no_work, n
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.case("D4")
+def test_one_scene_named_twice_on_the_command_line_is_refused(tmp_path, no_work):
+    """A scene named twice in one run (one file, or a shipped name twice) is refused before any
+    work, in one line saying so."""
+    with pytest.raises(ValueError, match="named twice in this run"):
+        _run(tmp_path / "rep", _scene(tmp_path, "x", file="x.toml"), tmp_path / "x.toml")
+    with pytest.raises(ValueError, match="exo5-2d.toml: named twice in this run"):
+        runner.run_main_job(RunOptions(scenes=("exo5-2d", "exo5-2d"), reports=str(tmp_path / "rep")))
+
+
 SPOOFING = [" ", "a\u202eb", "a\u0085b", "a\u2028b", "\u200bexo5-3d", "x\u2066y", "tab\tname", " lead", "trail "]
 
 

@@ -220,6 +220,8 @@ def check_scene_files(scenes: list[Scene]) -> None:
         for f in [f"{stem}.md", *scene_files(sc)]:  # its summary rows and page go by its name, output or not
             other = taken.get(f.casefold())
             if other is not None and other is not sc:
+                if Path(other.path).resolve() == Path(sc.path).resolve():
+                    raise ValueError(f"{sc.path}: named twice in this run; expected each scene once")
                 raise ValueError(
                     f"{what} of its own in this run, got {sc.name!r}, which writes {f} as scene {other.name!r} "
                     f"({other.path}) does (file names compared as written, ignoring case)"
