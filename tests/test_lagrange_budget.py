@@ -150,7 +150,7 @@ def test_outside_the_main_thread_the_budget_is_checked_cooperatively():
     assert caught and "n=10" in caught[0].skip_reason and "dim=2" in caught[0].skip_reason
     assert handlers == [before] and signal.getitimer(signal.ITIMER_REAL)[0] == 0
     assert not _cached(m)
-    with time_budget(5.0, "main", 1, 1) as dl:  # the main thread still reads the real clock
+    with time_budget(600.0, "main", 1, 1) as dl:  # the main thread still reads the real clock
         assert dl.clock is __import__("time").perf_counter
 
 
@@ -171,7 +171,7 @@ def test_an_injected_clock_arms_no_alarm_and_decides_alone():
 
 def test_the_alarm_is_handed_back_after_a_budget():
     before = signal.getsignal(signal.SIGALRM)
-    with time_budget(5.0, "work", 1, 2):
+    with time_budget(600.0, "work", 1, 2):  # never reached: the body is instant
         assert signal.getitimer(signal.ITIMER_REAL)[0] > 0
         assert signal.getsignal(signal.SIGALRM) is not before
     assert signal.getsignal(signal.SIGALRM) is before
