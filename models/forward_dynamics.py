@@ -34,20 +34,24 @@ and is therefore re-evaluated after every accepted step (:mod:`exo_bench.models.
 
 from __future__ import annotations
 
-import math
-import time
-import traceback
-from array import array
-from dataclasses import dataclass, field
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from exo_bench.models.implicit_integrators import CURRENT_JACOBIAN
 from exo_bench.models.mechanism import Mechanism, as_states, split
 from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
+
+if TYPE_CHECKING:  # what type checkers see; at run time these load on first use (__getattr__ below)
+    from exo_bench.models.simulate import (  # noqa: F401 - re-exported
+        IntegrationBudgetExceeded,
+        Simulation,
+        make_jacobian,
+        make_rhs,
+        simulate,
+    )
+    from exo_bench.models.simulate_arguments import DEFAULT_MAX_EVALUATIONS, JACOBIANS, RTOL_FLOOR  # noqa: F401
 
 #: The explicit and implicit integrators of ``scipy.integrate.solve_ivp`` that the suite uses.
 EXPLICIT = ("RK45", "DOP853")
@@ -180,240 +184,23 @@ def spring_energy(mech: Mechanism, q: np.ndarray, k, l_rest) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- integration
-class IntegrationBudgetExceeded(Exception):
-    """The right-hand side was evaluated more often, or for longer, than allowed."""
-
-    def __init__(self, reason: str):
-        self.skip_reason = reason
-        super().__init__(reason)
-
-
-@dataclass
-class Simulation:
-    """The outcome of :func:`simulate`: the accepted steps and what they cost."""
-
-    integrator: str
-    rtol: float
-    atol: float
-    t: np.ndarray  # (N,) accepted step times, t[0] the start
-    y: np.ndarray  # (N, 2 dof) states [q, qd] at those times
-    nfev: int = 0  # right-hand-side evaluations (columns, for vectorised calls)
-    njev: int = 0
-    nlu: int = 0
-    seconds: float = 0.0
-    status: str = "ok"  # "ok", "budget exceeded: ...", "failed: ..."
-    t_reached: float = math.nan  # the latest time the right-hand side was evaluated at
-    outside: int = 0  # trial stages outside the domain (l < 0): NaN, step rejected
-    solution: Callable[[Any], np.ndarray] | None = field(
-        default=None, repr=False
-    )  # dense output (scipy OdeSolution) when asked for
-    jacobian: str = "finite-difference"  # of the implicit integrators: "finite-difference" (scipy's) or "analytic"
-    jacobian_columns: int = 0  # of nfev, the columns spent on scipy's finite-difference Jacobians
-    # implicit integrators: the times at which the Jacobian was evaluated (in order), and of every single-column
-    # right-hand-side call (stages, Newton iterations, step ends; what the stability report's Jacobian
-    # comparison explains its counts with)
-    jacobian_times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
-    call_times: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-    @property
-    def steps(self) -> int:
-        return max(len(self.t) - 1, 0)
-
-    def q(self, dof: int) -> np.ndarray:
-        return self.y[:, :dof]
-
-    def qd(self, dof: int) -> np.ndarray:
-        return self.y[:, dof:]
+#: :func:`simulate` and its parts live in :mod:`exo_bench.models.simulate` (arguments checked in
+#: :mod:`exo_bench.models.simulate_arguments`); importable from here as before, loaded on first use.
+_SIMULATE_NAMES = {
+    "DEFAULT_MAX_EVALUATIONS": "exo_bench.models.simulate_arguments",
+    "JACOBIANS": "exo_bench.models.simulate_arguments",
+    "RTOL_FLOOR": "exo_bench.models.simulate_arguments",
+    "IntegrationBudgetExceeded": "exo_bench.models.simulate",
+    "Simulation": "exo_bench.models.simulate",
+    "make_jacobian": "exo_bench.models.simulate",
+    "make_rhs": "exo_bench.models.simulate",
+    "simulate": "exo_bench.models.simulate",
+}
 
 
-def make_rhs(
-    model: PreparedModel,
-    controls: Controls,
-    max_evaluations: int | None = None,
-    max_seconds: float | None = None,
-    record_times: bool = False,
-):
-    """The vectorised right-hand side ``f(t, y)`` of ``y = [q, qd]``, ``y`` of shape ``(2 dof,)`` or
-    ``(2 dof, k)``, and a counter dict (``columns`` evaluated, stages ``rejected`` as outside the
-    domain, the latest ``t`` reached; with ``record_times`` the ``times`` of the single-column calls and
-    the ``jacobian_times`` of the multi-column ones, scipy's finite-difference Jacobians). Over budget it raises
-    :class:`IntegrationBudgetExceeded`."""
-    mech = model.mechanism
-    d = mech.dof
-    count = {
-        "columns": 0,
-        "jacobian_columns": 0,
-        "rejected": 0,
-        "t": -math.inf,
-        "start": time.perf_counter(),
-        "times": array("d"),
-        "jacobian_times": array("d"),
-    }
+def __getattr__(name: str) -> Any:
+    if name not in _SIMULATE_NAMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
 
-    def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        Y = y.reshape(2 * d, -1).T  # (k, 2d): one row per column of y
-        count["columns"] += Y.shape[0]
-        if Y.shape[0] > 1:  # only scipy's finite-difference Jacobian asks for several
-            count["jacobian_columns"] += Y.shape[0]
-            if record_times:
-                count["jacobian_times"].append(t)
-        elif record_times:
-            count["times"].append(t)
-        if max_evaluations is not None and count["columns"] > max_evaluations:
-            raise IntegrationBudgetExceeded(
-                f"gave up after {max_evaluations} right-hand-side evaluations (t = {t:.4g} s)"
-            )
-        if max_seconds is not None and time.perf_counter() - count["start"] > max_seconds:
-            raise IntegrationBudgetExceeded(
-                f"gave up after {max_seconds:g} s of wall time ({count['columns']} evaluations, t = {t:.4g} s)"
-            )
-        count["t"] = max(count["t"], t)
-        q, qd = np.ascontiguousarray(Y[:, :d]), np.ascontiguousarray(Y[:, d:])
-        # A trial stage of a too-long step can leave the domain (a rod length below zero, or not
-        # finite): its derivative is NaN, which makes scipy reject the step and shorten it. An
-        # integration that cannot get past such states ends with scipy's failure message.
-        valid = np.isfinite(Y).all(axis=1) & (split(mech, q)[2] >= 0).all(axis=1)
-        qdd = np.full_like(q, np.nan)
-        if valid.any():
-            qv, qdv = (q, qd) if valid.all() else (q[valid], qd[valid])
-            tau = controls(t, qv, qdv)
-            M, h = mass_matrix_and_bias(model, qv, qdv)
-            qdd[valid] = solve_mass_matrix(M, tau - h)
-        count["rejected"] += int((~valid).sum())
-        return np.concatenate([qd, qdd], axis=1).T.reshape(y.shape)
-
-    return rhs, count
-
-
-#: The Jacobians an implicit integrator can use: scipy's finite differences of the vectorised
-#: right-hand side (``2 dof`` columns per Jacobian), or the analytic one of :func:`make_jacobian`.
-JACOBIANS = ("finite-difference", "analytic")
-
-
-def make_jacobian(model: PreparedModel, controls: Controls):
-    """The analytic Jacobian ``df/dy`` of the right-hand side ``f = [qd, qdd]`` of :func:`make_rhs`:
-    ``[[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]]`` with the forward-dynamics
-    derivatives of ``model.derivatives`` (:mod:`exo_bench.matrix_method.derivatives`) and the controls' own
-    ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)`` (:func:`prescribed_controls` and
-    :func:`rod_spring_damper` have one). A ValueError when the controls have none, or when the
-    derivatives are not available (the optional extra ``casadi``)."""
-    jac_controls = getattr(controls, "jacobian", None)
-    if jac_controls is None:
-        raise ValueError(
-            "jacobian 'analytic': the controls have no jacobian(t, q, qd) -> (dtau/dq, dtau/dqd) "
-            "attribute; use jacobian='finite-difference'"
-        )
-    derivatives = model.derivatives
-    d = model.dof
-    eye = np.eye(d)
-
-    def jac(t: float, y: np.ndarray) -> np.ndarray:
-        q, qd = y[None, :d], y[None, d:]
-        tau = controls(t, q, qd)
-        _, aq, aqd, minv = derivatives.forward_dynamics(q, qd, np.ascontiguousarray(tau), check=False)
-        cq, cqd = jac_controls(t, q, qd)
-        J = np.zeros((2 * d, 2 * d))
-        J[:d, d:] = eye
-        J[d:, :d] = aq[0] + minv[0] @ cq[0]
-        J[d:, d:] = aqd[0] + minv[0] @ cqd[0]
-        return J
-
-    return jac
-
-
-def simulate(
-    model: PreparedModel,
-    q0,
-    qd0,
-    t_span: tuple[float, float],
-    controls: Controls,
-    integrator: str = "DOP853",
-    rtol: float = 1e-8,
-    atol: float | None = None,
-    max_evaluations: int | None = None,
-    max_seconds: float | None = None,
-    dense: bool = False,
-    first_step: float | None = None,
-    jacobian: str = "finite-difference",
-) -> Simulation:
-    """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
-
-    ``jacobian`` (implicit integrators): ``"finite-difference"`` (scipy's, from the vectorised
-    right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`, kept current:
-    re-evaluated after every accepted step, :mod:`exo_bench.models.implicit_integrators`).
-
-    ``atol`` defaults to ``rtol * 1e-3`` (a state component of 1e-3 rad or mm counts as small).
-    The initial state is validated and checked for a singular mass matrix (then
-    :class:`SingularConfigurationError`); a failure during the integration (the budget, an
-    invalid state such as a negative length, a scipy failure) is recorded in ``status``, with
-    the steps accepted so far.
-    """
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator: expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
-    if jacobian not in JACOBIANS:
-        raise ValueError(f"jacobian: expected one of {', '.join(JACOBIANS)}, got {jacobian!r}")
-    if jacobian == "analytic" and integrator not in IMPLICIT:
-        raise ValueError(
-            f"jacobian 'analytic': only the implicit integrators ({', '.join(IMPLICIT)}) use a "
-            f"Jacobian, got {integrator!r}"
-        )
-    from scipy.integrate import solve_ivp
-
-    mech = model.mechanism
-    q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")
-    reasons = singular_reasons(mech, q0)[0]
-    if reasons:
-        raise SingularConfigurationError(reasons)
-    atol = rtol * 1e-3 if atol is None else atol
-    rhs, count = make_rhs(model, controls, max_evaluations, max_seconds, record_times=integrator in IMPLICIT)
-    y0 = np.concatenate([q0[0], qd0[0]])
-    steps_t, steps_y = [t_span[0]], [y0]
-    t0 = time.perf_counter()
-    status, sol = "ok", None
-    kw = {} if first_step is None else {"first_step": first_step}
-    if jacobian == "analytic":
-        analytic_jac = make_jacobian(model, controls)
-
-        def jac(t: float, y: np.ndarray) -> np.ndarray:
-            count["jacobian_times"].append(t)
-            return analytic_jac(t, y)
-
-        kw["jac"] = jac
-    method = CURRENT_JACOBIAN[integrator] if jacobian == "analytic" else integrator
-    try:
-        r = solve_ivp(rhs, t_span, y0, method=method, rtol=rtol, atol=atol, vectorized=True, dense_output=dense, **kw)
-        steps_t, steps_y = list(r.t), list(r.y.T)
-        njev, nlu = int(r.njev), int(r.nlu)
-        sol = r.sol
-        if r.status != 0:
-            status = f"failed: {r.message}"
-    except IntegrationBudgetExceeded as e:
-        status, njev, nlu = f"budget exceeded: {e.skip_reason}", 0, 0
-    except Exception as e:  # noqa: BLE001 - a method over its budget or raising: record, do not crash
-        skip = getattr(e, "skip_reason", None)
-        status = f"skipped: {skip}" if skip else "failed: " + traceback.format_exception_only(type(e), e)[-1].strip()
-        njev, nlu = 0, 0
-    seconds = time.perf_counter() - t0
-    return Simulation(
-        integrator,
-        rtol,
-        atol,
-        np.asarray(steps_t),
-        np.asarray(steps_y),
-        count["columns"],
-        njev,
-        nlu,
-        seconds,
-        status,
-        float(count["t"]),
-        count["rejected"],
-        sol,
-        jacobian,
-        count["jacobian_columns"],
-        np.asarray(count["jacobian_times"]),
-        np.asarray(count["times"]),
-    )
+    return getattr(importlib.import_module(_SIMULATE_NAMES[name]), name)

@@ -166,7 +166,7 @@ def test_bad_jacobian_options():
     sim = lambda integ, j, ctrl=case.controls: fd.simulate(
         model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ, jacobian=j
     )
-    with pytest.raises(ValueError, match="jacobian: expected one of finite-difference, analytic"):
+    with pytest.raises(ValueError, match="'jacobian': expected one of finite-difference, analytic"):
         sim("Radau", "exact")
     with pytest.raises(ValueError, match="only the implicit integrators"):
         sim("DOP853", "analytic")
