@@ -1,10 +1,13 @@
 """The stored step: reading and writing it, its constraints re-evaluated in numpy, and the walk it makes.
 
-A stored step is ``bench/studies/step/data/<mechanism>-step.npz`` with the collocation points (``t``, ``q``,
+A stored step is ``bench/studies/step/data/<file_stem(mechanism name)>-step.npz`` (:func:`path_of`: the name
+is a key, never a path) with the collocation points (``t``, ``q``,
 ``qd``, ``qdd``), the optimiser's loads there (``tau`` from the equations' CasADi export, net joint
 ``moments`` and ``forces``) and a JSON ``meta`` entry: the problem's settings
 (:class:`exo_bench.bench.studies.step.problem.StepSettings`) and the provenance (commit, date, CasADi version, IPOPT's
-status, iterations, constraint violation as IPOPT saw it, solve time on the host that solved it).
+status, iterations, constraint violation as IPOPT saw it, solve time on the host that solved it), and the
+mechanism it was solved for, with its digest: :func:`load` reuses it only for an equal mechanism
+(:mod:`exo_bench.bench.studies.step.identity`).
 
 :func:`violations` re-evaluates every constraint from the stored arrays with numpy and the project's own
 kinematics (:mod:`exo_bench.models.kinematics`) and joint loads (:mod:`exo_bench.models.joint_loads`): nothing of the
@@ -18,16 +21,19 @@ leg is the mirror image, azimuths negated), with the support point moved to the 
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.problem import DEG, StepSettings, angle_rows, swap_matrix  # noqa: F401
 from exo_bench.models.joint_loads import net_joint_loads
 from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import Motion
+from exo_bench.models.names import check_name, file_stem
 
 DATA = Path(__file__).resolve().parent / "data"
 #: ``exo-bench gait --solve`` reproduces the stored step when the duration and every coordinate at every
@@ -48,6 +54,7 @@ class StoredStep:
     moments: np.ndarray
     forces: np.ndarray
     meta: dict
+    path: str = ""  # the file it was read from
 
     @property
     def duration(self) -> float:
@@ -57,6 +64,11 @@ class StoredStep:
     def step_length(self) -> float:
         return self.settings.speed * self.duration
 
+    @property
+    def file_name(self) -> str:
+        """The stored file's name (in the data folder)."""
+        return Path(self.path).name if self.path else f"{file_stem(self.mechanism)}-step.npz"
+
 
 @dataclass(frozen=True)
 class WalkingMotion(Motion):
@@ -65,17 +77,26 @@ class WalkingMotion(Motion):
     origin: np.ndarray = None
 
 
-def path_of(mechanism: str) -> Path:
-    return DATA / f"{mechanism}-step.npz"
+def path_of(name: str, folder: Path | None = None) -> Path:
+    """Where the step of the mechanism named ``name`` is stored: ``<folder>/<file_stem(name)>-step.npz``,
+    ``folder`` the package's data folder by default. The name is a key, never a path: it goes through
+    :func:`exo_bench.models.names.file_stem` (no separator, no ``..``, no leading dot), so the file is
+    always inside ``folder``; a name that is not an acceptable name (:func:`exo_bench.models.names.check_name`:
+    NUL and other control characters, ...) is refused."""
+    check_name(name, "step: field 'mechanism.name'")
+    folder = DATA if folder is None else Path(folder)
+    return folder / f"{file_stem(name)}-step.npz"
 
 
-def save(solution, mech: Mechanism, path: Path | None = None, provenance: dict | None = None) -> Path:
-    """Write a :class:`exo_bench.bench.studies.step.problem.Solution` (atomically)."""
+def save(solution, mech: Mechanism, folder: Path | None = None, provenance: dict | None = None) -> Path:
+    """Write a :class:`exo_bench.bench.studies.step.problem.Solution` of ``mech`` (atomically) as the stored
+    step of its name in ``folder`` (the package's data folder by default), with the mechanism's definition
+    and digest (:mod:`exo_bench.bench.studies.step.identity`): it is reused only for an equal mechanism."""
     from exo_bench.bench.output.provenance import atomic_path
 
-    path = Path(path) if path is not None else path_of(mech.name)
+    path = path_of(mech.name, folder)
     meta = {
-        "mechanism": mech.name,
+        **identity.stored_identity(mech),
         "settings": solution.settings.to_dict(),
         "solver": solution.stats,
         **(provenance or {}),
@@ -97,21 +118,55 @@ def save(solution, mech: Mechanism, path: Path | None = None, provenance: dict |
     return path
 
 
-def load(mechanism: str | Path) -> StoredStep:
-    """The stored step of a mechanism name (``exo5-3d``) or an ``.npz`` path."""
-    p = Path(mechanism) if str(mechanism).endswith(".npz") else path_of(str(mechanism))
-    if not p.exists():
-        known = ", ".join(sorted(x.name.removesuffix("-step.npz") for x in DATA.glob("*-step.npz")))
+_ARRAYS = ("t", "q", "qd", "qdd", "tau", "moments", "forces")
+
+
+def _read(path: Path) -> tuple[dict, dict[str, np.ndarray]]:
+    """The meta (a JSON object) and the arrays of a stored step; a ValueError naming the file."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in (*_ARRAYS, "meta") if k not in z.files]
+            meta = None if missing else json.loads(str(z["meta"]))
+            arrays = {} if missing else {k: np.ascontiguousarray(z[k], dtype=float) for k in _ARRAYS}
+    except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as e:
+        raise ValueError(f"step: {path}: not a readable stored step ({type(e).__name__}: {e})") from None
+    if missing:
+        raise ValueError(f"step: {path}: expected the arrays {', '.join(_ARRAYS)} and meta, missing {missing}")
+    if not isinstance(meta, dict) or not isinstance(meta.get("settings"), dict):
+        raise ValueError(f"step: {path}: field 'meta': expected an object with 'settings', got {type(meta).__name__}")
+    return meta, arrays
+
+
+def load(mechanism: Mechanism | str, folder: Path | None = None) -> StoredStep:
+    """The stored step of ``mechanism`` (a :class:`exo_bench.models.mechanism.Mechanism`, or a preset's
+    name: ``exo5-3d``), looked up by its name in ``folder`` (the package's data folder by default,
+    :func:`path_of`) and reused only if it was solved for an equal mechanism
+    (:func:`exo_bench.bench.studies.step.identity.check_same`); else a one-line ValueError."""
+    if isinstance(mechanism, str):
+        from exo_bench.models.presets import PRESETS
+
+        if mechanism not in PRESETS:
+            raise ValueError(f"step: field 'mechanism': expected a Mechanism or a preset name, got {mechanism!r}")
+        mechanism = PRESETS[mechanism]()
+    mech = mechanism
+    p = path_of(mech.name, folder)
+    if not p.is_file():
+        known = ", ".join(sorted(x.name.removesuffix("-step.npz") for x in p.parent.glob("*-step.npz")))
         raise ValueError(
-            f"step: no stored step {str(mechanism)!r} (stored: {known or 'none'}; "
-            "solve one with exo-bench gait --solve)"
+            f"step: no stored step for mechanism {mech.name!r} (looked for {p.name} in {p.parent}; stored: "
+            f"{known or 'none'}); {identity.HOW_TO_SOLVE}"
         )
-    with np.load(p, allow_pickle=False) as z:
-        meta = json.loads(str(z["meta"]))
-        arrays = {
-            k: np.ascontiguousarray(z[k], dtype=float) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")
-        }
-    return StoredStep(meta["mechanism"], StepSettings.from_dict(meta["settings"]), meta=meta, **arrays)
+    meta, arrays = _read(p)
+    identity.check_same(meta, mech, str(p))
+    K = arrays["t"].shape
+    shapes = {k: arrays[k].shape for k in ("q", "qd", "qdd", "tau")}
+    if len(K) != 1 or any(s != (K[0], mech.dof) for s in shapes.values()):
+        raise ValueError(f"step: {p}: expected t of (K,) and q, qd, qdd, tau of (K, {mech.dof}), got {K}, {shapes}")
+    try:
+        settings = StepSettings.from_dict(meta["settings"])
+    except TypeError as e:
+        raise ValueError(f"step: {p}: field 'meta.settings': {e}") from None
+    return StoredStep(str(meta.get("mechanism", mech.name)), settings, meta=meta, path=str(p), **arrays)
 
 
 # ----------------------------------------------------------------------------- constraints in numpy

@@ -225,7 +225,7 @@ def markdown(scene, study: Study) -> str:
         "## The predicted step",
         "",
         f"One step of `{mech.name}` solved by direct collocation with IPOPT (`bench/studies/step/problem.py`), stored "
-        f"as `bench/studies/step/data/{stored.mechanism}-step.npz`; the scene walks {scene.motion['steps']} step(s), each "
+        f"as `bench/studies/step/data/{stored.file_name}`; the scene walks {scene.motion['steps']} step(s), each "
         "after the first the stored one mirrored with the support point moved to the new foot. Solve it again "
         f"with `exo-bench gait --solve --dim {mech.dim}`.",
         "",
