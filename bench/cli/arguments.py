@@ -17,14 +17,15 @@ MAX_MEMORY_HELP = (
 
 
 def reports_folder(value: str | None) -> Path | None:
-    """``--reports``: a usable folder (:func:`~exo_bench.bench.output.provenance.writable_folder`),
-    checked before any work starts."""
-    from exo_bench.bench.output.provenance import writable_folder
+    """``--reports``: a usable folder (:func:`~exo_bench.bench.output.provenance.writable_folder`)
+    whose ``runs.json``, if any, has the shape the publisher reads; checked before any work starts."""
+    from exo_bench.bench.output.json_shape import check_manifest_file
+    from exo_bench.bench.output.provenance import REPORTS, writable_folder
 
-    if value is None:
-        return None
-    writable_folder(value, "--reports")
-    return Path(value)
+    if value is not None:
+        writable_folder(value, "--reports")
+    check_manifest_file(REPORTS if value is None else value)  # its runs.json, read after the work: now
+    return None if value is None else Path(value)
 
 
 O = TypeVar("O", bound=ReportOptions)

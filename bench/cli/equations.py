@@ -110,9 +110,13 @@ def cmd_equations(args: argparse.Namespace) -> int:
 
 def output_folder(value, option: str = "-o") -> Path:
     """``-o`` (or ``--reports``) of ``exo-bench equations``: :func:`exo_bench.bench.output.provenance.writable_folder`."""
+    from exo_bench.bench.output.json_shape import check_manifest_file
     from exo_bench.bench.output.provenance import writable_folder
 
-    return writable_folder(value, f"equations {option}")
+    folder = writable_folder(value, f"equations {option}")
+    if option == "--reports":
+        check_manifest_file(folder)  # its runs.json is read after the work: checked now
+    return folder
 
 
 def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DEFAULT_BUDGET) -> dict[str, str]:

@@ -3,11 +3,11 @@ finished row (written atomically), so that a sweep run again after an interrupti
 
 from __future__ import annotations
 
-import json
 import subprocess
 from pathlib import Path
 
 from exo_bench.bench.perf import rows as _rows
+from exo_bench.bench.output.json_shape import OrNull, read_checked
 from exo_bench.bench.output.provenance import REPO
 
 #: Row statuses whose record is final and checkpointed: pytest ran the row to its end (its tests
@@ -51,10 +51,58 @@ def default_checkpoints(reports: Path) -> Path:
     return Path(reports).resolve().parent / ".exo-bench-sweep"
 
 
+#: A row's checkpoint (:func:`exo_bench.bench.cluster.tasks.run_row`'s record): every field that
+#: :func:`exo_bench.bench.perf.rows.merge` and the sweep read (bench/output/json_shape.py).
+_SKIP = {"nodeid": str, "reason?": (str, type(None))}
+ROW_SHAPE = {
+    "key": str,
+    "status": str,
+    "reason?": (str, type(None)),
+    "host?": (str, type(None)),
+    "cpu?": (str, type(None)),
+    "seconds?": (int, float),
+    "nodeids?": [str],
+    "benchmark_json?": OrNull({"benchmarks?": [{"fullname": str, "extra_info?": dict}]}),
+    "skips?": [_SKIP],
+    "inherited?": [_SKIP],
+    "machine_info?": (dict, type(None)),
+}
+ADVICE = "remove the file to measure the row again"
+
+
 def load_checkpoint(folder: Path, key: str) -> dict | None:
+    """The record checkpointed for the row ``key`` in ``folder``, or None when there is none (or one
+    of another row, or not final). A file that is there but is not a row's record (not JSON, not an
+    object, a field of another type) is one ValueError line naming the file and the field, before
+    any work (the sweep reads every checkpoint first)."""
     p = folder / f"{_rows.safe_name(key)}.json"
-    try:
-        rec = json.loads(p.read_text())
-    except (OSError, ValueError):
+    if not p.exists() and not p.is_symlink():
         return None
-    return rec if rec.get("key") == key and rec.get("status") in FINAL else None
+    rec = read_checked(p, ROW_SHAPE, ADVICE)
+    return rec if rec["key"] == key and rec["status"] in FINAL else None
+
+
+# ----------------------------------------------------------------------------- the stability study's parts
+def part_file(folder: Path, tag: str) -> Path:
+    """The checkpoint of one part of the stability study (JSON: bench/cluster/checkpoint_codec.py)."""
+    return Path(folder) / f"{tag}.json"
+
+
+def load_part(folder: Path, tag: str, result_type: str):
+    """``(result, warnings)`` of the part ``tag`` checkpointed in ``folder``, or None when there is
+    none; a file that is not such a part is one ValueError line naming it and the field. Never a
+    pickle: a ``.pickle`` file there (from an older version, or planted) is never read."""
+    from exo_bench.bench.cluster.checkpoint_codec import read_part
+
+    p = part_file(folder, tag)
+    if not p.exists() and not p.is_symlink():
+        return None
+    return read_part(read_checked(p, dict, "remove the file to run the part again"), tag, str(p), result_type)
+
+
+def save_part(folder: Path, tag: str, part) -> Path:
+    """Write the part ``(result, warnings)`` as JSON, atomically."""
+    from exo_bench.bench.cluster.checkpoint_codec import part_text
+    from exo_bench.bench.output.provenance import atomic_write
+
+    return atomic_write(part_file(folder, tag), part_text(tag, part))

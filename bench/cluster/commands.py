@@ -3,9 +3,7 @@ stability study's parts as tasks (:mod:`exo_bench.bench.cluster.cluster`), then 
 
 from __future__ import annotations
 
-import contextlib
 import json
-import pickle
 import uuid
 import warnings
 from pathlib import Path
@@ -14,7 +12,14 @@ from exo_bench.bench.perf.options import BenchOptions
 from exo_bench.bench.studies.options import ClusterOptions, Evaluator, StabilityOptions
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO, atomic_write
-from exo_bench.bench.cluster.checkpoints import checkpoint_dir, code_key, default_checkpoints, load_checkpoint
+from exo_bench.bench.cluster.checkpoints import (
+    checkpoint_dir,
+    code_key,
+    default_checkpoints,
+    load_checkpoint,
+    load_part,
+    save_part,
+)
 from exo_bench.bench.cluster.cluster import (
     RETRIES,
     cancel_tasks,
@@ -143,9 +148,11 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
         parts = [f"family:{name}" for name in cases.FAMILIES] + ["forward"]
         tag = lambda part: _rows.safe_name(f"stability:{profile.name}:{','.join(methods)}:{part}")  # noqa: E731
         results = {}
-        for part in parts:
-            with contextlib.suppress(OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
-                results[part] = pickle.loads((folder / f"{tag(part)}.pickle").read_bytes())
+        for part in parts:  # JSON, checked: every part before any work (never a pickle)
+            kind = "ForwardResults" if part == "forward" else "FamilyResult"
+            found = load_part(folder, tag(part), kind)
+            if found is not None:
+                results[part] = found
         todo = [p for p in parts if p not in results]
         log(
             f"stability {profile.name}: {len(parts)} parts, {len(parts) - len(todo)} from checkpoints, "
@@ -172,7 +179,7 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
                         for f in as_completed(list(futures)):
                             part = futures[f]
                             results[part] = f.result()
-                            atomic_write(folder / f"{tag(part)}.pickle", pickle.dumps(results[part]))
+                            save_part(folder, tag(part), results[part])
                             bar.advance(task)
                 except BaseException:
                     cancel_tasks(client, list(futures))

@@ -156,10 +156,12 @@ def read_manifest(out: Path) -> dict:
     if p.is_file():  # never open a FIFO or a device (it would block or never end)
         try:
             data = json.loads(p.read_text())
-            if isinstance(data, dict) and data.get("format") == 1:
-                return data
         except (OSError, ValueError):
-            pass
+            data = None
+        if isinstance(data, dict) and data.get("format") == 1:
+            from exo_bench.bench.output.json_shape import check_manifest
+
+            return check_manifest(data, p)  # every field it reads has its type, or one line names it
         print(
             f"exo-bench: warning: {p} is not a manifest this version can read; its runs are listed as unknown",
             file=sys.stderr,
