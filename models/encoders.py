@@ -68,7 +68,9 @@ LATEX_ESCAPES = {
 def latex_text(value: str) -> str:
     """``value`` as LaTeX text-mode material: every special character as its escape
     (:data:`LATEX_ESCAPES`), so no control sequence, group, math shift, comment or alignment tab
-    comes from it."""
+    comes from it. Other characters are written as they are (UTF-8): pdfLaTeX sets accented Latin
+    letters, and refuses, with an error and nothing run, a character it has no glyph for (CJK, emoji),
+    which XeLaTeX and LuaLaTeX set from the font."""
     return "".join(LATEX_ESCAPES.get(ch, ch) for ch in value)
 
 
@@ -85,7 +87,8 @@ def markdown_text(value: str) -> str:
 
 def markdown_code(value: str) -> str:
     """``value`` as a Markdown code span (shown verbatim): fenced by one backtick more than its
-    longest run of backticks, padded by a space where it starts or ends with one."""
+    longest run of backticks, padded by a space where it starts or ends with one. Not for a table
+    cell (a ``|`` would still split the cell there): :func:`markdown_text` is."""
     runs = [len(r) for r in re.findall(r"`+", value)]
     fence = "`" * (max(runs, default=0) + 1)
     pad = " " if value.startswith("`") or value.endswith("`") else ""

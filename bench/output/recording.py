@@ -142,10 +142,10 @@ def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
         "reference method only.",
         "- `differences/`: method − reference, in joint moments and rod forces.",
         "- `world/`: rods, point masses (radius ∝ mass^⅓), the support point O, trails of the last "
-        f"{TRAIL_SECONDS:g} s of {', '.join(trail_points(mech))}"
+        f"{TRAIL_SECONDS:g} s of {', '.join(markdown_text(p) for p in trail_points(mech))}"
         + ("; the planar model is drawn in the x–z plane, z up." if mech.dim == 2 else "; z up.")
         + " Link colours: "
-        + ", ".join(f"{i + 1} {mech.names[i]} {_colour_name(link_color(i))}" for i in range(mech.nlinks))
+        + ", ".join(f"{i + 1} {markdown_text(mech.names[i])} {_colour_name(link_color(i))}" for i in range(mech.nlinks))
         + ".",
         "",
         f"Written by exo-bench at commit {commit} with rerun-sdk {rr.__version__}.",
