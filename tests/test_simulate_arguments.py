@@ -100,6 +100,29 @@ def test_every_bad_argument_is_refused_before_any_work(model, data):
     assert spy.calls == 0
 
 
+@pytest.mark.case("H1", "U12")
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"t_span": (0.0, math.nan)},
+        {"rtol": 0.0},
+        {"rtol": math.nan},
+        {"max_seconds": -1},
+        {"t_span": ("0", "1")},
+        {"atol": 0.0, "rtol": 1e-6},
+    ],
+    ids=str,
+)
+def test_the_reported_hanging_arguments_are_refused(model, kw):
+    """The issue's cases, t_span=(0, nan), rtol=0, rtol=nan, max_seconds=-1 and string times (and
+    atol=0), are refused with a ValueError naming the argument, before any work."""
+    spy = Spy()
+    arg = next(iter(kw))
+    with pytest.raises(ValueError, match=f"argument '{arg}': expected .*, got "):
+        _run(model, spy, **kw)
+    assert spy.calls == 0
+
+
 @pytest.mark.parametrize(
     "kw",
     [
