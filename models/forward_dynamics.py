@@ -24,7 +24,7 @@ Inverse dynamics is still defined there; forward dynamics is not, and
 returning NaN or garbage. :func:`singular_reasons` does the detection, exactly (no threshold on
 a condition number), and :func:`condition_numbers` measures how close to singular ``M`` is.
 
-**Integration** (:func:`simulate`) uses scipy's ``solve_ivp`` on the state ``y = [q, qd]``, with
+**Integration** (:func:`simulate`, in :mod:`exo_bench.models.simulate`) steps scipy's integrators on ``y = [q, qd]``, with
 explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
 so the implicit integrators' finite-difference Jacobian costs one batched call per column block;
 ``jacobian="analytic"`` gives them :func:`make_jacobian` instead (the forward-dynamics derivatives
