@@ -160,3 +160,38 @@ def test_a_planted_step_is_never_opened(name, planted, monkeypatch):
     assert "no stored step" in str(e.value) and "\n" not in str(e.value)
     assert all(p.resolve().parent == data.DATA.resolve() for p in opened), opened
     assert load_motion(SCENE, MOTION, EXO3)["stored"].q.shape[1] == EXO3.dof  # the data folder's own step
+
+
+def _rewrite_meta(path: Path, change) -> None:
+    """Rewrite a stored step's meta through ``change(meta)`` (arrays kept)."""
+    import json
+
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if k != "meta"}
+        meta = json.loads(str(z["meta"]))
+    change(meta)
+    with open(path, "wb") as f:
+        np.savez_compressed(f, meta=np.array(json.dumps(meta)), **arrays)
+
+
+@pytest.mark.case("W7")
+def test_a_stored_definition_must_match_its_digest_and_an_undigested_step_a_preset(tmp_path):
+    """A stored step whose definition was edited (masses tripled, digest kept) is refused as not
+    matching its digest, and one stored without a digest for a mechanism that is no exo5 preset
+    is refused: nothing says what it was solved for."""
+    path = data.save(_as_solution(data.load(EXO3)), EXO3, folder=tmp_path)
+
+    def triple(meta):
+        for link in meta["mechanism_definition"]["links"]:
+            link["masses"] = [3 * m for m in link["masses"]]
+
+    _rewrite_meta(path, triple)
+    with pytest.raises(ValueError, match="mechanism_definition'.*does not match"):
+        data.load(EXO3, folder=tmp_path)
+    with pytest.raises(ValueError, match="mechanism_definition'.*does not match"):
+        data.load(IMPOSTORS["masses x3"], folder=tmp_path)
+    mine = EXO3.replace(name="my-exo")
+    path = data.save(_as_solution(data.load(EXO3)), mine, folder=tmp_path)
+    _rewrite_meta(path, lambda meta: [meta.pop(k) for k in ("mechanism_digest", "mechanism_definition")])
+    with pytest.raises(ValueError, match="field 'meta.mechanism': expected the preset .* got 'my-exo'"):
+        data.load(mine, folder=tmp_path)
