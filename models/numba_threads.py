@@ -10,16 +10,100 @@ concurrent parallel launches, whichever kernel makes them. Why ``workqueue`` and
 
 from __future__ import annotations
 
+import importlib
 import os
+import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypedDict
 
-import numba
-from numba import njit
+from exo_bench.models.resource_counts import count_problem
 
-from exo_bench.models import numba_cache
+#: numba's threading layers (``NUMBA_THREADING_LAYER``) and the libraries that can serve each on Linux
+#: (numba/np/ufunc/parallel.py, ``_launch_threads``: "safe" is TBB, "threadsafe" TBB or OpenMP,
+#: "forksafe" TBB or workqueue, "default" any).
+LAYERS: dict[str, tuple[str, ...]] = {
+    "default": ("tbb", "omp", "workqueue"),
+    "safe": ("tbb",),
+    "threadsafe": ("tbb", "omp"),
+    "forksafe": ("tbb", "workqueue"),
+    "workqueue": ("workqueue",),
+    "omp": ("omp",),
+    "tbb": ("tbb",),
+}
+
+
+def environment_problem(environ: Mapping[str, str] = os.environ) -> str | None:
+    """Why numba's environment cannot run the compiled kernels, in one line naming the variable, its
+    value and what is expected (None: it can). Checked before numba is imported (numba itself fails
+    on ``NUMBA_NUM_THREADS=0`` at import, and on an unknown or missing threading layer only at the
+    first parallel launch, neither naming the variable): ``NUMBA_NUM_THREADS`` is a count like every
+    thread count (:func:`exo_bench.models.resource_counts.max_count`), ``NUMBA_THREADING_LAYER`` one of
+    :data:`LAYERS` whose library loads here (not checked once numba's threads run: the layer is chosen)."""
+    text = environ.get("NUMBA_NUM_THREADS")
+    if text is not None:
+        try:
+            value: object = int(text)
+        except ValueError:
+            value = text
+        problem = count_problem(value, "threads")
+        if problem:
+            return f"NUMBA_NUM_THREADS={text!r}: numba's threads: {problem}"
+    layer = environ.get("NUMBA_THREADING_LAYER")
+    if layer is None or _threads_started():
+        return None
+    libraries = LAYERS.get(layer.lower())  # numba lower-cases it
+    if libraries is None:
+        return f"NUMBA_THREADING_LAYER={layer!r}: expected one of numba's threading layers: {', '.join(LAYERS)}"
+    if not any(_loads(lib) for lib in libraries):
+        here = [name for name, libs in LAYERS.items() if any(_loads(lib) for lib in libs)]
+        hint = " (Intel TBB: pip install tbb)" if "tbb" in libraries else ""
+        return (
+            f"NUMBA_THREADING_LAYER={layer!r}: its library ({' or '.join(libraries)}) does not load here{hint}; "
+            f"expected one that does: {', '.join(here)}"
+        )
+    return None
+
+
+def check_environment(environ: Mapping[str, str] = os.environ) -> None:
+    """A ValueError with :func:`environment_problem`'s line, if any."""
+    problem = environment_problem(environ)
+    if problem:
+        raise ValueError(problem)
+
+
+def _threads_started() -> bool:
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    return bool(getattr(parallel, "_is_initialized", False))
+
+
+def _loads(library: str) -> bool:
+    """numba's threading library ``library`` (tbb, omp, workqueue) loads in this process."""
+    try:
+        if library == "tbb":
+            from numba.np.ufunc.parallel import _check_tbb_version_compatible
+
+            _check_tbb_version_compatible()
+        importlib.import_module("numba.np.ufunc." + ("workqueue" if library == "workqueue" else f"{library}pool"))
+    except ImportError:
+        return False
+    return True
+
+
+check_environment()  # before numba's import: NUMBA_NUM_THREADS=0 fails there
+
+import numba  # noqa: E402 - after the check of numba's environment
+from numba import njit  # noqa: E402
+
+from exo_bench.models import numba_cache  # noqa: E402
+
+
+def jit_disabled() -> bool:
+    """``NUMBA_DISABLE_JIT`` is set: numba runs its functions as Python, and the kernels' SIMD tiles
+    (numba intrinsics: models/simd_tiles.py) cannot run at all."""
+    return bool(numba.config.DISABLE_JIT)
+
 
 #: numba.config sets its options at run time (the stubs do not list them).
 config: Any = numba.config

@@ -23,7 +23,6 @@ Every cache here holds models (kilobytes), never a ``Data``.
 
 from __future__ import annotations
 
-import os
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
@@ -33,6 +32,7 @@ import pinocchio as pin
 
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.prepared import USABLE_SHARE, PreparedModel, usable_memory
+from exo_bench.models.resource_counts import check_count, check_thread_room, usable_cpus
 from exo_bench.models.urdf import (
     DATA_BYTES_PER_JOINT,  # noqa: F401
     data_bytes,  # noqa: F401
@@ -41,6 +41,10 @@ from exo_bench.models.urdf import (
     pinocchio_model_size,  # noqa: F401
     to_urdf,  # noqa: F401
 )
+
+
+#: How errors name the option ``threads`` (bounded by :func:`exo_bench.models.resource_counts.max_count`).
+THREADS_OPTION = "pinocchio: option 'threads'"
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,9 +183,10 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
 def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None = None) -> np.ndarray:
     """The same as :func:`inverse_dynamics`, batched through ``pin.rneaInParallel``."""
     q, qd, qdd = as_states(mech, q, qd, qdd)
-    threads = threads or os.cpu_count() or 1
+    threads = check_count(THREADS_OPTION, usable_cpus() if threads is None else threads)
     pm = build_model(mech)
-    check_data_fits(mech, threads + 1)  # the pool's Data, and one more while it copies them
+    need = check_data_fits(mech, threads + 1)  # the pool's Data, and one more while it copies them
+    check_thread_room(THREADS_OPTION, threads, (threads + 1) * need)
     qj, vj, aj = _joint_states(pm, q, qd, qdd)
     f = lambda x: np.asfortranarray(x.T)
     tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
@@ -277,12 +282,13 @@ class PinocchioRNEA(PreparedModel):
         return 8.0 * (10 * d * n)
 
     def __init__(self, mechanism: Mechanism, threads: int = 1):
-        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-            raise ValueError(f"pinocchio: option 'threads': expected an integer >= 1, got {threads!r}")
-        super().__init__(mechanism, threads=int(threads))
-        self.threads = int(threads)
+        threads = check_count(THREADS_OPTION, threads)  # 1 to 4 per CPU (models/resource_counts.py)
+        super().__init__(mechanism, threads=threads)
+        self.threads = threads
         # this thread's Data, and the pool's (its construction copies one more: threads + 1 at its peak)
-        self.data_bytes = check_data_fits(mechanism, 1 + (int(threads) + 1 if threads > 1 else 0))
+        self.data_bytes = check_data_fits(mechanism, 1 + (threads + 1 if threads > 1 else 0))
+        if threads > 1:  # OpenMP's threads: their stacks and the pool's Data within ulimit -v, before any starts
+            check_thread_room(THREADS_OPTION, threads, (threads + 1) * self.data_bytes)
         pm = build_model(mechanism)
         self.pin_model: pin.Model = pm.model
         self.G: np.ndarray = np.ascontiguousarray(pm.G)

@@ -88,6 +88,11 @@ def workers_arg(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected at least 1 worker, got {value}")
+    from exo_bench.models.resource_counts import count_problem
+
+    problem = count_problem(value, "worker processes")  # the bound of every count (issue 34, L3)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
     return value
 
 

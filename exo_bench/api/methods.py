@@ -67,7 +67,11 @@ class MethodSpec:
         return bool(self.kernels) and self.kernels[0] == "numba"
 
     def load(self) -> type[PreparedModel]:
-        """The prepared-model class (imports its module)."""
+        """The prepared-model class (imports its module). A method with compiled kernels first checks
+        numba's environment variables, before numba is imported (a ValueError naming the variable:
+        :func:`exo_bench.models.numba_threads.environment_problem`)."""
+        if self.kernels:
+            importlib.import_module("exo_bench.models.numba_threads")  # its import checks the environment
         return getattr(importlib.import_module(self.module), self.cls)
 
 

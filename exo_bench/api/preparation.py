@@ -45,6 +45,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     naming the estimate and the budget).
     """
     cls = method_class(method)
+    _refuse_uncompiled_kernels(method, options)
     if method == "lagrange":  # refuse up front a derivation estimated over its budget or the memory
         from exo_bench.api.cost_model import check
 
@@ -61,6 +62,27 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
             ) from None
         raise
     return model
+
+
+def _refuse_uncompiled_kernels(method: str, options: dict[str, Any]) -> None:
+    """Under ``NUMBA_DISABLE_JIT``, refuse (one ValueError naming the variable and why) a method's
+    compiled kernels: their SIMD tiles are numba intrinsics, which cannot run as Python (a batch raised
+    "NotImplementedError: <intrinsic tile_in>"); its numpy kernels (``kernel="numpy"``) still run."""
+    from exo_bench.api.methods import METHODS
+
+    spec = METHODS.get(method)
+    if spec is None or not spec.compiled or options.get("kernel", spec.kernels[0]) != "numba":
+        return
+    from exo_bench.models.numba_threads import jit_disabled
+
+    if jit_disabled():
+        import os
+
+        raise ValueError(
+            f"NUMBA_DISABLE_JIT={os.environ.get('NUMBA_DISABLE_JIT', '')!r}: method {method!r} runs numba's compiled "
+            "kernels (option kernel 'numba', the default), whose SIMD tiles are numba intrinsics that cannot run "
+            "as Python; expected NUMBA_DISABLE_JIT unset (or 0), or prepare()'s option kernel='numpy'"
+        )
 
 
 class PreparedSet:
