@@ -46,13 +46,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from exo_bench.api.methods import composes_within_budget
+from exo_bench.models import memory
+from exo_bench.models.resource_counts import check_count, check_workers
 from exo_bench.bench.perf import rows as _rows
+from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import REPO, atomic_write
+from exo_bench.bench.cluster.scheduler_probe import _first_line, probe_scheduler
 from exo_bench.bench.cluster.checkpoints import FINAL, checkpoint_dir, code_key, load_checkpoint
 from exo_bench.bench.cluster.tasks import TOPIC, failure_lines, run_row
 
-#: Seconds to reach a scheduler given with ``--scheduler``.
-SCHEDULER_TIMEOUT = 10
+#: Seconds, at most, to reach a scheduler given with ``--scheduler`` and hear it answer (less when
+#: dask's ``distributed.comm.timeouts.connect`` is less: :func:`scheduler_timeout`).
+SCHEDULER_TIMEOUT = 10.0
 #: Task retries after an exception in the task itself (a worker's death is counted by the
 #: scheduler's ``allowed-failures`` instead).
 RETRIES = 1
@@ -64,25 +69,30 @@ CHAINED = ("bench/test_compose.py",)
 
 # ----------------------------------------------------------------------------- the cluster
 @contextlib.contextmanager
-def cluster(scheduler: str | None = None, workers: int | None = None):
+def cluster(scheduler: str | None = None, workers: int | None = None, timeout: float | None = None):
     """A Dask client: on the cluster at ``scheduler``, or on a :class:`LocalCluster` of ``workers``
-    single-threaded worker processes (default: one per core) that is closed on exit, Ctrl-C included."""
+    single-threaded worker processes (default: one per core) that is closed on exit, Ctrl-C included.
+
+    ``scheduler`` must answer Dask's handshake within ``timeout`` seconds (default
+    :func:`scheduler_timeout`), else a ValueError names it (:func:`probe_scheduler`); ``workers`` is
+    bounded, and its processes must fit in memory (:func:`exo_bench.models.resource_counts.check_workers`)."""
     from distributed import Client, LocalCluster
 
-    if workers is not None and workers < 1:
-        raise ValueError(f"--workers: expected at least 1 worker, got {workers}")
     if scheduler:
+        timeout = scheduler_timeout() if timeout is None else timeout
+        probe_scheduler(scheduler, timeout)
         try:
-            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
-        except (OSError, ValueError, TimeoutError) as e:
-            text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-            raise ValueError(f"--scheduler {scheduler!r}: no Dask scheduler reachable there ({text})") from None
+            client = Client(scheduler, timeout=timeout)
+        except Exception as e:  # noqa: BLE001 - whatever the peer did: one line naming it
+            raise ValueError(
+                f"--scheduler {scheduler!r}: no Dask scheduler reachable there ({_first_line(e)})"
+            ) from None
         try:
             yield client
         finally:
             client.close()
         return
-    n = workers or os.cpu_count() or 1
+    n = check_workers(workers if workers is not None else os.cpu_count() or 1, memory.usable_memory())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "port 8787 in use" and the like: we start no dashboard anyway
         lc = LocalCluster(
@@ -98,10 +108,21 @@ def cluster(scheduler: str | None = None, workers: int | None = None):
         lc.close()
 
 
-def check_scheduler(scheduler: str | None) -> None:
-    """Refuse (one line, before any work) a ``--scheduler`` address where no scheduler answers."""
+def scheduler_timeout() -> float:
+    """Seconds to reach a ``--scheduler`` and hear it answer: :data:`SCHEDULER_TIMEOUT`, or dask's
+    ``distributed.comm.timeouts.connect`` when that is less (``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT``)."""
+    import dask
+    from dask.utils import parse_timedelta
+
+    theirs = parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="seconds")
+    return float(min(SCHEDULER_TIMEOUT, theirs)) if theirs else SCHEDULER_TIMEOUT
+
+
+def check_scheduler(scheduler: str | None, timeout: float | None = None) -> None:
+    """Refuse (one line, before any work) a ``--scheduler`` address where no scheduler answers
+    within ``timeout`` seconds (default :func:`scheduler_timeout`)."""
     if scheduler:
-        with cluster(scheduler):
+        with cluster(scheduler, timeout=timeout):
             pass
 
 
@@ -222,8 +243,8 @@ def run_sweep(
     from exo_bench.bench.perf.profiles import current
 
     t0 = time.perf_counter()
-    if workers is not None and workers < 1:
-        raise ValueError(f"--workers: expected at least 1 worker, got {workers}")
+    if workers is not None:
+        check_count("--workers", workers, "worker processes")
     if budget is None:
         budget = float(getattr(current(sweep), "row_budget", 3600.0))
     code = code_key(repo)
@@ -298,6 +319,7 @@ def run_sweep(
                     submitted[r["key"]] = f
                 try:
                     for f in as_completed(list(futures)):
+                        check_interrupt()  # a signal swallowed where it landed still ends the sweep
                         r = futures[f]
                         try:
                             rec = f.result()
