@@ -253,7 +253,18 @@ def simulate(
     budget can stop DOP853 while it evaluates the last step's interpolant).
     """
     a = check_simulate_arguments(
-        t_span, controls, integrator, rtol, atol, max_evaluations, max_seconds, dense, first_step, jacobian, clock
+        model,
+        t_span,
+        controls,
+        integrator,
+        rtol,
+        atol,
+        max_evaluations,
+        max_seconds,
+        dense,
+        first_step,
+        jacobian,
+        clock,
     )
     mech = model.mechanism
     q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")

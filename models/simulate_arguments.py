@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.forward_dynamics import IMPLICIT, INTEGRATORS
+from exo_bench.models.prepared import PreparedModel
 
 #: The Jacobians an implicit integrator can use: scipy's finite differences of the vectorised
 #: right-hand side (``2 dof`` columns per Jacobian), or the analytic one of
@@ -100,6 +101,7 @@ def _t_span(t_span: Any) -> tuple[float, float]:
 
 
 def check_simulate_arguments(
+    model: Any,
     t_span: Any,
     controls: Any,
     integrator: Any,
@@ -112,8 +114,10 @@ def check_simulate_arguments(
     jacobian: Any,
     clock: Any,
 ) -> SimulateArguments:
-    """Every argument of ``simulate`` but the model and the states (those are checked by
+    """Every argument of ``simulate`` but the states (those are checked by
     :func:`exo_bench.models.mechanism.as_states`), checked; the defaults filled in."""
+    if not isinstance(model, PreparedModel):
+        raise _bad("model", "a prepared model (exo_bench.prepare(mechanism, method))", type(model).__name__)
     if integrator not in INTEGRATORS:
         raise _bad("integrator", f"one of {', '.join(INTEGRATORS)}", integrator)
     if jacobian not in JACOBIANS:

@@ -100,6 +100,15 @@ def test_every_bad_argument_is_refused_before_any_work(model, data):
     assert spy.calls == 0
 
 
+@pytest.mark.case("H1")
+@pytest.mark.parametrize("bad", [None, MECH, "pinocchio"], ids=["None", "a Mechanism", "a method name"])
+def test_a_model_that_is_not_prepared_is_refused(bad):
+    """A model that is not a prepared model (None, a bare Mechanism, a method name) is refused with a
+    ValueError naming the argument 'model', not an AttributeError from deep inside."""
+    with pytest.raises(ValueError, match="argument 'model': expected a prepared model"):
+        fd.simulate(bad, Q0, np.zeros_like(Q0), (0.0, 0.1), Spy(), max_evaluations=10)
+
+
 @pytest.mark.case("H1", "U12")
 @pytest.mark.parametrize(
     "kw",
