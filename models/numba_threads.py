@@ -6,6 +6,10 @@ and the Newton-Euler kernels (:mod:`exo_bench.models.newton_euler.compiled`) cho
 before either starts numba's threads, and share one lock: ``workqueue`` aborts the process on
 concurrent parallel launches, whichever kernel makes them. Why ``workqueue`` and why
 :data:`PARALLEL_MIN_SAMPLES`: :mod:`exo_bench.matrix_method.numba_kernels.common`.
+
+Its import first checks numba's environment variables (:func:`environment_problem`), before numba
+itself is imported: a bad ``NUMBA_NUM_THREADS`` or ``NUMBA_THREADING_LAYER`` is one ValueError naming
+the variable (issue 34, U6).
 """
 
 from __future__ import annotations
@@ -99,14 +103,14 @@ from numba import njit  # noqa: E402
 from exo_bench.models import numba_cache  # noqa: E402
 
 
+#: numba.config sets its options at run time (the stubs do not list them).
+config: Any = numba.config
+
+
 def jit_disabled() -> bool:
     """``NUMBA_DISABLE_JIT`` is set: numba runs its functions as Python, and the kernels' SIMD tiles
     (numba intrinsics: models/simd_tiles.py) cannot run at all."""
-    return bool(numba.config.DISABLE_JIT)
-
-
-#: numba.config sets its options at run time (the stubs do not list them).
-config: Any = numba.config
+    return bool(config.DISABLE_JIT)
 
 
 def _threading_layer() -> str:
