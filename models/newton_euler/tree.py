@@ -18,7 +18,8 @@ have larger indices than their parents), ``M_e = L D L^T`` has no fill-in: one p
 one multiplier ``l_k`` per link. Then ``mu^-1 b = T^-1 M_e^-1 T^-T b`` costs three passes over
 the tree (:func:`solve_coupling`). :func:`factor_end_point_mass` factors it once, at prepare
 time; a pivot that vanishes means that ``M_r`` is singular, and :func:`singular_mass_reason`
-names the link.
+names the link. The factor and the solve live in :mod:`exo_bench.models.mass_factor`, below every
+method, so that the conditioning test of every method's forward dynamics uses them too.
 """
 
 from __future__ import annotations
@@ -28,13 +29,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.models.aggregates import link_aggregates
+from exo_bench.models.conditioning import singular_mass_reason  # noqa: F401 - re-exported: defined here first
+from exo_bench.models.mass_factor import (  # noqa: F401 - re-exported: defined here first
+    PIVOT_RTOL,
+    end_point_mass,
+    factor_end_point_mass,
+    solve_mu,
+)
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.singularity import massless_reason
-
-#: A pivot ``d_k`` of ``M_e`` at or below this share of its diagonal entry counts as zero: the
-#: elimination subtracted everything (an end point that carries no mass of its own). A few
-#: roundings of the subtraction stay far below it.
-PIVOT_RTOL = 64 * float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True)
@@ -77,53 +79,6 @@ class Tree:
         return t
 
 
-def end_point_mass(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
-    """``M_e`` as its diagonal ``(n,)`` and its parent entries ``off[k] = M_e[k, parent(k)]`` (0 at a
-    root, where the parent's end point is the fixed support)."""
-    m = mech.mass_array
-    f = np.asarray(mech.n, dtype=float)
-    diag = m[:, 2] + m[:, 1] * f**2
-    off = np.zeros(mech.nlinks)
-    for k, p in enumerate(mech.parent):
-        if p >= 0:
-            diag[p] += m[k, 0] + m[k, 1] * (1.0 - f[k]) ** 2
-            off[k] = m[k, 1] * f[k] * (1.0 - f[k])
-    return diag, off
-
-
-def factor_end_point_mass(mech: Mechanism) -> tuple[np.ndarray, np.ndarray, int]:
-    """``M_e = L D L^T`` eliminated leaves first: ``(pivot, multiplier, singular)``, O(n).
-
-    Eliminating link ``k`` (after all its children) takes its pivot ``d_k``, the multiplier
-    ``l_k = M_e[k, p] / d_k`` and subtracts ``l_k M_e[k, p]`` from the parent's diagonal. A pivot at or
-    below :data:`PIVOT_RTOL` times its diagonal entry marks ``M_e`` (hence ``M_r``) singular; the
-    first such link (deepest first) is returned, else -1."""
-    diag, off = end_point_mass(mech)
-    d = diag.copy()
-    mult = np.zeros(mech.nlinks)
-    singular = -1
-    for k in range(mech.nlinks - 1, -1, -1):
-        if d[k] <= PIVOT_RTOL * diag[k] or d[k] <= 0.0:
-            singular = k if singular < 0 else singular
-            d[k] = 0.0
-            continue
-        p = mech.parent[k]
-        if p >= 0:
-            mult[k] = off[k] / d[k]
-            d[p] -= mult[k] * off[k]
-    return d, mult, singular
-
-
-def singular_mass_reason(mech: Mechanism, k: int) -> str:
-    """Why ``M_r`` is singular at link ``k`` (0-based), in the words of :mod:`exo_bench.models.singularity`."""
-    return (
-        massless_reason(mech, k)
-        if (mech.masses[k][1] == 0 and mech.masses[k][2] == 0 and k not in mech.parent)
-        else f"link {k + 1} ({mech.names[k]}): zero mass: no mass moves with its end point while the other "
-        "end points are held (M_r is singular)"
-    )
-
-
 def prepare_tree(mech: Mechanism) -> Tree:
     """All per-mechanism numbers of the Newton-Euler method, O(n) time and memory (no ``n x n``
     array: ``nu_k = eta_k + Theta(k)`` of :mod:`exo_bench.models.aggregates` with the descendant masses
@@ -149,28 +104,6 @@ def prepare_tree(mech: Mechanism) -> Tree:
 
 
 def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
-    """``mu^-1 b`` for ``b`` of shape ``(n, ...)`` (any trailing axes: components, samples), O(n).
-
-    ``z = T^-T b`` (``z_a = b_a - sum_{children c} b_c``), ``M_e y = z`` by the factor (leaves first,
-    then roots first), ``x = T^-1 y`` (``x_k = y_k - y_parent``). ``tree.singular`` must be -1."""
-    n = b.shape[0]
-    parent, d, lk = tree.parent, tree.pivot, tree.multiplier
-    z = b.copy()
-    for k in range(n - 1, -1, -1):  # T^-T: subtract each child's entry from its parent's
-        p = parent[k]
-        if p >= 0:
-            z[p] -= b[k]
-    for k in range(n - 1, -1, -1):  # L^-1, leaves first
-        p = parent[k]
-        if p >= 0:
-            z[p] -= lk[k] * z[k]
-    y = np.empty_like(z)
-    for k in range(n):  # D^-1 L^-T, roots first
-        p = parent[k]
-        y[k] = z[k] / d[k] - (lk[k] * y[p] if p >= 0 else 0.0)
-    x = y.copy()
-    for k in range(n):  # T^-1: one difference with the parent
-        p = parent[k]
-        if p >= 0:
-            x[k] = y[k] - y[p]
-    return x
+    """``mu^-1 b`` for ``b`` of shape ``(n, ...)`` (any trailing axes: components, samples), O(n), by
+    the tree's factor (:func:`exo_bench.models.mass_factor.solve_mu`). ``tree.singular`` must be -1."""
+    return solve_mu(tree.parent, tree.pivot, tree.multiplier, b)
