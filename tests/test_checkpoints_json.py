@@ -332,3 +332,61 @@ def test_the_publisher_refuses_a_runs_json_of_wrong_types_naming_it(tmp_path):
     good = {"format": 1, "runs": {"r": {"command": "c", "status": "complete"}}, "scenes": {}, "files": {}}
     (tmp_path / "runs.json").write_text(json.dumps(good))
     assert read_manifest(tmp_path) == good
+
+
+# ------------------------------------------------------------------------------ any JSON at all
+def _json_values():
+    from hypothesis import strategies as st
+
+    leaves = st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=5)
+    return st.recursive(
+        leaves, lambda kids: st.lists(kids, max_size=3) | st.dictionaries(st.text(max_size=8), kids, max_size=4)
+    )
+
+
+def _near(fields: dict):
+    """Objects with the real fields' names and any values: what a hand-edited file looks like."""
+    from hypothesis import strategies as st
+
+    return st.fixed_dictionaries({}, optional={k: _json_values() for k in fields})
+
+
+@pytest.mark.case("T3", "D8")
+def test_any_json_read_back_is_used_or_refused_in_one_line(tmp_path_factory):
+    """Any JSON at all, as a row checkpoint, a stability part or a reports folder's runs.json, is
+    either read or refused with a ValueError naming the file; never another exception."""
+    from hypothesis import given, settings, strategies as st
+
+    from exo_bench.bench.cluster.checkpoints import ROW_SHAPE, load_checkpoint, load_part
+    from exo_bench.bench.output.publish import read_manifest
+    from exo_bench.bench.perf import rows as _rows
+
+    d = tmp_path_factory.mktemp("any")
+    row = d / f"{_rows.safe_name('k')}.json"
+    manifest = {"format": 1, "runs": None, "scenes": None, "files": None}
+
+    @settings(max_examples=300, deadline=None)
+    @given(
+        value=_json_values() | _near(ROW_SHAPE) | _near(manifest).map(lambda m: {**m, "format": 1}),
+        part=_json_values()
+        | st.builds(lambda v: {"format": "exo-bench stability checkpoint 1", "key": "t", "value": v}, _json_values()),
+    )
+    def check(value, part):
+        text = json.dumps(value)
+        for path, read in (
+            (row, lambda: load_checkpoint(d, "k")),
+            (d / "runs.json", lambda: read_manifest(d)),
+        ):
+            path.write_text(text)
+            try:
+                read()
+            except ValueError as e:
+                assert str(path) in str(e)
+        (d / "t.json").write_text(json.dumps(part))
+        try:
+            load_part(d, "t", "FamilyResult")
+        except ValueError as e:
+            assert str(d / "t.json") in str(e)
+
+    with contextlib.redirect_stderr(io.StringIO()):  # read_manifest's warning for other formats
+        check()

@@ -366,8 +366,9 @@ def main(argv=None) -> int:
     command = " ".join(["python -m exo_bench.bench.perf.reports.simd_goals", *(sys.argv[1:] if argv is None else argv)])
     r = measure(a.samples, a.rounds)
     if a.json:
-        with open(a.json, "w") as f:
-            json.dump(r, f, indent=1)
+        from exo_bench.bench.output.provenance import atomic_write
+
+        atomic_write(a.json, json.dumps(r, indent=1))  # the one writer: never through a link
     print("\n".join(goals_lines(r)))
     if a.markdown:
         from exo_bench.bench.output.provenance import atomic_write, provenance
