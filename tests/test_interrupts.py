@@ -130,3 +130,18 @@ def test_ctrl_c_in_gait_solve_reports_interrupted(signame):
     )
     assert r.returncode == 130, (r.returncode, r.stderr[-3000:])
     assert "interrupted" in r.stderr and "did not solve" not in r.stderr, r.stderr[-3000:]
+
+
+def test_a_signal_the_process_ignores_stays_ignored():
+    """A process started with SIGINT ignored (``nohup``, a background job) keeps ignoring it while a
+    command runs; SIGTERM still gets the handler."""
+    from exo_bench.bench.output import interrupts
+
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with interrupts.installed():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            assert isinstance(signal.getsignal(signal.SIGTERM), interrupts.Interrupts)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)

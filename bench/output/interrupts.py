@@ -61,8 +61,8 @@ def installed() -> Iterator[Interrupts | None]:
     interrupt's report off stderr; the previous handlers and hook are put back on exit. Outside the
     main thread (where handlers cannot be set) nothing is installed and None is yielded."""
     handler = Interrupts()
-    try:
-        previous = {s: signal.signal(s, handler) for s in SIGNALS}
+    try:  # a signal the process was started to ignore (nohup, a background job) stays ignored
+        previous = {s: signal.signal(s, handler) for s in SIGNALS if signal.getsignal(s) is not signal.SIG_IGN}
     except ValueError:  # not the main thread
         yield None
         return
