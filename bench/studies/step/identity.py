@@ -59,8 +59,14 @@ def difference(stored: dict[str, Any], here: dict[str, Any]) -> str:
     for i, (la, lb) in enumerate(zip(a, b)):
         for key in ("name", "parent", "sign", "masses", "n"):
             if la.get(key) != lb.get(key):
-                return f"link {i + 1} ({lb.get('name')!r}): {key} {la.get(key)!r} stored, {lb.get(key)!r} here"
+                x, y = (_parent(v) if key == "parent" else repr(v) for v in (la.get(key), lb.get(key)))
+                return f"link {i + 1} ({lb.get('name')!r}): {key} {x} stored, {y} here"
     return "" if stored == here else "the definitions differ"
+
+
+def _parent(p: Any) -> str:
+    """A parent index of the JSON (0-based, -1 the support) as messages number links (from 1)."""
+    return "O (the support)" if p == -1 else f"link {p + 1}" if isinstance(p, int) else repr(p)
 
 
 def _solved_for(meta: dict[str, Any], source: str) -> dict[str, Any]:
