@@ -114,6 +114,25 @@ def test_pinocchio_threads_over_the_bound_are_refused_before_any_data(extra):
         assert "'threads'" in str(e.value) and f"got {threads}" in str(e.value), e.value
 
 
+@pytest.mark.case("C1")
+def test_a_data_per_thread_over_the_memory_is_refused_by_the_cost_model(monkeypatch):
+    """Threads within the bound whose Data (one per thread, and the pool's copy) exceed the memory are
+    refused by ``prepare`` with the cost model's one line (a ValueError naming the Data, the count and
+    a method that fits) before any Data is made."""
+    from exo_bench.api import cost_model
+    from exo_bench.api.preparation import prepare
+
+    mech, bound = exo5(3), resource_counts.max_count()
+    one = cost_model.estimate(mech, "pinocchio", 1, {"threads": 1}).memory
+    many = cost_model.estimate(mech, "pinocchio", 1, {"threads": bound}).memory
+    monkeypatch.setattr(cost_model, "usable_memory", lambda: int((one + many) / 2))
+    with pytest.raises(cost_model.ResourceLimit) as e:
+        prepare(mech, "pinocchio", threads=bound)
+    msg = str(e.value)
+    assert "pinocchio" in msg and f"x {bound + 2}" in msg and "memory limit" in msg and "fits" in msg, msg
+    prepare(mech, "pinocchio")  # one thread's Data fits
+
+
 @pytest.mark.case("L3")
 def test_pinocchio_threads_within_the_bound_agree_with_one_thread():
     """Threads up to the bound still run, and give one thread's forces exactly."""

@@ -42,11 +42,15 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     ``interrupt`` for lagrange, ``tile`` and ``kernel`` for the matrix family); an unknown option is a ValueError.
     A lagrange derivation whose estimated time exceeds its ``budget`` (or whose memory exceeds what
     a run may use) is refused before it starts (:func:`exo_bench.api.cost_model.check`, a ValueError
-    naming the estimate and the budget).
+    naming the estimate and the budget). Pinocchio's ``threads`` is a count from 1 to
+    :func:`exo_bench.models.resource_counts.max_count`, and its Data per thread (and the pool's copy)
+    are estimated by the same cost model and refused before any is made when they exceed the memory.
     """
     cls = method_class(method)
     _refuse_uncompiled_kernels(method, options)
-    if method == "lagrange":  # refuse up front a derivation estimated over its budget or the memory
+    if method == "lagrange" or _threads(method, options) > 1:
+        # refuse up front a derivation estimated over its budget or the memory, or a Data per thread
+        # (and the pool's copy) that would not fit: the cost model's estimate, before any is made
         from exo_bench.api.cost_model import check
 
         check(mechanism, method, 1, options)
@@ -62,6 +66,15 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
             ) from None
         raise
     return model
+
+
+def _threads(method: str, options: dict[str, Any]) -> int:
+    """Pinocchio's option ``threads``, checked against its bound (1 for other methods)."""
+    if method != "pinocchio" or "threads" not in options:
+        return 1
+    from exo_bench.models.resource_counts import check_count
+
+    return check_count("pinocchio: option 'threads'", options["threads"])
 
 
 def _refuse_uncompiled_kernels(method: str, options: dict[str, Any]) -> None:
