@@ -60,6 +60,7 @@ import pytest
 
 from exo_bench.bench.perf import roofline as limit, peers
 from exo_bench.api import METHODS, prepare
+from exo_bench.api.cost_model import ResourceLimit
 from exo_bench.bench.studies.reference_forces import reference
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.motion import smooth_random_motion
@@ -137,7 +138,7 @@ def _fastest_threads(mech, q, qd, qdd) -> tuple[int, dict]:
     for t in sorted({2, cpus, 2 * cpus}):
         try:
             m = prepare(mech, "pinocchio", threads=t)
-        except MemoryError:  # PinocchioDataTooLarge: one Data per thread does not fit
+        except (MemoryError, ResourceLimit):  # one Data per thread does not fit (prepare's estimate, or the Data's)
             continue
         m.inverse_dynamics(q[:8], qd[:8], qdd[:8], check=False)
         best = np.inf

@@ -136,6 +136,7 @@ def _trap(samples: int, rounds: int) -> dict:
 def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bool = True, trap: bool = True) -> dict:
     """Every figure of the goals (module docstring), in this process (the trap in two subprocesses)."""
     from exo_bench import prepare
+    from exo_bench.api.cost_model import ResourceLimit
     from exo_bench.bench.perf import roofline as limit, roofline_simd as limit_simd, peers
 
     mech, q, qd, qdd = _states(samples)
@@ -149,7 +150,7 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     for t in sorted({2, cpus, 2 * cpus}):
         try:
             pins[t] = prepare(mech, "pinocchio", threads=t)
-        except MemoryError:
+        except (MemoryError, ResourceLimit):  # one Data per thread does not fit
             pass
     pin_out = {t: None for t in pins}
 
