@@ -100,7 +100,7 @@ def _measure(method, dim, samples, ns) -> list[dict]:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def _points() -> list[tuple[tuple, int, float, float, dict, object]]:
+def _points() -> list[tuple]:
     """Every point: (key, n, memory ratio, time ratio, measured, estimate); ratios measured / estimated."""
     out = []
     rounds = [{key: _measure(*key, ns) for key, ns in POINTS.items()} for _ in range(PROCESSES)]  # interleaved

@@ -10,6 +10,7 @@ eq. (4) with both signs.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 #: Seconds that composing and generating may take (``--budget``).
@@ -24,13 +25,14 @@ class EquationsBudget(ValueError):
 
 
 class _Clock:
-    """The budget of one generation: refused up front by the estimate, checked between phases."""
+    """The budget of one generation: refused up front by the estimate, checked between phases on
+    ``clock`` (seconds; ``time.perf_counter``, or a test's deterministic stand-in)."""
 
-    def __init__(self, mech, fmt: str, budget: float):
+    def __init__(self, mech, fmt: str, budget: float, clock: Callable[[], float] = time.perf_counter):
         from exo_bench.api.cost_model import equations_estimate
 
-        self.mech, self.fmt, self.budget = mech, fmt, float(budget)
-        self.start = time.perf_counter()
+        self.mech, self.fmt, self.budget, self.clock = mech, fmt, float(budget), clock
+        self.start = clock()
         est = equations_estimate(mech, fmt)
         if est > self.budget:
             raise EquationsBudget(self._message(f"needs about {_seconds(est)} (estimated before any work)"))
@@ -43,7 +45,7 @@ class _Clock:
         )
 
     def check(self, phase: str) -> None:
-        t = time.perf_counter() - self.start
+        t = self.clock() - self.start
         if t > self.budget:
             raise EquationsBudget(self._message(f"took {t:.1f} s by the end of {phase}"))
 
