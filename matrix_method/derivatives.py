@@ -23,10 +23,19 @@ correct equations, not of its printed misprints.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from exo_bench.matrix_method.export.casadi_functions import casadi_functions
 from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.conditioning import (
+    CouplingCondition,
+    check_conditioning,
+    check_finite,
+    coupling_condition,
+    coupling_reason,
+)
 from exo_bench.models.mechanism import Mechanism, as_states
 
 #: What computes the derivatives, per method family (:attr:`Derivatives.source`).
@@ -75,38 +84,84 @@ class Derivatives:
     def __repr__(self) -> str:
         return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {SOURCE}>"
 
+    def _states(self, source: str, names: tuple[str, str, str], arrays, check: bool):
+        """The three arrays as ``(S, dof)`` float arrays, and whether one ``(dof,)`` sample was given.
+        Shapes and sample counts are checked with or without ``check`` (a ValueError naming the field,
+        the expected and the actual count: never numpy's reshape error or CasADi's); ``check`` also
+        validates the values (:func:`exo_bench.models.mechanism.as_states`)."""
+        single = np.ndim(arrays[0]) == 1
+        d = self.mechanism.dof
+        shaped = []
+        for name, a in zip(names, arrays):
+            a = np.asarray(a, dtype=float) if not check else a
+            nd = np.ndim(a)
+            if nd not in (1, 2) or np.shape(a)[-1] != d or (nd == 1) != single:
+                want = f"({d},)" if single else f"(samples, {d})"
+                raise ValueError(f"{source}: field '{name}': expected shape {want}, got {np.shape(a)}")
+            shaped.append(a)
+        counts = [np.shape(a)[0] if not single else 1 for a in shaped]
+        for name, c in zip(names[1:], counts[1:]):
+            if c != counts[0]:
+                raise ValueError(
+                    f"{source}: field '{name}': expected {counts[0]} sample{'s' * (counts[0] != 1)} "
+                    f"(as {names[0]}), got {c}"
+                )
+        if check:
+            try:
+                shaped = list(as_states(self.mechanism, shaped[0], shaped[1], shaped[2], source=source))
+            except ValueError as e:  # the third array of as_states is called qdd
+                raise ValueError(str(e).replace("field 'qdd'", f"field '{names[2]}'")) from None
+        return [np.atleast_2d(np.asarray(a, dtype=float)) for a in shaped], single
+
     def inverse_dynamics(self, q, qd, qdd, check: bool = True):
         """``(dtau_dq, dtau_dqd, M)`` at the states: ``(S, dof, dof)`` each (``(dof, dof)`` for one
-        ``(dof,)`` sample). ``M = dtau/dqdd``."""
-        single = np.ndim(q) == 1
-        if check:
-            q, qd, qdd = as_states(self.mechanism, q, qd, qdd, source="inverse-dynamics derivatives")
-        out = self.equations.evaluate(
-            "inverse_dynamics_derivatives", np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(qdd)
-        )
+        ``(dof,)`` sample). ``M = dtau/dqdd``. Zero samples give ``(0, dof, dof)``."""
+        (q, qd, qdd), single = self._states("inverse-dynamics derivatives", ("q", "qd", "qdd"), (q, qd, qdd), check)
+        if q.shape[0] == 0:
+            return tuple(np.zeros((0, self.mechanism.dof, self.mechanism.dof)) for _ in range(3))
+        out = self.equations.evaluate("inverse_dynamics_derivatives", q, qd, qdd)
         return tuple(x[0] for x in out) if single else out
+
+    @property
+    def coupling_condition(self) -> CouplingCondition:
+        """The mechanism's part of the condition of ``M`` (:mod:`exo_bench.models.conditioning`), on first use."""
+        c = getattr(self, "_coupling_condition", None)
+        if c is None:
+            c = self._coupling_condition = coupling_condition(self.mechanism)
+        return c
 
     def forward_dynamics(self, q, qd, tau, check: bool = True):
         """``(qdd, dqdd_dq, dqdd_dqd, Minv)`` at the states and forces: ``qdd (S, dof)``, the rest
         ``(S, dof, dof)`` (no sample axis for one ``(dof,)`` sample). ``Minv = dqdd/dtau``.
 
-        With ``check`` (the default) the states are validated and a singular mass matrix raises
-        :class:`exo_bench.models.forward_dynamics.SingularConfigurationError` naming the link, as
-        :func:`exo_bench.models.forward_dynamics.accelerations` does."""
-        single = np.ndim(q) == 1
+        With ``check`` (the default) the states are validated and they answer or refuse exactly as
+        ``forward_dynamics`` does: a singular mass matrix raises
+        :class:`exo_bench.models.forward_dynamics.SingularConfigurationError` naming the link, one beyond
+        the conditioning bound :class:`exo_bench.models.conditioning.NumericallySingularError` (the test
+        every method shares), and an answer that is not finite is refused, never returned. Without
+        ``check`` only the shapes are checked, and the mechanism itself: a link that moves no mass
+        (``mu`` singular at every configuration) is refused either way."""
+        (q, qd, tau), single = self._states("forward-dynamics derivatives", ("q", "qd", "tau"), (q, qd, tau), check)
+        mech, d = self.mechanism, self.mechanism.dof
+        if math.isinf(self.coupling_condition.kappa):
+            raise fd.SingularConfigurationError([f"sample 0: {coupling_reason(mech, self.coupling_condition)}"])
         if check:
-            q, qd, tau = as_states(self.mechanism, q, qd, tau, source="forward-dynamics derivatives")
-            reasons = [f"sample {s}: {r}" for s, rs in enumerate(fd.singular_reasons(self.mechanism, q)) for r in rs]
+            reasons = [f"sample {s}: {r}" for s, rs in enumerate(fd.singular_reasons(mech, q)) for r in rs]
             if reasons:
                 raise fd.SingularConfigurationError(reasons)
-        q, qd, tau = np.atleast_2d(q), np.atleast_2d(qd), np.atleast_2d(tau)
+            check_conditioning(mech, q, self.coupling_condition)
+        if q.shape[0] == 0:
+            return (np.zeros((0, d)), *(np.zeros((0, d, d)) for _ in range(3)))
         ev = self.equations.evaluate
         (M,), (h,) = ev("mass_matrix", q), ev("bias_forces", q, qd)
         qdd = fd.solve_mass_matrix(M, tau - h)
         jq, jqd, _ = ev("inverse_dynamics_derivatives", q, qd, qdd)
-        d = self.mechanism.dof
         X = solve_mass_matrix_columns(M, np.concatenate([jq, jqd, np.broadcast_to(np.eye(d), M.shape)], axis=2))
         out = (qdd, -X[:, :, :d], -X[:, :, d : 2 * d], X[:, :, 2 * d :])
+        if check:  # never NaN or inf: the row of each Jacobian names its coordinate
+            check_finite(mech, qdd)
+            for x, name in zip(out[1:], ("dqdd_dq", "dqdd_dqd", "Minv")):
+                check_finite(mech, np.where(np.isfinite(x).all(axis=2), 0.0, np.inf), name)
         return tuple(x[0] for x in out) if single else out
 
 

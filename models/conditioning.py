@@ -184,7 +184,8 @@ def _sample_reasons(mech, q, s, kappa, c, coupling) -> list[str]:
     _, psi, l = split(mech, q[s])
     cs = np.ones(n) if c is None else c[s]
     out = []
-    per_link = coupling.kappa * max(1.0, float(np.abs(q[s, :-n]).max(initial=0.0))) / cs**2
+    with np.errstate(divide="ignore"):
+        per_link = coupling.kappa * max(1.0, float(np.abs(q[s, :-n]).max(initial=0.0))) / cs**2
     for i in np.flatnonzero((l * cs < PIVOT_MIN) & (per_link <= CONDITION_LIMIT)):
         tilt = "" if psi is None else f" (l{i + 1} |cos psi{i + 1}| = {float(l[i] * cs[i]):.2g} m)"
         out.append(

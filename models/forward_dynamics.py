@@ -22,7 +22,9 @@ a link's columns are dependent: a rod of length zero (its angles move no mass) o
 Inverse dynamics is still defined there; forward dynamics is not, and
 :func:`accelerations` raises :class:`SingularConfigurationError` naming the link instead of
 returning NaN or garbage. :func:`singular_reasons` does the detection, exactly (no threshold on
-a condition number), and :func:`condition_numbers` measures how close to singular ``M`` is.
+a condition number), and :func:`condition_numbers` measures how close to singular ``M`` is. Near
+those states every method refuses alike where the error model cannot vouch for the answer: one
+conditioning test with its bound, :mod:`exo_bench.models.conditioning`.
 
 **Integration** (:func:`simulate`, in :mod:`exo_bench.models.simulate`) steps scipy's integrators on ``y = [q, qd]``, with
 explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
@@ -39,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from exo_bench.models.conditioning import check_finite
 from exo_bench.models.mechanism import Mechanism, as_states, split
 from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
@@ -123,16 +126,19 @@ def accelerations(model: PreparedModel, q, qd, tau, check: bool = True) -> np.nd
     """Forward dynamics ``qdd = M^-1 (tau - h)``, ``(S, dof)``, from a prepared model's ``M`` and ``h``.
 
     With ``check`` (the default) the states are validated and a singular configuration raises
-    :class:`SingularConfigurationError` (see :func:`singular_reasons`) rather than returning
-    NaN. The integrator calls it with ``check=False`` after checking the initial state.
+    :class:`SingularConfigurationError` (see :func:`singular_reasons`), one beyond the conditioning
+    bound :class:`exo_bench.models.conditioning.NumericallySingularError`, rather than returning
+    NaN or an answer the error model cannot vouch for. The integrator calls it with ``check=False``
+    after checking the initial state.
     """
     if check:
         q, qd, tau = as_states(model.mechanism, q, qd, tau, source="forward dynamics")
-        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(model.mechanism, q)) for r in rs]
-        if reasons:
-            raise SingularConfigurationError(reasons)
+        model.check_regular(q)  # exact singularities, then the conditioning test every method shares
     M, h = mass_matrix_and_bias(model, q, qd)
-    return solve_mass_matrix(M, tau - h)
+    qdd = solve_mass_matrix(M, tau - h)
+    if check:
+        check_finite(model.mechanism, qdd)
+    return qdd
 
 
 # --------------------------------------------------------------------------- controls

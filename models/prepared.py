@@ -52,6 +52,7 @@ from exo_bench.models.memory import (
     usable_memory,
 )
 from exo_bench.models.result_pool import ResultPool
+from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
 
@@ -322,6 +323,8 @@ class PreparedModel:
             if single:
                 q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
+        if check:  # never NaN or inf (forces too large for float64): named
+            check_finite(self._mechanism, qdd)
         qdd = qdd[0] if single else qdd
         if out is None:
             return qdd
@@ -330,10 +333,22 @@ class PreparedModel:
 
     def check_regular(self, q: np.ndarray) -> None:
         """Raise :class:`SingularConfigurationError` where ``M(q)`` is exactly singular
-        (:func:`exo_bench.models.singularity.singular_reasons`)."""
+        (:func:`exo_bench.models.singularity.singular_reasons`), then where it is singular to working
+        precision: the conditioning test that every method shares, O(n) per sample
+        (:func:`exo_bench.models.conditioning.check_conditioning`)."""
         reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
         if reasons:
             raise SingularConfigurationError(reasons)
+        check_conditioning(self._mechanism, q, self.coupling_condition)
+
+    @property
+    def coupling_condition(self) -> CouplingCondition:
+        """The mechanism's part of the condition of ``M`` (:func:`exo_bench.models.conditioning.coupling_condition`),
+        O(n), estimated on first use."""
+        c = getattr(self, "_coupling_condition", None)
+        if c is None:
+            c = self._coupling_condition = coupling_condition(self._mechanism)
+        return c
 
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:

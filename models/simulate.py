@@ -34,7 +34,6 @@ from exo_bench.models.simulate_arguments import (
     check_budget,
     check_simulate_arguments,
 )
-from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 
 if TYPE_CHECKING:
     from exo_bench.models.prepared import PreparedModel
@@ -246,8 +245,9 @@ def simulate(
     * ``first_step``: ``None`` (scipy chooses) or in ``(0, t_span[1] - t_span[0]]``; ``dense``: a bool.
 
     Bad arguments raise ValueError before any work. The initial state is validated and checked for a
-    singular mass matrix (then :class:`SingularConfigurationError`). A failure during the integration
-    (the budget, an invalid state such as a negative length, a scipy failure) is recorded in
+    singular mass matrix, exactly or to working precision (then
+    :class:`exo_bench.models.singularity.SingularConfigurationError`: ``model.check_regular``, the
+    conditioning test of every method's forward dynamics). A failure during the integration (the budget, an invalid state such as a negative length, a scipy failure) is recorded in
     ``status``, which then says how many accepted steps were kept and up to when: ``t``, ``y`` and
     the dense ``solution`` hold every step accepted before it (the solution may end one step short: a
     budget can stop DOP853 while it evaluates the last step's interpolant).
@@ -268,9 +268,7 @@ def simulate(
     )
     mech = model.mechanism
     q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")
-    reasons = singular_reasons(mech, q0)[0]
-    if reasons:
-        raise SingularConfigurationError(reasons)
+    model.check_regular(q0)  # exactly singular, or beyond the conditioning bound (models/conditioning.py)
     rhs, count = make_rhs(
         model, controls, a.max_evaluations, a.max_seconds, record_times=integrator in IMPLICIT, clock=clock
     )

@@ -32,6 +32,7 @@ def cmd_forward(args: argparse.Namespace) -> int:
     from exo_bench.api import method_class, prepare
     from exo_bench.api.cost_model import check
     from exo_bench.api.methods import known_wrong_warning
+    from exo_bench.models.conditioning import check_finite
     from exo_bench.models.loading import load_mechanism
 
     method_class(args.method)  # an unknown method fails before any file is read
@@ -46,7 +47,8 @@ def cmd_forward(args: argparse.Namespace) -> int:
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
-    model.check_regular(q)  # singular configurations: named, before any work
+    model.check_regular(q)  # singular or beyond the conditioning bound: named, before any work
     qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)  # validated above
+    check_finite(mech, qdd)  # forces too large for float64: one line naming the sample, never null
     _write_tau(args.method, qdd, sys.stdout, key="qdd")
     return 0

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.models.aggregates import coupling
+from exo_bench.models.conditioning import check_conditioning
 from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
@@ -143,14 +144,18 @@ class NewtonEuler(SerialKernelModel):
 
     def check_regular(self, q: np.ndarray) -> None:
         """O(n) per sample: ``M_r`` singular (found at prepare time), a rod of length zero, or (3D) a
-        vertical rod, in the words of :mod:`exo_bench.models.singularity`."""
+        vertical rod, in the words of :mod:`exo_bench.models.singularity`; then the conditioning test
+        that every method shares (:func:`exo_bench.models.conditioning.check_conditioning`, O(n) per
+        sample: the cosines computed here, the mechanism's part once)."""
         mech = self._mechanism
         reasons = [] if self.singular_mass is None else [self.singular_mass]
         _, psi, l = split(mech, q)
         bad = l == 0
-        vertical = np.zeros_like(bad) if psi is None else (np.abs(np.cos(psi)) <= COS_VERTICAL) & ~bad
+        cos = None if psi is None else np.abs(np.cos(psi))
+        vertical = np.zeros_like(bad) if cos is None else (cos <= COS_VERTICAL) & ~bad
         rows = np.flatnonzero(bad.any(axis=1) | vertical.any(axis=1))
         if rows.size == 0 and not reasons:
+            check_conditioning(mech, q, self.coupling_condition, cos)  # the test every method shares
             return
         out = [f"sample 0: {r}" for r in reasons]
         for s in rows[:16]:  # enough to name; the count says the rest
