@@ -34,7 +34,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import os
 import re
 import subprocess
 import sys
@@ -47,7 +46,7 @@ from pathlib import Path
 
 from exo_bench.api.methods import composes_within_budget
 from exo_bench.models import memory
-from exo_bench.models.resource_counts import check_count, check_workers
+from exo_bench.models.resource_counts import check_count, check_workers, usable_cpus
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import REPO, atomic_write
@@ -71,7 +70,7 @@ CHAINED = ("bench/test_compose.py",)
 @contextlib.contextmanager
 def cluster(scheduler: str | None = None, workers: int | None = None, timeout: float | None = None):
     """A Dask client: on the cluster at ``scheduler``, or on a :class:`LocalCluster` of ``workers``
-    single-threaded worker processes (default: one per core) that is closed on exit, Ctrl-C included.
+    single-threaded worker processes (default: one per CPU it may use) that is closed on exit, Ctrl-C included.
 
     ``scheduler`` must answer Dask's handshake within ``timeout`` seconds (default
     :func:`scheduler_timeout`), else a ValueError names it (:func:`probe_scheduler`); ``workers`` is
@@ -92,7 +91,7 @@ def cluster(scheduler: str | None = None, workers: int | None = None, timeout: f
         finally:
             client.close()
         return
-    n = check_workers(workers if workers is not None else os.cpu_count() or 1, memory.usable_memory())
+    n = check_workers(workers if workers is not None else usable_cpus(), memory.usable_memory())
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "port 8787 in use" and the like: we start no dashboard anyway
         lc = LocalCluster(
