@@ -223,7 +223,19 @@ def conditioning_reasons(mech: Mechanism, q: np.ndarray, coupling: CouplingCondi
     if whole is not None:
         return [f"sample 0: {whole}"]
     n = mech.nlinks
+    if q.shape[0] == 0:
+        return []
     c = None if mech.dim == 2 else (_cosines(mech, q) if cos_psi is None else cos_psi)
+    # the whole batch at once first (reductions, no temporaries): the common case passes here
+    ang = q[:, :-n]
+    worst_angle = max(1.0, float(ang.max(initial=0.0)), -float(ang.min(initial=0.0)))
+    worst_cos = 1.0 if c is None else float(c.min())
+    if (
+        worst_cos > 0
+        and coupling.kappa * worst_angle / worst_cos**2 <= CONDITION_LIMIT
+        and float(q[:, -n:].min()) * worst_cos >= PIVOT_MIN
+    ):
+        return []
     kappa = condition_estimates(mech, q, coupling, c)
     pivots = q[:, -n:] if c is None else q[:, -n:] * c
     bad = (kappa > CONDITION_LIMIT) | (pivots < PIVOT_MIN).any(axis=1)
