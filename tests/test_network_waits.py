@@ -65,7 +65,7 @@ GARBAGE = {
 
 def _check_in_thread(address: str, timeout: float) -> BaseException | None:
     """``check_scheduler(address, timeout)`` in a thread; its exception (None: it returned). A wait
-    that outlives a minute fails the test instead of hanging it."""
+    that outlives ten minutes (a safety net, never reached: issue 34, F1) fails the test instead of hanging it."""
     box: list[BaseException | None] = [None]
 
     def run():
@@ -76,8 +76,8 @@ def _check_in_thread(address: str, timeout: float) -> BaseException | None:
 
     t = threading.Thread(target=run, daemon=True)
     t.start()
-    t.join(60)
-    assert not t.is_alive(), f"check_scheduler({address!r}) still waiting after 60 s (timeout {timeout} s)"
+    t.join(600)
+    assert not t.is_alive(), f"check_scheduler({address!r}) still waiting after 600 s (timeout {timeout} s)"
     return box[0]
 
 
