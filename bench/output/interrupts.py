@@ -5,8 +5,9 @@ records the signal, then raises ``KeyboardInterrupt`` as Python's own Ctrl-C han
 the work stops where it is and the staging folder is removed. Python cannot propagate an exception
 raised inside a garbage-collection callback, a finaliser (``__del__``) or a weakref callback: it
 prints "Exception ignored in ..." and goes on, so a signal that landed there was lost and the run
-finished with exit 0 (issue 34, T1); a solver that polls for Ctrl-C (CasADi's IPOPT) turns it into
-its own failure ("IPOPT did not solve", U3). The record survives both: :func:`check` raises
+finished with exit 0 (issue 34, T1); there the handler only records it (:func:`cannot_propagate`),
+and the callback runs to its end. A solver that polls for Ctrl-C (CasADi's IPOPT) turns the
+interrupt into its own failure ("IPOPT did not solve", U3). The record survives both: :func:`check` raises
 ``KeyboardInterrupt`` again at the commands' safe points (before each scene and before publishing,
 after each sweep row, after a failed solve, and when the command returns), so the command ends as
 interrupted (exit 130) and nothing is published after the signal. While installed, the unraisable
@@ -19,8 +20,10 @@ The record is the handler object itself (``signal.getsignal``), so nothing modul
 from __future__ import annotations
 
 import contextlib
+import gc
 import signal
 import sys
+import weakref
 from collections.abc import Iterator
 from types import FrameType
 
@@ -36,7 +39,24 @@ class Interrupts:
 
     def __call__(self, signum: int, frame: FrameType | None) -> None:
         self.signum = signum
-        raise KeyboardInterrupt
+        if not cannot_propagate(frame):  # there, the next safe point raises it (check)
+            raise KeyboardInterrupt
+
+
+def cannot_propagate(frame: FrameType | None) -> bool:
+    """The interrupted code runs where Python drops an exception: a finaliser (``__del__``), a
+    garbage-collection callback (``gc.callbacks``) or a ``weakref.finalize`` callback. Raising there
+    would only cut the callback short."""
+    callbacks = {getattr(cb, "__code__", None) for cb in gc.callbacks}
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or code in callbacks or code is _FINALIZE_CALL:
+            return True
+        frame = frame.f_back
+    return False
+
+
+_FINALIZE_CALL = weakref.finalize.__call__.__code__
 
 
 def pending() -> int | None:
