@@ -290,6 +290,23 @@ def test_a_write_error_names_the_file(tmp_path, command):
     assert [f for f in tmp_path.iterdir() if f.name.startswith(".")] == []
 
 
+@pytest.mark.case("U4")
+@pytest.mark.parametrize("command", ["presets", "urdf", "inverse"])
+def test_a_full_stdout_is_named(tmp_path, command):
+    """Output to a full device (``> /dev/full``) is one line naming stdout (exit 2), not a bare
+    "No space left on device"."""
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full here")
+    argv = {
+        "presets": ["presets"],
+        "urdf": ["urdf", "fig1-2d"],
+        "inverse": ["inverse", "fig1-2d", _states_file(tmp_path), "--method", "matrix-factored"],
+    }[command]
+    with open("/dev/full", "w") as full:
+        p = subprocess.run([*EXO, *map(str, argv)], stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr == "exo-bench: error: stdout: No space left on device\n", p.stderr
+
+
 # ------------------------------------------------------------------------------ a reader that goes away
 def _states_file(d: Path) -> Path:
     from exo_bench.models.motion import random_states

@@ -148,12 +148,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv, warnings) -> int:
-    with warnings.catch_warnings():
+    from contextlib import nullcontext, redirect_stdout
+
+    real = sys.stdout is sys.__stdout__ and sys.stdout is not None  # not a test's or a caller's capture
+    with redirect_stdout(_NamedStdout(sys.stdout)) if real else nullcontext(), warnings.catch_warnings():
         warnings.showwarning = _show_warning  # one line each, not Python's file:line and source line
         try:
             args = build_parser().parse_args(argv)
             rc = _run(args)
-            sys.stdout.flush()  # a reader gone (| head) shows here, not after main returned 0
+            sys.stdout.flush()  # a reader gone (| head) or a full disk shows here, not after main returned 0
             return rc
         except _UsageError as e:
             print(_shorten(str(e).splitlines()[0] if str(e).strip() else "exo-bench: usage error"), file=sys.stderr)
@@ -172,6 +175,8 @@ def _main(argv, warnings) -> int:
             )
             return BROKEN_PIPE
         except (ValueError, OSError, MemoryError, RecursionError) as e:
+            if isinstance(e, OSError) and e.filename == "stdout":
+                _silence_stdout()  # nothing more to flush at exit
             print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             return 2
         except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
@@ -196,6 +201,29 @@ def _run(args: argparse.Namespace) -> int:
         raise
     check()
     return code
+
+
+class _NamedStdout:
+    """The process's stdout, whose write errors name it (``stdout: No space left on device``) as a
+    file's name the file (bench/output/files.py, :func:`stream_errors`); everything else is stdout's."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        from exo_bench.bench.output.files import stream_errors
+
+        with stream_errors("stdout"):
+            return self._stream.write(text)
+
+    def flush(self) -> None:
+        from exo_bench.bench.output.files import stream_errors
+
+        with stream_errors("stdout"):
+            self._stream.flush()
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
 
 
 def _silence_stdout() -> None:

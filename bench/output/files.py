@@ -23,6 +23,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+import sys
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
@@ -113,8 +114,6 @@ def stream_of(path: str | Path):
     """The text stream ``path`` means, or None for a file: ``-`` is stdout; a path that is this
     process's stdout or stderr (``/dev/stdout``, ``/proc/self/fd/1``, the log file stdout is
     appended to) is that stream, written as a stream and never replaced."""
-    import sys
-
     text = str(path)
     if text == STDOUT:
         return sys.stdout
@@ -139,12 +138,13 @@ def write_output(path: str | Path, data: str | bytes, label: str = "", inputs=()
     or to the stream ``path`` means (:func:`stream_of`: stdout, written and flushed, None returned)."""
     stream = stream_of(path)
     if stream is not None:
-        if isinstance(data, bytes):
+        with stream_errors("stdout" if stream is sys.stdout else "stderr"):
+            if isinstance(data, bytes):
+                stream.flush()
+                stream.buffer.write(data)
+            else:
+                stream.write(data)
             stream.flush()
-            stream.buffer.write(data)
-        else:
-            stream.write(data)
-        stream.flush()
         return None
     with replace_atomically(path, label, inputs) as (_, fd):
         write_all(fd, data)
@@ -156,6 +156,20 @@ def write_all(fd: int, data: str | bytes) -> None:
     view = memoryview(data.encode() if isinstance(data, str) else data)
     while view:
         view = view[os.write(fd, view) :]
+
+
+@contextmanager
+def stream_errors(name: str = "stdout"):
+    """An OSError writing a stream (stdout full: ``> /dev/full``) names it, as a file's error names
+    the file; a broken pipe stays a BrokenPipeError (the command line's exit 141)."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as e:
+        if e.filename is not None:
+            raise
+        raise OSError(e.errno, e.strerror or str(e), name) from None
 
 
 def checked_output(path: str | Path, label: str = "", inputs=()) -> None:
