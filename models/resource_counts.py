@@ -123,8 +123,8 @@ def check_thread_room(option: str, threads: int, scratch_bytes: float = 0.0) -> 
         per = stack + scratch_bytes / max(threads, 1)
         fits = int(room // per)
         raise ValueError(
-            f"{option}: {threads} threads need {_mb(need)} of address space (a {_mb(stack)} stack each, "
-            f"the stack limit or OMP_STACKSIZE, and their scratch), more than the {_mb(room)} left under this "
+            f"{option}: {threads} threads need {_mb(need)} of address space (stacks of {_mb(stack)} each, "
+            f"from the stack limit or OMP_STACKSIZE, and their scratch), more than the {_mb(room)} left under this "
             f"process's address-space limit (ulimit -v); expected at most {fits}, got {threads}"
         )
 
