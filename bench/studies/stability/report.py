@@ -26,6 +26,7 @@ from exo_bench.bench.studies.stability.cases import (
 from exo_bench.bench.studies.stability.evaluation import FamilyResult, MethodRow, evaluate_families, method_options
 from exo_bench.bench.studies.stability.figures import conditioning_figure, families_figure
 from exo_bench.bench.studies.study import StabilityWarning
+from exo_bench.models import conditioning as cond
 from exo_bench.models import forward_dynamics as fd
 
 
@@ -76,6 +77,13 @@ def thresholds_markdown(families: list[FamilyResult] | None = None, tightest_rto
             f"{fd.COS_VERTICAL:.0e}, i.e. within a few ulp of pi/2: the float nearest pi/2 has cos = 6.1e-17), or a "
             "link whose coordinates move no mass. Inverse dynamics is still defined there; forward dynamics is not, "
             "and `models.forward_dynamics.accelerations` raises `SingularConfigurationError` naming the link.",
+            "- **Forward dynamics refuses** by one conditioning test shared by every method, not by the SI-unit "
+            "thresholds above (cond(M) in SI units moves with the units of each coordinate): `forward_dynamics`, "
+            "`accelerations`, `simulate`'s initial state and `model.derivatives` refuse, naming the link, where the "
+            f"error model's bound {cond.ROUNDINGS} eps kappa on the answer exceeds {cond.FORWARD_RTOL:g}, kappa = "
+            "cond(mu_s) max(1, |angles|) / min cos^2 psi (above "
+            f"{cond.CONDITION_LIMIT:.1e}), or where a rod's l |cos psi| is below {cond.PIVOT_MIN:.0e} m "
+            "(`models.conditioning`); a simulation whose initial state lies beyond it is refused before it starts.",
             "- **cond_eq** = cond(D^-1/2 M D^-1/2), D = diag(M), is in exact arithmetic the same at every "
             "configuration: cond(mu_s) of the equilibrated mass distribution matrix (column `cond(mu_s)`), because "
             "D^-1/2 M D^-1/2 is orthogonally similar to mu_s (x) I (see `condition_numbers`). Where the computed "
