@@ -17,7 +17,9 @@ with ``k = K`` (8 roundings of each term), i.e. ``k eps cond(M)`` relative to ``
 resolved; where rounding hides ``sigma_min`` (rods of 1e-9 m near vertical) the bound is vacuous
 and only finiteness is asserted. Where :func:`exo_bench.models.singularity.singular_reasons` names a cause,
 every method raises :class:`SingularConfigurationError` with that reason instead (a singular ``mu``:
-newton-euler names the link whose pivot of ``M_r`` vanished, in its own words).
+newton-euler names the link whose pivot of ``M_r`` vanished, in its own words); where the conditioning
+test that every method shares (:mod:`exo_bench.models.conditioning`) is beyond its bound, every method
+refuses it as numerically singular.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from hypothesis import event, example, given
 from test_properties import CHAIN3, EXAMPLE_RATES, PROFILE, VERTICAL, cases
 
 from exo_bench import prepare
+from exo_bench.models.conditioning import conditioning_reasons, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 
 LAGRANGE_MAX_LINKS = 2
@@ -66,7 +69,9 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
     sigma = np.linalg.svd(M, compute_uv=False)
     # sigma_min resolved: above the rounding of M itself (Weyl), else the bound is vacuous
     resolved = sigma[:, -1] > 2 * K * EPS * np.linalg.norm(mass_matrix_scale(mech, q, derived=True), ord=2, axis=(1, 2))
-    event("singular" if singular.any() else "regular")
+    coupling = coupling_condition(mech)
+    beyond = np.array([bool(conditioning_reasons(mech, q[s : s + 1], coupling)) for s in range(q.shape[0])])
+    event("singular" if singular.any() else "beyond the conditioning bound" if beyond.any() else "regular")
     for name, model in _models(mech).items():
         tau = model.inverse_dynamics(q, qd, qdd)
         if singular.any():
@@ -78,8 +83,11 @@ def test_forward_dynamics_inverts_inverse_dynamics_on_every_method(case):
                 assert "mass" in str(e.value), name
             else:
                 assert first in str(e.value), name
-        ok = ~singular & resolved
-        if (~singular & ~resolved).any():
+        if (~singular & beyond).any():  # beyond the conditioning bound: every method refuses, named
+            with pytest.raises(SingularConfigurationError, match="numerically singular|mass"):
+                model.forward_dynamics(q[~singular & beyond], qd[~singular & beyond], tau[~singular & beyond])
+        ok = ~singular & resolved & ~beyond
+        if (~singular & ~resolved & ~beyond).any():
             # sigma_min below the rounding of M: a finite answer, or the error that names it numerically
             # singular (M derived by differences can lose a diagonal of 1e-30 entirely); never NaN
             try:
