@@ -89,7 +89,7 @@ def _pin_setup_seconds(mech, options):
     # pin.Data(model) zero-fills its pages and the first call touches them again: 2.2 GB/s with the
     # page faults on the quiet machine, and 0.2 ms per link for the model. Measured in fresh processes
     # (prepare and the first call, the fastest of four): 3D n = 30, 50, 70, 90 (30, 122, 319, 665 MB):
-    # 0.020, 0.061, 0.151, 0.305 s (tests/test_estimate_vs_measured.py holds these within 2x).
+    # 0.020, 0.061, 0.151, 0.305 s (bench/test_estimate_timing.py holds these within 2x).
     return LOADED * (one * count / 2.2e9 + 2e-4 * mech.nlinks)
 
 

@@ -65,7 +65,7 @@ afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
 Since 2026-11-24: the times of ``recurrence``, ``pinocchio`` and ``matrix-factored`` are recalibrated
 (:mod:`exo_bench.api.cost_formulas`: the quiet machine's times :data:`~exo_bench.api.cost_formulas.LOADED`,
 and a large batch no faster than :data:`~exo_bench.api.cost_formulas.ARRAY_BANDWIDTH`); the table above had
-them 3-17x too slow per sample (the compiled and SIMD kernels came after it), so that tests/test_estimate_vs_measured.py
+them 3-17x too slow per sample (the compiled and SIMD kernels came after it), so that the timing goal (bench/test_estimate_timing.py)
 found the quiet machine 0.17x the estimates. The other methods keep the figures above.
 
 Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`~exo_bench.api.cost_formulas.recurrence_table_floats`:
@@ -73,8 +73,9 @@ sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain, writ
 3.5 GB and 20 s estimated at 2D n = 1000, measured 3.0 GB and 12.7 s, where the former four copies
 measured 10.6 GB and 32 s), ``pinocchio``'s setup time the first
 touch of its Data and the model build, and ``io`` (bench/cli/states_input.py) the reading of the states
-and the writing of tau; tests/test_estimate_vs_measured.py holds recurrence and Pinocchio within 2x
-of measurement across n.
+and the writing of tau; bench/test_estimate_timing.py holds recurrence and Pinocchio within 2x
+of measurement across n (a benchmark: --benchmark-enable), and tests/test_estimate_vs_measured.py the memory
+estimate above the allocations tracemalloc counts.
 
 Setup: ``pinocchio`` is one ``pin.Data`` (``models.pinocchio_backend.data_bytes``: 32 nv^3 bytes
 and more, 0.90 GB at 3D n = 100, zero-filled at about 2.7 GB/s by ``pin.Data(model)``; ``createData()``
