@@ -132,7 +132,7 @@ print(json.dumps({"hits": int(sum(k.stats.cache_hits.values())), "misses": int(s
 
 
 def _probe(env) -> dict:
-    r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, timeout=1800)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout.strip().splitlines()[-1])
 

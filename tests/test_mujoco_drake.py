@@ -241,7 +241,7 @@ def _cli(*args, hide=()):
         + "".join(f"sys.modules[{m!r}] = None\n" for m in hide)
         + "from exo_bench.bench.cli import main\nsys.exit(main(sys.argv[1:]))"
     )
-    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=300)
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=1800)
 
 
 def test_mjcf_bad_input_is_one_line_and_exit_2(tmp_path):
@@ -271,7 +271,7 @@ def test_missing_engine_is_a_value_error_naming_the_extra(method, module):
         f"try:\n    prepare(presets.exo5(dim=3), {method!r})\n"
         "except ValueError as e:\n    print(e)\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1800)
     assert "pip install 'exo-bench[peers]'" in r.stdout and method in r.stdout, r.stdout + r.stderr
     r = _cli("inverse", "exo5-3d", "nothing.json", "--method", method, hide=(module,))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1

@@ -114,7 +114,7 @@ def test_the_cli_takes_the_timeout_from_dasks_connect_setting(tmp_path):
             [sys.executable, "-m", "exo_bench.bench.cli", "bench", "--scheduler", address, "--reports", tmp_path],
             capture_output=True,
             text=True,
-            timeout=300,
+            timeout=1800,
             env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "0.5"},
         )
     err = r.stderr.strip()

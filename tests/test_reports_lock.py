@@ -69,7 +69,7 @@ def test_four_concurrent_runs_into_one_folder_lose_nothing(tmp_path):
         batch = [f"r{rnd}-p{k}" for k in range(4)]
         procs = [_start_run(_cheap_scene(tmp_path, n), rep) for n in batch]
         for p in procs:
-            out, err = p.communicate(timeout=300)
+            out, err = p.communicate(timeout=1800)
             assert p.returncode == 0, err
         names += batch
         _assert_nothing_lost(rep, names)
@@ -119,7 +119,7 @@ def test_four_concurrent_publications_repeated_lose_nothing(tmp_path):
             assert p.stdout is not None and p.stdout.readline() == "staged\n", p.communicate(timeout=60)[1]
         go.touch()
         for p in procs:
-            _, err = p.communicate(timeout=300)
+            _, err = p.communicate(timeout=1800)
             assert p.returncode == 0, err
         names += batch
         _assert_nothing_lost(rep, names)
@@ -168,7 +168,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
     with reports_lock(rep, "the test, publishing scene c"):
         t = threading.Thread(target=lambda: done.append(_publish_one(rep, "b")))
         t.start()
-        assert waiting.wait(timeout=300), "the publisher never waited for the held lock"
+        assert waiting.wait(timeout=1800), "the publisher never waited for the held lock"
         assert t.is_alive() and not done
         assert "b" not in json.loads((rep / "runs.json").read_text())["scenes"] and not (rep / "b.md").exists()
         # meanwhile the holder publishes its scene c, as a run holding the lock does
@@ -176,7 +176,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
         manifest["runs"]["20260101T000000Z-cccc"] = {"command": "exo-bench run c", "status": "complete"}
         manifest["scenes"]["c"] = {"run": "20260101T000000Z-cccc", "rows": [["c", "pinocchio", "x", "1.00", ""]]}
         atomic_write(rep / "runs.json", json.dumps(manifest))
-    t.join(timeout=300)
+    t.join(timeout=1800)
     assert not t.is_alive() and done
     manifest = json.loads((rep / "runs.json").read_text())
     assert {"a", "b", "c"} <= set(manifest["scenes"])

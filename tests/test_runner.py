@@ -35,7 +35,7 @@ def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
 
 def _cli(*args):
     return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=1800
     )
 
 
@@ -71,7 +71,7 @@ def test_undeclared_things_are_never_built(tmp_path):
         f"import pathlib; o = run_scene(load_scene({str(p)!r}), pathlib.Path({str(tmp_path)!r})); "
         "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rerun', 'lagrange', 'matplotlib')))"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1800)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"
 

@@ -182,7 +182,7 @@ def test_the_atomic_writers_refuse_a_link_in_the_api(tmp_path):
 
 # ------------------------------------------------------------------------------ stdout is a stream
 def _sub(argv, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=300, **kw)
+    return subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=1800, **kw)
 
 
 @pytest.mark.case("D6")
@@ -194,7 +194,7 @@ def test_o_dev_stdout_appends_to_a_log_and_never_replaces_it(tmp_path, command):
     log.write_text("earlier lines\n")
     ino = log.stat().st_ino
     with open(log, "a") as f:
-        p = subprocess.run([*EXO, *ONE_FILE[command]("/dev/stdout")], stdout=f, stderr=subprocess.PIPE, timeout=300)
+        p = subprocess.run([*EXO, *ONE_FILE[command]("/dev/stdout")], stdout=f, stderr=subprocess.PIPE, timeout=1800)
     assert p.returncode == 0, p.stderr
     text = log.read_text()
     assert text.startswith("earlier lines\n<?xml") or text.startswith("earlier lines\n<"), text[:200]
@@ -282,7 +282,7 @@ def test_a_write_error_names_the_file(tmp_path, command):
         argv, target = ONE_FILE[command](tmp_path / "out.xml"), tmp_path / "out.xml"
     else:
         argv, target = FOLDER[command][0](tmp_path), tmp_path / FOLDER[command][1]
-    p = subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=300, preexec_fn=_small_files)
+    p = subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=1800, preexec_fn=_small_files)
     assert p.returncode == 2, p.stderr
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "File too large" in lines[0], p.stderr
@@ -303,7 +303,7 @@ def test_a_full_stdout_is_named(tmp_path, command):
         "inverse": ["inverse", "fig1-2d", _states_file(tmp_path), "--method", "matrix-factored"],
     }[command]
     with open("/dev/full", "w") as full:
-        p = subprocess.run([*EXO, *map(str, argv)], stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+        p = subprocess.run([*EXO, *map(str, argv)], stdout=full, stderr=subprocess.PIPE, text=True, timeout=1800)
     assert p.returncode == 2 and p.stderr == "exo-bench: error: stdout: No space left on device\n", p.stderr
 
 
@@ -334,7 +334,7 @@ def test_a_broken_pipe_never_exits_0(tmp_path, command):
     r, w = os.pipe()
     os.close(r)  # the reader has gone before the first write
     try:
-        p = subprocess.run([*EXO, *map(str, argv)], stdout=w, stderr=subprocess.PIPE, text=True, timeout=300)
+        p = subprocess.run([*EXO, *map(str, argv)], stdout=w, stderr=subprocess.PIPE, text=True, timeout=1800)
     finally:
         os.close(w)
     assert p.returncode == 141, (p.returncode, p.stderr)
