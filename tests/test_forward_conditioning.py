@@ -25,6 +25,8 @@ import sys
 import numpy as np
 import pytest
 from conftest import EPS, K, installed_methods, mass_coupling_oracle, mass_matrix_scale, term_scale
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from exo_bench import prepare
 from exo_bench.api.methods import known_wrong_warning
@@ -82,6 +84,35 @@ def test_a_rod_too_short_for_working_precision_is_refused_by_every_method_naming
         assert f"'l{link + 1}'" in msg and "numerically singular" in msg, (name, msg)
         # the regular samples alone still answer
         assert np.isfinite(model.forward_dynamics(q[[0, 2]], qd[[0, 2]], tau[[0, 2]])).all(), name
+
+
+@pytest.mark.case("W2", "W3")
+@settings(max_examples=25, deadline=None, derandomize=True, database=None)
+@given(
+    dim=st.sampled_from([2, 3]),
+    link=st.integers(0, 4),
+    exponent=st.floats(-307.0, -147.0),
+    tilt=st.sampled_from([0.0, 1e-5, 1e-9, 1e-13]),
+    seed=st.integers(0, 2**16),
+)
+def test_every_short_or_tilted_rod_is_refused_naming_its_link(dim, link, exponent, tilt, seed):
+    """Any rod of exo5 shorter than working precision (``l`` from 1e-307 to 1e-147 m), or in 3D tilted
+    within 1e-5 rad of vertical, is refused by the fast methods naming that link (hypothesis)."""
+    mech = exo5(dim)
+    n = mech.nlinks
+    q, qd, tau = _state(mech, seed)
+    which = "l"
+    if dim == 3 and tilt > 0:
+        q[0, n + link] = math.copysign(math.pi / 2 - tilt, q[0, n + link])
+        which = "psi"
+    else:
+        q[0, -n + link] = 10.0**exponent
+    for name in ("newton-euler", "matrix-factored", "pinocchio"):
+        with pytest.raises(SingularConfigurationError) as e:
+            prepare(mech, name).forward_dynamics(q, qd, tau)
+        msg = str(e.value)
+        assert f"sample 0: link {link + 1} ({mech.names[link]})" in msg, (name, msg)
+        assert (f"field 'l{link + 1}'" if which == "l" else f"psi{link + 1} = ") in msg, (name, msg)
 
 
 @pytest.mark.case("W2")
