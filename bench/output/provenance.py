@@ -63,11 +63,30 @@ def sci(x, digits: int = 1) -> str:
 PNG_DPI = 150
 
 
+def literal_texts(fig) -> None:
+    """Every text of ``fig`` outside its axes (titles, legends, figure texts: where a scene's or a
+    link's name is shown) drawn as written, never as mathtext: matplotlib reads ``$...$`` as math,
+    and a link named ``a$\\x$b`` stopped the figure with a parse error. The axes' own texts keep
+    mathtext (a log axis labels its ticks with it); the suite writes no math of its own in figures."""
+    from matplotlib.text import Text
+
+    axis_texts: set = set()
+    for ax in fig.get_axes():
+        for axis in (getattr(ax, k, None) for k in ("xaxis", "yaxis", "zaxis")):
+            if axis is not None:
+                axis_texts.update(axis.findobj(Text))
+    for t in fig.findobj(Text):
+        if t not in axis_texts:
+            t.set_parse_math(False)
+
+
 def save_figure(fig, path: str | Path, dpi: int = PNG_DPI) -> Path:
     """Render a matplotlib figure to PNG in memory and write it atomically (no half-written file),
-    with the run identifier in the PNG's metadata (``Description: exo-bench run <id>``)."""
+    with the run identifier in the PNG's metadata (``Description: exo-bench run <id>``); names in
+    it are text (:func:`literal_texts`)."""
     import io
 
+    literal_texts(fig)
     buf = io.BytesIO()
     fig.savefig(
         buf,
