@@ -86,10 +86,10 @@ def sweep(folder: Path, workers: int, budget: float = 600.0, **kw):
 @pytest.mark.case("F1")
 def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     """Two workers run a tiny sweep and merge it; a failing row and a row over its budget are recorded with
-    their reasons. The over-budget row sleeps an hour, so only its budget ends it, and the 60 s budget
+    their reasons. The over-budget row sleeps an hour, so only its budget ends it, and the 180 s budget
     is far above what the other rows (a pytest start) need on a loaded machine: no race with the clock."""
     d = tiny_bench(tmp_path / "b", ns=(1, 4, 5), fail=True, sleep=3600.0)
-    out = sweep(d, workers=2, budget=60.0)
+    out = sweep(d, workers=2, budget=180.0)
     keys = [r["key"] for r in out.rows]
     assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
     assert out.workers == 2 and sorted(out.ran) == sorted(keys) and out.resumed == []
@@ -105,7 +105,7 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     assert "AssertionError: the test-only failing row" in status["2d-chain-n4"]["reason"]
     # a row over its budget: killed, recorded with the reason; its benchmarks are skips with it
     assert status["3d-chain-n5"]["status"] == "over budget"
-    assert "over the row budget of 60 s" in status["3d-chain-n5"]["reason"]
+    assert "over the row budget of 180 s" in status["3d-chain-n5"]["reason"]
     over = [s for s in out.skips if "chain5-3d" in s["nodeid"]]
     assert len(over) == 2 and all("over budget" in s["reason"] for s in over)
     bench = out.merged["benchmarks"]
