@@ -40,6 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from exo_bench.models.joint_coordinates import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import MissingExtra, PreparedModel
 from exo_bench.models.urdf import link_prefix
@@ -180,7 +181,7 @@ class DrakeID(PreparedModel):
         """Drake's generalised forces in its joint coordinates, gravity included, ``(S, nv)``."""
         plant = self.plant
         ctx, forces = self._scratch()
-        qj, vj, aj = q @ self.GT, qd @ self.GT, qdd @ self.GT
+        qj, vj, aj = rowwise_product(q, self.GT), rowwise_product(qd, self.GT), rowwise_product(qdd, self.GT)
         out = np.empty_like(qj)
         for s in range(q.shape[0]):
             plant.SetPositions(ctx, qj[s])
@@ -189,12 +190,12 @@ class DrakeID(PreparedModel):
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):
-        return self.joint_torques(q, qd, qdd) @ self.G
+        return rowwise_product(self.joint_torques(q, qd, qdd), self.G)
 
     def _mass_matrix(self, q):
         plant = self.plant
         ctx, _ = self._scratch()
-        qj = q @ self.GT
+        qj = rowwise_product(q, self.GT)
         out = np.empty((q.shape[0], self._dof, self._dof))
         for s in range(q.shape[0]):
             plant.SetPositions(ctx, qj[s])

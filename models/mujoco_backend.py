@@ -28,6 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from exo_bench.models.joint_coordinates import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.mjcf import JointMap, check_nesting, joint_map, to_mjcf
 from exo_bench.models.prepared import MissingExtra, PreparedModel
@@ -174,15 +175,14 @@ class MujocoRNE(PreparedModel):
     def joint_torques(self, q, qd, qdd, acc: bool = True) -> np.ndarray:
         """MuJoCo's generalised forces in its own joint coordinates, ``(S, nv)``."""
         mj, model, data = self._mj, self.mj_model, self.data
-        qj, vj = q @ self.GT, qd @ self.GT
-        aj = qdd @ self.GT if acc else None
         out = np.empty((q.shape[0], model.nv))
         flg = 1 if acc else 0
         for s in range(q.shape[0]):
-            data.qpos[:] = qj[s]
-            data.qvel[:] = vj[s]
+            # sample by sample, as rowwise_product: the same bits alone, in a chunk or in a batch
+            data.qpos[:] = q[s] @ self.GT
+            data.qvel[:] = qd[s] @ self.GT
             if acc:
-                data.qacc[:] = aj[s]
+                data.qacc[:] = qdd[s] @ self.GT
             mj.mj_kinematics(model, data)
             mj.mj_comPos(model, data)
             mj.mj_comVel(model, data)
@@ -190,18 +190,17 @@ class MujocoRNE(PreparedModel):
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):
-        return self.joint_torques(q, qd, qdd) @ self.G
+        return rowwise_product(self.joint_torques(q, qd, qdd), self.G)
 
     def _bias_forces(self, q, qd):
-        return self.joint_torques(q, qd, None, acc=False) @ self.G
+        return rowwise_product(self.joint_torques(q, qd, None, acc=False), self.G)
 
     def _mass_matrix(self, q):
         mj, model, data = self._mj, self.mj_model, self.data
-        qj = q @ self.GT
         Mj = np.empty((model.nv, model.nv))
         out = np.empty((q.shape[0], self._dof, self._dof))
         for s in range(q.shape[0]):
-            data.qpos[:] = qj[s]
+            data.qpos[:] = q[s] @ self.GT
             mj.mj_kinematics(model, data)
             mj.mj_comPos(model, data)
             mj.mj_makeM(model, data)
