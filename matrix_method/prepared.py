@@ -43,6 +43,8 @@ from exo_bench.models.mechanism import Mechanism, split
 from exo_bench.models.prepared import PreparedModel, SerialKernelModel, unchecked_states
 
 _F8 = np.dtype(np.float64)
+#: O(1) bounds test of the lean path (the one check_out uses): an out overlapping an input goes to the checked path, which refuses it
+_may_overlap = np.may_share_memory
 
 
 def _tile_option(method: str, tile, block=None) -> int:
@@ -217,6 +219,7 @@ class MatrixFactored(_WithNumbaKernel):
                     and qdd.dtype is _F8
                     and out.dtype is _F8
                     and out.flags.writeable
+                    and not (_may_overlap(out, q) or _may_overlap(out, qd) or _may_overlap(out, qdd))
                     and lean(self._params, q, qd, qdd, out)
                 ):
                     return out

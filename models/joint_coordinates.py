@@ -77,9 +77,11 @@ def joint_basis(mech: Mechanism) -> JointBasis:
         labels.append(f"{_SYMBOL[kind]}{i + 1} {mech.names[i]}")
     moment_rows = tuple(r for r, k in enumerate(kinds) if k != "len")
     force_rows = tuple(sorted((r for r, k in enumerate(kinds) if k == "len"), key=lambda r: links[r]))
-    return JointBasis(
-        tuple(pm.joint_names), tuple(labels), tuple(links), tuple(kinds), np.linalg.inv(G), moment_rows, force_rows
-    )
+    G_inv = np.linalg.inv(G)
+    G_inv.flags.writeable = False  # cached per mechanism and shared: nobody may change it (a view of it
+    G_inv = G_inv.view()  # cannot be made writeable again, the owner could)
+    G_inv.flags.writeable = False
+    return JointBasis(tuple(pm.joint_names), tuple(labels), tuple(links), tuple(kinds), G_inv, moment_rows, force_rows)
 
 
 def joint_quantities(mech: Mechanism, tau: np.ndarray) -> np.ndarray:

@@ -64,6 +64,15 @@ _TOP_KEYS = {"dim", "g", "links"}
 _TOP_OPTIONAL = {"name"}
 
 
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a``, itself made read-only: numpy lets the owner of the data set its
+    write flag again, but not a view of a read-only base."""
+    a.flags.writeable = False
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
 @dataclass(frozen=True)
 class Mechanism:
     """A tree of ``n`` telescopic links with three point masses each.
@@ -117,22 +126,25 @@ class Mechanism:
         return self.dim * self.nlinks
 
     # ------------------------------------------------------ numpy views
+    # Read-only, like the frozen fields they are built from: every method reads them (some once at
+    # prepare, some at every call), so a write would change some methods and not others.
     @cached_property
     def mass_array(self) -> np.ndarray:
-        """``(n, 3)`` array of ``[m_i0, m_i1, m_i2]``."""
-        return np.array(self.masses, dtype=float)
+        """``(n, 3)`` array of ``[m_i0, m_i1, m_i2]``, read-only."""
+        return _read_only(np.array(self.masses, dtype=float))
 
     @cached_property
     def fractions(self) -> np.ndarray:
-        """``(n, 3)`` array of ``[n_i0, n_i1, n_i2] = [0, n_i, 1]``."""
+        """``(n, 3)`` array of ``[n_i0, n_i1, n_i2] = [0, n_i, 1]``, read-only."""
         f = np.zeros((self.nlinks, 3))
         f[:, 1] = self.n
         f[:, 2] = 1.0
-        return f
+        return _read_only(f)
 
     @cached_property
     def sign_array(self) -> np.ndarray:
-        return np.array(self.sign, dtype=float)
+        """``(n,)`` array of the branch signs, read-only."""
+        return _read_only(np.array(self.sign, dtype=float))
 
     @property
     def total_mass(self) -> float:
@@ -166,7 +178,7 @@ class Mechanism:
         for j, anc in enumerate(self.ancestors):
             for i in anc:
                 a[i, j] = True
-        return a
+        return _read_only(a)
 
     def is_chain(self) -> bool:
         """True for a serial chain ``parent = (-1, 0, 1, ..., n-2)``."""

@@ -6,8 +6,24 @@ from __future__ import annotations
 import numpy as np
 
 
-def check_out(out, shape: tuple, method: str = "") -> None:
-    """``out`` of :meth:`~exo_bench.models.prepared.PreparedModel.inverse_dynamics`: a writable C-ordered float64 array of ``shape``."""
+#: Bounds only (numpy's MAY_SHARE_BOUNDS): O(1), and true for every real overlap, partial or with
+#: other strides; it may also be true for interleaved views that share no element, which are refused
+#: too (a kernel writing ``out`` while it reads an input needs them apart).
+_may_overlap = np.may_share_memory
+
+
+def check_out(out, shape: tuple, method: str = "", inputs: tuple = (), names: tuple = ("q", "qd", "qdd")) -> None:
+    """``out`` of :meth:`~exo_bench.models.prepared.PreparedModel.inverse_dynamics`: a writable C-ordered
+    float64 array of ``shape`` that shares no memory with the ``inputs`` (named ``names``): the kernels
+    write ``out`` while they read them, so an ``out`` that overlaps one, even partly, gives garbage.
+    Checked with ``check=False`` too: it is memory safety, not a value."""
+    where = f"{method + ': ' if method else ''}field 'out'"
+    for name, a in zip(names, inputs):
+        if isinstance(out, np.ndarray) and isinstance(a, np.ndarray) and _may_overlap(out, a):
+            raise ValueError(
+                f"{where}: expected an array that shares no memory with the inputs, got one that overlaps "
+                f"'{name}' (the kernels write out while they read {name}: pass a separate array)"
+            )
     if not (
         isinstance(out, np.ndarray)
         and out.dtype == np.float64
@@ -22,9 +38,7 @@ def check_out(out, shape: tuple, method: str = "") -> None:
             + ("" if out.flags.c_contiguous else ", not C-ordered")
             + ("" if out.flags.writeable else ", read-only")
         )
-        raise ValueError(
-            f"{method + ': ' if method else ''}field 'out': expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}"
-        )
+        raise ValueError(f"{where}: expected a writable C-ordered float64 array of shape {tuple(shape)}, got {got}")
 
 
 _F8 = np.dtype(np.float64)
@@ -58,6 +72,7 @@ def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
             ok = ok and a.shape == s and a.dtype is _F8 and a.flags.c_contiguous
         if ok and out is not None:
             ok = out.shape == s and out.dtype is _F8 and out.flags.c_contiguous and out.flags.writeable
+            ok = ok and not any(_may_overlap(out, a) for a in arrays)
     except (AttributeError, IndexError):
         ok = False
     if ok:
@@ -82,7 +97,7 @@ def unchecked_states(method: str, dof: int, arrays: tuple, out=None) -> None:
                 + ("" if name == "q" or not isinstance(q, np.ndarray) else f" (q: {q.shape})")
             )
     if out is not None:
-        check_out(out, q.shape, method)
+        check_out(out, q.shape, method, arrays, names)
     # here: safe after all (a float64 dtype object that is not numpy's own, as some libraries make)
 
 
@@ -101,4 +116,4 @@ def unchecked_forward(method: str, dof: int, q, qd, tau, out) -> None:
     try:
         unchecked_states(method, dof, (q, qd, tau), out)
     except ValueError as e:
-        raise ValueError(str(e).replace("field 'qdd'", "field 'tau'")) from None
+        raise ValueError(str(e).replace("qdd", "tau")) from None

@@ -52,6 +52,15 @@ static inline int usable(LeanCall *self, PyObject *a, int writable) {
            && (!writable || (f->flags & WRITEABLE));
 }
 
+/* Whether out's dof doubles are apart from an input's (both checked by usable: one dimension of dof
+   at a stride of 8): the kernel writes out while it reads the inputs, so an out that overlaps one,
+   even partly, is passed to the fallback, which refuses it. */
+static inline int apart(LeanCall *self, PyObject *a, PyObject *out) {
+    char *x = ((ArrayFields *)a)->data, *o = ((ArrayFields *)out)->data;
+    Py_ssize_t bytes = 8 * self->dof;
+    return o + bytes <= x || x + bytes <= o;
+}
+
 static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
     LeanCall *self = (LeanCall *)callable;
     Py_ssize_t np_ = PyVectorcall_NARGS(nargsf);
@@ -72,7 +81,8 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
         if (PyErr_Occurred()) PyErr_Clear();
     }
     if (plain && check == Py_False && out && out != Py_None && usable(self, args[0], 0) && usable(self, args[1], 0)
-        && usable(self, args[2], 0) && usable(self, out, 1)) {
+        && usable(self, args[2], 0) && usable(self, out, 1) && apart(self, args[0], out) && apart(self, args[1], out)
+        && apart(self, args[2], out)) {
         self->kernel(self->p, (double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
                      (double *)((ArrayFields *)args[2])->data, (double *)((ArrayFields *)out)->data, self->n);
         Py_INCREF(out);
