@@ -37,6 +37,7 @@ from exo_bench.models.conditioning import (
     coupling_reason,
 )
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.states import is_one_sample
 
 #: What computes the derivatives, per method family (:attr:`Derivatives.source`).
 SOURCE = (
@@ -89,7 +90,7 @@ class Derivatives:
         Shapes and sample counts are checked with or without ``check`` (a ValueError naming the field,
         the expected and the actual count: never numpy's reshape error or CasADi's); ``check`` also
         validates the values (:func:`exo_bench.models.mechanism.as_states`)."""
-        single = np.ndim(arrays[0]) == 1
+        single = is_one_sample(arrays[0])
         d = self.mechanism.dof
         shaped = []
         for name, a in zip(names, arrays):

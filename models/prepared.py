@@ -55,6 +55,7 @@ from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
+from exo_bench.models.states import is_one_sample
 
 #: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
 #: were defined here first and are imported from here.
@@ -220,7 +221,7 @@ class PreparedModel:
         one any more (:mod:`exo_bench.models.result_pool`: at most two stay allocated after the caller
         dropped them)."""
         if check:
-            single = np.ndim(q) == 1
+            single = is_one_sample(q)
             require_rates(self.method, qd, qdd)
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
             if out is not None:
@@ -250,7 +251,7 @@ class PreparedModel:
 
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
-        single = np.ndim(q) == 1
+        single = is_one_sample(q)
         if check:
             q, _, _ = as_states(self._mechanism, q)
         else:
@@ -263,7 +264,7 @@ class PreparedModel:
 
     def bias_forces(self, q, qd, check: bool = True) -> np.ndarray:
         """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
-        single = np.ndim(q) == 1
+        single = is_one_sample(q)
         if check:
             require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
@@ -308,7 +309,7 @@ class PreparedModel:
         link and the reason (zero length, vertical rod, zero mass), never NaN. Every method solves
         ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h``; ``newton-euler`` overrides it
         with its O(n) passes."""
-        single = np.ndim(q) == 1
+        single = is_one_sample(q)
         if check:
             require_rates(self.method, qd, tau)
             try:

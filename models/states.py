@@ -45,8 +45,8 @@ def _array_problem(arr: Any) -> str:
     or the first entry that is not a number."""
     if isinstance(arr, (list, tuple)):
         rows = [r for r in arr]
-        if rows and all(isinstance(r, (list, tuple)) for r in rows):
-            lengths = [len(r) for r in rows]
+        if rows and all(isinstance(r, (list, tuple, np.ndarray)) for r in rows):
+            lengths = [len(r) if np.ndim(r) else -1 for r in rows]
             if len(set(lengths)) > 1:
                 k = next(i for i, n in enumerate(lengths) if n != lengths[0])
                 return (
@@ -78,6 +78,84 @@ def _first_bool(arr) -> tuple[bool, str] | None:
     return None
 
 
+def _where_in(shape: tuple, index: tuple, names: list[str]) -> str:
+    """``sample s, coordinate c`` (or ``coordinate c`` of one sample) of an index into states."""
+    if len(index) == 2:
+        return f"sample {index[0]}, coordinate {names[index[1]] if index[1] < len(names) else index[1]}"
+    if len(index) == 1 and len(shape) == 1:
+        return f"coordinate {names[index[0]] if index[0] < len(names) else index[0]}"
+    return f"index {index}"
+
+
+def _labelled(arr: Any, label: str, source: str, names: list[str]) -> Any:
+    """A pandas DataFrame (or Series) read by its labels, a masked array without masked entries; any
+    other input unchanged.
+
+    A DataFrame whose columns are the coordinate names (:func:`coordinate_names`) is reordered to
+    them; one whose columns are numbered 0..dof-1 (pandas' default) is read by position; any other
+    columns are refused, naming the missing and unexpected ones (a frame read by position after two
+    named columns were swapped gave forces off by 222, with no word). A masked entry is refused,
+    naming where it is: a masked array's data under its mask is not a state."""
+    if isinstance(arr, np.ma.MaskedArray):
+        mask = np.ma.getmaskarray(arr)
+        if mask.any():
+            at = tuple(int(i) for i in np.argwhere(mask)[0])
+            raise ValueError(
+                f"{source}: field '{label}': expected numbers, got a masked entry at {_where_in(arr.shape, at, names)} "
+                "(fill or drop the masked samples first)"
+            )
+        return np.ma.getdata(arr)
+    columns = getattr(arr, "columns", None)
+    index = getattr(arr, "index", None) if columns is None and hasattr(arr, "to_numpy") else None
+    labels = columns if columns is not None else index
+    if labels is None or not hasattr(arr, "to_numpy"):
+        return arr
+    labels = list(labels)
+    if labels == list(range(len(labels))):
+        return arr.to_numpy()
+    if sorted(map(str, labels)) == sorted(names) and len(set(labels)) == len(labels):
+        return (arr[names] if columns is not None else arr[names]).to_numpy()
+    missing = [n for n in names if n not in labels]
+    unexpected = [c for c in labels if c not in names]
+    raise ValueError(
+        f"{source}: field '{label}': expected {'columns' if columns is not None else 'an index'} named "
+        f"{names[0]}..{names[-1]} (read by name) or numbered 0..{len(names) - 1} (read by position), got "
+        + ", ".join(
+            part
+            for part in (
+                f"missing {missing[:5]}" if missing else "",
+                f"unexpected {unexpected[:5]}" if unexpected else "",
+                "duplicate names" if len(set(labels)) != len(labels) else "",
+            )
+            if part
+        )
+    )
+
+
+def _non_number(arr: Any, names: list[str]) -> str | None:
+    """Why a list of states is not numbers (strings, bytes, Decimal, Fraction, None, complex, other
+    objects), naming the first entry that is not a real number; None if every entry is one (booleans
+    are named by :func:`_first_bool`)."""
+    raw = np.asarray(arr)
+    if raw.dtype.kind in "iufb":
+        return None
+    objects = np.asarray(arr, dtype=object)  # the entries as given (numpy made strings of numbers beside a string)
+    for at in np.ndindex(objects.shape):
+        x = objects[at]
+        if not _is_number(x) and type(x) is not bool:
+            return f"expected real numbers, got {x!r} ({type(x).__name__}) at {_where_in(objects.shape, at, names)}"
+    return None  # Python ints beyond int64 beside floats: numbers, converted below
+
+
+def is_one_sample(q: Any) -> bool:
+    """Whether ``q`` is one sample ``(dof,)``; False for what numpy cannot shape (ragged rows), which
+    :func:`as_states` then refuses with its own message."""
+    try:
+        return np.ndim(q) == 1
+    except ValueError:
+        return False
+
+
 def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
     """Validate state arrays at the edge and return them as C-ordered float64 ``(samples, dof)`` arrays.
 
@@ -95,11 +173,19 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
             continue
         if isinstance(arr, (str, bytes, dict)) or arr is True or arr is False:
             raise ValueError(f"{source}: field '{label}': expected numbers, got {type(arr).__name__}")
+        if not isinstance(arr, np.ndarray) or isinstance(arr, np.ma.MaskedArray):
+            arr = _labelled(arr, label, source, names)
         if isinstance(arr, np.ndarray) and arr.dtype.kind not in "iuf":
             raise ValueError(f"{source}: field '{label}': expected an array of real numbers, got dtype {arr.dtype}")
         try:
+            if not isinstance(arr, np.ndarray):  # a list: numbers only (numpy would parse "  1_0.5e0  " as 10.5)
+                why = _non_number(arr, names)
+                if why is not None:
+                    raise ValueError(f"{source}: field '{label}': {why}")
             a = np.asarray(arr, dtype=float)
-        except (TypeError, ValueError, OverflowError):
+        except (TypeError, ValueError, OverflowError) as e:
+            if str(e).startswith(f"{source}: field"):
+                raise
             raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
         if isinstance(arr, (list, tuple)):  # numpy takes true/false as 1.0/0.0: JSON booleans are not numbers
             where = _first_bool(arr)

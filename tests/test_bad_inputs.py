@@ -286,7 +286,7 @@ CASES = [
         "states-string",
         "states: an entry that is not a number",
         lambda d: ["inverse", "exo5-3d", _states(exo5(3), path=d / "s.json", qd=[["x"] * 15] * 2)],
-        "expected numbers, got 'x' (str) at sample 0, column 0",
+        "expected real numbers, got 'x' (str) at sample 0, coordinate phi1",
     ),
     Case(
         "states-nan",
