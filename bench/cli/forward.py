@@ -9,7 +9,14 @@ import sys
 
 import numpy as np
 
-from exo_bench.bench.cli.inverse import _limits, _load_states, _write_tau, add_limit_args, refuse_budget
+from exo_bench.bench.cli.inverse import (
+    _limits,
+    _load_states,
+    _write_tau,
+    add_limit_args,
+    check_before_reading,
+    refuse_budget,
+)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -38,11 +45,16 @@ def cmd_forward(args: argparse.Namespace) -> int:
     method_class(args.method)  # an unknown method fails before any file is read
     refuse_budget(args)
     mech = load_mechanism(args.mechanism)
-    q, qd, tau = _load_states(args.states, mech, third="tau")
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
-    # forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own
-    rows = q.shape[0] * (1 if args.method == "newton-euler" else mech.dof + 2)
-    check(mech, args.method, rows, options, _limits(args, args.method))  # refuse before any work
+    limits = _limits(args, args.method)
+
+    def rows(samples: int) -> int:
+        """Forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own."""
+        return samples * (1 if args.method == "newton-euler" else mech.dof + 2)
+
+    peek = check_before_reading(args.states, mech, args.method, options, limits, rows, third="tau")  # before reading
+    q, qd, tau = _load_states(args.states, mech, third="tau")
+    check(mech, args.method, rows(q.shape[0]), options, limits, io=peek.io(mech.dof, q.shape[0]))  # before any work
     model = prepare(mech, args.method, **options)
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:

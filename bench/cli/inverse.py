@@ -125,6 +125,22 @@ def _read_npz(path: str, what: str) -> dict:
         raise ValueError(f"{what}: cannot read: {e.strerror or e}") from None
 
 
+def check_before_reading(path: str, mech, method: str, options: dict, limits: Limits, rows, third: str = "qdd"):
+    """Refuse before the states file is read: a ``.npz`` with the whole run's estimate (its samples are
+    in its headers; ``rows(samples)`` is what the method computes), a JSON file with the cost of
+    reading it alone (its samples are known once parsed: the caller checks the run again then).
+    Returns the file's :class:`~exo_bench.bench.cli.states_input.StatesFile`."""
+    from exo_bench.api.cost_model import check, check_reading
+    from exo_bench.bench.cli.states_input import peek_states
+
+    peek = peek_states(path, mech.dof, third)
+    if peek.samples is not None:
+        check(mech, method, rows(peek.samples), options, limits, io=peek.io(mech.dof))  # before decompressing
+    else:
+        check_reading(path, peek.read_bytes, peek.read_seconds, limits)
+    return peek
+
+
 def _limits(args: argparse.Namespace, method: str) -> Limits:
     from exo_bench.api.cost_model import Limits
 
@@ -155,15 +171,7 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     mech = load_mechanism(args.mechanism)
     options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
     limits = _limits(args, args.method)
-    # reading and writing count in the estimate; a .npz by its uncompressed arrays, from its headers
-    from exo_bench.api.cost_model import check_reading
-    from exo_bench.bench.cli.states_input import peek_states
-
-    peek = peek_states(args.states, mech.dof)
-    if peek.samples is not None:
-        check(mech, args.method, peek.samples, options, limits, io=peek.io(mech.dof))  # before decompressing
-    else:
-        check_reading(args.states, peek.read_bytes, peek.read_seconds, limits)
+    peek = check_before_reading(args.states, mech, args.method, options, limits, lambda samples: samples)
     q, qd, qdd = _load_states(args.states, mech)
     check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))  # before any work
     model = prepare(mech, args.method, **options)

@@ -59,7 +59,18 @@ def npz_header(path: str | Path, what: str) -> dict[str, tuple[tuple[int, ...], 
     out = {}
     try:
         with zipfile.ZipFile(path) as zf:
+            seen: set[str] = set()
             for info in zf.infolist():
+                # numpy's NpzFile reads member "q" for key "q" before "q.npy": two members that one key
+                # can name (or one name twice in the zip) would have the header of one checked and the
+                # other loaded
+                key = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+                if key in seen:
+                    raise ValueError(
+                        f"{what}: expected one member per array, got two members named {key!r} "
+                        f"({info.filename!r} and an earlier one): which one numpy loads is not the one checked"
+                    )
+                seen.add(key)
                 if not info.filename.endswith(".npy"):
                     continue
                 with zf.open(info) as f:
@@ -72,13 +83,15 @@ def npz_header(path: str | Path, what: str) -> dict[str, tuple[tuple[int, ...], 
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     except ValueError as e:  # a member that is not a .npy array
+        if str(e).startswith(what):
+            raise
         raise ValueError(f"{what}: cannot read the arrays: {str(e).splitlines()[0]}") from None
     except (OSError, NotImplementedError, RuntimeError) as e:
         raise ValueError(f"{what}: cannot read: {getattr(e, 'strerror', None) or e}") from None
     return out
 
 
-def peek_states(path: str, dof: int) -> StatesFile:
+def peek_states(path: str, dof: int, third: str = "qdd") -> StatesFile:
     """The cost of reading the states file ``path`` (of a mechanism with ``dof`` coordinates) and,
     for a ``.npz``, its number of samples, from its headers; the file is checked to be a regular
     file (models.loading.regular_file)."""
@@ -90,11 +103,12 @@ def peek_states(path: str, dof: int) -> StatesFile:
         size = p.stat().st_size
         return StatesFile(str(path), None, READ_BYTES_PER_BYTE * size, size / JSON_BYTES_PER_SECOND, "json")
     arrays = npz_header(p, what)
-    missing = [k for k in KEYS if k not in arrays]
+    keys = ("q", "qd", third)
+    missing = [k for k in keys if k not in arrays]
     if missing:
-        raise ValueError(f"{what}: expected an object with keys ['q', 'qd', 'qdd'], got {sorted(arrays)}")
+        raise ValueError(f"{what}: expected an object with keys {list(keys)}, got {sorted(arrays)}")
     samples, total, seconds = set(), 0.0, 0.0
-    for k in KEYS:
+    for k in keys:
         shape, dtype, compress = arrays[k]
         if dtype.kind not in "iuf":
             raise ValueError(f"{what}: field '{k}': expected an array of real numbers, got dtype {dtype}")
@@ -107,5 +121,5 @@ def peek_states(path: str, dof: int) -> StatesFile:
         rate = NPZ_STORED_BYTES_PER_SECOND if compress == zipfile.ZIP_STORED else NPZ_DEFLATED_BYTES_PER_SECOND
         seconds += nbytes / rate
     if len(samples) > 1:
-        raise ValueError(f"{what}: q, qd and qdd must have the same number of samples, got {sorted(samples)}")
+        raise ValueError(f"{what}: q, qd and {third} must have the same number of samples, got {sorted(samples)}")
     return StatesFile(str(path), samples.pop(), total, seconds, "npz")
