@@ -1482,6 +1482,14 @@ def test_every_issue_row_has_a_test():
             assert any(f"def {func}(" in p.read_text() for p in (ROOT / "tests").glob("test_*.py")), name
 
 
+def test_every_issue_34_finding_has_a_test():
+    """Every finding of issue 34 (tests/issue34.py) has at least one test marked with its id, and no test
+    carries an id the catalogue does not know."""
+    marked = issue34.marked_tests()
+    assert not [k for k in issue34.FINDINGS if not marked.get(k)], "findings without a test"
+    assert not set(marked) - set(issue34.FINDINGS), "unknown finding ids"
+
+
 if __name__ == "__main__":
     import tempfile
 
