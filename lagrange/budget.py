@@ -98,16 +98,23 @@ _active = threading.local()
 
 
 @contextmanager
+def _thread_setting(name: str, value: object, default: object) -> Iterator[None]:
+    """This thread's setting ``name`` is ``value`` within the block, and what it was after it."""
+    before = getattr(_active, name, default)
+    setattr(_active, name, value)
+    try:
+        yield
+    finally:
+        setattr(_active, name, before)
+
+
+@contextmanager
 def without_interrupts():
     """Within this block, budgets use only their cooperative checks: no SIGALRM handler is
     installed, even in the main thread (for callers that own the signal, or that run an event
     loop). A single long sympy call can then overrun the budget until it returns."""
-    before = getattr(_active, "no_signals", False)
-    _active.no_signals = True
-    try:
+    with _thread_setting("no_signals", True, default=False):
         yield
-    finally:
-        _active.no_signals = before
 
 
 @contextmanager
@@ -115,12 +122,8 @@ def budget_clock(clock: Clock) -> Iterator[None]:
     """Within this block, this thread's budgets read ``clock`` instead of ``time.perf_counter``
     and arm no SIGALRM: a deterministic stand-in for the wall clock (tests), e.g. one that
     advances a fixed step per reading."""
-    before = getattr(_active, "clock", None)
-    _active.clock = clock
-    try:
+    with _thread_setting("clock", clock, default=None):
         yield
-    finally:
-        _active.clock = before
 
 
 def current_deadline() -> Deadline | None:
