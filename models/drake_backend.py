@@ -40,7 +40,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from exo_bench.models.joint_coordinates import rowwise_product
+from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import MissingExtra, PreparedModel
 from exo_bench.models.urdf import link_prefix

@@ -28,17 +28,6 @@ _JOINT = re.compile(r"L(\d+)_(phi|psi|len)$")
 _SYMBOL = {"phi": "Mφ", "psi": "Mψ", "len": "F"}
 
 
-def rowwise_product(x: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``x @ m`` one sample (row) at a time: the map between the study's coordinates and an engine's
-    joint coordinates (``G`` or ``G^T``), with the same bits for a sample alone, in a chunk or in a
-    whole batch. A batch product may round a row differently from the same row alone (BLAS's kernels
-    for one row and for many differ), and the engines' batches are chunked."""
-    out = np.empty((x.shape[0], m.shape[1]))
-    for s in range(x.shape[0]):
-        np.matmul(x[s], m, out=out[s])
-    return out
-
-
 # ----------------------------------------------------------------------------- joint quantities
 @dataclass(frozen=True, eq=False)
 class JointBasis:

@@ -28,7 +28,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from exo_bench.models.joint_coordinates import rowwise_product
+from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.mjcf import JointMap, check_nesting, joint_map, to_mjcf
 from exo_bench.models.prepared import MissingExtra, PreparedModel
@@ -175,14 +175,15 @@ class MujocoRNE(PreparedModel):
     def joint_torques(self, q, qd, qdd, acc: bool = True) -> np.ndarray:
         """MuJoCo's generalised forces in its own joint coordinates, ``(S, nv)``."""
         mj, model, data = self._mj, self.mj_model, self.data
+        qj, vj = rowwise_product(q, self.GT), rowwise_product(qd, self.GT)
+        aj = rowwise_product(qdd, self.GT) if acc else None
         out = np.empty((q.shape[0], model.nv))
         flg = 1 if acc else 0
         for s in range(q.shape[0]):
-            # sample by sample, as rowwise_product: the same bits alone, in a chunk or in a batch
-            data.qpos[:] = q[s] @ self.GT
-            data.qvel[:] = qd[s] @ self.GT
+            data.qpos[:] = qj[s]
+            data.qvel[:] = vj[s]
             if acc:
-                data.qacc[:] = qdd[s] @ self.GT
+                data.qacc[:] = aj[s]
             mj.mj_kinematics(model, data)
             mj.mj_comPos(model, data)
             mj.mj_comVel(model, data)
@@ -199,8 +200,9 @@ class MujocoRNE(PreparedModel):
         mj, model, data = self._mj, self.mj_model, self.data
         Mj = np.empty((model.nv, model.nv))
         out = np.empty((q.shape[0], self._dof, self._dof))
+        qj = rowwise_product(q, self.GT)
         for s in range(q.shape[0]):
-            data.qpos[:] = q[s] @ self.GT
+            data.qpos[:] = qj[s]
             mj.mj_kinematics(model, data)
             mj.mj_comPos(model, data)
             mj.mj_makeM(model, data)

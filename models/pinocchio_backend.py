@@ -30,6 +30,7 @@ from functools import lru_cache
 import numpy as np
 import pinocchio as pin
 
+from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.prepared import USABLE_SHARE, PreparedModel, usable_memory
 from exo_bench.models.resource_counts import check_count, check_thread_room, usable_cpus
@@ -156,8 +157,8 @@ def build_model(mech: Mechanism) -> PinocchioModel:
 
 
 def _joint_states(pm: PinocchioModel, q, qd, qdd):
-    G = pm.G
-    return (q @ G.T, None if qd is None else qd @ G.T, None if qdd is None else qdd @ G.T)
+    GT = np.ascontiguousarray(pm.G.T)
+    return tuple(None if x is None else rowwise_product(x, GT) for x in (q, qd, qdd))
 
 
 def joint_torques(mech: Mechanism, q, qd, qdd) -> np.ndarray:
@@ -177,7 +178,7 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
 
     One ``pin.rnea`` call per sample, then ``tau_paper = G^T tau_joint``.
     """
-    return joint_torques(mech, q, qd, qdd) @ build_model(mech).G
+    return rowwise_product(joint_torques(mech, q, qd, qdd), build_model(mech).G)
 
 
 def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None = None) -> np.ndarray:
@@ -191,14 +192,14 @@ def inverse_dynamics_parallel(mech: Mechanism, q, qd, qdd, threads: int | None =
     f = lambda x: np.asfortranarray(x.T)
     tau = np.asfortranarray(np.zeros((pm.model.nv, q.shape[0])))
     pin.rneaInParallel(threads, pin.ModelPool(pm.model, threads), f(qj), f(vj), f(aj), tau)
-    return tau.T @ pm.G
+    return rowwise_product(tau.T, pm.G)
 
 
 def mass_matrix(mech: Mechanism, q) -> np.ndarray:
     """Mass matrix in the paper's coordinates, ``G^T M_joint G`` from CRBA, ``(S, dof, dof)``."""
     q, _, _ = as_states(mech, q)
     pm = build_model(mech)
-    qj = q @ pm.G.T
+    qj = rowwise_product(q, pm.G.T)
     data = pm.create_data()
     out = np.empty((q.shape[0], mech.dof, mech.dof))
     for s in range(q.shape[0]):
@@ -226,7 +227,9 @@ def bias_forces(mech: Mechanism, q, qd) -> np.ndarray:
     pm = build_model(mech)
     data = pm.create_data()
     qj, vj, _ = _joint_states(pm, q, qd, None)
-    return np.stack([pin.nonLinearEffects(pm.model, data, qj[s], vj[s]) for s in range(q.shape[0])]) @ pm.G
+    return rowwise_product(
+        np.stack([pin.nonLinearEffects(pm.model, data, qj[s], vj[s]) for s in range(q.shape[0])]), pm.G
+    )
 
 
 def point_mass_positions(mech: Mechanism, q) -> np.ndarray:
@@ -238,7 +241,7 @@ def point_mass_positions(mech: Mechanism, q) -> np.ndarray:
     q, _, _ = as_states(mech, q)
     pm = build_model(mech)
     data = pm.create_data()
-    qj = q @ pm.G.T
+    qj = rowwise_product(q, pm.G.T)
     n = mech.nlinks
     out = np.empty((q.shape[0], n, 3, mech.dim))
     for s in range(q.shape[0]):
@@ -310,7 +313,7 @@ class PinocchioRNEA(PreparedModel):
         if check:
             q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
         GT = self.GT
-        qj, vj, aj = q @ GT, qd @ GT, qdd @ GT
+        qj, vj, aj = rowwise_product(q, GT), rowwise_product(qd, GT), rowwise_product(qdd, GT)
         if self._pool is not None and q.shape[0] > 1:
             f = lambda x: np.asfortranarray(x.T)
             tau = np.zeros((self.pin_model.nv, q.shape[0]), order="F")
@@ -323,10 +326,10 @@ class PinocchioRNEA(PreparedModel):
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):
-        return self.joint_torques(q, qd, qdd, check=False) @ self.G
+        return rowwise_product(self.joint_torques(q, qd, qdd, check=False), self.G)
 
     def _mass_matrix(self, q):
-        qj = q @ self.GT
+        qj = rowwise_product(q, self.GT)
         out = np.empty((q.shape[0], self._dof, self._dof))
         model, data = self.pin_model, self.data
         for s in range(q.shape[0]):
@@ -334,9 +337,9 @@ class PinocchioRNEA(PreparedModel):
         return out
 
     def _bias_forces(self, q, qd):
-        qj, vj = q @ self.GT, qd @ self.GT
+        qj, vj = rowwise_product(q, self.GT), rowwise_product(qd, self.GT)
         model, data = self.pin_model, self.data
         out = np.empty((q.shape[0], self.pin_model.nv))  # (0, nv) for no samples
         for s in range(q.shape[0]):
             out[s] = pin.nonLinearEffects(model, data, qj[s], vj[s])
-        return out @ self.G
+        return rowwise_product(out, self.G)
