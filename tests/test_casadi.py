@@ -35,6 +35,7 @@ import math
 
 import numpy as np
 import pytest
+from test_bad_inputs import run_cli
 
 from conftest import EPS, K, assert_close, assert_forces_agree, assert_mass_matrices_agree, term_scale
 from exo_bench import prepare, presets
@@ -49,19 +50,6 @@ from exo_bench.matrix_method.export.casadi_functions import FUNCTIONS, CasadiEqu
 
 TREES = [random_tree(5, 2, 11), random_tree(6, 3, 12), presets.exo5(dim=3), presets.exo5(dim=2), random_tree(4, 3, 13)]
 IDS = [m.name for m in TREES]
-
-
-def run_cli(argv) -> tuple[int, str, str]:
-    """``exo-bench argv`` in this process: (exit code, stdout, stderr)."""
-    import contextlib
-    import io
-
-    from exo_bench.bench.cli import app as cli
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main([str(a) for a in argv])
-    return rc, out.getvalue(), err.getvalue()
 
 
 def _states(mech, samples=12, seed=3):

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_bad_inputs import run_cli
 
 from exo_bench.bench.output.provenance import REPO
 
@@ -281,13 +282,6 @@ def test_a_good_row_checkpoint_is_read():
 
 
 # ------------------------------------------------------------------------------ runs.json
-def run_cli(argv) -> tuple[int, str, str]:
-    from exo_bench.bench.cli import app as cli
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main([str(a) for a in argv])
-    return rc, out.getvalue(), err.getvalue()
 
 
 @pytest.mark.case("D8")

@@ -9,8 +9,6 @@ broken pipe) never ends in exit 0.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 import resource
@@ -20,19 +18,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_bad_inputs import run_cli
 
-from exo_bench.bench.cli import app as cli
 from exo_bench.models.presets import fig1
 
 EXO = [sys.executable, "-m", "exo_bench.bench.cli"]
-
-
-def run_cli(argv) -> tuple[int, str, str]:
-    """``exo-bench argv`` in this process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main([str(a) for a in argv])
-    return rc, out.getvalue(), err.getvalue()
 
 
 def _mech_file(d: Path, name: str = "m.json", mech_name: str | None = None) -> Path:

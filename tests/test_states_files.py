@@ -7,21 +7,14 @@ import zipfile
 
 import numpy as np
 import pytest
+from test_bad_inputs import run_cli
 from conftest import K, assert_forces_agree
 
-from exo_bench.bench.cli import app as cli
 from exo_bench.bench.cli import inverse as inverse_cli
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5
 
 MECH = exo5(3)
-
-
-def _run(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main([str(a) for a in argv])
-    return rc, out.getvalue(), err.getvalue()
 
 
 def _npy(a: np.ndarray) -> bytes:
@@ -55,7 +48,7 @@ def test_two_members_one_key_can_name_are_refused_before_reading(tmp_path, comma
         mp.setattr(inverse_cli, "_load_states", lambda *a, **k: loaded.append(a) or real(*a, **k))
         if command == "forward":
             mp.setattr("exo_bench.bench.cli.forward._load_states", inverse_cli._load_states)
-        rc, out, err = _run([command, "exo5-3d", path, "--max-memory", "300M"])
+        rc, out, err = run_cli([command, "exo5-3d", path, "--max-memory", "300M"])
     assert rc == 2 and out == "" and len(err.strip().splitlines()) == 1, err
     assert "two members named 'q'" in err
     assert not loaded
@@ -76,7 +69,7 @@ def test_forward_checks_its_limits_before_reading_the_states(tmp_path, kind):
     loaded = []
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr("exo_bench.bench.cli.forward._load_states", lambda *a, **k: loaded.append(a) or pytest.fail("read"))
-        rc, out, err = _run(["forward", "exo5-3d", path, "--max-time", "0.01"])
+        rc, out, err = run_cli(["forward", "exo5-3d", path, "--max-time", "0.01"])
     assert rc == 2 and out == "" and len(err.strip().splitlines()) == 1, err
     assert "--max-time" in err or "max-time" in err or "seconds" in err, err
     assert not loaded
@@ -90,7 +83,7 @@ def test_a_well_formed_archive_is_still_read_by_forward(tmp_path):
 
     tau = prepare(MECH, "newton-euler").inverse_dynamics(q, qd, qdd)
     np.savez(path, q=q, qd=qd, tau=tau)
-    rc, out, err = _run(["forward", "exo5-3d", path])
+    rc, out, err = run_cli(["forward", "exo5-3d", path])
     assert rc == 0, err
     got = np.array(json.loads(out)["qdd"])
     model = prepare(MECH, "pinocchio")  # the answer's backward error, in the error model
