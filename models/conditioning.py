@@ -15,7 +15,7 @@ orthogonally similar to ``mu_s (x) I`` (``mu_s = D_mu^-1/2 mu D_mu^-1/2``), what
 configuration, but the rounding of an azimuth's entry, ``K eps l_i^2 mu_ii``, is ``K eps / cos^2
 psi_i`` of the entry itself. The lengths drop out (every entry of a rod's rows scales with its
 lever arm). So the error model's perturbations move the answer, in the equilibrated norm, by at
-most ``K eps kappa`` relative, with the condition
+most ``K eps kappa`` relative, with the condition::
 
     kappa = cond(mu_s) * max(1, |angles|) / min_i cos^2 psi_i        (cos psi_i = 1 in 2D).
 

@@ -49,7 +49,7 @@ def stored_identity(mech: Mechanism) -> dict[str, Any]:
 
 
 def difference(stored: dict[str, Any], here: dict[str, Any]) -> str:
-    """The first field where two :func:`dynamics` differ, in words (``"" `` when equal)."""
+    """The first field where two :func:`dynamics` differ, in words (an empty string when equal)."""
     for key in ("dim", "g"):
         if stored.get(key) != here.get(key):
             return f"{key} {stored.get(key)!r} stored, {here.get(key)!r} here"
