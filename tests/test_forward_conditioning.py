@@ -137,18 +137,25 @@ def _cli(*args):
 
 
 @pytest.mark.case("W2", "W3")
+def _refused_state(mech, seed: int, what: str):
+    """``_state`` with sample 0 made singular as ``what`` says: ``"l5=1e-300"`` (rod 5 of 1e-300 m) or
+    ``"psi3=pi/2-<d>"`` (rod 3 within ``d`` rad of vertical)."""
+    n = mech.nlinks
+    q, qd, tau = _state(mech, seed)
+    if what == "l5=1e-300":
+        q[0, 2 * n + 4] = 1e-300
+    else:
+        q[0, n + 2] = math.pi / 2 - float(what.split("pi/2-")[1])
+    return q, qd, tau
+
+
 @pytest.mark.parametrize("what", ["l5=1e-300", "psi3=pi/2-1e-15"])
 def test_cli_forward_refuses_in_one_line_with_exit_2(tmp_path, what):
     """``exo-bench forward`` (newton-euler, the default) refuses a rod of 1e-300 m or one within
     1e-15 rad of vertical in one line naming the sample, the link and the reason, exit 2: no
     ``null`` or 1e283 in its JSON."""
     mech = exo5(3)
-    n = mech.nlinks
-    q, qd, tau = _state(mech, 5)
-    if what == "l5=1e-300":
-        q[0, 2 * n + 4] = 1e-300
-    else:
-        q[0, n + 2] = math.pi / 2 - 1e-15
+    q, qd, tau = _refused_state(mech, 5, what)
     f = tmp_path / "s.json"
     f.write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "tau": tau.tolist()}))
     r = _cli("forward", "exo5-3d", f)
@@ -254,12 +261,7 @@ def test_forward_dynamics_derivatives_refuse_where_forward_dynamics_does(what):
     message (before: NaN and inf at ``l5 = 1e-300``, garbage near vertical)."""
     pytest.importorskip("casadi")
     mech = exo5(3)
-    n = mech.nlinks
-    q, qd, tau = _state(mech, 2)
-    if what == "l5=1e-300":
-        q[0, 2 * n + 4] = 1e-300
-    else:
-        q[0, n + 2] = math.pi / 2 - float(what.split("pi/2-")[1])
+    q, qd, tau = _refused_state(mech, 2, what)
     model = prepare(mech, "newton-euler")
     with pytest.raises(SingularConfigurationError) as want:
         model.forward_dynamics(q, qd, tau)
