@@ -22,16 +22,20 @@ The planar recurrence runs twice, at the configuration and for the straightened 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import numpy as np
-import sympy as sp
 
 from exo_bench.matrix_method.closed_forms import planar
 from exo_bench.matrix_method.numpy_kernels import matrix as _numeric
-from exo_bench.matrix_method.symbolic import compose as _symbolic
 from exo_bench.matrix_method.closed_forms.coefficients import generic_recurrence_increments, recurrence_increments
-from exo_bench.matrix_method.symbolic.polynomials import Generators, generators
 from exo_bench.models.mechanism import Mechanism, as_states, split
+
+if TYPE_CHECKING:  # the symbolic half imports sympy where it runs: the numeric method imports none
+    import sympy as sp
+
+    from exo_bench.matrix_method.symbolic import compose as _symbolic
+    from exo_bench.matrix_method.symbolic.polynomials import Generators
 
 
 # ------------------------------------------------------------------ numeric
@@ -151,6 +155,8 @@ def _symbolic_planar(mech: Mechanism, G: Generators, straight: bool):
 
 
 def _symbolic_form(mech: Mechanism, G: Generators):
+    from exo_bench.matrix_method.symbolic import compose as _symbolic
+
     now, gravity, nu_s = _symbolic_planar(mech, G, straight=False)
     if mech.dim == 2:
         return now, gravity
@@ -162,6 +168,9 @@ def _symbolic_form(mech: Mechanism, G: Generators):
 
 def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, dict[str, sp.Matrix]]:
     """Every matrix by the recurrence, as sympy matrices (convention of :mod:`lagrange`)."""
+    from exo_bench.matrix_method.symbolic import compose as _symbolic
+    from exo_bench.matrix_method.symbolic.polynomials import generators
+
     G = generators(mech.nlinks, mech.dim, symbolic_parameters)
     return _symbolic.to_matrices(G, mech.nlinks, *_symbolic_form(mech, G))
 
@@ -169,5 +178,8 @@ def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dic
 def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tuple[sp.Expr, ...]:
     """The equations of motion composed by the recurrence (23)-(26) and eq. (5)/(17); the same
     expressions as :func:`exo_bench.matrix_method.symbolic.compose.compose_equations`."""
+    from exo_bench.matrix_method.symbolic import compose as _symbolic
+    from exo_bench.matrix_method.symbolic.polynomials import generators
+
     G = generators(mech.nlinks, mech.dim, symbolic_parameters)
     return _symbolic.equations_from_entries(G, mech, *_symbolic_form(mech, G))

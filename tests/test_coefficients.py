@@ -6,6 +6,7 @@ import sympy as sp
 from conftest import mass_coupling_oracle
 
 from exo_bench.matrix_method.closed_forms import coefficients as co
+from exo_bench.matrix_method.closed_forms import symbolic_coefficients as sco
 from exo_bench.models import aggregates as ag
 from exo_bench.models.kinematics import kinetic_energy, potential_energy, unit_vectors
 from exo_bench.models.mechanism import split
@@ -107,14 +108,14 @@ def test_coefficients_are_those_of_the_point_masses(seed):
     mu_default, nu_default = ag.coupling_entries(m, zeta, eta, theta)
     assert close(np.array(mu_default, dtype=float), mu_ref) and close(np.array(nu_default, dtype=float), nu_ref)
     S = symbols_for(m.nlinks, 3)
-    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=False)  # exact Rationals of the floats
+    c, nu = sco.symbolic_coupling(m, S, symbolic_parameters=False)  # exact Rationals of the floats
     assert close(np.array([[float(x) for x in row] for row in c]), mu_ref * np.outer(s, s))
     assert close(np.array([float(x) for x in nu]), nu_ref * s)
-    gc, gnu = co.generic_coupling(m, co._parameters(m, S, False))  # the default zero of any arithmetic
+    gc, gnu = co.generic_coupling(m, sco.parameters(m, S, False))  # the default zero of any arithmetic
     assert close(np.array(gc, dtype=float), mu_ref * np.outer(s, s)) and close(np.array(gnu, dtype=float), nu_ref * s)
     for k in range(m.nlinks):  # eq. (25)'s increments, both twins
         idx, dc, dnu = co.recurrence_increments(m, k)
-        gidx, gdc, gdnu = co.generic_recurrence_increments(m, co._parameters(m, S, False), k)
+        gidx, gdc, gdnu = co.generic_recurrence_increments(m, sco.parameters(m, S, False), k)
         assert list(idx) == list(gidx) == sorted(m.ancestors[k]) + [k]
         assert close(np.array(gdc, dtype=float), dc) and close(np.array(gdnu, dtype=float), dnu)
 
@@ -122,13 +123,13 @@ def test_coefficients_are_those_of_the_point_masses(seed):
 def test_symbolic_coupling_equals_the_numeric_one():
     m = random_tree(5, 3, 4)
     S = symbols_for(5, 3)
-    c, nu = co.symbolic_coupling(m, S, symbolic_parameters=True)
+    c, nu = sco.symbolic_coupling(m, S, symbolic_parameters=True)
     values = S.parameter_values(m)
     num_c = np.array([[float(sp.sympify(x).subs(values)) for x in row] for row in c])
     num_nu = np.array([float(sp.sympify(x).subs(values)) for x in nu])
     assert np.allclose(num_c, co.signed_coupling(m), rtol=1e-14, atol=0)
     assert np.allclose(num_nu, co.signed_gravity(m), rtol=1e-14, atol=0)
-    exact, _ = co.symbolic_coupling(m, S, symbolic_parameters=False)
+    exact, _ = sco.symbolic_coupling(m, S, symbolic_parameters=False)
     assert all(isinstance(x, sp.Rational) for row in exact for x in row)
 
 

@@ -7,9 +7,11 @@ Every matrix element of eqs. (5) and (17) is ``c_ij = mu_ij s_i s_j`` times a ge
 links i and j (:mod:`exo_bench.matrix_method.closed_forms.planar`), so the sign products of a branched model ("reversed
 links contribute sign products") live in ``c`` alone; this module adds them.
 
-Each formula is written once, in any arithmetic (:func:`signed_coupling_entries`, :func:`increments`);
-the numeric forms (floats from the mechanism, cached arrays) and the symbolic ones (expressions in the
-shared mass symbols of :func:`exo_bench.models.symbols.symbols_for`, ring elements, CasADi) call it.
+Each formula is written once, in any arithmetic (:func:`generic_aggregates`, :func:`signed_coupling_entries`,
+:func:`increments`); the numeric forms (floats from the mechanism, cached arrays) and the symbolic ones
+(ring elements, CasADi, and the sympy expressions of
+:mod:`exo_bench.matrix_method.closed_forms.symbolic_coefficients`) call it. This module imports no
+sympy: the compiled and numpy kernels read their coefficients here (tests/test_numeric_imports.py).
 """
 
 from __future__ import annotations
@@ -17,11 +19,9 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-import sympy as sp
 
 from exo_bench.models.aggregates import aggregates, coupling_entries, link_aggregates
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import Symbols
 
 
 # ----------------------------------------------------------------- numeric
@@ -71,25 +71,12 @@ def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarr
     return increments(mech, k, zeta[k], eta[k], theta[k])
 
 
-# ---------------------------------------------------------------- symbolic
-def _parameters(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
-    """Per link ``(m0, m1, m2, n)``: the shared symbols, or exact Rationals equal to the floats
-    (so that expressions compare exactly with :func:`exo_bench.lagrange.derive`'s, which does the same)."""
-    if symbolic_parameters:
-        return [(*S.m[i], S.n[i]) for i in range(mech.nlinks)]
-    return [tuple(sp.Rational(x) for x in (*mech.masses[i], mech.n[i])) for i in range(mech.nlinks)]
-
-
+# ------------------------------------------------------------- any arithmetic
 def generic_aggregates(params):
     """Eq. (6), definitions, in any arithmetic (sympy, ring elements): ``zeta, eta, theta`` per link
     from ``params = [(m0, m1, m2, n), ...]`` (:func:`exo_bench.models.aggregates.aggregates`)."""
     per_link = [aggregates(*p) for p in params]
     return [a[0] for a in per_link], [a[1] for a in per_link], [a[2] for a in per_link]
-
-
-def symbolic_aggregates(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
-    """``zeta, eta, theta`` per link as sympy expressions in the mass symbols, or exact numbers."""
-    return generic_aggregates(_parameters(mech, S, symbolic_parameters))
 
 
 def generic_coupling(mech: Mechanism, params, zero=0):
@@ -113,11 +100,6 @@ def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):
         for i in range(n)
     ]  # the diagonal has s_i^2 = 1, unrelated links zero
     return c, [s[k] * nu[k] for k in range(n)]
-
-
-def symbolic_coupling(mech: Mechanism, S: Symbols, symbolic_parameters: bool):
-    """``(c, nu_s)`` as sympy expressions (mass symbols or exact numbers)."""
-    return generic_coupling(mech, _parameters(mech, S, symbolic_parameters), sp.S.Zero)
 
 
 def generic_recurrence_increments(mech: Mechanism, params, k: int):

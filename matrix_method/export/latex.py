@@ -34,7 +34,8 @@ from exo_bench.matrix_method.symbolic.compose import (
     spatial_gravity,
     to_matrices,
 )
-from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries, symbolic_aggregates
+from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries
+from exo_bench.matrix_method.closed_forms.symbolic_coefficients import symbolic_aggregates
 from exo_bench.models.aggregates import aggregates
 from exo_bench.models.equation_form import RATES, blocks, matrix_names
 from exo_bench.models.mechanism import Mechanism
