@@ -10,7 +10,7 @@ import pandas as pd
 
 from exo_bench.api.methods import matrix_family
 from exo_bench.bench.output.provenance import provenance
-from exo_bench.bench.perf.reports import simd_goals
+from exo_bench.bench.perf.reports import goals_call_overhead, simd_goals
 from exo_bench.bench.perf.reports.loading import _base, _inverse, _skips_md
 from exo_bench.bench.perf.reports.plotting import _log_log_by_dim, _style
 
@@ -243,8 +243,12 @@ def limit_section(df: pd.DataFrame, inv: pd.DataFrame) -> list[str]:
 def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str:
     inv = _inverse(df)
     lines = ["# Scaling with the number of links", "", provenance(command), ""]
-    if inv.empty:
-        return "\n".join(lines + ["No numeric inverse-dynamics rows in this run."]) + "\n"
+    if inv.empty:  # a selection of rows (exo-bench bench --rows) may still hold issue 35's goals
+        extra = goals_call_overhead.report_lines(df)
+        return (
+            "\n".join(lines + ["No numeric inverse-dynamics rows in this run.", *([""] + extra if extra else [])])
+            + "\n"
+        )
     if "topology" not in inv:
         inv["topology"] = np.where(inv["mechanism"].str.startswith("chain"), "chain", "exo5")
     lines += speed_goals(inv, skips)
@@ -321,6 +325,7 @@ def scaling(df: pd.DataFrame, skips: list[dict], command: str, png: Path) -> str
     lines += compile_section(df)
     lines += limit_section(df, inv)
     lines += simd_goals.report_lines(df)  # issue 23 (bench/test_simd.py)
+    lines += goals_call_overhead.report_lines(df)  # issue 35 (bench/test_call_overhead.py)
     lines += _skips_md(skips, "test_inverse")
     _plot_scaling(inv[inv["topology"] == "chain"], png)
     lines += ["", f"![scaling]({png.name})"]

@@ -1,0 +1,93 @@
+"""Issue 35's section of reports/scaling.md (bench/perf/reports/goals_call_overhead.py) from
+synthetic timings: every goal is listed, each verdict follows its ratio and bound, an unmeasured
+goal is never met, and the scaling report carries the section. No timing is taken here."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from exo_bench.bench.perf.reports import goals_call_overhead as g
+
+RNEA = 3.5e-6
+
+
+def _figures(**ratios) -> dict:
+    """A measure() result whose goal ratios are ``ratios`` (goal numerator key -> ratio)."""
+    t = {"rnea": RNEA, "inverse_batch_unchecked": 5e-4, "forward_batch_unchecked": 2e-3}
+    for goal in g.GOALS:
+        t[goal.num] = ratios.get(goal.num, goal.bound / 2) * t[goal.den]
+    return {"mechanism": "exo5-3d", "samples": 10_000, "rounds": 30, "calls_per_round": {"rnea": 2000}, "timings": t}
+
+
+def _row(lines: list[str], goal: g.Goal) -> str:
+    (row,) = [ln for ln in lines if ln.startswith(f"| {goal.what} |")]
+    return row
+
+
+def test_every_goal_is_listed_once_with_its_ratio_and_bound():
+    lines = g.goals_lines(_figures())
+    assert len(g.GOALS) == 8 and len({goal.what for goal in g.GOALS}) == 8
+    for goal in g.GOALS:
+        row = _row(lines, goal)
+        assert f"| {goal.bound / 2:.3g}x | <= {goal.bound:g}x | **met** |" in row, row
+    assert "8 of 8 goals met." in lines
+
+
+@pytest.mark.parametrize("goal", g.GOALS, ids=lambda goal: goal.num)
+def test_a_goal_over_its_bound_is_not_met_and_at_it_is_met(goal):
+    over = g.goals_lines(_figures(**{goal.num: goal.bound * 1.01}))
+    assert _row(over, goal).endswith("| **not met** |"), _row(over, goal)
+    assert "7 of 8 goals met." in over
+    for other in g.GOALS:
+        if other != goal:
+            assert _row(over, other).endswith("| **met** |")
+    at = g.verdicts(_figures(**{goal.num: goal.bound}))
+    assert [ok for _, _, ok in at] == [True] * len(g.GOALS)
+
+
+def test_the_default_call_33_us_against_rnea_3_5_us_is_about_9_4x():
+    """The issue's figures before the work: 33 us against 3.5 us, not met."""
+    r = _figures()
+    r["timings"]["inverse_checked"] = 33e-6
+    (verdict,) = [(ratio, ok) for goal, ratio, ok in g.verdicts(r) if goal.num == "inverse_checked"]
+    assert verdict[0] == pytest.approx(33 / 3.5) and verdict[1] is False
+    assert "| 33 us | bare `pin.rnea` | 9.43x | <= 0.3x | **not met** |" in _row(g.goals_lines(r), g.GOALS[0])
+
+
+def test_without_rnea_the_one_sample_goals_are_unmeasured_and_not_met():
+    r = _figures()
+    del r["timings"]["rnea"]
+    r["rnea_missing"] = "pinocchio not installed"
+    lines = g.goals_lines(r)
+    assert any("not measured (pinocchio not installed)" in ln for ln in lines)
+    for goal in g.GOALS:
+        row = _row(lines, goal)
+        if goal.den == "rnea":
+            assert row.endswith("| not measured | <= " + f"{goal.bound:g}x | **not met** (unmeasured) |"), row
+        else:
+            assert row.endswith("| **met** |"), row
+    assert "2 of 8 goals met." in lines
+
+
+def test_the_scaling_report_carries_the_goals_and_the_rows(tmp_path):
+    from exo_bench.bench.perf.reports.scaling import scaling
+
+    r = _figures(inverse_checked=0.31)
+    goals_row = {"group": "issue35-goals", "method": "(issue 35 goals)", "median": 0.0, "call_overhead": r}
+    rows = [
+        {"group": "overhead-exo5-3d", "method": k, "median": v, "samples": 10_000 if k in g.BATCH else 1}
+        for k, v in r["timings"].items()
+    ]
+    inverse = {"group": "inverse-per-call-3d", "method": "pin.rnea (bare)", "mechanism": "exo5-3d", "n": 5, "dim": 3}
+    inverse.update(topology="exo5", batched=False, samples=1, median=RNEA, max_rel_err=1e-16)
+    text = scaling(pd.DataFrame([goals_row, *rows, inverse]), [], "exo-bench bench", tmp_path / "scaling.png")
+    assert "## Per call" in text  # the whole report, not its early return without inverse rows
+    assert "## Issue 35: the cost of the public call" in text
+    assert (
+        "| one sample, default call (`check=True`) | 1.08 us | bare `pin.rnea` | 0.31x | <= 0.3x | **not met** |"
+        in text
+    )
+    assert "7 of 8 goals met." in text
+    assert "| inverse_batch_unchecked | 500 us | 0.0143x |" in text  # 0.05 us per sample against 3.5 us
+    assert scaling(pd.DataFrame([rows[0]]), [], "c", tmp_path / "s.png").count("The goals' row did not run.") == 1
