@@ -29,7 +29,9 @@ from __future__ import annotations
 import sys
 import time
 import timeit
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -82,12 +84,12 @@ BATCH = ("inverse_batch_checked", "inverse_batch_unchecked", "forward_batch_chec
 class Call:
     """One timed call: ``fn(*args, **kwargs)``."""
 
-    fn: object
+    fn: Callable[..., Any]
     args: tuple
     kwargs: dict
 
     def __call__(self):
-        return self.fn(*self.args, **self.kwargs)  # type: ignore[operator]
+        return self.fn(*self.args, **self.kwargs)
 
     def timer(self) -> timeit.Timer:
         """A ``timeit`` timer whose statement calls ``fn`` with the arguments by name (no unpacking)."""
@@ -121,6 +123,7 @@ def calls(samples: int) -> tuple[dict[str, Call], dict]:
         "forward_batch_checked": Call(mf.forward_dynamics, (q, qd, tau), {}),
         "forward_batch_unchecked": Call(mf.forward_dynamics, (q, qd, tau), unchecked),
     }
+    states: dict[str, Any] = {"mech": mech, "q": q, "qd": qd, "qdd": qdd, "tau": tau, "mf": mf}
     try:
         import pinocchio as pin
 
@@ -129,10 +132,9 @@ def calls(samples: int) -> tuple[dict[str, Call], dict]:
         pm = build_model(mech)
         qj, vj, aj = (np.ascontiguousarray(pm.G @ x) for x in one)
         c["rnea"] = Call(pin.rnea, (pm.model, pm.create_data(), qj, vj, aj), {})
-        states = {"rnea_to_paper": pm.G}  # tau_paper = G^T tau_joint
+        states["rnea_to_paper"] = pm.G  # tau_paper = G^T tau_joint
     except ImportError as e:
-        states = {"rnea_missing": f"pinocchio not installed ({e})"}
-    states.update(mech=mech, q=q, qd=qd, qdd=qdd, tau=tau, mf=mf)
+        states["rnea_missing"] = f"pinocchio not installed ({e})"
     return c, states
 
 
@@ -162,7 +164,7 @@ def _agreement(c: dict[str, Call], st: dict, results: dict) -> dict:
     mech, mf, eps, k = st["mech"], st["mf"], float(np.finfo(float).eps), 16
     q, qd, qdd, tau = st["q"], st["qd"], st["qdd"], st["tau"]
     want, label = reference(mech, q[:1], qd[:1], qdd[:1])
-    res = {"reference": label, "err_bound": float(k * eps * mech.dof * np.abs(want).max())}
+    res: dict[str, Any] = {"reference": label, "err_bound": float(k * eps * mech.dof * np.abs(want).max())}
     res["inverse_err"] = {
         key: float(np.abs(np.asarray(results[key]) - want[0]).max())
         for key in ONE_SAMPLE
