@@ -91,3 +91,11 @@ def test_the_scaling_report_carries_the_goals_and_the_rows(tmp_path):
     assert "7 of 8 goals met." in text
     assert "| inverse_batch_unchecked | 500 us | 0.0143x |" in text  # 0.05 us per sample against 3.5 us
     assert scaling(pd.DataFrame([rows[0]]), [], "c", tmp_path / "s.png").count("The goals' row did not run.") == 1
+
+
+def test_the_calls_of_a_round_are_stated():
+    r = _figures()
+    r["calls_per_round"] = {"rnea": 2000, "forward_checked": 14}
+    assert "14 to 2,000 calls a round" in g.goals_lines(r)[2]
+    r["calls_per_round"] = 2000  # one count for every call (the rows' first form)
+    assert "2,000 calls a round for one sample" in g.goals_lines(r)[2]

@@ -226,10 +226,11 @@ def _us(seconds: float) -> str:
 
 
 def _calls(r: dict) -> str:
-    n = r.get("calls_per_round", {})
-    if not n:
+    n = r.get("calls_per_round") or {}
+    values = list(n.values()) if isinstance(n, dict) else [n]  # one count for all (the first rows' form)
+    if not values:
         return "? calls a round"
-    lo, hi = min(n.values()), max(n.values())
+    lo, hi = min(values), max(values)
     return f"{hi:,} calls a round" if lo == hi else f"{lo:,} to {hi:,} calls a round (rounds of about the same time)"
 
 
