@@ -99,3 +99,15 @@ def test_the_calls_of_a_round_are_stated():
     assert "14 to 2,000 calls a round" in g.goals_lines(r)[2]
     r["calls_per_round"] = 2000  # one count for every call (the rows' first form)
     assert "2,000 calls a round for one sample" in g.goals_lines(r)[2]
+
+
+def test_a_busy_machine_is_named():
+    r = _figures()
+    assert "Load average" not in g.goals_lines(r)[2]  # not recorded: nothing said
+    r["load"] = {"load_1min": 3.1, "cpus": 2}
+    assert (
+        "Load average 3.10 on 2 CPUs as the timing ended: a busy machine, the figures are provisional."
+        in (g.goals_lines(r)[2])
+    )
+    r["load"] = {"load_1min": 0.2, "cpus": 2}
+    assert g.goals_lines(r)[2].endswith("Load average 0.20 on 2 CPUs as the timing ended.")

@@ -209,12 +209,23 @@ def measure(samples: int = 10_000, rounds: int = 30, calls_per_round: int = 2000
         "rounds": rounds,
         "calls_per_round": number,
         "seconds_measuring": time.perf_counter() - t0,
+        "load": _load(),  # how busy the machine was as the timing ended
         "timings": timings,
     }
     if "rnea_missing" in st:
         r["rnea_missing"] = st["rnea_missing"]
     r.update(_agreement(c, st, results))
     return r
+
+
+def _load() -> dict:
+    """The 1-minute load average against the CPUs (``{}`` where the OS does not say)."""
+    import os
+
+    try:
+        return {"load_1min": os.getloadavg()[0], "cpus": os.cpu_count()}
+    except (AttributeError, OSError):
+        return {}
 
 
 def _met(ok: bool) -> str:
@@ -232,6 +243,15 @@ def _calls(r: dict) -> str:
         return "? calls a round"
     lo, hi = min(values), max(values)
     return f"{hi:,} calls a round" if lo == hi else f"{lo:,} to {hi:,} calls a round (rounds of about the same time)"
+
+
+def _busy(load: dict) -> str:
+    if not load:
+        return ""
+    shared = load["load_1min"] > 0.5 * (load["cpus"] or 1)
+    return f" Load average {load['load_1min']:.2f} on {load['cpus']} CPUs as the timing ended" + (
+        ": a busy machine, the figures are provisional." if shared else "."
+    )
 
 
 def verdicts(r: dict) -> list[tuple[Goal, float | None, bool]]:
@@ -258,7 +278,8 @@ def goals_lines(r: dict, source: str = "bench/test_call_overhead.py::test_issue3
             f"{RNEA} on the same model, {_us(t['rnea'])} a call."
             if "rnea" in t
             else f"{RNEA}: not measured ({r.get('rnea_missing', 'no rnea timing')})."
-        ),
+        )
+        + _busy(r.get("load") or {}),
         "",
         "| goal | measured | against | ratio | goal | verdict |",
         "|---|---|---|---|---|---|",
