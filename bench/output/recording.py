@@ -72,7 +72,8 @@ CONVENTIONS = (
 
 
 def _rgb(color: str) -> tuple[int, int, int]:
-    return tuple(int(round(255 * c)) for c in to_rgb(color))
+    r, g, b = (int(round(255 * c)) for c in to_rgb(color))
+    return r, g, b
 
 
 _COLOUR_NAMES = {
@@ -97,7 +98,8 @@ def _lighter(color: str, k: int) -> tuple[int, int, int]:
     """The colour of a curve for the k-th method: the reference keeps it, others are paler."""
     r = np.array(_rgb(color), dtype=float)
     f = 0.0 if k == 0 else min(0.25 + 0.12 * (k - 1), 0.6)
-    return tuple(int(round(x)) for x in r + (255 - r) * f)
+    red, green, blue = (int(round(x)) for x in r + (255 - r) * f)
+    return red, green, blue
 
 
 # ----------------------------------------------------------------------------- description
@@ -248,7 +250,9 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
     mech = study.mechanism
     ok = study.ok_methods()
     ref = reference_method(study)
-    order = [ref] + [m for m in ok if m != ref] if ref else []
+    if ref is None:  # no method produced tau: no series to record
+        return
+    order = [ref] + [m for m in ok if m != ref]
     for part, root, labels, kind in (
         (0, "moments", moment_labels(mech), "moments"),
         (1, "forces", force_labels(mech), "forces"),
@@ -271,7 +275,7 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
                     visible=k == 0,
                 )
             if m != ref:
-                diff = moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]
+                diff = moments_and_forces(mech, study.tau(m) - study.tau(ref))[part]
                 _send_series(
                     stream,
                     f"differences/{root}/{m}",
@@ -289,7 +293,7 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
         stream,
         f"generalised/{ref}",
         times,
-        generalised_moments(mech, study.results[ref].tau),
+        generalised_moments(mech, study.tau(ref)),
         [f"{x} ({ref})" for x in gl],
         gcol,
         2.0,

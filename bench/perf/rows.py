@@ -244,8 +244,8 @@ def check_ratio_groups(df) -> None:
     if df is None or len(df) == 0 or "host" not in df or "group" not in df:
         return
     d = df.assign(kind=df["group"].astype(str).str.split("-").str[0])
-    method = d["method"].astype(str) if "method" in d else ""
-    d = d.assign(within=method.where(d["kind"].isin(WITHIN_METHOD), "") if "method" in d else "")
+    within = d["method"].astype(str).where(d["kind"].isin(WITHIN_METHOD), "") if "method" in d else ""
+    d = d.assign(within=within)
     cols = [c for c in RATIO_GROUP if c in d]
     d = d[cols + ["host"]].astype(str)  # NaN and mixed types as text, so that groupby keeps every row
     for key, g in d.groupby(cols, dropna=False):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import TypedDict
 
 from exo_bench.bench.output.suite_reports import EQUATIONS_SIZE
 from exo_bench.bench.studies.options import ReportOptions
@@ -24,7 +25,16 @@ QUICK_BUDGET, FULL_BUDGET = 10.0, 30.0
 MATRIX_BUDGET_FACTOR = 6
 
 
-def size_point(mech, route: str, budget: float) -> dict:
+class SizePoint(TypedDict):
+    """One measurement of :func:`size_point`."""
+
+    compose: float  # seconds composing tau (and, for the matrix method, its matrices)
+    generate: float  # seconds of CSE, counting and C printing
+    ops: int  # sympy.count_ops of tau after CSE
+    c_lines: int  # lines of the generated header and source
+
+
+def size_point(mech, route: str, budget: float) -> SizePoint:
     """One measurement: compose seconds, generate seconds (CSE and C printing), operations after
     CSE of tau (``sympy.count_ops``) and lines of generated C (header and source); the whole point
     within ``budget`` seconds (``lagrange.budget.time_budget``) or BudgetExceeded."""
@@ -35,7 +45,7 @@ def size_point(mech, route: str, budget: float) -> dict:
         return _size_point(mech, route, budget)
 
 
-def _size_point(mech, route: str, budget: float) -> dict:
+def _size_point(mech, route: str, budget: float) -> SizePoint:
     import sympy as sp
 
     from exo_bench.matrix_method.export import code as export_code
@@ -82,7 +92,8 @@ def size_report(options: ReportOptions) -> int:
     out = options.folder
     ns = FULL_N if full else QUICK_N
     budget = FULL_BUDGET if full else QUICK_BUDGET
-    rows, over = [], {}
+    rows: list[tuple[int, str, int, str, SizePoint | None, str]] = []
+    over: dict[tuple[int, str, str], str] = {}
     for dim in (2, 3):
         for kind in ("chain", "tree"):
             for n in ns:
@@ -123,7 +134,7 @@ def size_report(options: ReportOptions) -> int:
         "(indicative; ratios within one run).",
         "",
     ]
-    ratio_lines = []
+    ratio_lines: list[tuple[int, str, int, float, float | None, float]] = []
     for dim in (2, 3):
         for kind in ("chain", "tree"):
             for n in ns:
@@ -155,11 +166,11 @@ def size_report(options: ReportOptions) -> int:
         "| dim | kind | n | route | ops after CSE | C lines | compose s | generate s | note |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for dim, kind, n, route, r, note in rows:
-        if r:
+    for dim, kind, n, route, point, note in rows:
+        if point:
             lines.append(
-                f"| {dim}D | {kind} | {n} | {route} | {r['ops']} | {r['c_lines']} | {r['compose']:.3g} | "
-                f"{r['generate']:.3g} | {note} |"
+                f"| {dim}D | {kind} | {n} | {route} | {point['ops']} | {point['c_lines']} | {point['compose']:.3g} | "
+                f"{point['generate']:.3g} | {note} |"
             )
         else:
             lines.append(f"| {dim}D | {kind} | {n} | {route} | | | | | not run: {note.replace('|', '/')} |")

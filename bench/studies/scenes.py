@@ -209,7 +209,7 @@ def load_scene(spec: str | Path) -> Scene:
             raise _err(path, "methods", f"names among {', '.join(METHODS)}", m)
     _once(path, "methods", methods)
     reference = data.get("reference", methods[0])
-    if reference not in methods:
+    if not isinstance(reference, str) or reference not in methods:
         raise _err(path, "reference", f"one of the scene's methods {methods}", reference)
     outputs = data.get("outputs", ["table"])
     if not isinstance(outputs, list) or not all(isinstance(o, str) for o in outputs):

@@ -50,9 +50,16 @@ class Study:
     def ok_methods(self) -> list[str]:
         return [m for m, r in self.results.items() if r.ok]
 
+    def tau(self, method: str) -> np.ndarray:
+        """The method's tau, ``(S, dof)``; a method that was skipped or failed has none (ValueError)."""
+        tau = self.results[method].tau
+        if tau is None:
+            raise ValueError(f"study {self.name!r}: method {method!r} has no tau (skipped or failed)")
+        return tau
+
     def difference(self, method: str) -> np.ndarray:
         """``tau_method - tau_reference``, ``(S, dof)``."""
-        return self.results[method].tau - self.results[self.reference].tau
+        return self.tau(method) - self.tau(self.reference)
 
     def agreement(self) -> dict[str, float]:
         """Largest ``|tau_method - tau_reference|`` relative to the largest ``|tau_reference|``, over the
@@ -60,12 +67,12 @@ class Study:
         ref = self.results.get(self.reference)
         if ref is None or not ref.ok:
             return {}
-        scale = max(float(np.nanmax(np.abs(ref.tau))), 1e-300)
+        scale = max(float(np.nanmax(np.abs(self.tau(self.reference)))), 1e-300)
         return {m: finite_max(np.abs(self.difference(m))) / scale for m in self.ok_methods()}
 
     def nonfinite(self, method: str) -> int:
         """How many entries of the method's tau are NaN or infinite."""
-        return int(np.count_nonzero(~np.isfinite(self.results[method].tau)))
+        return int(np.count_nonzero(~np.isfinite(self.tau(method))))
 
 
 def one_line(e: BaseException) -> str:

@@ -111,7 +111,7 @@ def nonfinite_notes(study: Study) -> list[str]:
     """One warning per method whose tau holds NaN or infinite values (they cannot be drawn)."""
     out = []
     for m in study.ok_methods():
-        bad = ~np.isfinite(study.results[m].tau)
+        bad = ~np.isfinite(study.tau(m))
         if bad.any():
             rows = np.flatnonzero(bad.any(axis=1))
             out.append(
@@ -133,10 +133,13 @@ def _style_name(ok, ref, m) -> str:
     )
 
 
-def _check_ok(study: Study) -> None:
-    if not study.ok_methods():
+def _check_ok(study: Study) -> str:
+    """The method the figures draw against (:func:`reference_method`); ValueError when no method produced tau."""
+    ref = reference_method(study)
+    if ref is None:
         why = _not_run_line(study) or "no methods were run"
         raise ValueError(f"study {study.name!r}: no method produced tau ({why}); nothing to plot")
+    return ref
 
 
 def _header(study: Study, what: str) -> str:
@@ -146,12 +149,11 @@ def _header(study: Study, what: str) -> str:
 
 # ----------------------------------------------------------------------------- Figs. 7 and 8
 def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figure:
-    _check_ok(study)
+    ref = _check_ok(study)
     mech = study.mechanism
     ok = study.ok_methods()
-    ref = reference_method(study)
     if kind == "moments":
-        data = {m: moments_and_forces(mech, study.results[m].tau)[0] for m in ok}
+        data = {m: moments_and_forces(mech, study.tau(m))[0] for m in ok}
         labels, unit, sym = moment_labels(mech), "N·m", "M"
         what = (
             "Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
@@ -170,7 +172,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
             )
         )
     else:
-        data = {m: moments_and_forces(mech, study.results[m].tau)[1] for m in ok}
+        data = {m: moments_and_forces(mech, study.tau(m))[1] for m in ok}
         labels, unit, sym = force_labels(mech), "N", "F"
         what = (
             "Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
@@ -301,9 +303,9 @@ def differences_figure(study: Study) -> Figure | None:
     axes, note_ax = _panels(fig, 2, len(notes))
     for ax, part, unit in ((axes[0], 0, "N·m"), (axes[1], 1, "N")):
         for m in others:
-            d = np.abs(moments_and_forces(mech, study.results[m].tau - study.results[ref].tau)[part]).max(axis=1)
+            d = np.abs(moments_and_forces(mech, study.tau(m) - study.tau(ref))[part]).max(axis=1)
             dmax = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
-            scale = float(np.nanmax(np.abs(moments_and_forces(mech, study.results[ref].tau)[part]))) or 1.0
+            scale = float(np.nanmax(np.abs(moments_and_forces(mech, study.tau(ref))[part]))) or 1.0
             color = method_color(m, ok)
             if dmax == 0.0:
                 ax.plot([], [], color=color, label=f"{m} − {ref}: identical (0)")

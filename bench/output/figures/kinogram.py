@@ -9,9 +9,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.lines import Line2D
 
-from exo_bench.bench.output.figures.curves import _check_ok, _header, curve_colors, reference_method
+from exo_bench.bench.output.figures.curves import _check_ok, _header, curve_colors
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color
 from exo_bench.models.joint_coordinates import force_labels, joint_quantities, moment_labels, moments_and_forces
 from exo_bench.models.kinematics import point_mass_positions
@@ -125,7 +126,9 @@ def kinogram_figure(study: Study, frames: int = 9) -> Figure:
     width = max(F * cell * small + 1.5, 11.0)
     inch = min(4.4, 0.6 * width / sum(span(p.axes[0]) for p in projs))  # inches per metre in the overlay
     fig = Figure(figsize=(width, span(vert) * (inch + small) + 3.4), layout="constrained")
-    top, bottom = fig.subfigures(2, 1, height_ratios=[span(vert) * inch + 1.3, span(vert) * small + 1.4])
+    top, bottom = fig.subfigures(
+        2, 1, squeeze=False, height_ratios=[span(vert) * inch + 1.3, span(vert) * small + 1.4]
+    )[:, 0]
     ratios = [span(p.axes[0]) for p in projs]
     grid = top.subplots(
         1,
@@ -211,12 +214,13 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     rod forces and the differences between methods on the right."""
     from matplotlib.ticker import MaxNLocator
 
-    _check_ok(study)
+    ref = _check_ok(study)
 
     mech, t = study.mechanism, study.motion.t
-    ok, ref = study.ok_methods(), reference_method(study)
-    fig = Figure(figsize=(16, 9), layout="constrained")
-    fig.get_layout_engine().set(w_pad=0.15, wspace=0.12)  # room for the 3D panel's z label
+    ok = study.ok_methods()
+    layout = ConstrainedLayoutEngine()
+    fig = Figure(figsize=(16, 9), layout=layout)
+    layout.set(w_pad=0.15, wspace=0.12)  # room for the 3D panel's z label
     gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1.45])
     ax3 = fig.add_subplot(gs[:, 0], projection="3d")
     s = int(round(frame * (len(t) - 1)))
@@ -267,7 +271,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     ax3.view_init(elev=12, azim=-60)
     ax3.set_title(f"3D view at t = {t[s]:.2f} s; dot area ∝ point mass", fontsize=TEXT_PT)
     fig.legend(handles=handles, loc="outside lower left", fontsize=TEXT_PT, ncols=3, frameon=False)
-    M = moments_and_forces(mech, study.results[ref].tau)
+    M = moments_and_forces(mech, study.tau(ref))
     for r, (vals, labels, unit, sym, title) in enumerate(
         (
             (M[0], moment_labels(mech), "N·m", "M", "joint moments τ_joint = G⁻ᵀ τ"),
@@ -294,7 +298,7 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     ax = fig.add_subplot(gs[2, 1])
     others = [m for m in ok if m != ref]
     for m in others:
-        tj = joint_quantities(mech, study.results[m].tau - study.results[ref].tau)
+        tj = joint_quantities(mech, study.tau(m) - study.tau(ref))
         d = np.abs(tj).max(axis=1)
         ax.semilogy(t, np.where(d > 0, d, np.nan), color=method_color(m, ok), label=f"{m} − {ref}", gid=f"diff:{m}")
     ax.set_title(

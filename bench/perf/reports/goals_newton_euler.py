@@ -129,9 +129,9 @@ def newton_euler_goals(df: pd.DataFrame) -> list[str]:
             s = g.groupby("n")["us_per_sample"].min()
             cells = [f"{s[n]:.3g}" if n in s.index else "skipped" for n in ns]
             pts = s[s.index >= 2]
-            p = f"{_fit(np.array(pts.index, float), pts.to_numpy()):.2f}" if len(pts) >= 2 else ""
+            growth = f"{_fit(np.array(pts.index, float), pts.to_numpy()):.2f}" if len(pts) >= 2 else ""
             last = g.loc[g["n"].idxmax()]
             bps = f"{float(last['traced_bytes_per_sample']):.3g}" if "traced_bytes_per_sample" in g else ""
-            out.append(f"| {m} | " + " | ".join(cells) + f" | {p} | {bps} |")
+            out.append(f"| {m} | " + " | ".join(cells) + f" | {growth} | {bps} |")
         out.append("")
     return out

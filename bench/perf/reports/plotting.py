@@ -14,10 +14,12 @@ def _log_log_by_dim(
     """One log-log panel per dimension (2D, 3D) sharing the y axis; ``draw(ax, dim)`` plots a panel.
     One legend for both panels, outside the data (right of them), and ``note`` under the panels."""
     from matplotlib.figure import Figure
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
 
     from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, save_figure
 
-    fig = Figure(figsize=(15, 6.5), layout="constrained")
+    layout = ConstrainedLayoutEngine()
+    fig = Figure(figsize=(15, 6.5), layout=layout)
     axes = fig.subplots(1, 2, sharey=True)
     for ax, dim in zip(axes, (2, 3)):
         draw(ax, dim)
@@ -35,7 +37,7 @@ def _log_log_by_dim(
     fig.legend(list(handles.values()), list(handles), loc="outside right upper", fontsize=TEXT_PT)
     if note:
         fig.text(0.01, 0.0, note, fontsize=TEXT_PT, ha="left", va="bottom", wrap=True)
-        fig.get_layout_engine().set(rect=(0, 0.06, 1, 0.94))
+        layout.set(rect=(0, 0.06, 1, 0.94))
     fig.suptitle(title, fontsize=TITLE_PT + 1)
     save_figure(fig, png)
 

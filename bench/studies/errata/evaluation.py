@@ -298,7 +298,10 @@ def gait_effect(samples: int = 111) -> dict:
         paper = numeric.inverse_dynamics_paper(mech, mo.q, mo.qd, mo.qdd)
     ours = numeric.inverse_dynamics(mech, mo.q, mo.qd, mo.qdd)
     n = mech.nlinks
-    out = {"samples": samples, "nan_samples": int(np.isnan(paper).any(axis=1).sum())}
+    out: dict[str, int | float | tuple[float, int]] = {
+        "samples": samples,
+        "nan_samples": int(np.isnan(paper).any(axis=1).sum()),
+    }
     for k, block in enumerate(("phi", "psi", "l")):
         cols = slice(k * n, (k + 1) * n)
         r, p = ref[:, cols], paper[:, cols]

@@ -43,8 +43,8 @@ def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np
             for b in v:
                 qd[:, off[b] + j] = 1.0
             rates.append(qd)
-    h = pb.bias_forces(mech, np.tile(q, (len(rates), 1)), np.concatenate(rates)).reshape(len(rates), S, mech.dof)
-    h = h.reshape(n, len(variants), S, mech.dof)
+    # rates[j * len(variants) + k]: link j, variant k
+    h = pb.bias_forces(mech, np.tile(q, (len(rates), 1)), np.concatenate(rates)).reshape(n, len(variants), S, mech.dof)
     h0 = h[0, 0]
     idx = {v: k for k, v in enumerate(variants)}
     out: dict[str, dict[str, np.ndarray]] = {}

@@ -121,7 +121,7 @@ def family_summary_markdown(families: list[FamilyResult], methods: list[str]) ->
             verdict, row, cr = fr.worst(m)
             ran = [c for c in fr.results if m in c.rows and c.rows[m].status == "ok"]
             nan = sum(c.rows[m].nonfinite for c in ran)
-            if row is None or row.status != "ok":
+            if row is None or cr is None or row.status != "ok":
                 reason = row.reason if row is not None else "not evaluated"
                 lines.append(f"| {fr.name} | {m} | {verdict} | {len(ran)}/{len(fr.results)} | | | | {reason} |")
                 continue

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import json
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +74,7 @@ class StoredStep:
 class WalkingMotion(Motion):
     """A motion whose support point moves: ``origin (S, dim)`` is where O (the stance foot) stands."""
 
-    origin: np.ndarray = None
+    origin: np.ndarray = field(kw_only=True)
 
 
 def path_of(name: str, folder: Path | None = None) -> Path:

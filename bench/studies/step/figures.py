@@ -15,6 +15,7 @@ from matplotlib.lines import Line2D
 from exo_bench.bench.output.figures.curves import _header
 from exo_bench.bench.output.figures.kinogram import projections
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
+from exo_bench.bench.studies.step.data import WalkingMotion
 from exo_bench.bench.studies.study import Study
 from exo_bench.models.kinematics import point_mass_positions
 
@@ -24,15 +25,22 @@ FRAMES_PER_STEP = 7
 PHYSICAL = (3, 2, 1, 0, 4)
 
 
+def origin(study: Study) -> np.ndarray:
+    """Where O stands at each sample, ``(S, dim)``: the study's motion must be a :class:`WalkingMotion`."""
+    if not isinstance(study.motion, WalkingMotion):
+        raise TypeError(f"study {study.name!r}: expected a WalkingMotion, got {type(study.motion).__name__}")
+    return study.motion.origin
+
+
 def world_points(study: Study) -> np.ndarray:
     """Point-mass positions in the world, ``(S, n, 3, dim)``: relative to O plus where O stands."""
     P = point_mass_positions(study.mechanism, study.motion.q)
-    return P + study.motion.origin[:, None, None, :]
+    return P + origin(study)[:, None, None, :]
 
 
 def step_index(study: Study) -> np.ndarray:
     """Which step each sample belongs to (0, 1, ...), from the support point's moves."""
-    o = study.motion.origin[:, 0]
+    o = origin(study)[:, 0]
     return np.concatenate([[0], np.cumsum(np.abs(np.diff(o)) > 0)])
 
 
@@ -61,7 +69,7 @@ def walking_kinogram(study: Study, frames_per_step: int = FRAMES_PER_STEP) -> Fi
     fig = Figure(figsize=(width, width * (top + 0.25) / (hi - lo) + 2.2), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
     ax.plot([lo, hi], [0, 0], color="0.45", lw=1.0, ls="--", zorder=1, gid="floor")
-    feet = np.unique(study.motion.origin[:, hx])
+    feet = np.unique(origin(study)[:, hx])
     ax.plot(feet, np.zeros_like(feet), "k^", ms=8, ls="none", zorder=4, gid="support")
     hip = W[:, 1, 2]
     ax.plot(hip[:, hx], hip[:, vx], color="k", lw=1.0, ls=":", zorder=1, gid="hip-path")
@@ -114,4 +122,4 @@ def walking_kinogram(study: Study, frames_per_step: int = FRAMES_PER_STEP) -> Fi
     return fig
 
 
-__all__ = ["FRAMES_PER_STEP", "PHYSICAL", "step_index", "walking_kinogram", "world_points"]
+__all__ = ["FRAMES_PER_STEP", "PHYSICAL", "origin", "step_index", "walking_kinogram", "world_points"]
