@@ -77,8 +77,9 @@ def coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0) -> tuple[list[li
 
 @lru_cache(maxsize=256)
 def _numeric(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:
-    mu, nu = coupling_entries(mech, *link_aggregates(mech), zero=0.0)
-    mu, nu = np.array(mu, dtype=float).reshape(mech.nlinks, mech.nlinks), np.array(nu, dtype=float)
+    mu_entries, nu_entries = coupling_entries(mech, *link_aggregates(mech), zero=0.0)
+    mu = np.array(mu_entries, dtype=float).reshape(mech.nlinks, mech.nlinks)
+    nu = np.array(nu_entries, dtype=float)
     mu.flags.writeable = False
     nu.flags.writeable = False
     return mu, nu

@@ -37,6 +37,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,10 @@ from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import MissingExtra, PreparedModel
 from exo_bench.models.urdf import link_prefix
+
+if TYPE_CHECKING:  # pydrake ships stubs; at run time it is imported only by import_drake
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import Joint, RigidBody
 
 EXTRA = "pip install 'exo-bench[peers]'"
 
@@ -65,7 +70,7 @@ class DrakePlant:
     ``G``, and the body names of each link's start, middle (None) and end masses."""
 
     mechanism: Mechanism
-    plant: object
+    plant: MultibodyPlant
     G: np.ndarray
     joints: tuple[str, ...]
     bodies: tuple[tuple[str, str | None, str], ...]
@@ -80,10 +85,10 @@ def build_plant(mech: Mechanism) -> DrakePlant:
     n = mech.nlinks
     psi0, l0 = n, (2 if mech.dim == 3 else 1) * n
     zero = tree.UnitInertia(0.0, 0.0, 0.0)
-    joints: list[tuple[object, dict[int, float]]] = []
-    ends: dict[int, object] = {}
+    joints: list[tuple[Joint, dict[int, float]]] = []
+    ends: dict[int, RigidBody] = {}
 
-    def body(name: str, mass: float = 0.0):
+    def body(name: str, mass: float = 0.0) -> RigidBody:
         return plant.AddRigidBody(name, tree.SpatialInertia(float(mass), np.zeros(3), zero))
 
     def joint(kind, name, parent, child, axis, coef):
@@ -143,7 +148,8 @@ def body_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
         for i, (a, b, c) in enumerate(dp.bodies):
             X = lambda name: plant.EvalBodyPoseInWorld(ctx, plant.GetBodyByName(name)).translation()
             start, end = X(a), X(c)
-            mid = X(b) if b is not None else start + mech.n[i] * (end - start)
+            # pydrake's stubs put the shape in ndarray's dtype slot (ndarray[float64[3, 1]]): mypy refuses its arithmetic
+            mid = X(b) if b is not None else start + mech.n[i] * (end - start)  # type: ignore[misc]
             out[s, i] = np.stack([start, mid, end])[:, : mech.dim]
     return out
 
@@ -186,7 +192,8 @@ class DrakeID(PreparedModel):
         for s in range(q.shape[0]):
             plant.SetPositions(ctx, qj[s])
             plant.SetVelocities(ctx, vj[s])
-            out[s] = plant.CalcInverseDynamics(ctx, aj[s], forces) - plant.CalcGravityGeneralizedForces(ctx)
+            # pydrake's stubs put the shape in ndarray's dtype slot (ndarray[float64[m, 1]]): mypy refuses its arithmetic
+            out[s] = plant.CalcInverseDynamics(ctx, aj[s], forces) - plant.CalcGravityGeneralizedForces(ctx)  # type: ignore[misc]
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):

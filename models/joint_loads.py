@@ -43,6 +43,7 @@ def _rod_accelerations(mech: Mechanism, q: np.ndarray, qd: np.ndarray, qdd: np.n
         ud = u_phi * phid[..., None]
         udd = u_phi * phidd[..., None] - u * (phid**2)[..., None]
     else:
+        assert psi is not None and psid is not None and psidd is not None and u_psi is not None  # 3D
         c, s = np.cos(phi), np.sin(phi)
         sp = np.sin(psi)
         zero = np.zeros_like(c)

@@ -13,19 +13,21 @@ in 3D.
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism, split
 
 
-def unit_vectors(mech: Mechanism, q: np.ndarray):
+def unit_vectors(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Rod directions ``u`` and their partials ``du/dphi``, ``du/dpsi`` (None in 2D), each ``(S, n, dim)``.
 
     2D: ``u = (cos phi, sin phi)``; 3D (eq. 7): ``u = (cos psi cos phi, cos psi sin phi, sin psi)``.
     """
     phi, psi, _ = split(mech, q)
     c, s = np.cos(phi), np.sin(phi)
-    if mech.dim == 2:
+    if psi is None:  # 2D
         u = np.stack([c, s], axis=-1)
         u_phi = np.stack([-s, c], axis=-1)
         return u, u_phi, None
@@ -36,7 +38,11 @@ def unit_vectors(mech: Mechanism, q: np.ndarray):
     return u, u_phi, u_psi
 
 
-def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None):
+@overload
+def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: None) -> tuple[np.ndarray, None]: ...
+@overload
+def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
     """``w_i = sign_i l_i u_i`` (start of link i to its end) and its time derivative."""
     _, _, l = split(mech, q)
     u, u_phi, u_psi = unit_vectors(mech, q)
@@ -46,7 +52,7 @@ def _rod_vectors(mech: Mechanism, q: np.ndarray, qd: np.ndarray | None):
         return w, None
     phid, psid, ld = split(mech, qd)
     udot = u_phi * phid[..., None]
-    if u_psi is not None:
+    if u_psi is not None and psid is not None:  # 3D: both or neither
         udot = udot + u_psi * psid[..., None]
     wd = s * (ld[..., None] * u + l[..., None] * udot)
     return w, wd

@@ -108,9 +108,10 @@ class Mechanism:
         object.__setattr__(self, "n", tuple(float(x) for x in self.n))
         object.__setattr__(self, "g", float(self.g) + 0.0)  # -0.0 -> 0.0: one mechanism, one hash
         object.__setattr__(self, "dim", int(self.dim))
-        object.__setattr__(
-            self, "_hash", hash((self.dim, self.g, self.parent, self.sign, self.masses, self.n, self.names, self.name))
-        )
+
+    @cached_property
+    def _hash(self) -> int:
+        return hash((self.dim, self.g, self.parent, self.sign, self.masses, self.n, self.names, self.name))
 
     def __hash__(self) -> int:  # cached: models, URDFs and derivations are looked up by mechanism
         return self._hash

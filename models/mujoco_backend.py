@@ -25,6 +25,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.mjcf import JointMap, check_nesting, joint_map, to_mjcf
 from exo_bench.models.prepared import MissingExtra, PreparedModel
+
+if TYPE_CHECKING:  # imported at run time only by import_mujoco (mujoco ships no stubs: its names are Any)
+    import mujoco
 
 EXTRA = "pip install 'exo-bench[peers]'"
 
@@ -71,7 +75,7 @@ class MujocoModel:
     and end masses."""
 
     mechanism: Mechanism
-    model: object  # mujoco.MjModel
+    model: mujoco.MjModel
     G: np.ndarray  # (nv, dof)
     map: JointMap
     bodies: np.ndarray  # (n, 3) body ids
@@ -182,7 +186,7 @@ class MujocoRNE(PreparedModel):
         for s in range(q.shape[0]):
             data.qpos[:] = qj[s]
             data.qvel[:] = vj[s]
-            if acc:
+            if aj is not None:  # acc
                 data.qacc[:] = aj[s]
             mj.mj_kinematics(model, data)
             mj.mj_comPos(model, data)

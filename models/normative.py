@@ -38,6 +38,7 @@ import sys
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 from xml.etree import ElementTree
 
 import numpy as np
@@ -271,6 +272,14 @@ WINTER = WinterStride(
 # ----------------------------------------------------------------------------- reading the transcription
 _NS = {"m": "http://schemas.openxmlformats.org/spreadsheetml/2006/main"}
 _REL = "{http://schemas.openxmlformats.org/officeDocument/2006/relationships}id"
+_T = TypeVar("_T")
+
+
+def _required(value: _T | None, path: Path, what: str) -> _T:
+    """``value``, or a ValueError naming the workbook and the part of it that is missing."""
+    if value is None:
+        raise ValueError(f"{path}: not an .xlsx workbook as expected, {what} is missing")
+    return value
 
 
 def _sheets(path: Path) -> dict[str, dict[int, dict[int, str]]]:
@@ -281,12 +290,16 @@ def _sheets(path: Path) -> dict[str, dict[int, dict[int, str]]]:
             root = ElementTree.fromstring(z.read("xl/sharedStrings.xml"))
             shared = ["".join(t.text or "" for t in si.iter(f"{{{_NS['m']}}}t")) for si in root.findall("m:si", _NS)]
         rels = {r.get("Id"): r.get("Target") for r in ElementTree.fromstring(z.read("xl/_rels/workbook.xml.rels"))}
-        out = {}
-        for s in ElementTree.fromstring(z.read("xl/workbook.xml")).find("m:sheets", _NS):
-            target = rels[s.get(_REL)].lstrip("/").removeprefix("xl/")
+        out: dict[str, dict[int, dict[int, str]]] = {}
+        sheets = ElementTree.fromstring(z.read("xl/workbook.xml")).find("m:sheets", _NS)
+        for s in _required(sheets, path, "the workbook's <sheets>"):
+            name = _required(s.get("name"), path, "a sheet's name")
+            target = _required(rels.get(s.get(_REL)), path, f"the target of sheet {name!r}")
             rows: dict[int, dict[int, str]] = {}
+            target = target.lstrip("/").removeprefix("xl/")
             for c in ElementTree.fromstring(z.read("xl/" + target)).iter(f"{{{_NS['m']}}}c"):
-                col, row = re.match(r"([A-Z]+)(\d+)", c.get("r")).groups()
+                cell = _required(re.match(r"([A-Z]+)(\d+)", c.get("r") or ""), path, f"a cell reference in {name!r}")
+                col, row = cell.groups()
                 v = c.find("m:v", _NS)
                 if v is None or v.text is None:
                     continue
@@ -294,7 +307,7 @@ def _sheets(path: Path) -> dict[str, dict[int, dict[int, str]]]:
                 for ch in col:
                     k = 26 * k + ord(ch) - 64
                 rows.setdefault(int(row), {})[k] = shared[int(v.text)] if c.get("t") == "s" else v.text
-            out[s.get("name")] = rows
+            out[name] = rows
     return out
 
 

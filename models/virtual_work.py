@@ -65,15 +65,15 @@ def _sample(mech: Mechanism, q, qd, qdd) -> list:
         # w'' = s (l'' u + 2 l' u' + l u'')
         wdd.append(scale(s, add(scale(ddl[k], u), add(scale(2 * dl[k], udot), scale(l[k], uddot)))))
     # Forward pass: accelerations of every rod's start point
-    start = [None] * n
-    end = [None] * n
+    start: list[list | None] = [None] * n  # filled in tree order: a parent before its children
+    end: list[list | None] = [None] * n
     for k in range(n):
         p = mech.parent[k]
         start[k] = end[p] if p >= 0 else [mp(0)] * dim
         end[k] = add(start[k], wdd[k])
     # Backward pass: F_k = own masses weighted by their fractions + everything below, whole
     below = [[mp(0)] * dim for _ in range(n)]  # sum over strict descendants of m_p (r_p'' + g up)
-    F = [None] * n
+    F: list[list | None] = [None] * n
     for k in reversed(range(n)):
         own_weighted, own_whole = [mp(0)] * dim, [mp(0)] * dim
         for b in range(3):

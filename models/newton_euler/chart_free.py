@@ -27,8 +27,10 @@ silently).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from exo_bench.models.kinematics import _rod_vectors, place_down_the_tree
 from exo_bench.models.mechanism import Mechanism, as_states
@@ -37,7 +39,11 @@ from exo_bench.models.newton_euler.tree import Tree, prepare_tree, singular_mass
 from exo_bench.models.singularity import COS_VERTICAL
 
 
-def rod_vectors(mech: Mechanism, q, qd=None) -> tuple[np.ndarray, np.ndarray | None]:
+@overload
+def rod_vectors(mech: Mechanism, q: ArrayLike, qd: None = None) -> tuple[np.ndarray, None]: ...
+@overload
+def rod_vectors(mech: Mechanism, q: ArrayLike, qd: ArrayLike) -> tuple[np.ndarray, np.ndarray]: ...
+def rod_vectors(mech: Mechanism, q: ArrayLike, qd: ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """``r (S, n, dim)`` and ``r'`` (None without ``qd``) of states in paper coordinates."""
     return _rod_vectors(mech, np.atleast_2d(q), None if qd is None else np.atleast_2d(qd))
 
