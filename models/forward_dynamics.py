@@ -37,9 +37,11 @@ and is therefore re-evaluated after every accepted step (:mod:`exo_bench.models.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from exo_bench.models.conditioning import check_finite
 from exo_bench.models.mechanism import Mechanism, as_states, split
@@ -55,6 +57,8 @@ if TYPE_CHECKING:  # what type checkers see; at run time these load on first use
         simulate,
     )
     from exo_bench.models.simulate_arguments import DEFAULT_MAX_EVALUATIONS, JACOBIANS, RTOL_FLOOR  # noqa: F401
+
+    from exo_bench.models.motion import Motion  # only named in annotations
 
 #: The explicit and implicit integrators of ``scipy.integrate.solve_ivp`` that the suite uses.
 EXPLICIT = ("RK45", "DOP853")
@@ -142,45 +146,65 @@ def accelerations(model: PreparedModel, q, qd, tau, check: bool = True) -> np.nd
 
 
 # --------------------------------------------------------------------------- controls
-def prescribed_controls(model: PreparedModel, motion_of_t) -> Controls:
+#: ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)``, each ``(S, dof, dof)``.
+ControlsJacobian = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True, eq=False)
+class PrescribedControls:
     """``tau(t) = ID(q*(t), qd*(t), qdd*(t))`` on the fly along an analytic motion (any ``t``,
     no interpolation), by a prepared model: the controls that should reproduce the motion.
     ``motion_of_t(t)`` returns a :class:`exo_bench.models.motion.Motion` for an array of times."""
 
-    def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        m = motion_of_t(np.array([t]))
-        return np.broadcast_to(model.inverse_dynamics(m.q, m.qd, m.qdd, check=False), q.shape)
+    model: PreparedModel
+    motion_of_t: Callable[[np.ndarray], Motion]
 
-    controls.jacobian = _no_state_dependence  # tau depends on t alone
-    return controls
+    def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        m = self.motion_of_t(np.array([t]))
+        return np.broadcast_to(self.model.inverse_dynamics(m.q, m.qd, m.qdd, check=False), q.shape)
+
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Zero: tau depends on t alone."""
+        z = np.zeros(q.shape + q.shape[-1:])
+        return z, z
 
 
-def _no_state_dependence(t: float, q: np.ndarray, qd: np.ndarray):
-    z = np.zeros(q.shape + q.shape[-1:])
-    return z, z
+def prescribed_controls(model: PreparedModel, motion_of_t: Callable[[np.ndarray], Motion]) -> PrescribedControls:
+    """:class:`PrescribedControls` of a prepared model along ``motion_of_t``."""
+    return PrescribedControls(model, motion_of_t)
 
 
-def rod_spring_damper(mech: Mechanism, k, c, l_rest) -> Controls:
-    """Passive telescopic rods: ``F_i = -k_i (l_i - l_i*) - c_i l_i'`` on every rod, no moments
-    (``k``, ``c``, ``l_rest``: one value for all rods or one per rod)."""
-    n = mech.nlinks
-    k, c, l_rest = (np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in (k, c, l_rest))
+@dataclass(frozen=True, eq=False)
+class RodSpringDamper:
+    """Passive telescopic rods: ``F_i = -k_i (l_i - l_i*) - c_i l_i'`` on every rod, no moments;
+    ``k``, ``c``, ``l_rest`` are ``(n,)``."""
 
-    def controls(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    n: int
+    k: np.ndarray
+    c: np.ndarray
+    l_rest: np.ndarray
+
+    def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        n = self.n
         tau = np.zeros_like(q)
-        tau[:, -n:] = -k * (q[:, -n:] - l_rest) - c * qd[:, -n:]
+        tau[:, -n:] = -self.k * (q[:, -n:] - self.l_rest) - self.c * qd[:, -n:]
         return tau
 
-    def jacobian(t: float, q: np.ndarray, qd: np.ndarray):
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(dtau/dq, dtau/dqd)``, ``(S, dof, dof)``: ``-k_i`` and ``-c_i`` on the rods' diagonal."""
         d = q.shape[-1]
         jq, jqd = np.zeros(q.shape + (d,)), np.zeros(q.shape + (d,))
-        rods = np.arange(d - n, d)
-        jq[..., rods, rods], jqd[..., rods, rods] = -k, -c
+        rods = np.arange(d - self.n, d)
+        jq[..., rods, rods], jqd[..., rods, rods] = -self.k, -self.c
         return jq, jqd
 
-    controls.jacobian = jacobian
-    return controls
+
+def rod_spring_damper(mech: Mechanism, k: ArrayLike, c: ArrayLike, l_rest: ArrayLike) -> RodSpringDamper:
+    """:class:`RodSpringDamper` on every rod of ``mech`` (``k``, ``c``, ``l_rest``: one value for all
+    rods or one per rod)."""
+    n = mech.nlinks
+    k_, c_, l_rest_ = (np.broadcast_to(np.asarray(x, dtype=float), (n,)) for x in (k, c, l_rest))
+    return RodSpringDamper(n, k_, c_, l_rest_)
 
 
 def spring_energy(mech: Mechanism, q: np.ndarray, k, l_rest) -> np.ndarray:
