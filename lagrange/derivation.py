@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import sympy as sp
+from sympy.polys.rings import PolyElement
 
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
 from exo_bench.lagrange.energies import Structure, derive_expr, energies_poly, lagrange_poly, structure_of
@@ -60,7 +61,7 @@ class Derivation:
     symbolic_parameters: bool
     engine: str
     seconds: dict[str, float] = field(default_factory=dict)
-    ring_form: RingForm | None = field(default=None, repr=False)  # internal: the ring elements
+    ring_form: RingForm = field(repr=False, kw_only=True)  # internal: the ring elements
     values: dict = field(default_factory=dict, repr=False)  # the substituted parameter values ({} if symbolic)
 
     @property
@@ -90,8 +91,8 @@ class RingForm:
     ring: TrigRing
     equations: list
     matrices: dict[str, dict[str, list]]
-    T: object
-    Pi: object
+    T: PolyElement
+    Pi: PolyElement
 
 
 def _derive_symbolic(st: Structure, engine: str, dl: Deadline) -> Derivation:
@@ -131,8 +132,8 @@ def _from_ring(
         symbolic,
         engine,
         seconds,
-        form,
         values or {},
+        ring_form=form,
     )
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import sympy as sp
+from sympy.polys.rings import PolyElement
 
 from exo_bench.lagrange.budget import Deadline
 from exo_bench.lagrange.ring import TrigRing
@@ -41,13 +42,14 @@ class Structure:
 
 
 def structure_of(mech: Mechanism) -> Structure:
-    return Structure(mech.dim, mech.parent, mech.sign, tuple(tuple(m == 0.0 for m in ms) for ms in mech.masses))
+    zero_masses = tuple((m0 == 0.0, m1 == 0.0, m2 == 0.0) for m0, m1, m2 in mech.masses)
+    return Structure(mech.dim, mech.parent, mech.sign, zero_masses)
 
 
 @dataclass
 class Energies:
-    T: object
-    Pi: object
+    T: PolyElement  # in the ring of exo_bench.lagrange.ring.TrigRing
+    Pi: PolyElement
 
 
 def energies_poly(st: Structure, rg: TrigRing, dl: Deadline) -> Energies:
