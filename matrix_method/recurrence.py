@@ -35,7 +35,7 @@ if TYPE_CHECKING:  # the symbolic half imports sympy where it runs: the numeric 
     import sympy as sp
 
     from exo_bench.matrix_method.symbolic import compose as _symbolic
-    from exo_bench.matrix_method.symbolic.polynomials import Generators
+    from exo_bench.matrix_method.symbolic.polynomials import Element, Generators
 
 
 # ------------------------------------------------------------------ numeric
@@ -106,21 +106,19 @@ def matrix_sequence(mech: Mechanism, q, every: bool = True) -> Iterator[tuple[in
     q, _, _ = as_states(mech, q)
     _, psi, l = split(mech, q)
     flat = planar_sequence(mech, q)
-    straight = planar_sequence(mech, q, straight=True) if mech.dim == 3 else None
-    for n, mats, nu_s in flat:
-        mats0 = next(straight)[1] if straight is not None else None
-        if not every and n < mech.nlinks:
-            continue
-        if mech.dim == 2:
-            yield n, mats
-        else:
+    if psi is None:  # 2D
+        yield from ((n, mats) for n, mats, _ in flat if every or n == mech.nlinks)
+        return
+    straight = planar_sequence(mech, q, straight=True)
+    for (n, mats, nu_s), (_, mats0, _) in zip(flat, straight):  # in step: each yields views until its next step
+        if every or n == mech.nlinks:
             yield n, _numeric.spatial_from_planar(psi[:, :n], l[:, :n], mats, mats0, nu_s)
 
 
 def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
     """Every matrix of the full model by the recurrence (copies, safe to keep)."""
-    for _, last in matrix_sequence(mech, q, every=False):
-        return {b: {name: np.array(m) for name, m in ms.items()} for b, ms in last.items()}
+    ((_, last),) = matrix_sequence(mech, q, every=False)  # one item, n = N
+    return {b: {name: np.array(m) for name, m in ms.items()} for b, ms in last.items()}
 
 
 def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
@@ -130,13 +128,15 @@ def inverse_dynamics(mech: Mechanism, q, qd, qdd) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ symbolic
-def _symbolic_planar(mech: Mechanism, G: Generators, straight: bool):
+def _symbolic_planar(
+    mech: Mechanism, G: Generators, straight: bool
+) -> tuple[_symbolic.Entries, _symbolic.Gravity, dict[int, Element]]:
     """The planar recurrence on ring elements: ``(entries, gravity, nu_s)`` of the full model,
     ``entries[block][name][(i, j)]`` grown link by link."""
     params = G.parameters(mech)
-    entries = {b: {name: {} for name in fns} for b, fns in planar.PAIRS.items()}
-    gravity = {b: {} for b in planar.GRAVITY}
-    nu_s: dict[int, object] = {}
+    entries: _symbolic.Entries = {b: {name: {} for name in fns} for b, fns in planar.PAIRS.items()}
+    gravity: _symbolic.Gravity = {b: {} for b in planar.GRAVITY}
+    nu_s: dict[int, Element] = {}
     for k in range(mech.nlinks):
         idx, dc, dnu = generic_recurrence_increments(mech, params, k)
         for a, i in enumerate(idx):
@@ -148,13 +148,13 @@ def _symbolic_planar(mech: Mechanism, G: Generators, straight: bool):
                         old = entries[blk][name].get((i, j))
                         entries[blk][name][(i, j)] = delta if old is None else old + delta
             nu_s[i] = dnu[a] if i not in nu_s else nu_s[i] + dnu[a]
-            for blk, f in planar.GRAVITY.items():
-                delta = f(dnu[a], G["l", i], G["cphi", i], G["sphi", i])
+            for blk, gravity_of in planar.GRAVITY.items():
+                delta = gravity_of(dnu[a], G["l", i], G["cphi", i], G["sphi", i])
                 gravity[blk][i] = delta if i not in gravity[blk] else gravity[blk][i] + delta
     return entries, gravity, nu_s
 
 
-def _symbolic_form(mech: Mechanism, G: Generators):
+def _symbolic_form(mech: Mechanism, G: Generators) -> tuple[_symbolic.Entries, _symbolic.Gravity]:
     from exo_bench.matrix_method.symbolic import compose as _symbolic
 
     now, gravity, nu_s = _symbolic_planar(mech, G, straight=False)

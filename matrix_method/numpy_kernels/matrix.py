@@ -19,6 +19,7 @@ Matrices are dicts ``block -> name -> array`` with blocks ``phi, l`` (+ ``psi`` 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
@@ -72,9 +73,9 @@ def matrices(mech: Mechanism, q) -> dict[str, dict[str, np.ndarray]]:
     """
     q, _, _ = as_states(mech, q)
     flat = planar_matrices(mech, q)
-    if mech.dim == 2:
-        return flat
     _, psi, l = split(mech, q)
+    if psi is None:  # 2D
+        return flat
     return spatial_from_planar(psi, l, flat, planar_matrices(mech, _straight(mech, q)), signed_gravity(mech))
 
 
@@ -94,17 +95,20 @@ def spatial_from_planar(psi: np.ndarray, l: np.ndarray, flat: dict, straight: di
             if (block, name) != ("l", "D"):
                 out[block][name] = f(t)
     out["l"]["D"] = spatial.d_l(np.swapaxes(out["phi"]["H"], -1, -2))
-    for block, f in spatial.GRAVITY.items():
-        out[block]["P"] = np.broadcast_to(f(nu_s, l, cp, sp), l.shape).copy()
+    for block, gravity in spatial.GRAVITY.items():
+        out[block]["P"] = np.broadcast_to(gravity(nu_s, l, cp, sp), l.shape).copy()
     return out
+
+
+def _by_block(mech: Mechanism, v: np.ndarray) -> dict[str, np.ndarray]:
+    """``block -> (S, n)`` columns of ``v`` (no ``psi`` block in 2D)."""
+    phi, psi, l = split(mech, v)
+    return {"phi": phi, "l": l} if psi is None else {"phi": phi, "psi": psi, "l": l}
 
 
 def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
     """Eq. (5) / (17): ``tau`` from the matrices and the rates, ``(S, dof)``, block order."""
-    phi_d, psi_d, l_d = split(mech, qd)
-    phi_dd, psi_dd, l_dd = split(mech, qdd)
-    first = {"phi": phi_d, "psi": psi_d, "l": l_d}
-    second = {"phi": phi_dd, "psi": psi_dd, "l": l_dd}
+    first, second = _by_block(mech, qd), _by_block(mech, qdd)
     rows = []
     for block in blocks(mech):
         tau = mech.g * mats[block]["P"]  # gravity
@@ -247,6 +251,8 @@ def paper_matrices(mech: Mechanism, q, table=None, exact: bool = False) -> dict[
     """
     from exo_bench.matrix_method import printed
 
+    cos: Callable[[np.ndarray], np.ndarray]
+    sin: Callable[[np.ndarray], np.ndarray]
     if exact:
         import sympy as sp
 

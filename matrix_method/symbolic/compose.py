@@ -24,17 +24,22 @@ import sympy as sp
 
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling
-from exo_bench.matrix_method.symbolic.polynomials import Generators, generators
+from exo_bench.matrix_method.symbolic.polynomials import Element, Generators, generators
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.symbols import symbols_for
 
 from exo_bench.models.equation_form import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
 
+#: ``block -> name -> {(i, j): element}``: the elements of every matrix, zeros left out.
+Entries = dict[str, dict[str, dict[tuple[int, int], Element]]]
+#: ``block -> {i: p_i}``: the gravity vector of every block.
+Gravity = dict[str, dict[int, Element]]
 
-def planar_entries(G: Generators, c, pairs, straight: bool = False):
+
+def planar_entries(G: Generators, c, pairs, straight: bool = False) -> Entries:
     """Eq. (5): ``block -> name -> {(i, j): element}`` over ``pairs`` (those with ``c_ij != 0``),
     ring elements. ``straight``: the straightened model (``phi_i = phi_j``: ``C = 1, S = 0``)."""
-    out = {b: {name: {} for name in PLANAR_NAMES} for b in ("phi", "l")}
+    out: Entries = {b: {name: {} for name in PLANAR_NAMES} for b in ("phi", "l")}
     for i, j in pairs:
         C, Sn = (1, 0) if straight else (G.C(i, j), G.S(i, j))
         li, lj = G["l", i], G["l", j]
@@ -44,7 +49,7 @@ def planar_entries(G: Generators, c, pairs, straight: bool = False):
     return out
 
 
-def planar_gravity(G: Generators, nu_s, links):
+def planar_gravity(G: Generators, nu_s, links) -> Gravity:
     """Eq. (5): ``block -> {i: p_i}`` for the links ``links``."""
     return {
         block: {i: f(nu_s[i], G["l", i], G["cphi", i], G["sphi", i]) for i in links}
@@ -52,10 +57,10 @@ def planar_gravity(G: Generators, nu_s, links):
     }
 
 
-def spatial_entries(G: Generators, now, straight, pairs):
+def spatial_entries(G: Generators, now: Entries, straight: Entries, pairs) -> Entries:
     """Eq. (18), corrected: the 3D elements of ``pairs`` from the planar ones (``now``) and the
     straightened planar ones (the quotients), ``block -> name -> {(i, j): element}``."""
-    out = {b: {name: {} for name in SPATIAL_NAMES} for b in ("phi", "psi", "l")}
+    out: Entries = {b: {name: {} for name in SPATIAL_NAMES} for b in ("phi", "psi", "l")}
     for i, j in pairs:
         pick = lambda src: {b: {name: src[b][name][(i, j)] for name in PLANAR_NAMES} for b in src}
         t = spatial.transition_inputs(
@@ -71,14 +76,14 @@ def spatial_entries(G: Generators, now, straight, pairs):
     return out
 
 
-def spatial_gravity(G: Generators, nu_s, links):
+def spatial_gravity(G: Generators, nu_s, links) -> Gravity:
     return {
         block: {i: f(nu_s[i], G["l", i], G["cpsi", i], G["spsi", i]) for i in links}
         for block, f in spatial.GRAVITY.items()
     }
 
 
-def _ring_form(mech: Mechanism, G: Generators):
+def _ring_form(mech: Mechanism, G: Generators) -> tuple[Entries, Gravity]:
     """Every matrix of the model as ring elements: ``(entries, gravity)``."""
     c, nu_s = generic_coupling(mech, G.parameters(mech), 0)
     n = mech.nlinks
@@ -90,9 +95,9 @@ def _ring_form(mech: Mechanism, G: Generators):
     return spatial_entries(G, now, straight, pairs), spatial_gravity(G, nu_s, range(n))
 
 
-def to_matrices(G: Generators, n: int, entries, gravity) -> dict[str, dict[str, sp.Matrix]]:
+def to_matrices(G: Generators, n: int, entries: Entries, gravity: Gravity) -> dict[str, dict[str, sp.Matrix]]:
     """Ring entries as ``block -> name -> sympy Matrix`` (``P`` is ``(n, 1)``, without ``g``)."""
-    out = {}
+    out: dict[str, dict[str, sp.Matrix]] = {}
     for block, mats in entries.items():
         out[block] = {}
         for name, e in mats.items():
@@ -130,12 +135,12 @@ def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
     return {name: [rate(name, j) for j in range(n)] for name in matrix_names(dim)}
 
 
-def equations_from_entries(G: Generators, mech: Mechanism, entries, gravity) -> tuple[sp.Expr, ...]:
+def equations_from_entries(G: Generators, mech: Mechanism, entries: Entries, gravity: Gravity) -> tuple[sp.Expr, ...]:
     """Eq. (5) / (17): row i of block k is ``sum_X sum_j X_ij x^X_j + g P_i``."""
     n = mech.nlinks
     g = G.gravity(mech)
     rates = rate_vectors(G, mech.dim, n)
-    out = []
+    out: list[sp.Expr] = []
     for block in blocks(mech.dim):
         rows = [g * gravity[block][i] for i in range(n)]
         for name, e in entries[block].items():

@@ -53,7 +53,8 @@ def order_key(x) -> tuple:
         k = _KEYS.get(x)
         if k is None:
             content = x._hashable_content()
-            k = (_class_key(type(x)), len(content), tuple(order_key(e) for e in content))
+            cls: type = type(x)
+            k = (_class_key(cls), len(content), tuple(order_key(e) for e in content))
             if len(_KEYS) < 200_000:
                 _KEYS[x] = k
         return k
@@ -80,7 +81,7 @@ def _add(terms) -> sp.Expr:
         return sp.S.Zero
     if len(terms) == 1:
         return terms[0]
-    flat = []
+    flat: list[sp.Expr] = []
     for t in terms:
         flat.extend(t.args if t.is_Add else (t,))
     numbers = [t for t in flat if t.is_Number]
@@ -176,7 +177,7 @@ class Poly:
     def __ne__(self, other):
         return not self == other
 
-    __hash__ = None
+    # Unhashable (mutable terms): defining __eq__ without __hash__ sets __hash__ to None.
 
 
 class Coefficient(Poly):
@@ -184,6 +185,10 @@ class Coefficient(Poly):
 
     __slots__ = ()
     level = 0
+
+
+#: An element of the closed forms in this arithmetic: a polynomial, or an exact constant.
+Element = Poly | Fraction | int
 
 
 class _Basis:
