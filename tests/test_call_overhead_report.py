@@ -121,3 +121,9 @@ def test_the_fastest_rounds_ratios_are_stated_beside_and_do_not_judge():
     (line,) = [ln for ln in lines if ln.startswith("The same ratios of the fastest rounds")]
     assert "one sample, default call (`check=True`) 0.2x;" in line
     assert "7 of 8 goals met (judged on the medians)." in lines
+
+
+def test_every_goal_compares_timed_calls():
+    timed = set(g.ONE_SAMPLE) | set(g.BATCH)
+    assert {k for goal in g.GOALS for k in (goal.num, goal.den)} | {x for _, k, d in g.ALSO for x in (k, d)} <= timed
+    assert all((goal.num in g.BATCH) == (goal.den in g.BATCH) for goal in g.GOALS)  # batch against batch only
