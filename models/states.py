@@ -1,18 +1,26 @@
 """State arrays of a mechanism: coordinate and force labels in block order, splitting ``q`` into its
-``phi, psi, l`` blocks, and :func:`as_states`, which validates ``q, qd, qdd`` at the edge."""
+``phi, psi, l`` blocks, and :func:`as_states`, which validates ``q, qd, qdd`` at the edge.
+
+Validation is one compiled pass (models/validation_pass.py). C-ordered float64 ndarrays, the arrays
+a controller or an ODE right-hand side passes, go straight to it: a few attribute tests, one call of
+compiled code, no copy, no name built. Anything else (lists, DataFrames, masked arrays, other dtypes
+or layouts) is converted at the edge first (models/state_conversion.py). Only on a problem does
+Python build the message, naming the array, the sample, the coordinate and the link."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 if TYPE_CHECKING:
     from exo_bench.models.mechanism import Mechanism
+    from exo_bench.models.validation_pass import Entries
 
 from exo_bench.models import equation_form
-from exo_bench.models.validation import MAX_FORCE_SCALE, _is_number, _where, force_scale_log10
+from exo_bench.models.state_conversion import converted
+from exo_bench.models.validation import MAX_FORCE_SCALE, _where, force_scale_base, force_scale_log10
 
 
 def coordinate_names(mech: Mechanism) -> list[str]:
@@ -36,115 +44,47 @@ def split(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None
     return q[..., :n], q[..., n : 2 * n], q[..., 2 * n :]
 
 
-#: Rows checked at a time for NaN/Inf and negative lengths: the check's own memory stays fixed.
+#: The old check ran this many rows at a time; the compiled pass needs no scratch memory at all. Kept
+#: for the code that imports the name (models/mechanism.py re-exports it).
 CHECK_ROWS = 65536
 
-
-def _array_problem(arr: Any) -> str:
-    """What is wrong with a nested list that numpy cannot turn into a float array: ragged rows,
-    or the first entry that is not a number."""
-    if isinstance(arr, (list, tuple)):
-        rows = [r for r in arr]
-        if rows and all(isinstance(r, (list, tuple, np.ndarray)) for r in rows):
-            lengths = [len(r) if np.ndim(r) else -1 for r in rows]
-            if len(set(lengths)) > 1:
-                k = next(i for i, n in enumerate(lengths) if n != lengths[0])
-                return (
-                    f"ragged rows: expected every row to have the same number of coordinates, got row 0 with "
-                    f"{lengths[0]} and row {k} with {lengths[k]}"
-                )
-            for s_, r in enumerate(rows):
-                for c, x in enumerate(r):
-                    if not _is_number(x):
-                        return f"expected numbers, got {x!r} ({type(x).__name__}) at sample {s_}, column {c}"
-        for c, x in enumerate(rows):
-            if not isinstance(x, (list, tuple)) and not _is_number(x):
-                return f"expected numbers, got {x!r} ({type(x).__name__}) at index {c}"
-        if any(isinstance(r, (list, tuple)) for r in rows) and not all(isinstance(r, (list, tuple)) for r in rows):
-            return "ragged rows: expected a list of rows (lists of numbers), got a mix of rows and numbers"
-        return "expected a list of rows of numbers"
-    return f"expected numbers, got {type(arr).__name__}"
+LABELS = ("q", "qd", "qdd")
 
 
-def _first_bool(arr) -> tuple[bool, str] | None:
-    """The first boolean in a list of rows (or of numbers), with where it is."""
-    for s_, r in enumerate(arr):
-        if isinstance(r, (list, tuple)):
-            if any(type(x) is bool for x in r):
-                c = next(c for c, x in enumerate(r) if type(x) is bool)
-                return r[c], f"sample {s_}, column {c}"
-        elif type(r) is bool:
-            return r, f"index {s_}"
-    return None
+class StateCheck:
+    """What the check of a mechanism's states needs, computed once per mechanism
+    (:func:`state_check`): sizes, the mechanism's part of the force bound
+    (:func:`~exo_bench.models.validation.force_scale_base`) and the limit; and the compiled pass's
+    entry points, resolved on first use (importing numba then, not with the mechanism)."""
+
+    __slots__ = ("dof", "nlinks", "base", "lg_g", "limit", "entries")
+
+    def __init__(self, dof: int, nlinks: int, base: float, lg_g: float, limit: float) -> None:
+        self.dof, self.nlinks, self.base, self.lg_g, self.limit = dof, nlinks, base, lg_g, limit
+        self.entries: Entries | None = None
+
+    @classmethod
+    def of(cls, mech: Mechanism) -> StateCheck:
+        return cls(mech.dof, mech.nlinks, *force_scale_base(mech), math.log10(MAX_FORCE_SCALE))
+
+    def resolve(self) -> Entries:
+        """The compiled pass's entry points (models/validation_pass.py), kept from now on."""
+        from exo_bench.models.validation_pass import entries
+
+        self.entries = entries()
+        return self.entries
+
+    def __reduce__(self):  # a pickled mechanism carries the numbers, never the compiled entries
+        return (StateCheck, (self.dof, self.nlinks, self.base, self.lg_g, self.limit))
 
 
-def _where_in(shape: tuple, index: tuple, names: list[str]) -> str:
-    """``sample s, coordinate c`` (or ``coordinate c`` of one sample) of an index into states."""
-    if len(index) == 2:
-        return f"sample {index[0]}, coordinate {names[index[1]] if index[1] < len(names) else index[1]}"
-    if len(index) == 1 and len(shape) == 1:
-        return f"coordinate {names[index[0]] if index[0] < len(names) else index[0]}"
-    return f"index {index}"
-
-
-def _labelled(arr: Any, label: str, source: str, names: list[str]) -> Any:
-    """A pandas DataFrame (or Series) read by its labels, a masked array without masked entries; any
-    other input unchanged.
-
-    A DataFrame whose columns are the coordinate names (:func:`coordinate_names`) is reordered to
-    them; one whose columns are numbered 0..dof-1 (pandas' default) is read by position; any other
-    columns are refused, naming the missing and unexpected ones (a frame read by position after two
-    named columns were swapped gave forces off by 222, with no word). A masked entry is refused,
-    naming where it is: a masked array's data under its mask is not a state."""
-    if isinstance(arr, np.ma.MaskedArray):
-        mask = np.ma.getmaskarray(arr)
-        if mask.any():
-            at = tuple(int(i) for i in np.argwhere(mask)[0])
-            raise ValueError(
-                f"{source}: field '{label}': expected numbers, got a masked entry at {_where_in(arr.shape, at, names)} "
-                "(fill or drop the masked samples first)"
-            )
-        return np.ma.getdata(arr)
-    columns = getattr(arr, "columns", None)
-    index = getattr(arr, "index", None) if columns is None and hasattr(arr, "to_numpy") else None
-    labels = columns if columns is not None else index
-    if labels is None or not hasattr(arr, "to_numpy"):
-        return arr
-    labels = list(labels)
-    if labels == list(range(len(labels))):
-        return arr.to_numpy()
-    if sorted(map(str, labels)) == sorted(names) and len(set(labels)) == len(labels):
-        return (arr[names] if columns is not None else arr[names]).to_numpy()
-    missing = [n for n in names if n not in labels]
-    unexpected = [c for c in labels if c not in names]
-    raise ValueError(
-        f"{source}: field '{label}': expected {'columns' if columns is not None else 'an index'} named "
-        f"{names[0]}..{names[-1]} (read by name) or numbered 0..{len(names) - 1} (read by position), got "
-        + ", ".join(
-            part
-            for part in (
-                f"missing {missing[:5]}" if missing else "",
-                f"unexpected {unexpected[:5]}" if unexpected else "",
-                "duplicate names" if len(set(labels)) != len(labels) else "",
-            )
-            if part
-        )
-    )
-
-
-def _non_number(arr: Any, names: list[str]) -> str | None:
-    """Why a list of states is not numbers (strings, bytes, Decimal, Fraction, None, complex, other
-    objects), naming the first entry that is not a real number; None if every entry is one (booleans
-    are named by :func:`_first_bool`)."""
-    raw = np.asarray(arr)
-    if raw.dtype.kind in "iufb":
-        return None
-    objects = np.asarray(arr, dtype=object)  # the entries as given (numpy made strings of numbers beside a string)
-    for at in np.ndindex(objects.shape):
-        x = objects[at]
-        if not _is_number(x) and type(x) is not bool:
-            return f"expected real numbers, got {x!r} ({type(x).__name__}) at {_where_in(objects.shape, at, names)}"
-    return None  # Python ints beyond int64 beside floats: numbers, converted below
+def state_check(mech: Mechanism) -> StateCheck:
+    """The :class:`StateCheck` of ``mech``, computed on its first use and kept with the mechanism,
+    as its cached properties are (the mechanism is frozen: the check is derived from its fields)."""
+    kept = mech.__dict__.get("_state_check")
+    if kept is None:
+        kept = mech.__dict__["_state_check"] = StateCheck.of(mech)
+    return kept
 
 
 def is_one_sample(q: Any) -> bool:
@@ -156,85 +96,107 @@ def is_one_sample(q: Any) -> bool:
         return False
 
 
+_ND = np.ndarray
+_F8 = np.dtype(np.float64)
+
+
+def checked_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
+    """:func:`as_states`, except that C-ordered float64 arrays of one shape, ``(dof,)`` or
+    ``(samples, dof)``, come back as they are (one sample stays 1-D). Anything else comes back
+    converted, as ``(samples, dof)`` arrays."""
+    chk = mech.__dict__.get("_state_check") or state_check(mech)
+    if type(q) is _ND and q.dtype is _F8 and 0 < q.ndim < 3:  # the fast path: one compiled call
+        nd, present, b, c = q.ndim, 0, q, q
+        if qd is not None:
+            if type(qd) is not _ND or qd.dtype is not _F8 or qd.ndim != nd:
+                return _at_the_edge(mech, chk, (q, qd, qdd), source)
+            present, b = 1, qd
+        if qdd is not None:
+            if type(qdd) is not _ND or qdd.dtype is not _F8 or qdd.ndim != nd:
+                return _at_the_edge(mech, chk, (q, qd, qdd), source)
+            present, c = present | 2, qdd
+        e = chk.entries or chk.resolve()
+        code = (e.status_1d if nd == 1 else e.status_2d)(
+            q, b, c, present, chk.dof, chk.nlinks, chk.base, chk.lg_g, chk.limit
+        )
+        if not code:
+            return q, qd, qdd
+        if code != 1:  # 1: another layout, converted at the edge
+            _refuse(mech, chk, code, (q, qd, qdd), source)
+    return _at_the_edge(mech, chk, (q, qd, qdd), source)
+
+
 def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: str = "states"):
     """Validate state arrays at the edge and return them as C-ordered float64 ``(samples, dof)`` arrays.
 
     Accepts one sample ``(dof,)`` or a batch ``(samples, dof)``. Rejects wrong shapes, ragged
     rows, entries that are not numbers, NaN/Inf, negative rod lengths (each with a message naming
     the array, sample and coordinate) and states whose forces would overflow float64
-    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). C-ordered float64 arrays are not copied (others are: any layout or stride is accepted); the
-    checks run :data:`CHECK_ROWS` rows at a time.
+    (:func:`force_scale_log10` above :data:`MAX_FORCE_SCALE`). C-ordered float64 arrays are not
+    copied (a sample comes back as a ``(1, dof)`` view); others are: any layout or stride is
+    accepted. The values are checked by one compiled pass (models/validation_pass.py).
     """
+    q, qd, qdd = checked_states(mech, q, qd, qdd, source)
+    if q.ndim == 2:
+        return q, qd, qdd
+    return q[None], None if qd is None else qd[None], None if qdd is None else qdd[None]
+
+
+def _at_the_edge(mech: Mechanism, chk: StateCheck, arrays: tuple, source: str) -> tuple:
+    """Convert each array (models/state_conversion.py), then check them all with the compiled pass;
+    the messages come in the order the arrays are read: an array's non-finite entry is named before
+    a later array's wrong form, and both before unequal sample counts and lengths."""
+    from exo_bench.models.validation_pass import NONFINITE, OK, verdict
+
     names = coordinate_names(mech)
-    out: list[np.ndarray | None] = []
-    for label, arr in (("q", q), ("qd", qd), ("qdd", qdd)):
+    out: list[np.ndarray | None] = [None, None, None]
+    for k, (label, arr) in enumerate(zip(LABELS, arrays)):
         if arr is None:
-            out.append(None)
             continue
-        if isinstance(arr, (str, bytes, dict)) or arr is True or arr is False:
-            raise ValueError(f"{source}: field '{label}': expected numbers, got {type(arr).__name__}")
-        if not isinstance(arr, np.ndarray) or isinstance(arr, np.ma.MaskedArray):
-            arr = _labelled(arr, label, source, names)
-        if isinstance(arr, np.ndarray) and arr.dtype.kind not in "iuf":
-            raise ValueError(f"{source}: field '{label}': expected an array of real numbers, got dtype {arr.dtype}")
         try:
-            if not isinstance(arr, np.ndarray):  # a list: numbers only (numpy would parse "  1_0.5e0  " as 10.5)
-                why = _non_number(arr, names)
-                if why is not None:
-                    raise ValueError(f"{source}: field '{label}': {why}")
-            a = np.asarray(arr, dtype=float)
-        except (TypeError, ValueError, OverflowError) as e:
-            if str(e).startswith(f"{source}: field"):
-                raise
-            raise ValueError(f"{source}: field '{label}': {_array_problem(arr)}") from None
-        if isinstance(arr, (list, tuple)):  # numpy takes true/false as 1.0/0.0: JSON booleans are not numbers
-            where = _first_bool(arr)
-            if where is not None:
-                raise ValueError(
-                    f"{source}: field '{label}': expected numbers, got {where[0]!r} (a boolean) at {where[1]}"
-                )
-        if a.ndim == 1:
-            a = a[None, :]
-        if a.ndim == 2 and not a.flags.c_contiguous:
-            a = np.ascontiguousarray(a)  # a DataFrame's values, a transpose, an .npz of asfortranarray
-        if a.ndim != 2 or a.shape[1] != mech.dof:
+            out[k] = converted(arr, label, source, names)
+        except ValueError:
+            if k:
+                _refuse(mech, chk, NONFINITE, out, source, only_nonfinite=True)
+            raise
+    samples = sorted({a.shape[0] for a in out if a is not None})
+    if len(samples) > 1:
+        _refuse(mech, chk, NONFINITE, out, source, only_nonfinite=True)
+        raise ValueError(f"{source}: q, qd and qdd must have the same number of samples, got {samples}")
+    code = verdict(chk, out)
+    if code != OK:
+        _refuse(mech, chk, code, out, source)
+    return tuple(out)
+
+
+def _refuse(mech: Mechanism, chk: StateCheck, code: int, arrays, source: str, only_nonfinite: bool = False) -> None:
+    """Raise the ValueError for the problem ``code`` of the pass, naming where it is
+    (:func:`~exo_bench.models.validation_pass.first_problem`); with ``only_nonfinite``, raise only for
+    a non-finite entry (and return otherwise)."""
+    from exo_bench.models.validation_pass import BOUND, NEGATIVE, NONFINITE, first_problem
+
+    two = [None if a is None else a.reshape(1, -1) if a.ndim == 1 else a for a in arrays]
+    if code in (NONFINITE, NEGATIVE):
+        problem, k, s, c = first_problem(chk, two)
+        names = coordinate_names(mech)
+        if problem == NONFINITE:
             raise ValueError(
-                f"{source}: field '{label}': expected shape (samples, {mech.dof}) in the order "
-                f"{names[0]}..{names[-1]}, got {tuple(np.shape(arr))}"
+                f"{source}: field '{LABELS[k]}' sample {s} coordinate {names[c]}: "
+                f"expected a finite number, got {two[k][s, c]}"
             )
-        for s0 in range(0, a.shape[0], CHECK_ROWS):
-            bad = ~np.isfinite(a[s0 : s0 + CHECK_ROWS])
-            if bad.any():
-                s, c = map(int, np.argwhere(bad)[0])
-                s += s0
-                raise ValueError(
-                    f"{source}: field '{label}' sample {s} coordinate {names[c]}: "
-                    f"expected a finite number, got {a[s, c]}"
-                )
-        out.append(a)
-    shapes = {a.shape[0] for a in out if a is not None}
-    if len(shapes) > 1:
-        raise ValueError(f"{source}: q, qd and qdd must have the same number of samples, got {sorted(shapes)}")
-    n = mech.nlinks
-    length = rate = acceleration = 0.0
-    first = cast(np.ndarray, out[0])  # q is required
-    for s0 in range(0, first.shape[0], CHECK_ROWS):
-        l = first[s0 : s0 + CHECK_ROWS, -n:]
-        if (l < 0).any():
-            s, i = map(int, np.argwhere(l < 0)[0])
-            s += s0
+        if problem == NEGATIVE and not only_nonfinite:
+            i = c - (mech.dof - mech.nlinks)
             raise ValueError(
-                f"{source}: field 'q' sample {s} coordinate l{i + 1} ({_where(i, mech.names[i])}): "
-                f"expected a rod length >= 0, got {l[s - s0, i]}"
+                f"{source}: field 'q' sample {s} coordinate {names[c]} ({_where(i, mech.names[i])}): "
+                f"expected a rod length >= 0, got {two[0][s, c]}"
             )
-        if l.size:
-            length = max(length, float(l.max()))
-        if out[1] is not None and out[1].size:
-            rate = max(rate, float(np.abs(out[1][s0 : s0 + CHECK_ROWS]).max()))
-        if out[2] is not None and out[2].size:
-            acceleration = max(acceleration, float(np.abs(out[2][s0 : s0 + CHECK_ROWS]).max()))
-    scale = force_scale_log10(mech, length, rate, acceleration)
-    if not scale < math.log10(MAX_FORCE_SCALE):
+    if code == BOUND and not only_nonfinite:
+        q, qd, qdd = two
+        l = q[:, -mech.nlinks :]
+        length, rate, acceleration = (
+            max(0.0, float(np.abs(a).max())) if a is not None and a.size else 0.0 for a in (l, qd, qdd)
+        )
+        scale = force_scale_log10(mech, length, rate, acceleration)
         big = max(max(ms) for ms in mech.masses)
         raise ValueError(
             f"{source}: the forces would overflow float64: with masses up to {big:.3g} kg, "
@@ -242,4 +204,5 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
             f"{acceleration:.3g} the force bound is 1e{scale:.0f} > {MAX_FORCE_SCALE:.0e} "
             "(models/validation.py force_scale_log10); express the states in other units"
         )
-    return tuple(out)
+    if not only_nonfinite:  # a verdict without a place: the pass and its locate disagree
+        raise AssertionError(f"{source}: the compiled check answered {code} and found no such problem")

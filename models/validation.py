@@ -63,6 +63,28 @@ _NEGATIVE_G = (
 MAX_FORCE_SCALE = 1e300
 
 
+def _lg(x: float) -> float:
+    return math.log10(x) if x > 0 else -math.inf
+
+
+_LOG4 = math.log10(4)
+
+
+def force_scale_base(mech: Mechanism) -> tuple[float, float]:
+    """The mechanism's part of :func:`force_scale_log10`, computed once per mechanism:
+    ``log10(total mass bound) + 2 log10(n)`` and ``log10(g)``."""
+    n = max(len(mech.masses), 1)
+    total_log = _lg(max((max(m) for m in mech.masses), default=0.0)) + math.log10(3 * n)  # >= log10(total mass)
+    return total_log + 2 * math.log10(n), _lg(mech.g)
+
+
+def force_scale_from(base: float, lg_g: float, length: float, rate: float, acceleration: float) -> float:
+    """:func:`force_scale_log10` from the mechanism's part (:func:`force_scale_base`). The compiled
+    check of states (models/validation_pass.py ``_scale``) makes the same operations in the same order."""
+    dyn = max(0.0, _lg(acceleration), 2 * _lg(rate), lg_g) + _LOG4
+    return base + 2 * _lg(1.0 + length) + dyn
+
+
 def force_scale_log10(mech: Mechanism, length: float = 1.0, rate: float = 1.0, acceleration: float = 1.0) -> float:
     """``log10`` of a bound on the generalised forces of ``mech`` at rod lengths up to ``length``,
     rates up to ``rate`` and accelerations up to ``acceleration``:
@@ -71,11 +93,7 @@ def force_scale_log10(mech: Mechanism, length: float = 1.0, rate: float = 1.0, a
     Every term of the equations of motion is a mass times at most two lengths (summed over at most
     n links along a branch) times an acceleration, a squared rate or g, so ``|tau|`` is below this
     bound. Computed in logarithms, so it is finite for any finite input."""
-    lg = lambda x: math.log10(x) if x > 0 else -math.inf
-    n = max(len(mech.masses), 1)
-    total_log = lg(max((max(m) for m in mech.masses), default=0.0)) + math.log10(3 * n)  # >= log10(total mass)
-    dyn = max(0.0, lg(acceleration), 2 * lg(rate), lg(mech.g)) + math.log10(4)
-    return total_log + 2 * math.log10(n) + 2 * lg(1.0 + length) + dyn
+    return force_scale_from(*force_scale_base(mech), length, rate, acceleration)
 
 
 def validate(m: Mechanism) -> None:
