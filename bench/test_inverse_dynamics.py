@@ -70,9 +70,8 @@ from exo_bench.models.presets import chain, exo5
 K = 16
 EPS = float(np.finfo(float).eps)
 PAPER_WRONG_3D = 1e-3  # the printed eq. (18) is off by far more than this in 3D (reports/errata.md)
-#: Methods with the option ``kernel``: each is a row per kernel.
-COMPILED = ("matrix-factored", "matrix", "recurrence", "newton-euler")
-KERNELS = ("numba", "numpy")
+#: Methods with the option ``kernel`` (the kernel objects of their MethodSpec): each is a row per value.
+COMPILED = tuple(m for m, s in METHODS.items() if s.kernel_options)
 BATCHED = (*METHODS, "pinocchio-parallel")
 #: Per call, each engine's own calls on preallocated joint-coordinate arrays (no G maps, no wrapper):
 #: the engine's cost, so that the report gives the method's overhead over it.
@@ -95,7 +94,7 @@ def _mechanism(n, dim, topo):
 
 
 def _variants(methods):
-    return [(m, k) for m in methods for k in (KERNELS if m in COMPILED else (None,))]
+    return [(m, k) for m in methods for k in (METHODS[m].kernel_options if m in COMPILED else (None,))]
 
 
 def _cases(ns, methods, sw=None):
@@ -404,7 +403,7 @@ def test_wrapper_overhead(benchmark, sweep, method, part):
     )
     if part == "call":
         tau = benchmark(model.inverse_dynamics, q, qd, qdd, check=False, out=out).copy()
-    elif kernel == "numba":
+    elif any(k.compiled for k in METHODS[method].kernels_for(kernel)):
         args = model.kernel_args
         benchmark(model.serial_kernel, *args, q, qd, qdd, out)  # the compiled kernel alone
         tau = out.copy()

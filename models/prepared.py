@@ -5,8 +5,9 @@ mechanism (aggregates, coupling signs, index arrays, lambdified functions, the P
 its calls take states and return forces, with no lookup, no cache and no validation left in the
 hot path when ``check=False``.
 
-Every method implements :meth:`PreparedModel._inverse_dynamics` on validated ``(samples, dof)``
-float arrays. :meth:`PreparedModel.mass_matrix` and :meth:`PreparedModel.bias_forces` are native
+The public calls are defined here once; a method supplies kernels (objects of
+:mod:`exo_bench.models.kernels`, listed in its MethodSpec, whose entries the calls run) or implements
+:meth:`PreparedModel._inverse_dynamics` on validated ``(samples, dof)`` float arrays. :meth:`PreparedModel.mass_matrix` and :meth:`PreparedModel.bias_forces` are native
 where a method overrides ``_mass_matrix``/``_bias_forces`` (``native_terms`` says which) and are
 otherwise derived from inverse dynamics, which is linear in ``qdd``: ``h = ID(q, qd, 0)`` and
 ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)`` (:func:`terms_from_inverse_dynamics`).
@@ -41,6 +42,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from exo_bench.models.kernels import Kernel, select
+from exo_bench.models.kernels import load as load_kernels
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.memory import (
     CHUNK_BYTES,
@@ -51,11 +54,12 @@ from exo_bench.models.memory import (
     default_chunk_samples,
     usable_memory,
 )
+from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics
 from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
-from exo_bench.models.states import is_one_sample
+from exo_bench.models.states import checked_states, is_one_sample
 
 #: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
 #: were defined here first and are imported from here.
@@ -74,8 +78,6 @@ __all__ = [
     "unchecked_forward",
 ]
 
-#: The old private name, still imported by models/newton_euler/prepared.py.
-
 
 class MissingExtra(ValueError):
     """A method's optional engine is not installed (e.g. MuJoCo or Drake, extra ``[peers]``): a
@@ -85,29 +87,6 @@ class MissingExtra(ValueError):
     def __init__(self, message: str):
         super().__init__(message)
         self.skip_reason = message
-
-
-def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray):
-    """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics ``(q, qd, qdd) -> tau`` on
-    ``(samples, dof)`` arrays, in ONE batched call.
-
-    Inverse dynamics is linear in ``qdd``: ``ID(q, qd, qdd) = M(q) qdd + h(q, qd)``. Per sample the
-    batch holds ``(q, qd, 0)`` (gives ``h``), ``(q, 0, 0)`` (gravity only) and ``(q, 0, e_k)`` for
-    every coordinate ``k``; then ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``. The subtraction costs at
-    most ``eps * |gravity forces| / |M e_k|`` relative, which the tests bound against CRBA.
-    """
-    S, d = q.shape
-    k = dof + 2
-    Q = np.repeat(q, k, axis=0)  # (S*k, d): each sample's q, k times
-    QD = np.zeros_like(Q)
-    QD[::k] = qd  # first row of each block: the real rates
-    QDD = np.zeros_like(Q)
-    rows = np.arange(S)[:, None] * k + 2 + np.arange(d)[None, :]
-    QDD[rows.ravel(), np.tile(np.arange(d), S)] = 1.0
-    tau = inverse_dynamics(Q, QD, QDD).reshape(S, k, d)
-    h = tau[:, 0]
-    M = np.swapaxes(tau[:, 2:] - tau[:, 1:2], 1, 2)  # column k of M is ID(q, 0, e_k) - ID(q, 0, 0)
-    return M, h
 
 
 def _rebuild(cls, mechanism: Mechanism, options: dict):
@@ -121,11 +100,25 @@ derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
 class PreparedModel:
-    """A mechanism prepared for one method. Subclasses set :attr:`method` and implement
-    :meth:`_inverse_dynamics`; they may override ``_mass_matrix`` and ``_bias_forces``."""
+    """A mechanism prepared for one method. Subclasses set :attr:`method` and either list their
+    :attr:`kernels` (and call :meth:`_use_kernels`) or implement :meth:`_inverse_dynamics`; they may
+    override ``_mass_matrix``, ``_bias_forces`` and ``check_regular``, never a public call."""
 
     #: The registry name of the method; the algorithm timed under it.
     method: ClassVar[str] = ""
+    #: Every kernel of the method (the tuple its MethodSpec lists; empty: the method's own
+    #: :meth:`_inverse_dynamics`). The option ``kernel`` chooses among them (:meth:`_use_kernels`).
+    kernels: ClassVar[tuple[Kernel, ...]] = ()
+    #: The option ``kernel`` this model runs ("" for a method without the option).
+    kernel: str = ""
+    # The entries of the chosen kernels (models/kernels.py, Entries): None where none supplies one.
+    _lean: Callable[..., Any] | None = None
+    _inverse_one: Callable[..., Any] | None = None
+    _forward_one: Callable[..., Any] | None = None
+    _inverse_whole: Callable[..., Any] | None = None
+    _forward_whole: Callable[..., Any] | None = None
+    _inverse_chunk: Callable[..., Any] | None = None
+    _forward_chunk: Callable[..., Any] | None = None
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):
@@ -210,6 +203,19 @@ class PreparedModel:
             self._derivatives = derivative_provider(self._mechanism, self.method)
         return self._derivatives
 
+    # ------------------------------------------------------------------ kernels
+    def _use_kernels(self, option: object) -> str:
+        """Run the kernels of the option ``kernel`` (``option``; a ValueError naming the values
+        otherwise): their entries (:class:`~exo_bench.models.kernels.Entries`), bound to this model, are
+        what the calls below run. Called by a method with kernels once its arguments are prepared."""
+        chosen = select(self.method, self.kernels, option)
+        entries = load_kernels(self, chosen)
+        self._lean, self._inverse_one, self._forward_one = entries.lean, entries.inverse_one, entries.forward_one
+        self._inverse_whole, self._forward_whole = entries.inverse_whole, entries.forward_whole
+        self._inverse_chunk, self._forward_chunk = entries.inverse_chunk, entries.forward_chunk
+        self.kernel = self._options["kernel"] = chosen[0].option
+        return self.kernel
+
     # ------------------------------------------------------------------ calls
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
         """Generalised forces ``tau = [M_phi..., M_psi..., F...]`` of the paper's absolute
@@ -220,34 +226,40 @@ class PreparedModel:
         4 MiB or more reuses the memory of one this model returned before, once nothing refers to that
         one any more (:mod:`exo_bench.models.result_pool`: at most two stay allocated after the caller
         dropped them)."""
-        if check:
-            single = is_one_sample(q)
-            require_rates(self.method, qd, qdd)
-            q, qd, qdd = as_states(self._mechanism, q, qd, qdd)
-            if out is not None:
-                check_out(out, q.shape[1:] if single else q.shape, self.method)
-            if single:
-                tau = self._one_sample(q, qd, qdd)[0]
+        if not check:
+            lean = self._lean  # one sample in C, or None (having touched nothing) where it does not take it
+            if (
+                lean is not None
+                and (tau := lean(q, qd, qdd, False, np.empty(self._dof) if out is None else out)) is not None
+            ):
+                return tau
+            unchecked_states(self.method, self._dof, (q, qd, qdd), out)
+            if q.ndim == 1:
+                if self._inverse_one is not None:
+                    return self._inverse_one(q, qd, qdd, np.empty(self._dof) if out is None else out)
+                tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
+            elif self._inverse_whole is not None:
+                return self._inverse_whole(q, qd, qdd, out)
             else:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         else:
-            unchecked_states(self.method, self._dof, (q, qd, qdd), out)
-            if q.ndim == 1:
-                tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-            elif q.shape[0] <= self._chunk:
-                tau = self._inverse_dynamics(q, qd, qdd)
-            else:
+            require_rates(self.method, qd, qdd)
+            single = is_one_sample(q)
+            q, qd, qdd = checked_states(self._mechanism, q, qd, qdd)  # one C-ordered float64 sample stays 1-D
+            if out is not None:
+                check_out(out, q.shape[-1:] if single else q.shape, self.method)
+            if not single:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
+            elif self._inverse_one is not None:  # the kernel of check=False: check never changes the result
+                if q.ndim == 2:
+                    q, qd, qdd = q[0], qd[0], qdd[0]
+                tau = self._inverse_one(q, qd, qdd, np.empty(self._dof))
+            else:
+                tau = self._inverse_dynamics(q.reshape(1, -1), qd.reshape(1, -1), qdd.reshape(1, -1))[0]
         if out is None:
             return tau
         out[...] = tau
         return out
-
-    def _one_sample(self, q, qd, qdd) -> np.ndarray:
-        """The inverse dynamics of one validated sample given as 1-D arrays, on ``(1, dof)`` arrays:
-        :meth:`_inverse_dynamics`; a method whose ``check=False`` call runs another kernel on a 1-D
-        sample runs that one here too, so that ``check`` never changes the result."""
-        return self._inverse_dynamics(q, qd, qdd)
 
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
@@ -321,6 +333,10 @@ class PreparedModel:
             self.check_regular(q)
         else:
             unchecked_forward(self.method, self._dof, q, qd, tau, out)
+            if single and self._forward_one is not None:
+                return self._forward_one(q, qd, tau, np.empty(self._dof) if out is None else out)
+            if not single and self._forward_whole is not None:
+                return self._forward_whole(q, qd, tau, out)
             if single:
                 q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
@@ -353,7 +369,11 @@ class PreparedModel:
 
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        """Inverse dynamics of a validated batch of at most :attr:`chunk_samples` samples: the
+        kernels' entry, or the method's own code (a method without kernels overrides this)."""
+        if self._inverse_chunk is None:
+            raise NotImplementedError(f"{self.method}: no inverse dynamics")
+        return self._inverse_chunk(q, qd, qdd)
 
     def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
         d = self._dof
@@ -369,57 +389,7 @@ class PreparedModel:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
 
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        if self._forward_chunk is not None:
+            return self._forward_chunk(q, qd, tau)
         M, h = self.mass_matrix_and_bias(q, qd, check=False)
         return cholesky_solve(M, tau - h)
-
-
-def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``M^-1 b`` for symmetric positive definite batches ``(S, d, d)``, ``(S, d)``: Cholesky of
-    ``M`` equilibrated by ``D = diag(M)`` (units and coordinate scales drop out), then two
-    triangular solves. A matrix that is not positive definite in floating point raises
-    :class:`SingularConfigurationError` with its sample (never NaN)."""
-    dg = np.diagonal(M, axis1=1, axis2=2)
-    bad = ~(dg > 0).all(axis=1)
-    if bad.any():
-        s = int(np.argmax(bad))
-        c = int(np.argmin(dg[s]))
-        raise SingularConfigurationError(
-            [
-                f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
-                f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"
-            ]
-        )
-    r = 1.0 / np.sqrt(dg)
-    try:
-        L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])
-    except np.linalg.LinAlgError:
-        raise SingularConfigurationError(
-            [
-                "M is not positive definite in floating point (numerically singular: "
-                "a rod nearly vertical or nearly of length zero)"
-            ]
-        ) from None
-    y = np.linalg.solve(L, (r * b)[..., None])
-    return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]
-
-
-class SerialKernelModel(PreparedModel):
-    """A prepared model with a compiled per-sample kernel ``serial_kernel(*kernel_args, q, qd, qdd, out)``
-    on flat 1-D arrays (the matrix family's numba kernels, ``newton-euler``) and the option
-    ``kernel="numpy"`` (``_numpy``): one sample given as 1-D arrays runs that kernel, with ``check=False``
-    (:meth:`_serial`) and ``check=True`` (:meth:`_one_sample`) alike, so that ``check`` never changes the
-    result (the batched kernels' sin and cos differ from libm's by up to 2 ulp)."""
-
-    serial_kernel: Callable[..., Any]
-    kernel_args: tuple
-    _numpy: bool
-
-    def _serial(self, q, qd, qdd, out=None) -> np.ndarray:
-        o = np.empty(q.shape) if out is None else out
-        self.serial_kernel(*self.kernel_args, q, qd, qdd, o)
-        return o
-
-    def _one_sample(self, q, qd, qdd) -> np.ndarray:
-        if self._numpy:
-            return self._inverse_dynamics(q, qd, qdd)
-        return self._serial(*(np.ascontiguousarray(a[0]) for a in (q, qd, qdd)))[None]

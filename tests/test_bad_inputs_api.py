@@ -37,7 +37,7 @@ from exo_bench.models.presets import exo5, fig2a
 
 #: Every installed method (conftest.installed_methods) and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
 #: derivation for exo5-3d takes minutes).
-_CASES = [(m, k) for m, s in METHODS.items() if m in installed_methods() for k in (s.kernels or (None,))]
+_CASES = [(m, k) for m, s in METHODS.items() if m in installed_methods() for k in (s.kernel_options or (None,))]
 _MODELS: dict = {}
 
 

@@ -29,7 +29,7 @@ from exo_bench.models.prepared import MissingExtra
 
 name = sys.argv[1]
 ran = []
-for kernel in METHODS[name].kernels or (None,):
+for kernel in METHODS[name].kernel_options or (None,):
     for dim in (2, 3):
         mech = presets.exo5(dim=dim)
         try:
@@ -72,7 +72,7 @@ def test_a_numeric_method_imports_no_sympy(name):
     out = _probe(_PROBE, name)
     if "missing" in out:
         pytest.skip(out["missing"])
-    assert len(out["ran"]) == 2 * max(1, len(METHODS[name].kernels)), out
+    assert len(out["ran"]) == 2 * max(1, len(METHODS[name].kernel_options)), out
     assert out["loaded"] == [], f"{name}: preparing and calling it imported {out['loaded']}"
 
 

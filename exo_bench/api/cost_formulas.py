@@ -11,7 +11,10 @@ import math
 from dataclasses import dataclass
 from collections.abc import Callable
 
+from exo_bench.models.kernels import NUMBA_BYTES, Kernel
 from exo_bench.models.mechanism import Mechanism
+
+__all__ = ["NUMBA_BYTES"]  # re-exported: the memory of numba's runtime is the kernel objects' (models/kernels.py)
 
 F8 = 8  # bytes per float64
 
@@ -38,21 +41,15 @@ ARRAY_BANDWIDTH = 1.65e9
 @dataclass(frozen=True)
 class CostModel:
     """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample seconds, and a note on
-    what dominates (the per-sample bytes are the prepared-model class's ``sample_bytes``)."""
+    what dominates (the per-sample bytes are the prepared-model class's ``sample_bytes``). What a
+    kernel adds (its speed against these figures, its compile time, its runtime's memory) is the
+    kernel object's (:class:`~exo_bench.models.kernels.Kernel`, :func:`kernel_note`)."""
 
     setup_bytes: Callable[[Mechanism, dict], float]
     setup_seconds: Callable[[Mechanism, dict], float]
     sample_seconds: Callable[[int, int], float]
     note: Callable[[Mechanism, dict], str] = lambda m, o: ""
     call_seconds: float = 1e-4  # per call (chunk): Python and numpy overhead
-    #: Seconds to compile the serial and the parallel numba kernel of one dimension when numba's
-    #: cache is empty (None: no compiled kernel). Paid once per machine (and per edit of a
-    #: kernel's source), so it is named in the note and not added to the seconds: a time limit
-    #: guards the run, and the run's time does not depend on the state of the cache.
-    compile_seconds: float | None = None
-    #: Per-sample seconds of the compiled kernel against the figures above (the numpy kernel's),
-    #: measured (matrix 2D/3D n = 60, 100, 300 samples: 0.4 to 0.7).
-    numba_speed: float = 1.0
 
 
 def _size(x: float) -> str:
@@ -106,34 +103,17 @@ def _matrix_setup(mech, options):
     return F8 * 8 * mech.nlinks**2 + 2**20  # coupling and gravity coefficients, several n x n
 
 
-#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
-#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
-#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
-#: depend on the state of the cache.
-NUMBA_BYTES = 128 * 2**20
-
-
-def _numba(options: dict) -> bool:
-    return options.get("kernel", "numba") == "numba"
-
-
-def _compiled_setup_bytes(mech, options):
-    return _matrix_setup(mech, options) + (NUMBA_BYTES if _numba(options) else 0)
-
-
-def _compiled_note(compile_seconds: float, what):
-    """The note of a method with a numba kernel: ``what`` dominates, and the first use compiles in
-    up to ``compile_seconds``."""
-
-    def note(mech, options):
-        if not _numba(options):
-            return what(mech) + "; numpy kernel"
+def kernel_note(kernels: tuple[Kernel, ...]) -> str:
+    """What the note of an estimate adds for the kernels an option runs: their compile time where
+    they are compiled (paid once per machine, and per edit of a kernel's source, so named here and not
+    added to the seconds: the run's time does not depend on the state of the cache), else their option."""
+    compile_s = [k.compile_seconds for k in kernels if k.compile_seconds is not None]
+    if compile_s:
         return (
-            what(mech) + f"; compiled kernel (numba): the first use on a machine compiles it in up to "
-            f"{compile_seconds:g} s (then cached on disk)"
+            f"; compiled kernel ({kernels[0].option}): the first use on a machine compiles it in up to "
+            f"{max(compile_s):g} s (then cached on disk)"
         )
-
-    return note
+    return f"; {kernels[0].option} kernel" if kernels else ""
 
 
 #: Lagrange's derivation, measured on chains: (n, dim) -> (seconds, peak bytes) (module docstring).
@@ -200,15 +180,14 @@ RECURRENCE_TABLE_SECONDS = LOADED * 1.5e-8
 
 
 def _recurrence_setup_bytes(mech, options):
-    return _compiled_setup_bytes(mech, options) + int(RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech))
+    return _matrix_setup(mech, options) + int(RECURRENCE_TABLE_COPIES * F8 * recurrence_table_floats(mech))
 
 
 def _recurrence_setup_seconds(mech, options):
     return 0.01 + RECURRENCE_TABLE_SECONDS * recurrence_table_floats(mech)
 
 
-# Compile times measured on the 2-core machine with other jobs running (matrix-factored 1.6-2.9 s,
-# matrix 5.4-7.5 s, recurrence 4.2-7.7 s), rounded up.
+# The kernels' compile times, speeds and runtime memory: matrix_method/kernels.py, models/newton_euler/kernels.py.
 PINOCCHIO = CostModel(
     _pin_setup_bytes,
     _pin_setup_seconds,
@@ -223,12 +202,10 @@ LAGRANGE = CostModel(
     note=lambda m, o: "the sympy derivation",
 )
 MATRIX = CostModel(
-    _compiled_setup_bytes,
+    _matrix_setup,
     lambda m, o: 0.01 + 5e-6 * m.nlinks**2,
     sample_seconds=lambda n, d: (1.0 + (0.1 if d == 2 else 0.3) * n * n) * 1e-6,
-    note=_compiled_note(10.0, lambda m: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})"),
-    compile_seconds=10.0,
-    numba_speed=0.5,
+    note=lambda m, o: f"every n x n matrix of eq. (5)/(17) per sample (n = {m.nlinks})",
 )
 MATRIX_PAPER = CostModel(
     _matrix_setup,
@@ -244,11 +221,10 @@ RECURRENCE = CostModel(
     sample_seconds=lambda n, d: (
         LOADED * ((1.0 + 0.03 * n**2 + 0.0018 * n**3) if d == 2 else (1.5 + 0.05 * n**2 + 0.003 * n**3)) * 1e-6
     ),
-    note=_compiled_note(10.0, lambda m: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})"),
-    compile_seconds=10.0,
+    note=lambda m, o: f"the matrices grown link by link, n x n per sample (n = {m.nlinks})",
 )
 MATRIX_FACTORED = CostModel(
-    _compiled_setup_bytes,
+    _matrix_setup,
     # prepare, warm (quiet): 3D n = 10, 50, 100, 200: 0.4, 2.6, 4.9, 17 ms
     lambda m, o: LOADED * (0.001 + 4e-7 * m.nlinks**2),
     # per sample, warm, batches of 2000 (quiet): 2D n = 5, 25, 100, 200: 0.070, 0.36, 2.28, 5.75 us;
@@ -256,8 +232,7 @@ MATRIX_FACTORED = CostModel(
     sample_seconds=lambda n, d: (
         LOADED * ((0.04 + 0.013 * n + 1.0e-4 * n**2) if d == 2 else (0.05 + 0.016 * n + 1.4e-4 * n**2)) * 1e-6
     ),
-    note=_compiled_note(4.0, lambda m: f"O(n) per sample, no matrix formed (n = {m.nlinks})"),
-    compile_seconds=4.0,
+    note=lambda m, o: f"O(n) per sample, no matrix formed (n = {m.nlinks})",
 )
 # The peers (extra [peers]): a Python loop over samples into MuJoCo / Drake. Peak RSS growth of
 # prepare + one call on 3D chains of 10 and 100 links: MuJoCo 12 / 33 MB, Drake 16 / 50 MB; per
@@ -278,12 +253,10 @@ DRAKE = CostModel(
 # newton-euler keeps O(n) numbers (an (8, n) table) and O(n) scratch per sample (its sample_bytes). Per
 # sample (quiet, batches of 2000, check=True, 2026-11-24): numpy kernel 2D n = 5, 100, 300: 0.77, 15.4,
 # 50.1 us; 3D: 0.83, 21.6, 73.2 us; the compiled kernel 0.07-0.13 of those (3D n = 100, 1000: 1.46,
-# 26.8 us). Compile time 11.7 s (serial and parallel, one dim) on the busy machine, rounded up.
+# 26.8 us): the kernels' speed (models/newton_euler/kernels.py).
 NEWTON_EULER = CostModel(
-    lambda m, o: F8 * 16 * m.nlinks + 2**20 + (NUMBA_BYTES if _numba(o) else 0),
+    lambda m, o: F8 * 16 * m.nlinks + 2**20,
     lambda m, o: 0.01 + 2e-6 * m.nlinks,
     sample_seconds=lambda n, d: LOADED * (0.2 + 0.08 * d * n) * 1e-6,
-    note=_compiled_note(15.0, lambda m: f"O(n) per sample, two passes over the tree (n = {m.nlinks})"),
-    compile_seconds=15.0,
-    numba_speed=0.12,
+    note=lambda m, o: f"O(n) per sample, two passes over the tree (n = {m.nlinks})",
 )

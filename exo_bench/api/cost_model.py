@@ -83,7 +83,7 @@ would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices, and its compiled kernels (option
 ``kernel="numba"``, the default of ``matrix``, ``matrix-factored``, ``recurrence``) add numba's
 runtime on first use and, when numba's on-disk cache lacks them, a one-time compile
-(:data:`~exo_bench.api.cost_formulas.NUMBA_BYTES`; ``CostModel.compile_seconds``, named in the note); per sample the compiled kernels need less
+(the kernel objects' ``runtime_bytes``, :data:`~exo_bench.api.cost_formulas.NUMBA_BYTES`, and ``compile_seconds``, named in the note); per sample the compiled kernels need less
 time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
 model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:
@@ -96,7 +96,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from exo_bench.api.cost_formulas import ARRAY_BANDWIDTH, BASE_BYTES, F8, LOADED, _loglog, _seconds, _size
+from exo_bench.api.cost_formulas import ARRAY_BANDWIDTH, BASE_BYTES, F8, LOADED, _loglog, _seconds, _size, kernel_note
 from exo_bench.api.methods import METHODS, method_class, preference
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import USABLE_SHARE, default_chunk_samples, usable_memory
@@ -143,6 +143,7 @@ def estimate(
     (bench/cli/states_input.py), counted in."""
     options = dict(options or {})
     model = METHODS[method].cost if method in METHODS else None
+    kernels = METHODS[method].kernels_for(options.get("kernel")) if method in METHODS else ()
     io_bytes, io_seconds = (float(x) for x in io)
     array_bytes = 4.0 * F8 * mech.dof * samples  # q, qd, qdd and tau
     if model is None:  # a method registered without a cost model: its arrays only
@@ -153,22 +154,21 @@ def estimate(
     setup_s = model.setup_seconds(mech, options)
     per_sample = samples * model.sample_seconds(n, d)
     chunk_bytes = chunk * sample_bytes(mech, method)
-    if METHODS[method].compiled and options.get("kernel", "numba") == "numba":
-        # matrix's compiled kernel runs at about half the numpy figures (measured, issue 26); the chunk's
-        # temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
-        per_sample *= model.numba_speed
+    # the kernels' speed against the method's figures (matrix's compiled kernel: about half, issue 26); the
+    # chunk's temporaries stay the numpy kernel's, an upper bound of the compiled one's (bench/test_memory.py)
+    per_sample *= min((k.speed for k in kernels), default=1.0)
     # a large batch streams its arrays: no faster than ARRAY_BANDWIDTH (on the loaded reference machine)
     per_sample = max(per_sample, array_bytes * LOADED / ARRAY_BANDWIDTH)
     seconds = setup_s + calls * model.call_seconds + per_sample + io_seconds
     return Estimate(
         method,
         samples,
-        float(model.setup_bytes(mech, options)),
+        float(model.setup_bytes(mech, options) + max((k.runtime_bytes for k in kernels), default=0)),
         array_bytes,
         float(chunk_bytes),
         float(seconds),
         float(setup_s),
-        model.note(mech, options),
+        model.note(mech, options) + kernel_note(kernels),
         io_bytes,
     )
 
@@ -207,7 +207,7 @@ def _over(est: Estimate, limits: Limits, options: dict | None = None) -> str | N
     """Which limit the estimate exceeds, as a phrase, or None (``options``: the method's; a
     ``budget`` there is Lagrange's derivation budget when ``limits`` names none)."""
     # lagrange's derivation budget first: the most specific reason (prepare() names it)
-    if est.method == "lagrange":
+    if est.method in METHODS and METHODS[est.method].derivation_budget:
         from exo_bench.lagrange.numeric import DEFAULT_BUDGET  # noqa: PLC0415 - only for lagrange
 
         budget = limits.budget if limits.budget is not None else (options or {}).get("budget", DEFAULT_BUDGET)

@@ -18,12 +18,10 @@ from dataclasses import dataclass
 
 from exo_bench.api import cost_formulas as cost
 from exo_bench.api.cost_formulas import CostModel
-from exo_bench.matrix_method.kernel_choice import KERNEL_CHOICES
+from exo_bench.matrix_method.kernels import MATRIX_FACTORED_KERNELS, MATRIX_KERNELS, RECURRENCE_KERNELS
+from exo_bench.models.kernels import Kernel, kernel_options
+from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.prepared import PreparedModel
-
-#: The values of the ``kernel`` option of the matrix family: compiled loops (the default), or the
-#: numpy kernels (matrix_method's own check of the option reads the same tuple).
-NUMBA_NUMPY = KERNEL_CHOICES
 
 
 @dataclass(frozen=True)
@@ -41,8 +39,9 @@ class MethodSpec:
     colour: str = ""
     #: The cost formulas of :mod:`exo_bench.api.cost_formulas` (None: its arrays only).
     cost: CostModel | None = None
-    #: The values of its ``kernel`` option, the default first (empty: no such option).
-    kernels: tuple[str, ...] = ()
+    #: Its kernels (:mod:`exo_bench.models.kernels`), the tuple its prepared-model class lists; the
+    #: option ``kernel`` chooses among them by their ``option`` (empty: no such option).
+    kernels: tuple[Kernel, ...] = ()
     #: Why its results are known to be wrong (None: they are not), in one line.
     known_wrong: str | None = None
     #: The longer reason a report gives where it disagrees with the other methods.
@@ -56,22 +55,48 @@ class MethodSpec:
     #: Its ``derivatives`` (CasADi's, of the factored closed forms) differentiate the very equations it
     #: evaluates (the matrix family), not merely equations it agrees with to rounding.
     derivatives_are_its_own: bool = False
+    #: Its preparation derives the equations within a time budget: its option ``budget`` (``--budget``,
+    #: ``Limits.budget``), estimated and refused before the derivation starts.
+    derivation_budget: bool = False
+    #: Its option ``threads``: a pool of engine data per thread, estimated and refused before any is made.
+    threads_option: bool = False
+    #: Its forward dynamics forms no mass matrix (O(n) per sample): one row of work per sample where
+    #: the others evaluate ``dof + 2`` inverse-dynamics rows to form ``M`` and ``h``.
+    own_forward_dynamics: bool = False
+    #: Where its mass matrix and bias forces come from when a study shows them exposed (None: its own
+    #: mass matrix and bias forces, or those derived from its inverse dynamics).
+    exposed_terms: str | None = None
+    #: Held to the goals for the five-link 3D model (the performance report's "Goals" section): its
+    #: place among those methods, first listed first (None: not held to them).
+    paper_goal_rank: int | None = None
     #: For an engine (a rigid-body library beside ours): what one of its benchmark rows times.
     engine_row: str | None = None
     #: For an engine: the name of its bare per-call benchmark row (its own calls, no G maps, no wrapper).
     bare_row: str | None = None
 
     @property
+    def kernel_options(self) -> tuple[str, ...]:
+        """The values of its option ``kernel``, the default first (empty: no such option)."""
+        return kernel_options(self.kernels)
+
+    def kernels_for(self, option: object = None) -> tuple[Kernel, ...]:
+        """The kernels the option ``kernel`` runs (None: the default); empty for a value it does not
+        take (its constructor names it)."""
+        options = self.kernel_options
+        chosen = options[0] if option is None and options else option
+        return tuple(k for k in self.kernels if k.option == chosen)
+
+    @property
     def compiled(self) -> bool:
-        """Its default kernel is compiled by numba."""
-        return bool(self.kernels) and self.kernels[0] == "numba"
+        """Its default kernels are compiled (by numba) on first use."""
+        return any(k.compiled for k in self.kernels_for())
 
     def load(self) -> type[PreparedModel]:
         """The prepared-model class (imports its module). A method with compiled kernels first checks
         numba's environment variables, before numba is imported (a ValueError naming the variable:
-        :func:`exo_bench.models.numba_threads.environment_problem`)."""
-        if self.kernels:
-            importlib.import_module("exo_bench.models.numba_threads")  # its import checks the environment
+        :func:`exo_bench.models.numba_runtime.environment_problem`), in numba's runtime set-up."""
+        if any(k.compiled for k in self.kernels):
+            importlib.import_module("exo_bench.models.numba_runtime").ensure()
         return getattr(importlib.import_module(self.module), self.cls)
 
 
@@ -89,6 +114,8 @@ METHODS: dict[str, MethodSpec] = {
             colour="#1b9e77",
             cost=cost.PINOCCHIO,
             fit_rank=3,
+            threads_option=True,
+            exposed_terms="CRBA, nonLinearEffects",
             engine_row="a Python loop over `pin.rnea` per sample (the G maps one matmul over the batch; "
             "`pinocchio-parallel`: `rneaInParallel` on a ModelPool)",
             bare_row="pin.rnea (bare)",
@@ -102,6 +129,7 @@ METHODS: dict[str, MethodSpec] = {
             colour="#e6ab02",
             cost=cost.LAGRANGE,
             fit_rank=5,
+            derivation_budget=True,
         ),
         MethodSpec(
             "matrix",
@@ -112,8 +140,9 @@ METHODS: dict[str, MethodSpec] = {
             "default, or numpy)",
             colour="#d95f02",
             cost=cost.MATRIX,
-            kernels=NUMBA_NUMPY,
+            kernels=MATRIX_KERNELS,
             fit_rank=2,
+            paper_goal_rank=1,
             composes_within_budget=True,
             derivatives_are_its_own=True,
         ),
@@ -125,8 +154,9 @@ METHODS: dict[str, MethodSpec] = {
             "(option kernel: numba, the default, or numpy)",
             colour="#7570b3",
             cost=cost.MATRIX_FACTORED,
-            kernels=NUMBA_NUMPY,
+            kernels=MATRIX_FACTORED_KERNELS,
             fit_rank=0,
+            paper_goal_rank=0,
             derivatives_are_its_own=True,
         ),
         MethodSpec(
@@ -148,7 +178,7 @@ METHODS: dict[str, MethodSpec] = {
             "loops (option kernel: numba, the default, or numpy)",
             colour="#66a61e",
             cost=cost.RECURRENCE,
-            kernels=NUMBA_NUMPY,
+            kernels=RECURRENCE_KERNELS,
             fit_rank=4,
             composes_within_budget=True,
             derivatives_are_its_own=True,
@@ -161,8 +191,9 @@ METHODS: dict[str, MethodSpec] = {
             "forward dynamics by M_r factored once; compiled loops (option kernel: numba, the default, or numpy)",
             colour="#b15928",
             cost=cost.NEWTON_EULER,
-            kernels=NUMBA_NUMPY,
+            kernels=NEWTON_EULER_KERNELS,
             fit_rank=1,
+            own_forward_dynamics=True,
         ),
         MethodSpec(
             "mujoco",
@@ -224,7 +255,7 @@ def known_wrong() -> dict[str, str]:
 
 
 def compiled_methods() -> tuple[str, ...]:
-    """Methods whose default kernel is compiled by numba (the matrix family), best first."""
+    """Methods whose default kernels are compiled (the matrix family, newton-euler), best first."""
     ranked = sorted(
         (s.fit_rank if s.fit_rank is not None else len(METHODS), i, s.name)
         for i, s in enumerate(METHODS.values())
@@ -261,3 +292,20 @@ def known_wrong_warning(method: str, dim: int) -> str | None:
         f"exo-bench: warning: method {method!r} is eq. (18) exactly as printed, kept to expose the paper's "
         "misprints: wrong in 3D by design; this 2D result is the closed forms (reports/errata.md)"
     )
+
+
+def derives_within_budget(method: str) -> bool:
+    """Whether ``method`` derives its equations within a time budget (its option ``budget``)."""
+    s = METHODS.get(method)
+    return s is not None and s.derivation_budget
+
+
+def budgeted_methods() -> tuple[str, ...]:
+    """The methods that derive their equations within a time budget (``--budget``)."""
+    return tuple(s.name for s in METHODS.values() if s.derivation_budget)
+
+
+def paper_goal_methods() -> tuple[str, ...]:
+    """The methods held to the goals for the five-link 3D model, in the order the report lists them."""
+    ranked = sorted((s.paper_goal_rank, s.name) for s in METHODS.values() if s.paper_goal_rank is not None)
+    return tuple(name for _, name in ranked)

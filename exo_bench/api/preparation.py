@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from exo_bench.api.methods import method_class
+from exo_bench.api.methods import method_class, spec
 from exo_bench.models import prepared
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.prepared import PreparedModel
@@ -22,11 +22,11 @@ def _derivatives(mechanism: Mechanism, method: str) -> Any:
     from exo_bench.api.methods import METHODS
     from exo_bench.matrix_method.derivatives import derivatives_of, source_text  # CasADi only when asked
 
-    spec = METHODS.get(method)
+    method_spec = METHODS.get(method)
     source = source_text(
         method,
-        evaluates_these=spec is not None and spec.derivatives_are_its_own,
-        known_wrong=spec is not None and spec.known_wrong is not None,
+        evaluates_these=method_spec is not None and method_spec.derivatives_are_its_own,
+        known_wrong=method_spec is not None and method_spec.known_wrong is not None,
     )
     return derivatives_of(mechanism, method, source)
 
@@ -48,7 +48,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     """
     cls = method_class(method)
     _refuse_uncompiled_kernels(method, options)
-    if method == "lagrange" or _threads(method, options) > 1:
+    if spec(method).derivation_budget or _threads(method, options) > 1:
         # refuse up front a derivation estimated over its budget or the memory, or a Data per thread
         # (and the pool's copy) that would not fit: the cost model's estimate, before any is made
         from exo_bench.api.cost_model import check
@@ -69,12 +69,12 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
 
 
 def _threads(method: str, options: dict[str, Any]) -> int:
-    """Pinocchio's option ``threads``, checked against its bound (1 for other methods)."""
-    if method != "pinocchio" or "threads" not in options:
+    """The option ``threads`` (pinocchio's), checked against its bound (1 for other methods)."""
+    if not spec(method).threads_option or "threads" not in options:
         return 1
     from exo_bench.models.resource_counts import check_count
 
-    return check_count("pinocchio: option 'threads'", options["threads"])
+    return check_count(f"{method}: option 'threads'", options["threads"])
 
 
 def _refuse_uncompiled_kernels(method: str, options: dict[str, Any]) -> None:
@@ -83,10 +83,10 @@ def _refuse_uncompiled_kernels(method: str, options: dict[str, Any]) -> None:
     "NotImplementedError: <intrinsic tile_in>"); its numpy kernels (``kernel="numpy"``) still run."""
     from exo_bench.api.methods import METHODS
 
-    spec = METHODS.get(method)
-    if spec is None or not spec.compiled or options.get("kernel", spec.kernels[0]) != "numba":
+    method_spec = METHODS.get(method)
+    if method_spec is None or not any(k.compiled for k in method_spec.kernels_for(options.get("kernel"))):
         return
-    from exo_bench.models.numba_threads import jit_disabled
+    from exo_bench.models.numba_runtime import jit_disabled
 
     if jit_disabled():
         import os

@@ -78,7 +78,7 @@ def c_call(dim: int, params: np.ndarray, fallback, dof: int):
     extension was not built (no C compiler at install) or reads numpy's arrays differently from
     what numpy reports (checked here on probe arrays, before any use)."""
     try:
-        from exo_bench.matrix_method.numba_kernels import _lean_call
+        from exo_bench.matrix_method.numba_kernels import _lean_call  # type: ignore[attr-defined]  # C, setup.py
     except ImportError:
         return None
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c

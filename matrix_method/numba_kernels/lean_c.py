@@ -14,14 +14,14 @@ _P = types.CPointer(types.float64)
 SIGNATURE = types.void(_P, _P, _P, _P, _P, types.int64)
 
 
-@cfunc(SIGNATURE, cache=True, nopython=True)
+@cfunc(SIGNATURE, cache=True)  # a cfunc is always compiled in nopython mode
 def lean_c_2d(p, q, qd, qdd, o, n):
     factored_2d(
         carray(p, (n, n + 2)), carray(q, (2 * n,)), carray(qd, (2 * n,)), carray(qdd, (2 * n,)), carray(o, (2 * n,))
     )
 
 
-@cfunc(SIGNATURE, cache=True, nopython=True)
+@cfunc(SIGNATURE, cache=True)  # a cfunc is always compiled in nopython mode
 def lean_c_3d(p, q, qd, qdd, o, n):
     factored_3d(
         carray(p, (n, n + 2)), carray(q, (3 * n,)), carray(qd, (3 * n,)), carray(qdd, (3 * n,)), carray(o, (3 * n,))

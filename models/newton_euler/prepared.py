@@ -20,25 +20,22 @@ import numpy as np
 from exo_bench.models.aggregates import coupling
 from exo_bench.models.conditioning import check_conditioning
 from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.kernels import select
 from exo_bench.models.newton_euler import compiled, passes, simd
+from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
-from exo_bench.models.numba_threads import run
-from exo_bench.models.prepared import PreparedModel, SerialKernelModel, unchecked_states
-from exo_bench.models.unchecked import unchecked_forward
+from exo_bench.models.prepared import PreparedModel
 from exo_bench.models.simd_blocks import ThreadScratch
-from exo_bench.models.simd_blocks import run as run_simd
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, vertical_reason, zero_length_reason
 
-#: The values of the option ``kernel``: compiled loops, or the numpy reference.
-KERNEL_CHOICES = ("numba", "numpy")
 
-
-class NewtonEuler(SerialKernelModel):
+class NewtonEuler(PreparedModel):
     """Method ``newton-euler``: a forward pass of the point masses' accelerations and a backward
     pass of the subtree sums of ``m (a + g up)``, O(n) per sample; forward dynamics by the tree
-    factor of ``M_r``, O(n) per sample."""
+    factor of ``M_r``, O(n) per sample. Its kernels: :data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`."""
 
     method = "newton-euler"
+    kernels = NEWTON_EULER_KERNELS
 
     @classmethod
     def sample_bytes(cls, nlinks: int, dim: int) -> float:
@@ -49,14 +46,8 @@ class NewtonEuler(SerialKernelModel):
         return 8.0 * 8 * dim * nlinks
 
     def __init__(self, mechanism: Mechanism, kernel: str = "numba"):
-        if not isinstance(kernel, str) or kernel not in KERNEL_CHOICES:
-            raise ValueError(
-                f"{self.method}: option 'kernel': expected one of "
-                f"{', '.join(map(repr, KERNEL_CHOICES))}, got {kernel!r}"
-            )
-        super().__init__(mechanism, kernel=kernel)
-        self.kernel = kernel
-        self._numpy = kernel == "numpy"
+        select(self.method, self.kernels, kernel)  # a bad option is named before any work
+        super().__init__(mechanism)
         self.tree = prepare_tree(mechanism)
         self.table = self.tree.table()
         self._g, self._dim = float(mechanism.g), int(mechanism.dim)
@@ -78,69 +69,22 @@ class NewtonEuler(SerialKernelModel):
         self.singular_mass = (
             None if self.tree.singular < 0 else singular_mass_reason(mechanism, int(self.tree.singular))
         )
+        self._use_kernels(kernel)
 
-    # ------------------------------------------------------------------ the kernels
-    def _compiled(self, q, qd, y, forward: bool, out=None):
-        o = self._results.empty(q.shape) if out is None else out  # C-ordered whatever q is: reshape(-1) is a view
-        samples = q.shape[0] if q.ndim == 2 else 1
-        if not forward and samples >= simd.MIN_SAMPLES:
-            run_simd(
-                self.batch_kernel,
-                self.batch_args,
-                q.reshape(-1),
-                qd.reshape(-1),
-                y.reshape(-1),
-                o.reshape(-1),
-                samples,
-                scratch=self.batch_scratch,
-            )
-            return o
-        run(
-            compiled.newton_euler,
-            compiled.newton_euler_parallel,
-            (self.table, self._g, self._dim, forward, q.reshape(-1), qd.reshape(-1), y.reshape(-1), o.reshape(-1)),
-            q.shape[0] if q.ndim == 2 else 1,
-        )
-        return o
+    # ------------------------------------------------------------------ the numpy reference
+    def numpy_inverse_dynamics(self, q, qd, qdd):
+        """The numpy reference of the two passes (:mod:`exo_bench.models.newton_euler.passes`)."""
+        return passes.inverse_dynamics(self.tree, self._dim, self._g, q, qd, qdd)
 
-    def _inverse_dynamics(self, q, qd, qdd):
-        if self._numpy:
-            return passes.inverse_dynamics(self.tree, self._dim, self._g, q, qd, qdd)
-        return self._compiled(q, qd, qdd, False)
-
-    def _forward_dynamics(self, q, qd, tau):
-        if self._numpy:
-            return passes.forward_dynamics(self.tree, self._dim, self._g, q, qd, tau)
-        return self._compiled(q, qd, tau, True)
+    def numpy_forward_dynamics(self, q, qd, tau):
+        """The numpy reference of forward dynamics by the tree factor of ``M_r``."""
+        return passes.forward_dynamics(self.tree, self._dim, self._g, q, qd, tau)
 
     def _mass_matrix(self, q):
         return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)  # n x n: the output's order
 
     def _bias_forces(self, q, qd):
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
-
-    # ------------------------------------------------------------------ calls
-    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
-        if check or self._numpy:
-            return PreparedModel.inverse_dynamics(self, q, qd, qdd, check, out)
-        unchecked_states(self.method, self._dof, (q, qd, qdd), out)  # memory safety: layout, shapes, out
-        if q.ndim == 1:  # one sample: the serial kernel on the arrays as given
-            return self._serial(q, qd, qdd, out)
-        return self._compiled(q, qd, qdd, False, out)  # O(n) scratch: no chunks needed
-
-    inverse_dynamics.__doc__ = PreparedModel.inverse_dynamics.__doc__
-
-    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
-        if check or self._numpy:
-            return PreparedModel.forward_dynamics(self, q, qd, tau, check, out)
-        unchecked_forward(self.method, self._dof, q, qd, tau, out)  # memory safety: layout, shapes, out
-        if q.ndim == 1:
-            o = np.empty(q.shape) if out is None else out
-            self.serial_kernel(*self._forward_args, q, qd, tau, o)
-            return o
-        return self._compiled(q, qd, tau, True, out)
-
-    forward_dynamics.__doc__ = PreparedModel.forward_dynamics.__doc__
 
     def check_regular(self, q: np.ndarray) -> None:
         """O(n) per sample: ``M_r`` singular (found at prepare time), a rod of length zero, or (3D) a
@@ -162,6 +106,10 @@ class NewtonEuler(SerialKernelModel):
             for i in np.flatnonzero(bad[s] | vertical[s]):  # link by link, as singular_reasons orders them
                 out.append(
                     f"sample {s}: "
-                    + (zero_length_reason(mech, int(i)) if bad[s, i] else vertical_reason(mech, int(i), psi[s, i]))
+                    + (
+                        zero_length_reason(mech, int(i))
+                        if bad[s, i] or psi is None  # 2D: no rod is vertical
+                        else vertical_reason(mech, int(i), psi[s, i])
+                    )
                 )
         raise SingularConfigurationError(out)
