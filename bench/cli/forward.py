@@ -14,6 +14,7 @@ from exo_bench.bench.cli.inverse import (
     _load_states,
     _write_tau,
     add_limit_args,
+    budget_option,
     check_before_reading,
     refuse_budget,
 )
@@ -38,19 +39,19 @@ def cmd_forward(args: argparse.Namespace) -> int:
     """Forward dynamics: the accelerations ``qdd`` of states ``q, qd, tau``."""
     from exo_bench.api import method_class, prepare
     from exo_bench.api.cost_model import check
-    from exo_bench.api.methods import known_wrong_warning
+    from exo_bench.api.methods import known_wrong_warning, spec
     from exo_bench.models.conditioning import check_finite
     from exo_bench.models.loading import load_mechanism
 
     method_class(args.method)  # an unknown method fails before any file is read
     refuse_budget(args)
     mech = load_mechanism(args.mechanism)
-    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    options = budget_option(args)
     limits = _limits(args, args.method)
 
     def rows(samples: int) -> int:
         """Forward dynamics forms M: dof + 2 inverse-dynamics rows per sample for the methods without their own."""
-        return samples * (1 if args.method == "newton-euler" else mech.dof + 2)
+        return samples * (1 if spec(args.method).own_forward_dynamics else mech.dof + 2)
 
     peek = check_before_reading(args.states, mech, args.method, options, limits, rows, third="tau")  # before reading
     q, qd, tau = _load_states(args.states, mech, third="tau")

@@ -66,11 +66,20 @@ def add_limit_args(s: argparse.ArgumentParser) -> None:
 
 def refuse_budget(args: argparse.Namespace) -> None:
     """``--budget`` is lagrange's derivation budget: with another method it would be silently ignored."""
-    if args.budget is not None and args.method != "lagrange":
+    from exo_bench.api.methods import budgeted_methods, derives_within_budget
+
+    if args.budget is not None and not derives_within_budget(args.method):
         raise ValueError(
-            f"--budget: the derivation budget of method lagrange; method {args.method!r} derives "
-            "nothing (limit its time with --max-time)"
+            f"--budget: the derivation budget of method {', '.join(budgeted_methods())}; method {args.method!r} "
+            "derives nothing (limit its time with --max-time)"
         )
+
+
+def budget_option(args: argparse.Namespace) -> dict:
+    """The method's options from ``--budget``: its derivation budget where it derives (else none)."""
+    from exo_bench.api.methods import derives_within_budget
+
+    return {"budget": args.budget} if derives_within_budget(args.method) and args.budget is not None else {}
 
 
 def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -143,8 +152,10 @@ def check_before_reading(path: str, mech, method: str, options: dict, limits: Li
 
 def _limits(args: argparse.Namespace, method: str) -> Limits:
     from exo_bench.api.cost_model import Limits
+    from exo_bench.api.methods import derives_within_budget
 
-    return Limits(memory=args.max_memory, seconds=args.max_time, budget=args.budget if method == "lagrange" else None)
+    budget = args.budget if derives_within_budget(method) else None
+    return Limits(memory=args.max_memory, seconds=args.max_time, budget=budget)
 
 
 def _write_tau(method: str, tau: np.ndarray, out: TextIO, key: str = "tau") -> None:
@@ -169,7 +180,7 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     method_class(args.method)  # an unknown method fails before any file is read
     refuse_budget(args)
     mech = load_mechanism(args.mechanism)
-    options = {"budget": args.budget} if args.method == "lagrange" and args.budget is not None else {}
+    options = budget_option(args)
     limits = _limits(args, args.method)
     peek = check_before_reading(args.states, mech, args.method, options, limits, lambda samples: samples)
     q, qd, qdd = _load_states(args.states, mech)

@@ -60,7 +60,7 @@ def engine_section(inv: pd.DataFrame, batched: bool | None = None) -> list[str]:
         "Each row's time as a multiple of the fastest row of "
         + " and of ".join(f"`{r}`" for r in refs)
         + " on the same model in this run (that row named); above 1: the engine is slower."
-        + ("" if "newton-euler" in refs else " (No `newton-euler` rows in this run.)"),
+        + "".join(f" (No `{r}` rows in this run.)" for r in REFERENCES if r not in refs),
         "",
     ]
     modes = [(False, "per call", "us_per_call"), (True, "batched", "us_per_sample")]

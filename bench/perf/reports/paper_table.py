@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from exo_bench.api.methods import paper_goal_methods
 from exo_bench.bench.output.provenance import provenance
 from exo_bench.bench.perf.reports.loading import _base, _inverse, _skips_md
 from exo_bench.bench.perf.reports.readme_blocks import inserted_by, markers, replace_block
@@ -153,9 +154,10 @@ def goals(df: pd.DataFrame) -> list[str]:
         return []
     out = ["## Goals for the five-link 3D model", "", "Ratios compare rows of this one run on this one machine.", ""]
     exo = inv[(inv["mechanism"] == "exo5-3d") & inv["batched"]].set_index("method")
-    names = [m for m in exo.index if _base(m) in ("matrix-factored", "matrix")]
+    held = paper_goal_methods()
+    names = [m for m in exo.index if _base(m) in held]
     if not names:
-        out.append("- `matrix-factored` and `matrix` have no batched row in this run.")
+        out.append(f"- {' and '.join(f'`{m}`' for m in held)} have no batched row in this run.")
     for name in names:
         m = exo.loc[name]
         us, err = m["us_per_sample"], m["max_rel_err"]

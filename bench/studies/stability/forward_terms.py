@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from exo_bench.api import PreparedSet
+from exo_bench.api import METHODS, PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import _models
 from exo_bench.bench.studies.study import one_line
 from exo_bench.models import forward_dynamics as fd
@@ -53,14 +53,11 @@ def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | 
                 rows.append(TermsRow(mech.name, m, "", f"skipped: {skip}" if skip else "failed: " + one_line(e)))
                 continue
             exposed = (not via) and model.native_terms
+            source = METHODS[m].exposed_terms if m in METHODS else None
             row = TermsRow(
                 mech.name,
                 m,
-                "exposed (CRBA, nonLinearEffects)"
-                if m == "pinocchio" and exposed
-                else "exposed"
-                if exposed
-                else "from inverse dynamics",
+                (f"exposed ({source})" if source else "exposed") if exposed else "from inverse dynamics",
             )
             try:
                 t0 = time.perf_counter()
