@@ -46,7 +46,7 @@ def _no_prefetch(*args) -> None:
 def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the newton-euler SIMD kernel on ``mech`` (module docstring),
     and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
-    from exo_bench.models import fast_trig
+    from exo_bench.models import fast_trig, simd_angles
     from exo_bench.models.newton_euler import simd
     from exo_bench.models.newton_euler.tree import prepare_tree
     from exo_bench.models.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
@@ -55,7 +55,7 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     start = _rebind(simd._start_points.py_func)
     forward = _rebind(
         (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
-        sincos_reduced=trig,
+        link_pass=_rebind(simd_angles.link_pass, sincos_reduced=trig),
         _start_points=start,
         prefetch_share=_no_prefetch,
     )

@@ -48,10 +48,11 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     counted_trig = types.FunctionType(
         trig.__code__, {**trig.__globals__, "math": types.SimpleNamespace(floor=_floor), "fma": _fma}, trig.__name__
     )
+    from exo_bench.bench.perf.roofline_newton_euler import _rebind
+    from exo_bench.models import simd_angles
+
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
-    counted_compute = types.FunctionType(
-        compute.__code__, {**compute.__globals__, "sincos_reduced": counted_trig}, compute.__name__
-    )
+    counted_compute = _rebind(compute, link_pass=_rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
     p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))

@@ -28,7 +28,9 @@ over the samples compiles with a fixed trip count (no remainder loop, no runtime
 10,000 samples, one thread: 51.4 against 64.9 ns per sample with ``m`` at run time (the other core
 running the benchmark sweep). The last, partial block runs with ``m`` at run time.
 
-The physics is the element functions the other kernels call; this file only arranges the loops.
+The physics is the element functions the other kernels call; this file only arranges the loops,
+once for both dimensions (:func:`build`: ``dim`` and the element steps are constants of its
+closures), step 2 with ``newton-euler``'s kernel (:mod:`exo_bench.models.simd_angles`).
 The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
 so LLVM proves that a loop's stores do not overlap its loads without being told (no ``prange``
 needed for the no-aliasing knowledge); steps 3 and 4 read one scratch array and write another,
@@ -43,19 +45,22 @@ call the serial kernel on each (it releases the GIL): numba's threading layer is
 at the same speed whichever layer numba picked or the user started first (OpenMP's spinning
 threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started them).
 
-numba's on-disk cache of these kernels is keyed on their folder, the element functions' files and
-the shared ``fast_trig.py``, ``simd_blocks.py`` and ``numba_threads.py`` (:mod:`exo_bench.models.numba_cache`):
-an edit to any of them recompiles them.
+numba's on-disk cache of these kernels is keyed on their folder, the files of the functions they
+inline (the element functions) and the shared ``simd_angles.py``, ``fast_trig.py``, ``simd_blocks.py``
+and ``numba_runtime.py`` (:mod:`exo_bench.models.numba_cache`): an edit to any of them recompiles them.
 """
 
 from __future__ import annotations
 
-import math
+from types import SimpleNamespace
 
-from exo_bench.matrix_method.numba_kernels.common import JIT, njit
+from numba.extending import register_jitable
+
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.matrix_method.numba_kernels.fast_trig import RANGE, sincos_reduced
-from exo_bench.models.simd_blocks import (  # noqa: F401 - the shared layout, re-exported under its old names
+from exo_bench.matrix_method.numba_kernels.common import JIT, njit
+from exo_bench.models import simd_angles
+from exo_bench.models.simd_angles import states_2d, states_3d
+from exo_bench.models.simd_blocks import (
     CF,
     CP,
     F0,
@@ -65,217 +70,125 @@ from exo_bench.models.simd_blocks import (  # noqa: F401 - the shared layout, re
     K0,
     K1,
     K2,
-    L1,
-    L1_2,
-    L2,
-    L2_2,
     LANES,
     LEN,
     LEN2,
     O0,
     O1,
     O2,
-    PHI,
-    PSI,
     ROWS,
     SF,
-    SHARES_PER_THREAD,
     SP,
-    U,
-    V1,
-    V2,
-    W1,
-    W2,
-    _block_rows_in,
-    _block_rows_out,
-    _block_scratch,
-    _rows_in,
-    _rows_in_by_link,
-    _rows_out,
-    _rows_out_by_link,
-    run,
 )
+from exo_bench.models.simd_blocks import _block_rows_in, _block_rows_out, _block_scratch
+from exo_bench.models.simd_blocks import _rows_in, _rows_out, run  # noqa: F401 - re-exported
 
 
-@njit(**JIT)
-def _compute_3d(p, m, W, F):
-    """2-4. From the rows of ``W`` (``m`` samples) to the forces in ``F``, spatial."""
-    n = p.shape[0]
-    B = LANES
-    outside = 0
-    for j in range(n):  # 2. sin, cos, kappa_j
-        w = j * ROWS * B
-        for s in range(m):
-            phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-            okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
-            sf, cf = sincos_reduced(phi if okf else 0.0)
-            sp, cp = sincos_reduced(psi if okp else 0.0)
-            outside += (0 if okf else 1) + (0 if okp else 1)
-            W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-            W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
-                W[w + LEN * B + s],
-                W[w + W1 * B + s],
-                W[w + V1 * B + s],
-                W[w + L1 * B + s],
-                W[w + W2 * B + s],
-                W[w + V2 * B + s],
-                W[w + L2 * B + s],
-                cf,
-                sf,
-                cp,
-                sp,
-            )
-    if outside:  #    libm for the angles beyond RANGE (and NaN)
-        for j in range(n):
-            w = j * ROWS * B
+@register_jitable
+def _kappa_3d(W, at, B, x, cf, sf, cp, sp):
+    """2. ``kappa_j`` of sample ``at`` of a spatial link (the ``link`` of :func:`exo_bench.models.simd_angles.link_pass`)."""
+    l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
+    W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)
+
+
+@register_jitable
+def _kappa_2d(W, at, B, x, cf, sf, cp, sp):
+    """2. ``kappa_j`` of sample ``at`` of a planar link (phi in row 0, l in row 1)."""
+    l, w, ld, wdd, ldd = states_2d(W, at, B)
+    W[at + K0 * B], W[at + K1 * B] = kappa_2d(l, w, ld, wdd, ldd, cf, sf)
+
+
+@register_jitable
+def _forces_3d(W, F, at, f, B, gnu):
+    """4. The forces of sample ``at`` of a spatial link (its rows of ``F`` at ``f``) from its ``f_i``."""
+    cf, sf, cp, sp, l = W[at + CF * B], W[at + SF * B], W[at + CP * B], W[at + SP * B], W[at + LEN * B]
+    F[f + O0 * B], F[f + O1 * B], F[f + O2 * B] = forces_3d(
+        l, cf, sf, cp, sp, F[f + F0 * B], F[f + F1 * B], F[f + F2 * B], gnu
+    )
+
+
+@register_jitable
+def _forces_2d(W, F, at, f, B, gnu):
+    """4. The forces ``M_phi, F`` (rows ``O0, O1``) of sample ``at`` of a planar link."""
+    cf, sf, l = W[at + CF * B], W[at + SF * B], W[at + LEN2 * B]
+    F[f + O0 * B], F[f + O1 * B] = forces_2d(l, cf, sf, F[f + F0 * B], F[f + F1 * B], gnu)
+
+
+def _jit(dim: int):
+    """``njit(**JIT)`` under a qualified name that carries ``dim`` (``build.<locals>.simd`` becomes
+    ``..._3d``): two closures that share a symbol in numba's cache then have the same code
+    (:func:`exo_bench.models.numba_runtime.jit_for` says why)."""
+
+    def decorate(fn):
+        fn.__qualname__ = f"{fn.__qualname__}_{dim}d"
+        return njit(**JIT)(fn)
+
+    return decorate
+
+
+def build(dim: int) -> SimpleNamespace:
+    """The kernel for ``dim`` (2 or 3), one source for both: ``compute`` (steps 2-4) and the driver
+    ``simd`` (1-4 block by block). ``dim`` and the element steps are constants of the closures: numba
+    compiles each dimension's loops as if written out for it (the branches on ``dim`` fold away)."""
+    kappa, forces = (_kappa_3d, _forces_3d) if dim == 3 else (_kappa_2d, _forces_2d)
+    link_pass, libm_pass = simd_angles.link_pass, simd_angles.libm_pass
+
+    @_jit(dim)
+    def compute(p, m, W, F):
+        """2-4. From the rows of ``W`` (``m`` samples) to the forces in ``F``."""
+        n = p.shape[0]
+        B = LANES
+        outside = 0
+        for j in range(n):  # 2. sin, cos, kappa_j
+            outside += link_pass(W, j * ROWS * B, m, B, dim, kappa, 1.0)
+        if outside:  #    libm for the angles beyond RANGE (and NaN)
+            for j in range(n):
+                libm_pass(W, j * ROWS * B, m, B, dim, kappa, 1.0)
+        for i in range(n):  # 3. f_i = sum_j c_ij kappa_j
+            f = i * FROWS * B
             for s in range(m):
-                phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-                if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
-                    cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
-                    W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-                    W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = kappa_3d(
-                        W[w + LEN * B + s],
-                        W[w + W1 * B + s],
-                        W[w + V1 * B + s],
-                        W[w + L1 * B + s],
-                        W[w + W2 * B + s],
-                        W[w + V2 * B + s],
-                        W[w + L2 * B + s],
-                        cf,
-                        sf,
-                        cp,
-                        sp,
-                    )
-    for i in range(n):  # 3. f_i = sum_j c_ij kappa_j
-        f = i * FROWS * B
-        for s in range(m):
-            F[f + F0 * B + s] = 0.0
-            F[f + F1 * B + s] = 0.0
-            F[f + F2 * B + s] = 0.0
-        for j in range(n):
-            c = p[i, j]
-            w = j * ROWS * B
+                F[f + F0 * B + s], F[f + F1 * B + s] = 0.0, 0.0
+                if dim == 3:
+                    F[f + F2 * B + s] = 0.0
+            for j in range(n):
+                c, w = p[i, j], j * ROWS * B
+                for s in range(m):
+                    F[f + F0 * B + s] += c * W[w + K0 * B + s]
+                    F[f + F1 * B + s] += c * W[w + K1 * B + s]
+                    if dim == 3:
+                        F[f + F2 * B + s] += c * W[w + K2 * B + s]
+        for i in range(n):  # 4. the forces of link i
+            f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
             for s in range(m):
-                F[f + F0 * B + s] += c * W[w + K0 * B + s]
-                F[f + F1 * B + s] += c * W[w + K1 * B + s]
-                F[f + F2 * B + s] += c * W[w + K2 * B + s]
-    for i in range(n):  # 4. the forces of link i
-        f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
-        for s in range(m):
-            F[f + O0 * B + s], F[f + O1 * B + s], F[f + O2 * B + s] = forces_3d(
-                W[w + LEN * B + s],
-                W[w + CF * B + s],
-                W[w + SF * B + s],
-                W[w + CP * B + s],
-                W[w + SP * B + s],
-                F[f + F0 * B + s],
-                F[f + F1 * B + s],
-                F[f + F2 * B + s],
-                gnu,
-            )
+                forces(W, F, w + s, f + s, B, gnu)
 
-
-@njit(**JIT)
-def _compute_2d(p, m, W, F):
-    """2-4. From the rows of ``W`` (``m`` samples) to the forces in ``F``, planar (the rows of the
-    planar blocks: phi in row 0, l in row 1; the forces ``M_phi, F`` in ``O0, O1``)."""
-    n = p.shape[0]
-    B = LANES
-    outside = 0
-    for j in range(n):  # 2. sin, cos, kappa_j
-        w = j * ROWS * B
-        for s in range(m):
-            phi = W[w + PHI * B + s]
-            okf = abs(phi) <= RANGE
-            sf, cf = sincos_reduced(phi if okf else 0.0)
-            outside += 0 if okf else 1
-            W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-            W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                W[w + LEN2 * B + s],
-                W[w + W1 * B + s],
-                W[w + L1_2 * B + s],
-                W[w + W2 * B + s],
-                W[w + L2_2 * B + s],
-                cf,
-                sf,
-            )
-    if outside:  #    libm for the angles beyond RANGE (and NaN)
-        for j in range(n):
-            w = j * ROWS * B
-            for s in range(m):
-                phi = W[w + PHI * B + s]
-                if not abs(phi) <= RANGE:
-                    cf, sf = math.cos(phi), math.sin(phi)
-                    W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                    W[w + K0 * B + s], W[w + K1 * B + s] = kappa_2d(
-                        W[w + LEN2 * B + s],
-                        W[w + W1 * B + s],
-                        W[w + L1_2 * B + s],
-                        W[w + W2 * B + s],
-                        W[w + L2_2 * B + s],
-                        cf,
-                        sf,
-                    )
-    for i in range(n):  # 3. f_i = sum_j c_ij kappa_j
-        f = i * FROWS * B
-        for s in range(m):
-            F[f + F0 * B + s] = 0.0
-            F[f + F1 * B + s] = 0.0
-        for j in range(n):
-            c = p[i, j]
-            w = j * ROWS * B
-            for s in range(m):
-                F[f + F0 * B + s] += c * W[w + K0 * B + s]
-                F[f + F1 * B + s] += c * W[w + K1 * B + s]
-    for i in range(n):  # 4. the forces of link i
-        f, w, gnu = i * FROWS * B, i * ROWS * B, p[i, n + 1] * p[i, n]
-        for s in range(m):
-            F[f + O0 * B + s], F[f + O1 * B + s] = forces_2d(
-                W[w + LEN2 * B + s], W[w + CF * B + s], W[w + SF * B + s], F[f + F0 * B + s], F[f + F1 * B + s], gnu
-            )
-
-
-@njit(**JIT)
-def simd_3d(p, q, qd, qdd, o, start, stop, S=None):
-    """Samples ``start .. stop - 1`` of the flat spatial ``(samples, dof)`` states into ``o``,
-    :data:`LANES` at a time; ``S``: the scratch of ``_block_scratch(n, 3)`` (kept per thread, :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
-    n = p.shape[0]
-    if S is None:
-        W, F, T = _block_scratch(n, 3)
-    else:
-        W, F, T = S
-    for s0 in range(start, stop, LANES):
-        if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
-            _block_rows_in(q, qd, qdd, s0, LANES, n, 3, W, T)
-            _compute_3d(p, LANES, W, F)
-            _block_rows_out(o, s0, LANES, n, 3, F, T)
+    @_jit(dim)
+    def simd(p, q, qd, qdd, o, start, stop, S=None):
+        """Samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into ``o``, :data:`LANES`
+        at a time; ``S``: the scratch of ``_block_scratch(n, dim)`` (kept per thread,
+        :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
+        n = p.shape[0]
+        if S is None:
+            W, F, T = _block_scratch(n, dim)
         else:
-            m = stop - s0
-            _block_rows_in(q, qd, qdd, s0, m, n, 3, W, T)
-            _compute_3d(p, m, W, F)
-            _block_rows_out(o, s0, m, n, 3, F, T)
+            W, F, T = S
+        for s0 in range(start, stop, LANES):
+            if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
+                _block_rows_in(q, qd, qdd, s0, LANES, n, dim, W, T)
+                compute(p, LANES, W, F)
+                _block_rows_out(o, s0, LANES, n, dim, F, T)
+            else:
+                m = stop - s0
+                _block_rows_in(q, qd, qdd, s0, m, n, dim, W, T)
+                compute(p, m, W, F)
+                _block_rows_out(o, s0, m, n, dim, F, T)
+
+    return SimpleNamespace(compute=compute, simd=simd)
 
 
-@njit(**JIT)
-def simd_2d(p, q, qd, qdd, o, start, stop, S=None):
-    """Samples ``start .. stop - 1`` of the flat planar ``(samples, dof)`` states into ``o``,
-    :data:`LANES` at a time; ``S``: the scratch of ``_block_scratch(n, 2)`` (kept per thread, :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
-    n = p.shape[0]
-    if S is None:
-        W, F, T = _block_scratch(n, 2)
-    else:
-        W, F, T = S
-    for s0 in range(start, stop, LANES):
-        if stop - s0 >= LANES:  # a whole block: the trip counts are the constant LANES (module docstring)
-            _block_rows_in(q, qd, qdd, s0, LANES, n, 2, W, T)
-            _compute_2d(p, LANES, W, F)
-            _block_rows_out(o, s0, LANES, n, 2, F, T)
-        else:
-            m = stop - s0
-            _block_rows_in(q, qd, qdd, s0, m, n, 2, W, T)
-            _compute_2d(p, m, W, F)
-            _block_rows_out(o, s0, m, n, 2, F, T)
-
+_2D, _3D = build(2), build(3)
+_compute_2d, _compute_3d = _2D.compute, _3D.compute
+simd_2d, simd_3d = _2D.simd, _3D.simd
 
 #: dim -> the kernel ``(params, q, qd, qdd, o, start, stop[, S])`` on flat states
 KERNELS = {2: simd_2d, 3: simd_3d}

@@ -15,7 +15,9 @@ with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
    ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`), its
    start point's acceleration with gravity ``A_k = A_p + kappa_p`` (``g up`` at a root) and ``D_k =
    0``. The angles of link ``k`` beyond the arithmetic's range (and NaN) are then redone with libm
-   by a scalar loop that only they enter, before any child reads ``kappa_k``;
+   by a scalar loop that only they enter, before any child reads ``kappa_k``. The trig loops are
+   ``matrix-factored``'s too (:mod:`exo_bench.models.simd_angles`); one source serves 2D and 3D
+   (``forward_for(dim)`` in :func:`build`, ``dim`` a constant of its closure);
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
    kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`),
    written over ``A_k`` (no longer read);
@@ -52,52 +54,22 @@ in cache 12.9 -> 13.1 (same conditions).
 One sample as 1-D arrays runs the per-sample kernel (with ``check=True`` too); every batch (:data:`MIN_SAMPLES`) runs this
 kernel through :func:`exo_bench.models.simd_blocks.run` (threads without numba's threading layer).
 numba's on-disk cache of these kernels is keyed on their folder, the element functions' files and
-the shared ``fast_trig.py``, ``simd_blocks.py`` and ``numba_threads.py`` (:mod:`exo_bench.models.numba_cache`):
+the shared ``fast_trig.py``, ``simd_*.py`` and ``numba_runtime.py`` (:mod:`exo_bench.models.numba_cache`):
 an edit to any of them recompiles them.
 """
 
 from __future__ import annotations
 
-import math
 from types import SimpleNamespace
 
 from numba.extending import register_jitable
 
-from exo_bench.models.fast_trig import RANGE, sincos_reduced
+from exo_bench.models import simd_angles
 from exo_bench.models.newton_euler import elements as el
-from exo_bench.models.numba_threads import jit_for
-from exo_bench.models.simd_blocks import (
-    CF,
-    CP,
-    F0,
-    F1,
-    F2,
-    FROWS,
-    K0,
-    K1,
-    K2,
-    L1,
-    L1_2,
-    L2,
-    L2_2,
-    LANES,
-    LEN,
-    LEN2,
-    O0,
-    O1,
-    O2,
-    PHI,
-    PSI,
-    ROWS,
-    SF,
-    SP,
-    V1,
-    V2,
-    W1,
-    W2,
-    block_transposes,
-    prefetch_share,
-)
+from exo_bench.models.numba_runtime import jit_for
+from exo_bench.models.simd_angles import states_2d, states_3d
+from exo_bench.models.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
+from exo_bench.models.simd_blocks import ROWS, SF, SP, block_transposes, prefetch_share
 
 for _f in el.ELEMENTS:
     register_jitable(_f)
@@ -116,6 +88,34 @@ _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 #: bit-identical to this one but 1.5-1.9x slower than with libm's (inverse and forward, exo5-3d and
 #: 3D n = 100), so it keeps libm's.
 MIN_SAMPLES = 1
+
+
+@register_jitable
+def _rod_3d(W, at, B, s_k, cf, sf, cp, sp):
+    """2. ``kappa_k = s_k (l u)''`` of sample ``at`` of a spatial rod (the ``link`` of
+    :func:`exo_bench.models.simd_angles.link_pass`)."""
+    l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
+    a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, w, v, ld, wdd, vdd, ldd)
+    W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = s_k * a0, s_k * a1, s_k * a2
+
+
+@register_jitable
+def _rod_2d(W, at, B, s_k, cf, sf, cp, sp):
+    """2. ``kappa_k`` of sample ``at`` of a planar rod (phi in row 0, l in row 1; the third component 0)."""
+    l, w, ld, wdd, ldd = states_2d(W, at, B)
+    a0, a1 = el.rod_acceleration_2d(cf, sf, l, w, ld, wdd, ldd)
+    W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = s_k * a0, s_k * a1, 0.0
+
+
+def _jit(lanes: int, dim: int):
+    """:func:`exo_bench.models.numba_runtime.jit_for` for a closure built for ``dim`` too: its qualified
+    name carries both (``..._forward_3d_32lanes``), for the reason given there."""
+
+    def decorate(fn):
+        fn.__qualname__ = f"{fn.__qualname__}_{dim}d"
+        return jit_for(lanes)(fn)
+
+    return decorate
 
 
 def build(lanes: int) -> SimpleNamespace:
@@ -179,100 +179,26 @@ def build(lanes: int) -> SimpleNamespace:
                     m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
                     Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
-    @jit_for(lanes)
-    def _forward_3d(t, g, m, W, F, q, qd, qdd, o, lo, hi):
-        """2. The forward pass of ``m`` samples, spatial: per link, trig and ``kappa`` (libm for the
-        angles beyond RANGE), then its start point."""
-        n = t.shape[1]
-        for k in range(n):
-            w, s_k = k * ROWS * B, t[_SIGN, k]
-            outside = 0
-            for s in range(m):
-                phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-                okf, okp = abs(phi) <= RANGE, abs(psi) <= RANGE
-                sf, cf = sincos_reduced(phi if okf else 0.0)
-                sp, cp = sincos_reduced(psi if okp else 0.0)
-                outside += (0 if okf else 1) + (0 if okp else 1)
-                W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-                a0, a1, a2 = el.rod_acceleration_3d(
-                    cf,
-                    sf,
-                    cp,
-                    sp,
-                    W[w + LEN * B + s],
-                    W[w + W1 * B + s],
-                    W[w + V1 * B + s],
-                    W[w + L1 * B + s],
-                    W[w + W2 * B + s],
-                    W[w + V2 * B + s],
-                    W[w + L2 * B + s],
-                )
-                W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
-            if outside:  # libm for this link's angles beyond RANGE (and NaN)
-                for s in range(m):
-                    phi, psi = W[w + PHI * B + s], W[w + PSI * B + s]
-                    if not (abs(phi) <= RANGE and abs(psi) <= RANGE):
-                        cf, sf, cp, sp = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
-                        W[w + CF * B + s], W[w + SF * B + s], W[w + CP * B + s], W[w + SP * B + s] = cf, sf, cp, sp
-                        a0, a1, a2 = el.rod_acceleration_3d(
-                            cf,
-                            sf,
-                            cp,
-                            sp,
-                            W[w + LEN * B + s],
-                            W[w + W1 * B + s],
-                            W[w + V1 * B + s],
-                            W[w + L1 * B + s],
-                            W[w + W2 * B + s],
-                            W[w + V2 * B + s],
-                            W[w + L2 * B + s],
-                        )
-                        W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, s_k * a2
-            _start_points(t, g, 3, k, m, W, F)
-            prefetch_share(q, qd, qdd, o, lo, hi, k, n)
+    link_pass, libm_pass = simd_angles.link_pass, simd_angles.libm_pass
 
-    @jit_for(lanes)
-    def _forward_2d(t, g, m, W, F, q, qd, qdd, o, lo, hi):
-        """2. The forward pass of ``m`` samples, planar (rows of the planar blocks: phi in row 0, l in
-        row 1; ``kappa`` in ``K0, K1``; the third components stay 0)."""
-        n = t.shape[1]
-        for k in range(n):
-            w, s_k = k * ROWS * B, t[_SIGN, k]
-            outside = 0
-            for s in range(m):
-                phi = W[w + PHI * B + s]
-                okf = abs(phi) <= RANGE
-                sf, cf = sincos_reduced(phi if okf else 0.0)
-                outside += 0 if okf else 1
-                W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                a0, a1 = el.rod_acceleration_2d(
-                    cf,
-                    sf,
-                    W[w + LEN2 * B + s],
-                    W[w + W1 * B + s],
-                    W[w + L1_2 * B + s],
-                    W[w + W2 * B + s],
-                    W[w + L2_2 * B + s],
-                )
-                W[w + K0 * B + s], W[w + K1 * B + s], W[w + K2 * B + s] = s_k * a0, s_k * a1, 0.0
-            if outside:  # libm for this link's angles beyond RANGE (and NaN)
-                for s in range(m):
-                    phi = W[w + PHI * B + s]
-                    if not abs(phi) <= RANGE:
-                        cf, sf = math.cos(phi), math.sin(phi)
-                        W[w + CF * B + s], W[w + SF * B + s] = cf, sf
-                        a0, a1 = el.rod_acceleration_2d(
-                            cf,
-                            sf,
-                            W[w + LEN2 * B + s],
-                            W[w + W1 * B + s],
-                            W[w + L1_2 * B + s],
-                            W[w + W2 * B + s],
-                            W[w + L2_2 * B + s],
-                        )
-                        W[w + K0 * B + s], W[w + K1 * B + s] = s_k * a0, s_k * a1
-            _start_points(t, g, 2, k, m, W, F)
-            prefetch_share(q, qd, qdd, o, lo, hi, k, n)
+    def forward_for(dim):
+        rod = _rod_3d if dim == 3 else _rod_2d
+
+        @_jit(lanes, dim)
+        def _forward(t, g, m, W, F, q, qd, qdd, o, lo, hi):
+            """2. The forward pass of ``m`` samples: per link, trig and ``kappa`` (libm for the angles
+            beyond RANGE, before any child reads ``kappa``), then its start point."""
+            n = t.shape[1]
+            for k in range(n):
+                w, s_k = k * ROWS * B, t[_SIGN, k]
+                if link_pass(W, w, m, B, dim, rod, s_k):
+                    libm_pass(W, w, m, B, dim, rod, s_k)
+                _start_points(t, g, dim, k, m, W, F)
+                prefetch_share(q, qd, qdd, o, lo, hi, k, n)
+
+        return _forward
+
+    _forward_2d, _forward_3d = forward_for(2), forward_for(3)
 
     @jit_for(lanes)
     def _block(t, g, dim, q, qd, qdd, o, s0, m, n, W, F, T, stop):
