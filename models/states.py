@@ -54,25 +54,31 @@ LABELS = ("q", "qd", "qdd")
 class StateCheck:
     """What the check of a mechanism's states needs, computed once per mechanism
     (:func:`state_check`): sizes, the mechanism's part of the force bound
-    (:func:`~exo_bench.models.validation.force_scale_base`) and the limit; and the compiled pass's
-    entry points, resolved on first use (importing numba then, not with the mechanism)."""
+    (:func:`~exo_bench.models.validation.force_scale_base`) and the limit; and, resolved on first use
+    (importing numba then, not with the mechanism), the compiled pass's entry points and its
+    ``plan`` of this mechanism (:func:`exo_bench.models.validation_pass.plan`)."""
 
-    __slots__ = ("dof", "nlinks", "base", "lg_g", "limit", "entries")
+    __slots__ = ("dof", "nlinks", "base", "lg_g", "limit", "entries", "plan", "by_ndim")
 
     def __init__(self, dof: int, nlinks: int, base: float, lg_g: float, limit: float) -> None:
         self.dof, self.nlinks, self.base, self.lg_g, self.limit = dof, nlinks, base, lg_g, limit
         self.entries: Entries | None = None
+        self.plan: np.ndarray | None = None
+        #: ``status`` by the arrays' dimension count (index 1 and 2), once resolved
+        self.by_ndim: tuple | None = None
 
     @classmethod
     def of(cls, mech: Mechanism) -> StateCheck:
         return cls(mech.dof, mech.nlinks, *force_scale_base(mech), math.log10(MAX_FORCE_SCALE))
 
     def resolve(self) -> Entries:
-        """The compiled pass's entry points (models/validation_pass.py), kept from now on."""
-        from exo_bench.models.validation_pass import entries
+        """The compiled pass's entry points and plan (models/validation_pass.py), kept from now on."""
+        from exo_bench.models.validation_pass import entries, plan
 
-        self.entries = entries()
-        return self.entries
+        self.plan = plan(self.dof, self.nlinks, self.base, self.lg_g, self.limit)
+        e = self.entries = entries()
+        self.by_ndim = (None, e.status_1d, e.status_2d)
+        return e
 
     def __reduce__(self):  # a pickled mechanism carries the numbers, never the compiled entries
         return (StateCheck, (self.dof, self.nlinks, self.base, self.lg_g, self.limit))
@@ -105,8 +111,8 @@ def checked_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, sou
     ``(samples, dof)``, come back as they are (one sample stays 1-D). Anything else comes back
     converted, as ``(samples, dof)`` arrays."""
     chk = mech.__dict__.get("_state_check") or state_check(mech)
-    if type(q) is _ND and q.dtype is _F8 and 0 < q.ndim < 3:  # the fast path: one compiled call
-        nd, present, b, c = q.ndim, 0, q, q
+    if type(q) is _ND and q.dtype is _F8 and ((nd := q.ndim) == 1 or nd == 2):  # the fast path: one compiled call
+        present, b, c = 0, q, q
         if qd is not None:
             if type(qd) is not _ND or qd.dtype is not _F8 or qd.ndim != nd:
                 return _at_the_edge(mech, chk, (q, qd, qdd), source)
@@ -115,10 +121,9 @@ def checked_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, sou
             if type(qdd) is not _ND or qdd.dtype is not _F8 or qdd.ndim != nd:
                 return _at_the_edge(mech, chk, (q, qd, qdd), source)
             present, c = present | 2, qdd
-        e = chk.entries or chk.resolve()
-        code = (e.status_1d if nd == 1 else e.status_2d)(
-            q, b, c, present, chk.dof, chk.nlinks, chk.base, chk.lg_g, chk.limit
-        )
+        if chk.by_ndim is None:
+            chk.resolve()
+        code = chk.by_ndim[nd](q, b, c, present, chk.plan)
         if not code:
             return q, qd, qdd
         if code != 1:  # 1: another layout, converted at the edge
