@@ -3,16 +3,16 @@
 numba keys a cached kernel on its own file only (the source stamp of its cache index): an edit to
 an element function that a kernel inlines from another file (``register_jitable``), or an upgrade
 that changes only that file, would leave the old machine code serving wrong forces, silently.
-:class:`KernelSourceLocator` wraps numba's own locator for the kernels of the registered kernel
-folders (:func:`register_kernel_dir`; same cache folder, same file names) and adds to the source
-stamp a hash of every module of the kernel's folder and of the files its kernels inline
-(:func:`inlined_sources`): any edit there makes the index's stamp differ, so numba recompiles and
-overwrites the entry instead of loading it. It is put first in numba's list of locators when this
-module is imported; a kernel folder is registered before its kernels are defined (the matrix
-family's by :mod:`exo_bench.matrix_method.numba_kernels.cache`, newton-euler's by
-:mod:`exo_bench.models.numba_threads`, which its kernels import for their jit options).
-tests/test_compiled.py and tests/test_kernel_cache.py edit an element function in a copy of the
-package and see the new forces from the compiled kernels.
+:class:`KernelSourceLocator` wraps numba's own locator for the kernels of the kernel folders of
+:data:`KERNEL_SOURCES` (same cache folder, same file names) and adds to the source stamp a hash of
+every module of the kernel's folder and of the files its kernels inline (:func:`inlined_sources`):
+any edit there makes the index's stamp differ, so numba recompiles and overwrites the entry instead
+of loading it. tests/test_compiled.py and tests/test_kernel_cache.py edit an element function in a
+copy of the package and see the new forces from the compiled kernels.
+
+This module only defines the keys; importing it changes nothing in numba. Installing them (the
+locator first in numba's list, :func:`index_key_by_code` as numba's index key) is
+:func:`exo_bench.models.numba_runtime.ensure`'s, before any kernel is defined.
 
 numba's documentation says a cached function is invalidated "when the corresponding source file is
 modified" and that changes to functions it calls in other files are not detected; this closes that
@@ -24,8 +24,9 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from numba.core import caching
@@ -36,41 +37,51 @@ _CacheLocator = caching._CacheLocator
 #: (``CacheImpl`` in numba 0.68; ``_CacheImpl`` before).
 _CacheImpl: Any = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl")  # noqa: B009
 
-#: The kernel folders, each with the files (beyond its own modules) whose functions its kernels inline.
-KERNEL_DIRS: dict[Path, dict[str, None]] = {}
+_HERE = Path(__file__).resolve().parent  # models/ (exo_bench/models in an installed package)
+_MATRIX = _HERE.parent / "matrix_method"
 
-
-def register_kernel_dir(folder: str | Path) -> Path:
-    """Kernels defined in a file of ``folder`` use :class:`KernelSourceLocator` from now on."""
-    path = Path(folder).resolve()
-    KERNEL_DIRS.setdefault(path, {})
-    inlined_sources_hash.cache_clear()
-    return path
+#: The kernel folders (a kernel defined in a file of one uses :class:`KernelSourceLocator`), each with
+#: the files beyond its own modules whose functions its kernels inline (:func:`inline` refuses a
+#: function from any other file, so that no inlined source is left out of the key).
+KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
+    {
+        _MATRIX / "numba_kernels": tuple(
+            _MATRIX / "closed_forms" / f for f in ("planar.py", "transitions.py", "factored.py")
+        ),
+        _HERE / "newton_euler": (),  # its kernels inline elements.py, a module of their own folder
+    }
+)
 
 
 def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, always: bool = False) -> None:
     """Register ``functions`` with numba (``register_jitable``: callable from a kernel, and still plain
-    Python for numpy and sympy) and key the cache of the kernels of ``kernel_dir`` on their source
+    Python for numpy and sympy) for the kernels of ``kernel_dir``, whose cache is keyed on their source
     files; ``always``: inline them in numba's IR (generated call lists, which must compile as if
-    written out)."""
-    files = KERNEL_DIRS[register_kernel_dir(kernel_dir)]
+    written out). A ValueError if a function's file is neither in that folder, nor listed for it in
+    :data:`KERNEL_SOURCES`, nor one of :data:`SHARED_SOURCES`."""
+    folder = Path(kernel_dir).resolve()
     for f in functions:
+        file = Path(inspect.getfile(f)).resolve()
+        if file.parent != folder and file not in (*KERNEL_SOURCES.get(folder, ()), *SHARED_SOURCES):
+            raise ValueError(
+                f"numba cache: {f.__qualname__} of {file} is inlined by the kernels of {folder}: expected its "
+                "file listed for that folder in models/numba_cache.py KERNEL_SOURCES (else an edit to it "
+                "would leave stale machine code)"
+            )
         if always:
             register_jitable(inline="always")(f)
         else:
             register_jitable(f)
-        files[str(Path(inspect.getfile(f)).resolve())] = None
-    inlined_sources_hash.cache_clear()
 
 
 #: The modules of this layer that the kernels of every family compile in: the branch-free sin/cos, the
-#: blocks of samples (their transposes, and the 8 x 8 SIMD tiles those move) and the jit options. Keyed for every kernel folder (a folder
-#: that does not use one recompiles for nothing after an edit to it; one that does never serves stale
-#: code): their functions are imported by name into the kernel files, not registered through
-#: :func:`inline`, and an edit to ``sincos_reduced`` once left the cached SIMD kernels of both
-#: families on the old sin/cos.
+#: SIMD modules (``simd_*.py``: the blocks of samples, their transposes and the 8 x 8 tiles those move,
+#: the angles), the jit options and these keys. Keyed for every kernel folder (a folder that does not
+#: use one recompiles for nothing after an edit to it; one that does never serves stale code): their
+#: functions are imported by name into the kernel files, not registered through :func:`inline`, and an
+#: edit to ``sincos_reduced`` once left the cached SIMD kernels of both families on the old sin/cos.
 SHARED_SOURCES = tuple(
-    Path(__file__).resolve().parent / f for f in ("fast_trig.py", "simd_blocks.py", "simd_tiles.py", "numba_threads.py")
+    sorted({*_HERE.glob("simd_*.py"), *(_HERE / f for f in ("fast_trig.py", "numba_runtime.py", "numba_cache.py"))})
 )
 
 
@@ -79,11 +90,11 @@ def inlined_sources(kernel_dir: str | Path) -> list[Path]:
     modules of the element functions registered for it, and :data:`SHARED_SOURCES`."""
     folder = Path(kernel_dir).resolve()
     own = sorted(p.resolve() for p in folder.glob("*.py"))
-    extra = [Path(p) for p in KERNEL_DIRS.get(folder, {})] + list(SHARED_SOURCES)
+    extra = list(KERNEL_SOURCES.get(folder, ())) + list(SHARED_SOURCES)
     return own + list(dict.fromkeys(p for p in extra if p not in own))
 
 
-@functools.cache
+@functools.cache  # the sources as this process first read them (the locator asks at each load and save)
 def inlined_sources_hash(kernel_dir: Path) -> str:
     h = hashlib.sha256()
     for p in inlined_sources(kernel_dir):
@@ -118,7 +129,7 @@ class KernelSourceLocator(_CacheLocator):
             folder = Path(py_file).resolve().parent
         except OSError:
             return None
-        if folder not in KERNEL_DIRS:
+        if folder not in KERNEL_SOURCES:
             return None
         for base in _CacheImpl._locator_classes:
             if base is cls:
@@ -127,10 +138,6 @@ class KernelSourceLocator(_CacheLocator):
             if inner is not None:
                 return cls(inner, folder)
         return None
-
-
-if KernelSourceLocator not in _CacheImpl._locator_classes:
-    _CacheImpl._locator_classes.insert(0, KernelSourceLocator)
 
 
 # --------------------------------------------------------------------------- closures' index keys
@@ -160,30 +167,29 @@ def _code(code: Any) -> tuple:
     return (code.co_code, consts)
 
 
-_numba_index_key = caching.FunctionCache._index_key
+def index_key_by_code(numba_index_key: Callable[..., Any]) -> Callable[..., Any]:
+    """``FunctionCache._index_key`` (numba's, given) except for the closures of a kernel folder: numba
+    hashes a closure's cells by pickling them, and a cell holding another kernel (a dispatcher)
+    pickles with a random per-process id, so such a kernel (newton-euler's SIMD kernels, closures of
+    ``build(lanes)`` that call each other) never hit the cache: each process recompiled it (2-3 s) and
+    added a new machine-code file to the cache folder. Here those cells are hashed by
+    :func:`_describe`: the same in every process, and different for different block sizes or bytecode."""
 
+    def _index_key(self, sig, codegen):
+        key = numba_index_key(self, sig, codegen)
+        fn = self._py_func
+        if fn.__closure__ is None:
+            return key
+        try:
+            folder = Path(inspect.getfile(fn)).resolve().parent
+        except (OSError, TypeError):
+            return key
+        if folder not in KERNEL_SOURCES:
+            return key
+        cells = _describe(fn)
+        if cells is None:
+            return key
+        return (key[0], key[1], (key[2][0], hashlib.sha256(repr(cells).encode()).hexdigest()))
 
-def _index_key(self, sig, codegen):
-    """numba's index key, except for the closures of a registered kernel folder: numba hashes a
-    closure's cells by pickling them, and a cell holding another kernel (a dispatcher) pickles with a
-    random per-process id, so such a kernel (newton-euler's SIMD kernels, closures of ``build(lanes)``
-    that call each other) never hit the cache: each process recompiled it (2-3 s) and added a new
-    machine-code file to the cache folder. Here those cells are hashed by :func:`_describe`: the same
-    in every process, and different for different block sizes or bytecode."""
-    key = _numba_index_key(self, sig, codegen)
-    fn = self._py_func
-    if fn.__closure__ is None:
-        return key
-    try:
-        folder = Path(inspect.getfile(fn)).resolve().parent
-    except (OSError, TypeError):
-        return key
-    if folder not in KERNEL_DIRS:
-        return key
-    cells = _describe(fn)
-    if cells is None:
-        return key
-    return (key[0], key[1], (key[2][0], hashlib.sha256(repr(cells).encode()).hexdigest()))
-
-
-caching.FunctionCache._index_key = _index_key  # type: ignore[method-assign]
+    _index_key.keyed_by_code = True  # type: ignore[attr-defined]  # numba_runtime.ensure installs it once
+    return _index_key

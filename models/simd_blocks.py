@@ -18,7 +18,6 @@ family's simd.py, which imports it).
 from __future__ import annotations
 
 import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -27,9 +26,10 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from exo_bench.models.numba_threads import JIT, jit_for
+from exo_bench.models.numba_runtime import JIT, RUNTIME, ensure, jit_for
 from exo_bench.models.simd_tiles import TILE, tile_in, tile_out
 
+ensure()  # numba's runtime set-up (models/numba_runtime.py), before the kernels below are defined
 _jit = njit(**JIT)
 
 
@@ -229,18 +229,6 @@ def block_transposes(lanes: int):
 
 _block_scratch, _block_rows_in, _block_rows_out = block_transposes(LANES)
 
-_POOL: ThreadPoolExecutor | None = None
-_POOL_LOCK = threading.Lock()
-
-
-def _pool(workers: int) -> ThreadPoolExecutor:
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or _POOL._max_workers < workers:
-            _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="exo-bench-simd")
-        return _POOL
-
-
 #: Shares per thread of a split batch: the threads pull shares until none is left.
 SHARES_PER_THREAD = 8
 
@@ -327,7 +315,7 @@ def run(
                     busy[0] -= 1
                     cond.notify_all()
 
-    pool = _pool(threads - 1)
+    pool = RUNTIME.pool(threads - 1)  # numba_runtime holds the one pool
     for _ in range(threads - 1):
         pool.submit(work)
     work()

@@ -1,5 +1,5 @@
 """numba's cache of the kernels is keyed on their whole folder and the shared sources (models/numba_cache.py,
-registered by models/numba_threads.py): an edit to an element function in models/newton_euler/elements.py,
+installed by models/numba_runtime.py): an edit to an element function in models/newton_euler/elements.py,
 which the kernels of compiled.py inline, recompiles them instead of loading the stale machine code."""
 
 from __future__ import annotations
@@ -96,10 +96,10 @@ import pathlib
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models import numba_threads
+from exo_bench.models import numba_runtime
 from exo_bench.models.motion import smooth_random_motion
 
-out = {"file": numba_threads.__file__}
+out = {"file": numba_runtime.__file__}
 for name in pathlib.Path("which.txt").read_text().split():
     mech = presets.exo5(dim=3) if name == "wide" else presets.chain(900, 3)
     mo = smooth_random_motion(mech, np.linspace(0.0, 3.0, 37), seed=1)
@@ -112,7 +112,7 @@ def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(t
     """newton-euler's SIMD kernel for blocks of 32 (exo5-3d) and of 16 samples (a 3D chain of 900),
     each compiled first in its own process, then both loaded from the cache by a third process: each
     computes its own mechanism's forces (numba names a symbol after the qualified name and a
-    per-process counter; without the block size in the name, models/numba_threads.jit_for, the third
+    per-process counter; without the block size in the name, models/numba_runtime.jit_for, the third
     process segfaulted or LLVM aborted)."""
     from conftest import assert_forces_agree
     from exo_bench import prepare, presets

@@ -23,7 +23,7 @@ from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.motion import random_states
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.tree import prepare_tree, solve_coupling
-from exo_bench.models.numba_threads import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
+from exo_bench.models.numba_runtime import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
 from exo_bench.models.presets import exo5, random_tree
 from exo_bench.models.singularity import SingularConfigurationError
 

@@ -1,6 +1,6 @@
 """numba's on-disk cache for the matrix family's kernels, keyed on the source of every function a
-kernel inlines (the locator is :mod:`exo_bench.models.numba_cache`; this folder is registered with it
-here, before any kernel is defined): an edit to a closed form in
+kernel inlines (the locator is :mod:`exo_bench.models.numba_cache`, which lists this folder and the
+files its kernels inline in ``KERNEL_SOURCES``): an edit to a closed form in
 :mod:`exo_bench.matrix_method.closed_forms.planar` or ``transitions``, which the kernels inline
 through ``register_jitable``, recompiles the kernels instead of loading stale machine code.
 tests/test_compiled.py edits an element function in a copy of the package and sees the new forces
@@ -17,7 +17,7 @@ from exo_bench.models import numba_cache
 from exo_bench.models.numba_cache import KernelSourceLocator  # noqa: F401 - re-exported
 
 #: Where the kernels live: a kernel defined in a file of this folder uses the locator.
-KERNELS_DIR = numba_cache.register_kernel_dir(Path(__file__).resolve().parent)
+KERNELS_DIR = Path(__file__).resolve().parent
 
 
 def inline(functions: Iterable[Callable[..., Any]], always: bool = False) -> None:

@@ -38,7 +38,7 @@ only on the kernel's own file (:mod:`exo_bench.matrix_method.numba_kernels.cache
 closed form recompiles the kernels that use it.
 
 **Threads.** (``matrix-factored``'s batches run :mod:`exo_bench.matrix_method.numba_kernels.simd` instead, on a
-Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, set here unless
+Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, chosen by :func:`exo_bench.models.numba_runtime.ensure` unless
 the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
 otherwise take OpenMP where libgomp is loaded (Pinocchio brings it), and on the shared 2-core
 machine OpenMP's statically scheduled, spin-waiting threads made the parallel driver 4 to 150 times
@@ -60,15 +60,15 @@ from numba import njit  # noqa: F401 - re-exported for the kernel modules
 from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
 from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models import equation_form
-from exo_bench.models.numba_threads import (  # noqa: F401 - shared with models.newton_euler, re-exported
+from exo_bench.models.numba_runtime import (  # noqa: F401 - shared with models.newton_euler, re-exported
     JIT,
     PARALLEL_MIN_SAMPLES,
     SAMPLES_PER_TASK,
-    THREADING_LAYER,
-    _PARALLEL,
-    _threading_layer,
+    ensure,
     run,
 )
+
+ensure()  # numba's runtime set-up (models/numba_runtime.py), before any kernel of this folder is defined
 
 inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))

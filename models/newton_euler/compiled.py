@@ -5,8 +5,8 @@ Per sample the kernels call the very element functions of :mod:`exo_bench.models
 (registered with ``register_jitable``), so nothing physical is written twice; tests/test_newton_euler.py
 holds them to the numpy reference. The layout follows the matrix family
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
-driver, and a parallel driver over blocks of :data:`exo_bench.models.numba_threads.SAMPLES_PER_TASK` samples for large
-batches (:func:`exo_bench.models.numba_threads.run`). The per-mechanism numbers come as one ``(8, n)`` table
+driver, and a parallel driver over blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` samples for large
+batches (:func:`exo_bench.models.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
 (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) and ``g``.
 
 Per sample: ``2n`` (2D) or ``4n`` (3D) sines and cosines and O(n) arithmetic, for inverse and
@@ -22,7 +22,9 @@ from numba import njit, prange
 from numba.extending import register_jitable
 
 from exo_bench.models.newton_euler import elements as el
-from exo_bench.models.numba_threads import JIT, SAMPLES_PER_TASK
+from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+
+ensure()  # numba's runtime set-up (models/numba_runtime.py), before the kernels below are defined
 
 for _f in el.ELEMENTS:
     register_jitable(_f)
@@ -196,7 +198,7 @@ def newton_euler(t, g, dim, forward, x, xd, y, o):
 
 @njit(parallel=True, **JIT)
 def newton_euler_parallel(t, g, dim, forward, x, xd, y, o):
-    """:func:`newton_euler` with blocks of :data:`exo_bench.models.numba_threads.SAMPLES_PER_TASK` samples over numba's threads."""
+    """:func:`newton_euler` with blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` samples over numba's threads."""
     S = x.shape[0] // (dim * t.shape[1])
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(t, g, dim, x, xd, y, o, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK), forward)

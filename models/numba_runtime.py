@@ -1,15 +1,29 @@
-"""numba's threads, shared by every compiled kernel of the suite: the layer, the jit options and
-the one driver lock.
+"""numba's runtime set-up, in one place: :func:`ensure`, which every module that defines compiled kernels
+calls before its first kernel, and :meth:`exo_bench.api.methods.MethodSpec.load` before it imports a
+method with compiled kernels. Importing this module imports no numba and changes nothing.
 
-Kept in the lowest layer (``models``) so that the matrix family (:mod:`exo_bench.matrix_method.numba_kernels.common`)
-and the Newton-Euler kernels (:mod:`exo_bench.models.newton_euler.compiled`) choose the same threading layer
-before either starts numba's threads, and share one lock: ``workqueue`` aborts the process on
-concurrent parallel launches, whichever kernel makes them. Why ``workqueue`` and why
-:data:`PARALLEL_MIN_SAMPLES`: :mod:`exo_bench.matrix_method.numba_kernels.common`.
+:func:`ensure` is idempotent (each step looks at numba's own state first) and has these effects, in
+this order:
 
-Its import first checks numba's environment variables (:func:`environment_problem`), before numba
-itself is imported: a bad ``NUMBA_NUM_THREADS`` or ``NUMBA_THREADING_LAYER`` is one ValueError naming
-the variable (issue 34, U6).
+1. **Checks numba's environment** (:func:`environment_problem`), before numba is imported where it is
+   the first to import it: a bad ``NUMBA_NUM_THREADS`` or ``NUMBA_THREADING_LAYER`` is one ValueError
+   naming the variable (issue 34, U6), not numba's own failure at import or at the first parallel launch.
+2. **Keys numba's on-disk cache on every source a kernel inlines** (patch of numba's internals):
+   :class:`exo_bench.models.numba_cache.KernelSourceLocator` is put first in numba's list of cache
+   locators (``CacheImpl._locator_classes``, numba/core/caching.py). It serves the kernel folders of
+   :data:`exo_bench.models.numba_cache.KERNEL_SOURCES` only; a locator is chosen when a kernel is
+   defined (``cache=True``), hence "before its first kernel".
+3. **Keys closures by their code** (patch): numba's ``FunctionCache._index_key`` is wrapped by
+   :func:`exo_bench.models.numba_cache.index_key_by_code`, so that the closures of a kernel folder
+   hit the cache in every process (numba's own key for every other function).
+4. **Chooses numba's threading layer** (numba's config): ``workqueue``, unless the user chose one
+   (``NUMBA_THREADING_LAYER``) or numba's threads already run (then numba keeps its own). Why
+   ``workqueue``: :mod:`exo_bench.matrix_method.numba_kernels.common`.
+
+Also here, shared by the matrix family (:mod:`exo_bench.matrix_method.numba_kernels.common`) and the
+Newton-Euler kernels (:mod:`exo_bench.models.newton_euler.compiled`): the jit options (:data:`JIT`,
+:func:`jit_for`), the parallel driver's thresholds and :func:`run`, and the one state of this module,
+:data:`RUNTIME` (the lock of the parallel drivers, and the Python thread pool of the SIMD drivers).
 """
 
 from __future__ import annotations
@@ -19,7 +33,7 @@ import os
 import sys
 import threading
 from collections.abc import Callable, Mapping
-from pathlib import Path
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypedDict
 
 from exo_bench.models.resource_counts import count_problem
@@ -95,39 +109,32 @@ def _loads(library: str) -> bool:
     return True
 
 
-check_environment()  # before numba's import: NUMBA_NUM_THREADS=0 fails there
+def ensure() -> str:
+    """numba's runtime set-up (the module docstring lists its effects); returns the threading layer numba
+    will use (or uses). Idempotent: the patches are installed once, the layer chosen once."""
+    check_environment()
+    import numba
+    from numba.core import caching
 
-import numba  # noqa: E402 - after the check of numba's environment
-from numba import njit  # noqa: E402
+    from exo_bench.models.numba_cache import KernelSourceLocator, index_key_by_code
 
-from exo_bench.models import numba_cache  # noqa: E402
-
-
-#: numba.config sets its options at run time (the stubs do not list them).
-config: Any = numba.config
+    impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl  # (numba < 0.68)
+    if KernelSourceLocator not in impl._locator_classes:
+        impl._locator_classes.insert(0, KernelSourceLocator)
+    if not getattr(caching.FunctionCache._index_key, "keyed_by_code", False):
+        caching.FunctionCache._index_key = index_key_by_code(caching.FunctionCache._index_key)
+    config: Any = numba.config  # numba.config sets its options at run time (the stubs do not list them)
+    if not _threads_started() and "NUMBA_THREADING_LAYER" not in os.environ:
+        config.THREADING_LAYER = "workqueue"
+    return str(config.THREADING_LAYER)
 
 
 def jit_disabled() -> bool:
     """``NUMBA_DISABLE_JIT`` is set: numba runs its functions as Python, and the kernels' SIMD tiles
     (numba intrinsics: models/simd_tiles.py) cannot run at all."""
-    return bool(config.DISABLE_JIT)
+    import numba
 
-
-def _threading_layer() -> str:
-    """Choose numba's ``workqueue`` threading layer (module docstring) when nobody chose one yet;
-    return the layer numba will use (or uses)."""
-    try:
-        from numba.np.ufunc import parallel
-
-        started = bool(parallel._is_initialized)
-    except (ImportError, AttributeError):
-        started = True
-    if not started and "NUMBA_THREADING_LAYER" not in os.environ:
-        config.THREADING_LAYER = "workqueue"
-    return str(config.THREADING_LAYER)
-
-
-THREADING_LAYER = _threading_layer()
+    return bool(getattr(numba.config, "DISABLE_JIT"))  # noqa: B009 - set at run time
 
 
 #: The jit options of every kernel: machine code cached on disk, exact IEEE arithmetic (no
@@ -154,6 +161,9 @@ def jit_for(lanes: int) -> Callable[[Callable[..., Any]], Any]:
     the same code. tests/test_kernel_cache.py reproduces the three processes."""
 
     def decorate(fn: Callable[..., Any]) -> Any:
+        ensure()  # before numba chooses the kernel's cache locator
+        from numba import njit
+
         fn.__qualname__ = f"{fn.__qualname__}_{lanes}lanes"
         return njit(**JIT)(fn)
 
@@ -169,21 +179,36 @@ SAMPLES_PER_TASK = 64
 #: 8192, 0.07 at 10,000-20,000.
 PARALLEL_MIN_SAMPLES = 4096
 
-_PARALLEL = threading.Lock()
+
+class Runtime:
+    """The state of numba's runtime that is ours (one instance, :data:`RUNTIME`): the lock that lets
+    one Python thread at a time into a parallel driver (``workqueue`` aborts the process on concurrent
+    parallel launches, whichever kernel makes them), and the Python thread pool of the SIMD drivers
+    (:func:`exo_bench.models.simd_blocks.run`), made at its first use and grown when more threads are asked."""
+
+    def __init__(self) -> None:
+        self.parallel = threading.Lock()
+        self._pool: ThreadPoolExecutor | None = None
+        self._pool_lock = threading.Lock()
+
+    def pool(self, workers: int) -> ThreadPoolExecutor:
+        """A pool of at least ``workers`` threads."""
+        with self._pool_lock:
+            if self._pool is None or self._pool._max_workers < workers:
+                self._pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="exo-bench-simd")
+            return self._pool
+
+
+#: numba's runtime state that is ours: the only mutable object of the module.
+RUNTIME = Runtime()
 
 
 def run(serial, parallel, args: tuple, samples: int):
     """``serial(*args)``, or ``parallel(*args)`` for a batch of at least :data:`PARALLEL_MIN_SAMPLES`
     samples when no other thread is in a parallel driver (then the serial one: same result)."""
-    if samples >= PARALLEL_MIN_SAMPLES and _PARALLEL.acquire(blocking=False):
+    if samples >= PARALLEL_MIN_SAMPLES and RUNTIME.parallel.acquire(blocking=False):
         try:
             return parallel(*args)
         finally:
-            _PARALLEL.release()
+            RUNTIME.parallel.release()
     return serial(*args)
-
-
-#: newton-euler's kernels (models/newton_euler/compiled.py, which imports this module for :data:`JIT`)
-#: inline the element functions of their own folder: numba's cache is keyed on that whole folder
-#: (:mod:`exo_bench.models.numba_cache`), so an edit to elements.py recompiles them.
-NEWTON_EULER_KERNELS = numba_cache.register_kernel_dir(Path(__file__).resolve().parent / "newton_euler")
