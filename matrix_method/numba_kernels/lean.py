@@ -1,14 +1,16 @@
-"""Method ``matrix-factored``, one sample per call with nothing but the arithmetic around it.
+"""Method ``matrix-factored``, one sample per call with nothing but the arithmetic around it: the
+code of the ``lean`` kernel object (:data:`exo_bench.matrix_method.kernels.MATRIX_FACTORED_KERNELS`).
 
 A call of a numba kernel through its dispatcher types every argument and looks the signature up
-(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). Two lean paths, for a
-call with ``check=False`` and ``out=`` on 1-D arrays:
+(about 0.3 us on the 2-core machine, more than the arithmetic of exo5-3d). Two lean paths for one
+sample on 1-D arrays, bound once per prepared model and held by the kernel's entries (nothing is
+rebound on the model):
 
-* **compiled** (:func:`c_call`, where setup.py built matrix_method/_lean_call.c): after the model's
-  first such call its ``inverse_dynamics`` is a small C callable that checks what memory safety
-  needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out`` writable) and calls the
-  kernel's numba ``cfunc`` (matrix_method/numba_kernels/lean_c.py) with the raw pointers; every other
-  form of the call goes to the Python method unchanged;
+* **compiled** (:func:`c_call`, where setup.py built matrix_method/_lean_call.c): a small C callable
+  that checks what memory safety needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out``
+  writable and apart from the inputs) and calls the kernel's numba ``cfunc``
+  (matrix_method/numba_kernels/lean_c.py) with the raw pointers; every other form of the call goes to
+  its fallback (which declines it: PreparedModel's call goes on, checks and names the field);
 * **Python** (:func:`entry`, everywhere): the compiled entry point of :func:`lean_2d`/:func:`lean_3d`
   for one signature, resolved once and called directly: the arguments are unboxed as that
   signature says, without being typed. Unboxing trusts the dimension count and the dtype, so the
@@ -73,8 +75,8 @@ def entry(dim: int, params: np.ndarray):
 
 def c_call(dim: int, params: np.ndarray, fallback, dof: int):
     """The compiled wrapper (matrix_method/_lean_call.c) around the kernel's cfunc: a callable with
-    the arguments of ``inverse_dynamics(q, qd, qdd, check=True, out=None)`` that runs one sample with
-    ``check=False, out=`` in C and passes every other call to ``fallback`` unchanged; None where the
+    the arguments ``(q, qd, qdd, check, out)`` that runs one sample with ``check=False`` and ``out`` in
+    C and passes every other call to ``fallback`` unchanged; None where the
     extension was not built (no C compiler at install) or reads numpy's arrays differently from
     what numpy reports (checked here on probe arrays, before any use)."""
     try:
