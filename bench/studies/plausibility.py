@@ -101,7 +101,7 @@ def plausibility(study: Study) -> Plausibility | None:
     sag = np.abs(sagittal_moments(mech, M)).max(axis=0) / mass
     mag = (np.linalg.norm(M, axis=-1) if mech.dim == 3 else np.abs(M)).max(axis=0) / mass
     jf = np.linalg.norm(F, axis=-1).max(axis=0) / bw
-    _, _, rod = split(mech, study.results[ref].tau)
+    _, _, rod = split(mech, study.tau(ref))
     with np.errstate(invalid="ignore"):
         rod_peak = np.nanmax(np.abs(rod), axis=0) / bw
     joints, rods = [], []
@@ -185,11 +185,11 @@ def markdown(p: Plausibility) -> str:
         "force (BW) | net joint force / normative | comparable? |",
         "|---|---|---|---|---|---|",
     ]
-    for r in p.rods:
-        norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
+    for rod in p.rods:
+        norm = f"{rod.normative.value:.2f} ({rod.normative.where})" if rod.normative else "—"
         lines.append(
-            f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | {_ratio(r.joint_force, r.normative)} "
-            f"| {r.meaning or '—'} |"
+            f"| {rod.rod} | {rod.force:.2f} | {rod.joint_force:.2f} | {norm} | {_ratio(rod.joint_force, rod.normative)} "
+            f"| {rod.meaning or '—'} |"
         )
     lines += [
         "",
@@ -218,16 +218,16 @@ def text(p: Plausibility) -> str:
     for r in p.joints:
         norm = f", walking {r.normative.value:.2f} ({_ratio(r.sagittal, r.normative)})" if r.normative else ""
         lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
-    for r in p.rods:
+    for rod in p.rods:
         norm = (
             (
-                f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
-                f"({_ratio(r.joint_force, r.normative)})"
+                f"; net joint force {rod.joint_force:.2f} BW, walking {rod.normative.value:.2f} "
+                f"({_ratio(rod.joint_force, rod.normative)})"
             )
-            if r.normative
+            if rod.normative
             else ""
         )
-        lines.append(f"- {r.rod}: {r.force:.2f} BW along the rod{norm}")
+        lines.append(f"- {rod.rod}: {rod.force:.2f} BW along the rod{norm}")
     if p.walker:
         lines += [
             "",

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
 from exo_bench.models.encoders import markdown_code
 from exo_bench.models.names import file_stem
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 @dataclass
@@ -31,6 +35,17 @@ class SceneOutcome:
     error: str | None = None
     seconds: float = 0.0
 
+    def ran(self) -> Study:
+        """The scene's study; a scene that failed before its methods ran has none (ValueError)."""
+        if self.study is None:
+            raise ValueError(f"scene {self.scene.name!r}: no study ({self.error or 'its methods did not run'})")
+        return self.study
+
+
+def _us(seconds: float | None) -> str:
+    """Seconds per sample as microseconds, ``.2f``; empty when not measured."""
+    return "" if seconds is None else f"{seconds * 1e6:.2f}"
+
 
 def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     """``max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|`` per method, along an analytic motion."""
@@ -42,7 +57,7 @@ def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     mo = study.motion
     rate = energy_rate(scene.mechanism, f, mo.t)
     scale = max(float(np.abs(rate).max()), 1e-300)
-    return {m: finite_max(np.abs((study.results[m].tau * mo.qd).sum(1) - rate)) / scale for m in study.ok_methods()}
+    return {m: finite_max(np.abs((study.tau(m) * mo.qd).sum(1) - rate)) / scale for m in study.ok_methods()}
 
 
 REFERENCE_SUBSAMPLE = 16
@@ -61,7 +76,7 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     scale = max(float(np.abs(ref).max()), 1e-300)
     out = {}
     for m in study.ok_methods():
-        err = finite_max(np.abs(study.results[m].tau[idx] - ref))
+        err = finite_max(np.abs(study.tau(m)[idx] - ref))
         out[m] = (err, err / scale)
     return out
 
@@ -93,7 +108,7 @@ def disagreement_notes(study: Study) -> list[str]:
 
 
 def _scene_table(o: SceneOutcome) -> str:
-    sc, st = o.scene, o.study
+    sc, st = o.scene, o.ran()
     mech = sc.mechanism
     lines = [
         f"# Scene `{sc.name}`",
@@ -128,8 +143,9 @@ def _scene_table(o: SceneOutcome) -> str:
         pb = o.power_balance.get(m)
         ae, re_ = o.reference_error.get(m, (None, None))
         fmt = lambda x: "" if x is None else f"{x:.2e}"
+        setup = "" if r.setup_seconds is None else f"{r.setup_seconds:.3g}"
         lines.append(
-            f"| {m} | {status} | {r.setup_seconds:.3g} | {r.seconds_per_sample * 1e6:.2f} | {fmt(agree.get(m))} | {fmt(pb)} | "
+            f"| {m} | {status} | {setup} | {_us(r.seconds_per_sample)} | {fmt(agree.get(m))} | {fmt(pb)} | "
             f"{fmt(ae)} | {fmt(re_)} |"
         )
     lines += [
@@ -140,7 +156,7 @@ def _scene_table(o: SceneOutcome) -> str:
         "",
     ]
     ref = st.results.get(sc.reference)
-    if ref is not None and ref.ok:
+    if ref is not None and ref.tau is not None:
         lines += [
             f"Peak values along the motion ({sc.reference}):",
             "",
@@ -152,10 +168,12 @@ def _scene_table(o: SceneOutcome) -> str:
             lines.append(f"| {name} | {col.min():.4g} | {col.max():.4g} | {np.abs(col).max():.4g} |")
     if o.notes:
         lines += ["", "Notes:", ""] + [f"- {n}" for n in o.notes]
-    if sc.motion["kind"] in ("gait", "planar-gait") and st.ok_methods():
+    if sc.motion["kind"] in ("gait", "planar-gait"):
         from exo_bench.bench.studies.plausibility import markdown, plausibility
 
-        lines += ["", markdown(plausibility(st)).rstrip("\n")]
+        loads = plausibility(st)
+        if loads is not None:  # None when no method produced tau
+            lines += ["", markdown(loads).rstrip("\n")]
     if sc.motion["kind"] == "step" and st.ok_methods():
         from exo_bench.bench.studies.step.report import markdown as step_markdown  # the predicted step's own section
 
@@ -238,7 +256,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     t0 = time.perf_counter()
     check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
     motion = scene.build_motion()
-    o.study = run_methods(
+    o.study = study = run_methods(
         scene.name,
         scene.mechanism,
         motion,
@@ -247,19 +265,19 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         reference=scene.reference,
         limits=limits,
     )
-    for m, r in o.study.results.items():
-        if r.ok and not np.isfinite(r.tau).all():
+    for m, r in study.results.items():
+        if r.tau is not None and not np.isfinite(r.tau).all():
             o.notes.append(
                 f"{m}: {int(np.count_nonzero(~np.isfinite(r.tau)))} NaN/Inf values in tau "
                 "(see the stability report for where this method is unusable)"
             )
-    o.notes += disagreement_notes(o.study)
-    o.power_balance = power_balance(scene, o.study)
+    o.notes += disagreement_notes(study)
+    o.power_balance = power_balance(scene, study)
     if scene.wants("reference-error"):
         try:
-            o.reference_error = reference_errors(o.study)
+            o.reference_error = reference_errors(study)
             o.notes.append(
-                f"50-digit reference: {o.study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples"
+                f"50-digit reference: {study.reference_label}, on {REFERENCE_SUBSAMPLE} evenly spaced samples"
             )
         except Exception as e:  # noqa: BLE001
             reason = getattr(e, "skip_reason", None) or one_line(e)
@@ -269,18 +287,19 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         atomic_write(p, _scene_table(o))
         o.files.append(p)
     figures = [k for k in FIGURES if scene.wants(k)]
-    if figures and o.study.ok_methods():
+    if figures and study.ok_methods():
         from exo_bench.bench.output.figures import (
             scene_figures as plots,
         )  # matplotlib only for scenes that ask for figures
 
         for kind in figures:
-            if kind == "kinogram" and getattr(o.study.motion, "origin", None) is not None:  # a walking motion
+            fig: Figure | None
+            if kind == "kinogram" and getattr(study.motion, "origin", None) is not None:  # a walking motion
                 from exo_bench.bench.studies.step.figures import walking_kinogram
 
-                fig = walking_kinogram(o.study)
+                fig = walking_kinogram(study)
             else:
-                fig = plots.scene_figure(o.study, kind)
+                fig = plots.scene_figure(study, kind)
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
@@ -293,16 +312,17 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         from exo_bench.bench.output import recording  # rerun only for scenes that ask for a recording
         from exo_bench.bench.studies.plausibility import plausibility, text
 
-        loads = plausibility(o.study)
+        loads = plausibility(study)
+        loads_text: str | None
         if (
-            loads is not None and getattr(o.study.motion, "origin", None) is not None
+            loads is not None and getattr(study.motion, "origin", None) is not None
         ):  # the predicted step: its own loads text
             from exo_bench.bench.studies.step.report import text as step_text
 
-            loads_text = step_text(o.study)
+            loads_text = step_text(study)
         else:
             loads_text = None if loads is None else text(loads)
-        p = recording.write_recording(o.study, staging / scene_file(scene, "recording"), loads=loads_text)
+        p = recording.write_recording(study, staging / scene_file(scene, "recording"), loads=loads_text)
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
         o.files.append(p)
@@ -325,18 +345,19 @@ def scene_rows(o: SceneOutcome) -> list[list[str]]:
     if o.error:
         return [[o.scene.name, "(scene failed)", o.error, "", ""]]
     rows = []
-    agree = o.study.agreement()
+    study = o.ran()
+    agree = study.agreement()
     for m in o.scene.methods:
-        r = o.study.results[m]
+        r = study.results[m]
         if not r.ok:
-            rows.append([o.scene.name, m, "skipped: " + r.skipped if r.skipped else "failed: " + r.error, "", ""])
+            rows.append([o.scene.name, m, f"skipped: {r.skipped}" if r.skipped else f"failed: {r.error}", "", ""])
             continue
         if m in o.reference_error:
             err = f"{o.reference_error[m][1]:.1e} (ref50)"
         else:
             err = f"{agree.get(m, float('nan')):.1e} (vs {o.scene.reference})"
-        if o.study.nonfinite(m):
-            err += f"; **{o.study.nonfinite(m)} NaN/Inf**"
+        if study.nonfinite(m):
+            err += f"; **{study.nonfinite(m)} NaN/Inf**"
         pb = o.power_balance.get(m)
-        rows.append([o.scene.name, m, err, f"{r.seconds_per_sample * 1e6:.2f}", "" if pb is None else f"{pb:.1e}"])
+        rows.append([o.scene.name, m, err, _us(r.seconds_per_sample), "" if pb is None else f"{pb:.1e}"])
     return rows

@@ -33,6 +33,8 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -54,9 +56,9 @@ def _states(samples: int):
     return mech, *(np.ascontiguousarray(a, dtype=float) for a in (mo.q, mo.qd, mo.qdd))
 
 
-def _interleaved(candidates: dict, rounds: int) -> dict[str, float]:
+def _interleaved(candidates: dict[str, Callable[[], object]], rounds: int) -> dict[str, float]:
     """Median seconds of each ``candidates[name]()`` over ``rounds`` rounds, interleaved."""
-    times = {k: [] for k in candidates}
+    times: dict[str, list[float]] = {k: [] for k in candidates}
     for _ in range(rounds):
         for k, fn in candidates.items():
             t0 = time.perf_counter()
@@ -138,9 +140,12 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     from exo_bench import prepare
     from exo_bench.api.cost_model import ResourceLimit
     from exo_bench.bench.perf import roofline as limit, roofline_simd as limit_simd, peers
+    from exo_bench.matrix_method.prepared import MatrixFactored
 
     mech, q, qd, qdd = _states(samples)
     model = prepare(mech, "matrix-factored")
+    if not isinstance(model, MatrixFactored):  # its per-sample kernel is timed below
+        raise TypeError(f"prepare(mech, 'matrix-factored') gave a {type(model).__name__}, not a MatrixFactored")
     out = np.empty_like(q)
     p = model.kernel_args[0]
     flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
@@ -170,9 +175,9 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     }
     for fn in batched.values():
         fn()  # compile or load, first-use costs
-    res = {"samples": samples, "mechanism": mech.name}
-    t = _interleaved(batched, rounds)
-    res.update({k: v / samples * 1e6 for k, v in t.items()})  # us per sample
+    res: dict[str, Any] = {"samples": samples, "mechanism": mech.name}  # JSON: numbers, names, dicts
+    tb = _interleaved(batched, rounds)
+    res.update({k: v / samples * 1e6 for k, v in tb.items()})  # us per sample
     pin_rounds = max(3, rounds // 10)  # Pinocchio is ~100x slower
     for fn in (pin_call(k) for k in pins):
         fn()
@@ -232,8 +237,8 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     ne_count, ne_tau = count_newton_euler_simd(mech, q0, qd0, qdd0)
     from exo_bench.models.newton_euler.simd import MIN_SAMPLES
 
-    rep = [np.repeat(a[None], MIN_SAMPLES, axis=0) for a in (q0, qd0, qdd0)]  # a batch on the SIMD path
-    assert np.array_equal(ne_tau, ne.inverse_dynamics(*rep, check=False)[0]), (
+    qr, qdr, qddr = (np.repeat(a[None], MIN_SAMPLES, axis=0) for a in (q0, qd0, qdd0))  # a batch on the SIMD path
+    assert np.array_equal(ne_tau, ne.inverse_dynamics(qr, qdr, qddr, check=False)[0]), (
         "the counted run is not what newton-euler's SIMD kernel computes"
     )
     res["newton_euler_count"] = ne_count

@@ -28,6 +28,7 @@ from exo_bench.bench.studies.study import one_line
 from exo_bench.models import forward_dynamics as fd
 from exo_bench.models.aggregates import coupling
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.prepared import PreparedModel
 
 
 def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
@@ -135,6 +136,7 @@ def evaluate_case(
             row.status, row.reason = "skipped", known
             rows[m] = row
             continue
+        model: PreparedModel | Exception  # a failure to prepare is raised in the method's own try below
         try:
             model = models(mech, m)
         except ImportError as e:
@@ -209,7 +211,7 @@ class FamilyResult:
 
     def worst(self, method: str) -> tuple[str, MethodRow | None, CaseResult | None]:
         """The worst verdict of a method over the family, its row and case."""
-        best = ("missing", None, None)
+        best: tuple[str, MethodRow | None, CaseResult | None] = ("missing", None, None)
         rank = -3
         for cr in self.results:
             row = cr.rows.get(method)
@@ -217,16 +219,18 @@ class FamilyResult:
                 continue
             v = row.verdict
             r = _VERDICT_ORDER[v]
+            worst_row = best[1]  # set whenever r == rank (no verdict ranks -3)
             if r > rank or (
                 r == rank
                 and v in ("ok", "degraded", "unusable")
-                and (row.nonfinite, row.rel_err) > (best[1].nonfinite, best[1].rel_err)
+                and worst_row is not None
+                and (row.nonfinite, row.rel_err) > (worst_row.nonfinite, worst_row.rel_err)
             ):
                 best, rank = (v, row, cr), r
         return best
 
     def fd_worst(self) -> str:
-        return max((cr.fd_verdict for cr in self.results), key=_FD_ORDER.get, default="ok")
+        return max((cr.fd_verdict for cr in self.results), key=_FD_ORDER.__getitem__, default="ok")
 
 
 def evaluate_family(

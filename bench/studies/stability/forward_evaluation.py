@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 
 from exo_bench.api import PreparedSet
+from exo_bench.bench.studies.stability.cases import Profile
 from exo_bench.bench.studies.stability.forward_cases import (
     ATOL_FACTOR,
     RoundTripCase,
@@ -33,7 +34,7 @@ from exo_bench.bench.studies.stability.forward_terms import SingularDemo, TermsR
 
 @dataclass
 class ForwardResults:
-    profile: object
+    profile: Profile
     terms: list[TermsRow]
     singular: list[SingularDemo]
     growth: dict[str, float]  # round-trip case -> G(H)

@@ -128,16 +128,16 @@ def forward_figures(res: ForwardResults) -> dict[str, object]:
             rt_series.setdefault(rt.integrator + ANALYTIC, []).append((rt.rtol, rt.error, rt.sim.seconds, rt.sim.nfev))
     en_series: dict[str, list] = {}
     e_first = res.energy[0].case if res.energy else None
-    for r in res.energy:
-        if r.case == e_first:
-            en_series.setdefault(r.integrator, []).append((r.rtol, r.drift / r.scale, r.sim.seconds, r.sim.nfev))
+    for en in res.energy:
+        if en.case == e_first:
+            en_series.setdefault(en.integrator, []).append((en.rtol, en.drift / en.scale, en.sim.seconds, en.sim.nfev))
     st_series: dict[str, list] = {}
-    for r in res.stiff_wp:
-        if r.solved:
-            st_series.setdefault(r.integrator, []).append((r.rtol, r.error, r.sim.seconds, r.sim.nfev))
-    for r in res.analytic_stiff:
-        if r.solved and res.stiff_wp and r.case == res.stiff_wp[0].case:
-            st_series.setdefault(r.integrator + ANALYTIC, []).append((r.rtol, r.error, r.sim.seconds, r.sim.nfev))
+    for sr in res.stiff_wp:
+        if sr.solved:
+            st_series.setdefault(sr.integrator, []).append((sr.rtol, sr.error, sr.sim.seconds, sr.sim.nfev))
+    for sr in res.analytic_stiff:
+        if sr.solved and res.stiff_wp and sr.case == res.stiff_wp[0].case:
+            st_series.setdefault(sr.integrator + ANALYTIC, []).append((sr.rtol, sr.error, sr.sim.seconds, sr.sim.nfev))
     panels = [
         (f"round trip: {first}", "max |q - q*| (rad, m)", rt_series),
         (f"energy drift: {e_first}", "max |E - E0| / max T (dimensionless)", en_series),

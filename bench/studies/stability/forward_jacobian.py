@@ -17,10 +17,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-
+from typing import TYPE_CHECKING
 
 from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
+
+if TYPE_CHECKING:
+    from exo_bench.models.simulate import Simulation
 
 
 @dataclass
@@ -31,8 +34,8 @@ class Pair:
     integrator: str
     rtol: float
     error_name: str  # what ``error`` measures
-    fd: object  # fd.Simulation with scipy's finite differences
-    analytic: object  # fd.Simulation with the analytic Jacobian
+    fd: Simulation  # with scipy's finite differences
+    analytic: Simulation  # with the analytic Jacobian
     fd_error: float
     analytic_error: float
 
@@ -72,10 +75,10 @@ def pairs(res: ForwardResults) -> list[Pair]:
         if f is not None:
             out.append(Pair(a.case, a.integrator, a.rtol, "max |q - q*| (rad, m)", f.sim, a.sim, f.error, a.error))
     fd_stiff = {(r.case, r.integrator, r.rtol): r for r in (*res.stiff_wp, *res.stiff)}
-    for a in res.analytic_stiff:
-        f = fd_stiff.get((a.case, a.integrator, a.rtol))
-        if f is not None:
-            out.append(Pair(a.case, a.integrator, a.rtol, "|q(H) - q_ref(H)| (rad, m)", f.sim, a.sim, f.error, a.error))
+    for s in res.analytic_stiff:
+        g = fd_stiff.get((s.case, s.integrator, s.rtol))
+        if g is not None:
+            out.append(Pair(s.case, s.integrator, s.rtol, "|q(H) - q_ref(H)| (rad, m)", g.sim, s.sim, g.error, s.error))
     return out
 
 

@@ -124,11 +124,11 @@ def forward_markdown(res: ForwardResults) -> str:
         "| case | integrator | rtol | steps | seconds | max drift (J) | drift / max T | bound (J) | verdict |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in res.energy:
-        v = ("pass" if r.passed else "**FAIL**") if r.sim.ok else r.sim.status
+    for en in res.energy:
+        v = ("pass" if en.passed else "**FAIL**") if en.sim.ok else en.sim.status
         L.append(
-            f"| {r.case} | {r.integrator} | {r.rtol:.0e} | {r.sim.steps} | {r.sim.seconds:.2f} | {_e(r.drift)} | "
-            f"{_e(r.drift / r.scale if r.scale else math.nan)} | {_e(r.bound)} | {v} |"
+            f"| {en.case} | {en.integrator} | {en.rtol:.0e} | {en.sim.steps} | {en.sim.seconds:.2f} | {_e(en.drift)} | "
+            f"{_e(en.drift / en.scale if en.scale else math.nan)} | {_e(en.bound)} | {v} |"
         )
     L += [
         "",
@@ -146,12 +146,12 @@ def forward_markdown(res: ForwardResults) -> str:
         "LU | seconds | error at H | max E - E(0) (J) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in res.stiff:
-        st = "solved" if r.solved else f"**{r.sim.status}**"
+    for sr in res.stiff:
+        st = "solved" if sr.solved else f"**{sr.sim.status}**"
         L.append(
-            f"| {r.case} | {r.stiffness:.1e} | {_e(r.cond)} | {r.integrator} | {st} | {r.sim.nfev} | "
-            f"{r.sim.steps} | {r.sim.njev} | {r.sim.nlu} | {r.sim.seconds:.2f} | {_e(r.error)} | "
-            f"{_e(r.energy_change)} |"
+            f"| {sr.case} | {sr.stiffness:.1e} | {_e(sr.cond)} | {sr.integrator} | {st} | {sr.sim.nfev} | "
+            f"{sr.sim.steps} | {sr.sim.njev} | {sr.sim.nlu} | {sr.sim.seconds:.2f} | {_e(sr.error)} | "
+            f"{_e(sr.energy_change)} |"
         )
     if res.stiff_notes:
         L += [""] + [f"- {n}" for n in res.stiff_notes]

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -99,7 +100,8 @@ class StepSettings:
 
     @staticmethod
     def from_dict(d: dict) -> StepSettings:
-        return StepSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        values: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}  # from JSON
+        return StepSettings(**values)
 
 
 @dataclass
@@ -250,8 +252,8 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     # swing foot clearance: every swing-leg point mass (links 3 and 4), vertical axis
     lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
     for i in (2, 3):
-        for b in range(3):
-            z = P[(3 * i + b) * dim + dim - 1, :]
+        for pm in range(3):  # the link's point masses
+            z = P[(3 * i + pm) * dim + dim - 1, :]
             opti.subject_to(z[1 : K - 1] >= 0)  # at 0 and T the landing conditions fix the foot's height
             opti.subject_to(z[lo : hi + 1] >= s.clearance)
     # the hip (end of link 2) moves forward
@@ -299,7 +301,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     opti.set_initial(Xq, q0[:, free].T)
     opti.set_initial(Xv, qd0[:, free].T)
     opti.set_initial(Xa, qdd0[:, free].T)
-    opts = {
+    opts: dict[str, bool | int | float | str] = {
         "ipopt.tol": s.tol,
         "ipopt.constr_viol_tol": 1e-10,
         "ipopt.acceptable_iter": 0,
@@ -313,6 +315,7 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     }  # SX: the exact Hessian costs half of the MX one here
     opti.solver("ipopt", opts)
     t_start = time.perf_counter()
+    sol: ca.OptiSol | ca.OptiAdvanced  # the solution, or IPOPT's last iterate
     try:
         sol = opti.solve()
         ok = True
@@ -336,10 +339,10 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     stats = {
         "status": st.get("return_status"),
         "success": bool(st.get("success")),
-        "iterations": int(st.get("iter_count")),
+        "iterations": int(st["iter_count"]),
         "solve_seconds": seconds,
         "objective": float(sol.value(opti.f)),
-        "casadi": ca.__version__,
+        "casadi": ca.__version__,  # type: ignore[attr-defined]  # casadi's stubs omit __version__
         "constraint_violation": _ipopt_violation(opti, sol),
     }
     return Solution(s, t, q, qd, qdd, tau_v, Mv, Fv, stats)

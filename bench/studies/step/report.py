@@ -28,12 +28,20 @@ def _ratio(value: float, norm) -> float | None:
     return None if norm is None or norm.value == 0 else value / norm.value
 
 
-def _winter_lever(role_key: str) -> float | None:
+def _winter_lever(role_key: str | None) -> float | None:
     """Winter's peak moment over his peak joint force at the joint (m): how far from the joint his net
-    joint force would pass if both peaks coincided."""
-    if role_key not in WINTER.moments or role_key not in WINTER.forces:
+    joint force would pass if both peaks coincided (None: the joint has no counterpart in his tables)."""
+    if role_key is None or role_key not in WINTER.moments or role_key not in WINTER.forces:
         return None
     return WINTER.moments[role_key].value / (WINTER.forces[role_key].value * WINTER_G)
+
+
+def _loads(study: Study) -> Plausibility:
+    """The study's loads beside walking; a study in which no method produced tau has none (ValueError)."""
+    p = plausibility(study)
+    if p is None:
+        raise ValueError(f"study {study.name!r}: no method produced tau, so there are no loads to report")
+    return p
 
 
 class _Along:
@@ -154,18 +162,18 @@ def plausibility_tables(p: Plausibility, al: _Along) -> list[str]:
         "force (BW) | net joint force / normative | comparable? |",
         "|---|---|---|---|---|---|",
     ]
-    for r in p.rods:
-        name = al.mech.names[r.link]
-        ratio = _ratio(r.joint_force, r.normative)
-        norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
+    for rod in p.rods:
+        name = al.mech.names[rod.link]
+        ratio = _ratio(rod.joint_force, rod.normative)
+        norm = f"{rod.normative.value:.2f} ({rod.normative.where})" if rod.normative else "—"
         if ratio is None:
             why = "no counterpart in Winter's tables"
         elif 1 / FACTOR <= ratio <= FACTOR:
             why = f"yes: within {FACTOR:g}× of Winter's"
         else:
-            why = _rod_reason(al, r.link, name, ratio)
+            why = _rod_reason(al, rod.link, name, ratio)
         lines.append(
-            f"| {r.rod} | {r.force:.2f} | {r.joint_force:.2f} | {norm} | "
+            f"| {rod.rod} | {rod.force:.2f} | {rod.joint_force:.2f} | {norm} | "
             f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |"
         )
     return lines
@@ -259,7 +267,7 @@ def markdown(scene, study: Study) -> str:
     scale = float(np.abs(tau_opt).max())
     rows = []
     for m in study.ok_methods():
-        diff = np.abs(study.results[m].tau[:K] - tau_opt)
+        diff = np.abs(study.tau(m)[:K] - tau_opt)
         bad = int(np.count_nonzero(~np.isfinite(diff)))
         d = float(diff[np.isfinite(diff)].max()) if bad < diff.size else float("nan")
         note = f" over the finite entries; **{bad} NaN/Inf entries** (see the notes above)" if bad else ""
@@ -271,7 +279,7 @@ def markdown(scene, study: Study) -> str:
         "| method | max abs. difference (N·m or N) | relative to the largest optimiser load |",
         "|---|---|---|",
     ] + rows
-    p = plausibility(study)
+    p = _loads(study)
     al = _Along(study, stored)
     lines += [
         "",
@@ -306,7 +314,7 @@ def markdown(scene, study: Study) -> str:
 
 def text(study: Study) -> str:
     """A compact version for the rerun recording's description."""
-    p = plausibility(study)
+    p = _loads(study)
     lines = [
         f"Peak net joint moments (N·m/kg of {p.body_mass:.4g} kg) and net joint forces (body weights) along the "
         f"predicted step, beside level walking ({SHORT_SOURCE}); the scene report gives the reason for every "
@@ -316,16 +324,16 @@ def text(study: Study) -> str:
     for r in p.joints:
         norm = f", walking {r.normative.value:.2f} ({r.sagittal / r.normative.value:.2f}×)" if r.normative else ""
         lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
-    for r in p.rods:
+    for rod in p.rods:
         norm = (
             (
-                f"; net joint force {r.joint_force:.2f} BW, walking {r.normative.value:.2f} "
-                f"({r.joint_force / r.normative.value:.2f}×)"
+                f"; net joint force {rod.joint_force:.2f} BW, walking {rod.normative.value:.2f} "
+                f"({rod.joint_force / rod.normative.value:.2f}×)"
             )
-            if r.normative
+            if rod.normative
             else ""
         )
-        lines.append(f"- {r.rod}: {r.force:.2f} BW along the rod{norm}")
+        lines.append(f"- {rod.rod}: {rod.force:.2f} BW along the rod{norm}")
     return "\n".join(lines)
 
 
