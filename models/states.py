@@ -16,7 +16,6 @@ import numpy as np
 
 if TYPE_CHECKING:
     from exo_bench.models.mechanism import Mechanism
-    from exo_bench.models.validation_pass import Entries
 
 from exo_bench.models import equation_form
 from exo_bench.models.state_conversion import converted
@@ -58,11 +57,10 @@ class StateCheck:
     (importing numba then, not with the mechanism), the compiled pass's entry points and its
     ``plan`` of this mechanism (:func:`exo_bench.models.validation_pass.plan`)."""
 
-    __slots__ = ("dof", "nlinks", "base", "lg_g", "limit", "entries", "plan", "by_ndim")
+    __slots__ = ("dof", "nlinks", "base", "lg_g", "limit", "plan", "by_ndim")
 
     def __init__(self, dof: int, nlinks: int, base: float, lg_g: float, limit: float) -> None:
         self.dof, self.nlinks, self.base, self.lg_g, self.limit = dof, nlinks, base, lg_g, limit
-        self.entries: Entries | None = None
         self.plan: np.ndarray | None = None
         #: ``status`` by the arrays' dimension count (index 1 and 2), once resolved
         self.by_ndim: tuple | None = None
@@ -71,14 +69,15 @@ class StateCheck:
     def of(cls, mech: Mechanism) -> StateCheck:
         return cls(mech.dof, mech.nlinks, *force_scale_base(mech), math.log10(MAX_FORCE_SCALE))
 
-    def resolve(self) -> Entries:
-        """The compiled pass's entry points and plan (models/validation_pass.py), kept from now on."""
+    def resolve(self) -> tuple:
+        """Resolve the compiled pass's entry points and plan (models/validation_pass.py), kept from now
+        on; returns :attr:`by_ndim`."""
         from exo_bench.models.validation_pass import entries, plan
 
         self.plan = plan(self.dof, self.nlinks, self.base, self.lg_g, self.limit)
-        e = self.entries = entries()
-        self.by_ndim = (None, e.status_1d, e.status_2d)
-        return e
+        e = entries()
+        self.by_ndim = by_ndim = (None, e.status_1d, e.status_2d)
+        return by_ndim
 
     def __reduce__(self):  # a pickled mechanism carries the numbers, never the compiled entries
         return (StateCheck, (self.dof, self.nlinks, self.base, self.lg_g, self.limit))
@@ -121,9 +120,7 @@ def checked_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, sou
             if type(qdd) is not _ND or qdd.dtype is not _F8 or qdd.ndim != nd:
                 return _at_the_edge(mech, chk, (q, qd, qdd), source)
             present, c = present | 2, qdd
-        if chk.by_ndim is None:
-            chk.resolve()
-        code = chk.by_ndim[nd](q, b, c, present, chk.plan)
+        code = (chk.by_ndim or chk.resolve())[nd](q, b, c, present, chk.plan)
         if not code:
             return q, qd, qdd
         if code != 1:  # 1: another layout, converted at the edge
@@ -180,7 +177,7 @@ def _refuse(mech: Mechanism, chk: StateCheck, code: int, arrays, source: str, on
     a non-finite entry (and return otherwise)."""
     from exo_bench.models.validation_pass import BOUND, NEGATIVE, NONFINITE, first_problem
 
-    two = [None if a is None else a.reshape(1, -1) if a.ndim == 1 else a for a in arrays]
+    two: list[Any] = [None if a is None else a.reshape(1, -1) if a.ndim == 1 else a for a in arrays]
     if code in (NONFINITE, NEGATIVE):
         problem, k, s, c = first_problem(chk, two)
         names = coordinate_names(mech)

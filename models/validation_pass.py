@@ -99,7 +99,7 @@ def _float_of(typingctx, bits):
 #: The options of :func:`status` and what it calls: :data:`JIT` without numba's reference-counted
 #: memory (``_nrt``): unboxing an array then allocates nothing, which halves the cost of a call
 #: (0.57 against 1.1 us for three arrays, measured on the loaded 2-core machine). Nothing in them allocates.
-_LEAN = {**JIT, "_nrt": False}
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
 
 
 @njit(**_LEAN)
@@ -310,8 +310,8 @@ def verdict(check, arrays, reference: bool = False) -> int:
     q, qd, qdd, present = _arguments(arrays)
     if not all(isinstance(a, np.ndarray) and a.dtype == _F8 and a.ndim == q.ndim in (1, 2) for a in (q, qd, qdd)):
         return CONVERT
-    e = check.entries or check.resolve()
-    fn = reference_status if reference else (e.status_1d if q.ndim == 1 else e.status_2d)
+    by_ndim = check.by_ndim or check.resolve()
+    fn = reference_status if reference else by_ndim[q.ndim]
     return fn(q, qd, qdd, present, check.plan)
 
 
@@ -321,5 +321,5 @@ def first_problem(check, arrays, reference: bool = False) -> tuple[int, int, int
     q, qd, qdd, present = _arguments(arrays)
     two = [a.reshape(1, -1) if a.ndim == 1 else a for a in (q, qd, qdd)]
     fn = reference_locate if reference else entries().locate
-    code, k, s, c = fn(*two, present, check.dof, check.nlinks)
+    code, k, s, c = fn(two[0], two[1], two[2], present, check.dof, check.nlinks)
     return int(code), int(k), int(s), int(c)

@@ -257,3 +257,18 @@ def test_the_numpy_reference_runs_under_numba_disable_jit():
     env = {"NUMBA_DISABLE_JIT": "1", "PATH": "/usr/bin:/bin"}
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     assert "field 'q' sample 7 coordinate l4" in r.stdout and "expected a rod length >= 0, got -2.0" in r.stdout, r
+
+
+def test_a_mechanism_pickles_after_a_checked_call():
+    """The check kept with a mechanism pickles as numbers: the copy checks alike, its compiled entries
+    resolved again on its first call."""
+    import pickle
+
+    mech = exo5(2)
+    q = np.full(mech.dof, 0.5)
+    as_states(mech, q, q, q)
+    copy = pickle.loads(pickle.dumps(mech))
+    assert copy == mech and state_check(copy).by_ndim is None
+    q[-1] = -1.0
+    with pytest.raises(ValueError, match="coordinate l5 .*: expected a rod length >= 0, got -1.0"):
+        as_states(copy, q, q, q)
