@@ -69,6 +69,17 @@ def _rod(t, dim, x, xd, xdd, s0, k, w, with_qdd):
     w[_KAPPA + 2] = s * a2
 
 
+@njit(inline="always", **JIT)  # in the passes' own code
+def _store(t, dim, o, s0, k, a0, a1, a2):
+    """Link ``k``'s coordinates ``a`` of its rod into ``o``, times the link's sign (3D: three of them)."""
+    n = t.shape[1]
+    s = t[_SIGN, k]
+    o[s0 + k] = s * a0
+    o[s0 + n + k] = s * a1
+    if dim == 3:
+        o[s0 + 2 * n + k] = s * a2
+
+
 @njit(**JIT)
 def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
     """Inverse dynamics of one sample at offset ``s0``: the forward pass (each rod's ``kappa`` and
@@ -103,16 +114,12 @@ def _inverse_sample(t, g, dim, x, xd, xdd, o, s0, W):
             wp[_D] += el.subtree_share(theta, eta, w[_A], w[_KAPPA], w[_D])
             wp[_D + 1] += el.subtree_share(theta, eta, w[_A + 1], w[_KAPPA + 1], w[_D + 1])
             wp[_D + 2] += el.subtree_share(theta, eta, w[_A + 2], w[_KAPPA + 2], w[_D + 2])
-        s = t[_SIGN, k]
-        if dim == 2:
-            m0, m1 = el.project_2d(w[0], w[1], x[s0 + n + k], f0, f1)
-            o[s0 + k] = s * m0
-            o[s0 + n + k] = s * m1
+        l, a2 = x[s0 + (dim - 1) * n + k], 0.0
+        if dim == 2:  # tau_k = s_k J_k^T F_k
+            a0, a1 = el.project_2d(w[0], w[1], l, f0, f1)
         else:
-            m0, m1, m2 = el.project_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], f0, f1, f2)
-            o[s0 + k] = s * m0
-            o[s0 + n + k] = s * m1
-            o[s0 + 2 * n + k] = s * m2
+            a0, a1, a2 = el.project_3d(w[0], w[1], w[2], w[3], l, f0, f1, f2)
+        _store(t, dim, o, s0, k, a0, a1, a2)
 
 
 @njit(**JIT)
@@ -165,16 +172,12 @@ def _forward_sample(t, g, dim, x, xd, tau, o, s0, W):
             v0 = w[_D] - w[_KAPPA]
             v1 = w[_D + 1] - w[_KAPPA + 1]
             v2 = w[_D + 2] - w[_KAPPA + 2]
-        s = t[_SIGN, k]
-        if dim == 2:
-            a0, a1 = el.rates_2d(w[0], w[1], x[s0 + n + k], v0, v1)
-            o[s0 + k] = s * a0
-            o[s0 + n + k] = s * a1
+        l, a2 = x[s0 + (dim - 1) * n + k], 0.0
+        if dim == 2:  # q_k'' = s_k J_k^-1 (r_k'' - J_k' q_k')
+            a0, a1 = el.rates_2d(w[0], w[1], l, v0, v1)
         else:
-            a0, a1, a2 = el.rates_3d(w[0], w[1], w[2], w[3], x[s0 + 2 * n + k], v0, v1, v2)
-            o[s0 + k] = s * a0
-            o[s0 + n + k] = s * a1
-            o[s0 + 2 * n + k] = s * a2
+            a0, a1, a2 = el.rates_3d(w[0], w[1], w[2], w[3], l, v0, v1, v2)
+        _store(t, dim, o, s0, k, a0, a1, a2)
 
 
 @njit(**JIT)
