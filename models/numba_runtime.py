@@ -114,10 +114,11 @@ def ensure() -> str:
     will use (or uses). Idempotent: the patches are installed once, the layer chosen once."""
     check_environment()
     import numba
-    from numba.core import caching
+    from numba.core import caching as numba_caching
 
     from exo_bench.models.numba_cache import KernelSourceLocator, index_key_by_code
 
+    caching: Any = numba_caching  # its internals, which numba's type hints do not describe
     impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl  # (numba < 0.68)
     if KernelSourceLocator not in impl._locator_classes:
         impl._locator_classes.insert(0, KernelSourceLocator)
