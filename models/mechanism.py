@@ -116,6 +116,14 @@ class Mechanism:
     def __hash__(self) -> int:  # cached: models, URDFs and derivations are looked up by mechanism
         return self._hash
 
+    def __reduce__(self) -> tuple[type[Mechanism], tuple]:
+        """Pickled as its fields alone and rebuilt (so validated) where it is unpickled: the caches
+        stay behind, the hash above among them, whose string hashes differ between processes."""
+        return (
+            type(self),
+            (self.dim, self.g, self.parent, self.sign, self.masses, self.n, self.names, self.name),
+        )
+
     # ----------------------------------------------------------------- sizes
     @property
     def nlinks(self) -> int:
