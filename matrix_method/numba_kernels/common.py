@@ -51,6 +51,7 @@ model called from several threads at once runs the serial driver in the others (
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 from collections import namedtuple
 
@@ -70,7 +71,8 @@ from exo_bench.models.numba_runtime import (  # noqa: F401 - shared with models.
 
 ensure()  # numba's runtime set-up (models/numba_runtime.py), before any kernel of this folder is defined
 
-inline(f for fns in (*planar.PAIRS.values(), *spatial.PAIRS.values()) for f in fns.values())
+inline(f for fns in planar.PAIRS.values() for f in fns.values())
+inline(f for fns in spatial.PAIRS.values() for f in fns.values())
 inline((*planar.GRAVITY.values(), *spatial.GRAVITY.values()))
 inline((factored.kappa_2d, factored.forces_2d, factored.kappa_3d, factored.forces_3d))
 
@@ -126,7 +128,9 @@ set_spatial_gravity = _gravity_writer("set_spatial_gravity", "=", "spatial", spa
 #: (named as :func:`exo_bench.matrix_method.closed_forms.transitions.transition_inputs` names them), their ``*_par`` quotients, the lengths
 #: and the cos/sin of ``psi_i``, ``psi_j``.
 PLANAR_FIELDS = tuple(f.__name__ for fns in planar.PAIRS.values() for f in fns.values())
-Transition = namedtuple("Transition", (*PLANAR_FIELDS, *spatial.QUOTIENTS, "li", "lj", "ci", "si", "cj", "sj"))
+#: (Its fields come from the tables: a type checker cannot list them, so it sees ``namedtuple`` as a plain callable.)
+_namedtuple: Callable[..., Any] = namedtuple
+Transition = _namedtuple("Transition", (*PLANAR_FIELDS, *spatial.QUOTIENTS, "li", "lj", "ci", "si", "cj", "sj"))
 
 
 def _rate_table(dim: int) -> np.ndarray:
@@ -207,6 +211,8 @@ def drivers(
     from numba import prange
 
     mod = sys.modules[module]
+    if mod.__file__ is None:
+        raise ValueError(f"{module} has no source file: numba could not key its drivers' cache on it")
     args = "".join(f"{a}, " for a in extra)
     out = {}
     for dim, fn in samples.items():
