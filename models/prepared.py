@@ -243,8 +243,9 @@ class PreparedModel:
             else:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         else:
-            require_rates(self.method, qd, qdd)
-            single = is_one_sample(q)
+            if qd is None or qdd is None:
+                require_rates(self.method, qd, qdd)
+            single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
             q, qd, qdd = checked_states(self._mechanism, q, qd, qdd)  # one C-ordered float64 sample stays 1-D
             if out is not None:
                 check_out(out, q.shape[-1:] if single else q.shape, self.method)
