@@ -168,3 +168,14 @@ def test_every_kernel_states_what_it_computes_for_which_shapes_its_cost_and_thre
         s = METHODS[name]
         assert s.kernel_options == ("numba", "numpy"), s.kernel_options  # the user-facing option, default first
         assert len(s.kernels) > 2, f"{name}: its numba option runs several kernels, each an object"
+
+
+@pytest.mark.parametrize("method", [m for m, s in METHODS.items() if s.kernels])
+def test_the_table_and_the_class_list_the_same_kernels(method):
+    """One list per method: its MethodSpec's kernels are its prepared-model class's, and the option
+    ``kernel`` takes exactly their options."""
+    spec = METHODS[method]
+    cls = spec.load()
+    assert cls.kernels is spec.kernels
+    with pytest.raises(ValueError, match=r"option 'kernel': expected one of 'numba', 'numpy', got 'jax'"):
+        prepare(exo5(2), method, kernel="jax")
