@@ -81,6 +81,19 @@ def _counting_math():
     return types.SimpleNamespace(cos=trig(math.cos), sin=trig(math.sin))
 
 
+def rebind(fn, **names):
+    """``fn``'s Python function with some of its globals or closure variables replaced (the kernel's
+    functions are closures of :func:`exo_bench.models.newton_euler.simd.build`)."""
+    cells = (
+        None
+        if fn.__closure__ is None
+        else tuple(
+            types.CellType(names[v]) if v in names else c for v, c in zip(fn.__code__.co_freevars, fn.__closure__)
+        )
+    )
+    return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__, fn.__defaults__, cells)
+
+
 def count_factored(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Additions (and subtractions), multiplications and transcendental calls (cos, sin) of one
     sample ``(dof,)`` of method ``matrix-factored``'s compiled kernel on ``mech``, counted by running

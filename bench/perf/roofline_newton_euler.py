@@ -19,24 +19,11 @@ import types
 
 import numpy as np
 
-from exo_bench.bench.perf.roofline import Counted
+from exo_bench.bench.perf.roofline import Counted, rebind
 from exo_bench.bench.perf.roofline_simd import _floor, _fma, estimate_simd
 from exo_bench.models.mechanism import Mechanism
 
 __all__ = ["count_newton_euler_simd", "estimate_simd"]
-
-
-def _rebind(fn, **names):
-    """``fn``'s Python function with some of its globals or closure variables replaced (the kernel's
-    functions are closures of :func:`exo_bench.models.newton_euler.simd.build`)."""
-    cells = (
-        None
-        if fn.__closure__ is None
-        else tuple(
-            types.CellType(names[v]) if v in names else c for v, c in zip(fn.__code__.co_freevars, fn.__closure__)
-        )
-    )
-    return types.FunctionType(fn.__code__, {**fn.__globals__, **names}, fn.__name__, fn.__defaults__, cells)
 
 
 def _no_prefetch(*args) -> None:
@@ -51,11 +38,11 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     from exo_bench.models.newton_euler.tree import prepare_tree
     from exo_bench.models.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
 
-    trig = _rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
-    start = _rebind(simd._start_points.py_func)
-    forward = _rebind(
+    trig = rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
+    start = rebind(simd._start_points.py_func)
+    forward = rebind(
         (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
-        link_pass=_rebind(simd_angles.link_pass, sincos_reduced=trig),
+        link_pass=rebind(simd_angles.link_pass, sincos_reduced=trig),
         _start_points=start,
         prefetch_share=_no_prefetch,
     )

@@ -20,7 +20,7 @@ import types
 
 import numpy as np
 
-from exo_bench.bench.perf.roofline import Counted
+from exo_bench.bench.perf.roofline import Counted, rebind
 from exo_bench.models.mechanism import Mechanism
 
 
@@ -45,14 +45,11 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 
     trig = fast_trig.sincos_reduced
-    counted_trig = types.FunctionType(
-        trig.__code__, {**trig.__globals__, "math": types.SimpleNamespace(floor=_floor), "fma": _fma}, trig.__name__
-    )
-    from exo_bench.bench.perf.roofline_newton_euler import _rebind
+    counted_trig = rebind(trig, math=types.SimpleNamespace(floor=_floor), fma=_fma)
     from exo_bench.models import simd_angles
 
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
-    counted_compute = _rebind(compute, link_pass=_rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
+    counted_compute = rebind(compute, link_pass=rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
     p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))
