@@ -89,7 +89,7 @@ def _npz(d: Path, **arrays) -> Path:
 
 
 def _raise(exc: BaseException):
-    def method(self, q, qd, qdd):
+    def method(self, q, qd, qdd, **options):
         raise exc
 
     return method
@@ -131,7 +131,8 @@ def _method_raises(exc):
     def patch(mp):
         from exo_bench.matrix_method.prepared import MatrixFactored
 
-        mp.setattr(MatrixFactored, "_inverse_dynamics", _raise(exc))
+        # the public call itself: whichever kernel route a call takes (lean, whole batch, chunks) raises
+        mp.setattr(MatrixFactored, "inverse_dynamics", _raise(exc))
 
     return patch
 
