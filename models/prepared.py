@@ -58,7 +58,7 @@ from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dy
 from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
-from exo_bench.models.unchecked import check_out, require_rates, unchecked_forward, unchecked_states
+from exo_bench.models.unchecked import apart, check_out, require_rates, unchecked_forward, unchecked_states
 from exo_bench.models.states import checked_states, is_one_sample
 
 #: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
@@ -249,7 +249,11 @@ class PreparedModel:
             q, qd, qdd = checked_states(self._mechanism, q, qd, qdd)  # one C-ordered float64 sample stays 1-D
             if out is not None:
                 check_out(out, q.shape[-1:] if single else q.shape, self.method)
-            if not single:
+            if not single and self._inverse_whole is not None:  # the route of check=False: same numbers
+                into = None if out is None or not apart(out, (q, qd, qdd)) else out  # overlap: a copy below
+                if (tau := self._inverse_whole(q, qd, qdd, into)) is out:
+                    return out
+            elif not single:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
             elif self._inverse_one is not None:  # the kernel of check=False: check never changes the result
                 if q.ndim == 2:

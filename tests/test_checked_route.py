@@ -1,0 +1,71 @@
+"""A checked batch runs the route of ``check=False`` (issue 35): after the validation pass, the same
+kernel entry on the whole batch, so ``check`` never changes the route nor the numbers (and costs
+only the pass: the goal "checked batch <= 1.25x unchecked" is a benchmark row, not asserted here).
+Counted, not timed: the entries are wrapped and their calls counted."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from exo_bench.api import prepare
+from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.presets import exo5
+
+MECH = exo5(3)
+#: The methods whose kernels supply a whole-batch entry (inverse_whole) by default.
+WHOLE = ("matrix-factored", "newton-euler")
+
+
+def _states(samples: int, seed: int):
+    mo = smooth_random_motion(MECH, np.linspace(0.0, 2.0, samples), seed=seed)
+    return mo.q, mo.qd, mo.qdd
+
+
+def _counting(model):
+    calls = {"whole": 0, "chunk": 0}
+    whole, chunk = model._inverse_whole, model._inverse_chunk
+
+    def counted_whole(*a):
+        calls["whole"] += 1
+        return whole(*a)
+
+    def counted_chunk(*a):
+        calls["chunk"] += 1
+        return chunk(*a)
+
+    model._inverse_whole, model._inverse_chunk = counted_whole, counted_chunk
+    return calls
+
+
+@pytest.mark.parametrize("method", WHOLE)
+@pytest.mark.parametrize("with_out", [False, True])
+def test_a_checked_batch_runs_the_unchecked_route(method, with_out):
+    """A batch longer than a chunk: check=True calls the whole-batch entry once (as check=False
+    does), never the chunked one, and the results are bit-identical, with and without ``out``."""
+    model = prepare(MECH, method)
+    assert model._inverse_whole is not None
+    model.chunk_samples = 7
+    q, qd, qdd = _states(50, 3)
+    calls = _counting(model)
+    outs = [np.empty_like(q), np.empty_like(q)] if with_out else [None, None]
+    checked = model.inverse_dynamics(q, qd, qdd, out=outs[0])
+    assert calls == {"whole": 1, "chunk": 0}
+    unchecked = model.inverse_dynamics(q, qd, qdd, check=False, out=outs[1])
+    assert calls == {"whole": 2, "chunk": 0}
+    assert checked.view(np.int64).tolist() == unchecked.view(np.int64).tolist()
+    if with_out:
+        assert checked is outs[0] and unchecked is outs[1]
+
+
+@pytest.mark.parametrize("method", WHOLE)
+def test_a_checked_out_that_overlaps_an_input_still_gets_the_result(method):
+    """check=True converts and copies as needed: an ``out`` that is an input (in place) gets the
+    forces of the states as they were, the numbers of check=False on separate arrays."""
+    model = prepare(MECH, method)
+    q, qd, qdd = _states(20, 4)
+    want = model.inverse_dynamics(q, qd, qdd, check=False)
+    qdd = qdd.copy()
+    got = model.inverse_dynamics(q, qd, qdd, out=qdd)
+    assert got is qdd
+    assert got.view(np.int64).tolist() == want.view(np.int64).tolist()
