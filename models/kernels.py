@@ -36,6 +36,9 @@ class Entries:
     * ``lean(q, qd, qdd, False, out) -> out``: one sample with ``check=False`` and an ``out``, checking
       only what memory safety needs; None (having touched nothing) where it does not take the call.
     * ``inverse_one(q, qd, qdd, out)``, ``forward_one(q, qd, tau, out)``: one sample, 1-D arrays.
+    * ``forward_checked(q, qd, tau) -> qdd``: one validated sample with ``check=True``: the model's
+      ``check_regular`` and ``check_finite`` refusals, the common case decided in compiled code
+      (models/newton_euler/forward_check.py).
     * ``inverse_whole(q, qd, qdd, out_or_None)``, ``forward_whole``: any batch, unchunked (O(n) scratch).
     * ``inverse_chunk(q, qd, qdd)``, ``forward_chunk``: a batch of at most ``chunk_samples`` samples.
     """
@@ -43,6 +46,7 @@ class Entries:
     lean: Callable[..., Any] | None = None
     inverse_one: Callable[..., Any] | None = None
     forward_one: Callable[..., Any] | None = None
+    forward_checked: Callable[..., Any] | None = None
     inverse_whole: Callable[..., Any] | None = None
     forward_whole: Callable[..., Any] | None = None
     inverse_chunk: Callable[..., Any] | None = None

@@ -115,10 +115,13 @@ class PreparedModel:
     _lean: Callable[..., Any] | None = None
     _inverse_one: Callable[..., Any] | None = None
     _forward_one: Callable[..., Any] | None = None
+    _forward_checked: Callable[..., Any] | None = None
     _inverse_whole: Callable[..., Any] | None = None
     _forward_whole: Callable[..., Any] | None = None
     _inverse_chunk: Callable[..., Any] | None = None
     _forward_chunk: Callable[..., Any] | None = None
+    # forward dynamics' compiled checks (models/newton_euler/forward_check.py), resolved on first use
+    _forward_checks: tuple[Callable[..., bool], Callable[..., bool]] | None = None
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):
@@ -211,6 +214,7 @@ class PreparedModel:
         chosen = select(self.method, self.kernels, option)
         entries = load_kernels(self, chosen)
         self._lean, self._inverse_one, self._forward_one = entries.lean, entries.inverse_one, entries.forward_one
+        self._forward_checked = entries.forward_checked
         self._inverse_whole, self._forward_whole = entries.inverse_whole, entries.forward_whole
         self._inverse_chunk, self._forward_chunk = entries.inverse_chunk, entries.forward_chunk
         self.kernel = self._options["kernel"] = chosen[0].option
@@ -323,18 +327,28 @@ class PreparedModel:
         and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
         validated and a singular configuration raises
         :class:`~exo_bench.models.singularity.SingularConfigurationError` (a ValueError) naming the sample, the
-        link and the reason (zero length, vertical rod, zero mass), never NaN. Every method solves
-        ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h``; ``newton-euler`` overrides it
-        with its O(n) passes."""
-        single = is_one_sample(q)
+        link and the reason (zero length, vertical rod, zero mass), never NaN. A method solves
+        ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h`` unless a kernel supplies forward
+        dynamics (newton-euler's O(n) passes; one sample of matrix-factored: ``tree-forward``, checked
+        in the same compiled call, models/newton_euler/forward_check.py)."""
+        single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
-            require_rates(self.method, qd, tau)
+            if qd is None or tau is None:
+                require_rates(self.method, qd, tau)
             try:
-                q, qd, tau = as_states(self._mechanism, q, qd, tau, source="forward dynamics")
+                q, qd, tau = checked_states(self._mechanism, q, qd, tau, source="forward dynamics")
             except ValueError as e:  # the third array of as_states is called qdd: here it is tau
                 raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
             if out is not None:
-                check_out(out, q.shape[1:] if single else q.shape, self.method)
+                check_out(out, q.shape[-1:] if single else q.shape, self.method)
+            if single and self._forward_checked is not None:  # checks and passes in one compiled call
+                qdd = self._forward_checked(q, qd, tau) if q.ndim == 1 else self._forward_checked(q[0], qd[0], tau[0])
+                if out is None:
+                    return qdd
+                out[...] = qdd
+                return out
+            if q.ndim == 1:
+                q, qd, tau = q[None], qd[None], tau[None]
             self.check_regular(q)
         else:
             unchecked_forward(self.method, self._dof, q, qd, tau, out)
@@ -345,8 +359,8 @@ class PreparedModel:
             if single:
                 q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
-        if check:  # never NaN or inf (forces too large for float64): named
-            check_finite(self._mechanism, qdd)
+        if check and not (self._forward_checks or self._resolve_forward_checks())[1](qdd):
+            check_finite(self._mechanism, qdd)  # never NaN or inf (forces too large for float64): named
         qdd = qdd[0] if single else qdd
         if out is None:
             return qdd
@@ -358,10 +372,21 @@ class PreparedModel:
         (:func:`exo_bench.models.singularity.singular_reasons`), then where it is singular to working
         precision: the conditioning test that every method shares, O(n) per sample
         (:func:`exo_bench.models.conditioning.check_conditioning`)."""
+        if (self._forward_checks or self._resolve_forward_checks())[0](q):  # compiled: the common case
+            return
+        q = q if q.ndim == 2 else q.reshape(1, -1)
         reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
         if reasons:
             raise SingularConfigurationError(reasons)
         check_conditioning(self._mechanism, q, self.coupling_condition)
+
+    def _resolve_forward_checks(self) -> tuple[Callable[..., bool], Callable[..., bool]]:
+        """``(clear, finite)`` (models/newton_euler/forward_check.py :func:`checks`) and their plan, kept."""
+        from exo_bench.models.newton_euler.forward_check import checks, plan_of
+
+        self.forward_plan = plan_of(self._mechanism, self.coupling_condition)
+        self._forward_checks = checks(self._mechanism.nlinks, self.forward_plan)
+        return self._forward_checks
 
     @property
     def coupling_condition(self) -> CouplingCondition:

@@ -65,6 +65,22 @@ def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
     """
     q, _, _ = as_states(mech, q)
     _, psi, l = split(mech, q)
+    always = mechanism_reasons(mech)
+    out = []
+    for s in range(q.shape[0]):
+        r = list(always)
+        for i in range(mech.nlinks):
+            if l[s, i] == 0:
+                r.append(zero_length_reason(mech, i))
+            elif psi is not None and abs(np.cos(psi[s, i])) <= COS_VERTICAL:
+                r.append(vertical_reason(mech, i, psi[s, i]))
+        out.append(r)
+    return out
+
+
+def mechanism_reasons(mech: Mechanism) -> list[str]:
+    """Why the mass matrix is singular at every configuration (empty: it is not): a link that moves no
+    mass, or a combination of rod motions without inertia (``mu`` singular to working precision)."""
     always: list[str] = []
     mu = coupling(mech)
     for i in range(mech.nlinks):
@@ -77,13 +93,4 @@ def singular_reasons(mech: Mechanism, q: np.ndarray) -> list[list[str]]:
                 "the mass distribution leaves a combination of rod motions without inertia "
                 f"(smallest eigenvalue of mu {ev[0]:.3g} kg, largest {ev[-1]:.3g} kg)"
             )
-    out = []
-    for s in range(q.shape[0]):
-        r = list(always)
-        for i in range(mech.nlinks):
-            if l[s, i] == 0:
-                r.append(zero_length_reason(mech, i))
-            elif psi is not None and abs(np.cos(psi[s, i])) <= COS_VERTICAL:
-                r.append(vertical_reason(mech, i, psi[s, i]))
-        out.append(r)
-    return out
+    return always

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.lean_call import lean_kernel
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 
@@ -55,12 +56,52 @@ def _per_sample(model: Any) -> Entries:
     return Entries(inverse_one=inverse_one, forward_one=forward_one, forward_whole=batch, forward_chunk=batch)
 
 
+def _tree_forward(model: Any) -> Entries:
+    """Forward dynamics of one sample by the O(n) passes of the tree factor of ``M_r``
+    (:func:`~exo_bench.models.newton_euler.compiled.newton_euler` with ``forward``), for a model of any
+    method: its tree is prepared here from ``model.mechanism``. A singular ``M_r`` is refused by the
+    model's ``check_regular`` before the passes run (with ``check=False`` nothing is checked)."""
+    from exo_bench.models.newton_euler import compiled
+    from exo_bench.models.conditioning import check_finite
+    from exo_bench.models.newton_euler.forward_check import DONE, EXACT, NOT_FINITE, entries
+    from exo_bench.models.newton_euler.tree import prepare_tree
+
+    mech, v = model.mechanism, np.empty(model.dof)
+    args = (prepare_tree(mech).table(), float(mech.g), int(mech.dim), True)
+    kernel = entry_point(compiled.newton_euler, *args, v, v, v, v)
+
+    def forward_one(q, qd, tau, out):
+        kernel(*args, q, qd, tau, out)
+        return out
+
+    fused, table, dof = entries().checked_forward, args[0], model.dof
+
+    def forward_checked(q, qd, tau):
+        checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model
+        qdd = np.empty(dof)
+        if (code := fused(table, model.forward_plan, q, qd, tau, qdd)) == EXACT:  # near a bound
+            model.check_regular(q)  # the exact checks decide, naming why
+            code = DONE if checks[1](forward_one(q, qd, tau, qdd)) else NOT_FINITE
+        if code == NOT_FINITE:
+            check_finite(model.mechanism, qdd)
+        return qdd
+
+    return Entries(forward_one=forward_one, forward_checked=forward_checked)
+
+
 def _simd(model: Any) -> Entries:
     """Batches of inverse dynamics: SIMD from :data:`~exo_bench.models.newton_euler.simd.MIN_SAMPLES` on."""
     from exo_bench.models.newton_euler.simd import MIN_SAMPLES
 
     batch = _passes(model, False, MIN_SAMPLES)
     return Entries(inverse_whole=batch, inverse_chunk=batch)
+
+
+def _lean(model: Any) -> Entries:
+    """One sample with ``check=False`` in C (:mod:`exo_bench.models.newton_euler.lean`)."""
+    from exo_bench.models.newton_euler import lean
+
+    return lean.entries(model)
 
 
 def _numpy(model: Any) -> Entries:
@@ -96,6 +137,13 @@ NEWTON_EULER_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_simd,
     ),
+    lean_kernel(
+        "below NEWTON_EULER's call_seconds: one sample's passes and a few checks in C (the per-sample "
+        "inverse pass of compiled.py as a cfunc, models/newton_euler/lean.py)",
+        15.0,
+        _lean,
+        speed=0.12,
+    ),
     Kernel(
         "numpy",
         "numpy",
@@ -105,4 +153,20 @@ NEWTON_EULER_KERNELS = (
         "NEWTON_EULER's sample_seconds, in chunks of chunk_samples",
         load=_numpy,
     ),
+)
+
+#: Forward dynamics of one sample by newton-euler's O(n) passes, as a kernel of another method (the
+#: default, ``matrix-factored``, whose own forward dynamics is a Cholesky solve of the ``M`` and ``h`` its
+#: inverse dynamics gives: ``dof + 2`` kernel calls and numpy's solve, 30-40x a bare ``pin.rnea`` call).
+#: Its answers agree with the solve within the error model (tests/test_forward_conditioning.py).
+TREE_FORWARD = Kernel(
+    "tree-forward",
+    "numba",
+    ("forward_dynamics",),
+    (ONE_SAMPLE,),
+    "one thread: the calling one",
+    "one sample only, O(n): below the method's call_seconds (its cost formulas time batches)",
+    compile_seconds=10.0,  # the serial driver for one dimension: 9.2 s measured on the busy machine
+    runtime_bytes=NUMBA_BYTES,
+    load=_tree_forward,
 )

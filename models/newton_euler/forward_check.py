@@ -1,0 +1,174 @@
+"""The per-sample part of forward dynamics' checks as compiled passes, deciding only the common case;
+and forward dynamics of one sample checked in one compiled call.
+
+:meth:`exo_bench.models.prepared.PreparedModel.check_regular` refuses a state where ``M`` is exactly
+singular (:mod:`exo_bench.models.singularity`: a rod of length zero, a vertical rod) or singular to
+working precision (:mod:`exo_bench.models.conditioning`: ``kappa`` beyond ``CONDITION_LIMIT``, a rod
+whose ``l_i |cos psi_i|`` is below ``PIVOT_MIN``). Both are O(n) per sample; in numpy they cost
+microseconds a call and, for a batch, a Python loop over the samples. The ``clear`` of :func:`checks`
+answers one question in one compiled pass over ``q``: is every sample clear of all of them by a
+relative :data:`MARGIN`? Only then does the caller return at once. Otherwise the exact numpy checks run
+as before and decide (and name the sample, the link and the reason): the verdicts and the messages are
+theirs. The margin covers the few ulps by which numba's ``cos`` and the products here may differ from
+numpy's; a state within it of a bound pays the exact check, never a different verdict. Its ``finite``
+is the check of an answer (:func:`exo_bench.models.conditioning.check_finite` names the sample and the
+coordinate once it says no).
+
+:func:`checked_forward` is the one-sample call of the ``tree-forward`` kernel
+(:mod:`exo_bench.models.newton_euler.kernels`): ``clear``, newton-euler's forward passes
+(:mod:`exo_bench.models.newton_euler.compiled`) and ``finite`` in one call, answering :data:`DONE`,
+:data:`EXACT` (nothing computed: the exact checks decide) or :data:`NOT_FINITE`.
+
+The mechanism's own part (``mu`` singular, or its condition beyond the bound: every configuration is
+refused) is decided once per model by the caller, which passes ``cond(mu_s)`` (``inf`` where it
+refuses) in the ``plan`` (:func:`plan`), with the bounds: nothing of another module is frozen into the
+machine code, which numba caches keyed on this folder's sources (models/numba_cache.py).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from exo_bench.models.numba_runtime import JIT, ensure, jit_disabled
+
+ensure()  # numba's runtime set-up (models/numba_runtime.py), before the first kernel is defined
+
+from numba import njit, types  # noqa: E402
+
+from exo_bench.models.newton_euler.compiled import WIDTH, _forward_sample  # noqa: E402
+
+#: Relative distance from every bound within which the exact numpy checks decide.
+MARGIN = 1e-6
+#: The answers of :func:`checked_forward`.
+DONE, EXACT, NOT_FINITE = 0, 1, 2
+#: The entries of a plan: ``g``, ``dim``, ``cond(mu_s)`` (inf: refused), and the bounds moved by
+#: :data:`MARGIN` towards refusing: ``CONDITION_LIMIT``, ``PIVOT_MIN``, ``COS_VERTICAL``.
+_G, _DIM, _KAPPA, _LIMIT, _PIVOT, _VERTICAL = range(6)
+
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
+
+
+def plan(g: float, dim: int, kappa: float) -> np.ndarray:
+    """The plan of one mechanism (module docstring); ``kappa``: ``cond(mu_s)``, inf where the mechanism
+    itself is refused."""
+    from exo_bench.models.conditioning import CONDITION_LIMIT, PIVOT_MIN
+    from exo_bench.models.singularity import COS_VERTICAL
+
+    bounds = (CONDITION_LIMIT * (1.0 - MARGIN), PIVOT_MIN * (1.0 + MARGIN), COS_VERTICAL * (1.0 + MARGIN))
+    return np.array([g, dim, kappa, *bounds], dtype=np.float64)
+
+
+def plan_of(mech: Any, coupling: Any) -> np.ndarray:
+    """:func:`plan` of a mechanism whose ``cond(mu_s)`` is ``coupling``
+    (:class:`~exo_bench.models.conditioning.CouplingCondition`): its own part decided here, once per model
+    (:func:`~exo_bench.models.singularity.mechanism_reasons`, :func:`~exo_bench.models.conditioning.coupling_reason`)."""
+    from exo_bench.models.conditioning import coupling_reason
+    from exo_bench.models.singularity import mechanism_reasons
+
+    mine = not mechanism_reasons(mech) and coupling_reason(mech, coupling) is None
+    return plan(mech.g, mech.dim, coupling.kappa if mine else math.inf)
+
+
+@njit(**_LEAN)
+def _row_clear(q, start, dof, n, p):
+    """Sample at ``q[start : start + dof]`` (flat): every bound cleared by :data:`MARGIN`."""
+    top = 1.0
+    for j in range(start, start + dof - n):
+        top = max(top, abs(q[j]))
+    low_cos, low_pivot = 1.0, math.inf
+    for i in range(n):
+        c = abs(math.cos(q[start + n + i])) if p[_DIM] == 3.0 else 1.0
+        low_cos = min(low_cos, c)
+        low_pivot = min(low_pivot, q[start + dof - n + i] * c)
+    return low_cos > p[_VERTICAL] and low_pivot >= p[_PIVOT] and p[_KAPPA] * top <= p[_LIMIT] * (low_cos * low_cos)
+
+
+@njit(**_LEAN)
+def _finite(a):
+    """Every entry of ``a`` is finite (``x - x`` is NaN exactly for NaN and inf)."""
+    acc = 0.0
+    for j in range(a.shape[0]):
+        acc += a[j] - a[j]
+    return acc == 0.0
+
+
+@njit(**_LEAN)
+def clear_1d(q, n, p):
+    """One validated sample ``(dof,)``: :func:`_row_clear`."""
+    return _row_clear(q, 0, q.shape[0], n, p)
+
+
+@njit(**_LEAN)
+def clear_2d(q, n, p):
+    """A validated C-ordered batch ``(samples, dof)``: every sample :func:`_row_clear`."""
+    dof = q.shape[1]
+    flat = q.reshape(q.size)
+    for s in range(q.shape[0]):
+        if not _row_clear(flat, s * dof, dof, n, p):
+            return False
+    return True
+
+
+@njit(**_LEAN)
+def finite_1d(a):
+    """Every entry of the flat ``a`` is finite."""
+    return _finite(a)
+
+
+@njit(**JIT)
+def checked_forward(t, p, x, xd, tau, o):
+    """One validated sample: :data:`EXACT` unless ``x`` clears the bounds, else forward dynamics into
+    ``o`` and :data:`DONE`, or :data:`NOT_FINITE` where an entry of ``o`` is not finite."""
+    n = t.shape[1]
+    if not _row_clear(x, 0, x.shape[0], n, p):
+        return EXACT
+    _forward_sample(t, p[_G], int(p[_DIM]), x, xd, tau, o, 0, np.zeros((n, WIDTH)))
+    return DONE if _finite(o) else NOT_FINITE
+
+
+class Entries(NamedTuple):
+    """The compiled entry points (or the same functions run by Python under ``NUMBA_DISABLE_JIT``)."""
+
+    clear_1d: Any
+    clear_2d: Any
+    finite_1d: Any
+    checked_forward: Any
+
+
+@functools.cache
+def entries() -> Entries:
+    """Resolved (compiled, or loaded from numba's on-disk cache) on the first call in a process."""
+    if jit_disabled():
+        return Entries(clear_1d, clear_2d, finite_1d, checked_forward)
+    one, two, n = types.Array(types.float64, 1, "C"), types.Array(types.float64, 2, "C"), types.int64
+    return Entries(
+        clear_1d.compile((one, n, one)),
+        clear_2d.compile((two, n, one)),
+        finite_1d.compile((one,)),
+        checked_forward.compile((two, one, one, one, one, one)),
+    )
+
+
+def checks(n: int, p: np.ndarray) -> tuple[Any, Any]:
+    """``(clear, finite)`` of one mechanism's plan ``p``: ``clear(q)``, every sample of validated ``q``
+    (``(dof,)`` or ``(samples, dof)``) clears the bounds by :data:`MARGIN` (False: the exact checks
+    decide); ``finite(a)``, every entry of the answer ``a`` is finite (False:
+    :func:`~exo_bench.models.conditioning.check_finite` decides). Arrays that are not C-ordered float64
+    are left to the exact checks."""
+    e = entries()
+    by_ndim = (None, e.clear_1d, e.clear_2d)
+    f8, fin = np.dtype(np.float64), e.finite_1d
+
+    def clear(q: np.ndarray) -> bool:
+        if q.dtype is not f8 or not q.flags.c_contiguous or not 0 < q.ndim < 3:
+            return False
+        return bool(by_ndim[q.ndim](q, n, p))
+
+    def finite(a: np.ndarray) -> bool:
+        return a.dtype is f8 and a.flags.c_contiguous and bool(fin(a.reshape(-1)))
+
+    return clear, finite
