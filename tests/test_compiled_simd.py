@@ -167,22 +167,22 @@ def test_lean_path_refuses_what_is_not_memory_safe():
 
 def _c_wrapper_built() -> bool:
     try:
-        from exo_bench.matrix_method.numba_kernels import _lean_call  # noqa: F401
+        from exo_bench.models import _lean_call  # noqa: F401
     except ImportError:
         return False
     return True
 
 
 def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_agrees():
-    """Where setup.py built matrix_method/_lean_call.c, the lean kernel object holds the compiled
+    """Where setup.py built models/_lean_call.c, the lean kernel object holds the compiled
     wrapper (model.inverse_dynamics stays the class's method: nothing is rebound, issue 35); it computes
     one sample itself and declines every other form, which the method then runs; each form gives the
     same forces, and misuse the same errors."""
     if not _c_wrapper_built():
         pytest.skip(
-            "matrix_method/_lean_call.c was not built here (no C compiler at install): the Python lean path runs"
+            "models/_lean_call.c was not built here (no C compiler at install): the Python lean path runs"
         )
-    from exo_bench.matrix_method.numba_kernels import _lean_call
+    from exo_bench.models import _lean_call
 
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")

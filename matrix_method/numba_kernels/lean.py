@@ -6,7 +6,7 @@ A call of a numba kernel through its dispatcher types every argument and looks t
 sample on 1-D arrays, bound once per prepared model and held by the kernel's entries (nothing is
 rebound on the model):
 
-* **compiled** (:func:`c_call`, where setup.py built matrix_method/_lean_call.c): a small C callable
+* **compiled** (:func:`c_call`, where setup.py built models/_lean_call.c): a small C callable
   that checks what memory safety needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out``
   writable and apart from the inputs) and calls the kernel's numba ``cfunc``
   (matrix_method/numba_kernels/lean_c.py) with the raw pointers; every other form of the call goes to
@@ -74,35 +74,20 @@ def entry(dim: int, params: np.ndarray):
 
 
 def c_call(dim: int, params: np.ndarray, fallback, dof: int):
-    """The compiled wrapper (matrix_method/_lean_call.c) around the kernel's cfunc: a callable with
-    the arguments ``(q, qd, qdd, check, out)`` that runs one sample with ``check=False`` and ``out`` in
-    C and passes every other call to ``fallback`` unchanged; None where the
-    extension was not built (no C compiler at install) or reads numpy's arrays differently from
-    what numpy reports (checked here on probe arrays, before any use)."""
+    """The compiled wrapper (models/_lean_call.c, :func:`exo_bench.models.lean_call.c_call`) around the
+    kernel's cfunc (:mod:`exo_bench.matrix_method.numba_kernels.lean_c`): a callable with the arguments
+    ``(q, qd, qdd, check, out)`` that runs one sample with ``check=False`` and ``out`` in C and passes
+    every other call to ``fallback`` unchanged; None where the extension was not built or ``params`` is
+    not the ``(n, n + 2)`` table of the kernel."""
+    from exo_bench.models.lean_call import c_call as wrap
+
+    n = params.shape[0] if params.ndim == 2 else -1
+    if params.shape != (n, n + 2):
+        return None
     try:
-        from exo_bench.matrix_method.numba_kernels import _lean_call  # type: ignore[attr-defined]  # C, setup.py
-    except ImportError:
+        from exo_bench.models import _lean_call  # type: ignore[attr-defined]  # noqa: F401  # C, setup.py
+    except ImportError:  # before the cfunc compiles
         return None
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c
 
-    f8 = np.dtype(np.float64)
-    if not (
-        params.dtype is f8 and params.flags.c_contiguous and params.shape == (params.shape[0], params.shape[0] + 2)
-    ):
-        return None
-    call = _lean_call.LeanCall(
-        fallback, params, np.ndarray, f8, compiled_lean_c.CFUNCS[dim].address, params.ctypes.data, dof, params.shape[0]
-    )
-    ro = np.zeros(dof)
-    ro.flags.writeable = False
-    probes = [
-        (np.zeros(dof), (1, dof, 8, True, True, True)),
-        (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
-        (ro, (1, dof, 8, False, True, True)),
-        (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
-        (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)),
-        (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True)),
-    ]
-    if any(call.probe(a) != want for a, want in probes):
-        return None
-    return call
+    return wrap(compiled_lean_c.CFUNCS[dim].address, params, fallback, dof, n)

@@ -1,13 +1,13 @@
-/* The lean one-sample call of matrix-factored (numba): a callable that takes exactly the arguments of
+/* The lean one-sample call of a compiled kernel (matrix-factored's and newton-euler's numba cfuncs): a callable that takes exactly the arguments of
  * PreparedModel.inverse_dynamics(q, qd, qdd, check=True, out=None) and, for check=False with out=,
  * checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw pointers;
  * every other call (check=True, no out, a batch, any layout it does not take) goes to the Python
- * method unchanged, which validates and names the field. See matrix_method/compiled_lean.py.
+ * method unchanged, which validates and names the field. See models/lean_call.py.
  *
  * What is checked here, on each of q, qd, qdd and out: an instance of numpy.ndarray (or a subclass),
  * one dimension of dof elements, a stride of 8 bytes, the float64 dtype object numpy uses for native
  * doubles; out writable. The ndarray fields are read through numpy's public struct layout
- * (PyArrayObject_fields, unchanged since numpy 1.7 and in numpy 2); compiled_lean.py checks at run time
+ * (PyArrayObject_fields, unchanged since numpy 1.7 and in numpy 2); models/lean_call.py checks at run time
  * that this layout reads what numpy reports before using this module. Built by setup.py (optional:
  * without a C compiler the package installs without it and the Python lean path runs). */
 #define PY_SSIZE_T_CLEAN
@@ -141,7 +141,7 @@ static PyMethodDef lean_methods[] = {
 
 static PyTypeObject LeanCallType = {
     PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "exo_bench.matrix_method._lean_call.LeanCall",
+    .tp_name = "exo_bench.models._lean_call.LeanCall",
     .tp_basicsize = sizeof(LeanCall),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL,
     .tp_new = lean_new,
@@ -151,7 +151,7 @@ static PyTypeObject LeanCallType = {
     .tp_call = PyVectorcall_Call,
     .tp_vectorcall_offset = offsetof(LeanCall, vectorcall),
     .tp_methods = lean_methods,
-    .tp_doc = "the lean one-sample call of matrix-factored (numba); see matrix_method/compiled_lean.py",
+    .tp_doc = "the lean one-sample call of a compiled kernel; see models/lean_call.py",
 };
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_lean_call", NULL, -1, NULL};
