@@ -156,3 +156,18 @@ def test_a_clear_one_sample_runs_no_exact_check(monkeypatch):
     monkeypatch.setattr(prepared, "check_finite", refuse)
     assert np.isfinite(model.forward_dynamics(q[0], qd[0], qdd[0])).all()
     assert np.isfinite(model.forward_dynamics(q, qd, qdd)).all()  # the batch's checks too
+
+
+@pytest.mark.parametrize("where", [0, 5, 7, 12])
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_nan_or_inf_clears_nothing(where, bad):
+    """``check_regular`` is public: a state with NaN or inf is never cleared by the compiled pass (the exact
+    checks then refuse it by name)."""
+    model = prepare(exo5(3), "matrix-factored")
+    clear, _ = model._resolve_forward_checks()
+    q, _, _ = random_states(model.mechanism, 2, 1)
+    assert clear(q) and clear(np.ascontiguousarray(q[0]))
+    q[1, where] = bad
+    assert not clear(q) and not clear(np.ascontiguousarray(q[1]))
+    with pytest.raises(ValueError):
+        model.check_regular(q)

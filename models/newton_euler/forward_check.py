@@ -75,16 +75,24 @@ def plan_of(mech: Any, coupling: Any) -> np.ndarray:
 
 @njit(**_LEAN)
 def _row_clear(q, start, dof, n, p):
-    """Sample at ``q[start : start + dof]`` (flat): every bound cleared by :data:`MARGIN`."""
-    top = 1.0
+    """Sample at ``q[start : start + dof]`` (flat): every entry finite and every bound cleared by
+    :data:`MARGIN`."""
+    top, nonfinite = 1.0, 0.0
     for j in range(start, start + dof - n):
         top = max(top, abs(q[j]))
+        nonfinite += q[j] - q[j]  # NaN exactly where some entry is NaN or inf
     low_cos, low_pivot = 1.0, math.inf
     for i in range(n):
         c = abs(math.cos(q[start + n + i])) if p[_DIM] == 3.0 else 1.0
         low_cos = min(low_cos, c)
         low_pivot = min(low_pivot, q[start + dof - n + i] * c)
-    return low_cos > p[_VERTICAL] and low_pivot >= p[_PIVOT] and p[_KAPPA] * top <= p[_LIMIT] * (low_cos * low_cos)
+        nonfinite += q[start + dof - n + i] - q[start + dof - n + i]
+    return (
+        nonfinite == 0.0
+        and low_cos > p[_VERTICAL]
+        and low_pivot >= p[_PIVOT]
+        and p[_KAPPA] * top <= p[_LIMIT] * (low_cos * low_cos)
+    )
 
 
 @njit(**_LEAN)
@@ -160,7 +168,7 @@ def checks(n: int, p: np.ndarray) -> tuple[Any, Any]:
     :func:`~exo_bench.models.conditioning.check_finite` decides). Arrays that are not C-ordered float64
     are left to the exact checks."""
     e = entries()
-    by_ndim = (None, e.clear_1d, e.clear_2d)
+    by_ndim: tuple[Any, ...] = (None, e.clear_1d, e.clear_2d)
     f8, fin = np.dtype(np.float64), e.finite_1d
 
     def clear(q: np.ndarray) -> bool:
