@@ -37,17 +37,18 @@ def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries
     )
 
 
-def c_call(address: int, params: np.ndarray, fallback: Any, dof: int, n: int) -> Any:
+def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: int) -> Any:
     """The compiled wrapper around the cfunc at ``address``, called with ``params``'s data and ``n``:
     a callable ``(q, qd, qdd, check, out)`` (module docstring); None where the extension was not built
-    (no C compiler at install), ``params`` is not a C-ordered float64 array, or the extension reads
+    (no C compiler at install), there is no cfunc (``address`` None: ``NUMBA_DISABLE_JIT``), ``params`` is
+    not a C-ordered float64 array, or the extension reads
     numpy's arrays differently from what numpy reports (checked here on probe arrays, before any use)."""
     try:
         from exo_bench.models import _lean_call  # type: ignore[attr-defined]  # C, setup.py
     except ImportError:
         return None
     f8 = np.dtype(np.float64)
-    if not (params.dtype is f8 and params.flags.c_contiguous):
+    if address is None or not (params.dtype is f8 and params.flags.c_contiguous):
         return None
     call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n)
     ro = np.zeros(dof)

@@ -262,7 +262,9 @@ class PreparedModel:
             elif self._inverse_one is not None:  # the kernel of check=False: check never changes the result
                 if q.ndim == 2:
                     q, qd, qdd = q[0], qd[0], qdd[0]
-                tau = self._inverse_one(q, qd, qdd, np.empty(self._dof))
+                lean, tau = self._lean, np.empty(self._dof)  # the route of check=False: lean, else one
+                if lean is None or lean(q, qd, qdd, False, tau) is None:
+                    tau = self._inverse_one(q, qd, qdd, tau)
             else:
                 tau = self._inverse_dynamics(q.reshape(1, -1), qd.reshape(1, -1), qdd.reshape(1, -1))[0]
         if out is None:

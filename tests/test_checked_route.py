@@ -69,3 +69,29 @@ def test_a_checked_out_that_overlaps_an_input_still_gets_the_result(method):
     got = model.inverse_dynamics(q, qd, qdd, out=qdd)
     assert got is qdd
     assert got.view(np.int64).tolist() == want.view(np.int64).tolist()
+
+
+@pytest.mark.parametrize("method", WHOLE)
+def test_a_checked_sample_runs_the_lean_entry_of_check_false(method):
+    """One sample, check=True: after the validation pass, the lean entry (in C where it was built)
+    as check=False runs it, the per-sample entry only where the lean one declines; the same bits."""
+    model = prepare(MECH, method)
+    if model._lean is None:
+        pytest.skip("no lean entry here (the C wrapper was not built): the per-sample entry runs")
+    lean, one, calls = model._lean, model._inverse_one, {"lean": 0, "one": 0}
+
+    def counted_lean(*a):
+        calls["lean"] += 1
+        return lean(*a)
+
+    def counted_one(*a):
+        calls["one"] += 1
+        return one(*a)
+
+    model._lean, model._inverse_one = counted_lean, counted_one
+    q, qd, qdd = (np.ascontiguousarray(a[0]) for a in _states(3, 5))
+    checked = model.inverse_dynamics(q, qd, qdd)
+    assert calls == {"lean": 1, "one": 0}
+    unchecked = model.inverse_dynamics(q, qd, qdd, check=False)
+    assert calls == {"lean": 2, "one": 0}
+    assert checked.view(np.int64).tolist() == unchecked.view(np.int64).tolist()

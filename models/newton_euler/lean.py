@@ -62,6 +62,5 @@ def entries(model: Any) -> Entries:
     from exo_bench.models.lean_call import c_call
 
     address = getattr(CFUNCS[model.mechanism.dim], "address", None)  # None: NUMBA_DISABLE_JIT
-    n = int(model.table.shape[1])
-    call = None if address is None else c_call(address, params(model.table, model._g), _declined, model.dof, n)
+    call = c_call(address, params(model.table, model._g), _declined, model.dof, int(model.table.shape[1]))
     return Entries() if call is None else Entries(lean=call)
