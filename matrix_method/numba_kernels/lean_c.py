@@ -1,8 +1,8 @@
 """The kernels of the lean one-sample call as C functions (numba ``cfunc``), for the compiled wrapper
-matrix_method/_lean_call.c: ``void f(double *params, double *q, double *qd, double *qdd, double *out,
-int64 n)``, the per-sample kernel of :mod:`exo_bench.matrix_method.numba_kernels.factored` on raw pointers (the
-wrapper has checked every array). Imported on first use (compiling on a fresh machine, loading
-from numba's on-disk cache after)."""
+models/_lean_call.c (:mod:`exo_bench.models.lean_call`): ``void f(double *params, double *q, double *qd,
+double *qdd, double *out, int64 n)``, the per-sample kernel of
+:mod:`exo_bench.matrix_method.numba_kernels.factored` on raw pointers (the wrapper has checked every
+array). Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
 
 from __future__ import annotations
 
