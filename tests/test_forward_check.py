@@ -171,3 +171,16 @@ def test_a_nan_or_inf_clears_nothing(where, bad):
     assert not clear(q) and not clear(np.ascontiguousarray(q[1]))
     with pytest.raises(ValueError):
         model.check_regular(q)
+
+
+def test_one_sample_unchecked_at_a_singular_state_is_named_not_a_bare_zero_division():
+    """``check=False`` checks no value, but a division by zero in the passes (a rod of length zero) is not
+    let out as a bare ZeroDivisionError: the default method's one sample names the link (its batch's
+    Cholesky solve names the zero pivot: a SingularConfigurationError too)."""
+    mech = exo5(3)
+    model = prepare(mech)
+    q, qd, _ = random_states(mech, 1, 1)
+    q[0, 2 * mech.nlinks + 2] = 0.0
+    tau = np.zeros_like(q)
+    with pytest.raises(SingularConfigurationError, match="link 3"):
+        model.forward_dynamics(q[0], qd[0], tau[0], check=False)

@@ -71,7 +71,11 @@ def _tree_forward(model: Any) -> Entries:
     kernel = entry_point(compiled.newton_euler, *args, v, v, v, v)
 
     def forward_one(q, qd, tau, out):
-        kernel(*args, q, qd, tau, out)
+        try:
+            kernel(*args, q, qd, tau, out)
+        except ZeroDivisionError:  # check=False at a singular state: named as the checks name it
+            model.check_regular(q.reshape(1, -1))
+            raise
         return out
 
     fused, table, dof = entries().checked_forward, args[0], model.dof
