@@ -12,7 +12,6 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
-from exo_bench.models.newton_euler.kernels import TREE_FORWARD
 from exo_bench.models.unchecked import _may_overlap
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
@@ -186,6 +185,5 @@ MATRIX_FACTORED_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_lean,
     ),
-    TREE_FORWARD,  # forward dynamics of one sample: newton-euler's O(n) passes
     _numpy("MATRIX_FACTORED", _DERIVED),
 )

@@ -331,8 +331,8 @@ class PreparedModel:
         :class:`~exo_bench.models.singularity.SingularConfigurationError` (a ValueError) naming the sample, the
         link and the reason (zero length, vertical rod, zero mass), never NaN. A method solves
         ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h`` unless a kernel supplies forward
-        dynamics (newton-euler's O(n) passes; one sample of matrix-factored: ``tree-forward``, checked
-        in the same compiled call, models/newton_euler/forward_check.py)."""
+        dynamics (newton-euler's O(n) passes; its checked one sample: ``tree-forward``, checks and passes
+        in one compiled call, models/newton_euler/forward_check.py)."""
         single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
             if qd is None or tau is None:

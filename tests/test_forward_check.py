@@ -1,8 +1,8 @@
 """Forward dynamics' compiled checks (models/newton_euler/forward_check.py) decide only the common case:
 where they say a state is clear, the exact numpy checks (models/singularity.py,
-models/conditioning.py) find nothing; near a bound the exact checks decide. The default method's one
-sample, checked, runs them and newton-euler's forward passes in one compiled call (``tree-forward``)
-and refuses what its batch refuses, with the same message."""
+models/conditioning.py) find nothing; near a bound the exact checks decide. Newton-euler's one
+sample, checked, runs them and its forward passes in one compiled call (``tree-forward``) and refuses
+what its batch refuses, with the same message; the other methods keep their own forward dynamics."""
 
 from __future__ import annotations
 
@@ -86,7 +86,7 @@ def test_one_sample_checked_is_the_unchecked_answer_and_agrees_with_the_batch(di
     from conftest import EPS, K
 
     mech = exo5(dim)
-    model = prepare(mech)
+    model = prepare(mech, "newton-euler")
     q, qd, _ = random_states(mech, 8, 3)
     tau = np.random.default_rng(3).uniform(-20, 20, q.shape)
     batch = model.forward_dynamics(q, qd, tau)
@@ -126,7 +126,7 @@ def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what):
         q[0, n + 2] = math.pi / 2 - (float(value.split("-", 1)[1]) if "-" in value else 0.0)
     elif key.startswith("phi"):
         q[0, 0] = float(value)
-    model = prepare(mech)
+    model = prepare(mech, "newton-euler")
     with pytest.raises(SingularConfigurationError) as whole, np.errstate(all="ignore"):
         model.forward_dynamics(q, qd, tau)
     out = np.full(mech.dof, 7.0)
@@ -145,7 +145,7 @@ def test_a_clear_one_sample_runs_no_exact_check(monkeypatch):
     from exo_bench.models import prepared
 
     mech = exo5(3)
-    model = prepare(mech)
+    model = prepare(mech, "newton-euler")
     q, qd, qdd = random_states(mech, 1, 2)
 
     def refuse(*args, **kw):
@@ -178,7 +178,7 @@ def test_one_sample_unchecked_at_a_singular_state_is_named_not_a_bare_zero_divis
     let out as a bare ZeroDivisionError: the default method's one sample names the link (its batch's
     Cholesky solve names the zero pivot: a SingularConfigurationError too)."""
     mech = exo5(3)
-    model = prepare(mech)
+    model = prepare(mech, "newton-euler")
     q, qd, _ = random_states(mech, 1, 1)
     q[0, 2 * mech.nlinks + 2] = 0.0
     tau = np.zeros_like(q)

@@ -49,7 +49,11 @@ def _per_sample(model: Any) -> Entries:
         return out
 
     def forward_one(q, qd, tau, out):
-        kernel(*forward, q, qd, tau, out)
+        try:
+            kernel(*forward, q, qd, tau, out)
+        except ZeroDivisionError:  # check=False at a singular state: named as the checks name it
+            model.check_regular(q.reshape(1, -1))
+            raise
         return out
 
     batch = _passes(model, True, None)
@@ -84,13 +88,13 @@ def _tree_forward(model: Any) -> Entries:
         checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model
         qdd = np.empty(dof)
         if (code := fused(table, model.forward_plan, q, qd, tau, qdd)) == EXACT:  # near a bound
-            model.check_regular(q)  # the exact checks decide, naming why
+            model.check_regular(q.reshape(1, -1))  # the exact checks decide, naming why (one sample as a batch)
             code = DONE if checks[1](forward_one(q, qd, tau, qdd)) else NOT_FINITE
         if code == NOT_FINITE:
             check_finite(model.mechanism, qdd)
         return qdd
 
-    return Entries(forward_one=forward_one, forward_checked=forward_checked)
+    return Entries(forward_checked=forward_checked)  # forward_one: the per-sample kernel's (the same passes)
 
 
 def _simd(model: Any) -> Entries:
@@ -115,6 +119,23 @@ def _numpy(model: Any) -> Entries:
 # the cost formulas' figures (exo_bench/api/cost_formulas.py NEWTON_EULER) are the numpy kernel's; the
 # compiled kernels run at 0.07-0.13 of them. Compile time 11.7 s (serial and parallel, one dim) on the
 # busy machine, rounded up.
+#: Checked forward dynamics of one sample: the conditioning checks' common case and newton-euler's O(n)
+#: passes in one compiled call (models/newton_euler/forward_check.py). Newton-euler's own: another
+#: method's forward dynamics stays its own (a Cholesky solve of its M and h), so that the methods
+#: cross-validate each other and a method's name says what runs.
+TREE_FORWARD = Kernel(
+    "tree-forward",
+    "numba",
+    ("forward_dynamics",),
+    (ONE_SAMPLE,),
+    "one thread: the calling one",
+    "one sample only, O(n): below the method's call_seconds (its cost formulas time batches)",
+    compile_seconds=10.0,  # the serial driver for one dimension: 9.2 s measured on the busy machine
+    runtime_bytes=NUMBA_BYTES,
+    load=_tree_forward,
+)
+
+
 NEWTON_EULER_KERNELS = (
     Kernel(
         "numba",
@@ -129,6 +150,7 @@ NEWTON_EULER_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_per_sample,
     ),
+    TREE_FORWARD,
     Kernel(
         "simd",
         "numba",
@@ -157,20 +179,4 @@ NEWTON_EULER_KERNELS = (
         "NEWTON_EULER's sample_seconds, in chunks of chunk_samples",
         load=_numpy,
     ),
-)
-
-#: Forward dynamics of one sample by newton-euler's O(n) passes, as a kernel of another method (the
-#: default, ``matrix-factored``, whose own forward dynamics is a Cholesky solve of the ``M`` and ``h`` its
-#: inverse dynamics gives: ``dof + 2`` kernel calls and numpy's solve, 30-40x a bare ``pin.rnea`` call).
-#: Its answers agree with the solve within the error model (tests/test_forward_conditioning.py).
-TREE_FORWARD = Kernel(
-    "tree-forward",
-    "numba",
-    ("forward_dynamics",),
-    (ONE_SAMPLE,),
-    "one thread: the calling one",
-    "one sample only, O(n): below the method's call_seconds (its cost formulas time batches)",
-    compile_seconds=10.0,  # the serial driver for one dimension: 9.2 s measured on the busy machine
-    runtime_bytes=NUMBA_BYTES,
-    load=_tree_forward,
 )
