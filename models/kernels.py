@@ -38,7 +38,7 @@ class Entries:
     * ``inverse_one(q, qd, qdd, out)``, ``forward_one(q, qd, tau, out)``: one sample, 1-D arrays.
     * ``forward_checked(q, qd, tau) -> qdd``: one validated sample with ``check=True``: the model's
       ``check_regular`` and ``check_finite`` refusals, the common case decided in compiled code
-      (models/newton_euler/forward_check.py).
+      (models/newton_euler/forward_fused.py).
     * ``inverse_whole(q, qd, qdd, out_or_None)``, ``forward_whole``: any batch, unchunked (O(n) scratch).
     * ``inverse_chunk(q, qd, qdd)``, ``forward_chunk``: a batch of at most ``chunk_samples`` samples.
     """

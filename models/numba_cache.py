@@ -48,7 +48,9 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
         _MATRIX / "numba_kernels": tuple(
             _MATRIX / "closed_forms" / f for f in ("planar.py", "transitions.py", "factored.py")
         ),
-        _HERE / "newton_euler": (),  # its kernels inline elements.py, a module of their own folder
+        # its kernels inline elements.py, a module of their own folder; forward_fused.py calls the
+        # compiled checks of forward_check.py
+        _HERE / "newton_euler": (_HERE / "forward_check.py",),
     }
 )
 

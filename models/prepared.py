@@ -120,7 +120,7 @@ class PreparedModel:
     _forward_whole: Callable[..., Any] | None = None
     _inverse_chunk: Callable[..., Any] | None = None
     _forward_chunk: Callable[..., Any] | None = None
-    # forward dynamics' compiled checks (models/newton_euler/forward_check.py), resolved on first use
+    # forward dynamics' compiled checks (models/forward_check.py), resolved on first use
     _forward_checks: tuple[Callable[..., bool], Callable[..., bool]] | None = None
 
     def __init__(self, mechanism: Mechanism, **options: Any):
@@ -332,7 +332,7 @@ class PreparedModel:
         link and the reason (zero length, vertical rod, zero mass), never NaN. A method solves
         ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h`` unless a kernel supplies forward
         dynamics (newton-euler's O(n) passes; its checked one sample: ``tree-forward``, checks and passes
-        in one compiled call, models/newton_euler/forward_check.py)."""
+        in one compiled call, models/forward_check.py)."""
         single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
             if qd is None or tau is None:
@@ -383,8 +383,8 @@ class PreparedModel:
         check_conditioning(self._mechanism, q, self.coupling_condition)
 
     def _resolve_forward_checks(self) -> tuple[Callable[..., bool], Callable[..., bool]]:
-        """``(clear, finite)`` (models/newton_euler/forward_check.py :func:`checks`) and their plan, kept."""
-        from exo_bench.models.newton_euler.forward_check import checks, plan_of
+        """``(clear, finite)`` (models/forward_check.py :func:`checks`) and their plan, kept."""
+        from exo_bench.models.forward_check import checks, plan_of
 
         self.forward_plan = plan_of(self._mechanism, self.coupling_condition)
         self._forward_checks = checks(self._mechanism.nlinks, self.forward_plan)

@@ -179,9 +179,7 @@ def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_a
     one sample itself and declines every other form, which the method then runs; each form gives the
     same forces, and misuse the same errors."""
     if not _c_wrapper_built():
-        pytest.skip(
-            "models/_lean_call.c was not built here (no C compiler at install): the Python lean path runs"
-        )
+        pytest.skip("models/_lean_call.c was not built here (no C compiler at install): the Python lean path runs")
     from exo_bench.models import _lean_call
 
     mech = exo5(3)

@@ -1,4 +1,4 @@
-"""Forward dynamics' compiled checks (models/newton_euler/forward_check.py) decide only the common case:
+"""Forward dynamics' compiled checks (models/forward_check.py) decide only the common case:
 where they say a state is clear, the exact numpy checks (models/singularity.py,
 models/conditioning.py) find nothing; near a bound the exact checks decide. Newton-euler's one
 sample, checked, runs them and its forward passes in one compiled call (``tree-forward``) and refuses

@@ -67,7 +67,7 @@ def _tree_forward(model: Any) -> Entries:
     model's ``check_regular`` before the passes run (with ``check=False`` nothing is checked)."""
     from exo_bench.models.newton_euler import compiled
     from exo_bench.models.conditioning import check_finite
-    from exo_bench.models.newton_euler.forward_check import DONE, EXACT, NOT_FINITE, entries
+    from exo_bench.models.newton_euler.forward_fused import DONE, EXACT, NOT_FINITE, entry
     from exo_bench.models.newton_euler.tree import prepare_tree
 
     mech, v = model.mechanism, np.empty(model.dof)
@@ -82,7 +82,7 @@ def _tree_forward(model: Any) -> Entries:
             raise
         return out
 
-    fused, table, dof = entries().checked_forward, args[0], model.dof
+    fused, table, dof = entry(), args[0], model.dof
 
     def forward_checked(q, qd, tau):
         checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model

@@ -1,5 +1,6 @@
 """The per-sample part of forward dynamics' checks as compiled passes, deciding only the common case;
-and forward dynamics of one sample checked in one compiled call.
+the one-sample call that fuses them with newton-euler's forward passes is
+:mod:`exo_bench.models.newton_euler.forward_fused`.
 
 :meth:`exo_bench.models.prepared.PreparedModel.check_regular` refuses a state where ``M`` is exactly
 singular (:mod:`exo_bench.models.singularity`: a rod of length zero, a vertical rod) or singular to
@@ -14,15 +15,13 @@ numpy's; a state within it of a bound pays the exact check, never a different ve
 is the check of an answer (:func:`exo_bench.models.conditioning.check_finite` names the sample and the
 coordinate once it says no).
 
-:func:`checked_forward` is the one-sample call of the ``tree-forward`` kernel
-(:mod:`exo_bench.models.newton_euler.kernels`): ``clear``, newton-euler's forward passes
-(:mod:`exo_bench.models.newton_euler.compiled`) and ``finite`` in one call, answering :data:`DONE`,
-:data:`EXACT` (nothing computed: the exact checks decide) or :data:`NOT_FINITE`.
+:data:`DONE`, :data:`EXACT` and :data:`NOT_FINITE` are the answers of that fused call.
 
 The mechanism's own part (``mu`` singular, or its condition beyond the bound: every configuration is
 refused) is decided once per model by the caller, which passes ``cond(mu_s)`` (``inf`` where it
 refuses) in the ``plan`` (:func:`plan`), with the bounds: nothing of another module is frozen into the
-machine code, which numba caches keyed on this folder's sources (models/numba_cache.py).
+machine code (numba caches it keyed on this file; newton-euler's fused call, which inlines
+:func:`_row_clear` and :func:`_finite`, is keyed on it too: models/numba_cache.py).
 """
 
 from __future__ import annotations
@@ -39,7 +38,6 @@ ensure()  # numba's runtime set-up (models/numba_runtime.py), before the first k
 
 from numba import njit, types  # noqa: E402
 
-from exo_bench.models.newton_euler.compiled import WIDTH, _forward_sample  # noqa: E402
 
 #: Relative distance from every bound within which the exact numpy checks decide.
 MARGIN = 1e-6
@@ -127,37 +125,24 @@ def finite_1d(a):
     return _finite(a)
 
 
-@njit(**JIT)
-def checked_forward(t, p, x, xd, tau, o):
-    """One validated sample: :data:`EXACT` unless ``x`` clears the bounds, else forward dynamics into
-    ``o`` and :data:`DONE`, or :data:`NOT_FINITE` where an entry of ``o`` is not finite."""
-    n = t.shape[1]
-    if not _row_clear(x, 0, x.shape[0], n, p):
-        return EXACT
-    _forward_sample(t, p[_G], int(p[_DIM]), x, xd, tau, o, 0, np.zeros((n, WIDTH)))
-    return DONE if _finite(o) else NOT_FINITE
-
-
 class Entries(NamedTuple):
     """The compiled entry points (or the same functions run by Python under ``NUMBA_DISABLE_JIT``)."""
 
     clear_1d: Any
     clear_2d: Any
     finite_1d: Any
-    checked_forward: Any
 
 
 @functools.cache
 def entries() -> Entries:
     """Resolved (compiled, or loaded from numba's on-disk cache) on the first call in a process."""
     if jit_disabled():
-        return Entries(clear_1d, clear_2d, finite_1d, checked_forward)
+        return Entries(clear_1d, clear_2d, finite_1d)
     one, two, n = types.Array(types.float64, 1, "C"), types.Array(types.float64, 2, "C"), types.int64
     return Entries(
         clear_1d.compile((one, n, one)),
         clear_2d.compile((two, n, one)),
         finite_1d.compile((one,)),
-        checked_forward.compile((two, one, one, one, one, one)),
     )
 
 
