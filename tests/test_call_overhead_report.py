@@ -127,3 +127,24 @@ def test_every_goal_compares_timed_calls():
     timed = set(g.ONE_SAMPLE) | set(g.BATCH)
     assert {k for goal in g.GOALS for k in (goal.num, goal.den)} | {x for _, k, d in g.ALSO for x in (k, d)} <= timed
     assert all((goal.num in g.BATCH) == (goal.den in g.BATCH) for goal in g.GOALS)  # batch against batch only
+
+
+def test_rounds_alternate_the_order_of_the_timers():
+    """No timer always runs first in a round: every other round runs them in reverse (a first call
+    pays for waking the thread pool), and each timer is timed once a round (fake timers, no clock)."""
+    from exo_bench.bench.perf.reports.goals_call_overhead import _round_times
+
+    log: list[str] = []
+
+    class Fake:
+        def __init__(self, key):
+            self.key = key
+
+        def timeit(self, number):
+            log.append(self.key)
+            return float(number)
+
+    seconds, number = _round_times({k: Fake(k) for k in "abc"}, 1, 4, 0.0)
+    timed = log[len(log) - 12 :]  # after _calls_per_round's one call each
+    assert timed == list("abccbaabccba")
+    assert number == {"a": 1, "b": 1, "c": 1} and all(v == [1.0] * 4 for v in seconds.values())

@@ -148,12 +148,16 @@ def _calls_per_round(timer: timeit.Timer, most: int, round_seconds: float) -> in
 
 def _round_times(timers: dict[str, timeit.Timer], most: int, rounds: int, round_seconds: float) -> tuple[dict, dict]:
     """Seconds per call of each timer in each of ``rounds`` interleaved rounds, and the calls of
-    its rounds (:func:`_calls_per_round`)."""
+    its rounds (:func:`_calls_per_round`). Every other round runs the timers in reverse order, so
+    that no timer always runs first in a round (the first call after other work pays for waking
+    the thread pool and for cold caches: the checked batch, first in a fixed order, measured 1.8x
+    its unchecked twin where alternating orders give 1.15x)."""
     number = {k: _calls_per_round(t, most, round_seconds) for k, t in timers.items()}
     seconds: dict[str, list[float]] = {k: [] for k in timers}
-    for _ in range(rounds):
-        for k, t in timers.items():
-            seconds[k].append(t.timeit(number[k]) / number[k])
+    order = list(timers)
+    for r in range(rounds):
+        for k in order if r % 2 == 0 else order[::-1]:
+            seconds[k].append(timers[k].timeit(number[k]) / number[k])
     return seconds, number
 
 
