@@ -149,7 +149,7 @@ def body_positions(mech: Mechanism, q: np.ndarray) -> np.ndarray:
             X = lambda name: plant.EvalBodyPoseInWorld(ctx, plant.GetBodyByName(name)).translation()
             start, end = X(a), X(c)
             # pydrake's stubs put the shape in ndarray's dtype slot (ndarray[float64[3, 1]]): mypy refuses its arithmetic
-            mid = X(b) if b is not None else start + mech.n[i] * (end - start)  # type: ignore[misc]
+            mid = X(b) if b is not None else start + mech.n[i] * (end - start)  # type: ignore[misc, unused-ignore]  # (unused without drake)
             out[s, i] = np.stack([start, mid, end])[:, : mech.dim]
     return out
 
@@ -193,7 +193,7 @@ class DrakeID(PreparedModel):
             plant.SetPositions(ctx, qj[s])
             plant.SetVelocities(ctx, vj[s])
             # pydrake's stubs put the shape in ndarray's dtype slot (ndarray[float64[m, 1]]): mypy refuses its arithmetic
-            out[s] = plant.CalcInverseDynamics(ctx, aj[s], forces) - plant.CalcGravityGeneralizedForces(ctx)  # type: ignore[misc]
+            out[s] = plant.CalcInverseDynamics(ctx, aj[s], forces) - plant.CalcGravityGeneralizedForces(ctx)  # type: ignore[misc, unused-ignore]  # (unused without drake)
         return out
 
     def _inverse_dynamics(self, q, qd, qdd):
