@@ -41,48 +41,50 @@ def _passes(model: Any, forward: bool, simd_from: int | None):
 def _per_sample(model: Any) -> Entries:
     """The compiled passes of one sample (serial, through their compiled entry point for C-ordered
     float64 arrays, the only ones they are given), and forward dynamics of any batch."""
-    inverse, forward, v = model.kernel_args, model._forward_args, np.empty(model.dof)
-    kernel = entry_point(model.serial_kernel, *inverse, v, v, v, v)  # the flag `forward` is an argument
+    inverse, kernel = model.kernel_args, _serial_entry(model)
 
     def inverse_one(q, qd, qdd, out):
         kernel(*inverse, q, qd, qdd, out)
         return out
 
+    batch = _passes(model, True, None)
+    return Entries(
+        inverse_one=inverse_one, forward_one=_forward_one(model, kernel), forward_whole=batch, forward_chunk=batch
+    )
+
+
+def _serial_entry(model: Any) -> Any:
+    """The compiled entry point of the model's serial passes for C-ordered float64 arrays (the flag
+    ``forward`` is an argument: one entry serves both directions)."""
+    v = np.empty(model.dof)
+    return entry_point(model.serial_kernel, *model.kernel_args, v, v, v, v)
+
+
+def _forward_one(model: Any, kernel: Any) -> Any:
+    """``forward_one(q, qd, tau, out)``: forward dynamics of one sample by the serial passes ``kernel``
+    (:func:`_serial_entry`); with ``check=False`` a singular state (a division by zero in the passes)
+    is named as the checks name it."""
+    forward = model._forward_args
+
     def forward_one(q, qd, tau, out):
         try:
             kernel(*forward, q, qd, tau, out)
-        except ZeroDivisionError:  # check=False at a singular state: named as the checks name it
+        except ZeroDivisionError:
             model.check_regular(q.reshape(1, -1))
             raise
         return out
 
-    batch = _passes(model, True, None)
-    return Entries(inverse_one=inverse_one, forward_one=forward_one, forward_whole=batch, forward_chunk=batch)
+    return forward_one
 
 
 def _tree_forward(model: Any) -> Entries:
-    """Forward dynamics of one sample by the O(n) passes of the tree factor of ``M_r``
-    (:func:`~exo_bench.models.newton_euler.compiled.newton_euler` with ``forward``), for a model of any
-    method: its tree is prepared here from ``model.mechanism``. A singular ``M_r`` is refused by the
-    model's ``check_regular`` before the passes run (with ``check=False`` nothing is checked)."""
-    from exo_bench.models.newton_euler import compiled
+    """Newton-euler's checked forward dynamics of one sample: the compiled common-case checks and its
+    serial forward passes in one call (:mod:`exo_bench.models.newton_euler.forward_fused`); near a
+    bound the model's exact ``check_regular`` decides and names why, then the same passes run."""
     from exo_bench.models.conditioning import check_finite
     from exo_bench.models.newton_euler.forward_fused import DONE, EXACT, NOT_FINITE, entry
-    from exo_bench.models.newton_euler.tree import prepare_tree
 
-    mech, v = model.mechanism, np.empty(model.dof)
-    args = (prepare_tree(mech).table(), float(mech.g), int(mech.dim), True)
-    kernel = entry_point(compiled.newton_euler, *args, v, v, v, v)
-
-    def forward_one(q, qd, tau, out):
-        try:
-            kernel(*args, q, qd, tau, out)
-        except ZeroDivisionError:  # check=False at a singular state: named as the checks name it
-            model.check_regular(q.reshape(1, -1))
-            raise
-        return out
-
-    fused, table, dof = entry(), args[0], model.dof
+    forward_one, fused, table, dof = _forward_one(model, _serial_entry(model)), entry(), model.table, model.dof
 
     def forward_checked(q, qd, tau):
         checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model
