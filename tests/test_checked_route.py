@@ -22,19 +22,20 @@ def _states(samples: int, seed: int):
     return mo.q, mo.qd, mo.qdd
 
 
-def _counting(model):
-    calls = {"whole": 0, "chunk": 0}
-    whole, chunk = model._inverse_whole, model._inverse_chunk
+def _counting(model, **entries):
+    """Count the calls of the model's entries named by ``entries`` (key: the count's name, value: the
+    model's attribute), each still calling the entry it replaces."""
+    calls = dict.fromkeys(entries, 0)
 
-    def counted_whole(*a):
-        calls["whole"] += 1
-        return whole(*a)
+    def counted(key, entry):
+        def call(*a):
+            calls[key] += 1
+            return entry(*a)
 
-    def counted_chunk(*a):
-        calls["chunk"] += 1
-        return chunk(*a)
+        return call
 
-    model._inverse_whole, model._inverse_chunk = counted_whole, counted_chunk
+    for key, attr in entries.items():
+        setattr(model, attr, counted(key, getattr(model, attr)))
     return calls
 
 
@@ -47,7 +48,7 @@ def test_a_checked_batch_runs_the_unchecked_route(method, with_out):
     assert model._inverse_whole is not None
     model.chunk_samples = 7
     q, qd, qdd = _states(50, 3)
-    calls = _counting(model)
+    calls = _counting(model, whole="_inverse_whole", chunk="_inverse_chunk")
     outs = [np.empty_like(q), np.empty_like(q)] if with_out else [None, None]
     checked = model.inverse_dynamics(q, qd, qdd, out=outs[0])
     assert calls == {"whole": 1, "chunk": 0}
@@ -78,17 +79,7 @@ def test_a_checked_sample_runs_the_lean_entry_of_check_false(method):
     model = prepare(MECH, method)
     if model._lean is None:
         pytest.skip("no lean entry here (the C wrapper was not built): the per-sample entry runs")
-    lean, one, calls = model._lean, model._inverse_one, {"lean": 0, "one": 0}
-
-    def counted_lean(*a):
-        calls["lean"] += 1
-        return lean(*a)
-
-    def counted_one(*a):
-        calls["one"] += 1
-        return one(*a)
-
-    model._lean, model._inverse_one = counted_lean, counted_one
+    calls = _counting(model, lean="_lean", one="_inverse_one")
     q, qd, qdd = (np.ascontiguousarray(a[0]) for a in _states(3, 5))
     checked = model.inverse_dynamics(q, qd, qdd)
     assert calls == {"lean": 1, "one": 0}
