@@ -157,3 +157,76 @@ def preset_descriptions() -> dict[str, str]:
         base = globals()[key.split("-")[0]].__doc__.strip().splitlines()[0]
         out[key] = f"{m.dim}D, {m.nlinks} link(s): {base}"
     return out
+
+
+def human(dim: int = 2, body_mass: float = 56.7, stature: float = 1.75) -> Mechanism:
+    """A human-proportioned walker with feet: Winter's segments scaled by body mass and stature.
+
+    Links (models/anthropometry.py gives the numbers and their sources):
+
+    1. ``root``: a massless rod from the support point O to the hips. Its angle(s) and length are the
+       hips' position, so the model is free to move: O carries no load when the root's generalised
+       forces are zero, and every ground force goes through contact (``f_ext``).
+    2. ``hat``: head, arms and trunk, from the hips (greater trochanter) up to the top of the head.
+    3-5, 7-9. ``right_thigh``, ``right_leg``, ``right_foot`` and the left ones: thigh (hip to knee),
+       leg (knee to ankle), and Winter's foot segment (ankle to the head of metatarsal II, the toe's
+       contact point, its end mass). They hang from their parents with ``sign = -1``, so their angles
+       are Winter's segment angles (of the vector from the distal to the proximal joint).
+    6, 10. ``right_heel``, ``left_heel``: a short rod from the ankle back to the heel's contact
+       point (its end mass). The heel is a rod of its own because a rod starts at its parent's end
+       point: the ankle, not the heel, must end the leg for the ankle moment to be Winter's. The
+       heel and foot rods' relative angle is a joint the foot's tissue holds (a stiff "arch"
+       moment in simulation, a constraint in collocation). It carries 10 % of the foot's mass,
+       taken from the foot rod's ankle mass, so the foot's total is Winter's; the foot's centre of
+       mass moves 0.1 x 0.049 H (8 mm at 1.75 m) towards the heel.
+
+    Every segment's three masses reproduce its mass, centre of mass and moment of inertia across
+    the rod (:func:`exo_bench.models.anthropometry.point_masses`). Defaults: the normative subject
+    of models/normative.py (56.7 kg) and the suite's stature (1.75 m). Standing:
+    :func:`human_standing`.
+    """
+    from exo_bench.models import anthropometry as a
+
+    a.check_body(body_mass, stature)
+    foot, n_foot = a.point_masses(a.FOOT, body_mass)
+    heel = 0.1 * sum(foot)
+    foot = (foot[0] - heel, foot[1], foot[2])
+    parts = [((0.0, 0.0, 0.0), 0.5), a.point_masses(a.hat_to_vertex(), body_mass)]
+    leg = [a.point_masses(a.THIGH, body_mass), a.point_masses(a.LEG, body_mass), (foot, n_foot)]
+    parts += 2 * (leg + [((0.0, 0.0, heel), 0.5)])
+    names = ["root", "hat"] + [f"{side}_{s}" for side in ("right", "left") for s in ("thigh", "leg", "foot", "heel")]
+    parent = [-1, 0, 0, 2, 3, 3, 0, 6, 7, 7]
+    return _mech(f"human-{dim}d", dim, parent, [1, 1] + [-1] * 8, parts, names)
+
+
+def human_standing(mech: Mechanism, stature: float = 1.75) -> np.ndarray:
+    """``q (1, dof)`` of :func:`human` standing upright with both feet flat on the floor (the heel and toe
+    contact points at height 0), the hips above O in 2D; in 3D O lies 0.5 m behind the hips (a vertical
+    root rod is where the 3D chart is singular, eq. 7) and the legs, still vertical, sit on that chart's
+    poles, so 3D standing is a kinematic pose only. Rod lengths are the anthropometric ones for ``stature``."""
+    from exo_bench.models import anthropometry as a
+
+    up = np.pi / 2
+    heel = (a.HEEL_FORWARD, a.ANKLE_HEIGHT)  # ankle minus heel point: (forward, up) / H
+    toe = (a.TOE_FORWARD, -a.ANKLE_HEIGHT)  # toe point minus ankle
+    foot_angle = np.arctan2(-toe[1], -toe[0])  # of the vector from toe to ankle (sign = -1)
+    heel_angle = np.arctan2(heel[1], -heel[0])  # from heel to ankle
+    leg_rods = [(up, a.THIGH.length), (up, a.LEG.length), (foot_angle, a.FOOT.length)]
+    leg_rods.append((heel_angle, float(np.hypot(*heel))))
+    hip = a.HIP_HEIGHT * stature
+    root = (up, hip) if mech.dim == 2 else (np.arctan2(hip, 0.5), float(np.hypot(hip, 0.5)))
+    rods = [root, (up, 1.0 - a.HIP_HEIGHT)] + 2 * leg_rods
+    lengths = [rods[0][1]] + [r[1] * stature for r in rods[1:]]
+    angles = [r[0] for r in rods]
+    if mech.dim == 2:
+        return np.array([angles + lengths])
+    azimuth = [0.0] * len(rods)  # every rod in the x-z plane: phi = 0 (forward) or pi (backward)
+    elev = []
+    for i, ang in enumerate(angles):
+        azimuth[i] = 0.0 if np.cos(ang) >= 0 else np.pi
+        elev.append(float(np.arcsin(np.sin(ang))))
+    return np.array([azimuth + elev + lengths])
+
+
+for _dim in (2, 3):
+    PRESETS[f"human-{_dim}d"] = _preset(human, _dim)
