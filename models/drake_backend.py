@@ -208,3 +208,29 @@ class DrakeID(PreparedModel):
             plant.SetPositions(ctx, qj[s])
             out[s] = self.GT @ plant.CalcMassMatrix(ctx) @ self.G
         return out
+
+    def _external_forces(self, q, f):
+        """``Q`` of forces ``f`` ``(S, links, 3, dim)`` at the point masses by Drake's applied spatial
+        forces: each added to a ``MultibodyForces`` at its body's origin (the point mass) in world axes
+        (``RigidBody.AddInForce``); at rest ``CalcInverseDynamics(0, forces) = -J^T F`` (Drake leaves
+        gravity out of it), so ``Q_dk`` is its negative and ``Q = G^T Q_dk``. A middle point without a
+        body splits its force onto the start and the end (:func:`exo_bench.models.external_forces.point_forces`)."""
+        from pydrake.multibody.math import SpatialForce
+
+        from exo_bench.models.external_forces import point_forces
+
+        plant, mech = self.plant, self._mechanism
+        ctx, _ = self._scratch()
+        forces = self._tree.MultibodyForces(plant)
+        names = build_plant(mech).bodies
+        qj, zero = rowwise_product(q, self.GT), np.zeros(plant.num_velocities())
+        out = np.empty_like(qj)
+        for s in range(q.shape[0]):
+            plant.SetPositions(ctx, qj[s])
+            plant.SetVelocities(ctx, zero)
+            forces.SetZero()
+            for i, b, force in point_forces(mech, f[s]):
+                body = plant.GetBodyByName(names[i][b])
+                body.AddInForce(ctx, np.zeros(3), SpatialForce(np.zeros(3), force), plant.world_frame(), forces)
+            out[s] = -plant.CalcInverseDynamics(ctx, zero, forces)
+        return rowwise_product(out, self.G)

@@ -213,3 +213,29 @@ class MujocoRNE(PreparedModel):
             mj.mj_fullM(model, data, Mj)
             out[s] = self.GT @ Mj @ self.G
         return out
+
+    def _external_forces(self, q, f):
+        """``Q`` of forces ``f`` ``(S, links, 3, dim)`` at the point masses by MuJoCo's own
+        ``xfrc_applied`` (force and torque at each body's centre of mass, world axes: the point mass,
+        so no torque; MuJoCo's warnings while it runs are kept out of a MUJOCO_LOG.TXT): ``mj_forward`` at rest gives ``qfrc_smooth = J^T xfrc - qfrc_bias``, so
+        ``Q_mj = qfrc_smooth + qfrc_bias`` and ``Q = G^T Q_mj``. A middle point without a body splits
+        its force onto the start and the end (:func:`exo_bench.models.external_forces.point_forces`)."""
+        from exo_bench.models.external_forces import point_forces
+
+        mj, model, data = self._mj, self.mj_model, self.data
+        bodies = load_model(self._mechanism).bodies
+        qj = rowwise_product(q, self.GT)
+        out = np.empty((q.shape[0], model.nv))
+        previous = mj.get_mju_user_warning()  # mj_forward solves for qacc: its warnings about M say nothing here
+        mj.set_mju_user_warning(lambda msg: None)
+        try:
+            for s in range(q.shape[0]):
+                data.qpos[:], data.qvel[:], data.xfrc_applied[:] = qj[s], 0.0, 0.0
+                for i, b, force in point_forces(self._mechanism, f[s]):
+                    data.xfrc_applied[bodies[i, b], :3] += force
+                mj.mj_forward(model, data)
+                out[s] = data.qfrc_smooth + data.qfrc_bias
+        finally:
+            data.xfrc_applied[:] = 0.0
+            mj.set_mju_user_warning(previous)
+        return rowwise_product(out, self.G)

@@ -343,3 +343,30 @@ class PinocchioRNEA(PreparedModel):
         for s in range(q.shape[0]):
             out[s] = pin.nonLinearEffects(model, data, qj[s], vj[s])
         return rowwise_product(out, self.G)
+
+    def _external_forces(self, q, f):
+        """``Q`` of forces ``f`` ``(S, links, 3, dim)`` at the point masses by Pinocchio's own ``fext``:
+        ``-rnea(q, 0, 0, fext)`` on the model without gravity, ``fext`` a spatial force per joint in its
+        local frame (the point force ``R^T f`` with the moment ``R^T ((P - p) x f)`` about the joint at
+        ``p``, ``P`` the frame of the point mass); a middle point without a body (zero mass) splits its
+        force ``(1 - n) : n`` onto the start and the end, which does the same virtual work."""
+        from exo_bench.models.external_forces import point_forces
+
+        pm = build_model(self._mechanism)
+        model = getattr(self, "_no_gravity", None)
+        if model is None:
+            model = self._no_gravity = pin.Model(self.pin_model)
+            model.gravity.linear = np.zeros(3)
+        data, mech = self.data, self._mechanism
+        qj, zero = rowwise_product(q, self.GT), np.zeros(model.nv)
+        out = np.empty((q.shape[0], model.nv))
+        for s in range(q.shape[0]):
+            pin.framesForwardKinematics(model, data, qj[s])
+            fext = [pin.Force.Zero() for _ in range(model.njoints)]
+            for i, b, force in point_forces(mech, f[s]):
+                frame = model.frames[int(pm.frames[i, b])]
+                oMi = data.oMi[frame.parentJoint]
+                lever = data.oMf[int(pm.frames[i, b])].translation - oMi.translation
+                fext[frame.parentJoint] += pin.Force(oMi.rotation.T @ force, oMi.rotation.T @ np.cross(lever, force))
+            out[s] = -pin.rnea(model, data, qj[s], zero, zero, fext)
+        return rowwise_product(out, self.G)

@@ -55,6 +55,7 @@ from exo_bench.models.memory import (
     usable_memory,
 )
 from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics
+from exo_bench.models import external_forces
 from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
 from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
@@ -221,7 +222,7 @@ class PreparedModel:
         return self.kernel
 
     # ------------------------------------------------------------------ calls
-    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None) -> np.ndarray:
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Generalised forces ``tau = [M_phi..., M_psi..., F...]`` of the paper's absolute
         coordinates for states in block order ``[phi..., psi..., l...]``: ``(dof,)`` in gives
         ``(dof,)`` out, ``(samples, dof)`` gives ``(samples, dof)``. ``out``: a preallocated
@@ -229,7 +230,10 @@ class PreparedModel:
         allocates nothing: the compiled kernels write into it directly). Without ``out``, a result of
         4 MiB or more reuses the memory of one this model returned before, once nothing refers to that
         one any more (:mod:`exo_bench.models.result_pool`: at most two stay allocated after the caller
-        dropped them)."""
+        dropped them). ``f_ext``: forces at the point masses, ``(samples, links, 3, dim)`` or ``(links, 3,
+        dim)`` (:mod:`exo_bench.models.external_forces`): ``tau = ID - Q(q, f_ext)``."""
+        if f_ext is not None:
+            return external_forces.inverse_dynamics(self, q, qd, qdd, f_ext, check, out)
         if not check:
             lean = self._lean  # one sample in C, or None (having touched nothing) where it does not take it
             if (
@@ -324,7 +328,7 @@ class PreparedModel:
             M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
         return M, h
 
-    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None) -> np.ndarray:
+    def forward_dynamics(self, q, qd, tau, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
         and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
         validated and a singular configuration raises
@@ -332,7 +336,10 @@ class PreparedModel:
         link and the reason (zero length, vertical rod, zero mass), never NaN. A method solves
         ``M qdd = tau - h`` by Cholesky on its own ``M`` and ``h`` unless a kernel supplies forward
         dynamics (newton-euler's O(n) passes; its checked one sample: ``tree-forward``, checks and passes
-        in one compiled call, models/forward_check.py)."""
+        in one compiled call, models/forward_check.py). ``f_ext``: forces at the point masses, as in
+        :meth:`inverse_dynamics`: ``qdd = FD(q, qd, tau + Q(q, f_ext))``."""
+        if f_ext is not None:
+            return external_forces.forward_dynamics(self, q, qd, tau, f_ext, check, out)
         single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
             if qd is None or tau is None:
@@ -419,6 +426,11 @@ class PreparedModel:
 
     def _bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
+
+    def _external_forces(self, q: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """``Q = sum_k J_k^T f_k``, ``(S, dof)``, of forces ``f`` ``(S, links, 3, dim)`` at the point masses
+        (:mod:`exo_bench.models.external_forces`); an engine overrides it with its own."""
+        return external_forces.generalized_forces_compiled(self._mechanism, q, f)
 
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         if self._forward_chunk is not None:

@@ -1,0 +1,273 @@
+"""External forces at the point masses (``f_ext``): ground contact, human-exoskeleton interaction, loads.
+
+**Layout.** ``f_ext`` is batch-first, ``(samples, links, 3, dim)``, or ``(links, 3, dim)`` for one
+sample: the force in newtons, in world axes (``x, y`` in 2D, ``x, y, z`` in 3D; gravity acts along
+the last), at the start, middle and end point mass of every link (:data:`POINTS`, the order of
+:func:`exo_bench.models.kinematics.point_mass_positions`). A point need not carry mass: a force at a
+middle point of zero mass acts at fraction ``n_i`` of the rod all the same. Build it by name with
+:func:`forces_at`, never by position.
+
+**Physics.** Point ``k`` of link ``i`` sits at ``P_k = sum_{a in anc(i)} r_a + f r_i``, ``f`` in
+``{0, n_i, 1}``. A force ``f_k`` there does virtual work ``f_k . dP_k``, so its generalised force is
+``Q = sum_k J_k^T f_k``: for each rod ``a``,
+
+    Q_a = J_a(q_a)^T F_a,    F_a = sum_k c_ak f_k   (c = 1 beyond rod a, f on rod a itself),
+
+``F_a`` summed leaves first as Newton-Euler's backward pass sums its ``D`` (:func:`rod_loads`), and
+``J_a^T F`` the projection of :func:`exo_bench.models.newton_euler.elements.project_2d`/``_3d``
+(:func:`project_2d`, :func:`project_3d` here: this module is imported by models/prepared.py, which
+models/newton_euler imports, so it cannot import that package; tests/test_external_forces.py holds
+the two bit-identical). One implementation serves every method:
+
+* inverse dynamics: ``ID(q, qd, qdd) - Q(q, f_ext)``;
+* forward dynamics: ``FD(q, qd, tau + Q(q, f_ext))``;
+* derivatives: ``dtau/dq`` gains ``-dQ/dq`` (:func:`dQ_dq`), block-diagonal per rod since ``F_a`` is
+  fixed in the world: ``d(J_a^T F_a)/dq_a``. Each term of the projection holds one of ``(cos x, sin x)``
+  of an angle ``x`` or none, so its derivative is the projection at ``x + pi/2`` without the terms
+  free of ``x`` (in ``phi``: those of ``F_z``); in ``l``, the projection at ``l = 1`` without ``u.F``.
+
+The engines (Pinocchio ``fext``, MuJoCo ``xfrc_applied``, Drake's applied spatial forces) supply their
+own ``Q`` (``PreparedModel._external_forces``), so the methods cross-validate (docs/external-forces.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from exo_bench.models.mechanism import Mechanism
+
+#: The points of every link, in the order of ``f_ext``'s third axis.
+POINTS = ("start", "middle", "end")
+
+
+def project_2d(cf, sf, l, fx, fy):
+    """``J^T F`` of a planar rod (unsigned): elements.project_2d."""
+    return l * (cf * fy - sf * fx), cf * fx + sf * fy
+
+
+def project_3d(cf, sf, cp, sp, l, fx, fy, fz):
+    """``J^T F`` of a spatial rod (unsigned): elements.project_3d."""
+    radial = cf * fx + sf * fy
+    return l * cp * (cf * fy - sf * fx), l * (cp * fz - sp * radial), cp * radial + sp * fz
+
+
+# ----------------------------------------------------------------------------- building and checking
+def forces_at(mech: Mechanism, loads: Mapping[tuple[str, str], Any], samples: int | None = None) -> np.ndarray:
+    """``f_ext`` from named points: ``loads[(link name, point)]`` is a force ``(dim,)`` or, for a batch,
+    ``(samples, dim)``; ``point`` is one of :data:`POINTS`. Returns ``(links, 3, dim)`` with
+    ``samples=None``, else ``(samples, links, 3, dim)``; points not named get zero. A name that is not
+    the mechanism's is a ValueError listing the names."""
+    d = mech.dim
+    out = np.zeros((mech.nlinks, 3, d) if samples is None else (samples, mech.nlinks, 3, d))
+    for key, value in loads.items():
+        if not (isinstance(key, tuple) and len(key) == 2):
+            raise ValueError(f"f_ext: expected keys (link name, point), got {key!r}")
+        link, point = key
+        if link not in mech.names:
+            raise ValueError(f"f_ext: link {link!r}: expected one of {', '.join(map(repr, mech.names))}")
+        if point not in POINTS:
+            raise ValueError(f"f_ext: link {link!r}: point {point!r}: expected one of {', '.join(POINTS)}")
+        i, b = mech.names.index(link), POINTS.index(point)
+        v = np.asarray(value, dtype=float)
+        want = (d,) if samples is None else (samples, d)
+        if v.shape != want and not (samples is not None and v.shape == (d,)):
+            raise ValueError(f"f_ext: link {link!r}, point {point!r}: expected a force of shape {want}, got {v.shape}")
+        out[..., i, b, :] = v
+    return out
+
+
+def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True, method: str = "") -> np.ndarray:
+    """``f_ext`` as a C-ordered float64 ``(samples, links, 3, dim)`` array for states of shape
+    ``q_shape``, ``(dof,)`` or ``(samples, dof)``. Its shape is always checked (``check=False``
+    included: a wrong shape would broadcast silently); with ``check`` every value must be finite
+    (a ValueError naming the sample, the link, the point, the expected and the actual value)."""
+    who = f"{method}: " if method else ""
+    want = (mech.nlinks, 3, mech.dim)
+    full = (*q_shape[:-1], *want)
+    shape = getattr(f_ext, "shape", None) if check is False else np.shape(f_ext)
+    if shape is None or tuple(shape) != full:
+        raise ValueError(
+            f"{who}field 'f_ext': expected forces of shape {full} (samples, links, 3 points: start, middle, "
+            f"end, dim; one sample: {want}) in newtons, world axes, got {shape}"
+        )
+    f = np.ascontiguousarray(f_ext, dtype=float).reshape(-1, *want)
+    if check and not np.isfinite(f).all():
+        s, i, b, c = (int(x) for x in np.argwhere(~np.isfinite(f))[0])
+        raise ValueError(
+            f"{who}field 'f_ext': sample {s}, link {i + 1} ({mech.names[i]!r}), point {POINTS[b]!r}, component "
+            f"{'xyz'[c]}: expected a finite force in newtons, got {f[s, i, b, c]}"
+        )
+    return f
+
+
+# ----------------------------------------------------------------------------- Q and its derivative
+def rod_loads(mech: Mechanism, f: np.ndarray) -> np.ndarray:
+    """``F_a = sum_k c_ak f_k``, ``(samples, links, dim)``, summed leaves first (children have larger
+    indices than their parents): a link's own points weighted by their fractions, its subtree's whole."""
+    own = np.einsum("ib,sibd->sid", mech.fractions, f)
+    through = f.sum(axis=2)  # what a link and its subtree pass to the parent
+    F = own.copy()
+    for k in range(mech.nlinks - 1, -1, -1):
+        p = mech.parent[k]
+        if p >= 0:
+            through[:, p] += through[:, k]
+            F[:, p] += through[:, k]
+    return F
+
+
+def _trig(mech: Mechanism, q):
+    n = mech.nlinks
+    cf, sf = np.cos(q[:, :n]), np.sin(q[:, :n])
+    if mech.dim == 2:
+        return cf, sf, None, None
+    return cf, sf, np.cos(q[:, n : 2 * n]), np.sin(q[:, n : 2 * n])
+
+
+def _project(mech: Mechanism, trig, l, F) -> list:
+    """Signed ``J_a^T F_a`` of every rod: one ``(samples, links)`` array per coordinate block."""
+    cf, sf, cp, sp = trig
+    s = mech.sign_array[None, :]
+    if mech.dim == 2:
+        parts = project_2d(cf, sf, l, F[..., 0], F[..., 1])
+    else:
+        parts = project_3d(cf, sf, cp, sp, l, F[..., 0], F[..., 1], F[..., 2])
+    return [s * x for x in parts]
+
+
+def generalized_forces(mech: Mechanism, q, f) -> np.ndarray:
+    """``Q(q, f_ext) = sum_k J_k^T f_k``, ``(samples, dof)`` in block order, for ``q`` ``(samples, dof)``
+    and ``f`` ``(samples, links, 3, dim)`` (real or complex: complex-step derivatives)."""
+    n = mech.nlinks
+    return np.concatenate(_project(mech, _trig(mech, q), q[:, -n:], rod_loads(mech, f)), axis=1)
+
+
+def dQ_dq(mech: Mechanism, q, f) -> np.ndarray:
+    """``dQ/dq``, ``(samples, dof, dof)``: rod ``a``'s block ``d(J_a^T F_a)/dq_a`` (zero elsewhere: the
+    forces are fixed in the world). Inverse dynamics with ``f_ext`` adds ``-dQ/dq`` to ``dtau/dq``;
+    forward dynamics adds ``M^-1 dQ/dq`` to ``dqdd/dq``."""
+    n, d = mech.nlinks, mech.dim
+    cf, sf, cp, sp = _trig(mech, q)
+    l, F = q[:, -n:], rod_loads(mech, f)
+    one = np.ones_like(l)
+    # columns: Q at phi + pi/2 (its terms free of phi, F_z's in 3D, dropped), psi + pi/2, and l = 1
+    horizontal = F.copy()
+    horizontal[..., 2:] = 0.0
+    columns = (
+        [(-sf, cf, cp, sp, l, horizontal)] + ([(cf, sf, -sp, cp, l, F)] if d == 3 else []) + [(cf, sf, cp, sp, one, F)]
+    )
+    out = np.zeros((q.shape[0], d * n, d * n), dtype=np.result_type(q, f))
+    idx = np.arange(n)
+    for c, (a, b, e, g, length, load) in enumerate(columns):
+        parts = _project(mech, (a, b, e, g), length, load)
+        if c == d - 1:  # d/dl: J^T F is linear in l except its last component, u.F
+            parts[-1] = np.zeros_like(parts[-1])
+        for r, part in enumerate(parts):
+            out[:, r * n + idx, c * n + idx] = part
+    return out
+
+
+@cache
+def _kernel() -> Callable[..., Any]:
+    """The compiled ``Q`` of one batch (numba, compiled on first use): the same projections
+    (``register_jitable``) and the same leaves-first sums as :func:`generalized_forces`."""
+    from numba import njit
+    from numba.extending import register_jitable
+
+    from exo_bench.models.numba_runtime import ensure
+
+    ensure()
+    p2, p3 = register_jitable(project_2d), register_jitable(project_3d)
+
+    @njit(nogil=True)
+    def kernel(parent, sign, frac, dim, q, f, out):  # pragma: no cover - compiled
+        S, n = q.shape[0], parent.shape[0]
+        F = np.zeros((n, dim))
+        through = np.zeros((n, dim))
+        for s in range(S):
+            for k in range(n):
+                for c in range(dim):
+                    F[k, c] = frac[k, 0] * f[s, k, 0, c] + frac[k, 1] * f[s, k, 1, c] + frac[k, 2] * f[s, k, 2, c]
+                    through[k, c] = f[s, k, 0, c] + f[s, k, 1, c] + f[s, k, 2, c]
+            for k in range(n - 1, -1, -1):
+                p = parent[k]
+                if p >= 0:
+                    for c in range(dim):
+                        through[p, c] += through[k, c]
+                        F[p, c] += through[k, c]
+            for k in range(n):
+                cf, sf, sk = np.cos(q[s, k]), np.sin(q[s, k]), sign[k]
+                if dim == 2:
+                    a, b = p2(cf, sf, q[s, n + k], F[k, 0], F[k, 1])
+                    out[s, k], out[s, n + k] = sk * a, sk * b
+                else:
+                    cp, sp = np.cos(q[s, n + k]), np.sin(q[s, n + k])
+                    a, b, c3 = p3(cf, sf, cp, sp, q[s, 2 * n + k], F[k, 0], F[k, 1], F[k, 2])
+                    out[s, k], out[s, n + k], out[s, 2 * n + k] = sk * a, sk * b, sk * c3
+        return out
+
+    return kernel
+
+
+def generalized_forces_compiled(mech: Mechanism, q: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """:func:`generalized_forces` by the compiled loop (float64 ``q (S, dof)``, ``f (S, links, 3, dim)``)."""
+    parent = np.asarray(mech.parent, dtype=np.int64)
+    return _kernel()(parent, mech.sign_array, mech.fractions, mech.dim, q, f, np.empty(q.shape))
+
+
+def point_forces(mech: Mechanism, f: np.ndarray):
+    """``(link, point, force (3,))`` of one sample's forces ``(links, 3, dim)`` at the engines' bodies (Pinocchio, MuJoCo, Drake):
+    a middle point of zero mass has none, so its force goes ``(1 - n) : n`` to the start and the end
+    (``P_mid = (1 - n) P_start + n P_end``: the same virtual work)."""
+    for i in range(mech.nlinks):
+        for b in range(3):
+            force = np.zeros(3)
+            force[: mech.dim] = f[i, b]
+            if b == 1 and mech.masses[i][1] <= 0.0:
+                yield i, 0, (1.0 - mech.n[i]) * force
+                yield i, 2, mech.n[i] * force
+            elif force.any():
+                yield i, b, force
+
+
+# ----------------------------------------------------------------------------- the calls
+def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndarray:
+    """``model.inverse_dynamics(q, qd, qdd) - Q(q, f_ext)`` (``PreparedModel.inverse_dynamics`` with
+    ``f_ext``): the states checked by the call itself, ``f_ext`` by :func:`check_f_ext`, ``out`` as there."""
+    from exo_bench.models.unchecked import check_out
+
+    tau = model.inverse_dynamics(q, qd, qdd, check=check)
+    q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
+    f = check_f_ext(model.mechanism, f_ext, tau.shape, check, model.method)
+    tau = tau - model._external_forces(q2, f).reshape(tau.shape)
+    if out is None:
+        return tau
+    check_out(out, tau.shape, model.method)
+    out[...] = tau
+    return out
+
+
+def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndarray:
+    """``model.forward_dynamics(q, qd, tau + Q(q, f_ext))`` (``PreparedModel.forward_dynamics`` with
+    ``f_ext``): ``q`` and the shapes checked here first (``Q`` needs them), the rest by the call."""
+    from exo_bench.models.states import as_states
+    from exo_bench.models.unchecked import unchecked_forward
+
+    mech = model.mechanism
+    if check:
+        shape = np.shape(q)
+        q2, _, _ = as_states(mech, q, source="forward dynamics")
+        t = np.asarray(tau, dtype=float) if tau is not None else None
+        if t is None or t.shape != shape:
+            raise ValueError(
+                f"{model.method}: forward dynamics: field 'tau': expected an array of the shape of q, {shape}, "
+                f"got {None if t is None else t.shape}"
+            )
+    else:
+        unchecked_forward(model.method, model.dof, q, qd, tau, out)
+        shape, q2, t = q.shape, q.reshape(-1, model.dof), tau
+    f = check_f_ext(mech, f_ext, shape, check, model.method)
+    return model.forward_dynamics(q, qd, t + model._external_forces(q2, f).reshape(shape), check=check, out=out)
