@@ -28,7 +28,8 @@ and ``l`` of links (1, 2, 3, 4, 5) take the values of links (4, 3, 2, 1, 5); in 
 mirror image (``y -> -y``), so the azimuths also change sign (:func:`swap_matrix`). Positions
 are relative to O, so the origin's move needs no coordinate: it is the condition on the landing point.
 
-**What is free and what is bounded** is :class:`StepSettings`, stored with the solution.
+**What is free and what is bounded** is :class:`StepSettings`, stored with the solution. The NLP that IPOPT
+solves, with its exact derivatives, is :mod:`exo_bench.bench.studies.step.transcription`.
 """
 
 from __future__ import annotations
@@ -207,101 +208,20 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     """Build and solve the collocation problem; raise ``RuntimeError`` (one line) when IPOPT fails.
 
     ``inverse_dynamics``: a function ``mech -> casadi.Function tau = ID(q, qd, qdd)``, by default
-    :func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`."""
+    :func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`. The NLP and its exact
+    derivatives, built per collocation point and mapped, are :mod:`exo_bench.bench.studies.step.transcription`;
+    IPOPT's tolerances are the stored step's."""
     import casadi as ca
 
-    from exo_bench.bench.studies.step import symbolic
+    from exo_bench.bench.studies.step import symbolic, transcription
 
     _check(mech, settings)
     s = settings
     point = _point_function(mech, (inverse_dynamics or symbolic.inverse_dynamics_function)(mech))
-    n, dof, dim, N = mech.nlinks, mech.dof, mech.dim, s.intervals
-    K = 2 * N + 1
-    mass, bw = mech.total_mass, mech.total_mass * mech.g
-
-    opti = ca.Opti()
-    T = opti.variable()
-    # 3D with the azimuths fixed at 0: they are no variables (as equality constraints they would repeat the
-    # leg swap's and the landing's azimuth rows, and IPOPT's KKT matrix would be singular)
-    planar3d = dim == 3 and s.azimuth == 0
-    free = slice(n, dof) if planar3d else slice(0, dof)
-    nf = dof - n if planar3d else dof
-    Xq, Xv, Xa = opti.variable(nf, K), opti.variable(nf, K), opti.variable(nf, K)
-    if planar3d:
-        Q, V, A = (ca.vertcat(ca.MX.zeros(n, K), X) for X in (Xq, Xv, Xa))
-    else:
-        Q, V, A = Xq, Xv, Xa
-    h = T / N
-    # Hermite-Simpson, separated form
-    e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)  # interval starts, midpoints, ends
-    opti.subject_to(Xq[:, m_] == (Xq[:, e] + Xq[:, o]) / 2 + h / 8 * (Xv[:, e] - Xv[:, o]))
-    opti.subject_to(Xv[:, m_] == (Xv[:, e] + Xv[:, o]) / 2 + h / 8 * (Xa[:, e] - Xa[:, o]))
-    opti.subject_to(Xq[:, o] - Xq[:, e] == h / 6 * (Xv[:, e] + 4 * Xv[:, m_] + Xv[:, o]))
-    opti.subject_to(Xv[:, o] - Xv[:, e] == h / 6 * (Xa[:, e] + 4 * Xa[:, m_] + Xa[:, o]))
-    tau, M, F, P, Pd = point.map(K)(Q, V, A)
-    # leg swap, landing point and no impact
-    S = swap_matrix(mech)
-    Sf = S[free, free]
-    opti.subject_to(Xq[:, 0] == ca.mtimes(Sf, Xq[:, K - 1]))
-    opti.subject_to(Xv[:, 0] == ca.mtimes(Sf, Xv[:, K - 1]))
-    ankle = lambda X, j: X[(3 * 3 + 2) * dim : (3 * 3 + 3) * dim, j]  # link 4, end mass
-    target = [s.speed * T] + [0.0] * (dim - 1)
-    axes = [0, dim - 1] if planar3d else list(range(dim))  # planar 3D: y is 0 identically
-    opti.subject_to(ankle(P, K - 1)[axes] == ca.vertcat(*target)[axes])
-    opti.subject_to(ankle(Pd, K - 1)[axes] == 0)
-    # swing foot clearance: every swing-leg point mass (links 3 and 4), vertical axis
-    lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
-    for i in (2, 3):
-        for pm in range(3):  # the link's point masses
-            z = P[(3 * i + pm) * dim + dim - 1, :]
-            opti.subject_to(z[1 : K - 1] >= 0)  # at 0 and T the landing conditions fix the foot's height
-            opti.subject_to(z[lo : hi + 1] >= s.clearance)
-    # the hip (end of link 2) moves forward
-    opti.subject_to(Pd[(3 * 1 + 2) * dim, :] >= 0)
-    # ground reaction at O: pushes, in the friction cone
-    Fx, Fz = F[0, :], F[dim - 1, :]
-    opti.subject_to(Fz >= s.min_support * bw)
-    if dim == 2 or planar3d:  # the lateral force is 0 identically in a planar step: a linear cone
-        opti.subject_to(opti.bounded(-s.friction * Fz, Fx, s.friction * Fz))
-    else:
-        opti.subject_to(Fx**2 + F[1, :] ** 2 <= (s.friction * Fz) ** 2)
-    # joint ranges and rod strokes
-    ang = angle_rows(mech)
-    th = [Q[int(r), :] for r in ang]
-    opti.subject_to(opti.bounded(s.knee[0], th[1] - th[0], s.knee[1]))
-    opti.subject_to(opti.bounded(s.knee[0], th[2] - th[3], s.knee[1]))
-    opti.subject_to(opti.bounded(s.hip[0], th[2] - th[4], s.hip[1]))
-    opti.subject_to(opti.bounded(s.hip[0], th[1] - th[4], s.hip[1]))
-    for i in range(4):
-        opti.subject_to(opti.bounded(s.segment[0], th[i], s.segment[1]))
-    opti.subject_to(opti.bounded(s.trunk[0], th[4], s.trunk[1]))
-    a, b, l5 = s.rest_lengths
-    for i, L in enumerate((a, b, b, a, l5)):
-        opti.subject_to(opti.bounded(L - s.stroke, Q[dof - n + i, :], L + s.stroke))
-    if dim == 3 and not planar3d:
-        for i in range(n):
-            if s.azimuth == 0:
-                opti.subject_to(Q[i, :] == 0)
-            else:
-                opti.subject_to(opti.bounded(-s.azimuth, Q[i, :], s.azimuth))
-    opti.subject_to(opti.bounded(s.duration[0], T, s.duration[1]))
-    # objective: Simpson average of the effort
-    L_ = (
-        s.w_moment * ca.sum1((M / mass) ** 2)
-        + s.w_force * ca.sum1((tau[dof - n :, :] / bw) ** 2)
-        + s.w_accel * ca.sum1(A**2)
-    )
-    wts = np.ones(K)
-    wts[1::2] = 4.0
-    wts[2:-1:2] = 2.0
-    opti.minimize(ca.mtimes(L_, ca.DM(wts / (6 * N))))
-    # initial guess
+    n, dim, K = mech.nlinks, mech.dim, 2 * s.intervals + 1
+    nlp = transcription.build(mech, s, point)  # exact derivatives per collocation point, mapped
     t0, q0, qd0, qdd0 = initial_guess(mech, s)
-    opti.set_initial(T, float(t0[-1]))
-    opti.set_initial(Xq, q0[:, free].T)
-    opti.set_initial(Xv, qd0[:, free].T)
-    opti.set_initial(Xa, qdd0[:, free].T)
-    opts: dict[str, bool | int | float | str] = {
+    opts: dict[str, Any] = {
         "ipopt.tol": s.tol,
         "ipopt.constr_viol_tol": 1e-10,
         "ipopt.acceptable_iter": 0,
@@ -311,39 +231,37 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
         "ipopt.print_level": 5 if verbose else 0,
         "print_time": verbose,
         "ipopt.sb": "yes",
-        "expand": True,
-    }  # SX: the exact Hessian costs half of the MX one here
-    opti.solver("ipopt", opts)
+        **nlp.derivatives,
+    }
+    solver = ca.nlpsol("step", "ipopt", nlp.nlp, opts)
     t_start = time.perf_counter()
-    sol: ca.OptiSol | ca.OptiAdvanced  # the solution, or IPOPT's last iterate
-    try:
-        sol = opti.solve()
-        ok = True
-    except RuntimeError:
-        sol, ok = opti.debug, False
+    res = solver(x0=nlp.x0(float(t0[-1]), q0, qd0, qdd0), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
     seconds = time.perf_counter() - t_start
-    st = opti.stats()
-    if not ok:
+    st = solver.stats()
+    if not st.get("success"):
         check_interrupt()  # IPOPT stopped by Ctrl-C or SIGTERM: interrupted, not "did not solve"
         raise RuntimeError(
             f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
             f"{st.get('iter_count')} iterations ({seconds:.1f} s)"
         )
-    Tv = float(sol.value(T))
+    xv = np.asarray(res["x"], dtype=float).ravel()
+    Tv, zq, zv, za = nlp.split(xv)
     t = np.linspace(0.0, Tv, K)
-    q, qd, qdd = (np.atleast_2d(sol.value(X)).T for X in (Q, V, A))
-    tau_v = np.asarray(sol.value(tau)).T
-    Mv = np.asarray(sol.value(M)).T
-    Fv = np.asarray(sol.value(F)).T.reshape(K, n, dim)
+    q, qd, qdd = (np.zeros((K, mech.dof)) for _ in range(3))
+    for full, part in ((q, zq), (qd, zv), (qdd, za)):
+        full[:, nlp.layout.free] = part
+    tau_v, Mv, Fv, _, _ = (np.asarray(o, dtype=float).T for o in point.map(K)(q.T, qd.T, qdd.T))
+    Fv = Fv.reshape(K, n, dim)
     Mv = Mv.reshape(K, n, 3) if dim == 3 else Mv.reshape(K, n)
+    g = np.asarray(res["g"], dtype=float).ravel()
     stats = {
         "status": st.get("return_status"),
         "success": bool(st.get("success")),
         "iterations": int(st["iter_count"]),
         "solve_seconds": seconds,
-        "objective": float(sol.value(opti.f)),
+        "objective": float(res["f"]),
         "casadi": ca.__version__,  # type: ignore[attr-defined]  # casadi's stubs omit __version__
-        "constraint_violation": _ipopt_violation(opti, sol),
+        "constraint_violation": _violation(np.concatenate([g, xv]), nlp),
     }
     return Solution(s, t, q, qd, qdd, tau_v, Mv, Fv, stats)
 
@@ -361,12 +279,10 @@ def _point_function(mech: Mechanism, ID):
     return ca.Function("step_point", [q, qd, qdd], [ID(q, qd, qdd), M, F, p, v])
 
 
-def _ipopt_violation(opti, sol) -> float:
-    """The largest violation of the problem's constraints at the solution, as CasADi evaluates them."""
-    g = np.atleast_1d(np.asarray(sol.value(opti.g), dtype=float)).ravel()
-    lb = np.atleast_1d(np.asarray(sol.value(opti.lbg), dtype=float)).ravel()
-    ub = np.atleast_1d(np.asarray(sol.value(opti.ubg), dtype=float)).ravel()
-    return float(max(np.maximum(lb - g, 0).max(initial=0.0), np.maximum(g - ub, 0).max(initial=0.0)))
+def _violation(values: np.ndarray, nlp) -> float:
+    """The largest violation of the problem's constraints and variable bounds at ``values = (g, x)``."""
+    lb, ub = np.concatenate([nlp.lbg, nlp.lbx]), np.concatenate([nlp.ubg, nlp.ubx])
+    return float(max(np.maximum(lb - values, 0).max(initial=0.0), np.maximum(values - ub, 0).max(initial=0.0)))
 
 
 __all__ = ["Solution", "StepSettings", "angle_rows", "initial_guess", "solve", "swap_matrix"]

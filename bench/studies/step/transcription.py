@@ -1,0 +1,252 @@
+"""The step's collocation problem as an NLP whose exact derivatives are built per node, once.
+
+**Why this form.** The problem was an ``Opti`` model expanded to one SX graph of all ``2N + 1``
+collocation points; CasADi then differentiated that whole graph twice for IPOPT's exact Hessian. Profiled on
+exo5-3d (3.8.2, 81 iterations, CPU seconds on a loaded 2-core host): building the expanded graph and its
+Hessian took 8 s, IPOPT's linear algebra 8 s (its KKT system carried 2899 inequality rows, 1011 of them
+simple bounds of one variable), the Hessian's evaluations 2-3 s. Two alternatives were measured and refused:
+
+* ``expand=False`` (an MX graph over ``point.map``): 2 s to build, but CasADi's Hessian of a mapped MX
+  function evaluates 5-10x slower than the SX one (the solve took 76 iterations and 161 s wall, loaded);
+* a ``Callback`` backed by the numpy analytic kernels (issue 36): it gives first derivatives only, so
+  IPOPT would need a limited-memory Hessian, many more iterations and a looser convergence.
+
+Here every nonlinear quantity of the problem is a function of one collocation point: the point's
+outputs ``y_k = c(z_k)``, ``z_k = (q_k, qd_k, qdd_k)`` (the free coordinates), are the swing-leg heights,
+the hip's forward velocity, the ground reaction's rows, the landing foot and the point's effort
+(:func:`node_function`). The rest of the NLP, ``g = G(x, Y)``, is linear in the outputs ``Y`` with
+constant coefficients ``J_Y = dG/dY`` and at most bilinear in the variables (``h = T / N`` times
+rates). So, exactly:
+
+    dg/dx = dG/dx + J_Y blockdiag_k(dc/dz (z_k))
+    d2(sigma f + lam^T g)/dx2 = d2(lam^T G)/dx2 + blockdiag_k(d2(mu_k^T c)/dz2 (z_k)),
+    mu = J_Y^T lam + sigma df/dY
+
+with ``dc/dz`` and ``d2(mu^T c)/dz2`` derived symbolically (SX) for ONE point and mapped over the ``K``
+points (``Function.map``): building costs the same for any ``N``, and the evaluations run the SX code of
+one point ``K`` times. IPOPT gets them as ``jac_g``, ``grad_f`` and ``hess_lag``
+(``tests/test_step_derivatives.py`` checks them against central differences of ``g`` and of the
+Lagrangian's gradient). Simple bounds of one variable (segment and trunk angles, rod lengths, azimuths,
+duration) are variable bounds, not constraint rows, and a swing-leg height has one row per point (the
+larger of "above the floor" and "clearance"): the same feasible set in 1497 fewer rows (exo5-3d). The solution, its constraints and IPOPT's
+tolerances are those of :func:`exo_bench.bench.studies.step.problem.solve` before (the stored steps are
+reproduced: ``exo-bench gait --solve``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from exo_bench.models.mechanism import Mechanism
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where things are: ``x = (vec(Z), T)`` with ``Z`` of shape ``(nz, K)``, column ``k`` the point's
+    free ``(q, qd, qdd)``; ``free`` are the mechanism's coordinates that are variables."""
+
+    free: np.ndarray
+    nf: int
+    K: int
+    N: int
+
+    @property
+    def nz(self) -> int:
+        return 3 * self.nf
+
+    @property
+    def nx(self) -> int:
+        return self.nz * self.K + 1
+
+
+@dataclass
+class Transcription:
+    """The NLP: ``nlp`` (x, f, g as MX), its bounds, and the exact derivatives for IPOPT."""
+
+    layout: Layout
+    nlp: dict
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    derivatives: dict  # {"jac_g", "grad_f", "hess_lag"}: casadi.Functions named as nlpsol expects
+
+    def x0(self, T: float, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """The variables of a trajectory ``(K, dof)`` of duration ``T``."""
+        f = self.layout.free
+        return np.concatenate([np.concatenate([q[:, f], qd[:, f], qdd[:, f]], axis=1).ravel(), [T]])
+
+    def split(self, x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """``(T, Zq, Zv, Za)``: the duration and the free coordinates ``(K, nf)`` of ``x``."""
+        lay = self.layout
+        Z = np.asarray(x, dtype=float).ravel()[: lay.nz * lay.K].reshape(lay.K, lay.nz)
+        return float(np.asarray(x).ravel()[-1]), Z[:, : lay.nf], Z[:, lay.nf : 2 * lay.nf], Z[:, 2 * lay.nf :]
+
+
+def layout(mech: Mechanism, intervals: int, azimuth: float) -> Layout:
+    """3D with the azimuths fixed at 0: they are no variables (as equality constraints they would repeat the
+    leg swap's and the landing's azimuth rows, and IPOPT's KKT matrix would be singular)."""
+    n, dof = mech.nlinks, mech.dof
+    planar3d = mech.dim == 3 and azimuth == 0
+    free = np.arange(n, dof) if planar3d else np.arange(dof)
+    return Layout(free, len(free), 2 * intervals + 1, intervals)
+
+
+def _full(mech: Mechanism, lay: Layout, v):
+    """The mechanism's coordinates from the free ones (the fixed azimuths are 0)."""
+    return ca.vertcat(ca.SX.zeros(mech.dof - lay.nf), v) if lay.nf < mech.dof else v
+
+
+def node_function(mech: Mechanism, s, lay: Layout, point: ca.Function) -> tuple[ca.Function, dict[str, slice]]:
+    """``y = c(z)``: every nonlinear quantity the problem takes from one collocation point, and the rows of
+    each (``heights``: the 6 swing-leg point masses' heights; ``hip``: the hip's forward velocity;
+    ``Fz``, ``cone``: the ground reaction's vertical component and friction-cone rows, ``>= 0``; ``foot_p``,
+    ``foot_v``: the swing foot's position and velocity on the walking axes; ``effort``: the objective's
+    integrand)."""
+    dim, n, dof = mech.dim, mech.nlinks, mech.dof
+    mass, bw = mech.total_mass, mech.total_mass * mech.g
+    z = ca.SX.sym("z", lay.nz)
+    q, qd, qdd = (_full(mech, lay, z[i * lay.nf : (i + 1) * lay.nf]) for i in range(3))
+    tau, M, F, P, Pd = point(q, qd, qdd)
+    planar = dim == 2 or lay.nf < dof
+    heights = [P[(3 * i + pm) * dim + dim - 1] for i in (2, 3) for pm in range(3)]
+    Fx, Fz = F[0], F[dim - 1]
+    if planar:  # the lateral force is 0 identically in a planar step: a linear cone
+        cone = [s.friction * Fz + Fx, s.friction * Fz - Fx]
+    else:
+        cone = [(s.friction * Fz) ** 2 - Fx**2 - F[1] ** 2]
+    axes = [0, dim - 1] if planar and dim == 3 else list(range(dim))  # planar 3D: y is 0 identically
+    foot = slice((3 * 3 + 2) * dim, (3 * 3 + 3) * dim)  # link 4, end mass
+    effort = s.w_moment * ca.sumsqr(M / mass) + s.w_force * ca.sumsqr(tau[dof - n :] / bw) + s.w_accel * ca.sumsqr(qdd)
+    parts = {
+        "heights": heights,
+        "hip": [Pd[(3 * 1 + 2) * dim]],
+        "Fz": [Fz],
+        "cone": cone,
+        "foot_p": [P[foot][a] for a in axes],
+        "foot_v": [Pd[foot][a] for a in axes],
+        "effort": [effort],
+    }
+    rows, y, start = {}, [], 0
+    for name, exprs in parts.items():
+        rows[name] = slice(start, start + len(exprs))
+        y += exprs
+        start += len(exprs)
+    return ca.Function("step_node", [z], [ca.vertcat(*y)], ["z"], ["y"]), rows
+
+
+def _simpson(lay: Layout) -> np.ndarray:
+    wts = np.ones(lay.K)
+    wts[1::2] = 4.0
+    wts[2:-1:2] = 2.0
+    return wts / (6 * lay.N)
+
+
+def _constraints(mech: Mechanism, s, lay: Layout, rows: dict[str, slice], xs, Ys):
+    """``G(x, Y)`` and its bounds, and the variables' bounds."""
+    from exo_bench.bench.studies.step.problem import angle_rows, swap_matrix
+
+    n, dof, K, N, nf = mech.nlinks, mech.dof, lay.K, lay.N, lay.nf
+    Z = ca.reshape(xs[: lay.nz * K], lay.nz, K)
+    T = xs[-1]
+    h = T / N
+    Xq, Xv, Xa = Z[:nf, :], Z[nf : 2 * nf, :], Z[2 * nf :, :]
+    g: list = []
+    lb: list = []
+    ub: list = []
+
+    def add(expr, lo: float, hi: float) -> None:
+        e = ca.vec(expr)
+        g.append(e)
+        lb.append(np.full(e.numel(), lo))
+        ub.append(np.full(e.numel(), hi))
+
+    # Hermite-Simpson, separated form
+    e, m_, o = slice(0, K - 1, 2), slice(1, K, 2), slice(2, K, 2)  # interval starts, midpoints, ends
+    add(Xq[:, m_] - ((Xq[:, e] + Xq[:, o]) / 2 + h / 8 * (Xv[:, e] - Xv[:, o])), 0, 0)
+    add(Xv[:, m_] - ((Xv[:, e] + Xv[:, o]) / 2 + h / 8 * (Xa[:, e] - Xa[:, o])), 0, 0)
+    add(Xq[:, o] - Xq[:, e] - h / 6 * (Xv[:, e] + 4 * Xv[:, m_] + Xv[:, o]), 0, 0)
+    add(Xv[:, o] - Xv[:, e] - h / 6 * (Xa[:, e] + 4 * Xa[:, m_] + Xa[:, o]), 0, 0)
+    # leg swap, landing point and no impact
+    Sf = ca.DM(swap_matrix(mech)[np.ix_(lay.free, lay.free)])
+    add(Xq[:, 0] - ca.mtimes(Sf, Xq[:, K - 1]), 0, 0)
+    add(Xv[:, 0] - ca.mtimes(Sf, Xv[:, K - 1]), 0, 0)
+    fp = Ys[rows["foot_p"], K - 1]
+    add(fp[0] - s.speed * T, 0, 0)
+    add(fp[1:], 0, 0)
+    add(Ys[rows["foot_v"], K - 1], 0, 0)
+    # swing-leg clearance: at 0 and T the landing conditions fix the foot's height
+    lo, hi = int(round(s.window * 2 * N)), int(round((1 - s.window) * 2 * N))
+    clear = np.zeros(K)
+    clear[lo : hi + 1] = s.clearance  # from lift-off to touch-down above the floor, between them by clearance
+    for r in range(rows["heights"].start, rows["heights"].stop):
+        add(Ys[r, 1 : K - 1] - ca.DM(clear[1 : K - 1]).T, 0, np.inf)
+    add(Ys[rows["hip"], :], 0, np.inf)  # the hip moves forward
+    add(Ys[rows["Fz"], :], s.min_support * mech.total_mass * mech.g, np.inf)  # the ground pushes
+    add(Ys[rows["cone"], :], 0, np.inf)  # in the friction cone
+    # knee and hip ranges (linear); the other ranges are the variables' bounds
+    off = dof - nf
+    th = [Xq[int(r) - off, :] for r in angle_rows(mech)]
+    for a, b, rng in ((1, 0, s.knee), (2, 3, s.knee), (2, 4, s.hip), (1, 4, s.hip)):
+        add(th[a] - th[b], *rng)
+    lbz, ubz = np.full((3, nf), -np.inf), np.full((3, nf), np.inf)
+    a_, b_, l5 = s.rest_lengths
+    for i, r in enumerate(angle_rows(mech)):
+        lbz[0, int(r) - off], ubz[0, int(r) - off] = s.segment if i < 4 else s.trunk
+    for i, L in enumerate((a_, b_, b_, a_, l5)):
+        lbz[0, dof - n + i - off], ubz[0, dof - n + i - off] = L - s.stroke, L + s.stroke
+    if off == 0 and mech.dim == 3:
+        lbz[0, :n], ubz[0, :n] = -s.azimuth, s.azimuth
+    lbx = np.concatenate([np.tile(lbz.ravel(), K), [s.duration[0]]])
+    ubx = np.concatenate([np.tile(ubz.ravel(), K), [s.duration[1]]])
+    return ca.vertcat(*g), np.concatenate(lb), np.concatenate(ub), lbx, ubx
+
+
+def build(mech: Mechanism, s, point: ca.Function) -> Transcription:
+    """The step's NLP with its exact derivatives (module docstring), for ``point = (tau, M, F, p, v)(q,
+    qd, qdd)`` of one collocation point."""
+    lay = layout(mech, s.intervals, s.azimuth)
+    K, nz = lay.K, lay.nz
+    cfun, rows = node_function(mech, s, lay, point)
+    ny = cfun.size1_out(0)
+    # G(x, Y), linear in Y: its constant J_Y, and its own derivatives in x (no Y in them: checked by Function)
+    xs, Ys = ca.SX.sym("x", lay.nx), ca.SX.sym("Y", ny, K)
+    G, lbg, ubg, lbx, ubx = _constraints(mech, s, lay, rows, xs, Ys)
+    JY = ca.evalf(ca.jacobian(G, ca.vec(Ys)))
+    lam = ca.SX.sym("lam", G.numel())
+    G_fun = ca.Function("step_G", [xs, Ys], [G])
+    Gx_fun = ca.Function("step_G_x", [xs], [ca.jacobian(G, xs)])
+    Gxx_fun = ca.Function("step_G_xx", [xs, lam], [ca.hessian(ca.dot(lam, G), xs)[0]])
+    FY = np.zeros((ny, K))
+    FY[rows["effort"].start, :] = _simpson(lay)
+    # one point's derivatives, mapped
+    z, mu = ca.SX.sym("z", nz), ca.SX.sym("mu", ny)
+    yz = cfun(z)
+    jmap = ca.Function("step_node_jac", [z], [ca.jacobian(yz, z)]).map(K)
+    gmap = ca.Function("step_node_grad", [z], [ca.gradient(yz[rows["effort"].start], z)]).map(K)
+    hmap = ca.Function("step_node_hess", [z, mu], [ca.hessian(ca.dot(mu, yz), z)[0]]).map(K)
+    # the NLP and its derivatives, in MX
+    x, p = ca.MX.sym("x", lay.nx), ca.MX.sym("p", 0)
+    lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", G.numel())
+    Z = ca.reshape(x[: nz * K], nz, K)
+    Y = cfun.map(K)(Z)
+    g, f = G_fun(x, Y), ca.dot(ca.DM(FY), Y)
+    dY = ca.horzcat(ca.diagcat(*ca.horzsplit(jmap(Z), nz)), ca.MX(ny * K, 1))  # dvec(Y)/dx
+    jac = Gx_fun(x) + ca.mtimes(ca.DM(JY), dY)
+    grad = ca.vertcat(ca.vec(gmap(Z) * ca.repmat(ca.DM(_simpson(lay)).T, nz, 1)), 0)
+    MU = ca.reshape(ca.mtimes(ca.DM(JY).T, lam_g), ny, K) + lam_f * ca.DM(FY)
+    hess = ca.diagcat(*ca.horzsplit(hmap(Z, MU), nz), ca.MX(1, 1)) + Gxx_fun(x, lam_g)
+    derivatives = {
+        "jac_g": ca.Function("nlp_jac_g", [x, p], [g, jac], ["x", "p"], ["g", "jac_g_x"]),
+        "grad_f": ca.Function("nlp_grad_f", [x, p], [f, grad], ["x", "p"], ["f", "grad_f_x"]),
+        "hess_lag": ca.Function(
+            "nlp_hess_l", [x, p, lam_f, lam_g], [ca.triu(hess)], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
+        ),
+    }
+    return Transcription(lay, {"x": x, "f": f, "g": g}, lbx, ubx, lbg, ubg, derivatives)
+
+
+__all__ = ["Layout", "Transcription", "build", "layout", "node_function"]
