@@ -112,6 +112,31 @@ def _python_lean(entry: Any, params: np.ndarray) -> Any:
     return call
 
 
+def _cholesky_forward(model: Any) -> Entries:
+    """matrix-factored's forward dynamics of one sample in compiled code, checked in the same call
+    (:mod:`exo_bench.matrix_method.numba_kernels.cholesky_forward`: ``h`` and the Cholesky factor of the
+    coupling, computed here once per model); where that declines (``M`` singular), the model's
+    ``check_regular`` names why, else the numpy route (``mass_matrix_and_bias``, ``cholesky_solve``)
+    decides. Nothing where the coupling itself is not positive definite (the checks refuse the mechanism)."""
+    from exo_bench.matrix_method.numba_kernels.cholesky_forward import entries
+    from exo_bench.models.forward_check import checked_entry
+
+    try:
+        lc = np.ascontiguousarray(np.linalg.cholesky(model.coupling))
+    except np.linalg.LinAlgError:
+        return Entries()
+    e, params, numpy_route = entries(), model.kernel_args[0], model._forward_dynamics
+
+    def forward_one(q, qd, tau, out):
+        if not e.forward_sample(params, lc, q, qd, tau, out):  # M singular: named by the checks, else numpy's
+            model.check_regular(q.reshape(1, -1))
+            out[...] = numpy_route(q[None], qd[None], tau[None])[0]
+        return out
+
+    fused = checked_entry(model, e.checked_forward, (params, lc), forward_one)
+    return Entries(forward_one=forward_one, forward_checked=fused)
+
+
 def _numpy_tiles(model: Any) -> Entries:
     """The numpy reference: the model's own vectorised code, ``tile`` samples at a time."""
     return Entries(inverse_chunk=model.numpy_inverse_dynamics)
@@ -184,6 +209,18 @@ MATRIX_FACTORED_KERNELS = (
         compile_seconds=4.0,
         runtime_bytes=NUMBA_BYTES,
         load=_lean,
+    ),
+    Kernel(
+        "cholesky-forward",
+        "numba",
+        ("forward_dynamics",),
+        (ONE_SAMPLE,),
+        "one thread: the calling one",
+        "one sample only, O(n^2) (h by the factored kernel, M = R^T (C x I) R solved through the Cholesky "
+        "factor of C): below MATRIX_FACTORED's call_seconds (its cost formulas time batches)",
+        compile_seconds=4.0,
+        runtime_bytes=NUMBA_BYTES,
+        load=_cholesky_forward,
     ),
     _numpy("MATRIX_FACTORED", _DERIVED),
 )

@@ -157,7 +157,8 @@ class MatrixFactored(_WithKernels):
     ``tile``. The kernel forms no matrix, so the mass matrix and the bias forces are derived from
     its inverse dynamics (``native_terms`` is False); :meth:`matrices` is the closed forms'.
     ``kernel="numba"`` runs three kernels (:data:`exo_bench.matrix_method.kernels.MATRIX_FACTORED_KERNELS`):
-    the per-sample one, the SIMD one for batches and the lean one-sample entry."""
+    the SIMD one for batches, the lean one-sample entry (with the per-sample kernel behind it) and
+    ``cholesky-forward``, forward dynamics of one sample through the Cholesky factor of the coupling."""
 
     method = "matrix-factored"
     kernels = MATRIX_FACTORED_KERNELS

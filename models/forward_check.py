@@ -165,3 +165,27 @@ def checks(n: int, p: np.ndarray) -> tuple[Any, Any]:
         return a.dtype is f8 and a.flags.c_contiguous and bool(fin(a.reshape(-1)))
 
     return clear, finite
+
+
+def checked_entry(model: Any, fused: Any, lead: tuple, forward_one: Any) -> Any:
+    """``forward_checked(q, qd, tau) -> qdd`` of a kernel whose compiled call
+    ``fused(*lead, plan, q, qd, tau, qdd)`` runs the checks and its forward dynamics of one sample,
+    answering :data:`DONE`, :data:`EXACT` or :data:`NOT_FINITE` (newton-euler's ``tree-forward``,
+    matrix-factored's ``cholesky-forward``). Near a bound the model's exact ``check_regular`` decides
+    and names why, then ``forward_one(q, qd, tau, out)`` (the same arithmetic) runs; an answer that
+    is not finite is named by :func:`~exo_bench.models.conditioning.check_finite`."""
+    from exo_bench.models.conditioning import check_finite
+
+    dof = model.dof
+
+    def forward_checked(q, qd, tau):
+        checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model
+        qdd = np.empty(dof)
+        if (code := fused(*lead, model.forward_plan, q, qd, tau, qdd)) == EXACT:  # near a bound
+            model.check_regular(q.reshape(1, -1))  # the exact checks decide, naming why (one sample as a batch)
+            code = DONE if checks[1](forward_one(q, qd, tau, qdd)) else NOT_FINITE
+        if code == NOT_FINITE:
+            check_finite(model.mechanism, qdd)
+        return qdd
+
+    return forward_checked

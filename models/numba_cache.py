@@ -45,8 +45,10 @@ _MATRIX = _HERE.parent / "matrix_method"
 #: function from any other file, so that no inlined source is left out of the key).
 KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
     {
-        _MATRIX / "numba_kernels": tuple(
-            _MATRIX / "closed_forms" / f for f in ("planar.py", "transitions.py", "factored.py")
+        # cholesky_forward.py calls the compiled checks of forward_check.py
+        _MATRIX / "numba_kernels": (
+            *(_MATRIX / "closed_forms" / f for f in ("planar.py", "transitions.py", "factored.py")),
+            _HERE / "forward_check.py",
         ),
         # its kernels inline elements.py, a module of their own folder; forward_fused.py calls the
         # compiled checks of forward_check.py

@@ -79,14 +79,16 @@ def test_finite_says_no_for_nan_and_inf_only():
         assert not finite(b)
 
 
+@pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_one_sample_checked_is_the_unchecked_answer_and_agrees_with_the_batch(dim):
-    """The default method's one sample, checked, returns the unchecked one sample's answer bit for bit, and
-    agrees with its batch (a Cholesky solve of its own M and h) to the error model's K eps kappa."""
+def test_one_sample_checked_is_the_unchecked_answer_and_agrees_with_the_batch(dim, method):
+    """A method's one sample, checked, returns the unchecked one sample's answer bit for bit, and
+    agrees with its batch (matrix-factored's: a Cholesky solve of its own M and h) to the error model's
+    K eps kappa."""
     from conftest import EPS, K
 
     mech = exo5(dim)
-    model = prepare(mech, "newton-euler")
+    model = prepare(mech, method)
     q, qd, _ = random_states(mech, 8, 3)
     tau = np.random.default_rng(3).uniform(-20, 20, q.shape)
     batch = model.forward_dynamics(q, qd, tau)
@@ -106,7 +108,8 @@ def test_one_sample_checked_is_the_unchecked_answer_and_agrees_with_the_batch(di
 @pytest.mark.parametrize(
     "what", ["l5=1e-300", "l2=0", "psi3=pi/2-1e-8", "psi3=pi/2", "phi1=1e12", "massless", "overflow"]
 )
-def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what):
+@pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
+def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what, method):
     """A refused state refuses as one sample (the compiled path, then the exact checks) with the message of
     the batch of that one sample, and leaves ``out`` untouched."""
     mech = exo5(3)
@@ -126,7 +129,7 @@ def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what):
         q[0, n + 2] = math.pi / 2 - (float(value.split("-", 1)[1]) if "-" in value else 0.0)
     elif key.startswith("phi"):
         q[0, 0] = float(value)
-    model = prepare(mech, "newton-euler")
+    model = prepare(mech, method)
     with pytest.raises(SingularConfigurationError) as whole, np.errstate(all="ignore"):
         model.forward_dynamics(q, qd, tau)
     out = np.full(mech.dof, 7.0)
@@ -140,12 +143,13 @@ def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what):
     assert (out == 7.0).all()
 
 
-def test_a_clear_one_sample_runs_no_exact_check(monkeypatch):
+@pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
+def test_a_clear_one_sample_runs_no_exact_check(monkeypatch, method):
     """The common case costs one compiled call: the exact checks are not called (they would raise)."""
     from exo_bench.models import prepared
 
     mech = exo5(3)
-    model = prepare(mech, "newton-euler")
+    model = prepare(mech, method)
     q, qd, qdd = random_states(mech, 1, 2)
 
     def refuse(*args, **kw):
@@ -173,12 +177,13 @@ def test_a_nan_or_inf_clears_nothing(where, bad):
         model.check_regular(q)
 
 
-def test_one_sample_unchecked_at_a_singular_state_is_named_not_a_bare_zero_division():
+@pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
+def test_one_sample_unchecked_at_a_singular_state_is_named_not_a_bare_zero_division(method):
     """``check=False`` checks no value, but a division by zero in the passes (a rod of length zero) is not
     let out as a bare ZeroDivisionError: the default method's one sample names the link (its batch's
     Cholesky solve names the zero pivot: a SingularConfigurationError too)."""
     mech = exo5(3)
-    model = prepare(mech, "newton-euler")
+    model = prepare(mech, method)
     q, qd, _ = random_states(mech, 1, 1)
     q[0, 2 * mech.nlinks + 2] = 0.0
     tau = np.zeros_like(q)

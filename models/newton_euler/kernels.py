@@ -81,22 +81,12 @@ def _tree_forward(model: Any) -> Entries:
     """Newton-euler's checked forward dynamics of one sample: the compiled common-case checks and its
     serial forward passes in one call (:mod:`exo_bench.models.newton_euler.forward_fused`); near a
     bound the model's exact ``check_regular`` decides and names why, then the same passes run."""
-    from exo_bench.models.conditioning import check_finite
-    from exo_bench.models.newton_euler.forward_fused import DONE, EXACT, NOT_FINITE, entry
+    from exo_bench.models.forward_check import checked_entry
+    from exo_bench.models.newton_euler.forward_fused import entry
 
-    forward_one, fused, table, dof = _forward_one(model, _serial_entry(model)), entry(), model.table, model.dof
-
-    def forward_checked(q, qd, tau):
-        checks = model._forward_checks or model._resolve_forward_checks()  # the plan: once per model
-        qdd = np.empty(dof)
-        if (code := fused(table, model.forward_plan, q, qd, tau, qdd)) == EXACT:  # near a bound
-            model.check_regular(q.reshape(1, -1))  # the exact checks decide, naming why (one sample as a batch)
-            code = DONE if checks[1](forward_one(q, qd, tau, qdd)) else NOT_FINITE
-        if code == NOT_FINITE:
-            check_finite(model.mechanism, qdd)
-        return qdd
-
-    return Entries(forward_checked=forward_checked)  # forward_one: the per-sample kernel's (the same passes)
+    forward_one = _forward_one(model, _serial_entry(model))
+    # forward_one: the per-sample kernel's (the same passes)
+    return Entries(forward_checked=checked_entry(model, entry(), (model.table,), forward_one))
 
 
 def _simd(model: Any) -> Entries:
