@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import EPS, K, _rates, assert_close, assert_mass_matrices_agree, mass_coupling_oracle
+from conftest import EPS, K, _rates, assert_close, assert_mass_matrices_agree, mass_coupling_oracle, mass_matrix_scale
 
 import exo_bench
 from exo_bench.models import presets
@@ -86,7 +86,7 @@ MECHS = [
     pytest.param(lambda: presets.chain(5, 2, seed=2), id="chain5-2d"),
     pytest.param(lambda: presets.exo5(3), id="exo5-3d"),
 ]
-KERNELS = ["numpy"]
+KERNELS = ["numpy", "numba", "simd"]
 
 
 @pytest.mark.parametrize("make", MECHS)
@@ -280,3 +280,47 @@ def test_out_is_filled_and_returned_and_one_sample_is_a_matrix(exo5_derivatives)
         np.testing.assert_array_equal(a, b[1])
     empty = d(q[:0], qd[:0], qdd[:0])
     assert all(e.shape == (0, 15, 15) for e in empty)
+
+
+@pytest.mark.parametrize("make", MECHS[:4])
+def test_kernels_agree_to_rounding(make):
+    """numpy, numba (per sample, and its parallel driver) and simd compute the same terms; their sin/cos
+    differ by an ulp or two and the sums run in other orders: the complex step's error model bounds it."""
+    from exo_bench.models.newton_euler import derivatives_compiled as dc
+
+    mech = make()
+    d = prepare_inverse_derivatives(mech)
+    q, qd, qdd = states(mech, 37, seed=4)  # one whole SIMD block and a partial one
+    ref = d(q, qd, qdd, kernel="numpy")
+    sq, sqd = derivative_scales(mech, q, qd, qdd)
+    scales = (sq, sqd, mass_matrix_scale(mech, q))
+    par = tuple(np.empty_like(r) for r in ref)
+    dc.derivatives_parallel(d.table, d.mu, d.g, d.dim, q, qd, qdd, *par)
+    for kernel, got in (
+        ("numba", d(q, qd, qdd, kernel="numba")),
+        ("simd", d(q, qd, qdd, kernel="simd")),
+        ("parallel", par),
+    ):
+        for name, a, b, sc in zip(("dtau_dq", "dtau_dqd", "M"), got, ref, scales):
+            assert_close(a, b, sc, K, what=f"{mech.name} {kernel} {name}")
+    one = d(q[3], qd[3], qdd[3])  # the lean one-sample entry
+    serial = d(q, qd, qdd, kernel="numba")
+    for a, b in zip(one, serial):
+        np.testing.assert_array_equal(a, b[3])
+
+
+def test_one_sample_overlap_is_found_by_the_kernel(exo5_derivatives):
+    """The one-sample entry tests the overlap of ``out`` with the states inside the kernel: named, nothing written."""
+    d = exo5_derivatives
+    q, qd, qdd = (x[0].copy() for x in _good(d))
+    buf = np.zeros(15 * 15)
+    qv = buf[:15]
+    qv[...] = q
+    outs = (buf.reshape(15, 15), np.zeros((15, 15)), np.zeros((15, 15)))
+    with pytest.raises(ValueError, match=r"field 'out\[0\]' \(dtau_dq\): expected memory apart from q"):
+        d(qv, qd, qdd, out=outs)
+    np.testing.assert_array_equal(buf[15:], 0.0)
+    with pytest.raises(ValueError, match=r"field 'out\[2\]' \(M\): expected memory apart from out\[1\]"):
+        d(q, qd, qdd, out=(np.zeros((15, 15)), outs[1], outs[1]))
+    with pytest.raises(ValueError, match=r"field 'qd': expected dtype float64, got float32"):
+        d(q, qd.astype(np.float32), qdd)

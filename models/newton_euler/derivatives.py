@@ -65,6 +65,14 @@ KERNELS = ("numpy", "numba", "simd", "auto")
 #: The names of the three outputs, in order (``out[k]`` is named ``out[k] (NAME)`` in errors).
 OUTPUTS = ("dtau_dq", "dtau_dqd", "M")
 _SOURCE = "inverse-dynamics derivatives"
+_F8 = np.dtype(np.float64)
+#: ``kernel="auto"``: batches of mechanisms of fewer links run the SIMD kernel, larger ones the
+#: per-sample kernel (whose loop over the column links vectorises and writes contiguous rows).
+SIMD_BELOW_LINKS = 16
+#: numba_runtime's threshold of a parallel batch, in samples (its value; importing it would import numba).
+PARALLEL_MIN_SAMPLES = 4096
+#: A batch of at least this many output entries runs on numba's threads.
+PARALLEL_MIN_ENTRIES = 2**18
 
 
 def _state_problem(name: str, a, dof: int) -> str | None:
@@ -133,6 +141,8 @@ class InverseDerivatives:
         self.g, self.dim = float(mechanism.g), int(mechanism.dim)
         self.nlinks, self.dof = int(mechanism.nlinks), int(mechanism.dof)
         self._local = threading.local()
+        self._entry: tuple | None = None
+        self._simd_scratch = None
 
     def __repr__(self) -> str:
         return f"<InverseDerivatives of {self.mechanism.name!r}: {self.dof} dof, {self.dim}D>"
@@ -140,6 +150,12 @@ class InverseDerivatives:
     def __call__(self, q, qd, qdd, out=None, kernel: str = "auto"):
         """``(dtau_dq, dtau_dqd, M)`` at the states (module docstring): ``(S, dof, dof)`` each, or
         ``(dof, dof)`` for one ``(dof,)`` sample; into ``out`` if given (and returned)."""
+        if kernel in ("auto", "numba") and type(q) is np.ndarray and q.ndim == 1:
+            return self.one(q, qd, qdd, out)
+        return self._checked(q, qd, qdd, out, kernel)
+
+    def _checked(self, q, qd, qdd, out, kernel: str):
+        """The general path: every check by :func:`check_states` and :func:`check_out`, then the kernel."""
         shape = check_states(q, qd, qdd, self.dof)
         if kernel not in KERNELS:
             raise ValueError(f"{_SOURCE}: option 'kernel': expected one of {KERNELS}, got {kernel!r}")
@@ -154,13 +170,82 @@ class InverseDerivatives:
             self._run(kernel, q, qd, qdd, out)
         return out
 
+    def one(self, q, qd, qdd, out=None):
+        """One ``(dof,)`` sample by the compiled per-sample kernel, ``(dof, dof)`` each: the lean entry
+        (no numpy broadcasting, numba's compiled entry point without its type dispatch, this thread's
+        scratch; the overlap of ``out`` with the states is tested inside the kernel). Anything it does
+        not take (another shape, dtype or layout) goes to the checked path, which names the field."""
+        dof = self.dof
+        for a in (q, qd, qdd):
+            if type(a) is not np.ndarray or a.dtype != _F8 or a.shape != (dof,) or not a.flags.c_contiguous:
+                return self._checked(q, qd, qdd, out, "numba")
+        if out is None:
+            out = (np.empty((dof, dof)), np.empty((dof, dof)), np.empty((dof, dof)))
+        else:
+            if type(out) is not tuple or len(out) != 3:
+                out = check_out(out, (dof, dof), (q, qd, qdd))
+            for o in out:
+                if type(o) is not np.ndarray or o.dtype != _F8 or o.shape != (dof, dof):
+                    check_out(out, (dof, dof), (q, qd, qdd))
+                f = o.flags
+                if not (f.c_contiguous and f.writeable):
+                    check_out(out, (dof, dof), (q, qd, qdd))
+        entry, args = self._one_entry()
+        if entry(*args[0], q, qd, qdd, *out, *args[1]()):
+            check_out(out, (dof, dof), (q, qd, qdd))  # names the overlap the kernel found
+        return out
+
+    def _one_entry(self):
+        """The compiled one-sample entry (``derivatives_one``) for these types, its leading arguments
+        and this thread's scratch maker; made at the first call."""
+        made = self._entry
+        if made is None:
+            from exo_bench.models.kernels import entry_point
+            from exo_bench.models.newton_euler import derivatives_compiled as dc
+
+            v, m = np.empty(self.dof), np.empty((self.dof, self.dof))
+            lead = (self.table, self.mu, self.g, self.dim)
+            entry = entry_point(dc.derivatives_one, *lead, v, v, v, m, m, m, *self._scratch())
+            made = self._entry = (entry, (lead, self._scratch))
+        return made
+
+    def _scratch(self):
+        """This thread's scratch of the per-sample kernel (made at its first call, then reused)."""
+        s = getattr(self._local, "scratch", None)
+        if s is None:
+            from exo_bench.models.newton_euler import derivatives_compiled as dc
+
+            s = self._local.scratch = dc.scratch(self.nlinks, self.dim)
+        return s
+
     def _run(self, kernel: str, q, qd, qdd, out) -> None:
-        if kernel in ("numpy", "auto"):
+        if kernel == "numpy":
             res = derivatives_numpy.inverse_derivatives(self.tree, self.mu, self.dim, self.g, q, qd, qdd)
             for o, r in zip(out, res):
                 o[...] = r
             return
-        raise ValueError(f"{_SOURCE}: option 'kernel': {kernel!r} is not built yet; expected 'numpy' or 'auto'")
+        if kernel == "simd" or (kernel == "auto" and self.nlinks < SIMD_BELOW_LINKS):
+            from exo_bench.models.newton_euler import derivatives_simd as ds
+            from exo_bench.models.simd_blocks import run as run_simd
+
+            if self._simd_scratch is None:
+                from exo_bench.models.simd_blocks import ThreadScratch
+
+                self._simd_scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
+            params = (self.table, self.mu, self.g, self.dim)
+            flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
+            run_simd(ds.simd_derivatives, params, *flat, tuple(out), q.shape[0], scratch=self._simd_scratch)
+            return
+        from exo_bench.models.newton_euler import derivatives_compiled as dc
+        from exo_bench.models.numba_runtime import run
+
+        args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out)
+        run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))
+
+    def _parallel_samples(self, samples: int) -> int:
+        """``samples`` in units of numba_runtime's threshold: the batch runs on threads from
+        :data:`PARALLEL_MIN_ENTRIES` output entries on."""
+        return samples * 3 * self.dof * self.dof * PARALLEL_MIN_SAMPLES // PARALLEL_MIN_ENTRIES
 
 
 def prepare_inverse_derivatives(mechanism: Mechanism) -> InverseDerivatives:

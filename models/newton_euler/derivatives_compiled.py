@@ -1,0 +1,167 @@
+"""The analytic derivatives of inverse dynamics, compiled (numba): per sample, and threads over samples for
+batches. The algorithm is :mod:`exo_bench.models.newton_euler.derivatives`'s; numpy's reference is
+:mod:`.derivatives_numpy`.
+
+Per sample:
+
+1. **the passes** of newton-euler's own per-sample kernel
+   (:func:`exo_bench.models.newton_euler.compiled._inverse_sample`, into a scratch ``tau``): each link's row
+   of ``W`` then holds its cosines and sines, ``kappa``, ``A`` (with ``g up``) and the finished subtree sum
+   ``D``, from which ``F_k = eta A_k + zeta kappa_k + D_k``
+   (:func:`exo_bench.models.newton_euler.elements.rod_force`) is recomputed bit for bit;
+2. **per rod** the signed columns of :mod:`.derivative_elements` into the rows of ``Y``: row
+   ``(kind dim + d) dim + e``, column ``j`` holds component ``e`` of column ``d`` of ``s_j J_j`` (kind 0),
+   ``s_j da_j/dq_j`` (1) or ``s_j da_j/dqd_j`` (2); ``s_i d(J_i^T F_i)/dq_i`` into ``P``;
+3. **the blocks**: for each row link ``i`` and coordinate ``c``, ``out[c n + i, d n + j] = mu_ij
+   (J_i^T)[c, :] . Y_j[:, d]``, a loop over ``j`` that reads rows of ``Y`` and of ``mu`` contiguously
+   (LLVM vectorises it) and writes one contiguous run of the output row; then the diagonal blocks of
+   ``dtau/dq`` gain ``P``.
+
+Work per sample: ``3 dim^2 n^2`` entries of ``dim`` multiply-adds and one product, the size of the output;
+the passes and the per-rod columns are O(n). Scratch (per thread, :func:`scratch`): ``W (n, 16)``,
+``Y (27, n)``, ``P (9, n)``, ``tau (dof,)``.
+
+numba's on-disk cache keys these kernels on every module of this folder (:mod:`exo_bench.models.numba_cache`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler import elements as el
+from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
+from exo_bench.models.numba_cache import inline
+from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+
+ensure()  # numba's runtime set-up, before the kernels below are defined
+inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
+
+_SIGN, _ZETA, _ETA = 1, 2, 3
+_TRIG, _KAPPA, _A, _D = 0, 4, 7, 10
+_J, _AQ, _AR = 0, 1, 2  # kinds of the rows of Y
+
+
+def scratch(n: int, dim: int):
+    """One thread's scratch ``(W, Y, P, tau)`` of :func:`derivatives_sample` (module docstring)."""
+    return np.zeros((n, WIDTH)), np.zeros((27, n)), np.zeros((9, n)), np.zeros(dim * n)
+
+
+@njit(**JIT)
+def _columns(t, dim, x, xd, xdd, W, Y, P):
+    """2. Per rod: the signed columns into ``Y`` and ``s_k d(J_k^T F_k)/dq_k`` into ``P`` (``W`` after the passes)."""
+    n = t.shape[1]
+    for k in range(n):
+        w = W[k]
+        s, zeta, eta = t[_SIGN, k], t[_ZETA, k], t[_ETA, k]
+        f0 = el.rod_force(zeta, eta, w[_A], w[_KAPPA], w[_D])
+        f1 = el.rod_force(zeta, eta, w[_A + 1], w[_KAPPA + 1], w[_D + 1])
+        f2 = el.rod_force(zeta, eta, w[_A + 2], w[_KAPPA + 2], w[_D + 2])
+        cf, sf, cp, sp = w[0], w[1], w[2], w[3]
+        if dim == 2:
+            l, wr, lr, wa, la = x[n + k], xd[k], xd[n + k], xdd[k], xdd[n + k]
+            jac = de.jacobian_2d(cf, sf, l)
+            aq = de.acceleration_by_q_2d(cf, sf, l, wr, lr, wa, la)
+            ar = de.acceleration_by_rates_2d(cf, sf, l, wr, lr)
+            pq = de.projection_by_q_2d(cf, sf, l, f0, f1)
+            for r in range(4):
+                Y[r, k] = s * jac[r]
+                Y[4 + r, k] = s * aq[r]
+                Y[8 + r, k] = s * ar[r]
+                P[r, k] = s * pq[r]
+        else:
+            l, wr, vr, lr = x[2 * n + k], xd[k], xd[n + k], xd[2 * n + k]
+            jac = de.jacobian_3d(cf, sf, cp, sp, l)
+            aq = de.acceleration_by_q_3d(cf, sf, cp, sp, l, wr, vr, lr, xdd[k], xdd[n + k], xdd[2 * n + k])
+            ar = de.acceleration_by_rates_3d(cf, sf, cp, sp, l, wr, vr, lr)
+            pq = de.projection_by_q_3d(cf, sf, cp, sp, l, f0, f1, f2)
+            for r in range(9):
+                Y[r, k] = s * jac[r]
+                Y[9 + r, k] = s * aq[r]
+                Y[18 + r, k] = s * ar[r]
+                P[r, k] = s * pq[r]
+
+
+@njit(**JIT)
+def _blocks(mu, dim, Y, P, oq, oqd, om):
+    """3. Every block ``mu_ij J_i^T Y_j`` into the three ``(dof, dof)`` outputs, then ``P`` on the diagonal."""
+    n = mu.shape[0]
+    dd = dim * dim
+    for i in range(n):
+        m = mu[i]
+        for c in range(dim):
+            z0, z1 = Y[c * dim, i], Y[c * dim + 1, i]  # row c of s_i J_i^T
+            z2 = Y[c * dim + 2, i] if dim == 3 else 0.0
+            r = c * n + i
+            for kind in range(3):
+                o = om[r] if kind == _J else (oq[r] if kind == _AQ else oqd[r])
+                for d in range(dim):
+                    y = kind * dd + d * dim
+                    y0, y1, at = Y[y], Y[y + 1], d * n
+                    if dim == 3:
+                        y2 = Y[y + 2]
+                        for j in range(n):
+                            o[at + j] = m[j] * (z0 * y0[j] + z1 * y1[j] + z2 * y2[j])
+                    else:
+                        for j in range(n):
+                            o[at + j] = m[j] * (z0 * y0[j] + z1 * y1[j])
+        for c in range(dim):
+            for d in range(dim):
+                oq[c * n + i, d * n + i] += P[d * dim + c, i]
+
+
+@njit(**JIT)
+def derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau):
+    """One sample: flat ``(dof,)`` states, ``(dof, dof)`` outputs; ``(W, Y, P, tau)`` from :func:`scratch`."""
+    _inverse_sample(t, g, dim, x, xd, xdd, tau, 0, W)
+    _columns(t, dim, x, xd, xdd, W, Y, P)
+    _blocks(mu, dim, Y, P, oq, oqd, om)
+
+
+@njit(**JIT)
+def _overlap(a, b):
+    """Arrays ``a`` and ``b`` (float64, contiguous) share bytes: their extents intersect."""
+    a0, b0 = a.ctypes.data, b.ctypes.data
+    return a0 < b0 + 8 * b.size and b0 < a0 + 8 * a.size
+
+
+@njit(**JIT)
+def derivatives_one(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau):
+    """:func:`derivatives_sample` behind a check of memory safety that costs nanoseconds: 0, or ``k + 1``
+    where output ``k`` overlaps a state or an earlier output (then nothing is written; the caller names
+    it). The one-sample entry of :class:`exo_bench.models.newton_euler.derivatives.InverseDerivatives`."""
+    outs = (oq, oqd, om)
+    for k in range(3):
+        o = outs[k]
+        if _overlap(o, x) or _overlap(o, xd) or _overlap(o, xdd):
+            return k + 1
+        for m in range(k):
+            if _overlap(o, outs[m]):
+                return k + 1
+    derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau)
+    return 0
+
+
+@njit(**JIT)
+def _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, start, stop):
+    """Samples ``start .. stop - 1`` of ``(S, dof)`` states into ``(S, dof, dof)`` outputs (scratch once)."""
+    n = t.shape[1]
+    W, Y, P, tau = np.zeros((n, WIDTH)), np.zeros((27, n)), np.zeros((9, n)), np.zeros(dim * n)
+    for s in range(start, stop):
+        derivatives_sample(t, mu, g, dim, q[s], qd[s], qdd[s], oq[s], oqd[s], om[s], W, Y, P, tau)
+
+
+@njit(**JIT)
+def derivatives_serial(t, mu, g, dim, q, qd, qdd, oq, oqd, om):
+    """Every sample of a batch in turn."""
+    _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, 0, q.shape[0])
+
+
+@njit(parallel=True, **JIT)
+def derivatives_parallel(t, mu, g, dim, q, qd, qdd, oq, oqd, om):
+    """:func:`derivatives_serial` in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK`
+    samples over numba's threads."""
+    S = q.shape[0]
+    for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
+        _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK))
