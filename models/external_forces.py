@@ -271,3 +271,40 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         shape, q2, t = q.shape, q.reshape(-1, model.dof), tau
     f = check_f_ext(mech, f_ext, shape, check, model.method)
     return model.forward_dynamics(q, qd, t + model._external_forces(q2, f).reshape(shape), check=check, out=out)
+
+
+class ControlsWithForces:
+    """``controls(t, q, qd) + Q(q, f_ext(t, q, qd))``: what ``simulate`` integrates with ``f_ext``
+    (ground contact, interaction forces that depend on the state). ``f_ext`` is called as the controls
+    are, with ``q, qd`` of shape ``(k, dof)``, and returns forces ``(k, links, 3, dim)`` (``(links, 3,
+    dim)`` is taken for ``k = 1``); a force that is not finite is a ValueError naming the link and the
+    point."""
+
+    def __init__(self, model: Any, controls: Callable[..., Any], f_ext: Callable[..., Any]):
+        self.model, self.controls, self.f_ext = model, controls, f_ext
+
+    def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        tau = self.controls(t, q, qd)
+        f = np.asarray(self.f_ext(t, q, qd), dtype=float)
+        mech = self.model.mechanism
+        if q.shape[0] == 1 and f.shape == (mech.nlinks, 3, mech.dim):
+            f = f[None]
+        f = check_f_ext(mech, f, q.shape, True, f"simulate at t = {t:.6g} s")
+        return tau + self.model._external_forces(q, f)
+
+
+def with_external_forces(model: Any, controls: Callable[..., Any], f_ext: Any, jacobian: str) -> ControlsWithForces:
+    """``simulate``'s controls with the external forces ``f_ext(t, q, qd)`` added (:class:`ControlsWithForces`),
+    after checking that ``f_ext`` is a function; the analytic Jacobian has no derivative of ``f_ext``
+    to use, so it is refused by name."""
+    if not callable(f_ext):
+        raise ValueError(
+            f"simulate: field 'f_ext': expected a function (t, q, qd) -> forces (samples, links, 3, dim) in "
+            f"newtons, got {type(f_ext).__name__}"
+        )
+    if jacobian == "analytic":
+        raise ValueError(
+            "simulate: field 'jacobian': expected 'finite-difference' with f_ext (the analytic Jacobian has no "
+            "derivative of f_ext(t, q, qd)), got 'analytic'"
+        )
+    return ControlsWithForces(model, controls, f_ext)

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from exo_bench.models.external_forces import with_external_forces
 from exo_bench.models.forward_dynamics import Controls, mass_matrix_and_bias, solve_mass_matrix
 from exo_bench.models.implicit_integrators import CURRENT_JACOBIAN
 from exo_bench.models.mechanism import as_states, split
@@ -228,6 +229,7 @@ def simulate(
     first_step: float | None = None,
     jacobian: str = "finite-difference",
     clock: Clock = time.perf_counter,
+    f_ext: Callable[..., Any] | None = None,
 ) -> Simulation:
     """Integrate ``M qdd + h = controls(t, q, qd)`` from ``(q0, qd0)`` over ``t_span``.
 
@@ -243,6 +245,9 @@ def simulate(
       right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`, kept current:
       re-evaluated after every accepted step, :mod:`exo_bench.models.implicit_integrators`);
     * ``first_step``: ``None`` (scipy chooses) or in ``(0, t_span[1] - t_span[0]]``; ``dense``: a bool.
+    * ``f_ext``: external forces at the point masses, ``f_ext(t, q, qd) -> (samples, links, 3, dim)``
+      called as the controls are (ground contact, interaction, loads): with it ``M qdd + h = controls + Q(q,
+      f_ext)`` (:class:`exo_bench.models.external_forces.ControlsWithForces`, docs/external-forces.md).
 
     Bad arguments raise ValueError before any work. The initial state is validated and checked for a
     singular mass matrix, exactly or to working precision (then
@@ -266,6 +271,8 @@ def simulate(
         jacobian,
         clock,
     )
+    if f_ext is not None:  # before any work, as every argument
+        controls = with_external_forces(model, controls, f_ext, jacobian)
     mech = model.mechanism
     q0, qd0, _ = as_states(mech, q0, qd0, source="initial state")
     model.check_regular(q0)  # exactly singular, or beyond the conditioning bound (models/conditioning.py)
