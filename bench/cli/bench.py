@@ -1,5 +1,5 @@
 """``exo-bench bench [--full] [--update-readme] [--reports DIR] [--workers N | --scheduler ADDRESS]``:
-the benchmark suite and its reports (paper_table, error_vs_runtime, scaling)."""
+the benchmark suite and its reports (paper_table, error_vs_runtime, scaling, derivatives)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ from exo_bench.bench.perf.options import BenchOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling")
+    s = sub.add_parser(
+        "bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling, derivatives"
+    )
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
     s.add_argument(
         "--update-readme",

@@ -14,7 +14,15 @@ MANIFEST = "runs.json"
 #: ``exo-bench errata`` (bench/studies/errata/report.py).
 ERRATA = "errata.md"
 #: ``exo-bench bench`` (bench/perf/reports/benchmark_reports.py), and its rows per sweep.
-BENCHMARK_REPORTS = ("paper_table.md", "error_vs_runtime.md", "error_vs_runtime.png", "scaling.md", "scaling.png")
+BENCHMARK_REPORTS = (
+    "paper_table.md",
+    "error_vs_runtime.md",
+    "error_vs_runtime.png",
+    "scaling.md",
+    "scaling.png",
+    "derivatives.md",  # issue 36's derivatives benchmark (bench/perf/reports/derivatives.py)
+    "derivatives.png",
+)
 SWEEPS = ("quick", "full")
 #: ``exo-bench stability`` (bench/studies/stability/report.py and forward_figures.py).
 STABILITY_REPORT = "stability.md"

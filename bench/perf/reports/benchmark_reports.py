@@ -8,6 +8,8 @@ Reports (each says what produced it, on what machine and when):
 * ``reports/paper_table.md``: the paper's Mathematica timings beside ours, our extra rows, ratios,
   and a verdict on the claim that the gap grows with n and with 3D;
 * ``reports/error_vs_runtime.md`` and ``.png``: seconds per sample against error, per method and n;
+* ``reports/derivatives.md`` and ``.png``: issue 36's derivatives, ours and the peers', error against
+  run time, and its goals met or not (:mod:`~exo_bench.bench.perf.reports.derivatives`);
 * ``reports/scaling.md`` and ``.png``: issue 12's goals met or not, the per-call and batched tables
   (compiled and numpy kernels, Pinocchio bare and parallel, PyDy's Cython code), fitted growth
   exponents, the crossover n against Pinocchio, the kernels' compile time, and where the limit is
@@ -104,6 +106,10 @@ def write_reports(
         + "\n",
     )
     atomic_write(st["scaling.md"], scaling(df, skips, command, st["scaling.png"]))
+    from exo_bench.bench.perf.reports.derivatives import derivatives_report, rows as derivative_rows
+
+    png = st["derivatives.png"] if not derivative_rows(df).empty else None
+    atomic_write(st["derivatives.md"], derivatives_report(df, skips, command, png))
     # a figure is drawn only where its report has rows (a selection of rows may have none): publish what exists
     published = publish([f for f in [*st.values(), bjson] if f.exists()], out)
     for p in published:

@@ -1,0 +1,250 @@
+"""``derivatives.md`` and ``.png``: issue 36's derivatives benchmark, error against run time, and its goals.
+
+Made from the rows of bench/test_derivatives.py (groups ``derivatives-*``) in one pytest-benchmark
+JSON, i.e. one process: every ratio below divides two timings of that process. ``exo-bench bench``
+writes it beside the other benchmark reports (:mod:`~exo_bench.bench.perf.reports.benchmark_reports`);
+``python -m exo_bench.bench.perf.reports.derivatives BENCH_JSON --skips SKIPS_JSON --out DIR --command
+TEXT`` writes it from a JSON of those rows alone.
+
+The goals (issue 36), each from measured rows, stated as met, not met, or not judged (a row missing):
+
+* exo5-3d, batched dtau/d(q, qd) per sample <= 10x batched ID per sample (the fastest analytic kernel);
+* exo5-3d, one sample: dtau/d(q, qd) <= 1.0x a bare ``pin.rnea`` call;
+* exo5-3d, forward-dynamics derivatives per sample (``model.derivatives`` of newton-euler) <= 25x
+  batched forward dynamics per sample;
+* 3D chain of 100 links: dtau/d(q, qd) <= 0.5 ms per sample (the fastest analytic kernel there);
+* growth exponent of that kernel's time per sample over n = 10 to 300 <= 2.1 (least squares of log t
+  on log n over the chains measured; judged only when they span 10 to 300).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from exo_bench.bench.perf.reports.loading import _skips_md
+from exo_bench.bench.perf.reports.scaling import fit_exponent
+
+ID, FD, RNEA = "ID (newton-euler batched)", "FD (newton-euler batched)", "pin.rnea (bare)"
+CASADI, PROVIDER, ONE = "casadi AD", "model.derivatives (newton-euler)", "analytic (auto)"
+
+
+def rows(df: pd.DataFrame) -> pd.DataFrame:
+    """The derivative rows with ``us`` (microseconds per sample: median over samples)."""
+    if df is None or df.empty or "group" not in df:
+        return pd.DataFrame()
+    d = df[df["group"].astype(str).str.startswith("derivatives-")].copy()
+    if d.empty:
+        return d
+    d["us"] = d["median"] / d["samples"].astype(float) * 1e6
+    return d
+
+
+def _pick(d: pd.DataFrame, group: str, mech: str, method: str | None = None, prefix: str | None = None):
+    g = d[(d["group"] == f"derivatives-{group}") & (d["mechanism"] == mech)]
+    g = g[g["method"] == method] if method else g[g["method"].astype(str).str.startswith(prefix or "")]
+    return None if g.empty else g.sort_values("us").iloc[0]
+
+
+def _verdict(value: float | None, target: float) -> str:
+    if value is None or not math.isfinite(value):
+        return "not judged"
+    return "**met**" if value <= target else "**not met**"
+
+
+def goals(df: pd.DataFrame) -> list[dict]:
+    """Each goal: ``goal``, ``target``, ``value`` (None when a row is missing), ``verdict``, ``measured`` (text)."""
+    d = rows(df)
+    out: list[dict] = []
+
+    def add(goal, target, value, measured):
+        out.append(dict(goal=goal, target=target, value=value, verdict=_verdict(value, target), measured=measured))
+
+    if d.empty:
+        return out
+    best = _pick(d, "inverse-batched", "exo5-3d", prefix="analytic")
+    base = _pick(d, "inverse-batched", "exo5-3d", ID)
+    cas = _pick(d, "inverse-batched", "exo5-3d", CASADI)
+    now = f"; CasADi (today's path) {cas['us'] / base['us']:.0f}x" if cas is not None and base is not None else ""
+    if best is not None and base is not None:
+        r = best["us"] / base["us"]
+        add("exo5-3d batched dtau/d(q,qd) / batched ID, per sample", 10.0, r,
+            f"{r:.2f}x: {best['method']} {best['us']:.3g} us / ID {base['us']:.3g} us{now}")  # fmt: skip
+    else:
+        add("exo5-3d batched dtau/d(q,qd) / batched ID, per sample", 10.0, None, "no analytic or ID row")
+    one, rnea = _pick(d, "inverse-one-sample", "exo5-3d", ONE), _pick(d, "inverse-one-sample", "exo5-3d", RNEA)
+    if one is not None and rnea is not None:
+        r = one["us"] / rnea["us"]
+        add("exo5-3d one sample dtau/d(q,qd) / bare pin.rnea", 1.0, r,
+            f"{r:.2f}x: {ONE} {one['us']:.3g} us / pin.rnea {rnea['us']:.3g} us")  # fmt: skip
+    else:
+        add("exo5-3d one sample dtau/d(q,qd) / bare pin.rnea", 1.0, None, "no analytic one-sample or pin.rnea row")
+    fwd, fd = _pick(d, "forward-batched", "exo5-3d", PROVIDER), _pick(d, "forward-batched", "exo5-3d", FD)
+    if fwd is not None and fd is not None:
+        r = fwd["us"] / fd["us"]
+        add("exo5-3d forward derivatives / batched FD, per sample", 25.0, r,
+            f"{r:.2f}x: {PROVIDER} {fwd['us']:.3g} us / FD {fd['us']:.3g} us")  # fmt: skip
+    else:
+        add("exo5-3d forward derivatives / batched FD, per sample", 25.0, None, f"no {PROVIDER} or FD forward row")
+    c100 = _pick(d, "inverse-batched", "chain100-3d", prefix="analytic")
+    if c100 is not None:
+        add(
+            "chain 100 (3D) dtau/d(q,qd) per sample, ms",
+            0.5,
+            c100["us"] / 1e3,
+            f"{c100['us'] / 1e3:.3g} ms ({c100['method']})",
+        )
+    else:
+        add(
+            "chain 100 (3D) dtau/d(q,qd) per sample, ms",
+            0.5,
+            None,
+            "no chain-100 row in this run (`exo-bench bench --full`)",
+        )
+    kernel = c100["method"] if c100 is not None else (best["method"] if best is not None else None)
+    ch = d[(d["group"] == "derivatives-inverse-batched") & (d["topology"] == "chain") & (d["method"] == kernel)]
+    ns = ch["n"].to_numpy(float)
+    p = fit_exponent(ns, ch["us"].to_numpy(float)) if len(ch) >= 2 else float("nan")
+    span = f"n = {int(ns.min())}..{int(ns.max())}" if len(ns) else "no chain rows"
+    judged = len(ns) >= 2 and ns.min() <= 10 and ns.max() >= 300
+    add("growth exponent over n = 10..300", 2.1, p if judged else None,
+        f"{p:.2f} over {span} ({kernel})" + ("" if judged else ": the goal's range is not covered"))  # fmt: skip
+    return out
+
+
+def _fmt(x) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    return "inf" if math.isinf(x) else f"{x:.1e}"
+
+
+def _reference(text) -> str:
+    return "baseline (no derivatives)" if not isinstance(text, str) else text
+
+
+def _table(d: pd.DataFrame, group: str, title: str, per: str) -> list[str]:
+    g = d[d["group"] == f"derivatives-{group}"].sort_values(["n", "us"])
+    if g.empty:
+        return []
+    lines = [
+        f"### {title}",
+        "",
+        f"| model | method | samples | {per} | max rel error | error / (eps scale) | prepare s | reference |",
+    ]
+    lines.append("|---|---|---|---|---|---|---|---|")
+    for _, r in g.iterrows():
+        lines.append(
+            f"| {r['mechanism']} | {r['method']} | {int(r['samples'])} | {r['us']:.3g} | {_fmt(r.get('max_rel_err'))} | "
+            f"{_fmt(r.get('err_ratio'))} | {_fmt(r.get('prepare_s'))} | {_reference(r.get('reference'))} |"
+        )
+    return lines + [""]
+
+
+def derivatives_report(
+    df: pd.DataFrame,
+    skips: list[dict],
+    command: str,
+    png: Path | None,
+    *,
+    header: str | None = None,
+    clock: Callable[[], _dt.datetime] | None = None,
+) -> str:
+    """The report's Markdown; draws ``png`` when there are rows. ``header`` replaces the provenance
+    block and ``clock`` the wall clock of the load note (tests pass fakes)."""
+    if header is None:
+        from exo_bench.bench.output.provenance import provenance
+
+        header = provenance(command)
+    now = (clock or (lambda: _dt.datetime.now(_dt.UTC)))()
+    lines = ["# Derivatives of the equations of motion: ours and the peers', error against run time", "", header]
+    d = rows(df)
+    if d.empty:
+        return "\n".join(lines + ["No derivative rows in this run (bench/test_derivatives.py)."]) + "\n"
+    lines += [
+        f"Measured on {now:%Y-%m-%d} (UTC) in one pytest process on a shared 2-core machine that other "
+        "engineers were loading at the same time: absolute timings are noisy; the ratios divide timings of "
+        "one process. Errors are against the 50-digit reference of the derivatives "
+        "(exo_bench.lagrange.derivative_reference: d'Alembert on the point masses, exact dual numbers over "
+        "mpmath), on the first sample(s) of each batch; 'error / (eps scale)' is in units of its error model.",
+        "",
+        "## Goals (issue 36)",
+        "",
+        "| goal | target | measured | verdict |",
+        "|---|---|---|---|",
+    ]
+    lines += [f"| {g['goal']} | <= {g['target']:g} | {g['measured']} | {g['verdict']} |" for g in goals(df)]
+    lines += ["", "## Rows", ""]
+    lines += _table(d, "inverse-batched", "Inverse dynamics derivatives (dtau/dq, dtau/dqd, M), batched", "us/sample")
+    lines += _table(d, "inverse-one-sample", "One sample per call", "us/call")
+    lines += _table(
+        d, "forward-batched", "Forward dynamics derivatives (dqdd/dq, dqdd/dqd, M^-1), batched", "us/sample"
+    )
+    if "engine_warnings" in d:
+        warned = d[d["engine_warnings"].notna()]
+        lines += ["Warnings the engines printed during a row (kept out of the timings' console):", ""]
+        lines += [f"- {r['method']} on {r['mechanism']}: {r['engine_warnings']}" for _, r in warned.iterrows()]
+    lines += _skips_md(skips, "test_derivatives.py")
+    if png is not None:
+        _plot(d, png)
+        lines += ["", f"![error against run time]({png.name})"]
+    return "\n".join(lines) + "\n"
+
+
+def _plot(d: pd.DataFrame, png: Path) -> None:
+    from matplotlib.figure import Figure
+
+    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, method_color, save_figure
+
+    floor = 1e-17
+    fig = Figure(figsize=(15, 6.5), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    methods = sorted(d["method"].astype(str).unique())
+    for ax, (group, title) in zip(
+        axes, (("inverse-batched", "inverse dynamics"), ("forward-batched", "forward dynamics"))
+    ):
+        g = d[(d["group"] == f"derivatives-{group}") & d["max_rel_err"].notna()] if "max_rel_err" in d else d.iloc[:0]
+        for method, m in g.groupby("method"):
+            ax.scatter(m["us"] * 1e-6, np.maximum(m["max_rel_err"].astype(float), floor), label=method,
+                       color=method_color(str(method), methods), s=12 + 14 * np.log2(m["n"].to_numpy(float) + 1),
+                       edgecolors="black", linewidths=0.4, alpha=0.85)  # fmt: skip
+        if not g.empty:  # limits from the data, before the log scale (one point alone gives a singular range)
+            x = g["us"].to_numpy(float) * 1e-6
+            ax.set_xlim(x.min() / 2, x.max() * 2)
+            ax.set_ylim(floor / 2, max(1.0, float(np.nanmax(g["max_rel_err"].astype(float))) * 2))
+        else:
+            ax.text(0.5, 0.5, "no rows with a reference", transform=ax.transAxes, ha="center")
+        ax.set(xscale="log", yscale="log")
+        ax.set_xlabel("seconds per sample (batched, median)", fontsize=TEXT_PT)
+        ax.set_title(f"derivatives of {title}", fontsize=TITLE_PT)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=TEXT_PT - 2, loc="best")
+    axes[0].set_ylabel(f"max relative error vs 50-digit reference (floored at {floor:g})", fontsize=TEXT_PT)
+    fig.suptitle("Derivatives: error against run time (marker area grows with n)", fontsize=TITLE_PT + 1)
+    save_figure(fig, png)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from exo_bench.bench.output.provenance import atomic_write
+    from exo_bench.bench.perf.reports.loading import load
+
+    p = argparse.ArgumentParser(description="write derivatives.md and .png from bench/test_derivatives.py's JSON")
+    p.add_argument("json")
+    p.add_argument("--skips", default=None)
+    p.add_argument("--out", required=True)
+    p.add_argument("--command", required=True, help="what produced the JSON (said in the report)")
+    a = p.parse_args(argv)
+    df, skips, _ = load(Path(a.json), Path(a.skips) if a.skips else None)
+    out = Path(a.out)
+    atomic_write(out / "derivatives.md", derivatives_report(df, skips, a.command, out / "derivatives.png"))
+    print(f"wrote {out / 'derivatives.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
