@@ -74,6 +74,7 @@ def solve_mu(parent: np.ndarray, pivot: np.ndarray, multiplier: np.ndarray, b: n
     ``z = T^-T b`` (``z_a = b_a - sum_{children c} b_c``), ``M_e y = z`` by the factor (leaves first,
     then roots first), ``x = T^-1 y`` (``x_k = y_k - y_parent``). No pivot may be zero."""
     n = b.shape[0]
+    dtype = np.result_type(b.dtype, float)  # complex stays complex (complex-step tests of forward dynamics)
     parent = np.asarray(parent).tolist()  # Python ints: the loops index with them
     d, lk = pivot, multiplier
     if b.ndim == 1:  # one vector (the condition estimate): Python floats, 5x faster than numpy scalars
@@ -96,7 +97,7 @@ def solve_mu(parent: np.ndarray, pivot: np.ndarray, multiplier: np.ndarray, b: n
         p = parent[k]
         if p >= 0:
             x[k] = y[k] - y[p]
-    return np.asarray(x, dtype=float)
+    return np.asarray(x, dtype=dtype)
 
 
 def multiply_mu(parent: np.ndarray, diag: np.ndarray, off: np.ndarray, x: np.ndarray) -> np.ndarray:

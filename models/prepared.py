@@ -95,8 +95,8 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
 
 
 #: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
-#: by ``exo_bench.api.preparation`` (``matrix_method.derivatives.derivatives_of``; this layer cannot
-#: import matrix_method). None until then.
+#: by ``exo_bench.api.preparation`` (``models.derivatives.derivatives_of``, with the method table's facts
+#: for its source text, which this layer cannot import). None until then.
 derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
@@ -196,8 +196,10 @@ class PreparedModel:
     def derivatives(self):
         """The derivatives of this model's equations of motion, built on first use:
         ``.inverse_dynamics(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``, ``.forward_dynamics(q, qd, tau)
-        -> (qdd, dqdd_dq, dqdd_dqd, Minv)``, batch-first, and ``.source`` (which physics computes
-        them): :mod:`exo_bench.matrix_method.derivatives`. Needs the optional extra ``casadi``."""
+        -> (qdd, dqdd_dq, dqdd_dqd, Minv)``, batch-first, their directional derivatives (``*_jvp``,
+        ``*_vjp``) and ``.source`` (which physics computes them): the analytic derivatives of the
+        Newton-Euler passes for every method, :mod:`exo_bench.models.derivatives` (CasADi's stay in
+        :mod:`exo_bench.matrix_method.derivatives`)."""
         if getattr(self, "_derivatives", None) is None:
             if derivative_provider is None:
                 raise ValueError(

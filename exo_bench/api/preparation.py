@@ -19,13 +19,15 @@ from exo_bench.models.prepared import PreparedModel
 
 
 def _derivatives(mechanism: Mechanism, method: str) -> Any:
+    """The analytic derivatives (:mod:`exo_bench.models.derivatives`) for every method, no CasADi; CasADi's
+    stay reachable as ``exo_bench.matrix_method.derivatives.derivatives_of(mechanism, method)``."""
     from exo_bench.api.methods import METHODS
-    from exo_bench.matrix_method.derivatives import derivatives_of, source_text  # CasADi only when asked
+    from exo_bench.models.derivatives import derivatives_of, source_text
 
     method_spec = METHODS.get(method)
     source = source_text(
         method,
-        evaluates_these=method_spec is not None and method_spec.derivatives_are_its_own,
+        own=method == "newton-euler",  # the passes differentiated are newton-euler's own
         known_wrong=method_spec is not None and method_spec.known_wrong is not None,
     )
     return derivatives_of(mechanism, method, source)

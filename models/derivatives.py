@@ -1,0 +1,336 @@
+"""Derivatives of the equations of motion for a prepared model of any method, batch-first, analytic.
+
+``model.derivatives`` (:attr:`exo_bench.models.prepared.PreparedModel.derivatives`, registered by
+``exo_bench.api.preparation``) is a :class:`Derivatives`:
+
+* :meth:`Derivatives.inverse_dynamics` ``(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: the analytic derivatives
+  of the Newton-Euler passes (:mod:`exo_bench.models.newton_euler.derivatives`), O(1) work per
+  entry of the output;
+* :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
+  implicit-function theorem on ``ID(q, qd, qdd) = tau`` at ``qdd = FD(q, qd, tau)``: ``dqdd/dq = -M^-1
+  dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with ``M^-1`` applied column by column by
+  the O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.inverse_mass`, ``M^-1 = J^-1 (mu^-1 (x) I)
+  J^-T``): O(n^2) time and memory, the size of the output, and no dense LU;
+* the directional derivatives, O(n) per sample, for users who need no full Jacobian
+  (:mod:`exo_bench.models.newton_euler.products`): :meth:`Derivatives.inverse_dynamics_jvp` ``(q, qd, qdd,
+  dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
+  w^T dtau/dqd, w^T M)``, and the same of forward dynamics (:meth:`Derivatives.forward_dynamics_jvp`,
+  :meth:`Derivatives.forward_dynamics_vjp`).
+
+Arrays are ``(samples, dof)`` in and ``(samples, dof, dof)`` Jacobians out (``(dof,)`` and ``(dof, dof)``
+for one sample); ``J[s, i, j] = d out_i / d in_j``. The equations of motion are unique (the suite checks
+that every method's inverse dynamics agree to rounding), so one provider serves every method and
+:attr:`Derivatives.source` says so. **CasADi's** algorithmic differentiation of the matrix method's
+factored closed forms stays for symbolic use, export and as a cross-check:
+``exo_bench.matrix_method.derivatives.derivatives_of(mechanism, method)`` (the same calls, the extra
+``casadi``). The memory of a call is estimated before the work (:func:`derivative_bytes`) and a call over
+what a run may use is refused (:class:`DerivativesTooLarge`) before anything is allocated.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from exo_bench.models import memory
+from exo_bench.models.conditioning import (
+    CouplingCondition,
+    check_conditioning,
+    check_finite,
+    coupling_condition,
+    coupling_reason,
+)
+from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.states import is_one_sample
+
+#: What computes the derivatives (:attr:`Derivatives.source`).
+SOURCE = (
+    "analytic O(n) derivatives of the Newton-Euler passes (models/newton_euler/derivatives.py); "
+    "forward dynamics by the implicit-function theorem, M^-1 applied column by column by the O(n) "
+    "forward dynamics (models/newton_euler/inverse_mass.py), no dense LU"
+)
+#: Bytes per sample beyond the Jacobians: the states, ``qdd`` and the per-rod columns (``(n, dim, dim)``
+#: each, four of them, under 8 dof), in float64 entries per coordinate.
+PER_COORDINATE = 64
+
+
+class DerivativesTooLarge(MemoryError):
+    """A derivative call whose estimated memory exceeds what a run may use, refused before any work."""
+
+
+def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "numba") -> float:
+    """Estimated peak bytes of one derivative call: ``jacobians`` ``(samples, dof, dof)`` float64 arrays
+    (the output), the inverse-dynamics Jacobians a forward call solves in place, O(n) per sample
+    (:data:`PER_COORDINATE`), and with the numpy kernel the columns as samples (``(samples, dof, dof)``
+    twice more: :func:`exo_bench.models.newton_euler.inverse_mass.numpy_columns`)."""
+    square = float(samples) * dof * dof * 8.0
+    extra = 3 * square if kernel == "numpy" else 0.0
+    return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
+
+
+def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE) -> str:
+    """What computes the derivatives for ``method``: its own equations (``own``), the correct ones for a
+    method known to be wrong, or the unique equations of motion that every other method agrees with (the
+    facts come from the method's MethodSpec, exo_bench.api)."""
+    if known_wrong:
+        return (
+            f"{source}: the CORRECT equations, not {method}'s eq. (18) as printed (its 3D misprints "
+            "have no derivative worth having)"
+        )
+    if own:
+        return f"{source}: the same equations that {method} evaluates"
+    return (
+        f"{source}: the equations of motion are unique, so these are {method}'s equations' derivatives to "
+        "rounding (the suite checks that every method's inverse dynamics agree)"
+    )
+
+
+def _kernel(option: str) -> str:
+    if option not in ("auto", "numba", "numpy"):
+        raise ValueError(f"derivatives: option 'kernel': expected 'auto', 'numba' or 'numpy', got {option!r}")
+    if option != "auto":
+        return option
+    from exo_bench.models.numba_runtime import jit_disabled
+
+    return "numpy" if jit_disabled() else "numba"
+
+
+class Derivatives:
+    """The derivatives of one mechanism's equations of motion, for a prepared model of ``method``.
+
+    ``kernel``: ``"numba"`` (compiled), ``"numpy"`` (the reference) or ``"auto"`` (numba unless
+    ``NUMBA_DISABLE_JIT``). Subclasses (CasADi's, :mod:`exo_bench.matrix_method.derivatives`) replace
+    :meth:`_inverse`, :meth:`_accelerations` and :meth:`_solve` and keep every check."""
+
+    def __init__(self, mechanism: Mechanism, method: str = "newton-euler", source: str | None = None, kernel="auto"):
+        from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
+
+        self.mechanism = mechanism
+        self.method = method
+        self.kernel = _kernel(kernel)
+        #: which physics computes these derivatives (module docstring)
+        self.source = source if source is not None else source_text(method, method == "newton-euler", False)
+        #: the analytic inverse-dynamics derivatives (:mod:`exo_bench.models.newton_euler.derivatives`), whose
+        #: tree and table the forward passes share
+        self.inverse_derivatives = prepare_inverse_derivatives(mechanism)
+        self.tree, self.table = self.inverse_derivatives.tree, self.inverse_derivatives.table
+
+    def __repr__(self) -> str:
+        return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {self.source}>"
+
+    # ------------------------------------------------------------------ the numbers (replaced by subclasses)
+    def _inverse(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(dtau_dq, dtau_dqd, M)`` on validated ``(S, dof)`` arrays with ``S >= 1``."""
+        q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))  # the kernels take C-ordered states
+        return self.inverse_derivatives(q, qd, qdd, kernel="numpy" if self.kernel == "numpy" else "auto")
+
+    def _accelerations(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """``qdd = FD(q, qd, tau)`` by the O(n) passes."""
+        dim, g = self.mechanism.dim, float(self.mechanism.g)
+        if self.kernel == "numpy":
+            from exo_bench.models.newton_euler import passes
+
+            return passes.forward_dynamics(self.tree, dim, g, q, qd, tau)
+        from exo_bench.models.newton_euler import compiled
+        from exo_bench.models.numba_runtime import run
+
+        x, xd, y = (np.ascontiguousarray(a).reshape(-1) for a in (q, qd, tau))
+        o = np.empty(q.shape)
+        args = (self.table, g, dim, True, x, xd, y, o.reshape(-1))
+        run(compiled.newton_euler, compiled.newton_euler_parallel, args, q.shape[0])
+        return o
+
+    def _solve(self, q: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``M(q)^-1 B`` for ``B (S, dof, k)``, into ``out`` (which may be ``B``) or a new array."""
+        from exo_bench.models.newton_euler import inverse_mass
+
+        if self.kernel == "numpy":
+            X = inverse_mass.numpy_columns(self.tree, self.mechanism.dim, q, B)
+            if out is None:
+                return X
+            out[...] = X
+            return out
+        from exo_bench.models.numba_runtime import run
+
+        o = np.empty(B.shape) if out is None else out
+        args = (self.table, self.mechanism.dim, np.ascontiguousarray(q), np.ascontiguousarray(B), o)
+        run(inverse_mass.columns, inverse_mass.columns_parallel, args, q.shape[0])
+        return o
+
+    # ------------------------------------------------------------------ checks
+    def _states(self, source: str, names: tuple[str, ...], arrays, check: bool):
+        """The arrays as ``(S, dof)`` float arrays, and whether one ``(dof,)`` sample was given.
+        Shapes and sample counts are checked with or without ``check`` (a ValueError naming the field,
+        the expected and the actual count: never numpy's reshape error); ``check`` also validates the
+        values of the first three (:func:`exo_bench.models.mechanism.as_states`) and that the others
+        (directions, weights) are finite."""
+        single = is_one_sample(arrays[0])
+        d = self.mechanism.dof
+        shaped = []
+        for name, a in zip(names, arrays):
+            a = np.asarray(a, dtype=float) if not check else a
+            nd = np.ndim(a)
+            if nd not in (1, 2) or np.shape(a)[-1] != d or (nd == 1) != single:
+                want = f"({d},)" if single else f"(samples, {d})"
+                raise ValueError(f"{source}: field '{name}': expected shape {want}, got {np.shape(a)}")
+            shaped.append(a)
+        counts = [np.shape(a)[0] if not single else 1 for a in shaped]
+        for name, c in zip(names[1:], counts[1:]):
+            if c != counts[0]:
+                raise ValueError(
+                    f"{source}: field '{name}': expected {counts[0]} sample{'s' * (counts[0] != 1)} "
+                    f"(as {names[0]}), got {c}"
+                )
+        if check:
+            try:
+                shaped[:3] = list(as_states(self.mechanism, shaped[0], shaped[1], shaped[2], source=source))
+            except ValueError as e:  # the third array of as_states is called qdd
+                raise ValueError(str(e).replace("field 'qdd'", f"field '{names[2]}'")) from None
+            for name, a in zip(names[3:], shaped[3:]):
+                bad = ~np.isfinite(np.asarray(a, dtype=float))
+                if bad.any():
+                    s, j = (int(x[0]) for x in np.nonzero(np.atleast_2d(bad)))
+                    raise ValueError(f"{source}: field '{name}': sample {s}, entry {j}: expected a finite value")
+        return [np.ascontiguousarray(np.atleast_2d(np.asarray(a, dtype=float))) for a in shaped], single
+
+    def _check_memory(self, source: str, samples: int, jacobians: int) -> None:
+        """Refuse, before any work, a call whose :func:`derivative_bytes` exceed :func:`exo_bench.models.memory.usable_memory`."""
+        need = derivative_bytes(self.mechanism.dof, samples, jacobians, self.kernel)
+        limit = memory.usable_memory()
+        if limit is not None and need > limit:
+            raise DerivativesTooLarge(
+                f"{source}: {samples} samples of {self.mechanism.dof} coordinates need about {need / 2**30:.2f} GiB "
+                f"({jacobians} Jacobians of (samples, dof, dof) float64 and their work), over the "
+                f"{limit / 2**30:.2f} GiB a run may use; expected fewer samples per call"
+            )
+
+    @property
+    def coupling_condition(self) -> CouplingCondition:
+        """The mechanism's part of the condition of ``M`` (:mod:`exo_bench.models.conditioning`), on first use."""
+        c = getattr(self, "_coupling_condition", None)
+        if c is None:
+            c = self._coupling_condition = coupling_condition(self.mechanism)
+        return c
+
+    def _refuse_singular(self, q: np.ndarray, check: bool) -> None:
+        """What forward dynamics refuses: a link that moves no mass (with or without ``check``), and with
+        ``check`` a singular state (naming the link) or one beyond the conditioning bound."""
+        mech = self.mechanism
+        if np.isinf(self.coupling_condition.kappa):
+            raise SingularConfigurationError([f"sample 0: {coupling_reason(mech, self.coupling_condition)}"])
+        if check:
+            reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(mech, q)) for r in rs]
+            if reasons:
+                raise SingularConfigurationError(reasons)
+            check_conditioning(mech, q, self.coupling_condition)
+
+    def _finite(self, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
+        """Never NaN or inf: a vector names its coordinate, a Jacobian the row of its coordinate."""
+        for x, name in zip(out, names):
+            if x.ndim == 2:
+                check_finite(self.mechanism, x, name)
+            else:
+                check_finite(self.mechanism, np.where(np.isfinite(x).all(axis=2), 0.0, np.inf), name)
+
+    # ------------------------------------------------------------------ full Jacobians
+    def inverse_dynamics(self, q, qd, qdd, check: bool = True):
+        """``(dtau_dq, dtau_dqd, M)`` at the states: ``(S, dof, dof)`` each (``(dof, dof)`` for one
+        ``(dof,)`` sample). ``M = dtau/dqdd``. Zero samples give ``(0, dof, dof)``. Defined at every
+        state, singular ones included (inverse dynamics is a polynomial in ``l``, ``cos`` and ``sin``)."""
+        source = "inverse-dynamics derivatives"
+        (q, qd, qdd), single = self._states(source, ("q", "qd", "qdd"), (q, qd, qdd), check)
+        d = self.mechanism.dof
+        self._check_memory(source, q.shape[0], 3)
+        if q.shape[0] == 0:
+            return tuple(np.zeros((0, d, d)) for _ in range(3))
+        out = self._inverse(q, qd, qdd)
+        return tuple(x[0] for x in out) if single else tuple(out)
+
+    def forward_dynamics(self, q, qd, tau, check: bool = True):
+        """``(qdd, dqdd_dq, dqdd_dqd, Minv)`` at the states and forces: ``qdd (S, dof)``, the rest
+        ``(S, dof, dof)`` (no sample axis for one ``(dof,)`` sample). ``Minv = dqdd/dtau``.
+
+        With ``check`` (the default) the states are validated and they answer or refuse exactly as
+        ``forward_dynamics`` does: a singular mass matrix raises
+        :class:`exo_bench.models.forward_dynamics.SingularConfigurationError` naming the link, one beyond
+        the conditioning bound :class:`exo_bench.models.conditioning.NumericallySingularError` (the test
+        every method shares), and an answer that is not finite is refused, never returned. Without
+        ``check`` only the shapes are checked, and the mechanism itself: a link that moves no mass
+        (``mu`` singular at every configuration) is refused either way."""
+        source = "forward-dynamics derivatives"
+        (q, qd, tau), single = self._states(source, ("q", "qd", "tau"), (q, qd, tau), check)
+        d = self.mechanism.dof
+        self._refuse_singular(q, check)
+        self._check_memory(source, q.shape[0], 3)
+        if q.shape[0] == 0:
+            return (np.zeros((0, d)), *(np.zeros((0, d, d)) for _ in range(3)))
+        qdd = self._accelerations(q, qd, tau)
+        jq, jqd, M = self._inverse(q, qd, qdd)
+        M[...] = np.eye(d)  # M's memory holds M^-1: the three solves in place
+        out = (qdd, *(self._solve(q, B, out=B) for B in (jq, jqd, M)))
+        jq *= -1.0
+        jqd *= -1.0
+        if check:
+            self._finite(out, ("qdd", "dqdd_dq", "dqdd_dqd", "Minv"))
+        return tuple(x[0] for x in out) if single else out
+
+    # ------------------------------------------------------------------ directional derivatives
+    def inverse_dynamics_jvp(self, q, qd, qdd, dq, dqd, dqdd, check: bool = True):
+        """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,
+        O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_jvp`)."""
+        from exo_bench.models.newton_euler.products import inverse_jvp
+
+        names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
+        arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
+        out = inverse_jvp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
+        return out[0] if single else out
+
+    def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
+        """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each: reverse mode through the passes,
+        O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_vjp`)."""
+        from exo_bench.models.newton_euler.products import inverse_vjp
+
+        arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
+        out = inverse_vjp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
+        return tuple(x[0] for x in out) if single else out
+
+    def forward_dynamics_jvp(self, q, qd, tau, dq, dqd, dtau, check: bool = True):
+        """``(qdd, dqdd)`` with ``dqdd = M^-1 (dtau - dID/dq dq - dID/dqd dqd)`` at ``qdd = FD(q, qd, tau)``:
+        O(n) per sample; refuses what :meth:`forward_dynamics` refuses."""
+        from exo_bench.models.newton_euler.products import inverse_jvp
+
+        names = ("q", "qd", "tau", "dq", "dqd", "dtau")
+        (q, qd, tau, dq, dqd, dtau), single = self._states(
+            "forward-dynamics JVP", names, (q, qd, tau, dq, dqd, dtau), check
+        )
+        self._refuse_singular(q, check)
+        qdd = self._accelerations(q, qd, tau)
+        g = float(self.mechanism.g)
+        rhs = dtau - inverse_jvp(self.tree, self.mechanism.dim, g, q, qd, qdd, dq, dqd, np.zeros_like(q))
+        out = (qdd, self._solve(q, rhs[:, :, None])[:, :, 0])
+        if check:
+            self._finite(out, ("qdd", "dqdd"))
+        return tuple(x[0] for x in out) if single else out
+
+    def forward_dynamics_vjp(self, q, qd, tau, w, check: bool = True):
+        """``(qdd, w^T dqdd/dq, w^T dqdd/dqd, w^T M^-1)`` at ``qdd = FD(q, qd, tau)``: with ``u = M^-1 w``
+        (``M`` symmetric), ``-u^T dID/dq``, ``-u^T dID/dqd`` and ``u``. O(n) per sample."""
+        from exo_bench.models.newton_euler.products import inverse_vjp
+
+        (q, qd, tau, w), single = self._states("forward-dynamics VJP", ("q", "qd", "tau", "w"), (q, qd, tau, w), check)
+        self._refuse_singular(q, check)
+        qdd = self._accelerations(q, qd, tau)
+        u = self._solve(q, w[:, :, None])[:, :, 0]
+        wq, wqd, _ = inverse_vjp(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, u)
+        out = (qdd, -wq, -wqd, u)
+        if check:
+            self._finite(out, ("qdd", "w_dqdd_dq", "w_dqdd_dqd", "w_Minv"))
+        return tuple(x[0] for x in out) if single else out
+
+
+def derivatives_of(mechanism: Mechanism, method: str, source: str | None = None, **options: Any) -> Derivatives:
+    """The provider that ``exo_bench.prepare`` attaches to a prepared model of any method (registered in
+    :data:`exo_bench.models.prepared.derivative_provider` by :mod:`exo_bench.api.preparation`)."""
+    return Derivatives(mechanism, method, source, **options)
