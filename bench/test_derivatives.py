@@ -202,6 +202,20 @@ def _info(method, n, topology, mech, what, source=""):
     return dict(method=method, n=n, dim=3, topology=topology, mechanism=mech.name, what=what, source=source)
 
 
+def _derivative_row(benchmark, sweep, references, case, mech, args, forward: bool) -> None:
+    """Prepare a route, time it batched, and record its error against the reference."""
+    method, n, _, topology = case
+    t0 = time.perf_counter()
+    call, source = _route(method, mech, forward=forward)
+    prep = time.perf_counter() - t0 + _first_call(method, call, args)
+    info = _info(method, n, topology, mech, "forward" if forward else "inverse", source) | {"prepare_s": prep}
+    got = _timed(benchmark, sweep, method, call, args, info)
+    assert all(np.isfinite(g).all() for g in got), f"{method}: NaN/Inf in the derivatives"
+    benchmark.extra_info.update(_errors(got, _reference(references, mech, *args, forward=forward)))
+    if getattr(call, "warnings", None):  # MuJoCo's, collected by the route
+        benchmark.extra_info["engine_warnings"] = "; ".join(sorted(set(call.warnings)))[:300]
+
+
 def test_inverse_derivatives(benchmark, sweep, references, case):
     method, n, dim, topology = case
     benchmark.group = "derivatives-inverse-batched"
@@ -212,15 +226,7 @@ def test_inverse_derivatives(benchmark, sweep, references, case):
         call = lambda q, qd, qdd: model.inverse_dynamics(q, qd, qdd, check=False)  # noqa: E731
         _timed(benchmark, sweep, method, call, (q, qd, qdd), _info(method, n, topology, mech, "ID"))
         return
-    t0 = time.perf_counter()
-    call, source = _route(method, mech, forward=False)
-    prep = time.perf_counter() - t0 + _first_call(method, call, (q, qd, qdd))
-    info = _info(method, n, topology, mech, "inverse", source) | {"prepare_s": prep}
-    got = _timed(benchmark, sweep, method, call, (q, qd, qdd), info)
-    assert all(np.isfinite(g).all() for g in got), f"{method}: NaN/Inf in the derivatives"
-    benchmark.extra_info.update(_errors(got, _reference(references, mech, q, qd, qdd, forward=False)))
-    if getattr(call, "warnings", None):  # MuJoCo's, collected by the route
-        benchmark.extra_info["engine_warnings"] = "; ".join(sorted(set(call.warnings)))[:300]
+    _derivative_row(benchmark, sweep, references, case, mech, (q, qd, qdd), forward=False)
 
 
 def test_inverse_derivatives_one_sample(benchmark, sweep, references, case):
@@ -266,10 +272,4 @@ def test_forward_derivatives(benchmark, sweep, references, case):
         call = lambda q, qd, tau: ne.forward_dynamics(q, qd, tau, check=False)  # noqa: E731
         _timed(benchmark, sweep, method, call, (q, qd, tau), _info(method, n, topology, mech, "FD"))
         return
-    t0 = time.perf_counter()
-    call, source = _route(method, mech, forward=True)
-    prep = time.perf_counter() - t0 + _first_call(method, call, (q, qd, tau))
-    info = _info(method, n, topology, mech, "forward", source) | {"prepare_s": prep}
-    got = _timed(benchmark, sweep, method, call, (q, qd, tau), info)
-    assert all(np.isfinite(g).all() for g in got), f"{method}: NaN/Inf in the derivatives"
-    benchmark.extra_info.update(_errors(got, _reference(references, mech, q, qd, tau, forward=True)))
+    _derivative_row(benchmark, sweep, references, case, mech, (q, qd, tau), forward=True)

@@ -58,6 +58,15 @@ def _verdict(value: float | None, target: float) -> str:
     return "**met**" if value <= target else "**not met**"
 
 
+def _ratio(add, goal: str, target: float, num, den, den_name: str, note: str = "") -> None:
+    """A goal that is the ratio of two rows' times per sample (not judged when one is missing)."""
+    if num is None or den is None:
+        add(goal, target, None, f"no row of {'the derivatives' if num is None else den_name} in this run")
+        return
+    r = num["us"] / den["us"]
+    add(goal, target, r, f"{r:.2f}x: {num['method']} {num['us']:.3g} us / {den_name} {den['us']:.3g} us{note}")
+
+
 def goals(df: pd.DataFrame) -> list[dict]:
     """Each goal: ``goal``, ``target``, ``value`` (None when a row is missing), ``verdict``, ``measured`` (text)."""
     d = rows(df)
@@ -72,26 +81,11 @@ def goals(df: pd.DataFrame) -> list[dict]:
     base = _pick(d, "inverse-batched", "exo5-3d", ID)
     cas = _pick(d, "inverse-batched", "exo5-3d", CASADI)
     now = f"; CasADi (today's path) {cas['us'] / base['us']:.0f}x" if cas is not None and base is not None else ""
-    if best is not None and base is not None:
-        r = best["us"] / base["us"]
-        add("exo5-3d batched dtau/d(q,qd) / batched ID, per sample", 10.0, r,
-            f"{r:.2f}x: {best['method']} {best['us']:.3g} us / ID {base['us']:.3g} us{now}")  # fmt: skip
-    else:
-        add("exo5-3d batched dtau/d(q,qd) / batched ID, per sample", 10.0, None, "no analytic or ID row")
+    _ratio(add, "exo5-3d batched dtau/d(q,qd) / batched ID, per sample", 10.0, best, base, "ID", now)
     one, rnea = _pick(d, "inverse-one-sample", "exo5-3d", ONE), _pick(d, "inverse-one-sample", "exo5-3d", RNEA)
-    if one is not None and rnea is not None:
-        r = one["us"] / rnea["us"]
-        add("exo5-3d one sample dtau/d(q,qd) / bare pin.rnea", 1.0, r,
-            f"{r:.2f}x: {ONE} {one['us']:.3g} us / pin.rnea {rnea['us']:.3g} us")  # fmt: skip
-    else:
-        add("exo5-3d one sample dtau/d(q,qd) / bare pin.rnea", 1.0, None, "no analytic one-sample or pin.rnea row")
+    _ratio(add, "exo5-3d one sample dtau/d(q,qd) / bare pin.rnea", 1.0, one, rnea, "pin.rnea")
     fwd, fd = _pick(d, "forward-batched", "exo5-3d", PROVIDER), _pick(d, "forward-batched", "exo5-3d", FD)
-    if fwd is not None and fd is not None:
-        r = fwd["us"] / fd["us"]
-        add("exo5-3d forward derivatives / batched FD, per sample", 25.0, r,
-            f"{r:.2f}x: {PROVIDER} {fwd['us']:.3g} us / FD {fd['us']:.3g} us")  # fmt: skip
-    else:
-        add("exo5-3d forward derivatives / batched FD, per sample", 25.0, None, f"no {PROVIDER} or FD forward row")
+    _ratio(add, "exo5-3d forward derivatives / batched FD, per sample", 25.0, fwd, fd, "FD")
     c100 = _pick(d, "inverse-batched", "chain100-3d", prefix="analytic")
     if c100 is not None:
         add(
