@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 import pytest
+from test_derivatives_analytic import states
 
 from conftest import EPS, K, term_scale
 from exo_bench import prepare, presets
@@ -44,15 +45,14 @@ H = 1e-30
 
 
 def _case(mech, samples=5, seed=8):
-    """Seeded states away from the singular ones: elevations within 0.8 rad, lengths in [0.6, 1.4] (``cond(M)``
-    then stays within the mass distribution's own, below 1e3 on these trees), and ``tau = ID(q, qd, qdd)``."""
-    rng = np.random.default_rng(seed)
+    """test_derivatives_analytic's seeded states moved away from the singular ones: elevations within 0.8
+    rad, lengths in [0.6, 1.4] (``cond(M)`` then stays within the mass distribution's own, below 1e3 on these
+    trees), and ``tau = ID(q, qd, qdd)``."""
+    q, qd, qdd = states(mech, samples, seed)
     n = mech.nlinks
-    q = rng.uniform(-1.5, 1.5, (samples, mech.dof))
     if mech.dim == 3:
-        q[:, n : 2 * n] = rng.uniform(-0.8, 0.8, (samples, n))
-    q[:, -n:] = rng.uniform(0.6, 1.4, (samples, n))
-    qd, qdd = rng.normal(size=q.shape), rng.normal(size=q.shape)
+        q[:, n : 2 * n] *= 0.8 / 1.2
+    q[:, -n:] = 0.6 + (q[:, -n:] - 0.3) * (0.8 / 1.2)
     tau = prepare(mech, "newton-euler").inverse_dynamics(q, qd, qdd)
     return q, qd, tau
 
