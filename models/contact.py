@@ -90,6 +90,10 @@ class ContactParameters:
         return (4.0 / 3.0) * k * math.sqrt(self.radius * k)
 
 
+#: The default parameters (an immutable value: safe as a default argument).
+DEFAULT_CONTACT = ContactParameters()
+
+
 def softplus(x: np.ndarray, width: float) -> np.ndarray:
     """``width * log(1 + exp(x / width))`` without overflow (the exponent's real part is never positive);
     analytic, so complex steps pass through it."""

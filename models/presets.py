@@ -199,33 +199,34 @@ def human(dim: int = 2, body_mass: float = 56.7, stature: float = 1.75) -> Mecha
     return _mech(f"human-{dim}d", dim, parent, [1, 1] + [-1] * 8, parts, names)
 
 
-def human_standing(mech: Mechanism, stature: float = 1.75) -> np.ndarray:
-    """``q (1, dof)`` of :func:`human` standing upright with both feet flat on the floor (the heel and toe
-    contact points at height 0), the hips above O in 2D; in 3D O lies 0.5 m behind the hips (a vertical
-    root rod is where the 3D chart is singular, eq. 7) and the legs, still vertical, sit on that chart's
-    poles, so 3D standing is a kinematic pose only. Rod lengths are the anthropometric ones for ``stature``."""
+def human_standing(mech: Mechanism, stature: float = 1.75, lean: float = 0.0) -> np.ndarray:
+    """``q (1, dof)`` of :func:`human` standing with both feet flat on the floor (the heel and toe contact
+    points at height 0), the body straight and leaning forward by ``lean`` (rad) about the ankles (0:
+    upright, the hips above O). In 3D O lies 0.5 m behind the hips (a vertical root rod is where the 3D
+    chart is singular, eq. 7) and the legs, near vertical, sit near that chart's poles, so 3D standing is a
+    kinematic pose only. Rod lengths are the anthropometric ones for ``stature``."""
     from exo_bench.models import anthropometry as a
 
-    up = np.pi / 2
+    body = np.pi / 2 - lean  # the angle of thighs, legs (distal -> proximal) and HAT
     heel = (a.HEEL_FORWARD, a.ANKLE_HEIGHT)  # ankle minus heel point: (forward, up) / H
     toe = (a.TOE_FORWARD, -a.ANKLE_HEIGHT)  # toe point minus ankle
     foot_angle = np.arctan2(-toe[1], -toe[0])  # of the vector from toe to ankle (sign = -1)
     heel_angle = np.arctan2(heel[1], -heel[0])  # from heel to ankle
-    leg_rods = [(up, a.THIGH.length), (up, a.LEG.length), (foot_angle, a.FOOT.length)]
+    leg_rods = [(body, a.THIGH.length), (body, a.LEG.length), (foot_angle, a.FOOT.length)]
     leg_rods.append((heel_angle, float(np.hypot(*heel))))
-    hip = a.HIP_HEIGHT * stature
-    root = (up, hip) if mech.dim == 2 else (np.arctan2(hip, 0.5), float(np.hypot(hip, 0.5)))
-    rods = [root, (up, 1.0 - a.HIP_HEIGHT)] + 2 * leg_rods
+    up = (a.THIGH.length + a.LEG.length) * stature
+    hip_x, hip_z = up * np.cos(body), a.ANKLE_HEIGHT * stature + up * np.sin(body)
+    if mech.dim == 3:
+        hip_x += 0.5
+    root = (float(np.arctan2(hip_z, hip_x)), float(np.hypot(hip_z, hip_x)))
+    rods = [root, (body, 1.0 - a.HIP_HEIGHT)] + 2 * leg_rods
     lengths = [rods[0][1]] + [r[1] * stature for r in rods[1:]]
-    angles = [r[0] for r in rods]
+    angles = [float(r[0]) for r in rods]
     if mech.dim == 2:
         return np.array([angles + lengths])
-    azimuth = [0.0] * len(rods)  # every rod in the x-z plane: phi = 0 (forward) or pi (backward)
-    elev = []
-    for i, ang in enumerate(angles):
-        azimuth[i] = 0.0 if np.cos(ang) >= 0 else np.pi
-        elev.append(float(np.arcsin(np.sin(ang))))
-    return np.array([azimuth + elev + lengths])
+    azimuth = [0.0 if np.cos(x) >= 0 else np.pi for x in angles]  # every rod in the x-z plane
+    elevation = [float(np.arcsin(np.sin(x))) for x in angles]
+    return np.array([azimuth + elevation + lengths])
 
 
 for _dim in (2, 3):
