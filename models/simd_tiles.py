@@ -83,45 +83,50 @@ def _data(context, b, typ, value):
     return context.make_array(typ)(context, b, value).data
 
 
-@intrinsic
-def tile_in(typingctx, src, base, stride, rem, dst, offs, c0, add):
-    sig = types.void(src, base, stride, rem, dst, offs, c0, add)
+def _tile_move(gather: bool):
+    """The code of :func:`tile_in` (``gather``: masked loads of the strided rows of ``src``, stores of
+    columns at offsets of ``dst``) or :func:`tile_out` (loads at offsets of ``src``, masked stores
+    of rows into ``dst``); both take ``(src, *its address, dst, *its address)``, the strided side's
+    address ``(base, stride, rem)``, the offset side's ``(offs, c0, add)``."""
 
     def codegen(context, b, signature, args):
-        src_, base_, stride_, rem_, dst_, offs_, c0_, add_ = args
-        s = _data(context, b, signature.args[0], src_)
-        d = _data(context, b, signature.args[4], dst_)
-        o = _data(context, b, signature.args[5], offs_)
-        load = cgutils.get_or_insert_function(
-            b.module, ir.FunctionType(_V, [_V.as_pointer(), _I32, _MASK, _V]), "llvm.masked.load.v8f64.p0"
-        )
-        mask, zero, align = _mask(b, rem_), ir.Constant(_V, None), ir.Constant(_I32, 8)
-        rows = [
-            b.call(load, [_vector_at(b, s, _strided(b, base_, stride_, r)), align, mask, zero]) for r in range(TILE)
-        ]
-        for i, col in enumerate(transpose_network(b, rows)):
-            b.store(col, _vector_at(b, d, _offset(b, o, c0_, i, add_)), align=8)
+        src, dst = (_data(context, b, signature.args[k], args[k]) for k in (0, 4))
+        at = 5 if gather else 1  # the offset side's arguments, the strided side's the others
+        offs_, c0_, add_ = args[at : at + 3]
+        base_, stride_, rem_ = args[6 - at : 9 - at]
+        o = _data(context, b, signature.args[at], offs_)
+        strided, packed = (src, dst) if gather else (dst, src)
+        mask, align = _mask(b, rem_), ir.Constant(_I32, 8)
+        if gather:
+            load = cgutils.get_or_insert_function(
+                b.module, ir.FunctionType(_V, [_V.as_pointer(), _I32, _MASK, _V]), "llvm.masked.load.v8f64.p0"
+            )
+            zero = ir.Constant(_V, None)
+            rows = [
+                b.call(load, [_vector_at(b, strided, _strided(b, base_, stride_, r)), align, mask, zero])
+                for r in range(TILE)
+            ]
+            for i, col in enumerate(transpose_network(b, rows)):
+                b.store(col, _vector_at(b, packed, _offset(b, o, c0_, i, add_)), align=8)
+        else:
+            store = cgutils.get_or_insert_function(
+                b.module,
+                ir.FunctionType(ir.VoidType(), [_V, _V.as_pointer(), _I32, _MASK]),
+                "llvm.masked.store.v8f64.p0",
+            )
+            cols = [b.load(_vector_at(b, packed, _offset(b, o, c0_, i, add_)), align=8) for i in range(TILE)]
+            for r, row in enumerate(transpose_network(b, cols)):
+                b.call(store, [row, _vector_at(b, strided, _strided(b, base_, stride_, r)), align, mask])
         return context.get_dummy_value()
 
-    return sig, codegen
+    return codegen
+
+
+@intrinsic
+def tile_in(typingctx, src, base, stride, rem, dst, offs, c0, add):
+    return types.void(src, base, stride, rem, dst, offs, c0, add), _tile_move(True)
 
 
 @intrinsic
 def tile_out(typingctx, src, offs, c0, add, dst, base, stride, rem):
-    sig = types.void(src, offs, c0, add, dst, base, stride, rem)
-
-    def codegen(context, b, signature, args):
-        src_, offs_, c0_, add_, dst_, base_, stride_, rem_ = args
-        s = _data(context, b, signature.args[0], src_)
-        o = _data(context, b, signature.args[1], offs_)
-        d = _data(context, b, signature.args[4], dst_)
-        store = cgutils.get_or_insert_function(
-            b.module, ir.FunctionType(ir.VoidType(), [_V, _V.as_pointer(), _I32, _MASK]), "llvm.masked.store.v8f64.p0"
-        )
-        cols = [b.load(_vector_at(b, s, _offset(b, o, c0_, i, add_)), align=8) for i in range(TILE)]
-        mask, align = _mask(b, rem_), ir.Constant(_I32, 8)
-        for r, row in enumerate(transpose_network(b, cols)):
-            b.call(store, [row, _vector_at(b, d, _strided(b, base_, stride_, r)), align, mask])
-        return context.get_dummy_value()
-
-    return sig, codegen
+    return types.void(src, offs, c0, add, dst, base, stride, rem), _tile_move(False)
