@@ -170,10 +170,13 @@ def make_rhs(
 def make_jacobian(model: PreparedModel, controls: Controls):
     """The analytic Jacobian ``df/dy`` of the right-hand side ``f = [qd, qdd]`` of :func:`make_rhs`:
     ``[[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]]`` with the forward-dynamics
-    derivatives of ``model.derivatives`` (:mod:`exo_bench.matrix_method.derivatives`) and the controls' own
-    ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)`` (:func:`exo_bench.models.forward_dynamics.prescribed_controls` and
-    :func:`exo_bench.models.forward_dynamics.rod_spring_damper` have one). A ValueError when the controls have none, or when the
-    derivatives are not available (the optional extra ``casadi``)."""
+    derivatives of ``model.derivatives`` (:mod:`exo_bench.models.derivatives`: the analytic derivatives of
+    the Newton-Euler passes and the implicit-function theorem, ``M^-1`` by the O(n) forward dynamics; no
+    CasADi) and the controls' own ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)``
+    (:func:`exo_bench.models.forward_dynamics.prescribed_controls` and
+    :func:`exo_bench.models.forward_dynamics.rod_spring_damper` have one). A ValueError when the controls have
+    none. ``tests/test_integrator_derivatives.py`` checks it against the provider's inverse-dynamics
+    derivatives through a dense solve."""
     jac_controls = getattr(controls, "jacobian", None)
     if jac_controls is None:
         raise ValueError(

@@ -5,8 +5,9 @@ Radau and BDF need ``df/dy`` of the right-hand side ``f = [qd, qdd]``. scipy est
 differences of the vectorised right-hand side: ``2 dof`` more evaluations per Jacobian (counted in
 ``RHS evals``, which counts columns). The analytic Jacobian
 (:func:`exo_bench.models.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
-``model.derivatives`` (CasADi's differentiation of the factored closed forms,
-:mod:`exo_bench.matrix_method.derivatives`) and the controls' own derivatives, and costs no right-hand-side
+``model.derivatives`` (the analytic derivatives of the Newton-Euler passes,
+:mod:`exo_bench.models.derivatives`; issue 36, before it CasADi's differentiation of the factored closed
+forms) and the controls' own derivatives, and costs no right-hand-side
 evaluation, so it is re-evaluated after every accepted step (:mod:`exo_bench.models.implicit_integrators`).
 Each analytic run is paired with the finite-difference run of the same case,
 integrator and tolerance (:func:`pairs`), and the report says whether it reached the same
@@ -62,7 +63,8 @@ class Pair:
 #: Errors within this factor of each other count as "the same tolerance reached" (both runs pass
 #: scipy's error test at the same rtol/atol; their global errors differ by the luck of the steps).
 SAME_ERROR = 3.0
-#: The start of the table's header: in a report only when the analytic runs ran (the extra ``casadi``).
+#: The start of the table's header: in a report only when the analytic runs ran (before issue 36 they
+#: needed the extra ``casadi``; a report without them is never written over one with them).
 TABLE_HEAD = "| case | integrator | rtol | RHS evals FD |"
 
 
@@ -131,8 +133,8 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "Radau and BDF need df/dy of f = [qd, qdd]. scipy estimates it by finite differences of the vectorised "
         "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
         "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
-        "from `model.derivatives` (CasADi's differentiation of the matrix method's factored closed forms, "
-        "`matrix_method/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
+        "from `model.derivatives` (the analytic derivatives of the Newton-Euler passes with the implicit-function "
+        "theorem, `models/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
         "re-evaluated after every accepted step (`models/implicit_integrators.py`; scipy's own rule, made for "
         "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
@@ -169,7 +171,8 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         )
     L += [
         "",
-        "Seconds are one run on a shared machine: the analytic Jacobian is one CasADi evaluation of the "
-        "derivatives and one LU solve per Jacobian, in Python; its gain shows in the evaluation count.",
+        "Seconds are one run on a shared machine: the analytic Jacobian is one call of the "
+        "forward-dynamics derivatives and one LU factorisation per Jacobian, in Python; its gain shows in the "
+        "evaluation count.",
     ]
     return L

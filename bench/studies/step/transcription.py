@@ -43,6 +43,10 @@ import numpy as np
 from exo_bench.models.mechanism import Mechanism
 
 
+#: Threads of the mapped Jacobian and Hessian (most of the evaluation time; the host has 2 cores).
+THREADS = 2
+
+
 @dataclass(frozen=True)
 class Layout:
     """Where things are: ``x = (vec(Z), T)`` with ``Z`` of shape ``(nz, K)``, column ``k`` the point's
@@ -225,9 +229,11 @@ def build(mech: Mechanism, s, point: ca.Function) -> Transcription:
     # one point's derivatives, mapped
     z, mu = ca.SX.sym("z", nz), ca.SX.sym("mu", ny)
     yz = cfun(z)
-    jmap = ca.Function("step_node_jac", [z], [ca.jacobian(yz, z)]).map(K)
-    gmap = ca.Function("step_node_grad", [z], [ca.gradient(yz[rows["effort"].start], z)]).map(K)
-    hmap = ca.Function("step_node_hess", [z, mu], [ca.hessian(ca.dot(mu, yz), z)[0]]).map(K)
+    cse = {"cse": True}  # common subexpressions merged: 13 % fewer instructions in the Hessian
+    jmap = ca.Function("step_node_jac", [z], [ca.jacobian(yz, z)], cse).map(K, "thread", THREADS)
+    gmap = ca.Function("step_node_grad", [z], [ca.gradient(yz[rows["effort"].start], z)], cse).map(K)
+    hess = ca.Function("step_node_hess", [z, mu], [ca.hessian(ca.dot(mu, yz), z)[0]], cse)
+    hmap = hess.map(K, "thread", THREADS)
     # the NLP and its derivatives, in MX
     x, p = ca.MX.sym("x", lay.nx), ca.MX.sym("p", 0)
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", G.numel())
