@@ -88,7 +88,10 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
     who = f"{method}: " if method else ""
     want = (mech.nlinks, 3, mech.dim)
     full = (*q_shape[:-1], *want)
-    shape = getattr(f_ext, "shape", None) if check is False else np.shape(f_ext)
+    try:
+        shape = getattr(f_ext, "shape", None) if check is False else np.shape(f_ext)
+    except ValueError:  # ragged nested lists
+        shape = None
     if shape is None or tuple(shape) != full:
         raise ValueError(
             f"{who}field 'f_ext': expected forces of shape {full} (samples, links, 3 points: start, middle, "
