@@ -87,3 +87,24 @@ def test_the_cli_lists_the_human_presets(capsys):
     assert app.main(["presets"]) == 0
     out = capsys.readouterr().out
     assert "human-2d   2D, 10 link(s)" in out and "human-3d   3D, 10 link(s)" in out
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_model_floats_unheld_it_falls_at_g(dim):
+    """The root rod is massless and its generalised forces zero: O holds nothing, so with no forces at all
+    the centre of mass falls at g from any state at rest. Point accelerations at rest are ``J qdd``, by a
+    central difference along ``qdd`` (truncation ``O(h^2)`` ~ 1e-10, rounding ``eps / h`` ~ 1e-11: 1e-7 of
+    g holds with a margin)."""
+    from exo_bench import prepare
+
+    m = human(dim)
+    noise = np.random.default_rng(dim).normal(0, 0.1, (1, m.dof))
+    noise[:, -m.nlinks :] *= 0.1  # rods within 3 cm of their lengths; angles off the 3D chart's poles
+    q = human_standing(m) + noise
+    qdd = prepare(m, "matrix-factored").forward_dynamics(q, np.zeros_like(q), np.zeros_like(q))
+    h = 1e-5
+    acc = (point_mass_positions(m, q + h * qdd) - point_mass_positions(m, q - h * qdd)) / (2 * h)
+    com = np.einsum("lk,slkd->sd", m.mass_array, acc) / m.total_mass
+    want = np.zeros(dim)
+    want[-1] = -m.g
+    np.testing.assert_allclose(com[0], want, rtol=0, atol=1e-7 * m.g)
