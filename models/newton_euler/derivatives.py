@@ -52,6 +52,7 @@ samples for batches), :mod:`.derivatives_simd` (numba, blocks of samples across 
 from __future__ import annotations
 
 import threading
+from typing import Any
 
 import numpy as np
 
@@ -67,8 +68,11 @@ OUTPUTS = ("dtau_dq", "dtau_dqd", "M")
 _SOURCE = "inverse-dynamics derivatives"
 _F8 = np.dtype(np.float64)
 #: ``kernel="auto"``: batches of mechanisms of fewer links run the SIMD kernel, larger ones the
-#: per-sample kernel (whose loop over the column links vectorises and writes contiguous rows).
-SIMD_BELOW_LINKS = 16
+#: per-sample kernel (whose loop over the column links vectorises and writes contiguous rows). Per
+#: sample, one thread, one process, the shared 2-core machine at load 11: exo5-3d (512 samples) simd
+#: 2.3-2.6 us against numba 2.7-2.8; a 3D tree of 9 links 6-24 against 30-32; a 3D chain of 10 a tie
+#: (33 us, both bound by writing 22 kB per sample); chain of 20 (64 samples) 43-52 against 22-25.
+SIMD_BELOW_LINKS = 10
 #: numba_runtime's threshold of a parallel batch, in samples (its value; importing it would import numba).
 PARALLEL_MIN_SAMPLES = 4096
 #: A batch of at least this many output entries runs on numba's threads.
@@ -142,7 +146,7 @@ class InverseDerivatives:
         self.nlinks, self.dof = int(mechanism.nlinks), int(mechanism.dof)
         self._local = threading.local()
         self._entry: tuple | None = None
-        self._simd_scratch = None
+        self._simd_scratch: Any = None  # the SIMD kernel's ThreadScratch, made at its first call
 
     def __repr__(self) -> str:
         return f"<InverseDerivatives of {self.mechanism.name!r}: {self.dof} dof, {self.dim}D>"
