@@ -21,7 +21,8 @@ the two bit-identical). One implementation serves every method:
 
 * inverse dynamics: ``ID(q, qd, qdd) - Q(q, f_ext)``;
 * forward dynamics: ``FD(q, qd, tau + Q(q, f_ext))``;
-* derivatives: ``dtau/dq`` gains ``-dQ/dq`` (:func:`dQ_dq`), block-diagonal per rod since ``F_a`` is
+* derivatives: ``dtau/dq`` gains ``-dQ/dq`` (:func:`dQ_dq`; :func:`inverse_derivatives` and
+  :func:`forward_derivatives` wrap ``model.derivatives``' calls), block-diagonal per rod since ``F_a`` is
   fixed in the world: ``d(J_a^T F_a)/dq_a``. Each term of the projection holds one of ``(cos x, sin x)``
   of an angle ``x`` or none, so its derivative is the projection at ``x + pi/2`` without the terms
   free of ``x`` (in ``phi``: those of ``F_z``); in ``l``, the projection at ``l = 1`` without ``u.F``.
@@ -274,6 +275,31 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         shape, q2, t = q.shape, q.reshape(-1, model.dof), tau
     f = check_f_ext(mech, f_ext, shape, check, model.method)
     return model.forward_dynamics(q, qd, t + model._external_forces(q2, f).reshape(shape), check=check, out=out)
+
+
+def inverse_derivatives(model: Any, q, qd, qdd, f_ext, check: bool = True):
+    """``model.derivatives.inverse_dynamics`` with ``f_ext``: ``(dtau_dq - dQ/dq, dtau_dqd, M)``, shapes as
+    there (``Q`` does not depend on the rates nor on ``qdd``)."""
+    dq, dqd, M = model.derivatives.inverse_dynamics(q, qd, qdd, check=check)
+    q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
+    f = check_f_ext(model.mechanism, f_ext, q2.shape if dq.ndim == 3 else (model.dof,), check, model.method)
+    return dq - dQ_dq(model.mechanism, q2, f).reshape(dq.shape), dqd, M
+
+
+def forward_derivatives(model: Any, q, qd, tau, f_ext, check: bool = True):
+    """``model.derivatives.forward_dynamics`` with ``f_ext``: at ``tau + Q``, ``(qdd, dqdd_dq + M^-1 dQ/dq,
+    dqdd_dqd, M^-1)``, shapes as there."""
+    q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
+    t = np.asarray(tau, dtype=float)
+    f = check_f_ext(model.mechanism, f_ext, np.shape(q), check, model.method)
+    if t.shape != np.shape(q):
+        raise ValueError(
+            f"{model.method}: field 'tau': expected an array of the shape of q, {np.shape(q)}, got {t.shape}"
+        )
+    qdd, aq, aqd, minv = model.derivatives.forward_dynamics(
+        q, qd, t + model._external_forces(q2, f).reshape(t.shape), check=check
+    )
+    return qdd, aq + minv @ dQ_dq(model.mechanism, q2, f).reshape(aq.shape), aqd, minv
 
 
 class ControlsWithForces:
