@@ -10,8 +10,9 @@ foot's own stiffness). Every rod but the root's is held at its length by a rod f
 angle and length carry no force: O holds nothing up.
 
 :func:`hold` is a proportional-derivative hold of all of those about a reference posture, the plain
-controller a standing test needs (not a model of muscles); :func:`with_ground` adds the floor's forces
-at the heels and toes, ``Q(q, f_ext)`` of :mod:`exo_bench.models.external_forces`, to any controls.
+controller a standing test needs (not a model of muscles); :func:`ground_reaction` is the floor's force
+at the heels and toes in the layout of ``f_ext``, for ``simulate(..., f_ext=...)`` and every method's
+inverse and forward dynamics (:mod:`exo_bench.models.external_forces`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.models.contact import DEFAULT_CONTACT, ContactParameters, ground_forces
-from exo_bench.models.external_forces import generalized_forces
 from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism import Mechanism
 
@@ -86,15 +86,6 @@ def ground_reaction(mech: Mechanism, q: np.ndarray, qd: np.ndarray, params: Cont
     return ground_forces(
         point_mass_positions(mech, q), point_mass_velocities(mech, q, qd), contact_points(mech), params
     )
-
-
-def with_ground(mech: Mechanism, controls: Controls, params: ContactParameters = DEFAULT_CONTACT) -> Controls:
-    """``controls`` plus the generalised forces of the floor's contact forces at the heels and toes."""
-
-    def both(t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return controls(t, q, qd) + generalized_forces(mech, q, ground_reaction(mech, q, qd, params))
-
-    return both
 
 
 def centre_of_mass(mech: Mechanism, q: np.ndarray) -> np.ndarray:

@@ -1,5 +1,5 @@
 """The human model standing on its heels and toes (models/posture.py, models/contact.py through
-``Q(q, f_ext)`` of models/external_forces.py): it comes to rest carrying its weight, and every method's
+``simulate(..., f_ext=...)`` and models/external_forces.py): it comes to rest carrying its weight, and every method's
 inverse dynamics with the floor's ``f_ext`` returns the joint moments and rod forces that held it.
 
 One simulation (Radau, rtol 1e-4, 2 s of standing, about 130 steps: 3-6 s on this machine, the price of
@@ -21,7 +21,7 @@ from test_external_forces import external_force_scale
 
 from exo_bench import prepare
 from exo_bench.models.contact import ContactParameters
-from exo_bench.models.posture import balanced_standing, centre_of_mass, ground_reaction, hold, with_ground
+from exo_bench.models.posture import balanced_standing, centre_of_mass, ground_reaction, hold
 from exo_bench.models.presets import human
 from exo_bench.models.simulate import simulate
 
@@ -37,7 +37,8 @@ def standing():
     q0[0, m.nlinks] -= (m.total_mass * G / 4 / C.hertz) ** (2 / 3)  # each sole point a quarter of the weight
     controls = hold(m, q_ref)
     model = prepare(m, "matrix-factored")
-    sim = simulate(model, q0, np.zeros_like(q0), (0.0, 2.0), with_ground(m, controls, C), integrator="Radau", rtol=1e-4)
+    floor = lambda t, q, qd: ground_reaction(m, q, qd, C)  # noqa: E731
+    sim = simulate(model, q0, np.zeros_like(q0), (0.0, 2.0), controls, integrator="Radau", rtol=1e-4, f_ext=floor)
     assert sim.status == "ok", sim.status
     return m, model, controls, sim
 
