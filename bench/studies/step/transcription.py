@@ -232,8 +232,8 @@ def build(mech: Mechanism, s, point: ca.Function) -> Transcription:
     cse = {"cse": True}  # common subexpressions merged: 13 % fewer instructions in the Hessian
     jmap = ca.Function("step_node_jac", [z], [ca.jacobian(yz, z)], cse).map(K, "thread", THREADS)
     gmap = ca.Function("step_node_grad", [z], [ca.gradient(yz[rows["effort"].start], z)], cse).map(K)
-    hess = ca.Function("step_node_hess", [z, mu], [ca.hessian(ca.dot(mu, yz), z)[0]], cse)
-    hmap = hess.map(K, "thread", THREADS)
+    hess_one = ca.Function("step_node_hess", [z, mu], [ca.hessian(ca.dot(mu, yz), z)[0]], cse)
+    hmap = hess_one.map(K, "thread", THREADS)
     # the NLP and its derivatives, in MX
     x, p = ca.MX.sym("x", lay.nx), ca.MX.sym("p", 0)
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", G.numel())
