@@ -211,7 +211,8 @@ def _derivative_row(benchmark, sweep, references, case, mech, args, forward: boo
     info = _info(method, n, topology, mech, "forward" if forward else "inverse", source) | {"prepare_s": prep}
     got = _timed(benchmark, sweep, method, call, args, info)
     assert all(np.isfinite(g).all() for g in got), f"{method}: NaN/Inf in the derivatives"
-    benchmark.extra_info.update(_errors(got, _reference(references, mech, *args, forward=forward)))
+    q, qd, x = args
+    benchmark.extra_info.update(_errors(got, _reference(references, mech, q, qd, x, forward=forward)))
     if getattr(call, "warnings", None):  # MuJoCo's, collected by the route
         benchmark.extra_info["engine_warnings"] = "; ".join(sorted(set(call.warnings)))[:300]
 

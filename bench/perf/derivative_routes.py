@@ -92,7 +92,9 @@ def central_differences(mech: Mechanism, rows_per_call: int = 4096):
 def mujoco_inverse_fd(mech: Mechanism, eps: float = 1e-6):
     import mujoco
 
-    m = prepare(mech, "mujoco")
+    from exo_bench.models.mujoco_backend import MujocoRNE
+
+    m = MujocoRNE(mech)
     model, data, G = m.mj_model, m.data, m.G
     nv = model.nv
     J = [np.zeros((nv, nv)) for _ in range(3)]
@@ -123,7 +125,9 @@ def drake_autodiff(mech: Mechanism):
     from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
     from pydrake.multibody.tree import MultibodyForces_
 
-    m = prepare(mech, "drake")
+    from exo_bench.models.drake_backend import DrakeID
+
+    m = DrakeID(mech)
     plant = m.plant.ToAutoDiffXd()
     ctx = plant.CreateDefaultContext()
     forces = MultibodyForces_[AutoDiffXd](plant)
