@@ -32,9 +32,10 @@ Parameters (:class:`ContactParameters`; units as Simbody documents them): ``stif
 strain modulus (N/m^2); ``radius`` R (m); ``dissipation`` c (s/m); ``static_friction``,
 ``dynamic_friction`` (1); ``viscous_friction`` (s/m); ``transition_velocity`` (m/s); and our smoothing
 widths ``penetration_smoothing`` (m), ``dissipation_smoothing`` (1), ``slip_smoothing`` (m/s). The
-default stiffness and dissipation, 3 067 776 N/m^2 and 2 s/m, are the values of the foot contacts of
-the OpenSim 2D gait model Moco's example2DWalking uses, as we found them quoted in a public script
-(the model file itself we did not open); the friction defaults (0.8, 0.8, 0.5 s/m, 0.2 m/s) and the
+default stiffness and dissipation, 3 067 776 N/m^2 and 2 s/m, we found in a public script's contact
+block for the heel and front spheres (``contactHeel``/``contactFront``) of the OpenSim 2D gait model
+that Moco's example2DWalking uses; we did not open that model file, so they are that example's values
+as quoted, not checked at their source; the friction defaults (0.8, 0.8, 0.5 s/m, 0.2 m/s) and the
 radius (0.035 m) are that example's as we remember them, **not checked**. With them, one contact
 point carries a quarter of 56.7 kg at 6 mm of penetration.
 
