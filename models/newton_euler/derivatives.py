@@ -61,8 +61,11 @@ from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.newton_euler import derivatives_numpy
 from exo_bench.models.newton_euler.tree import prepare_tree
 
-#: The kernels ``InverseDerivatives.__call__`` takes (``kernel=``).
-KERNELS = ("numpy", "numba", "simd", "auto")
+#: The kernels ``InverseDerivatives.__call__`` takes (``kernel=``), each the name of the method of
+#: :class:`InverseDerivatives` that runs a batch (a table: no branch on a kernel's name).
+KERNELS = {"numpy": "_numpy", "numba": "_numba", "simd": "_simd", "auto": "_auto"}
+#: The options under which one ``(dof,)`` sample runs the lean one-sample entry (:meth:`InverseDerivatives.one`).
+LEAN = frozenset({"numba", "auto"})
 #: The names of the three outputs, in order (``out[k]`` is named ``out[k] (NAME)`` in errors).
 OUTPUTS = ("dtau_dq", "dtau_dqd", "M")
 _SOURCE = "inverse-dynamics derivatives"
@@ -154,24 +157,25 @@ class InverseDerivatives:
     def __call__(self, q, qd, qdd, out=None, kernel: str = "auto"):
         """``(dtau_dq, dtau_dqd, M)`` at the states (module docstring): ``(S, dof, dof)`` each, or
         ``(dof, dof)`` for one ``(dof,)`` sample; into ``out`` if given (and returned)."""
-        if kernel in ("auto", "numba") and type(q) is np.ndarray and q.ndim == 1:
+        if kernel in LEAN and type(q) is np.ndarray and q.ndim == 1:
             return self.one(q, qd, qdd, out)
         return self._checked(q, qd, qdd, out, kernel)
 
     def _checked(self, q, qd, qdd, out, kernel: str):
         """The general path: every check by :func:`check_states` and :func:`check_out`, then the kernel."""
         shape = check_states(q, qd, qdd, self.dof)
-        if kernel not in KERNELS:
-            raise ValueError(f"{_SOURCE}: option 'kernel': expected one of {KERNELS}, got {kernel!r}")
+        run = KERNELS.get(kernel) if isinstance(kernel, str) else None
+        if run is None:
+            raise ValueError(f"{_SOURCE}: option 'kernel': expected one of {tuple(KERNELS)}, got {kernel!r}")
         oshape = (*shape, self.dof)
         if out is None:
             out = tuple(np.empty(oshape) for _ in OUTPUTS)
         else:
             out = check_out(out, oshape, (q, qd, qdd))
         if len(shape) == 1:
-            self._run(kernel, q[None], qd[None], qdd[None], tuple(o[None] for o in out))
+            getattr(self, run)(q[None], qd[None], qdd[None], tuple(o[None] for o in out))
         elif shape[0]:
-            self._run(kernel, q, qd, qdd, out)
+            getattr(self, run)(q, qd, qdd, out)
         return out
 
     def one(self, q, qd, qdd, out=None):
@@ -182,7 +186,7 @@ class InverseDerivatives:
         dof = self.dof
         for a in (q, qd, qdd):
             if type(a) is not np.ndarray or a.dtype != _F8 or a.shape != (dof,) or not a.flags.c_contiguous:
-                return self._checked(q, qd, qdd, out, "numba")
+                return self._checked(q, qd, qdd, out, "numba")  # names what is wrong
         if out is None:
             out = (np.empty((dof, dof)), np.empty((dof, dof)), np.empty((dof, dof)))
         else:
@@ -222,29 +226,32 @@ class InverseDerivatives:
             s = self._local.scratch = dc.scratch(self.nlinks, self.dim)
         return s
 
-    def _run(self, kernel: str, q, qd, qdd, out) -> None:
-        if kernel == "numpy":
-            res = derivatives_numpy.inverse_derivatives(self.tree, self.mu, self.dim, self.g, q, qd, qdd)
-            for o, r in zip(out, res):
-                o[...] = r
-            return
-        if kernel == "simd" or (kernel == "auto" and self.nlinks < SIMD_BELOW_LINKS):
-            from exo_bench.models.newton_euler import derivatives_simd as ds
-            from exo_bench.models.simd_blocks import run as run_simd
+    # ------------------------------------------------------------------ the kernels (KERNELS), on a batch
+    def _numpy(self, q, qd, qdd, out) -> None:
+        res = derivatives_numpy.inverse_derivatives(self.tree, self.mu, self.dim, self.g, q, qd, qdd)
+        for o, r in zip(out, res):
+            o[...] = r
 
-            if self._simd_scratch is None:
-                from exo_bench.models.simd_blocks import ThreadScratch
+    def _simd(self, q, qd, qdd, out) -> None:
+        from exo_bench.models.newton_euler import derivatives_simd as ds
+        from exo_bench.models.simd_blocks import ThreadScratch
+        from exo_bench.models.simd_blocks import run as run_simd
 
-                self._simd_scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
-            params = (self.table, self.mu, self.g, self.dim)
-            flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
-            run_simd(ds.simd_derivatives, params, *flat, tuple(out), q.shape[0], scratch=self._simd_scratch)
-            return
+        if self._simd_scratch is None:
+            self._simd_scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
+        params = (self.table, self.mu, self.g, self.dim)
+        flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
+        run_simd(ds.simd_derivatives, params, *flat, tuple(out), q.shape[0], scratch=self._simd_scratch)
+
+    def _numba(self, q, qd, qdd, out) -> None:
         from exo_bench.models.newton_euler import derivatives_compiled as dc
         from exo_bench.models.numba_runtime import run
 
         args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out)
         run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))
+
+    def _auto(self, q, qd, qdd, out) -> None:
+        (self._simd if self.nlinks < SIMD_BELOW_LINKS else self._numba)(q, qd, qdd, out)
 
     def _parallel_samples(self, samples: int) -> int:
         """``samples`` in units of numba_runtime's threshold: the batch runs on threads from
