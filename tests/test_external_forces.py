@@ -101,7 +101,7 @@ def test_virtual_work(mech):
     Q = xf.generalized_forces(mech, q, f)
     power = np.einsum("sikd,sikd->s", f, point_mass_velocities(mech, q, qd))
     scale = (external_force_scale(mech, q, f) * np.abs(qd)).sum(axis=1)
-    assert_close((Q * qd).sum(axis=1), power, scale, 2 * K, "Q . qd against the power")
+    assert_close((Q * qd).sum(axis=1), power, scale, K, "Q . qd against the power")  # measured 0.27
 
 
 @pytest.mark.parametrize("mech", TREES, ids=lambda m: m.name)
