@@ -70,11 +70,13 @@ def _lean(model: Any) -> Entries:
     else the kernel's compiled entry point behind the checks unboxing trusts; the per-sample kernel
     through numba's dispatcher where neither takes the arrays (the same arithmetic)."""
     from exo_bench.matrix_method.numba_kernels import lean
+    from exo_bench.models.states import validation_plan
 
     dim, params = model.mechanism.dim, model.kernel_args[0]
     if not hasattr(lean.KERNELS[dim], "compile"):  # NUMBA_DISABLE_JIT: no entry point to resolve
         return _one_sample(model)
-    fast = lean.c_call(dim, params, _declined, model.dof) or _python_lean(lean.entry(dim, params), params)
+    plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
+    fast = lean.c_call(dim, params, _declined, model.dof, plan) or _python_lean(lean.entry(dim, params), params)
     serial = model.serial_kernel
 
     def one(q, qd, qdd, out):
@@ -86,13 +88,15 @@ def _lean(model: Any) -> Entries:
 
 
 def _python_lean(entry: Any, params: np.ndarray) -> Any:
-    """The lean call in Python around the kernel's compiled entry point: what unboxing trusts
-    (dimensions, dtype, a writable ``out`` apart from the inputs) checked here, the rest in compiled code."""
+    """The lean call in Python around the kernel's compiled entry point, ``check=False`` only: what
+    unboxing trusts (dimensions, dtype, a writable ``out`` apart from the inputs) checked here, the rest
+    in compiled code."""
 
     def call(q, qd, qdd, check, out):
         try:
             if (
-                q.ndim == 1
+                check is False  # check=True: declined (the checked path validates first)
+                and q.ndim == 1
                 and qd.ndim == 1
                 and qdd.ndim == 1
                 and out.ndim == 1

@@ -1,8 +1,11 @@
 /* The lean one-sample call of a compiled kernel (matrix-factored's and newton-euler's numba cfuncs): a callable that takes exactly the arguments of
  * PreparedModel.inverse_dynamics(q, qd, qdd, check=True, out=None) and, for check=False with out=,
  * checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw pointers;
- * every other call (check=True, no out, a batch, any layout it does not take) goes to the Python
- * method unchanged, which validates and names the field. See models/lean_call.py.
+ * with check=True (given a validation cfunc and its plan: models/validation_pass.py status for one
+ * sample) the same, on plain numpy.ndarrays only, once the validation answers 0 (OK). Every other
+ * call (no out, a batch, any layout it does not take, a state the validation refuses) goes to the
+ * Python fallback unchanged, having written nothing: PreparedModel validates and names the field.
+ * See models/lean_call.py.
  *
  * What is checked here, on each of q, qd, qdd and out: an instance of numpy.ndarray (or a subclass),
  * one dimension of dof elements, a stride of 8 bytes, the float64 dtype object numpy uses for native
@@ -29,6 +32,7 @@ typedef struct {
 #define WRITEABLE 0x0400
 
 typedef void (*kernel_t)(double *, double *, double *, double *, double *, long long);
+typedef long long (*validate_t)(double *, double *, double *, long long *);
 
 typedef struct {
     PyObject_HEAD
@@ -37,6 +41,9 @@ typedef struct {
     PyObject *params;        /* keeps the parameter array alive */
     PyTypeObject *ndarray;   /* numpy.ndarray */
     PyObject *f8;            /* numpy.dtype(numpy.float64) */
+    PyObject *plan;          /* the validation's plan (int64), kept alive; NULL: check=True is not taken */
+    long long *planp;
+    validate_t validate;
     double *p;
     kernel_t kernel;
     Py_ssize_t dof;
@@ -80,9 +87,15 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
         }
         if (PyErr_Occurred()) PyErr_Clear();
     }
-    if (plain && check == Py_False && out && out != Py_None && usable(self, args[0], 0) && usable(self, args[1], 0)
-        && usable(self, args[2], 0) && usable(self, out, 1) && apart(self, args[0], out) && apart(self, args[1], out)
-        && apart(self, args[2], out)) {
+    int checked = check == Py_True && self->validate;
+    if (plain && (check == Py_False || checked) && out && out != Py_None && usable(self, args[0], 0)
+        && usable(self, args[1], 0) && usable(self, args[2], 0) && usable(self, out, 1) && apart(self, args[0], out)
+        && apart(self, args[1], out) && apart(self, args[2], out)
+        && (!checked
+            || (Py_TYPE(args[0]) == self->ndarray && Py_TYPE(args[1]) == self->ndarray
+                && Py_TYPE(args[2]) == self->ndarray
+                && self->validate((double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
+                                  (double *)((ArrayFields *)args[2])->data, self->planp) == 0))) {
         self->kernel(self->p, (double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
                      (double *)((ArrayFields *)args[2])->data, (double *)((ArrayFields *)out)->data, self->n);
         Py_INCREF(out);
@@ -92,13 +105,15 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
 }
 
 static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
-    PyObject *fallback, *params, *ndarray, *f8;
-    unsigned long long kernel, p;
+    PyObject *fallback, *params, *ndarray, *f8, *plan = NULL;
+    unsigned long long kernel, p, validate = 0, planp = 0;
     Py_ssize_t dof;
     long long n;
-    if (!PyArg_ParseTuple(args, "OOOOKKnL", &fallback, &params, &ndarray, &f8, &kernel, &p, &dof, &n)) return NULL;
-    if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p) {
-        PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n)");
+    if (!PyArg_ParseTuple(args, "OOOOKKnL|OKK", &fallback, &params, &ndarray, &f8, &kernel, &p, &dof, &n, &plan,
+                          &validate, &planp))
+        return NULL;
+    if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p || (plan && (!validate || !planp))) {
+        PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n[, plan, validate, planp])");
         return NULL;
     }
     LeanCall *self = (LeanCall *)type->tp_alloc(type, 0);
@@ -106,17 +121,21 @@ static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
     Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8);
     self->fallback = fallback; self->params = params; self->ndarray = (PyTypeObject *)ndarray; self->f8 = f8;
     self->kernel = (kernel_t)(uintptr_t)kernel; self->p = (double *)(uintptr_t)p; self->dof = dof; self->n = n;
+    Py_XINCREF(plan);
+    self->plan = plan; self->validate = plan ? (validate_t)(uintptr_t)validate : NULL;
+    self->planp = plan ? (long long *)(uintptr_t)planp : NULL;
     self->vectorcall = lean_vectorcall;
     return (PyObject *)self;
 }
 
 static int lean_traverse(LeanCall *self, visitproc visit, void *arg) {
-    Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8);
+    Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8); Py_VISIT(self->plan);
     return 0;
 }
 
 static int lean_clear(LeanCall *self) {
-    Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8);
+    Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8); Py_CLEAR(self->plan);
+    self->validate = NULL;
     return 0;
 }
 

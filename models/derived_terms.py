@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from exo_bench.models.memory import chunks
 from exo_bench.models.singularity import SingularConfigurationError
 
 
@@ -30,6 +31,19 @@ def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: n
     tau = inverse_dynamics(Q, QD, QDD).reshape(S, k, d)
     h = tau[:, 0]
     M = np.swapaxes(tau[:, 2:] - tau[:, 1:2], 1, 2)  # column k of M is ID(q, 0, e_k) - ID(q, 0, 0)
+    return M, h
+
+
+def terms_in_chunks(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray, chunk_samples: int):
+    """:func:`terms_from_inverse_dynamics` over the rows of ``q, qd`` in chunks of fewer samples, so that
+    their ``dof + 2`` inverse-dynamics rows per sample keep the working set of ``chunk_samples`` rows
+    (one call where the batch fits)."""
+    size, S = max(1, chunk_samples // (dof + 2)), q.shape[0]
+    if S <= size:
+        return terms_from_inverse_dynamics(inverse_dynamics, dof, q, qd)
+    M, h = np.empty((S, dof, dof)), np.empty((S, dof))
+    for c in chunks(S, size):
+        M[c], h[c] = terms_from_inverse_dynamics(inverse_dynamics, dof, q[c], qd[c])
     return M, h
 
 

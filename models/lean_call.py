@@ -7,7 +7,11 @@ newton-euler's (:mod:`exo_bench.models.newton_euler.lean`) are such calls.
 The wrapper takes the arguments of ``inverse_dynamics(q, qd, qdd, check, out)``; for ``check=False``
 with an ``out`` it checks in C what memory safety needs (ndarrays, one dimension of ``dof``, stride 8,
 float64, ``out`` writable and apart from the inputs: data pointers and extents compared as integers)
-and calls the cfunc with the raw pointers; every other call goes to ``fallback`` unchanged.
+and calls the cfunc with the raw pointers. Given the mechanism's validation ``plan``, it takes
+``check=True`` too, on plain ndarrays only: the validation pass of one sample
+(:func:`exo_bench.models.validation_pass.status_address`, the same compiled checks as ``check=True``'s
+Python path) runs first, through its C address, and the kernel only where it answers OK. Every other
+call goes to ``fallback`` unchanged, having written nothing (PreparedModel then names the problem).
 """
 
 from __future__ import annotations
@@ -37,9 +41,10 @@ def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries
     )
 
 
-def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: int) -> Any:
+def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: int, plan: Any = None) -> Any:
     """The compiled wrapper around the cfunc at ``address``, called with ``params``'s data and ``n``:
-    a callable ``(q, qd, qdd, check, out)`` (module docstring); None where the extension was not built
+    a callable ``(q, qd, qdd, check, out)`` (module docstring), taking ``check=True`` where ``plan``
+    (:func:`exo_bench.models.validation_pass.plan` of the mechanism) is given; None where the extension was not built
     (no C compiler at install), there is no cfunc (``address`` None: ``NUMBA_DISABLE_JIT``), ``params`` is
     not a C-ordered float64 array, or the extension reads
     numpy's arrays differently from what numpy reports (checked here on probe arrays, before any use)."""
@@ -50,7 +55,14 @@ def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: 
     f8 = np.dtype(np.float64)
     if address is None or not (params.dtype is f8 and params.flags.c_contiguous):
         return None
-    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n)
+    checked: tuple = ()
+    if plan is not None:
+        from exo_bench.models.validation_pass import status_address
+
+        validate = status_address()
+        if validate is not None and plan.dtype == np.int64 and plan.flags.c_contiguous and int(plan[0]) == dof:
+            checked = (plan, validate, plan.ctypes.data)
+    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n, *checked)
     ro = np.zeros(dof)
     ro.flags.writeable = False
     probes = [

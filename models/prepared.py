@@ -54,7 +54,7 @@ from exo_bench.models.memory import (
     default_chunk_samples,
     usable_memory,
 )
-from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics
+from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics, terms_in_chunks
 from exo_bench.models import external_forces
 from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
@@ -253,6 +253,12 @@ class PreparedModel:
             else:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         else:
+            lean = self._lean  # one sample validated and computed in C, or None (having touched nothing)
+            if (
+                lean is not None
+                and (tau := lean(q, qd, qdd, True, np.empty(self._dof) if out is None else out)) is not None
+            ):
+                return tau
             if qd is None or qdd is None:
                 require_rates(self.method, qd, qdd)
             single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
@@ -320,15 +326,7 @@ class PreparedModel:
         d = self._dof
         if self.native_terms:
             return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
-        # (dof + 2) inverse-dynamics rows per sample: chunks of fewer samples keep the same working set
-        size = max(1, self._chunk // (d + 2))
-        S = q.shape[0]
-        if S <= size:
-            return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, qd)
-        M, h = np.empty((S, d, d)), np.empty((S, d))
-        for c in chunks(S, size):
-            M[c], h[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], qd[c])
-        return M, h
+        return terms_in_chunks(self._inverse_dynamics, d, q, qd, self._chunk)
 
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
@@ -417,14 +415,7 @@ class PreparedModel:
         return self._inverse_chunk(q, qd, qdd)
 
     def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
-        d = self._dof
-        size = max(1, self._chunk // (d + 2))  # (dof + 2) inverse-dynamics rows per sample
-        if q.shape[0] <= size:
-            return terms_from_inverse_dynamics(self._inverse_dynamics, d, q, np.zeros_like(q))[0]
-        M = np.empty((q.shape[0], d, d))
-        for c in chunks(q.shape[0], size):
-            M[c] = terms_from_inverse_dynamics(self._inverse_dynamics, d, q[c], np.zeros_like(q[c]))[0]
-        return M
+        return terms_in_chunks(self._inverse_dynamics, self._dof, q, np.zeros_like(q), self._chunk)[0]
 
     def _bias_forces(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         return self._inverse_dynamics(q, qd, np.zeros_like(q))

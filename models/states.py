@@ -92,6 +92,16 @@ def state_check(mech: Mechanism) -> StateCheck:
     return kept
 
 
+def validation_plan(mech: Mechanism) -> np.ndarray:
+    """The compiled pass's plan of ``mech`` (:attr:`StateCheck.plan`, resolving it on first use): what the
+    lean call's wrapper validates one sample with (models/lean_call.py)."""
+    chk = state_check(mech)
+    if chk.plan is None:
+        chk.resolve()
+    assert chk.plan is not None
+    return chk.plan
+
+
 def is_one_sample(q: Any) -> bool:
     """Whether ``q`` is one sample ``(dof,)``; False for what numpy cannot shape (ragged rows), which
     :func:`as_states` then refuses with its own message."""

@@ -43,7 +43,7 @@ from exo_bench.models.validation import force_scale_from
 ensure()  # numba's runtime set-up (models/numba_runtime.py), before the first kernel is defined
 
 from llvmlite import ir  # noqa: E402 - numba's environment is checked before numba is imported
-from numba import njit, types  # noqa: E402
+from numba import carray, cfunc, njit, types  # noqa: E402
 from numba.extending import intrinsic  # noqa: E402
 from numba.np.arrayobj import populate_array  # noqa: E402
 
@@ -292,6 +292,26 @@ def entries() -> Entries:
         status.compile((two, two, two, types.int64, plans)),
         locate.compile((two, two, two, *_CONSTANTS)),
     )
+
+
+_P8, _PI = types.CPointer(types.float64), types.CPointer(types.int64)
+
+
+@cfunc(types.int64(_P8, _P8, _P8, _PI), cache=True)
+def _status_c(q, qd, qdd, p):
+    """:func:`status` of one sample of ``q, qd, qdd`` (``dof`` doubles each, all given) as a C function
+    for the lean call's wrapper (models/_lean_call.c), which has checked the arrays' layout."""
+    dof = p[0]
+    plan = carray(p, (HEAD + ROWS * dof,))
+    return status(carray(q, (dof,)), carray(qd, (dof,)), carray(qdd, (dof,)), QD | QDD, plan)
+
+
+def status_address() -> int | None:
+    """The address of :func:`status` for one sample as a C function (``int64 f(double *q, double *qd,
+    double *qdd, int64 *plan)``, all three rates given; :func:`plan` of the mechanism), compiled or
+    loaded from numba's cache on first use; None under ``NUMBA_DISABLE_JIT``."""
+    address: Any = None if jit_disabled() else _status_c.address  # Any: numba's stubs type it int | None
+    return None if address is None else int(address)
 
 
 _F8 = np.dtype(np.float64)

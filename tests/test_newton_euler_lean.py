@@ -54,8 +54,10 @@ def test_the_lean_call_is_bit_identical_to_the_per_sample_kernel(tree):
 
 @needs_c
 def test_the_lean_call_declines_what_it_does_not_take():
-    """A batch, a strided or float32 array, a read-only or overlapping ``out``: declined (None, nothing
-    written); the public call then checks and names the field, or runs the batch."""
+    """A batch, a strided or float32 array, a read-only or overlapping ``out``, with ``check=True`` a state
+    the validation refuses (NaN) or a flag that is not ``True`` itself: declined (None, nothing written);
+    the public call then checks and names the field, or runs the batch. (A valid ``check=True`` sample
+    is taken: tests/test_checked_lean.py.)"""
     mech = exo5(3)
     model = prepare(mech, "newton-euler")
     q, qd, qdd = (np.ascontiguousarray(a[0]) for a in random_states(mech, 1, seed=6))
@@ -67,7 +69,8 @@ def test_the_lean_call_declines_what_it_does_not_take():
         (np.repeat(q, 2)[::2], qd, qdd, False, out),
         (q.astype(np.float32), qd, qdd, False, out),
         (q, qd, qdd, False, ro),
-        (q, qd, qdd, True, out),
+        (np.where(np.arange(mech.dof) == 3, np.nan, q), qd, qdd, True, out),
+        (q, qd, qdd, 1, out),
         (q, qd, out, False, out),
     ]:
         assert model._lean(*args) is None

@@ -73,12 +73,13 @@ def entry(dim: int, params: np.ndarray):
     return KERNELS[dim].compile((numba.typeof(params), _VECTOR, _VECTOR, _VECTOR, _VECTOR))
 
 
-def c_call(dim: int, params: np.ndarray, fallback, dof: int):
+def c_call(dim: int, params: np.ndarray, fallback, dof: int, plan: np.ndarray | None = None):
     """The compiled wrapper (models/_lean_call.c, :func:`exo_bench.models.lean_call.c_call`) around the
     kernel's cfunc (:mod:`exo_bench.matrix_method.numba_kernels.lean_c`): a callable with the arguments
     ``(q, qd, qdd, check, out)`` that runs one sample with ``check=False`` and ``out`` in C and passes
-    every other call to ``fallback`` unchanged; None where the extension was not built or ``params`` is
-    not the ``(n, n + 2)`` table of the kernel."""
+    every other call to ``fallback`` unchanged (``check=True`` too, given the mechanism's validation
+    ``plan``); None where the extension was not built or ``params`` is not the ``(n, n + 2)`` table of
+    the kernel."""
     from exo_bench.models.lean_call import c_call as wrap
 
     n = params.shape[0] if params.ndim == 2 else -1
@@ -90,4 +91,4 @@ def c_call(dim: int, params: np.ndarray, fallback, dof: int):
         return None
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c
 
-    return wrap(compiled_lean_c.CFUNCS[dim].address, params, fallback, dof, n)
+    return wrap(compiled_lean_c.CFUNCS[dim].address, params, fallback, dof, n, plan)

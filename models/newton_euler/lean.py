@@ -62,5 +62,8 @@ def entries(model: Any) -> Entries:
     from exo_bench.models.lean_call import c_call
 
     address = getattr(CFUNCS[model.mechanism.dim], "address", None)  # None: NUMBA_DISABLE_JIT
-    call = c_call(address, params(model.table, model._g), _declined, model.dof, int(model.table.shape[1]))
+    from exo_bench.models.states import validation_plan
+
+    plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
+    call = c_call(address, params(model.table, model._g), _declined, model.dof, int(model.table.shape[1]), plan)
     return Entries() if call is None else Entries(lean=call)
