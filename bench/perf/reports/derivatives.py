@@ -200,20 +200,22 @@ def derivatives_report(
 def _plot(d: pd.DataFrame, png: Path) -> None:
     from matplotlib.figure import Figure
 
-    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, method_color, save_figure
+    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, save_figure
 
     floor = 1e-17
     fig = Figure(figsize=(15, 6.5), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
-    methods = sorted(d["method"].astype(str).unique())
+    drawn = d[d["max_rel_err"].notna()] if "max_rel_err" in d else d.iloc[:0]  # rows with a reference
+    methods = sorted(drawn["method"].astype(str).unique())
     for ax, (group, title) in zip(
         axes, (("inverse-batched", "inverse dynamics"), ("forward-batched", "forward dynamics"))
     ):
         g = d[(d["group"] == f"derivatives-{group}") & d["max_rel_err"].notna()] if "max_rel_err" in d else d.iloc[:0]
         for method, m in g.groupby("method"):
+            k = methods.index(str(method))  # one colour and marker per row name, in both panels
             ax.scatter(m["us"] * 1e-6, np.maximum(m["max_rel_err"].astype(float), floor), label=method,
-                       color=method_color(str(method), methods), s=12 + 14 * np.log2(m["n"].to_numpy(float) + 1),
-                       edgecolors="black", linewidths=0.4, alpha=0.85)  # fmt: skip
+                       color=f"C{k % 10}", marker="osD^v<>ph*"[k % 10], edgecolors="black", linewidths=0.4,
+                       s=12 + 14 * np.log2(m["n"].to_numpy(float) + 1), alpha=0.85)  # fmt: skip
         if not g.empty:  # limits from the data, before the log scale (one point alone gives a singular range)
             x = g["us"].to_numpy(float) * 1e-6
             ax.set_xlim(x.min() / 2, x.max() * 2)
