@@ -86,13 +86,17 @@ def sweep(folder: Path, workers: int, budget: float = 600.0, **kw):
 @pytest.mark.case("F1")
 def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     """Two workers run a tiny sweep and merge it; a failing row and a row over its budget are recorded with
-    their reasons. The over-budget row sleeps an hour, so only its budget ends it, and the 180 s budget
-    is far above what the other rows (a pytest start) need on a loaded machine: no race with the clock."""
+    their reasons. No row races the clock: the rows that finish run with a 600 s budget (a pytest start
+    on a loaded machine needs seconds), and the row over budget sleeps an hour and runs alone in a second
+    sweep with a budget of 1 s, which resumes the others from their checkpoints."""
     d = tiny_bench(tmp_path / "b", ns=(1, 4, 5), fail=True, sleep=3600.0)
-    out = sweep(d, workers=2, budget=180.0)
-    keys = [r["key"] for r in out.rows]
-    assert keys == [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
-    assert out.workers == 2 and sorted(out.ran) == sorted(keys) and out.resumed == []
+    keys = [f"quick:tiny_rows.py:{dim}d-chain-n{n}" for dim in (2, 3) for n in (1, 4, 5)]
+    over_key = "quick:tiny_rows.py:3d-chain-n5"
+    first = sweep(d, workers=2, budget=600.0, only=[k for k in keys if k != over_key])
+    assert first.workers == 2 and sorted(first.ran) == sorted(set(keys) - {over_key}) and first.resumed == []
+    out = sweep(d, workers=1, budget=1.0)
+    assert [r["key"] for r in out.rows] == keys
+    assert out.ran == [over_key] and sorted(out.resumed) == sorted(first.ran)
     # each finished row records its pytest process's peak memory (a Python process: tens of MB at least)
     assert all(
         10 < out.merged["rows"][k]["peak_rss_mb"] < 10_000 for k in keys if out.merged["rows"][k]["status"] == "ok"
@@ -105,7 +109,7 @@ def test_two_workers_run_a_tiny_sweep_merge_it_and_record_failures(tmp_path):
     assert "AssertionError: the test-only failing row" in status["2d-chain-n4"]["reason"]
     # a row over its budget: killed, recorded with the reason; its benchmarks are skips with it
     assert status["3d-chain-n5"]["status"] == "over budget"
-    assert "over the row budget of 180 s" in status["3d-chain-n5"]["reason"]
+    assert "over the row budget of 1 s" in status["3d-chain-n5"]["reason"]
     over = [s for s in out.skips if "chain5-3d" in s["nodeid"]]
     assert len(over) == 2 and all("over budget" in s["reason"] for s in over)
     bench = out.merged["benchmarks"]
