@@ -358,34 +358,14 @@ def installed_methods() -> list[str]:
     return list(_INSTALLED)
 
 
-def package_copy_prober(tmp_path, probe: str):
-    """A copy of the package under ``tmp_path`` (to edit a source file of) and ``run()``, which runs the
-    script ``probe`` on that copy in a fresh process and returns the JSON of its last line; the probe's
-    ``"file"`` must be a path inside the copy (the copy ran, not the installed package)."""
-    import json
-    import os
-    import shutil
-    import subprocess
-    import sys
-    from pathlib import Path
+@pytest.fixture(scope="session")
+def warm_package(tmp_path_factory):
+    """A copy of the package whose numba cache holds the kernels of the stale-cache probes, compiled once
+    per session (tests/package_copy.py): the template a test copies whole when it is not about a cold
+    compile. Never edited; each test edits its own copy."""
+    from package_copy import warm_package
 
-    root = Path(__file__).resolve().parent.parent
-    pkg = tmp_path / "exo_bench"
-    shutil.copytree(root / "exo_bench", pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for sub in ("models", "matrix_method", "lagrange"):
-        shutil.copytree(root / sub, pkg / sub, ignore=shutil.ignore_patterns("__pycache__"))
-    env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
-
-    def run() -> dict:
-        r = subprocess.run(
-            [sys.executable, "-c", probe], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=900
-        )
-        assert r.returncode == 0, r.stderr[-3000:]
-        out = json.loads(r.stdout.strip().splitlines()[-1])
-        assert out["file"].startswith(str(tmp_path)), out["file"]  # the copy, not the installed package
-        return out
-
-    return pkg, run
+    return warm_package(tmp_path_factory.mktemp("warm-package"))
 
 
 def pytest_collection_modifyitems(items):

@@ -27,7 +27,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import package_copy_prober
+from package_copy import package_copy_prober
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import common as compiled
 from exo_bench.models.presets import chain, exo5, random_tree
@@ -194,18 +194,17 @@ print(json.dumps({"file": planar.__file__, "tau": tau.tolist(), "numpy": ref.tol
 """
 
 
-def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path):
+def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path, warm_package):
     """numba keys its cache on the kernel's own file; ours also on every function a kernel inlines
     (numba_kernels/cache.py). In a copy of the package: run the compiled ``matrix`` kernel (cached),
     edit the element function p_l of eq. (5) (closed_forms/planar.py, not a kernel file), run it
     again: the kernel recompiles (a cache miss) and gives the edited forces, those of the numpy
     kernel of the edited copy, not the stale machine code's. (With numba's own locator alone,
     NUMBA_CACHE_LOCATOR_CLASSES=InTreeCacheLocator in the probes' environment, the second run loads
-    the stale kernel: a hit, no miss, and this test fails.)"""
-    pkg, probe = package_copy_prober(tmp_path, _EDIT_PROBE)
-
-    probe()  # compiles (or loads) into the copy's cache
-    before = probe()
+    the stale kernel: a hit, no miss, and this test fails.) The copy starts from the session's warm
+    template, its kernels already in the copy's cache (tests/package_copy.py)."""
+    pkg, probe = package_copy_prober(tmp_path, _EDIT_PROBE, template=warm_package)
+    before = probe()  # loads from the copy's cache
     assert before["hits"] >= 1 and before["misses"] == 0, before
     planar_py = pkg / "matrix_method" / "closed_forms" / "planar.py"
     text = planar_py.read_text()

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 
 import numpy as np
-from conftest import package_copy_prober
+from package_copy import package_copy_prober
 
 _PROBE = """
 import json
@@ -24,14 +24,12 @@ print(json.dumps({"file": elements.__file__, "tau": tau.tolist(), "numpy": ref.t
 """
 
 
-def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path):
+def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path, warm_package):
     """In a copy of the package: run the compiled newton-euler kernel (cached), edit ``project_3d``
     (elements.py, not the kernel's file), run again: a cache miss, and the forces of the edited numpy
-    reference, not the stale machine code's."""
-    pkg, probe = package_copy_prober(tmp_path, _PROBE)
-
-    probe()  # compiles (or loads) into the copy's cache
-    before = probe()
+    reference, not the stale machine code's. The copy starts from the session's warm template."""
+    pkg, probe = package_copy_prober(tmp_path, _PROBE, template=warm_package)
+    before = probe()  # loads from the copy's cache
     assert before["hits"] >= 1 and before["misses"] == 0, before
     elements_py = pkg / "models" / "newton_euler" / "elements.py"
     text = elements_py.read_text()
@@ -65,14 +63,13 @@ print(json.dumps(out))
 """
 
 
-def test_an_edit_to_the_shared_sin_cos_recompiles_both_families_simd_kernels(tmp_path):
+def test_an_edit_to_the_shared_sin_cos_recompiles_both_families_simd_kernels(tmp_path, warm_package):
     """models/fast_trig.py is outside both kernel folders, and the SIMD kernels of ``matrix-factored`` and
     ``newton-euler`` import its ``sincos_reduced`` by name (models/numba_cache.py, SHARED_SOURCES). In a
     copy of the package: run both batched kernels (cached), spoil the sine polynomial's first
     coefficient, run again: both recompile and their forces move away from the numpy references (which
-    use numpy's sin/cos) by far more than the error model."""
-    pkg, probe = package_copy_prober(tmp_path, _PROBE_TRIG)
-    probe()
+    use numpy's sin/cos) by far more than the error model. The copy starts from the session's warm template."""
+    pkg, probe = package_copy_prober(tmp_path, _PROBE_TRIG, template=warm_package)
     before = probe()
     methods = ("matrix-factored", "newton-euler")
     assert all(before[m + " misses"] == 0 for m in methods), before
@@ -98,30 +95,41 @@ import numpy as np
 from exo_bench import prepare, presets
 from exo_bench.models import numba_runtime
 from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.newton_euler import simd
 
 out = {"file": numba_runtime.__file__}
 for name in pathlib.Path("which.txt").read_text().split():
     mech = presets.exo5(dim=3) if name == "wide" else presets.chain(900, 3)
     mo = smooth_random_motion(mech, np.linspace(0.0, 3.0, 37), seed=1)
     out[name] = prepare(mech, "newton-euler").inverse_dynamics(mo.q, mo.qd, mo.qdd, check=False).tolist()
+    stats = simd.kernel_for(mech.nlinks).stats
+    out[name + " hits"], out[name + " misses"] = (int(sum(s.values())) for s in (stats.cache_hits, stats.cache_misses))
 print(json.dumps(out))
 """
 
 
-def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(tmp_path):
+def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(tmp_path, warm_package):
     """newton-euler's SIMD kernel for blocks of 32 (exo5-3d) and of 16 samples (a 3D chain of 900),
     each compiled first in its own process, then both loaded from the cache by a third process: each
     computes its own mechanism's forces (numba names a symbol after the qualified name and a
     per-process counter; without the block size in the name, models/numba_runtime.jit_for, the third
-    process segfaulted or LLVM aborted)."""
+    process segfaulted or LLVM aborted). The blocks of 32 were compiled by the process that built the
+    session's warm template (tests/package_copy.py), the blocks of 16 by the first probe here; the
+    probes' cache statistics show which process compiled and which loaded."""
     from conftest import assert_forces_agree
     from exo_bench import prepare, presets
     from exo_bench.models.motion import smooth_random_motion
 
-    _, probe = package_copy_prober(tmp_path, _PROBE_LANES)
-    for which in ("narrow", "wide", "wide narrow"):
+    pkg, probe = package_copy_prober(tmp_path, _PROBE_LANES, template=warm_package)
+    cached = [f.name for f in (pkg / "models" / "newton_euler" / "__pycache__").glob("simd.*.nbi")]
+    assert any("32lanes" in f for f in cached) and not any("16lanes" in f for f in cached), cached
+    for which, compiles in (("narrow", "narrow"), ("wide narrow", "")):
         (tmp_path / "which.txt").write_text(which)
         got = probe()
+        for name in which.split():  # compiled here if it is this process's to compile, else loaded
+            hits, misses = got[name + " hits"], got[name + " misses"]
+            expected = (misses >= 1 and hits == 0) if name == compiles else (misses == 0 and hits >= 1)
+            assert expected, (which, name, hits, misses)
     for name, mech in (("wide", presets.exo5(dim=3)), ("narrow", presets.chain(900, 3))):
         mo = smooth_random_motion(mech, np.linspace(0.0, 3.0, 37), seed=1)
         q, qd, qdd = mo.q, mo.qd, mo.qdd
