@@ -52,10 +52,13 @@ def _version() -> str:
 def build_parser() -> argparse.ArgumentParser:
     import importlib
 
+    from exo_bench.api.methods import method_names
+
+    methods = method_names()  # the method table's, never typed
     p = _Parser(
         prog="exo-bench",
         description="Equations of motion of variable-length rod exoskeletons: "
-        "three implementations, cross-checked, timed and visualised.",
+        f"{len(methods)} methods ({', '.join(methods)}), cross-checked, timed and visualised.",
     )
     p.add_argument("--version", action="version", version=f"exo-bench {_version()}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)

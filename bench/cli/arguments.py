@@ -16,6 +16,18 @@ MAX_MEMORY_HELP = (
 )
 
 
+def described(summary: str, *examples: str) -> dict:
+    """The keywords of ``sub.add_parser`` for a subcommand whose ``--help`` says in one line what it
+    does (``summary``, also its line in ``exo-bench --help``) and shows ``examples``, each one
+    ``exo-bench ...`` command line, kept as written (tests/test_cli_help.py parses each)."""
+    return {
+        "help": summary,
+        "description": summary,
+        "epilog": "examples:\n" + "\n".join(f"  {e}" for e in examples),
+        "formatter_class": argparse.RawDescriptionHelpFormatter,
+    }
+
+
 def reports_folder(value: str | None) -> Path | None:
     """``--reports``: a usable folder (:func:`~exo_bench.bench.output.provenance.writable_folder`)
     whose ``runs.json``, if any, has the shape the publisher reads; checked before any work starts."""

@@ -5,13 +5,18 @@ from __future__ import annotations
 
 import argparse
 
-from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, report_job, reports_folder
+from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, described, report_job, reports_folder
 from exo_bench.bench.perf.options import BenchOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser(
-        "bench", help="run the benchmark suite and write paper_table, error_vs_runtime, scaling, derivatives"
+        "bench",
+        **described(
+            "run the benchmark suite and write paper_table, error_vs_runtime, scaling, derivatives",
+            "exo-bench bench --reports my-reports",
+            "exo-bench bench --full --workers 2",
+        ),
     )
     s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
     s.add_argument(

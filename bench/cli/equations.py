@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from exo_bench.bench.cli.arguments import budget_arg, report_job
+from exo_bench.bench.cli.arguments import budget_arg, described, report_job
 from exo_bench.models.names import file_stem
 from exo_bench.bench.studies.options import ReportOptions
 
@@ -47,8 +47,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``exo-bench equations`` on the CLI's subparsers."""
     s = sub.add_parser(
         "equations",
-        help="write a mechanism's equations of motion as LaTeX, a standalone Python "
-        "module or C99 source (eq. (5)/(17) composed by the matrix method)",
+        **described(
+            "write a mechanism's equations of motion as LaTeX, a standalone Python module or C99 source "
+            "(eq. (5)/(17) composed by the matrix method)",
+            "exo-bench equations fig2a-2d --format latex -o equations",
+            "exo-bench equations exo5-3d --format c -o generated",
+        ),
     )
     s.add_argument("mechanism", nargs="?", help="a preset name or a mechanism JSON file")
     s.add_argument(

@@ -23,7 +23,15 @@ from exo_bench.bench.cli.inverse import (
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from exo_bench.api import method_names
 
-    s = sub.add_parser("forward", help="forward dynamics: accelerations for given states and forces")
+    from exo_bench.bench.cli.arguments import described
+
+    s = sub.add_parser(
+        "forward",
+        **described(
+            "forward dynamics: accelerations for given states and forces, printed as JSON on stdout",
+            "exo-bench forward exo5-3d states.json",
+        ),
+    )
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument(
         "states",

@@ -21,10 +21,16 @@ from exo_bench.bench.studies.step import data
 
 def add_parser(sub) -> None:
     """Register ``exo-bench gait`` on the CLI's subparsers."""
+    from exo_bench.bench.cli.arguments import described
+
     s = sub.add_parser(
         "gait",
-        help="the predicted walking step of exo5 (direct collocation): describe the stored "
-        "step, or --solve it again and compare",
+        **described(
+            "the predicted walking step of exo5 (direct collocation): describe the stored step, or --solve it "
+            "again and compare",
+            "exo-bench gait --dim 3",
+            "exo-bench gait --dim 2 --solve",
+        ),
     )
     s.add_argument("--dim", type=int, choices=(2, 3), default=3, help="exo5-2d or exo5-3d (default 3)")
     s.add_argument(

@@ -18,7 +18,15 @@ if TYPE_CHECKING:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from exo_bench.api import method_names
 
-    s = sub.add_parser("inverse", help="inverse dynamics: generalised forces for given states")
+    from exo_bench.bench.cli.arguments import described
+
+    s = sub.add_parser(
+        "inverse",
+        **described(
+            "inverse dynamics: generalised forces for given states, printed as JSON on stdout",
+            "exo-bench inverse exo5-3d states.json",
+        ),
+    )
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument(
         "states",

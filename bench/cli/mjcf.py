@@ -9,14 +9,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from exo_bench.bench.cli.arguments import size_arg
+from exo_bench.bench.cli.arguments import described, size_arg
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser(
         "mjcf",
-        help="print (or write) the MJCF (MuJoCo XML) of a mechanism, checked by compiling it "
-        "with MuJoCo (extra [peers])",
+        **described(
+            "print (or write) the MJCF (MuJoCo XML) of a mechanism, checked by compiling it with MuJoCo (extra [peers])",
+            "exo-bench mjcf exo5-3d -o exo5-3d.xml",
+            "exo-bench mjcf exo5-2d --no-check",
+        ),
     )
     s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("-o", "--output", help="the .xml file to write (default, or -: stdout)")

@@ -6,7 +6,9 @@ import argparse
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("presets", help="list the preset mechanisms")
+    from exo_bench.bench.cli.arguments import described
+
+    s = sub.add_parser("presets", **described("list the preset mechanisms", "exo-bench presets"))
     s.set_defaults(func=cmd_presets)
 
 

@@ -28,8 +28,23 @@ from exo_bench.bench.studies.study import one_line
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("run", help="the main job: run every scene and write the reports")
-    s.add_argument("scenes", nargs="*", help="shipped scene names or scene TOML files (default: every shipped scene)")
+    from exo_bench.bench.cli.arguments import described
+
+    shipped = shipped_scene_names()  # as the loader finds them (bench/studies/scenes/*.toml), never typed
+    s = sub.add_parser(
+        "run",
+        **described(
+            "the main job: run every scene and write the reports",
+            "exo-bench run",
+            f"exo-bench run {shipped[0]} --reports my-reports" if shipped else "exo-bench run --reports my-reports",
+        ),
+    )
+    s.epilog = f"{s.epilog}\n\nshipped scenes:\n" + "\n".join(f"  {n}" for n in shipped)
+    s.add_argument(
+        "scenes",
+        nargs="*",
+        help=f"shipped scene names ({', '.join(shipped)}) or scene TOML files (default: every shipped scene)",
+    )
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
     s.add_argument(

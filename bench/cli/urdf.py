@@ -6,8 +6,17 @@ import argparse
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser("urdf", help="print (or write) the generated URDF of a mechanism")
-    s.add_argument("mechanism")
+    from exo_bench.bench.cli.arguments import described
+
+    s = sub.add_parser(
+        "urdf",
+        **described(
+            "print (or write) the generated URDF of a mechanism",
+            "exo-bench urdf exo5-3d -o exo5-3d.urdf",
+            "exo-bench urdf fig2a-2d",
+        ),
+    )
+    s.add_argument("mechanism", help="a preset name (exo-bench presets) or a mechanism JSON file")
     s.add_argument("-o", "--output", help="the .urdf file to write (default, or -: stdout)")
     s.set_defaults(func=cmd_urdf)
 
