@@ -4,7 +4,7 @@
 collocation points; CasADi then differentiated that whole graph twice for IPOPT's exact Hessian. Profiled on
 exo5-3d (3.8.2, 81 iterations, CPU seconds on a loaded 2-core host): building the expanded graph and its
 Hessian took 8 s, IPOPT's linear algebra 8 s (its KKT system carried 2899 inequality rows, 1011 of them
-simple bounds of one variable), the Hessian's evaluations 2-3 s. Two alternatives were measured and refused:
+simple bounds of one variable), the Hessian's evaluations 2-3 s. Three alternatives were refused:
 
 * ``expand=False`` (an MX graph over ``point.map``): 2 s to build, but CasADi's Hessian of a mapped MX
   function evaluates 5-10x slower than the SX one (the solve took 76 iterations and 161 s wall, loaded);
@@ -34,10 +34,13 @@ larger of "above the floor" and "clearance"): the same feasible set in 1497 fewe
 options are those the stored steps were solved with.
 
 **Measured** (exo5-3d, ``exo-bench gait --solve``, the whole command, 2-core host shared with seven other
-sessions, load about 10): 56 iterations; 5.0-5.7 s user + 0.6-0.7 s system CPU, median wall of 3 runs
-23.4 s. The Opti form on the same host: 81 iterations, 14.4 s CPU (14.8 s wall at load 0.9, 27-46 s at
-load 7-10). The stored steps are reproduced (3D: max |dq| 4.5e-7, |dT| 1.4e-8; 2D: 9.5e-7, 1.1e-7; the
-tolerance is 1e-6) and every constraint, re-evaluated in numpy, holds to 8e-11.
+sessions, load about 10): 55 iterations; 4.4-4.7 s user + 1.1 s system CPU (IPOPT's own count: 3.7 s, of
+which 0.7 s the Hessian, 0.1 s the Jacobian), median wall of 3 runs 21.6 s (IPOPT 14.3 s of it). The Opti
+form on the same host: 81 iterations, 14.4 s CPU (14.8 s wall at load 0.9, 27-46 s at load 7-10). Under
+that load the wall time says little: the goal of 5 s wall on an idle host is not measured here. The stored
+steps are reproduced (3D: max |dq| 4.6e-7, |dT| 1.4e-8; 2D: 1.5e-7; the tolerance is 1e-6; which of the
+nearby iterates IPOPT stops at moves with the roundings: 1.5e-7 to 9.5e-7 in 2D over this file's
+versions) and every constraint, re-evaluated in numpy, holds to 2e-11.
 """
 
 from __future__ import annotations
