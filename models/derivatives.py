@@ -8,9 +8,11 @@
   entry of the output;
 * :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
   implicit-function theorem on ``ID(q, qd, qdd) = tau`` at ``qdd = FD(q, qd, tau)``: ``dqdd/dq = -M^-1
-  dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with ``M^-1`` applied column by column by
-  the O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.inverse_mass`, ``M^-1 = J^-1 (mu^-1 (x) I)
-  J^-T``): O(n^2) time and memory, the size of the output, and no dense LU;
+  dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with ``M^-1`` as ``dof`` columns of the
+  O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.inverse_mass`, ``M^-1 = J^-1 (mu^-1 (x) I)
+  J^-T``) and ``M^-1 dID`` from it and the per-rod columns
+  (:mod:`exo_bench.models.newton_euler.forward_jacobians`): O(n^2) time and memory, the size of the
+  output, and no dense LU;
 * the directional derivatives, O(n) per sample, for users who need no full Jacobian
   (:mod:`exo_bench.models.newton_euler.products`): :meth:`Derivatives.inverse_dynamics_jvp` ``(q, qd, qdd,
   dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
@@ -102,7 +104,8 @@ class Derivatives:
 
     ``kernel``: ``"numba"`` (compiled), ``"numpy"`` (the reference) or ``"auto"`` (numba unless
     ``NUMBA_DISABLE_JIT``). Subclasses (CasADi's, :mod:`exo_bench.matrix_method.derivatives`) replace
-    :meth:`_inverse`, :meth:`_accelerations` and :meth:`_solve` and keep every check."""
+    :meth:`_inverse`, :meth:`_accelerations`, :meth:`_solve` and :meth:`_forward_jacobians` and keep every
+    check."""
 
     def __init__(self, mechanism: Mechanism, method: str = "newton-euler", source: str | None = None, kernel="auto"):
         from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
@@ -158,6 +161,17 @@ class Derivatives:
         args = (self.table, self.mechanism.dim, np.ascontiguousarray(q), np.ascontiguousarray(B), o)
         run(inverse_mass.columns, inverse_mass.columns_parallel, args, q.shape[0])
         return o
+
+    def _forward_jacobians(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(dqdd_dq, dqdd_dqd, Minv)`` at ``qdd = FD(q, qd, tau)``: ``M^-1`` by ``dof`` columns of the O(n)
+        forward dynamics, the rest from it and the per-rod columns
+        (:func:`exo_bench.models.newton_euler.forward_jacobians.forward_jacobians`)."""
+        from exo_bench.models.newton_euler.forward_jacobians import forward_jacobians
+
+        S, d = q.shape
+        Minv = self._solve(q, np.broadcast_to(np.eye(d), (S, d, d)).copy())
+        jq, jqd = forward_jacobians(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, Minv)
+        return jq, jqd, Minv
 
     # ------------------------------------------------------------------ checks
     def _states(self, source: str, names: tuple[str, ...], arrays, check: bool):
@@ -267,11 +281,7 @@ class Derivatives:
         if q.shape[0] == 0:
             return (np.zeros((0, d)), *(np.zeros((0, d, d)) for _ in range(3)))
         qdd = self._accelerations(q, qd, tau)
-        jq, jqd, M = self._inverse(q, qd, qdd)
-        M[...] = np.eye(d)  # M's memory holds M^-1: the three solves in place
-        out = (qdd, *(self._solve(q, B, out=B) for B in (jq, jqd, M)))
-        jq *= -1.0
-        jqd *= -1.0
+        out = (qdd, *self._forward_jacobians(q, qd, qdd))
         if check:
             self._finite(out, ("qdd", "dqdd_dq", "dqdd_dqd", "Minv"))
         return tuple(x[0] for x in out) if single else out
