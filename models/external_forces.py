@@ -98,7 +98,10 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
             f"{who}field 'f_ext': expected forces of shape {full} (samples, links, 3 points: start, middle, "
             f"end, dim; one sample: {want}) in newtons, world axes, got {shape}"
         )
-    f = np.ascontiguousarray(f_ext, dtype=float).reshape(-1, *want)
+    try:
+        f = np.ascontiguousarray(f_ext, dtype=float).reshape(-1, *want)
+    except (ValueError, TypeError) as e:  # entries that are not numbers
+        raise ValueError(f"{who}field 'f_ext': expected forces in newtons (numbers), got {e}") from None
     if check and not np.isfinite(f).all():
         s, i, b, c = (int(x) for x in np.argwhere(~np.isfinite(f))[0])
         raise ValueError(

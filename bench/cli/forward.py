@@ -36,7 +36,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument(
         "states",
         help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
-        "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]",
+        "one row per sample, in block order [phi..., psi..., l...] and [M_phi..., M_psi..., F...]; optionally "
+        '"f_ext": forces at the point masses, (samples, links, 3 points, dim) in newtons (docs/external-forces.md)',
     )
     s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
     add_limit_args(s)
@@ -62,14 +63,14 @@ def cmd_forward(args: argparse.Namespace) -> int:
         return samples * (1 if spec(args.method).own_forward_dynamics else mech.dof + 2)
 
     peek = check_before_reading(args.states, mech, args.method, options, limits, rows, third="tau")  # before reading
-    q, qd, tau = _load_states(args.states, mech, third="tau")
+    q, qd, tau, f_ext = _load_states(args.states, mech, third="tau")
     check(mech, args.method, rows(q.shape[0]), options, limits, io=peek.io(mech.dof, q.shape[0]))  # before any work
     model = prepare(mech, args.method, **options)
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)
     model.check_regular(q)  # singular or beyond the conditioning bound: named, before any work
-    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False), dtype=float)  # validated above
+    qdd = np.asarray(model.forward_dynamics(q, qd, tau, check=False, f_ext=f_ext), dtype=float)  # validated above
     check_finite(mech, qdd)  # forces too large for float64: one line naming the sample, never null
     _write_tau(args.method, qdd, sys.stdout, key="qdd")
     return 0

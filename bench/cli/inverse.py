@@ -31,7 +31,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument(
         "states",
         help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
-        "one row per sample, coordinates in block order [phi..., psi..., l...]",
+        'one row per sample, coordinates in block order [phi..., psi..., l...]; optionally "f_ext": forces '
+        "at the point masses, (samples, links, 3 points, dim) in newtons, world axes (docs/external-forces.md)",
     )
     default_method = _default_method()  # the same as the library's prepare()
     s.add_argument(
@@ -90,10 +91,13 @@ def budget_option(args: argparse.Namespace) -> dict:
     return {"budget": args.budget} if derives_within_budget(args.method) and args.budget is not None else {}
 
 
-def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """The states of a JSON file ``{"q": [[...]], "qd": ..., "qdd": ...}`` or, for large batches, a
     NumPy ``.npz`` archive with arrays ``q``, ``qd``, ``qdd``; validated (names the file).
-    ``third="tau"``: forward dynamics' states ``q``, ``qd``, ``tau``."""
+    ``third="tau"``: forward dynamics' states ``q``, ``qd``, ``tau``. Fourth: the optional external
+    forces ``f_ext`` ``(samples, links, 3, dim)`` of the same file, checked (None without them;
+    docs/external-forces.md)."""
+    from exo_bench.models.external_forces import check_f_ext
     from exo_bench.models.loading import read_json
     from exo_bench.models.mechanism import as_states
 
@@ -106,11 +110,13 @@ def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.nd
         got = sorted(data) if isinstance(data, dict) else type(data).__name__
         raise ValueError(f"{what}: expected an object with keys ['q', 'qd', '{third}'], got {got}")
     try:
-        return as_states(mech, data["q"], data["qd"], data[third], source=what)
+        q, qd, x = as_states(mech, data["q"], data["qd"], data[third], source=what)
     except ValueError as e:  # as_states calls its third array qdd
         raise ValueError(
             str(e).replace("field 'qdd'", f"field '{third}'").replace("qdd must", f"{third} must")
         ) from None
+    f = data.get("f_ext")
+    return q, qd, x, None if f is None else check_f_ext(mech, f, q.shape, True, what)
 
 
 def _read_npz(path: str, what: str) -> dict:
@@ -133,7 +139,7 @@ def _read_npz(path: str, what: str) -> dict:
         )
     try:
         with np.load(p, allow_pickle=False) as z:
-            return {k: (z[k] if k in ("q", "qd", "qdd", "tau") else None) for k in z.files}
+            return {k: (z[k] if k in ("q", "qd", "qdd", "tau", "f_ext") else None) for k in z.files}
     except (zipfile.BadZipFile, EOFError) as e:
         raise ValueError(f"{what}: expected a NumPy .npz archive, got a file that is not one ({e})") from None
     except ValueError as e:
@@ -191,10 +197,10 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     options = budget_option(args)
     limits = _limits(args, args.method)
     peek = check_before_reading(args.states, mech, args.method, options, limits, lambda samples: samples)
-    q, qd, qdd = _load_states(args.states, mech)
+    q, qd, qdd, f_ext = _load_states(args.states, mech)
     check(mech, args.method, q.shape[0], options, limits, io=peek.io(mech.dof, q.shape[0]))  # before any work
     model = prepare(mech, args.method, **options)
-    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False), dtype=float)  # validated above
+    tau = np.asarray(model.inverse_dynamics(q, qd, qdd, check=False, f_ext=f_ext), dtype=float)  # validated above
     warn = known_wrong_warning(args.method, mech.dim)
     if warn:
         print(warn, file=sys.stderr)

@@ -120,6 +120,12 @@ def peek_states(path: str, dof: int, third: str = "qdd") -> StatesFile:
         total += nbytes + (0 if dtype == np.float64 else 8 * count)  # the float64 copy of another dtype
         rate = NPZ_STORED_BYTES_PER_SECOND if compress == zipfile.ZIP_STORED else NPZ_DEFLATED_BYTES_PER_SECOND
         seconds += nbytes / rate
+    if "f_ext" in arrays:  # optional external forces (samples, links, 3, dim): read as the states are
+        shape, dtype, compress = arrays["f_ext"]
+        count = int(np.prod(shape))
+        total += count * dtype.itemsize + (0 if dtype == np.float64 else 8 * count)
+        rate = NPZ_STORED_BYTES_PER_SECOND if compress == zipfile.ZIP_STORED else NPZ_DEFLATED_BYTES_PER_SECOND
+        seconds += count * dtype.itemsize / rate
     if len(samples) > 1:
         raise ValueError(f"{what}: q, qd and {third} must have the same number of samples, got {sorted(samples)}")
     return StatesFile(str(path), samples.pop(), total, seconds, "npz")
