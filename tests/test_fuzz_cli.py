@@ -274,6 +274,8 @@ KINDS = [
             "equations-mechanism",
             "mjcf-out",
             "mjcf-mechanism",
+            "states-out",
+            "states-mechanism",
         ]
     ),
 )
@@ -296,6 +298,10 @@ def test_every_kind_of_file_in_every_role(kind, role):
             holds(["mjcf", "fig1-2d", "--no-check", "-o", bad])
         elif role == "mjcf-mechanism":
             holds(["mjcf", bad, "--no-check"])
+        elif role == "states-out":
+            holds(["states", "fig1-2d", "-o", bad])
+        elif role == "states-mechanism":
+            holds(["states", bad, "-o", d / "s.json"])
         else:
             holds(["urdf", bad])
 

@@ -30,6 +30,7 @@ class _UsageError(Exception):
 #: ``add_parser(subparsers)``.
 SUBCOMMANDS = (
     "presets",
+    "states",
     "inverse",
     "forward",
     "urdf",
