@@ -91,7 +91,7 @@ def test_states_never_writes_through_a_link_nor_leaves_a_temporary(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["precious.json", "s.json"]  # nothing half-written
 
 
-@pytest.mark.parametrize("argv", [["--samples", "0"], ["--samples", "x"], ["--seed", "-1"]])
+@pytest.mark.parametrize("argv", [["--samples", "0"], ["--samples", "x"], ["--seed", "-1"], ["--samples", str(10**15)]])
 def test_states_bad_counts_are_one_line(argv, tmp_path):
     code, _, err = _run("states", "exo5-2d", "-o", tmp_path / "s.json", *argv)
     assert code == 2 and len(err.strip().splitlines()) == 1

@@ -19,6 +19,11 @@ from exo_bench.bench.cli.arguments import described
 
 #: Example states are for reading and copying: a default that prints in a screen.
 DEFAULT_SAMPLES = 10
+#: Peak bytes per number written, predicted before the work: JSON holds each of the four arrays'
+#: numbers as a float64 (8), a Python float in ``tolist`` (24 + an 8-byte list slot) and up to 25
+#: characters of text twice (the pieces and the joined string); .npz the array and its archive copy.
+JSON_BYTES_PER_NUMBER = 8 + 32 + 50
+NPZ_BYTES_PER_NUMBER = 8 + 8
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -42,16 +47,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _count(text: str) -> int:
-    from exo_bench.models.resource_counts import count_problem
-
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number of samples, got {text!r}") from None
-    problem = count_problem(value, "samples")
-    if problem:
-        raise argparse.ArgumentTypeError(problem)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected at least 1 sample, got {value}")
     return value
+
+
+def check_memory(samples: int, dof: int, npz: bool) -> None:
+    """Before any work: one ValueError line when the file's peak memory would exceed the usable memory."""
+    from exo_bench.models.memory import usable_memory
+
+    need = 4 * samples * dof * (NPZ_BYTES_PER_NUMBER if npz else JSON_BYTES_PER_NUMBER)
+    usable = usable_memory()
+    if usable is not None and need > usable:
+        most = max(1, usable // (4 * dof * (NPZ_BYTES_PER_NUMBER if npz else JSON_BYTES_PER_NUMBER)))
+        raise ValueError(
+            f"--samples: {samples} samples of {dof} coordinates need about {need / 1e9:.1f} GB, more than the "
+            f"{usable / 1e9:.1f} GB usable; at most {most} fit"
+        )
 
 
 def _seed(text: str) -> int:
@@ -96,7 +112,8 @@ def cmd_states(args: argparse.Namespace) -> int:
 
     checked_output(args.output, "states -o", [args.mechanism])  # before any work
     mech = load_mechanism(args.mechanism)
-    arrays = example_states(mech, args.samples, args.seed)
     npz = str(args.output).endswith(".npz")
+    check_memory(args.samples, mech.dof, npz)
+    arrays = example_states(mech, args.samples, args.seed)
     write_output(args.output, encoded(arrays, npz), "states -o", [args.mechanism])
     return 0
