@@ -21,8 +21,11 @@ bench/perf/derivative_routes.py:
 matrices) and, for inverse derivatives, ``err_ratio``, the error in units of the error model
 (``eps * scale``, the sum of |terms| of each entry). The reference goes to n = :data:`REF_N` for
 inverse and :data:`REF_N_FORWARD` for forward derivatives (its cost: the module's docstring);
-beyond, ``reference`` says "none". A route not built in this commit skips with "not available in
-this commit" and its error; a projected batch over the profile's budget is cut to fewer samples.
+beyond, ``reference`` says "none". The routes that differentiate exactly (:data:`EXACT`) are held to
+``K eps scale`` (asserted); finite differences are recorded. A route not built in this commit skips
+with "not available in this commit" and its error; a projected batch over the profile's budget is cut
+to fewer samples. Untimed (the test suite runs bench/ with ``--benchmark-disable``), only the exo5-3d
+rows run, once each on 4 samples.
 """
 
 from __future__ import annotations
@@ -70,6 +73,14 @@ INVERSE = (
 ONE_SAMPLE = ("analytic (auto)", "casadi AD", "pin.rnea (bare)")
 FORWARD = ("model.derivatives (newton-euler)", "casadi AD + LU", "FD (newton-euler batched)")
 NEEDS = {"mujoco": "mujoco", "drake": "pydrake", "pinocchio": "pinocchio"}
+#: Routes that differentiate exactly (no step): their error is ASSERTED within the error model,
+#: ``K eps scale`` with K of tests/conftest.py (finite differences are recorded, not asserted).
+EXACT = ("analytic", "model.derivatives", "casadi AD", "CalcInverseDynamics")
+K = 8
+UNTIMED = (
+    "derivatives: the chains are measured when the benchmarks are timed (exo-bench bench); untimed "
+    "(the test suite), each route runs once on exo5-3d and its error is checked"
+)
 
 
 def _mech(n: int, topology: str):
@@ -118,6 +129,20 @@ def _reference(references, mech, q, qd, x, forward: bool):
             refs = dr.inverse_derivatives(mech, q[:k], qd[:k], x[:k])
             references[key] = (refs, dr.derivative_scale(mech, q[:k], qd[:k], x[:k]))
     return references[key]
+
+
+def _untimed(benchmark, topology: str, sweep) -> int:
+    """Samples per batch: the profile's, or 4 on exo5-3d alone when the benchmarks are not timed."""
+    if not benchmark.disabled:
+        return SAMPLES[sweep.name]
+    if topology != "exo5":
+        pytest.skip(UNTIMED)
+    return 4
+
+
+def _check_error(method: str, errors: dict) -> None:
+    if method.startswith(EXACT) and errors["reference"].startswith("50-digit"):
+        assert errors["err_ratio"] <= K, f"{method}: error {errors['err_ratio']:.2f} eps * scale > {K}"
 
 
 def _errors(got, ref) -> dict:
@@ -212,7 +237,10 @@ def _derivative_row(benchmark, sweep, references, case, mech, args, forward: boo
     got = _timed(benchmark, sweep, method, call, args, info)
     assert all(np.isfinite(g).all() for g in got), f"{method}: NaN/Inf in the derivatives"
     q, qd, x = args
-    benchmark.extra_info.update(_errors(got, _reference(references, mech, q, qd, x, forward=forward)))
+    errors = _errors(got, _reference(references, mech, q, qd, x, forward=forward))
+    benchmark.extra_info.update(errors)
+    if not forward:
+        _check_error(method, errors)
     if getattr(call, "warnings", None):  # MuJoCo's, collected by the route
         benchmark.extra_info["engine_warnings"] = "; ".join(sorted(set(call.warnings)))[:300]
 
@@ -221,7 +249,7 @@ def test_inverse_derivatives(benchmark, sweep, references, case):
     method, n, dim, topology = case
     benchmark.group = "derivatives-inverse-batched"
     mech = _mech(n, topology)
-    q, qd, qdd = _states(mech, SAMPLES[sweep.name], sweep)
+    q, qd, qdd = _states(mech, _untimed(benchmark, topology, sweep), sweep)
     if method == "ID (newton-euler batched)":
         model = prepare(mech, "newton-euler")
         call = lambda q, qd, qdd: model.inverse_dynamics(q, qd, qdd, check=False)  # noqa: E731
@@ -234,7 +262,8 @@ def test_inverse_derivatives_one_sample(benchmark, sweep, references, case):
     method, n, dim, topology = case
     benchmark.group = "derivatives-inverse-one-sample"
     mech = _mech(n, topology)
-    q, qd, qdd = (x[:1] for x in _states(mech, SAMPLES[sweep.name], sweep))  # the batch's first: one reference
+    samples = _untimed(benchmark, topology, sweep)
+    q, qd, qdd = (x[:1] for x in _states(mech, samples, sweep))  # the batch's first: one reference
     info = _info(method, n, topology, mech, "inverse") | {"samples": 1, "batched": False}
     if method == "pin.rnea (bare)":
         pytest.importorskip("pinocchio")
@@ -259,14 +288,16 @@ def test_inverse_derivatives_one_sample(benchmark, sweep, references, case):
     benchmark.extra_info.update(info, source=source)
     got = benchmark.pedantic(call, args=args, rounds=20, iterations=20 if mech.dof > 60 else 200, warmup_rounds=1)
     got = tuple(np.asarray(g)[None] for g in (out if method.startswith("analytic") else got))
-    benchmark.extra_info.update(_errors(got, _reference(references, mech, q, qd, qdd, forward=False)))
+    errors = _errors(got, _reference(references, mech, q, qd, qdd, forward=False))
+    benchmark.extra_info.update(errors)
+    _check_error(method, errors)
 
 
 def test_forward_derivatives(benchmark, sweep, references, case):
     method, n, dim, topology = case
     benchmark.group = "derivatives-forward-batched"
     mech = _mech(n, topology)
-    q, qd, qdd = _states(mech, SAMPLES[sweep.name], sweep)
+    q, qd, qdd = _states(mech, _untimed(benchmark, topology, sweep), sweep)
     ne = prepare(mech, "newton-euler")
     tau = ne.inverse_dynamics(q, qd, qdd, check=False)
     if method == "FD (newton-euler batched)":
