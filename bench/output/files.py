@@ -146,6 +146,7 @@ def write_output(path: str | Path, data: str | bytes, label: str = "", inputs=()
                 stream.write(data)
             stream.flush()
         return None
+    _existing_folder(path, label)
     with replace_atomically(path, label, inputs) as (_, fd):
         write_all(fd, data)
     return Path(path)
@@ -176,6 +177,17 @@ def checked_output(path: str | Path, label: str = "", inputs=()) -> None:
     """Before any work: refuse in one line what :func:`write_output` would refuse (a stream is fine)."""
     if stream_of(path) is None:
         output_target(path, label, inputs)
+        _existing_folder(path, label)
+
+
+def _existing_folder(path: str | Path, label: str = "") -> None:
+    """A file a user names (``-o``) goes into a folder that exists: a missing one is one ValueError
+    line, never made (``urdf -o /nonexistent/dir/x.urdf`` made both folders). A parent that is a file
+    is refused where the folder would be made (:func:`replace_atomically`)."""
+    parent = Path(path).parent
+    if not parent.exists() and not parent.is_symlink():
+        who = f"{label} {str(path)!r}" if label else repr(str(path))
+        raise ValueError(f"{who}: its folder {str(parent)!r} does not exist (make it first, or name another file)")
 
 
 def _default_mode() -> int:
