@@ -372,7 +372,9 @@ def pytest_collection_modifyitems(items):
     """No hypothesis test depends on the machine's speed (issue 34, F1): every one runs without a
     deadline and with the ``too_slow`` health check off, whatever its own settings say (both time
     the examples on the wall clock; a loaded machine failed them). Set here, as hypothesis's own
-    pytest plugin sets its per-item settings, so that a new test cannot forget it."""
+    pytest plugin sets its per-item settings, so that a new test cannot forget it. Nor does one depend
+    on the run: every run draws the same examples (``derandomize``: a seed from the test's name; no
+    example database replaying another run's finds), so the README's test command is repeatable."""
     from hypothesis import HealthCheck, settings
 
     for item in items:
@@ -380,5 +382,9 @@ def pytest_collection_modifyitems(items):
         if getattr(fn, "is_hypothesis_test", False):
             own = fn._hypothesis_internal_use_settings
             fn._hypothesis_internal_use_settings = settings(
-                parent=own, deadline=None, suppress_health_check={HealthCheck.too_slow} | set(own.suppress_health_check)
+                parent=own,
+                deadline=None,
+                derandomize=True,
+                database=None,
+                suppress_health_check={HealthCheck.too_slow} | set(own.suppress_health_check),
             )

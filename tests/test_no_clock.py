@@ -29,3 +29,8 @@ def test_no_hypothesis_test_has_a_deadline_or_a_speed_health_check(request):
         or HealthCheck.too_slow not in it.obj._hypothesis_internal_use_settings.suppress_health_check
     ]
     assert not bad, f"hypothesis tests timed on the wall clock: {bad}"
+    # nor by the run: every run draws the same examples (a seed from the test's name, no example
+    # database replaying what another run found), so a run of the suite is repeatable
+    drawn = [it.nodeid for it in hyp if not it.obj._hypothesis_internal_use_settings.derandomize]
+    stored = [it.nodeid for it in hyp if it.obj._hypothesis_internal_use_settings.database is not None]
+    assert not drawn and not stored, f"hypothesis tests drawing other examples in each run: {drawn + stored}"
