@@ -149,6 +149,8 @@ class InverseDerivatives:
         self.nlinks, self.dof = int(mechanism.nlinks), int(mechanism.dof)
         self._local = threading.local()
         self._entry: tuple | None = None
+        #: The shapes of one sample's states and outputs, ``(dof,)`` and ``(dof, dof)``.
+        self._shapes = ((self.dof,), (self.dof, self.dof))
         self._simd_scratch: Any = None  # the SIMD kernel's ThreadScratch, made at its first call
 
     def __repr__(self) -> str:
@@ -183,24 +185,21 @@ class InverseDerivatives:
         (no numpy broadcasting, numba's compiled entry point without its type dispatch, this thread's
         scratch; the overlap of ``out`` with the states is tested inside the kernel). Anything it does
         not take (another shape, dtype or layout) goes to the checked path, which names the field."""
-        dof = self.dof
-        for a in (q, qd, qdd):
-            if type(a) is not np.ndarray or a.dtype != _F8 or a.shape != (dof,) or not a.flags.c_contiguous:
+        vshape, mshape = self._shapes
+        for a in (q, qd, qdd):  # dtype by identity: numpy's float64 is one object (a byte-swapped one is not)
+            if type(a) is not np.ndarray or a.dtype is not _F8 or a.shape != vshape or not a.flags.c_contiguous:
                 return self._checked(q, qd, qdd, out, "numba")  # names what is wrong
         if out is None:
-            out = (np.empty((dof, dof)), np.empty((dof, dof)), np.empty((dof, dof)))
+            out = (np.empty(mshape), np.empty(mshape), np.empty(mshape))
+        elif type(out) is not tuple or len(out) != 3:
+            return self._checked(q, qd, qdd, out, "numba")
         else:
-            if type(out) is not tuple or len(out) != 3:
-                out = check_out(out, (dof, dof), (q, qd, qdd))
-            for o in out:
-                if type(o) is not np.ndarray or o.dtype != _F8 or o.shape != (dof, dof):
-                    check_out(out, (dof, dof), (q, qd, qdd))
-                f = o.flags
-                if not (f.c_contiguous and f.writeable):
-                    check_out(out, (dof, dof), (q, qd, qdd))
+            for o in out:  # flags.carray: C-contiguous, aligned and writable
+                if type(o) is not np.ndarray or o.dtype is not _F8 or o.shape != mshape or not o.flags.carray:
+                    return self._checked(q, qd, qdd, out, "numba")  # names what is wrong, or runs it
         entry, args = self._one_entry()
         if entry(*args[0], q, qd, qdd, *out, *args[1]()):
-            check_out(out, (dof, dof), (q, qd, qdd))  # names the overlap the kernel found
+            check_out(out, mshape, (q, qd, qdd))  # names the overlap the kernel found
         return out
 
     def _one_entry(self):
