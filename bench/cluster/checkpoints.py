@@ -45,10 +45,17 @@ def checkpoint_dir(base: Path, code: str) -> Path:
     return Path(base) / code
 
 
+#: The checkpoint folder's name inside a reports folder (hidden: never a report, never published;
+#: .gitignore names it wherever it is).
+CHECKPOINTS = ".exo-bench-sweep"
+
+
 def default_checkpoints(reports: Path) -> Path:
-    """The checkpoint folder of a reports folder: ``.exo-bench-sweep`` beside it (never inside it,
-    so an interrupted sweep leaves nothing in the reports folder)."""
-    return Path(reports).resolve().parent / ".exo-bench-sweep"
+    """The checkpoint folder of a reports folder: ``.exo-bench-sweep`` inside it. Nothing is written
+    outside the folder a user names (issue 38: it was beside it, ``X/../.exo-bench-sweep``, so
+    ``--reports /tmp/x`` wrote into /tmp and ``--reports ~/r`` into the home folder). A hidden folder
+    is no report: the publisher and ``runs.json`` skip names starting with a dot."""
+    return Path(reports).resolve() / CHECKPOINTS
 
 
 #: A row's checkpoint (:func:`exo_bench.bench.cluster.tasks.run_row`'s record): every field that
