@@ -349,3 +349,27 @@ def test_one_sample_overlap_is_found_by_the_kernel(exo5_derivatives):
         d(q, qd, qdd, out=(np.zeros((15, 15)), outs[1], outs[1]))
     with pytest.raises(ValueError, match=r"field 'qd': expected dtype float64, got float32"):
         d(q, qd.astype(np.float32), qdd)
+
+
+def test_one_sample_path_names_a_bad_out_and_runs_an_unaligned_one(exo5_derivatives):
+    """What the lean one-sample entry does not take goes to the checked path: a read-only or Fortran-ordered
+    ``out`` is named; an unaligned (but otherwise good) ``out`` is computed, equal to the lean result."""
+    d = exo5_derivatives
+    q, qd, qdd = (x[0].copy() for x in _good(d))
+    want = d(q, qd, qdd)
+    ro = np.zeros((15, 15))
+    ro.flags.writeable = False
+    with pytest.raises(
+        ValueError, match=r"field 'out\[1\]' \(dtau_dqd\): expected a writable C-contiguous array, got read-only"
+    ):
+        d(q, qd, qdd, out=(np.zeros((15, 15)), ro, np.zeros((15, 15))))
+    with pytest.raises(
+        ValueError, match=r"field 'out\[0\]' \(dtau_dq\): expected a writable C-contiguous array, got strides"
+    ):
+        d(q, qd, qdd, out=(np.zeros((15, 15), order="F"), np.zeros((15, 15)), np.zeros((15, 15))))
+    raw = np.zeros(15 * 15 * 8 + 1, dtype=np.uint8)
+    unaligned = raw[1:].view(np.float64).reshape(15, 15)
+    assert not unaligned.flags.aligned
+    got = d(q, qd, qdd, out=(unaligned, np.zeros((15, 15)), np.zeros((15, 15))))
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
