@@ -17,9 +17,9 @@ bench/perf/derivative_routes.py:
   ``model.derivatives (newton-euler)``, ``casadi AD + LU``, and the baseline ``FD (newton-euler batched)``.
 
 **Error** against the 50-digit reference (exo_bench.lagrange.derivative_reference) on the first
-:func:`_ref_count` samples: ``max_rel_err`` (max |ours - ref| over the largest |ref|, over the three
+:func:`_ref_count` samples: ``max_rel_err`` (``max |ours - ref|`` over the largest ``|ref|``, over the three
 matrices) and, for inverse derivatives, ``err_ratio``, the error in units of the error model
-(``eps * scale``, the sum of |terms| of each entry). The reference goes to n = :data:`REF_N` for
+(``eps * scale``, the sum of ``|terms|`` of each entry). The reference goes to n = :data:`REF_N` for
 inverse and :data:`REF_N_FORWARD` for forward derivatives (its cost: the module's docstring);
 beyond, ``reference`` says "none". The routes that differentiate exactly (:data:`EXACT`) are held to
 ``K eps scale`` (asserted); finite differences are recorded. A route not built in this commit skips
