@@ -62,7 +62,7 @@ class Derivatives(analytic.Derivatives):
         (M,), (h,) = ev("mass_matrix", q), ev("bias_forces", q, qd)
         return fd.solve_mass_matrix(M, tau - h)
 
-    def _forward_jacobians(self, q, qd, qdd):
+    def _forward_jacobians(self, q, qd, qdd, tau):
         """``-M^-1 dID/dq``, ``-M^-1 dID/dqd`` and ``M^-1`` by one equilibrated LU solve of CasADi's ``M``."""
         jq, jqd, M = self._inverse(q, qd, qdd)
         d = M.shape[-1]

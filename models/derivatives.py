@@ -162,15 +162,26 @@ class Derivatives:
         run(inverse_mass.columns, inverse_mass.columns_parallel, args, q.shape[0])
         return o
 
-    def _forward_jacobians(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _forward_jacobians(
+        self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
         """``(dqdd_dq, dqdd_dqd, Minv)`` at ``qdd = FD(q, qd, tau)``: ``M^-1`` by ``dof`` columns of the O(n)
         forward dynamics, the rest from it and the per-rod columns
-        (:func:`exo_bench.models.newton_euler.forward_jacobians.forward_jacobians`)."""
-        from exo_bench.models.newton_euler.forward_jacobians import forward_jacobians
-
+        (:mod:`exo_bench.models.newton_euler.forward_jacobians`, compiled in
+        :mod:`exo_bench.models.newton_euler.forward_jacobians_compiled`)."""
         S, d = q.shape
         Minv = self._solve(q, np.broadcast_to(np.eye(d), (S, d, d)).copy())
-        jq, jqd = forward_jacobians(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, Minv)
+        if self.kernel == "numpy":
+            from exo_bench.models.newton_euler.forward_jacobians import forward_jacobians
+
+            jq, jqd = forward_jacobians(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, Minv)
+            return jq, jqd, Minv
+        from exo_bench.models.newton_euler import forward_jacobians_compiled as fc
+        from exo_bench.models.numba_runtime import run
+
+        jq, jqd = np.empty((S, d, d)), np.empty((S, d, d))
+        states = (np.ascontiguousarray(a) for a in (q, qd, qdd, tau))
+        run(fc.forward_jacobians, fc.forward_jacobians_parallel, (self.mechanism.dim, *states, Minv, jq, jqd), S)
         return jq, jqd, Minv
 
     # ------------------------------------------------------------------ checks
@@ -281,7 +292,7 @@ class Derivatives:
         if q.shape[0] == 0:
             return (np.zeros((0, d)), *(np.zeros((0, d, d)) for _ in range(3)))
         qdd = self._accelerations(q, qd, tau)
-        out = (qdd, *self._forward_jacobians(q, qd, qdd))
+        out = (qdd, *self._forward_jacobians(q, qd, qdd, tau))
         if check:
             self._finite(out, ("qdd", "dqdd_dq", "dqdd_dqd", "Minv"))
         return tuple(x[0] for x in out) if single else out
