@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
 from exo_bench.models.mechanism import Mechanism
 
 
@@ -179,8 +180,6 @@ def _simpson(lay: Layout) -> np.ndarray:
 
 def _constraints(mech: Mechanism, s, lay: Layout, rows: dict[str, slice], xs, Ys):
     """``G(x, Y)`` and its bounds, and the variables' bounds."""
-    from exo_bench.bench.studies.step.problem import angle_rows, swap_matrix
-
     n, dof, K, N, nf = mech.nlinks, mech.dof, lay.K, lay.N, lay.nf
     Z = ca.reshape(xs[: lay.nz * K], lay.nz, K)
     T = xs[-1]
