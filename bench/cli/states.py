@@ -99,7 +99,7 @@ def encoded(arrays: dict[str, np.ndarray], npz: bool) -> str | bytes:
         import io
 
         buf = io.BytesIO()
-        np.savez(buf, **arrays)
+        np.savez(buf, q=arrays["q"], qd=arrays["qd"], qdd=arrays["qdd"], tau=arrays["tau"])
         return buf.getvalue()
     import json
 
