@@ -29,6 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "forward",
         **described(
             "forward dynamics: accelerations for given states and forces, printed as JSON on stdout",
+            "exo-bench states exo5-3d -o states.json",
             "exo-bench forward exo5-3d states.json",
         ),
     )

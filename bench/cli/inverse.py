@@ -24,6 +24,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "inverse",
         **described(
             "inverse dynamics: generalised forces for given states, printed as JSON on stdout",
+            "exo-bench states exo5-3d -o states.json",
             "exo-bench inverse exo5-3d states.json",
         ),
     )
