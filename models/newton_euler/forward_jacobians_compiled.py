@@ -50,29 +50,32 @@ def _rod(dim, x, xd, xdd, tau, n, j, P, Aq, Ar):
 
 @njit(**JIT)
 def _sample(dim, n, x, xd, xdd, tau, Minv, DQ, DQD, P, Aq, Ar):
-    """One sample: ``DQ = -M^-1 blockdiag(P) - blockdiag(J^-1 A^q)``, ``DQD = -blockdiag(J^-1 A^r)``."""
+    """One sample: ``DQ = -M^-1 blockdiag(P) - blockdiag(J^-1 A^q)``, ``DQD = -blockdiag(J^-1 A^r)``; the rods'
+    blocks first (``P, Aq, Ar``: ``(n, 3, 3)`` scratch), then the product row by row with the rods innermost
+    (contiguous in ``Minv`` and ``DQ``)."""
     d = dim * n
+    for j in range(n):
+        _rod(dim, x, xd, xdd, tau, n, j, P[j], Aq[j], Ar[j])
     for r in range(d):
         for c in range(d):
             DQD[r, c] = 0.0
-    for j in range(n):
-        _rod(dim, x, xd, xdd, tau, n, j, P, Aq, Ar)
-        for r in range(d):
-            for b in range(dim):
+        for b in range(dim):
+            for j in range(n):
                 acc = 0.0
                 for a in range(dim):
-                    acc += Minv[r, a * n + j] * P[a, b]
+                    acc += Minv[r, a * n + j] * P[j, a, b]
                 DQ[r, b * n + j] = -acc
+    for j in range(n):
         for a in range(dim):
             for b in range(dim):
-                DQ[a * n + j, b * n + j] -= Aq[a, b]
-                DQD[a * n + j, b * n + j] = -Ar[a, b]
+                DQ[a * n + j, b * n + j] -= Aq[j, a, b]
+                DQD[a * n + j, b * n + j] = -Ar[j, a, b]
 
 
 @njit(**JIT)
 def _block(dim, X, Xd, Xdd, T, Minv, DQ, DQD, start, stop):
     n = X.shape[1] // dim
-    P, Aq, Ar = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    P, Aq, Ar = np.empty((n, 3, 3)), np.empty((n, 3, 3)), np.empty((n, 3, 3))
     for s in range(start, stop):
         _sample(dim, n, X[s], Xd[s], Xdd[s], T[s], Minv[s], DQ[s], DQD[s], P, Aq, Ar)
 
