@@ -95,7 +95,7 @@ class StepSettings:
     w_moment: float = 1.0
     w_force: float = 1.0
     w_accel: float = 1e-5
-    tol: float = 1e-8
+    tol: float = 1e-12  # IPOPT's tol: data.SOLVE_TOL, the error model of data.REPRODUCE_TOL
 
     def to_dict(self) -> dict:
         return asdict(self)
