@@ -72,7 +72,12 @@ INVERSE = (
 )
 ONE_SAMPLE = ("analytic (auto)", "casadi AD", "pin.rnea (bare)")
 FORWARD = ("model.derivatives (newton-euler)", "casadi AD + LU", "FD (newton-euler batched)")
-NEEDS = {"mujoco": "mujoco", "drake": "pydrake", "pinocchio": "pinocchio"}
+#: The module each peer's route imports (skipped where it is not installed), by the route's row name.
+NEEDS = {
+    "mjd_inverseFD (mujoco)": "mujoco",
+    "CalcInverseDynamics AutoDiffXd (drake)": "pydrake",
+    "computeRNEADerivatives (pinocchio)": "pinocchio",
+}
 #: Routes that differentiate exactly (no step): their error is ASSERTED within the error model,
 #: ``K eps scale`` with K of tests/conftest.py (finite differences are recorded, not asserted).
 EXACT = ("analytic", "model.derivatives", "casadi AD", "CalcInverseDynamics")
@@ -161,9 +166,8 @@ def _errors(got, ref) -> dict:
 
 def _route(method: str, mech, forward: bool):
     """``(call, source)`` of a row, or a skip saying why it has none here."""
-    for key, module in NEEDS.items():
-        if key in method:
-            pytest.importorskip(module)
+    if method in NEEDS:
+        pytest.importorskip(NEEDS[method])
     if "casadi" in method and mech.nlinks > CASADI_MAX_N:
         pytest.skip(
             f"{method} n={mech.nlinks}: not run beyond n = {CASADI_MAX_N} (preparation 7.3 s at n = 100, issue 36)"
