@@ -58,10 +58,11 @@ SOLVE_TOL = 1e-12
 #:
 #: Hence the steps are stored from a solve at :data:`SOLVE_TOL` = 1e-12 and re-solved at it (3-5
 #: iterations more than at 1e-8): C sqrt(1e-12) is about 1e-8. Measured: a re-solve from starts
-#: perturbed by 1e-9 (relative, seeded: other roundings, other paths) lands 2.4e-11 and 2.0e-10 (2D),
-#: 1.9e-10 (3D) from the stored step, |dT| <= 1.2e-11 s. The bound, with the model's ~1e-8 for each of
-#: the two solves and a factor of 50 for what a machine's roundings may do beyond the seeded ones, is
-#: 1e-6: about 5000x the measured distance. It is checked only on T and q (qd and qdd are less
+#: perturbed by 1e-9 (relative, seeded: other roundings, other paths) lands 2.4e-11, 2.0e-10 and 6.4e-10
+#: (2D, 3 seeds), 1.9e-10 and 2.2e-10 (3D, 2 seeds) from the stored step, |dT| <= 4.1e-11 s; unperturbed,
+#: on this host, 0. The bound, with the model's ~1e-8 for each of the two solves and a factor of 50 for
+#: what a machine's roundings may do beyond the seeded ones, is 1e-6: about 1500x the largest measured
+#: distance. It is checked only on T and q (qd and qdd are less
 #: well determined: see above).
 REPRODUCE_TOL = 1e-6
 
