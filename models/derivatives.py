@@ -68,7 +68,7 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     (:data:`PER_COORDINATE`), and with the numpy kernel the columns as samples (``(samples, dof, dof)``
     twice more: :func:`exo_bench.models.newton_euler.inverse_mass.numpy_columns`)."""
     square = float(samples) * dof * dof * 8.0
-    extra = 3 * square if kernel == "numpy" else 0.0
+    extra = 3 * square if REFERENCE[kernel] else 0.0
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
 
 
@@ -89,14 +89,19 @@ def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE)
     )
 
 
+#: The option ``kernel``: whether it runs the numpy reference (else the compiled kernels); ``"auto"`` is
+#: numba unless ``NUMBA_DISABLE_JIT``.
+REFERENCE = {"numba": False, "numpy": True}
+
+
 def _kernel(option: str) -> str:
-    if option not in ("auto", "numba", "numpy"):
+    if option != "auto" and option not in REFERENCE:
         raise ValueError(f"derivatives: option 'kernel': expected 'auto', 'numba' or 'numpy', got {option!r}")
     if option != "auto":
         return option
     from exo_bench.models.numba_runtime import jit_disabled
 
-    return "numpy" if jit_disabled() else "numba"
+    return {True: "numpy", False: "numba"}[jit_disabled()]
 
 
 class Derivatives:
@@ -113,8 +118,10 @@ class Derivatives:
         self.mechanism = mechanism
         self.method = method
         self.kernel = _kernel(kernel)
+        #: runs the numpy reference (the option ``kernel``, :data:`REFERENCE`), else the compiled kernels
+        self.reference = REFERENCE[self.kernel]
         #: which physics computes these derivatives (module docstring)
-        self.source = source if source is not None else source_text(method, method == "newton-euler", False)
+        self.source = source if source is not None else SOURCE
         #: the analytic inverse-dynamics derivatives (:mod:`exo_bench.models.newton_euler.derivatives`), whose
         #: tree and table the forward passes share
         self.inverse_derivatives = prepare_inverse_derivatives(mechanism)
@@ -127,12 +134,12 @@ class Derivatives:
     def _inverse(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, ...]:
         """``(dtau_dq, dtau_dqd, M)`` on validated ``(S, dof)`` arrays with ``S >= 1``."""
         q, qd, qdd = (np.ascontiguousarray(a) for a in (q, qd, qdd))  # the kernels take C-ordered states
-        return self.inverse_derivatives(q, qd, qdd, kernel="numpy" if self.kernel == "numpy" else "auto")
+        return self.inverse_derivatives(q, qd, qdd, kernel={True: "numpy", False: "auto"}[self.reference])
 
     def _accelerations(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """``qdd = FD(q, qd, tau)`` by the O(n) passes."""
         dim, g = self.mechanism.dim, float(self.mechanism.g)
-        if self.kernel == "numpy":
+        if self.reference:
             from exo_bench.models.newton_euler import passes
 
             return passes.forward_dynamics(self.tree, dim, g, q, qd, tau)
@@ -149,7 +156,7 @@ class Derivatives:
         """``M(q)^-1 B`` for ``B (S, dof, k)``, into ``out`` (which may be ``B``) or a new array."""
         from exo_bench.models.newton_euler import inverse_mass
 
-        if self.kernel == "numpy":
+        if self.reference:
             X = inverse_mass.numpy_columns(self.tree, self.mechanism.dim, q, B)
             if out is None:
                 return X
@@ -171,7 +178,7 @@ class Derivatives:
         :mod:`exo_bench.models.newton_euler.forward_jacobians_compiled`)."""
         S, d = q.shape
         Minv = self._solve(q, np.broadcast_to(np.eye(d), (S, d, d)).copy())
-        if self.kernel == "numpy":
+        if self.reference:
             from exo_bench.models.newton_euler.forward_jacobians import forward_jacobians
 
             jq, jqd = forward_jacobians(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, Minv)

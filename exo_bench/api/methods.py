@@ -52,8 +52,9 @@ class MethodSpec:
     #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
     #: about a minute): a benchmark row that composes only such methods needs no chain.
     composes_within_budget: bool = False
-    #: Its ``derivatives`` (CasADi's, of the factored closed forms) differentiate the very equations it
-    #: evaluates (the matrix family), not merely equations it agrees with to rounding.
+    #: Its ``derivatives`` (the analytic derivatives of the Newton-Euler passes, exo_bench.models.derivatives)
+    #: differentiate the very passes it evaluates (newton-euler), not merely equations it agrees with to
+    #: rounding.
     derivatives_are_its_own: bool = False
     #: Its preparation derives the equations within a time budget: its option ``budget`` (``--budget``,
     #: ``Limits.budget``), estimated and refused before the derivation starts.
@@ -144,7 +145,6 @@ METHODS: dict[str, MethodSpec] = {
             fit_rank=2,
             paper_goal_rank=1,
             composes_within_budget=True,
-            derivatives_are_its_own=True,
         ),
         MethodSpec(
             "matrix-factored",
@@ -157,7 +157,6 @@ METHODS: dict[str, MethodSpec] = {
             kernels=MATRIX_FACTORED_KERNELS,
             fit_rank=0,
             paper_goal_rank=0,
-            derivatives_are_its_own=True,
         ),
         MethodSpec(
             "matrix-paper",
@@ -181,7 +180,6 @@ METHODS: dict[str, MethodSpec] = {
             kernels=RECURRENCE_KERNELS,
             fit_rank=4,
             composes_within_budget=True,
-            derivatives_are_its_own=True,
         ),
         MethodSpec(
             "newton-euler",
@@ -194,6 +192,7 @@ METHODS: dict[str, MethodSpec] = {
             kernels=NEWTON_EULER_KERNELS,
             fit_rank=1,
             own_forward_dynamics=True,
+            derivatives_are_its_own=True,
         ),
         MethodSpec(
             "mujoco",

@@ -27,7 +27,7 @@ def _derivatives(mechanism: Mechanism, method: str) -> Any:
     method_spec = METHODS.get(method)
     source = source_text(
         method,
-        own=method == "newton-euler",  # the passes differentiated are newton-euler's own
+        own=method_spec is not None and method_spec.derivatives_are_its_own,
         known_wrong=method_spec is not None and method_spec.known_wrong is not None,
     )
     return derivatives_of(mechanism, method, source)
