@@ -14,10 +14,8 @@ middle point of zero mass acts at fraction ``n_i`` of the rod all the same. Buil
     Q_a = J_a(q_a)^T F_a,    F_a = sum_k c_ak f_k   (c = 1 beyond rod a, f on rod a itself),
 
 ``F_a`` summed leaves first as Newton-Euler's backward pass sums its ``D`` (:func:`rod_loads`), and
-``J_a^T F`` the projection of :func:`exo_bench.models.newton_euler.elements.project_2d`/``_3d``
-(:func:`project_2d`, :func:`project_3d` here: this module is imported by models/prepared.py, which
-models/newton_euler imports, so it cannot import that package; tests/test_external_forces.py holds
-the two bit-identical). One implementation serves every method:
+``J_a^T F`` the projection of :func:`exo_bench.models.rod_elements.project_2d`/``_3d``, the rod
+elements newton-euler's kernels inline too. One implementation serves every method:
 
 * inverse dynamics: ``ID(q, qd, qdd) - Q(q, f_ext)``;
 * forward dynamics: ``FD(q, qd, tau + Q(q, f_ext))``;
@@ -40,20 +38,10 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.rod_elements import project_2d, project_3d
 
 #: The points of every link, in the order of ``f_ext``'s third axis.
 POINTS = ("start", "middle", "end")
-
-
-def project_2d(cf, sf, l, fx, fy):
-    """``J^T F`` of a planar rod (unsigned): elements.project_2d."""
-    return l * (cf * fy - sf * fx), cf * fx + sf * fy
-
-
-def project_3d(cf, sf, cp, sp, l, fx, fy, fz):
-    """``J^T F`` of a spatial rod (unsigned): elements.project_3d."""
-    radial = cf * fx + sf * fy
-    return l * cp * (cf * fy - sf * fx), l * (cp * fz - sp * radial), cp * radial + sp * fz
 
 
 # ----------------------------------------------------------------------------- building and checking

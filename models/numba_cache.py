@@ -50,9 +50,9 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
             *(_MATRIX / "closed_forms" / f for f in ("planar.py", "transitions.py", "factored.py")),
             _HERE / "forward_check.py",
         ),
-        # its kernels inline elements.py, a module of their own folder; forward_fused.py calls the
-        # compiled checks of forward_check.py
-        _HERE / "newton_euler": (_HERE / "forward_check.py",),
+        # its kernels inline the rod elements (rod_elements.py, below every method: external_forces.py
+        # projects with them too); forward_fused.py calls the compiled checks of forward_check.py
+        _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py"),
     }
 )
 

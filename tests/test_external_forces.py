@@ -138,13 +138,3 @@ def test_compiled_equals_numpy():
     for mech in TREES:
         q, _, _, f = _case(mech, 4, 3)
         assert np.array_equal(xf.generalized_forces(mech, q, f), xf.generalized_forces_compiled(mech, q, f))
-
-
-def test_projections_are_newton_eulers():
-    """The projections here are elements.project_2d/_3d (this module cannot import that package)."""
-    from exo_bench.models.newton_euler import elements as el
-
-    rng = np.random.default_rng(0)
-    x = rng.normal(size=(8, 50))
-    assert np.array_equal(xf.project_2d(*x[:5]), el.project_2d(*x[:5]))
-    assert np.array_equal(xf.project_3d(*x), el.project_3d(*x))

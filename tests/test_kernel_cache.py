@@ -1,5 +1,5 @@
 """numba's cache of the kernels is keyed on their whole folder and the shared sources (models/numba_cache.py,
-installed by models/numba_runtime.py): an edit to an element function in models/newton_euler/elements.py,
+installed by models/numba_runtime.py): an edit to an element function in models/rod_elements.py,
 which the kernels of compiled.py inline, recompiles them instead of loading the stale machine code."""
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ import json
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models.newton_euler import compiled, elements
+from exo_bench.models import rod_elements as elements
+from exo_bench.models.newton_euler import compiled
 m = prepare(presets.exo5(dim=3), "newton-euler")
 q = np.linspace(0.1, 0.9, m.dof)
 tau = m.inverse_dynamics(q, q, q, check=False)
@@ -26,12 +27,12 @@ print(json.dumps({"file": elements.__file__, "tau": tau.tolist(), "numpy": ref.t
 
 def test_an_edit_to_a_newton_euler_element_recompiles_its_kernel(tmp_path, warm_package):
     """In a copy of the package: run the compiled newton-euler kernel (cached), edit ``project_3d``
-    (elements.py, not the kernel's file), run again: a cache miss, and the forces of the edited numpy
+    (rod_elements.py, not the kernel's file), run again: a cache miss, and the forces of the edited numpy
     reference, not the stale machine code's. The copy starts from the session's warm template."""
     pkg, probe = package_copy_prober(tmp_path, _PROBE, template=warm_package)
     before = probe()  # loads from the copy's cache
     assert before["hits"] >= 1 and before["misses"] == 0, before
-    elements_py = pkg / "models" / "newton_euler" / "elements.py"
+    elements_py = pkg / "models" / "rod_elements.py"
     text = elements_py.read_text()
     old = "    return l * cp * (cf * fy - sf * fx), l * (cp * fz - sp * radial), cp * radial + sp * fz\n"
     assert text.count(old) == 1

@@ -3,7 +3,7 @@
 Counted like :func:`exo_bench.bench.perf.roofline_simd.count_simd`: the kernel's own steps (their
 ``py_func``: the forward pass with its start points, the backward pass) run one sample on arrays of
 :class:`exo_bench.bench.perf.roofline.Counted` numbers, with the element functions of
-models/newton_euler/elements.py and the branch-free ``sin``/``cos``
+models/rod_elements.py and the branch-free ``sin``/``cos``
 (:func:`exo_bench.models.fast_trig.sincos_reduced`, whose ``floor`` counts as one flop) as they are:
 every ``+``, ``-``, ``*`` and ``floor`` of the code that runs is counted, the arithmetic sine and
 cosine included, and the per-mechanism numbers are counted numbers too (so a root's ``eta * 0``

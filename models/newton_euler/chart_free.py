@@ -87,7 +87,7 @@ def paper_coordinates(
     of a rod outside the chart are NaN and its mask entry False.
 
     ``u = s r / l``; ``phi = atan2(u_y, u_x)``, ``psi = atan2(u_z, |u_xy|)`` (3D); rates by ``J^-1 v``
-    (:func:`exo_bench.models.newton_euler.elements.rates_3d`). The chart has two branches in 3D, ``(phi, psi)`` and
+    (:func:`exo_bench.models.rod_elements.rates_3d`). The chart has two branches in 3D, ``(phi, psi)`` and
     ``(phi + pi, pi - psi)`` (the same ``u``), and ``phi`` is defined modulo ``2 pi``: without ``near``
     ``psi`` is in ``[-pi/2, pi/2]`` and ``phi`` in ``(-pi, pi]``; with ``near`` (``(S, dof)``, e.g. the
     previous step or a reference motion) each rod takes the branch and the turn closest to it."""

@@ -1,7 +1,7 @@
 """The Newton-Euler method, compiled (numba): the same passes as :mod:`exo_bench.models.newton_euler.passes`,
 as loops over the links of one sample.
 
-Per sample the kernels call the very element functions of :mod:`exo_bench.models.newton_euler.elements`
+Per sample the kernels call the very element functions of :mod:`exo_bench.models.rod_elements`
 (registered with ``register_jitable``), so nothing physical is written twice; tests/test_newton_euler.py
 holds them to the numpy reference. The layout follows the matrix family
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 from numba.extending import register_jitable
 
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 
 ensure()  # numba's runtime set-up (models/numba_runtime.py), before the kernels below are defined

@@ -30,7 +30,7 @@ J_j' qd_j`` (a function of ``q_j, qd_j, qdd_j`` only) and ``tau_i = J_i(q_i)^T F
 the signs ``s_i s_j`` inside ``J`` and ``a``. Per rod, the ``dim x dim`` blocks ``da_j/dq_j``,
 ``da_j/dqd_j``, ``J_j`` and ``d(J_i^T F)/dq_i`` come from the rod elements
 (:mod:`exo_bench.models.newton_euler.derivative_elements`, which reuses
-:mod:`exo_bench.models.newton_euler.elements`); ``F_i`` from the two passes; every output block is then
+:mod:`exo_bench.models.rod_elements`); ``F_i`` from the two passes; every output block is then
 ``mu_ij J_i^T Y_j``, ``3 dim^2`` dot products of length ``dim``. ``mu_ij = 0`` unless ``i`` and ``j`` lie
 on one root path: a branched tree's blocks off those paths are zero.
 

@@ -8,7 +8,7 @@ Per sample:
    (:func:`exo_bench.models.newton_euler.compiled._inverse_sample`, into a scratch ``tau``): each link's row
    of ``W`` then holds its cosines and sines, ``kappa``, ``A`` (with ``g up``) and the finished subtree sum
    ``D``, from which ``F_k = eta A_k + zeta kappa_k + D_k``
-   (:func:`exo_bench.models.newton_euler.elements.rod_force`) is recomputed bit for bit;
+   (:func:`exo_bench.models.rod_elements.rod_force`) is recomputed bit for bit;
 2. **per rod** the signed columns of :mod:`.derivative_elements` into the rows of ``Y``: row
    ``(kind dim + d) dim + e``, column ``j`` holds component ``e`` of column ``d`` of ``s_j J_j`` (kind 0),
    ``s_j da_j/dq_j`` (1) or ``s_j da_j/dqd_j`` (2); ``s_i d(J_i^T F_i)/dq_i`` into ``P``;
@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit, prange
 
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
 from exo_bench.models.numba_cache import inline
 from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure

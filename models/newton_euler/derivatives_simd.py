@@ -11,7 +11,7 @@ Per block, one driver for 2D and 3D (``dim`` chooses the forward pass):
    ``A`` are copied aside (the backward pass writes ``tau`` over them), the backward pass, which leaves
    the finished subtree sums ``D`` in the rows ``F0..F2``;
 2. **per rod**, each sample a lane: ``F_k = eta A_k + zeta kappa_k + D_k`` recomputed bit for bit
-   (:func:`exo_bench.models.newton_euler.elements.rod_force`) and the signed columns of
+   (:func:`exo_bench.models.rod_elements.rod_force`) and the signed columns of
    :mod:`.derivative_elements` into ``Y`` (row ``r`` of link ``k`` at ``(r n + k) B``: the rows of
    :mod:`.derivatives_compiled`, one lane per sample) and ``P``;
 3. **the blocks** ``mu_ij J_i^T Y_j``, each output entry for the ``B`` samples of the block in one
@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.newton_euler import simd
 from exo_bench.models.numba_cache import inline
 from exo_bench.models.numba_runtime import JIT, ensure

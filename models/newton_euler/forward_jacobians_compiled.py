@@ -16,7 +16,7 @@ from numba import njit, prange
 
 from exo_bench.models.newton_euler import derivatives_compiled  # noqa: F401 - registers the derivative elements
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK
 
 

@@ -2,8 +2,8 @@
 
 ``M = J^T (mu (x) I) J`` with ``J = blockdiag(s_i J_i(q_i))`` and the constant coupling ``mu`` factored
 once (:mod:`exo_bench.models.mass_factor`), so ``M^-1 b = J^-1 mu^-1 J^-T b``: per column the loads
-``J_i^-T b_i`` (:func:`exo_bench.models.newton_euler.elements.unproject_3d`), the tree solve with ``mu``
-(three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.newton_euler.elements.rates_3d`):
+``J_i^-T b_i`` (:func:`exo_bench.models.rod_elements.unproject_3d`), the tree solve with ``mu``
+(three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.rod_elements.rates_3d`):
 O(n) per column, O(n k) for ``k`` columns, O(n^2) for the ``(dof, dof)`` Jacobians of forward dynamics
 (:mod:`exo_bench.models.derivatives`). It is forward dynamics at ``qd = 0`` and ``g = 0``, where the
 bias ``J' q'`` and the weight vanish exactly.
@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.compiled import _MULT, _PARENT, _PIVOT, _SIGN  # also registers the elements
 from exo_bench.models.newton_euler.tree import Tree

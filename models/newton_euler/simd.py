@@ -12,14 +12,14 @@ with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
    per sample against 88, 1778 and 20,300 with the loops alone);
 2. **forward pass, roots first**, one loop over the samples per link ``k``: ``sin``/``cos`` of its
    angles in branch-free arithmetic (:func:`exo_bench.models.fast_trig.sincos_reduced`), the rod's
-   ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.newton_euler.elements.rod_acceleration_3d`), its
+   ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.rod_elements.rod_acceleration_3d`), its
    start point's acceleration with gravity ``A_k = A_p + kappa_p`` (``g up`` at a root) and ``D_k =
    0``. The angles of link ``k`` beyond the arithmetic's range (and NaN) are then redone with libm
    by a scalar loop that only they enter, before any child reads ``kappa_k``. The trig loops are
    ``matrix-factored``'s too (:mod:`exo_bench.models.simd_angles`); one source serves 2D and 3D
    (``forward_for(dim)`` in :func:`build`, ``dim`` a constant of its closure);
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
-   kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.newton_euler.elements.project_3d`),
+   kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.rod_elements.project_3d`),
    written over ``A_k`` (no longer read);
 4. **transpose out** into the user's ``(samples, dof)`` result (the same tiles, the other way).
 
@@ -65,7 +65,7 @@ from types import SimpleNamespace
 from numba.extending import register_jitable
 
 from exo_bench.models import simd_angles
-from exo_bench.models.newton_euler import elements as el
+from exo_bench.models import rod_elements as el
 from exo_bench.models.numba_runtime import jit_for
 from exo_bench.models.simd_angles import states_2d, states_3d
 from exo_bench.models.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
