@@ -281,7 +281,11 @@ def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
     assert "interrupted" in err
     gone, alive = psutil.wait_procs(list(seen.values()), timeout=600)  # a safety net: they exit in seconds
     assert not alive, f"left behind: {[(p.pid, p.cmdline()) for p in alive]}"
-    assert not (tmp_path / "reports").exists() or not any((tmp_path / "reports").iterdir())
+    # no report published; the sweep's checkpoints (hidden, inside the folder since issue 38) may stay
+    from exo_bench.bench.cluster.checkpoints import CHECKPOINTS
+
+    reports = tmp_path / "reports"
+    assert not reports.exists() or not [p.name for p in reports.iterdir() if p.name != CHECKPOINTS]
 
 
 def test_rows_of_the_fast_methods_alone_start_at_once_and_the_peers_rows_stay_chained():
