@@ -99,21 +99,50 @@ def test_the_handlers_are_restored_after_main():
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
 
 
-# The child: IPOPT's third iteration delivers SIGNAL to this process (from IPOPT's callback, as a
-# Ctrl-C typed then would be handled).
+# The child: IPOPT's third iteration delivers SIGNAL to this process (from IPOPT's iteration callback,
+# as a Ctrl-C typed then would be handled): every nlpsol the command builds gets the callback.
 _GAIT = """
 import os, signal, sys
 import casadi
-real = casadi.Opti.solve
 
-def solve(self):
-    def at_iteration(i):
-        if i == 2:
+class AtIteration(casadi.Callback):
+    def __init__(self, sizes):
+        casadi.Callback.__init__(self)
+        self.sizes, self.calls = sizes, 0
+        self.construct("at_iteration", {{}})
+
+    def get_n_in(self):
+        return casadi.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return casadi.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        n = self.sizes[casadi.nlpsol_out(i)]
+        return casadi.Sparsity.scalar() if n is None else casadi.Sparsity.dense(n, 1)
+
+    def eval(self, arg):
+        self.calls += 1
+        if self.calls == 3:
             os.kill(os.getpid(), signal.{signal})
-    self.callback(at_iteration)
-    return real(self)
+        return [0]
 
-casadi.Opti.solve = solve
+real, alive = casadi.nlpsol, []
+
+def nlpsol(name, solver, nlp, opts):
+    nx, ng = nlp["x"].numel(), nlp["g"].numel()
+    np_ = nlp["p"].numel() if "p" in nlp else 0
+    sizes = {{"x": nx, "f": None, "g": ng, "lam_x": nx, "lam_g": ng, "lam_p": np_}}
+    alive.append(AtIteration(sizes))
+    return real(name, solver, nlp, {{**opts, "iteration_callback": alive[-1]}})
+
+casadi.nlpsol = nlpsol
 from exo_bench.bench.cli import app
 sys.exit(app.main(["gait", "--solve", "--dim", "2"]))
 """
