@@ -164,21 +164,21 @@ def human(dim: int = 2, body_mass: float = 56.7, stature: float = 1.75) -> Mecha
 
     Links (models/anthropometry.py gives the numbers and their sources):
 
-    1. ``root``: a massless rod from the support point O to the hips. Its angle(s) and length are the
-       hips' position, so the model is free to move: O carries no load when the root's generalised
-       forces are zero, and every ground force goes through contact (``f_ext``).
-    2. ``hat``: head, arms and trunk, from the hips (greater trochanter) up to the top of the head.
-    3-5, 7-9. ``right_thigh``, ``right_leg``, ``right_foot`` and the left ones: thigh (hip to knee),
-       leg (knee to ankle), and Winter's foot segment (ankle to the head of metatarsal II, the toe's
-       contact point, its end mass). They hang from their parents with ``sign = -1``, so their angles
-       are Winter's segment angles (of the vector from the distal to the proximal joint).
-    6, 10. ``right_heel``, ``left_heel``: a short rod from the ankle back to the heel's contact
-       point (its end mass). The heel is a rod of its own because a rod starts at its parent's end
-       point: the ankle, not the heel, must end the leg for the ankle moment to be Winter's. The
-       heel and foot rods' relative angle is a joint the foot's tissue holds (a stiff "arch"
-       moment in simulation, a constraint in collocation). It carries 10 % of the foot's mass,
-       taken from the foot rod's ankle mass, so the foot's total is Winter's; the foot's centre of
-       mass moves 0.1 x 0.049 H (8 mm at 1.75 m) towards the heel.
+    * link 1, ``root``: a massless rod from the support point O to the hips. Its angle(s) and length are the
+      hips' position, so the model is free to move: O carries no load when the root's generalised
+      forces are zero, and every ground force goes through contact (``f_ext``).
+    * link 2, ``hat``: head, arms and trunk, from the hips (greater trochanter) up to the top of the head.
+    * links 3-5 and 7-9, ``right_thigh``, ``right_leg``, ``right_foot`` and the left ones: thigh (hip to knee),
+      leg (knee to ankle), and Winter's foot segment (ankle to the head of metatarsal II, the toe's
+      contact point, its end mass). They hang from their parents with ``sign = -1``, so their angles
+      are Winter's segment angles (of the vector from the distal to the proximal joint).
+    * links 6 and 10, ``right_heel``, ``left_heel``: a short rod from the ankle back to the heel's contact
+      point (its end mass). The heel is a rod of its own because a rod starts at its parent's end
+      point: the ankle, not the heel, must end the leg for the ankle moment to be Winter's. The
+      heel and foot rods' relative angle is a joint the foot's tissue holds (a stiff "arch"
+      moment in simulation, a constraint in collocation). It carries 10 % of the foot's mass,
+      taken from the foot rod's ankle mass, so the foot's total is Winter's; the foot's centre of
+      mass moves 0.1 x 0.049 H (8 mm at 1.75 m) towards the heel.
 
     Every segment's three masses reproduce its mass, centre of mass and moment of inertia across
     the rod (:func:`exo_bench.models.anthropometry.point_masses`). Defaults: the normative subject

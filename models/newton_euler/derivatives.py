@@ -22,7 +22,7 @@ kernel for one sample and the batched one otherwise.
 psi, l)``) and ``r_i = s_i l_i u_i(q_i)`` depends on ``q_i`` only. With the constant coupling ``mu``
 (:func:`exo_bench.models.aggregates.coupling`) ``T = 1/2 sum_ij mu_ij r_i'.r_j'``, so the rod force that
 the backward pass accumulates is ``F_i = sum_j mu_ij a_j + nu_i g up`` with ``a_j = r_j'' = J_j qdd_j +
-J_j' qd_j`` (a function of ``q_j, qd_j, qdd_j`` only) and ``tau_i = J_i(q_i)^T F_i``. Differentiating,
+J_j' qd_j`` (a function of ``q_j, qd_j, qdd_j`` only) and ``tau_i = J_i(q_i)^T F_i``. Differentiating::
 
     dtau_i/dq_j  = delta_ij d(J_i^T F)/dq_i |_{F = F_i} + mu_ij J_i^T da_j/dq_j,
     dtau_i/dqd_j = mu_ij J_i^T da_j/dqd_j,          M_ij = mu_ij J_i^T J_j,

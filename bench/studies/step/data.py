@@ -45,7 +45,7 @@ SOLVE_TOL = 1e-12
 #:
 #: Error model. IPOPT stops at a scaled KKT error ``tol`` (``constr_viol_tol`` 1e-10), not at the optimum
 #: x*: its distance from x* is what the conditioning of the KKT system at x* makes of that error, measured
-#: here rather than computed (issue 36, exo5-2d and exo5-3d, max |dq| of a solve at ``tol`` against one at
+#: here rather than computed (issue 36, exo5-2d and exo5-3d, max ``|dq|`` of a solve at ``tol`` against one at
 #: 1e-12, itself about 1e-8 from x* by the model below): ``tol`` 1e-8: 7.5e-7 (2D), 9.7e-7 (3D); 1e-10:
 #: 1.3e-7 (both). 100x
 #: tighter moves it only about 6x: ``|x(tol) - x*| ~ C sqrt(tol)`` with C about 1e-2, as for an interior
@@ -59,7 +59,7 @@ SOLVE_TOL = 1e-12
 #: Hence the steps are stored from a solve at :data:`SOLVE_TOL` = 1e-12 and re-solved at it (3-5
 #: iterations more than at 1e-8): C sqrt(1e-12) is about 1e-8. Measured: a re-solve from starts
 #: perturbed by 1e-9 (relative, seeded: other roundings, other paths) lands 2.4e-11, 2.0e-10 and 6.4e-10
-#: (2D, 3 seeds), 1.9e-10 and 2.2e-10 (3D, 2 seeds) from the stored step, |dT| <= 4.1e-11 s; unperturbed,
+#: (2D, 3 seeds), 1.9e-10 and 2.2e-10 (3D, 2 seeds) from the stored step, ``|dT|`` <= 4.1e-11 s; unperturbed,
 #: on this host, 0. The bound, with the model's ~1e-8 for each of the two solves and a factor of 50 for
 #: what a machine's roundings may do beyond the seeded ones, is 1e-6: about 1500x the largest measured
 #: distance. It is checked only on T and q (qd and qdd are less

@@ -38,7 +38,7 @@ sessions, load about 10): 55 iterations; 4.4-4.7 s user + 1.1 s system CPU (IPOP
 which 0.7 s the Hessian, 0.1 s the Jacobian), median wall of 3 runs 21.6 s (IPOPT 14.3 s of it). The Opti
 form on the same host: 81 iterations, 14.4 s CPU (14.8 s wall at load 0.9, 27-46 s at load 7-10). Under
 that load the wall time says little: the goal of 5 s wall on an idle host is not measured here. The stored
-steps are reproduced (3D: max |dq| 4.6e-7, |dT| 1.4e-8; 2D: 1.5e-7; the tolerance is 1e-6; which of the
+steps are reproduced (3D: max ``|dq|`` 4.6e-7, ``|dT|`` 1.4e-8; 2D: 1.5e-7; the tolerance is 1e-6; which of the
 nearby iterates IPOPT stops at moves with the roundings: 1.5e-7 to 9.5e-7 in 2D over this file's
 versions) and every constraint, re-evaluated in numpy, holds to 2e-11. Those were steps stored at IPOPT's
 tol 1e-8; they are now stored and re-solved at 1e-12 (60-63 iterations), the error model in
