@@ -80,10 +80,20 @@ def _pinocchio_attributes(path: Path) -> set[str]:
     return used
 
 
+#: The one call of a forbidden function that is meant: the derivatives benchmark's Pinocchio row calls it to
+#: record Pinocchio's own refusal of mimic joints (issue 36), never to use an answer.
+TO_RECORD_THE_REFUSAL = {"bench/perf/derivative_routes.py": {"computeRNEADerivatives"}}
+
+
 def test_the_library_calls_no_function_refused_or_wrong_on_mimic_models():
     files = [p for d in LIBRARY for p in (ROOT / d).rglob("*.py")]
     assert len(files) > 30
-    hits = {str(p.relative_to(ROOT)): sorted(_pinocchio_attributes(p) & set(FORBIDDEN)) for p in files}
+    hits = {
+        (rel := str(p.relative_to(ROOT))): sorted(
+            _pinocchio_attributes(p) & set(FORBIDDEN) - TO_RECORD_THE_REFUSAL.get(rel, set())
+        )
+        for p in files
+    }
     assert {k: v for k, v in hits.items() if v} == {}
     assert "rnea" in _pinocchio_attributes(ROOT / "models" / "pinocchio_backend.py")  # the scan sees real uses
 
