@@ -93,13 +93,19 @@ def budget_arg(text: str) -> float:
     return value
 
 
-def workers_arg(text: str) -> int:
+def at_least_one(text: str, plural: str, singular: str) -> int:
+    """``text`` as a whole number of at least 1, else argparse's error naming ``plural``/``singular``."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of worker processes, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a whole number of {plural}, got {text!r}") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"expected at least 1 worker, got {value}")
+        raise argparse.ArgumentTypeError(f"expected at least 1 {singular}, got {value}")
+    return value
+
+
+def workers_arg(text: str) -> int:
+    value = at_least_one(text, "worker processes", "worker")
     from exo_bench.models.resource_counts import count_problem
 
     problem = count_problem(value, "worker processes")  # the bound of every count (issue 34, L3)

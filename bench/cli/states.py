@@ -15,7 +15,7 @@ import argparse
 
 import numpy as np
 
-from exo_bench.bench.cli.arguments import described
+from exo_bench.bench.cli.arguments import at_least_one, described
 
 #: Example states are for reading and copying: a default that prints in a screen.
 DEFAULT_SAMPLES = 10
@@ -47,13 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of samples, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected at least 1 sample, got {value}")
-    return value
+    return at_least_one(text, "samples", "sample")
 
 
 def check_memory(samples: int, dof: int, npz: bool) -> None:
