@@ -1,0 +1,177 @@
+"""The stride's comparison with Winter, its actuator-sizing table, report and figures (issue 37).
+
+Oracles: hand-computed r and RMS; the trapezoidal integral of the samples (the resampling keeps it to
+rounding: a few ulps of the summed |values|); Winter's stride fed through the model's actuator split
+(generalised forces built from his joint moments, rates from his segment velocities) must come back as
+his own curves (r = 1, RMS error at rounding), which checks the sign convention end to end; rod and joint
+work of hand-built motions (constant force over a stroke).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from exo_bench.bench.studies.stride import comparison as cmp
+from exo_bench.bench.studies.stride import winter
+from exo_bench.bench.studies.stride.data import StoredStride
+from exo_bench.bench.studies.stride.sizing import sizing
+from exo_bench.models.normative import G, WINTER
+from exo_bench.models.presets import human, human_standing
+
+EPS = float(np.finfo(float).eps)
+MOTORS = {"hip": ("right_thigh", "hat"), "knee": ("right_leg", "right_thigh"), "ankle": ("right_foot", "right_leg")}
+
+
+@pytest.fixture(scope="module")
+def mech():
+    return human(2)
+
+
+def winter_stride(mech, moment_scale: float = 1.0, telescopic=("right_leg",)) -> StoredStride:
+    """Winter's stride as a stored stride of the 2D human: his right segment angles and velocities, his joint
+    moments as generalised forces (``+M`` on the link, ``-M`` on its reference), his ground force."""
+    tab = winter.table()
+    K, ix = len(tab["t"]), mech.names.index
+    q = np.repeat(human_standing(mech), K, axis=0)
+    qd = np.zeros_like(q)
+    for seg, link in cmp.SEGMENTS:
+        q[:, ix(link)] = np.radians(tab[seg])
+        qd[:, ix(link)] = tab[f"w_{seg}"]
+    tau = np.zeros_like(q)
+    for j, (link, ref) in MOTORS.items():
+        tau[:, ix(link)] += moment_scale * tab[f"{j}_m"]
+        tau[:, ix(ref)] -= moment_scale * tab[f"{j}_m"]
+    grf = np.zeros((K, 2, 2))
+    grf[:, 0] = np.stack([tab["grf_x"], tab["grf_y"]], axis=1)
+    meta = {
+        "variant": "human",
+        "speed": 1.41,
+        "stride_length": 1.392,
+        "body_weight": winter.MASS * G,
+        "settings": {},
+        "telescopic": list(telescopic),
+        "solver": {"solve_seconds": 12.5, "iterations": 40},
+    }
+    zeros = np.zeros((K, mech.nlinks - 1))
+    return StoredStride(
+        t=tab["t"],
+        q=q,
+        qd=qd,
+        qdd=np.zeros_like(q),
+        tau=tau,
+        moments=np.zeros((K, 8)),
+        rod_forces=zeros,
+        residuals=np.zeros((K, 3)),
+        contact=np.zeros((K, 4, 2)),
+        grf=grf,
+        meta=meta,
+    )
+
+
+def test_r_and_rms_against_hand_computed_cases():
+    a = np.array([1.0, 2.0, 3.0])
+    assert cmp.pearson(a, 2 * a + 5) == pytest.approx(1.0, abs=4 * EPS)
+    assert cmp.pearson(a, -a) == pytest.approx(-1.0, abs=4 * EPS)
+    assert cmp.pearson(np.array([1.0, 0, -1, 0]), np.array([0.0, 1, 0, -1])) == 0.0  # quarter period apart
+    assert np.isnan(cmp.pearson(a, np.ones(3)))
+    c = cmp.Curve("x", "u", np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.0, 5.0]))
+    assert c.rms_error == pytest.approx(np.sqrt(4 / 3), rel=4 * EPS)
+    assert c.winter_rms == pytest.approx(np.sqrt(30 / 3), rel=4 * EPS)
+    # r of (1, 2, 3) with (1, 2, 5): cov 4 / sqrt(2 * 8.667)
+    assert c.r == pytest.approx(4 / np.sqrt(2 * 26 / 3), rel=8 * EPS)
+
+
+@pytest.mark.parametrize("start", [0.0, 0.137, 0.5, 0.999])
+def test_resampling_keeps_the_integral_over_the_cycle(start):
+    rng = np.random.default_rng(7)
+    t = np.concatenate([[0.0], np.sort(rng.uniform(0, 1.0, 40)), [1.0]])
+    y = rng.normal(size=(len(t), 3))
+    y[-1] = y[0]  # one period: the last sample is the first again
+    means = cmp.cycle_means(t, y, start, 1.0, bins=100)
+    exact = np.trapezoid(y, t, axis=0)
+    scale = np.abs(y).sum(axis=0) * 1.0
+    assert np.all(np.abs(means.sum(axis=0) / 100 - exact) <= 64 * EPS * scale)
+
+
+def test_resampling_of_a_ramp_is_each_bins_midpoint():
+    t = np.linspace(0.0, 2.0, 3)
+    means = cmp.cycle_means(t, 3.0 * t, 0.0, 2.0, bins=4)  # y = 3t on [0, 2]
+    assert means == pytest.approx([0.75, 2.25, 3.75, 5.25], rel=4 * EPS)
+
+
+def test_gait_events_are_the_threshold_crossings():
+    t = np.linspace(0.0, 1.0, 1001)
+    fy = np.where((t > 0.3) & (t < 0.9), np.sin(np.pi * (t - 0.3) / 0.6), 0.0)  # stance 0.3 .. 0.9
+    hs, to = cmp.gait_events(t, fy, weight=1.0, threshold=0.5)
+    assert hs == pytest.approx(0.3 + 0.6 / 6, abs=1e-6) and to == pytest.approx(0.9 - 0.6 / 6, abs=1e-6)
+    with pytest.raises(ValueError, match="never touches"):
+        cmp.gait_events(t, 0 * fy, weight=1.0)
+
+
+def test_double_hump_finds_two_peaks_and_the_valley_between():
+    x = np.array([0.0, 1.1, 0.9, 0.6, 0.8, 1.05, 0.2])
+    (a, b), valley = cmp.double_hump(x)
+    assert a == (1, 1.1) and b == (5, 1.05) and valley == (3, 0.6)
+    assert cmp.double_hump(np.array([0.0, 1.0, 0.0]))[1] is None
+
+
+def test_winters_stride_through_the_actuators_is_winters_curves(mech):
+    """His moments in as generalised forces, out through actuators.actuators: the same curves (no relabelling)."""
+    c = cmp.compare(mech, winter_stride(mech), start=0.0)
+    for key, curve in c.curves.items():
+        assert curve.r == pytest.approx(1.0, abs=1e-12), key
+        assert curve.rms_error <= 1e-12 * max(1.0, curve.winter_rms), key
+    assert all(v.passed for v in c.verdicts), c.verdicts
+    assert c.stance[1] == pytest.approx(100 * 42 / 69, rel=1e-3)  # frames 28-70 of 28-97
+    peaks = {n: (o, w) for n, o, w in c.peaks}
+    o, w = peaks["ankle moment, stance, |max|"]
+    assert o == pytest.approx(w) and w == pytest.approx(WINTER.moments["ankle, stance"].value, abs=0.02)
+    assert "ankle moment, swing, |max|" not in peaks  # below COMPARABLE of the curve's largest
+
+
+def test_failed_targets_state_their_computed_evidence(mech):
+    c = cmp.compare(mech, winter_stride(mech, moment_scale=-3.0), start=0.0)
+    v = {x.name.split(":")[0].split(" ")[0]: x for x in c.verdicts}
+    assert not v["every"].passed and "ankle moment, stance, |max|: 3.00x" in v["every"].measured
+    assert not v["hip,"].passed and "ankle r = -1.00" in v["hip,"].measured
+    assert v["vertical"].passed  # the ground force is Winter's
+
+
+def test_sizing_energy_equals_the_actuators_work(mech):
+    """A rod pushing with 500 N over a 2 cm stroke does 10 J; a knee holding 30 N·m while flexing 0.5 rad, -15 J."""
+    K, ix, n = 51, mech.names.index, mech.nlinks
+    t = np.linspace(0.0, 1.0, K)
+    s = winter_stride(mech)
+    q = np.repeat(human_standing(mech), K, axis=0)
+    qd = np.zeros_like(q)
+    leg, thigh = ix("right_leg"), ix("right_thigh")
+    q[:, n + leg] += 0.02 * t**2
+    qd[:, n + leg] = 0.04 * t
+    q[:, leg] -= 0.5 * t
+    qd[:, leg] = -0.5
+    tau = np.zeros_like(q)
+    tau[:, n + leg] = 500.0
+    tau[:, leg], tau[:, thigh] = 30.0, -30.0
+    fields = {k: getattr(s, k) for k in ("moments", "rod_forces", "residuals", "contact", "grf")}
+    fields = {k: np.resize(v, (K, *v.shape[1:])) for k, v in fields.items()}
+    stride = StoredStride(t=t, q=q, qd=qd, qdd=0 * q, tau=tau, meta=s.meta, **fields)
+    rows = {r.actuator: r for r in sizing(mech, stride).rows}
+    assert set(rows) == {"right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle", "right_leg"}
+    rod, knee = rows["right_leg"], rows["right_knee"]
+    assert (rod.energy_positive, rod.energy_negative) == pytest.approx((500 * 0.02, 0.0), abs=1e-9)
+    assert (rod.peak, rod.rms, rod.power_max) == pytest.approx((500.0, 500.0, 20.0))
+    assert (knee.energy_positive, knee.energy_negative) == pytest.approx((0.0, 15.0), abs=1e-9)
+    assert knee.power_min == pytest.approx(-15.0) and rows["right_hip"].peak == 0.0
+
+
+def test_sizing_of_winters_stride_balances_with_the_integral_of_power(mech):
+    s = winter_stride(mech)
+    z = sizing(mech, s)
+    assert (z.solve_seconds, z.iterations, z.speed) == (12.5, 40, 1.41)
+    P = winter.joint_powers()
+    for j in ("hip", "knee", "ankle"):
+        r = next(r for r in z.rows if r.actuator == f"right_{j}")
+        net = np.trapezoid(P[j], s.t)
+        assert r.energy_positive - r.energy_negative == pytest.approx(net, abs=1e-9 * np.abs(P[j]).sum())
+        assert r.peak == pytest.approx(np.abs(winter.table()[f"{j}_m"]).max())
