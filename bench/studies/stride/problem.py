@@ -1,0 +1,251 @@
+"""The predicted stride of the 2D human with feet (issue 37): settings, initial guess, solve.
+
+**What is solved.** Half a stride, from the right heel's touchdown to the left's, with a left/right
+symmetry constraint (the end is the start mirrored, the hips half a stride on): the full stride is the
+half and its mirror image (:func:`exo_bench.bench.studies.stride.coordinates.full_stride`), which is what
+is stored. Contact-implicit: the heels and toes meet the floor through the smooth contact of
+:mod:`exo_bench.models.contact` at every node, with no mode schedule, so double support, heel strike and
+push-off are whatever the optimum makes of the feet. Prescribed average speed ``v``: the hips advance
+``v T`` in the half stride's duration ``T`` (free within :attr:`StrideSettings.period`). Dynamics: the
+model's inverse dynamics with the contact forces equal the actuators' forces, with zero residuals on
+HAT and the root (:mod:`exo_bench.bench.studies.stride.transcription`).
+
+**Objective** (:class:`StrideSettings`): actuator work per metre over body weight, positive work priced
+``w_positive``, negative ``w_negative`` (``|P|`` smoothed as :func:`~.actuators.work_terms` does, with
+``eps_power``), over the six sagittal joints and the four telescopic rods; plus effort, the mean over the
+stride of ``w_moment sum (M_j / m)^2`` (N·m/kg) over the six joints, ``w_force sum (F / BW)^2`` over the
+telescopic rods and a small ``w_accel sum qdd^2``.
+
+**Actuator specifications** (:data:`EXO_STROKE`, :data:`EXO_RATE`): the "exo" variant's telescopic rods
+may move ±5 cm about the anthropometric length at up to 0.5 m/s; the "human" variant holds them within
+:data:`HUMAN_STROKE` (1 cm) of it, at the same rate bound.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from exo_bench.bench.output.interrupts import check as check_interrupt
+from exo_bench.bench.studies.stride import data
+from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
+from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.mechanism import Mechanism
+
+DEG = math.pi / 180
+#: The exo variant's telescopic-rod stroke (m, either way about the anthropometric length): a compact
+#: ball-screw linear actuator of the size a leg exoskeleton can carry along a thigh or shank (100 mm travel).
+EXO_STROKE = 0.05
+#: The rods' rate bound (m/s): that actuator's no-load speed.
+EXO_RATE = 0.5
+#: The human variant: leg rods within 1 cm of their rest length (issue 37).
+HUMAN_STROKE = 0.01
+#: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.normative.WINTER`).
+WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
+
+
+def stride_period(speed: float) -> float:
+    """The prescribed stride period at ``speed``: Winter's 0.987 s at 1.41 m/s, and at other speeds the
+    stride frequency in proportion to the square root of the speed (so the stride length grows with it
+    too, as it does in people; an assumption, stated, not fitted). With the period free the optimum
+    walked at the lower bound of its range (0.70 s at 1.41 m/s, 171 steps/min, a flight phase between
+    the stances): nothing in the objective prices what makes people choose their cadence."""
+    return WINTER_PERIOD * math.sqrt(WINTER_SPEED / speed)
+
+
+@dataclass(frozen=True)
+class StrideSettings:
+    """The stride problem's settings (SI units, angles in radians); stored with the solution."""
+
+    variant: str = "human"
+    speed: float = 1.41
+    intervals: int = 50  # trapezoidal intervals of the half stride
+    period: tuple[float, float] = (0.7, 1.6)  # the full stride's duration range (Winter: 0.987 s at 1.41 m/s)
+    stroke: float = HUMAN_STROKE
+    rate: float = EXO_RATE
+    rest_lengths: dict = field(default_factory=dict)  # thigh, leg (m)
+    hip: tuple[float, float] = (-30 * DEG, 60 * DEG)  # thigh minus HAT (flexion positive)
+    knee: tuple[float, float] = (0.0, 90 * DEG)  # thigh minus leg (flexion positive, no hyperextension)
+    ankle: tuple[float, float] = (-35 * DEG, 30 * DEG)  # foot minus leg, from standing (plantarflexion negative)
+    ankle_standing: float = 0.0
+    trunk: tuple[float, float] = (70 * DEG, 110 * DEG)
+    hip_x0: float = 1.0  # the hips' x at t = 0 (m; O is on the floor behind them)
+    w_positive: float = 1.0
+    w_negative: float = 0.5
+    eps_power: float = 1.0  # W
+    w_moment: float = 0.1
+    w_force: float = 0.01
+    w_accel: float = 1e-6
+    tol: float = 1e-10
+    stature: float = 1.75
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> StrideSettings:
+    """Settings of ``variant`` ("human" or "exo") at ``speed``: the rest lengths and the standing ankle
+    taken from :func:`exo_bench.models.posture.balanced_standing`."""
+    from exo_bench.models.posture import balanced_standing
+
+    data.check_variant(variant)
+    data.speed_key(speed)
+    q0 = balanced_standing(mech)[0]
+    n, ix = mech.nlinks, {name: i for i, name in enumerate(mech.names)}
+    rest = {"thigh": float(q0[n + ix["right_thigh"]]), "leg": float(q0[n + ix["right_leg"]])}
+    ankle = float(q0[ix["right_foot"]] - q0[ix["right_leg"]])
+    stroke = HUMAN_STROKE if variant == "human" else EXO_STROKE
+    kw.setdefault("period", (stride_period(speed), stride_period(speed)))
+    return StrideSettings(variant, speed, stroke=stroke, rest_lengths=rest, ankle_standing=ankle, **kw)
+
+
+def settings_from(d: dict) -> StrideSettings:
+    """The settings stored with a stride (JSON: lists back to tuples); a ValueError naming a bad field."""
+    try:
+        return StrideSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+    except TypeError as e:
+        raise ValueError(f"stride: field 'meta.settings': {e}") from None
+
+
+# ----------------------------------------------------------------------------- initial guess
+def _leg(ankle: np.ndarray, hip: np.ndarray, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
+    from exo_bench.bench.studies.step.problem import _two_link
+
+    return _two_link(ankle, hip, a, b)
+
+
+def initial_guess(mech: Mechanism, fm: FreeMap, s: StrideSettings, T: float):
+    """A walk on flat feet: the hips at constant speed 3 cm below standing height, the right foot flat
+    where its heel touched at t = 0, the left foot flat behind for the first fifth, then swung on a 5 cm
+    arch to land a half stride ahead; legs by two-link inverse kinematics, trunk upright. ``(t, z, zd, zdd)``."""
+    from exo_bench.models.posture import balanced_standing
+
+    N = s.intervals
+    t = np.linspace(0.0, T, N + 1)
+    q0 = balanced_standing(mech)[0]
+    n, ix = mech.nlinks, {name: i for i, name in enumerate(mech.names)}
+    P0 = point_mass_positions(mech, q0[None])[0]
+    ankle_above_heel = P0[ix["right_leg"], 2] - P0[ix["right_heel"], 2]
+    D = s.speed * T
+    hip = np.stack([s.hip_x0 + s.speed * t, np.full_like(t, P0[ix["root"], 2, 1] - 0.03)], axis=1)
+    sink = -0.008  # m: a flat foot's two points carry about the body's weight 8 mm deep in the soft floor
+    heel_r = np.array([s.hip_x0 + 0.25 * D, sink])
+    x = np.clip((t / T - 0.2) / 0.8, 0, 1)
+    heel_l = np.stack([heel_r[0] - D + 2 * D * x, sink + 0.05 * np.sin(np.pi * x)], axis=1)
+    q = np.tile(q0, (N + 1, 1))
+    a, b = s.rest_lengths["leg"], s.rest_lengths["thigh"]
+    for side, heel in (("right", np.tile(heel_r, (N + 1, 1))), ("left", heel_l)):
+        leg, thigh = _leg(heel + ankle_above_heel, hip, a, b)
+        q[:, ix[f"{side}_leg"]], q[:, ix[f"{side}_thigh"]] = leg, thigh
+    q[:, ix["hat"]] = math.pi / 2
+    q[:, ix["root"]], q[:, n + ix["root"]] = np.arctan2(hip[:, 1], hip[:, 0]), np.hypot(hip[:, 0], hip[:, 1])
+    z = q[:, fm.free]
+    zd = np.gradient(z, t, axis=0)
+    return t, z, zd, np.gradient(zd, t, axis=0)
+
+
+# ----------------------------------------------------------------------------- the solve
+def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False) -> data.StoredStride:
+    """Solve the half stride and return the full stride as stored (:mod:`~.data`), with the solver's
+    stats in ``meta["solver"]``; ``start``: ``(T, z, zd, zdd)`` of a half stride to start from (the
+    initial guess of :func:`initial_guess` by default). A ``RuntimeError`` (one line) when IPOPT fails."""
+    import casadi as ca
+
+    from exo_bench.bench.studies.stride import transcription
+    from exo_bench.models.posture import balanced_standing
+
+    fm = free_map(mech, balanced_standing(mech))
+    nlp, node, rows = transcription.build(mech, fm, s)
+    if start is None:
+        t0, z0, zd0, zdd0 = initial_guess(mech, fm, s, T=0.5 * stride_period(s.speed))
+        start = (float(t0[-1]), z0, zd0, zdd0)
+    opts: dict[str, Any] = {
+        "ipopt.tol": s.tol,
+        "ipopt.constr_viol_tol": 1e-10,
+        "ipopt.acceptable_iter": 0,
+        "ipopt.max_iter": 3000,
+        "ipopt.mu_strategy": "adaptive",
+        "ipopt.print_level": 5 if verbose else 0,
+        "print_time": verbose,
+        "ipopt.sb": "yes",
+    }
+    solver = ca.nlpsol("stride", "ipopt", nlp.nlp, opts)
+    t_start = time.perf_counter()
+    res = solver(x0=nlp.x0(*start), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    seconds = time.perf_counter() - t_start
+    st = solver.stats()
+    if not st.get("success"):
+        check_interrupt()
+        raise RuntimeError(
+            f"stride: IPOPT did not solve the {s.variant} stride at {s.speed:g} m/s: {st.get('return_status')} "
+            f"after {st.get('iter_count')} iterations ({seconds:.1f} s)"
+        )
+    xv = np.asarray(res["x"], dtype=float).ravel()
+    g = np.asarray(res["g"], dtype=float).ravel()
+    T, z, zd, zdd = nlp.split(xv)
+    viol = max(
+        np.maximum(nlp.lbg - g, 0).max(initial=0.0),
+        np.maximum(g - nlp.ubg, 0).max(initial=0.0),
+        np.maximum(nlp.lbx - xv, 0).max(initial=0.0),
+        np.maximum(xv - nlp.ubx, 0).max(initial=0.0),
+    )
+    stats = {
+        "status": st.get("return_status"),
+        "success": True,
+        "iterations": int(st["iter_count"]),
+        "solve_seconds": seconds,
+        "objective": float(res["f"]),
+        "tol": s.tol,
+        "constr_viol_tol": opts["ipopt.constr_viol_tol"],
+        "constraint_violation": float(viol),
+        "casadi": ca.__version__,  # type: ignore[attr-defined]
+        "half_stride": {"T": T, "z": z.tolist(), "zd": zd.tolist(), "zdd": zdd.tolist()},
+    }
+    return assemble(mech, fm, s, node, rows, np.linspace(0, T, s.intervals + 1), z, zd, zdd, stats)
+
+
+def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.StoredStride:
+    """The stored full stride from the solved half: the mirror, the optimiser's loads at every node."""
+    from exo_bench.bench.studies.stride.actuators import actuators
+
+    T = float(t[-1])
+    tt, q, qd, qdd = full_stride(mech, fm, t, z, zd, zdd, s.speed * T)
+    K = len(tt)
+    Y, tau = (np.asarray(o, dtype=float).T for o in node.map(K)(q.T, qd.T, qdd.T))
+    contact = Y[:, rows.contact].reshape(K, 4, 2)
+    act = actuators(mech, tau)
+    meta = {
+        "variant": s.variant,
+        "speed": s.speed,
+        "period": float(tt[-1]),
+        "stride_length": 2 * s.speed * T,
+        "body_weight": mech.total_mass * mech.g,
+        "joint_names": list(act.joint_names),
+        "rod_names": list(act.rod_names),
+        "telescopic": [r for r in act.rod_names if r.endswith(("_thigh", "_leg"))],
+        "contact_names": [c for c, _ in data.CONTACTS],
+        "feet": list(data.FEET),
+        "settings": s.to_dict(),
+        "solver": stats,
+        "symmetry": "half stride solved (right heel touchdown to left), second half its mirror image",
+    }
+    return data.StoredStride(
+        tt, q, qd, qdd, tau, act.moments, act.forces, act.residuals, contact, data.grf_per_foot(contact), meta
+    )
+
+
+__all__ = [
+    "EXO_RATE",
+    "EXO_STROKE",
+    "HUMAN_STROKE",
+    "StrideSettings",
+    "assemble",
+    "initial_guess",
+    "settings_for",
+    "settings_from",
+    "solve",
+]

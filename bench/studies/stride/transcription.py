@@ -1,0 +1,209 @@
+"""The half stride as an NLP for IPOPT: trapezoidal collocation, contact-implicit, in CasADi SX.
+
+**Variables.** The free coordinates (:mod:`exo_bench.bench.studies.stride.coordinates`) ``z, zd, zdd``
+at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``.
+
+**At every node** (:func:`node_function`, one SX function of ``(q, qd, qdd)``):
+
+* the floor's forces at the heels and toes from their positions and velocities (the smooth contact of
+  :func:`exo_bench.models.contact_casadi.contact_force_expr`: no mode schedule; which points carry the
+  body emerges), their generalised forces ``Q = J_c^T f_c`` (``J_c`` by CasADi's AD of the contact
+  points' positions), and the actuators' generalised forces ``tau = ID(q, qd, qdd) - Q`` with ``ID``
+  the equations' CasADi export (:func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`);
+* ``tau`` split into joint moments, rod forces and residuals by the linear map of
+  :func:`exo_bench.bench.studies.stride.actuators.actuators` (taken from it on the identity, so the
+  split is that function's); the residuals (HAT's angle, the root's angle and length: nothing holds the
+  body up but the floor) are constrained to zero;
+* the actuators' powers and the objective's integrand.
+
+**Constraints.** Trapezoidal defects ``z_{k+1} - z_k = h/2 (zd_k + zd_{k+1})`` and the same for the
+rates; zero residuals at every node; joint ranges (linear); the symmetry (the end is the start mirrored,
+the hips ``v T`` further on at the same height and velocity); the hips' x at ``t = 0`` (the walk is
+invariant to a shift along the floor: it is pinned) and the right heel on the floor at ``t = 0`` (so
+is its phase: ``t = 0`` is the right heel's touchdown). Rod strokes, rod rates, trunk angle and ``T`` are
+variable bounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from exo_bench.bench.studies.stride.actuators import actuators
+from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, FreeMap, mirror_matrix
+from exo_bench.bench.studies.stride.data import contact_mask_order
+from exo_bench.models.contact import DEFAULT_CONTACT
+from exo_bench.models.contact_casadi import contact_force_expr
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.posture import joints
+
+#: The joints the objective prices (the arch is not an actuator: it holds the rigid foot).
+PRICED_JOINTS = tuple(f"{s}_{j}" for s in ("right", "left") for j in ("hip", "knee", "ankle"))
+
+
+@dataclass(frozen=True)
+class Rows:
+    """Where each quantity sits in a node's output vector."""
+
+    residuals: slice
+    moments: slice
+    rod_forces: slice
+    contact: slice
+    hip_p: slice
+    hip_v: slice
+    heel_height: int
+    cost: int
+    size: int
+
+
+def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
+    """``y(q, qd, qdd)``: every nonlinear quantity of one node (module docstring), and its :class:`Rows`."""
+    from exo_bench.bench.studies.step import symbolic
+
+    n, dof, dim = mech.nlinks, mech.dof, 2
+    q, qd, qdd = (ca.SX.sym(x, dof) for x in ("q", "qd", "qdd"))
+    p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
+    at = lambda x, link: x[(3 * link + 2) * dim : (3 * link + 3) * dim]  # noqa: E731  the link's end mass
+    links = contact_mask_order(mech)
+    f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), DEFAULT_CONTACT) for i in links])
+    pc = ca.vertcat(*[at(p, i) for i in links])
+    tau = symbolic.inverse_dynamics_function(mech)(q, qd, qdd) - ca.mtimes(ca.jacobian(pc, q).T, f)
+    eye = actuators(mech, np.eye(dof))  # the split is linear: its matrix, row i the split of e_i
+    moments = ca.mtimes(ca.DM(eye.moments.T), tau)
+    rods = ca.mtimes(ca.DM(eye.forces.T), tau)
+    residuals = ca.mtimes(ca.DM(eye.residuals.T), tau)
+    js = joints(mech)
+    rel = ca.vertcat(*[qd[link] - qd[ref] for link, ref, _ in js])
+    jp = moments * rel
+    tel = [eye.rod_names.index(r) for r in TELESCOPIC]
+    rp = ca.vertcat(*[rods[k] * qd[n + mech.names.index(eye.rod_names[k])] for k in tel])
+    priced = [eye.joint_names.index(j) for j in PRICED_JOINTS]
+    powers = ca.vertcat(*[jp[k] for k in priced], rp)
+    a = ca.sqrt(powers**2 + s.eps_power**2)  # |P| smoothed as actuators.work_terms does
+    work = ca.sum1(s.w_positive * (a + powers) / 2 + s.w_negative * (a - powers) / 2)
+    mass, bw = mech.total_mass, mech.total_mass * mech.g
+    effort = s.w_moment * ca.sumsqr(ca.vertcat(*[moments[k] for k in priced]) / mass)
+    effort += s.w_force * ca.sumsqr(ca.vertcat(*[rods[k] for k in tel]) / bw) + s.w_accel * ca.sumsqr(qdd)
+    root = mech.names.index("root")
+    hip_p, hip_v = at(p, root), at(v, root)
+    heel = at(p, mech.names.index("right_heel"))[1]
+    cost = work / (bw * s.speed) + effort  # per metre of walking over body weight, plus the mean effort
+    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, cost]
+    sizes = np.cumsum([0] + [x.numel() for x in parts])
+    sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
+    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7].start, int(sizes[-1]))
+    return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
+
+
+@dataclass
+class NLP:
+    nlp: dict
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    nz: int
+    N: int
+
+    def x0(self, T: float, z: np.ndarray, zd: np.ndarray, zdd: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.concatenate([z, zd, zdd], axis=1).ravel(), [T]])
+
+    def split(self, x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        x = np.asarray(x, dtype=float).ravel()
+        Z = x[:-1].reshape(self.N + 1, 3 * self.nz)
+        nz = self.nz
+        return float(x[-1]), Z[:, :nz], Z[:, nz : 2 * nz], Z[:, 2 * nz :]
+
+
+def joint_rows(mech: Mechanism, fm: FreeMap, s: Any) -> list[tuple[np.ndarray, float, float]]:
+    """``(a, lo, hi)`` with ``lo <= a . z <= hi``: hip flexion (thigh minus HAT), knee flexion (thigh
+    minus leg) and ankle (foot minus leg, from standing) of both legs."""
+    out = []
+    for side in ("right", "left"):
+        for pos, neg, (lo, hi), off in (
+            ("thigh", "hat", s.hip, 0.0),
+            ("thigh", "leg", s.knee, 0.0),
+            ("foot", "leg", s.ankle, s.ankle_standing),
+        ):
+            a = np.zeros(fm.nz)
+            a[fm.index(f"{side}_{pos} angle")] += 1.0
+            a[fm.index(f"{neg} angle" if neg == "hat" else f"{side}_{neg} angle")] -= 1.0
+            out.append((a, lo + off, hi + off))
+    return out
+
+
+def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]:
+    """The half stride's NLP (module docstring) for settings ``s`` (:class:`~.problem.StrideSettings`)."""
+    node, rows = node_function(mech, s)
+    N, nz = s.intervals, fm.nz
+    x = ca.SX.sym("x", (N + 1) * 3 * nz + 1)
+    Z = ca.reshape(x[:-1], 3 * nz, N + 1)
+    T = x[-1]
+    h = T / N
+    zq, zv, za = Z[:nz, :], Z[nz : 2 * nz, :], Z[2 * nz :, :]
+    E, c = ca.DM(fm.E), ca.DM(fm.c)
+    Y = [node(ca.mtimes(E, zq[:, k]) + c, ca.mtimes(E, zv[:, k]), ca.mtimes(E, za[:, k]))[0] for k in range(N + 1)]
+    g: list = []
+    lb: list = []
+    ub: list = []
+
+    def add(expr, lo, hi) -> None:
+        e = ca.vec(expr)
+        g.append(e)
+        lb.append(np.broadcast_to(np.asarray(lo, dtype=float), (e.numel(),)))
+        ub.append(np.broadcast_to(np.asarray(hi, dtype=float), (e.numel(),)))
+
+    add(zq[:, 1:] - zq[:, :-1] - h / 2 * (zv[:, 1:] + zv[:, :-1]), 0, 0)
+    add(zv[:, 1:] - zv[:, :-1] - h / 2 * (za[:, 1:] + za[:, :-1]), 0, 0)
+    bw = mech.total_mass * mech.g
+    for y in Y:
+        add(y[rows.residuals] / bw, 0, 0)  # in body weights (and body weight x 1 m): scaled as the defects
+    A = np.stack([a for a, _, _ in joint_rows(mech, fm, s)])
+    lo_j = np.array([lo for _, lo, _ in joint_rows(mech, fm, s)])
+    hi_j = np.array([hi for _, _, hi in joint_rows(mech, fm, s)])
+    add(
+        ca.mtimes(ca.DM(A), zq),
+        np.repeat(lo_j[:, None], N + 1, 1).T.ravel(),
+        np.repeat(hi_j[:, None], N + 1, 1).T.ravel(),
+    )
+    # symmetry: every free coordinate but the root's mirrored; the hips v T on, same height and velocity
+    P = mirror_matrix(fm)
+    keep = [i for i, name in enumerate(fm.names) if not name.startswith("root")]
+    add((zq[:, 0] - ca.mtimes(ca.DM(P), zq[:, N]))[keep], 0, 0)
+    add((zv[:, 0] - ca.mtimes(ca.DM(P), zv[:, N]))[keep], 0, 0)
+    y0, yN = Y[0], Y[N]
+    add(yN[rows.hip_p][0] - y0[rows.hip_p][0] - s.speed * T, 0, 0)
+    add(yN[rows.hip_p][1] - y0[rows.hip_p][1], 0, 0)
+    add(yN[rows.hip_v] - y0[rows.hip_v], 0, 0)
+    add(y0[rows.hip_p][0], s.hip_x0, s.hip_x0)
+    add(y0[rows.heel_height], 0, 0)
+    w = np.full(N + 1, 1.0 / N)
+    w[[0, -1]] /= 2
+    f = sum(float(w[k]) * Y[k][rows.cost] for k in range(N + 1))
+    lbz, ubz = _variable_bounds(mech, fm, s)
+    lbx = np.concatenate([np.tile(lbz, N + 1), [s.period[0] / 2]])
+    ubx = np.concatenate([np.tile(ubz, N + 1), [s.period[1] / 2]])
+    nlp = {"x": x, "f": f, "g": ca.vertcat(*g)}
+    return NLP(nlp, lbx, ubx, np.concatenate(lb), np.concatenate(ub), nz, N), node, rows
+
+
+def _variable_bounds(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of one node's ``(z, zd, zdd)``: trunk angle, rod strokes about rest, rod rates."""
+    nz = fm.nz
+    lo, hi = np.full(3 * nz, -np.inf), np.full(3 * nz, np.inf)
+    k = fm.index("hat angle")
+    lo[k], hi[k] = s.trunk
+    k = fm.index("root length")
+    lo[k], hi[k] = 0.3, 10.0  # the hips stay away from O (the polar chart's pole)
+    for r in TELESCOPIC:
+        k = fm.index(f"{r} length")
+        rest = s.rest_lengths[r.split("_", 1)[1]]
+        lo[k], hi[k] = rest - s.stroke, rest + s.stroke
+        lo[nz + k], hi[nz + k] = -s.rate, s.rate
+    return lo, hi
+
+
+__all__ = ["NLP", "PRICED_JOINTS", "Rows", "build", "joint_rows", "node_function"]
