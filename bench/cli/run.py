@@ -11,7 +11,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -66,7 +67,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     )
 
 
-def print_summary(outcomes: list[SceneOutcome]) -> None:
+def print_summary(outcomes: list[SceneOutcome], console: Any = None) -> None:
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
@@ -77,9 +78,9 @@ def print_summary(outcomes: list[SceneOutcome]) -> None:
     for o in outcomes:
         for row in scene_rows(o):
             table.add_row(*(escape(str(c)) for c in row))  # a reason's "[peers]" is text, not rich markup
-    console = Console()
+    console = console or Console()
     if not console.is_terminal:
-        console = Console(width=140)
+        console = Console(file=console.file, width=140)
     console.print(table)
 
 
@@ -122,27 +123,91 @@ class _StagingPaths:
         return getattr(self.stream, name)
 
 
-def run_main_job(options: RunOptions) -> int:
-    """The main job: every scene (or the named ones), then, when no scene is named, the suite's
-    reports; all published together (:mod:`exo_bench.bench.output.publish`)."""
+def main_job_folder(options: RunOptions) -> Path:
+    """Where the main job publishes: the reports folder itself for the default run, its ``full/``
+    folder for ``--full`` (:data:`~exo_bench.bench.output.suite_reports.FULL_FOLDER`). A wider run has
+    its own place, so the default run on a fresh clone rewrites every committed report of the folder
+    (a narrower run still never overwrites a wider one: :func:`_beside_wider`)."""
+    from exo_bench.bench.output.suite_reports import FULL_FOLDER
+
+    out = options.folder
+    if not options.full:
+        return out
+    place = out / FULL_FOLDER
+    if place.is_symlink() or (place.exists() and not place.is_dir()):
+        raise ValueError(f"{place}: expected the folder of the --full run's reports, got a link or a file there")
+    return place
+
+
+def default_install_scene(scene: Scene) -> Scene:
+    """The scene as the default run measures it: without the methods that need an optional extra
+    (MuJoCo, Drake: ``MethodSpec.extra``), which only ``--full`` measures; its reference is kept."""
+    from dataclasses import replace
+
+    from exo_bench.api.methods import METHODS
+
+    methods = tuple(m for m in scene.methods if not METHODS[m].extra or m == scene.reference)
+    return scene if methods == scene.methods else replace(scene, methods=methods)
+
+
+def _console(stream: TextIO) -> TextIO:
+    """A stream to the terminal that stays there while fd 1 goes to the log (:func:`_raw_output_to`)."""
+    try:
+        real = stream.fileno() == 1
+    except (AttributeError, OSError, ValueError):  # a StringIO (tests), a closed stream
+        real = False
+    return os.fdopen(os.dup(1), "w", buffering=1, encoding="utf-8", errors="replace") if real else stream
+
+
+@contextmanager
+def _raw_output_to(log: Path, staging: Path, out: Path) -> Iterator[None]:
+    """Within the block everything the suite's jobs print (their own lines and their subprocesses',
+    pytest-benchmark's raw tables) goes to ``log``, with the staging folder's paths shown as the
+    published ones; the console keeps progress and the final summary."""
     from contextlib import redirect_stdout
 
+    sys.stdout.flush()
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    saved = os.dup(1)
+    try:
+        with os.fdopen(fd, "w", buffering=1, encoding="utf-8", errors="replace") as f:
+            os.dup2(f.fileno(), 1)  # the subprocesses' output too (bench/perf/reports/benchmark_reports.py)
+            try:
+                with redirect_stdout(_StagingPaths(f, staging, out)):
+                    yield
+            finally:
+                f.flush()
+                os.dup2(saved, 1)
+    finally:
+        os.close(saved)
+
+
+def run_main_job(options: RunOptions) -> int:
+    """The main job: every scene (or the named ones), then, when no scene is named, the suite's
+    reports; all published together (:mod:`exo_bench.bench.output.publish`) into
+    :func:`main_job_folder`. The console shows one line per phase and a summary of what was
+    written where; the raw output goes to ``main-job.log`` beside the reports."""
+    import time
+
+    from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from exo_bench.api.cost_model import Limits
+    from exo_bench.bench.output.files import output_target
+    from exo_bench.bench.output.publish import MANIFEST, SUMMARY
+    from exo_bench.bench.output.suite_reports import MAIN_JOB_LOG
 
-    out = options.folder
     full = options.full
+    out = main_job_folder(options)
     names = list(options.scenes) or shipped_scene_names()
     scenes = [load_scene(n) for n in names]  # every scene is validated before anything runs
+    if not full:
+        scenes = [default_install_scene(sc) for sc in scenes]
     check_scene_files(scenes)  # no scene's reports land on the suite's or on another scene's
     jobs = _suite_jobs() if not options.scenes else []  # naming scenes runs just those scenes
     limits = Limits(memory=options.max_memory)
-    from exo_bench.bench.output.files import output_target
-    from exo_bench.bench.output.publish import MANIFEST, SUMMARY
-
-    for name in (SUMMARY, MANIFEST, *(f for sc in scenes for f in scene_files(sc))):  # before any work: no FIFO there
-        output_target(out / name)
+    for name in (SUMMARY, MANIFEST, *([MAIN_JOB_LOG] if jobs else []), *(f for sc in scenes for f in scene_files(sc))):
+        output_target(out / name)  # before any work: no FIFO there
     check_lock_file(out)  # a link or FIFO planted at the folder's lock file is refused now, not after the work
     set_run_id(new_run_id())
     command = (
@@ -152,6 +217,9 @@ def run_main_job(options: RunOptions) -> int:
     outcomes: list[SceneOutcome] = []
     written: list[Path] = []
     job_errors: list[str] = []
+    console = Console(file=_console(sys.stdout), highlight=False, soft_wrap=True)
+    total = len(scenes) + len(jobs)
+    console.print(f"exo-bench run: {total} phases ({len(scenes)} scenes, {len(jobs)} reports) into {out}")
     with (
         staging_dir(out) as staging,
         Progress(
@@ -159,32 +227,44 @@ def run_main_job(options: RunOptions) -> int:
             BarColumn(),
             TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn(),
-            transient=False,
+            console=console,
+            transient=True,
         ) as progress,
+        _raw_output_to(staging / MAIN_JOB_LOG, staging, out) if jobs else nullcontext(),
     ):
-        task = progress.add_task("scenes", total=len(scenes) + len(jobs))
+        task = progress.add_task("scenes", total=total)
+
+        def done(label: str, t0: float, error: str | None) -> None:
+            n = int(progress.tasks[0].completed) + 1
+            what = f"failed: {error}" if error else "done"
+            progress.console.print(f"[{n}/{total}] {label}: {what} ({time.perf_counter() - t0:.0f} s)", markup=False)
+            progress.advance(task)
+
         for sc in scenes:
             check_interrupt()  # a signal swallowed where it landed (a finaliser) still stops the run
             progress.update(task, description=f"scene {sc.name}")
             staged = {f.name for f in staging.iterdir()}
+            t0 = time.perf_counter()
             try:
                 o = run_scene(sc, staging, limits)
             except Exception as e:  # noqa: BLE001 - one scene's failure must not lose the others
                 o = SceneOutcome(sc, error=getattr(e, "skip_reason", None) or one_line(e))
                 for f in staging.iterdir():  # its partial files never replace the earlier run's
-                    if f.name not in staged and f.is_file():
+                    if f.name not in staged and f.is_file() and f.name != MAIN_JOB_LOG:
                         f.unlink(missing_ok=True)
             outcomes.append(o)
-            progress.advance(task)
+            done(f"scene {sc.name}", t0, o.error)
         for label, fn in jobs:
             check_interrupt()
             progress.update(task, description=label)
+            t0 = time.perf_counter()
+            error = None
             try:
-                with redirect_stdout(_StagingPaths(sys.stdout, staging, out)):
-                    fn(staging, out, full)
+                fn(staging, out, full)
             except Exception as e:  # noqa: BLE001 - a failing report must not lose the others
-                job_errors.append(f"{label} failed: {one_line(e)}")
-            progress.advance(task)
+                error = one_line(e)
+                job_errors.append(f"{label} failed: {error}")
+            done(label, t0, error)
         check_interrupt()  # nothing is published after a signal
         if jobs or any(not o.error for o in outcomes):  # nothing ran: the folder is left exactly as it was
             rows = {o.scene.name: scene_rows(o) for o in outcomes}
@@ -197,9 +277,8 @@ def run_main_job(options: RunOptions) -> int:
                 narrower=lambda manifest: _beside_wider(outcomes, manifest, staging, out),
             )
     if written:  # nothing ran (every scene refused or failed): the error lines below say it all
-        print_summary(outcomes)
-    for p in written:
-        print(f"wrote {p}")
+        print_summary(outcomes, console)
+        print_written(written, out, console)
     failed = [o for o in outcomes if o.error]
     for o in failed:  # one line each on stderr; summary.md keeps the scene's earlier rows
         print(
@@ -210,6 +289,21 @@ def run_main_job(options: RunOptions) -> int:
     for line in job_errors:
         print(f"exo-bench: error: {line}", file=sys.stderr)
     return 2 if failed else 1 if job_errors else 0
+
+
+def print_written(written: list[Path], out: Path, console: Any) -> None:
+    """What the run wrote and where, in a few lines: the reports by name, the rest counted."""
+    from exo_bench.bench.output.suite_reports import MAIN_JOB_LOG, SUMMARY
+
+    reports = sorted(p.name for p in written if p.suffix == ".md" and p.name != SUMMARY)
+    others = [p for p in written if p.suffix != ".md" and p.name != MAIN_JOB_LOG]
+    console.print(f"wrote {len(written)} files into {out}:", markup=False)
+    console.print(f"  open first: {out / SUMMARY}", markup=False)
+    console.print(f"  reports: {', '.join(reports)}", markup=False)
+    kinds = sorted({p.suffix for p in others})
+    console.print(f"  beside them: {len(others)} figures, recordings and data ({', '.join(kinds)})", markup=False)
+    if any(p.name == MAIN_JOB_LOG for p in written):
+        console.print(f"  the raw output (benchmark tables, logs): {out / MAIN_JOB_LOG}", markup=False)
 
 
 def _beside_wider(outcomes: list[SceneOutcome], manifest: dict, staging: Path, out: Path) -> frozenset[str]:

@@ -11,6 +11,14 @@ from __future__ import annotations
 #: The main job's summary of every scene, and the manifest it is made from (bench/output/publish.py).
 SUMMARY = "summary.md"
 MANIFEST = "runs.json"
+#: The folder, inside the reports folder, of the wider runs: ``exo-bench run --full`` (the whole sweep
+#: and the methods of the optional extras, MuJoCo and Drake) publishes there, so the default run
+#: (``exo-bench run``, the README's first command) always rewrites the reports folder itself and
+#: never meets a wider run's files there (bench/cli/run.py).
+FULL_FOLDER = "full"
+#: The main job's raw output (pytest-benchmark's tables, the stability study's log), kept out of the
+#: console and published with the reports.
+MAIN_JOB_LOG = "main-job.log"
 #: ``exo-bench errata`` (bench/studies/errata/report.py).
 ERRATA = "errata.md"
 #: ``exo-bench bench`` (bench/perf/reports/benchmark_reports.py), and its rows per sweep.
@@ -45,6 +53,7 @@ def suite_files() -> frozenset[str]:
     names = {
         SUMMARY,
         MANIFEST,
+        MAIN_JOB_LOG,
         ERRATA,
         *BENCHMARK_REPORTS,
         *(benchmark_json(s) for s in SWEEPS),

@@ -74,6 +74,10 @@ class MethodSpec:
     engine_row: str | None = None
     #: For an engine: the name of its bare per-call benchmark row (its own calls, no G maps, no wrapper).
     bare_row: str | None = None
+    #: The optional extra it needs (``pip install '.[peers]'``; empty: the default install has it). The
+    #: main job measures such a method only with ``--full`` (into ``reports/full/``): the default run's
+    #: reports are the same on every machine (bench/cli/run.py).
+    extra: str = ""
 
     @property
     def kernel_options(self) -> tuple[str, ...]:
@@ -206,6 +210,7 @@ METHODS: dict[str, MethodSpec] = {
             "sample (four calls through the bindings each), on the exported MJCF with every constraint "
             "off; the G maps one matmul over the batch",
             bare_row="mj_rne (bare)",
+            extra="peers",
         ),
         MethodSpec(
             "drake",
@@ -220,6 +225,7 @@ METHODS: dict[str, MethodSpec] = {
             "invalidating the context's cache), on a plant built in code; the G maps one matmul over "
             "the batch",
             bare_row="CalcInverseDynamics (bare)",
+            extra="peers",
         ),
     )
 }
