@@ -41,6 +41,7 @@ SUBCOMMANDS = (
     "stability",
     "equations",
     "gait",
+    "stride",
 )
 
 

@@ -148,8 +148,9 @@ def grf_per_foot(contact: np.ndarray) -> np.ndarray:
 
 def speed_key(speed: float) -> str:
     """The speed as the file name writes it: ``v`` and centimetres per second (1.41 m/s: ``v141``)."""
-    if not (isinstance(speed, (int, float)) and math.isfinite(speed) and 0 < speed < 10):
-        raise ValueError(f"stride: field 'speed': expected a speed in (0, 10) m/s, got {speed!r}")
+    ok = isinstance(speed, (int, float)) and math.isfinite(speed) and 0 < speed < 10
+    if not ok or abs(speed * 100 - round(speed * 100)) > 1e-6:
+        raise ValueError(f"stride: field 'speed': expected a speed in (0, 10) m/s in steps of 0.01, got {speed!r}")
     return f"v{round(speed * 100):d}"
 
 

@@ -11,8 +11,8 @@ model's inverse dynamics with the contact forces equal the actuators' forces, wi
 HAT and the root (:mod:`exo_bench.bench.studies.stride.transcription`).
 
 **Objective** (:class:`StrideSettings`): actuator work per metre over body weight, positive work priced
-``w_positive``, negative ``w_negative`` (``|P|`` smoothed as :func:`~.actuators.work_terms` does, with
-``eps_power``), over the six sagittal joints and the four telescopic rods; plus effort, the mean over the
+``w_positive``, negative ``w_negative`` (each power split exactly into its two parts:
+:mod:`~.transcription`), over the six sagittal joints and the four telescopic rods; plus effort, the mean over the
 stride of ``w_moment sum (M_j / m)^2`` (N·m/kg) over the six joints, ``w_force sum (F / BW)^2`` over the
 telescopic rods and a small ``w_accel sum qdd^2``.
 
@@ -76,7 +76,6 @@ class StrideSettings:
     hip_x0: float = 1.0  # the hips' x at t = 0 (m; O is on the floor behind them)
     w_positive: float = 1.0
     w_negative: float = 0.5
-    eps_power: float = 1.0  # W
     w_moment: float = 0.1
     w_force: float = 0.01
     w_accel: float = 1e-6
@@ -175,7 +174,8 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
     }
     solver = ca.nlpsol("stride", "ipopt", nlp.nlp, opts)
     t_start = time.perf_counter()
-    res = solver(x0=nlp.x0(*start), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
+    Ys = np.asarray(node.map(s.intervals + 1)(*(fm.full(v, rates=i > 0).T for i, v in enumerate(start[1:])))[0]).T
+    res = solver(x0=nlp.x0(*start, Ys[:, rows.powers]), lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg)
     seconds = time.perf_counter() - t_start
     st = solver.stats()
     if not st.get("success"):

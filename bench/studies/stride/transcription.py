@@ -14,7 +14,14 @@ at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``
   :func:`exo_bench.bench.studies.stride.actuators.actuators` (taken from it on the identity, so the
   split is that function's); the residuals (HAT's angle, the root's angle and length: nothing holds the
   body up but the floor) are constrained to zero;
-* the actuators' powers and the objective's integrand.
+* the priced actuators' powers (six sagittal joints, four telescopic rods) and the effort.
+
+**Objective.** Work per metre over body weight, positive and negative parts priced separately: each
+power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
+prices ``w_positive U+ + w_negative U-`` make one of them zero at the optimum, so the priced work is
+:func:`~.actuators.work_terms`' without smoothing (a smoothed ``|P|``, ``sqrt(P^2 + eps^2)``, was tried
+first: with ``eps`` = 1 W IPOPT wandered for 500 iterations without converging); plus the effort,
+averaged over the half stride (trapezoidal weights).
 
 **Constraints.** Trapezoidal defects ``z_{k+1} - z_k = h/2 (zd_k + zd_{k+1})`` and the same for the
 rates; zero residuals at every node; joint ranges (linear); the symmetry (the end is the start mirrored,
@@ -55,7 +62,8 @@ class Rows:
     hip_p: slice
     hip_v: slice
     heel_height: int
-    cost: int
+    powers: slice
+    effort: int
     size: int
 
 
@@ -82,24 +90,24 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     rp = ca.vertcat(*[rods[k] * qd[n + mech.names.index(eye.rod_names[k])] for k in tel])
     priced = [eye.joint_names.index(j) for j in PRICED_JOINTS]
     powers = ca.vertcat(*[jp[k] for k in priced], rp)
-    a = ca.sqrt(powers**2 + s.eps_power**2)  # |P| smoothed as actuators.work_terms does
-    work = ca.sum1(s.w_positive * (a + powers) / 2 + s.w_negative * (a - powers) / 2)
     mass, bw = mech.total_mass, mech.total_mass * mech.g
     effort = s.w_moment * ca.sumsqr(ca.vertcat(*[moments[k] for k in priced]) / mass)
     effort += s.w_force * ca.sumsqr(ca.vertcat(*[rods[k] for k in tel]) / bw) + s.w_accel * ca.sumsqr(qdd)
     root = mech.names.index("root")
     hip_p, hip_v = at(p, root), at(v, root)
     heel = at(p, mech.names.index("right_heel"))[1]
-    cost = work / (bw * s.speed) + effort  # per metre of walking over body weight, plus the mean effort
-    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, cost]
+    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, powers, effort]
     sizes = np.cumsum([0] + [x.numel() for x in parts])
     sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
-    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7].start, int(sizes[-1]))
+    rows = Rows(*sl[:6], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
     return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
 
 
 @dataclass
 class NLP:
+    """``x = (vec(Z), T, vec(U+), vec(U-))``: ``Z (N + 1, 3 nz)`` the nodes' ``(z, zd, zdd)``, ``U+, U- (N + 1,
+    npow) >= 0`` the positive and negative parts of the priced powers in units of ``BW v``."""
+
     nlp: dict
     lbx: np.ndarray
     ubx: np.ndarray
@@ -107,15 +115,20 @@ class NLP:
     ubg: np.ndarray
     nz: int
     N: int
+    npow: int
+    unit: float  # W: body weight times speed
 
-    def x0(self, T: float, z: np.ndarray, zd: np.ndarray, zdd: np.ndarray) -> np.ndarray:
-        return np.concatenate([np.concatenate([z, zd, zdd], axis=1).ravel(), [T]])
+    def x0(self, T: float, z: np.ndarray, zd: np.ndarray, zdd: np.ndarray, powers: np.ndarray) -> np.ndarray:
+        """The variables of a half stride, its powers ``(N + 1, npow)`` (W) split into their two parts."""
+        u = np.asarray(powers, dtype=float) / self.unit
+        parts = [np.maximum(u, 0).ravel() + 1e-4, np.maximum(-u, 0).ravel() + 1e-4]
+        return np.concatenate([np.concatenate([z, zd, zdd], axis=1).ravel(), [T], *parts])
 
     def split(self, x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
         x = np.asarray(x, dtype=float).ravel()
-        Z = x[:-1].reshape(self.N + 1, 3 * self.nz)
-        nz = self.nz
-        return float(x[-1]), Z[:, :nz], Z[:, nz : 2 * nz], Z[:, 2 * nz :]
+        nz, nZ = self.nz, (self.N + 1) * 3 * self.nz
+        Z = x[:nZ].reshape(self.N + 1, 3 * nz)
+        return float(x[nZ]), Z[:, :nz], Z[:, nz : 2 * nz], Z[:, 2 * nz :]
 
 
 def joint_rows(mech: Mechanism, fm: FreeMap, s: Any) -> list[tuple[np.ndarray, float, float]]:
@@ -139,9 +152,14 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     """The half stride's NLP (module docstring) for settings ``s`` (:class:`~.problem.StrideSettings`)."""
     node, rows = node_function(mech, s)
     N, nz = s.intervals, fm.nz
-    x = ca.SX.sym("x", (N + 1) * 3 * nz + 1)
-    Z = ca.reshape(x[:-1], 3 * nz, N + 1)
-    T = x[-1]
+    npow = rows.powers.stop - rows.powers.start
+    nZ = (N + 1) * 3 * nz
+    x = ca.SX.sym("x", nZ + 1 + 2 * npow * (N + 1))
+    Z = ca.reshape(x[:nZ], 3 * nz, N + 1)
+    T = x[nZ]
+    Up = ca.reshape(x[nZ + 1 : nZ + 1 + npow * (N + 1)], npow, N + 1)
+    Un = ca.reshape(x[nZ + 1 + npow * (N + 1) :], npow, N + 1)
+    unit = mech.total_mass * mech.g * s.speed
     h = T / N
     zq, zv, za = Z[:nz, :], Z[nz : 2 * nz, :], Z[2 * nz :, :]
     E, c = ca.DM(fm.E), ca.DM(fm.c)
@@ -159,8 +177,9 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     add(zq[:, 1:] - zq[:, :-1] - h / 2 * (zv[:, 1:] + zv[:, :-1]), 0, 0)
     add(zv[:, 1:] - zv[:, :-1] - h / 2 * (za[:, 1:] + za[:, :-1]), 0, 0)
     bw = mech.total_mass * mech.g
-    for y in Y:
+    for k, y in enumerate(Y):
         add(y[rows.residuals] / bw, 0, 0)  # in body weights (and body weight x 1 m): scaled as the defects
+        add(y[rows.powers] / unit - (Up[:, k] - Un[:, k]), 0, 0)  # each power's positive and negative part
     A = np.stack([a for a, _, _ in joint_rows(mech, fm, s)])
     lo_j = np.array([lo for _, lo, _ in joint_rows(mech, fm, s)])
     hi_j = np.array([hi for _, _, hi in joint_rows(mech, fm, s)])
@@ -182,12 +201,14 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     add(y0[rows.heel_height], 0, 0)
     w = np.full(N + 1, 1.0 / N)
     w[[0, -1]] /= 2
-    f = sum(float(w[k]) * Y[k][rows.cost] for k in range(N + 1))
+    work = s.w_positive * ca.sum1(Up) + s.w_negative * ca.sum1(Un)  # (1, N + 1): work per metre over BW
+    f = sum(float(w[k]) * (work[k] + Y[k][rows.effort]) for k in range(N + 1))
     lbz, ubz = _variable_bounds(mech, fm, s)
-    lbx = np.concatenate([np.tile(lbz, N + 1), [s.period[0] / 2]])
-    ubx = np.concatenate([np.tile(ubz, N + 1), [s.period[1] / 2]])
+    slack = 2 * npow * (N + 1)
+    lbx = np.concatenate([np.tile(lbz, N + 1), [s.period[0] / 2], np.zeros(slack)])
+    ubx = np.concatenate([np.tile(ubz, N + 1), [s.period[1] / 2], np.full(slack, np.inf)])
     nlp = {"x": x, "f": f, "g": ca.vertcat(*g)}
-    return NLP(nlp, lbx, ubx, np.concatenate(lb), np.concatenate(ub), nz, N), node, rows
+    return NLP(nlp, lbx, ubx, np.concatenate(lb), np.concatenate(ub), nz, N, npow, unit), node, rows
 
 
 def _variable_bounds(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[np.ndarray, np.ndarray]:
