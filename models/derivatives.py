@@ -44,7 +44,7 @@ from exo_bench.models.conditioning import (
     coupling_reason,
 )
 from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.singularity import SingularConfigurationError, mechanism_reasons, singular_reasons
 from exo_bench.models.states import is_one_sample
 
 #: What computes the derivatives (:attr:`Derivatives.source`).
@@ -246,17 +246,48 @@ class Derivatives:
             c = self._coupling_condition = coupling_condition(self.mechanism)
         return c
 
+    def _clear(self, q: np.ndarray) -> bool:
+        """Every sample clears the singular and conditioning bounds by a margin: the compiled pass of
+        :mod:`exo_bench.models.forward_check` (False: the exact checks decide and name why)."""
+        clear = getattr(self, "_clear_pass", None)
+        if clear is None:
+            from exo_bench.models.forward_check import checks, plan_of
+
+            plan = plan_of(self.mechanism, self.coupling_condition)
+            clear = self._clear_pass = checks(self.mechanism.nlinks, plan)[0]
+        return clear(q)
+
     def _refuse_singular(self, q: np.ndarray, check: bool) -> None:
         """What forward dynamics refuses: a link that moves no mass (with or without ``check``), and with
         ``check`` a singular state (naming the link) or one beyond the conditioning bound."""
         mech = self.mechanism
         if np.isinf(self.coupling_condition.kappa):
             raise SingularConfigurationError([f"sample 0: {coupling_reason(mech, self.coupling_condition)}"])
-        if check:
+        if check and not self._clear(q):
             reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(mech, q)) for r in rs]
             if reasons:
                 raise SingularConfigurationError(reasons)
             check_conditioning(mech, q, self.coupling_condition)
+
+    def _refuse_singular_states(self, q: np.ndarray, source: str) -> None:
+        """The inverse calls' refusal (with ``check``): the states where forward dynamics refuses (a rod of
+        length zero, a vertical rod, beyond the conditioning bound), with its reasons prefixed by
+        ``source``. Inverse dynamics has no division, but ``M = dtau/dqdd`` is singular there and the
+        chart of a vertical rod is. A link that moves no mass is the mechanism's, not the states': there
+        the inverse calls stay defined (and the states' conditioning is not estimated)."""
+        if self._clear(q):
+            return
+        mech = self.mechanism
+        always = set(mechanism_reasons(mech))
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(mech, q)) for r in rs if r not in always]
+        try:
+            if reasons:
+                raise SingularConfigurationError(reasons)
+            if coupling_reason(mech, self.coupling_condition) is None:
+                check_conditioning(mech, q, self.coupling_condition)
+        except SingularConfigurationError as e:
+            e.args = (f"{source}: {e}",)
+            raise
 
     def _finite(self, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
         """Never NaN or inf: a vector names its coordinate, a Jacobian the row of its coordinate."""
@@ -269,11 +300,15 @@ class Derivatives:
     # ------------------------------------------------------------------ full Jacobians
     def inverse_dynamics(self, q, qd, qdd, check: bool = True):
         """``(dtau_dq, dtau_dqd, M)`` at the states: ``(S, dof, dof)`` each (``(dof, dof)`` for one
-        ``(dof,)`` sample). ``M = dtau/dqdd``. Zero samples give ``(0, dof, dof)``. Defined at every
-        state, singular ones included (inverse dynamics is a polynomial in ``l``, ``cos`` and ``sin``)."""
+        ``(dof,)`` sample). ``M = dtau/dqdd``. Zero samples give ``(0, dof, dof)``. With ``check`` (the
+        default) a state where forward dynamics is refused (``M`` singular or beyond the conditioning
+        bound) is refused, naming the sample and the link (:meth:`_refuse_singular_states`); without it
+        the values are finite there too (inverse dynamics is a polynomial in ``l``, ``cos`` and ``sin``)."""
         source = "inverse-dynamics derivatives"
         (q, qd, qdd), single = self._states(source, ("q", "qd", "qdd"), (q, qd, qdd), check)
         d = self.mechanism.dof
+        if check:
+            self._refuse_singular_states(q, source)
         self._check_memory(source, q.shape[0], 3)
         if q.shape[0] == 0:
             return tuple(np.zeros((0, d, d)) for _ in range(3))
@@ -312,6 +347,8 @@ class Derivatives:
 
         names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
         arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
+        if check:
+            self._refuse_singular_states(arrays[0], "inverse-dynamics JVP")
         out = inverse_jvp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
         return out[0] if single else out
 
@@ -321,6 +358,8 @@ class Derivatives:
         from exo_bench.models.newton_euler.products import inverse_vjp
 
         arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
+        if check:
+            self._refuse_singular_states(arrays[0], "inverse-dynamics VJP")
         out = inverse_vjp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
         return tuple(x[0] for x in out) if single else out
 
