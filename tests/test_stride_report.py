@@ -175,3 +175,85 @@ def test_sizing_of_winters_stride_balances_with_the_integral_of_power(mech):
         net = np.trapezoid(P[j], s.t)
         assert r.energy_positive - r.energy_negative == pytest.approx(net, abs=1e-9 * np.abs(P[j]).sum())
         assert r.peak == pytest.approx(np.abs(winter.table()[f"{j}_m"]).max())
+
+
+@pytest.fixture(scope="module")
+def stored(mech, tmp_path_factory):
+    """Winter's stride stored as the human variant at 1.41 m/s, and a 3x-moment one at 1.8 m/s, in a folder."""
+    from exo_bench.bench.studies.stride import data
+
+    folder = tmp_path_factory.mktemp("strides")
+    data.save(winter_stride(mech), mech, folder)
+    fast = winter_stride(mech, moment_scale=3.0)
+    data.save(StoredStride(**{**fast.__dict__, "meta": {**fast.meta, "speed": 1.8}}), mech, folder)
+    return folder
+
+
+def test_the_report_states_every_verdict_and_the_sizing_of_every_stored_stride(mech, stored):
+    from exo_bench.bench.studies.stride import data, report
+    from exo_bench.models.encoders import markdown_text
+
+    s = data.load("human", 1.41, mech, stored)
+    text = report.markdown(mech, s, figure="x-winter.png", folder=stored)
+    for v in cmp.compare(mech, s).verdicts:
+        assert f"| {markdown_text(v.name)} | {markdown_text(v.target)} | {markdown_text(v.measured)} | met |" in text
+    assert text.count("| met |") == 4 and "**not met**" not in text
+    assert "**human variant at 1.41 m/s**" in text and "**human variant at 1.8 m/s**" in text
+    assert "solved in 12.5 s, 40 iterations" in text
+    assert "| right\\_ankle | joint motor | 89.8 N·m |" in text  # Winter's peak ankle moment, name encoded
+    assert "| right\\_ankle | joint motor | 269.4 N·m |" in text  # the 3x stride
+    assert "![the stride's curves against Winter's](x-winter.png)" in text
+
+
+def _legend_over_data(fig) -> list[str]:
+    """The y labels of the plots a figure legend overlaps (after the figure was drawn, e.g. saved)."""
+    r = fig.canvas.get_renderer()
+    plots = [ax for ax in fig.axes if ax.axison]
+    assert fig.legends and plots
+    return [
+        ax.get_ylabel()
+        for leg in fig.legends
+        for ax in plots
+        if leg.get_window_extent(r).overlaps(ax.get_window_extent(r))
+    ]
+
+
+def test_figures_are_written_with_legends_off_the_data(mech, tmp_path):
+    """One draw per figure (saving it): a 12-panel constrained layout takes seconds on a loaded machine."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from exo_bench.bench.output.provenance import save_figure
+    from exo_bench.bench.studies.stride.figures import PANELS, stride_kinogram, winter_figure
+
+    s = winter_stride(mech)
+    fig = winter_figure(cmp.compare(mech, s), "Winter through the model")
+    kino = stride_kinogram(mech, s.t, s.q, "Winter's angles", frames=3)
+    for f, name in ((fig, "w.png"), (kino, "k.png")):
+        FigureCanvasAgg(f)  # the canvas savefig draws on, and whose renderer measures the boxes after
+        assert save_figure(f, tmp_path / name).stat().st_size > 10_000
+        assert not _legend_over_data(f)
+    labels = [ax.get_ylabel() for ax in fig.axes if ax.axison]
+    assert labels == [label for _, label in PANELS] and all("(" in lab for lab in labels)  # units in every label
+
+
+def test_a_stride_scene_loads_its_stored_stride_and_refuses_bad_fields(mech, stored, tmp_path, monkeypatch):
+    from exo_bench.bench.studies.scene_run import scene_files
+    from exo_bench.bench.studies.scenes import load_scene
+    from exo_bench.bench.studies.stride import data
+
+    monkeypatch.setattr(data, "DATA", stored)
+    head = (
+        'mechanism = "human-2d"\nmethods = ["pinocchio"]\noutputs = ["table", "kinogram"]\n[motion]\nkind = "stride"\n'
+    )
+    (tmp_path / "s.toml").write_text(head + 'variant = "human"\nspeed = 1.41\n')
+    sc = load_scene(tmp_path / "s.toml")
+    assert sc.build_motion().q.shape == (70, mech.dof) and sc.samples() == 70
+    assert scene_files(sc) == ["s.md", "s-kinogram.png", "s-winter.png"]
+    for bad, field in (
+        ('variant = "robot"', "motion.variant"),
+        ("speed = -1", "motion.speed"),
+        ("speed = 1.0", "motion"),
+    ):
+        (tmp_path / "b.toml").write_text(head + bad + "\n")
+        with pytest.raises(ValueError, match=f"b.toml: field '{field}'"):
+            load_scene(tmp_path / "b.toml")

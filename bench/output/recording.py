@@ -300,10 +300,11 @@ def _log_series(stream: rr.RecordingStream, study: Study, times: rr.TimeColumn) 
     )
 
 
-def write_recording(study: Study, path: str | Path, loads: str | None = None) -> Path:
+def write_recording(study: Study, path: str | Path, loads: str | None = None, extra=None) -> Path:
     """Write the scene's recording with its default blueprint to ``path`` (atomically); ``loads``
     is the Markdown of the loads beside level walking (:func:`exo_bench.bench.studies.plausibility.text`),
-    its section of the description (none when None)."""
+    its section of the description (none when None); ``extra(stream, times)``, when given, logs a
+    scene's own series (the stride's actuators: :func:`exo_bench.bench.studies.stride.scene.log_stride`)."""
     from exo_bench.bench.output.provenance import atomic_path
 
     with atomic_path(path) as tmp:
@@ -317,6 +318,8 @@ def write_recording(study: Study, path: str | Path, loads: str | None = None) ->
         _log_world(stream, study, times)
         if study.ok_methods():
             _log_series(stream, study, times)
+        if extra is not None:
+            extra(stream, times)
         stream.flush()
         stream.disconnect()  # closes the file sink and writes the footer
     return Path(path)

@@ -178,6 +178,11 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.studies.step.report import markdown as step_markdown  # the predicted step's own section
 
         lines += ["", step_markdown(sc, st).rstrip("\n")]
+    if sc.motion["kind"] == "stride":  # the stride against Winter's, its verdicts and actuator sizing
+        from exo_bench.bench.studies.stride import report as stride_report, scene as stride_scene
+
+        figure = stride_scene.extra_files(sc)
+        lines += ["", stride_report.markdown(mech, sc.motion["stored"], figure[0] if figure else None).rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 
@@ -204,6 +209,10 @@ def scene_files(scene: Scene) -> list[str]:
     from exo_bench.bench.output.equation_pages import page_names
 
     names = [scene_file(scene, k) for k in ("table", *FIGURES, "recording") if scene.wants(k)]
+    if scene.motion["kind"] == "stride":
+        from exo_bench.bench.studies.stride.scene import extra_files
+
+        names += extra_files(scene)
     return names + (list(page_names(file_stem(scene.name))) if scene.wants("equations") else [])
 
 
@@ -298,12 +307,20 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
                 from exo_bench.bench.studies.step.figures import walking_kinogram
 
                 fig = walking_kinogram(study)
+            elif kind == "kinogram" and scene.motion["kind"] == "stride":  # the stride walks from O
+                from exo_bench.bench.studies.stride.scene import kinogram
+
+                fig = kinogram(scene)
             else:
                 fig = plots.scene_figure(study, kind)
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
             o.files.append(plots.save_figure(fig, staging / scene_file(scene, kind)))
+    if scene.motion["kind"] == "stride":
+        from exo_bench.bench.studies.stride.scene import write_figures
+
+        o.files += write_figures(scene, staging)
     if scene.wants("equations"):
         from exo_bench.bench.output.equation_pages import scene_pages  # only for scenes that ask for it
 
@@ -314,7 +331,13 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
 
         loads = plausibility(study)
         loads_text: str | None
-        if (
+        extra = None
+        if scene.motion["kind"] == "stride":  # the stride's verdicts, and its actuators over time
+            from exo_bench.bench.studies.stride import report as stride_report, scene as stride_scene
+
+            loads_text = stride_report.text(scene.mechanism, scene.motion["stored"])
+            extra = stride_scene.log_stride(scene)
+        elif (
             loads is not None and getattr(study.motion, "origin", None) is not None
         ):  # the predicted step: its own loads text
             from exo_bench.bench.studies.step.report import text as step_text
@@ -322,7 +345,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             loads_text = step_text(study)
         else:
             loads_text = None if loads is None else text(loads)
-        p = recording.write_recording(study, staging / scene_file(scene, "recording"), loads=loads_text)
+        p = recording.write_recording(study, staging / scene_file(scene, "recording"), loads=loads_text, extra=extra)
         if recording.rerun_executable() is not None:
             recording.verify_recording(p)
         o.files.append(p)

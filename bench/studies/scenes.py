@@ -15,11 +15,12 @@ Format (every key is checked; an error names the file and the field)::
                "recording", "equations"]   # equations: equations-<scene>.md and .tex (bench/cli/equations.py)
 
     [motion]
-    kind = "gait"                         # gait | planar-gait | smooth-random | states | step
+    kind = "gait"                         # gait | planar-gait | smooth-random | states | step | stride
     periods = 1.0                         # gait, planar-gait
     samples_per_period = 1000             # gait, planar-gait
     # duration = 2.0, samples = 400, seed = 0   (smooth-random)
     # steps = 2                           (step: the stored predicted step of the mechanism, bench/studies/step/scene.py)
+    # variant = "human", speed = 1.41     (stride: the stored stride of the 2D human, bench/studies/stride/scene.py)
     # file = "states.json"                (states: {"t": [...], "q": [[...]], "qd": ..., "qdd": ...};
     #                                      t strictly increasing, at least 2 samples)
 
@@ -71,9 +72,10 @@ OUTPUTS = (
     "recording",
     "equations",
 )
-MOTIONS = ("gait", "planar-gait", "smooth-random", "states", "step")  # step: bench/studies/step/scene.py
+MOTIONS = ("gait", "planar-gait", "smooth-random", "states", "step", "stride")  # step, stride: bench/studies/*/scene.py
 _TOP = {"description", "mechanism", "methods", "reference", "outputs", "motion", "name"}
 _MOTION_KEYS = {"kind", "periods", "samples_per_period", "duration", "samples", "seed", "file", "gait", "steps"}
+_MOTION_KEYS |= {"variant", "speed"}  # stride: bench/studies/stride/scene.py
 #: Fewest samples of a motion: derivatives (power balance) and plots need at least two.
 MIN_SAMPLES = 2
 
@@ -110,6 +112,10 @@ class Scene:
             from exo_bench.bench.studies.step.scene import label
 
             return label(self.motion)
+        if k == "stride":
+            from exo_bench.bench.studies.stride.scene import label as stride_label
+
+            return stride_label(self.motion)
         return f"states from {self.motion['file']}"
 
     def motion_function(self):
@@ -134,6 +140,10 @@ class Scene:
             from exo_bench.bench.studies.step.scene import samples
 
             return samples(self.motion)
+        if k == "stride":
+            from exo_bench.bench.studies.stride.scene import samples as stride_samples
+
+            return stride_samples(self.motion)
         return len(self.motion["data"]["t"])
 
     def build_motion(self) -> Motion:
@@ -150,6 +160,10 @@ class Scene:
             from exo_bench.bench.studies.step.scene import build
 
             return build(self.motion, self.mechanism)
+        if k == "stride":
+            from exo_bench.bench.studies.stride.scene import build as stride_build
+
+            return stride_build(self.motion, self.mechanism)
         data = self.motion["data"]
         return from_arrays(
             self.mechanism,
@@ -258,6 +272,10 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
         from exo_bench.bench.studies.step.scene import load_motion
 
         return load_motion(path, m, mech)
+    if kind == "stride":
+        from exo_bench.bench.studies.stride.scene import load_motion as stride_motion
+
+        return stride_motion(path, m, mech)
     if kind in ("gait", "planar-gait"):
         if kind == "gait" and (mech.dim != 3 or mech.nlinks != 5):
             raise _err(

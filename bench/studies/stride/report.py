@@ -1,0 +1,148 @@
+"""The stride's section of its scene report: against Winter over the cycle, the done-when verdicts, and the
+actuator-sizing table of every stored stride.
+
+Every name and computed sentence reaching Markdown goes through the Markdown encoder
+(:func:`exo_bench.models.encoders.markdown_text`); numbers are formatted here. The verdicts' evidence is
+the numbers :func:`exo_bench.bench.studies.stride.comparison.verdicts` computed, never a typed-in reason.
+"""
+
+from __future__ import annotations
+
+from exo_bench.bench.studies.stride import comparison as cmp
+from exo_bench.bench.studies.stride import data
+from exo_bench.bench.studies.stride.sizing import Sizing, sizing
+from exo_bench.models.encoders import markdown_text as md
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.normative import SOURCE
+
+CONVENTION = (
+    "Sign convention (Winter's Table A.5): a joint moment is the moment the proximal segment exerts on the "
+    "distal one at their joint (on the thigh at the hip, on the leg at the knee, on the foot at the ankle), "
+    "counter-clockwise positive with the walker moving in +x; the model's joint motors "
+    "(bench/studies/stride/actuators.py) are that moment by construction, so no curve is relabelled. "
+    "Powers: moment x (angular velocity of the distal segment - of the proximal), generated positive. "
+    "Ground force on the right foot in body weights, forward and up positive. Segment angles: of the vector "
+    "from the distal to the proximal end, counter-clockwise from +x."
+)
+
+
+def _f(x: float | None, fmt: str = ".3g") -> str:
+    return "" if x is None else format(x, fmt)
+
+
+def curves_table(c: cmp.Comparison) -> list[str]:
+    lines = [
+        "| quantity | unit | r | RMS error | Winter's RMS | RMS error / Winter's RMS |",
+        "|---|---|---|---|---|---|",
+    ]
+    for key, cv in c.curves.items():
+        lines.append(
+            f"| {md(key)} | {md(cv.unit)} | {cv.r:.2f} | {cv.rms_error:.3g} | {cv.winter_rms:.3g} | "
+            f"{cv.rms_error / cv.winter_rms:.2f} |"
+        )
+    return lines
+
+
+def peaks_table(c: cmp.Comparison) -> list[str]:
+    lines = ["| peak | this stride | Winter's | ratio | within 2x |", "|---|---|---|---|---|"]
+    for name, o, w in c.peaks:
+        ratio = o / w
+        ok = 1 / cmp.FACTOR <= ratio <= cmp.FACTOR
+        lines.append(f"| {md(name)} | {o:.3g} | {w:.3g} | {ratio:.2f} | {'yes' if ok else '**no**'} |")
+    return lines
+
+
+def verdicts_table(c: cmp.Comparison) -> list[str]:
+    lines = ["| done-when check (issue 37) | target | measured | verdict |", "|---|---|---|---|"]
+    for v in c.verdicts:
+        verdict = "met" if v.passed else "**not met** by this stride"
+        lines.append(f"| {md(v.name)} | {md(v.target)} | {md(v.measured)} | {verdict} |")
+    return lines
+
+
+def sizing_table(z: Sizing) -> list[str]:
+    solve = (
+        "solve time not stored"
+        if z.solve_seconds is None
+        else f"solved in {z.solve_seconds:.1f} s, {z.iterations} iterations (stored provenance)"
+    )
+    lines = [
+        f"**{md(z.variant)} variant at {z.speed:g} m/s** (stride {z.period:.3f} s; {solve}):",
+        "",
+        "| actuator | kind | peak load | RMS load | peak + power (W) | peak - power (W) | energy + (J/stride) "
+        "| energy - (J/stride) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in z.rows:
+        lines.append(
+            f"| {md(r.actuator)} | {md(r.kind)} | {r.peak:.4g} {md(r.unit)} | {r.rms:.4g} {md(r.unit)} | "
+            f"{r.power_max:.4g} | {r.power_min:.4g} | {r.energy_positive:.4g} | {r.energy_negative:.4g} |"
+        )
+    return lines
+
+
+def stored_sizings(mech: Mechanism, folder=None) -> list[Sizing]:
+    """The sizing of every stride stored for ``mech`` (speeds ascending, human variant first)."""
+    keys = sorted(data.stored(folder), key=lambda k: (k[0] != "human", k[1]))
+    return [sizing(mech, data.load(v, s, mech, folder)) for v, s in keys]
+
+
+def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = None, folder=None) -> str:
+    """The section: the stride against Winter's (``figure``: the file of its curves, written beside the
+    report), the verdicts, and the sizing table of every stored stride (in ``folder``)."""
+    c = cmp.compare(mech, stride)
+    cadence = 120.0 / stride.period
+    lines = [
+        "## The stride against Winter's, over the whole gait cycle",
+        "",
+        f"The stored {md(stride.variant)} stride at {stride.speed:g} m/s: {stride.period:.3f} s, "
+        f"{stride.stride_length:.3f} m, {cadence:.1f} steps/min; right stance {c.stance[0]:.1f} % of the cycle "
+        f"(Winter: {c.stance[1]:.1f} %). Our right heel strike is at t = {c.heel_strike:.4f} s of the stored "
+        f"stride, where the right foot's vertical force rises through {cmp.CONTACT_THRESHOLD:g} body weights.",
+        "",
+        f"Winter's curves: {md(SOURCE)}, one subject, frames 28-97 (right heel contact to the next). "
+        f"Both strides are resampled to {cmp.BINS} bins of the cycle (bin means, which keep every integral).",
+        "",
+        md(CONVENTION),
+        "",
+    ]
+    if figure is not None:
+        lines += [f"![the stride's curves against Winter's]({figure})", ""]
+    lines += ["### Verdicts", "", *verdicts_table(c), ""]
+    lines += [
+        "A target not met is not met by this stride, with the numbers above as the evidence; whether this model "
+        "class could meet it is not shown by one solution.",
+        "",
+        "### Curves",
+        "",
+        "Winter's RMS is his curve's RMS over the cycle (a segment angle's about its mean): the transcription "
+        "has one subject and no inter-subject spread.",
+        "",
+        *curves_table(c),
+        "",
+        "### Peaks",
+        "",
+        f"Every phase's peak whose Winter value is at least {cmp.COMPARABLE:g} of the curve's largest: "
+        "|moment| per phase, the positive and negative power peaks, the ground force's extremes in stance.",
+        "",
+        *peaks_table(c),
+        "",
+        "### Actuator sizing",
+        "",
+        "Per joint motor (hips, knees, ankles) and telescopic rod, over one stride: peak and RMS torque (N·m) or "
+        "force (N), peak positive and negative power, and positive and negative energy per stride "
+        "(bench/studies/stride/sizing.py). Solve times are wall time on the host that solved the stride.",
+        "",
+    ]
+    for z in stored_sizings(mech, folder):
+        lines += [*sizing_table(z), ""]
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def text(mech: Mechanism, stride: data.StoredStride) -> str:
+    """The verdicts as Markdown, for the recording's description."""
+    c = cmp.compare(mech, stride)
+    return "\n".join(verdicts_table(c)) + "\n"
+
+
+__all__ = ["CONVENTION", "markdown", "stored_sizings", "text"]
