@@ -122,8 +122,9 @@ def _cholesky_forward(model: Any) -> Entries:
     coupling, computed here once per model); where that declines (``M`` singular), the model's
     ``check_regular`` names why, else the numpy route (``mass_matrix_and_bias``, ``cholesky_solve``)
     decides. Nothing where the coupling itself is not positive definite (the checks refuse the mechanism)."""
+    from exo_bench.matrix_method.numba_kernels import cholesky_forward_c as c
     from exo_bench.matrix_method.numba_kernels.cholesky_forward import entries
-    from exo_bench.models.forward_check import checked_entry
+    from exo_bench.models.forward_check import checked_entry, lean_entry
 
     try:
         lc = np.ascontiguousarray(np.linalg.cholesky(model.coupling))
@@ -138,7 +139,8 @@ def _cholesky_forward(model: Any) -> Entries:
         return out
 
     fused = checked_entry(model, e.checked_forward, (params, lc), forward_one)
-    return Entries(forward_one=forward_one, forward_checked=fused)
+    lean = lean_entry(model, c.checked_forward_c, lambda plan: c.packed(params, lc, plan))
+    return Entries(forward_one=forward_one, forward_checked=fused, forward_lean=lean)
 
 
 def _numpy_tiles(model: Any) -> Entries:

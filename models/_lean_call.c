@@ -1,11 +1,14 @@
 /* The lean one-sample call of a compiled kernel (matrix-factored's and newton-euler's numba cfuncs): a callable that takes exactly the arguments of
- * PreparedModel.inverse_dynamics(q, qd, qdd, check=True, out=None) and, for check=False with out=,
- * checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw pointers;
- * with check=True (given a validation cfunc and its plan: models/validation_pass.py status for one
- * sample) the same, on plain numpy.ndarrays only, once the validation answers 0 (OK). Every other
- * call (no out, a batch, any layout it does not take, a state the validation refuses) goes to the
- * Python fallback unchanged, having written nothing: PreparedModel validates and names the field.
- * See models/lean_call.py.
+ * PreparedModel.inverse_dynamics(q, qd, qdd, check=True, out=None) (or forward_dynamics(q, qd, tau, check, out))
+ * and, for check=False, checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw
+ * pointers; with check=True (given a validation cfunc and its plan: models/validation_pass.py status for one
+ * sample) the same, on plain numpy.ndarrays only, once the validation answers 0 (OK). Without out (None or not
+ * given) the result is a new array from numpy.empty(dof), called here. A forward kernel answers a code: 0, its
+ * result is taken; anything else (a state near a bound, not finite), the call is declined: a forward kernel writes
+ * into scratch memory of this object (the GIL is held throughout) or into the new array, so a declined call has
+ * written nothing a caller sees. Every other call (a batch, any layout it does not take, a state the validation
+ * refuses) goes to the Python fallback unchanged, having written nothing: PreparedModel validates and names the
+ * field. See models/lean_call.py.
  *
  * What is checked here, on each of q, qd, qdd and out: an instance of numpy.ndarray (or a subclass),
  * one dimension of dof elements, a stride of 8 bytes, the float64 dtype object numpy uses for native
@@ -17,6 +20,7 @@
 #include <Python.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 typedef struct {
     PyObject_HEAD
@@ -32,7 +36,11 @@ typedef struct {
 #define WRITEABLE 0x0400
 
 typedef void (*kernel_t)(double *, double *, double *, double *, double *, long long);
+typedef long long (*forward_t)(double *, double *, double *, double *, double *, long long);
 typedef long long (*validate_t)(double *, double *, double *, long long *);
+
+/* The interface of this module: models/lean_call.py uses it only where VERSION is the one it knows. */
+#define VERSION 2
 
 typedef struct {
     PyObject_HEAD
@@ -44,8 +52,12 @@ typedef struct {
     PyObject *plan;          /* the validation's plan (int64), kept alive; NULL: check=True is not taken */
     long long *planp;
     validate_t validate;
+    PyObject *empty;         /* numpy.empty: the result where out is None */
+    PyObject *dof_obj;       /* dof as a Python int, empty's argument */
     double *p;
-    kernel_t kernel;
+    kernel_t kernel;         /* an inverse kernel (void), or NULL */
+    forward_t forward;       /* a forward kernel (answers 0: done), or NULL */
+    double *scratch;         /* a forward kernel's result before it is copied into out */
     Py_ssize_t dof;
     long long n;
 } LeanCall;
@@ -68,6 +80,17 @@ static inline int apart(LeanCall *self, PyObject *a, PyObject *out) {
     return o + bytes <= x || x + bytes <= o;
 }
 
+/* A new result array (numpy.empty(dof)), NULL with an exception set if numpy fails (no memory), or NULL without
+   one if it is not what usable() takes (then the call is declined). */
+static PyObject *new_result(LeanCall *self) {
+    PyObject *arg = self->dof_obj;
+    PyObject *res = PyObject_Vectorcall(self->empty, &arg, 1, NULL);
+    if (res && !usable(self, res, 1)) Py_CLEAR(res);
+    return res;
+}
+
+#define DATA(a) ((double *)((ArrayFields *)(a))->data)
+
 static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
     LeanCall *self = (LeanCall *)callable;
     Py_ssize_t np_ = PyVectorcall_NARGS(nargsf);
@@ -88,39 +111,67 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
         if (PyErr_Occurred()) PyErr_Clear();
     }
     int checked = check == Py_True && self->validate;
-    if (plain && (check == Py_False || checked) && out && out != Py_None && usable(self, args[0], 0)
-        && usable(self, args[1], 0) && usable(self, args[2], 0) && usable(self, out, 1) && apart(self, args[0], out)
-        && apart(self, args[1], out) && apart(self, args[2], out)
+    int fresh = !out || out == Py_None; /* no out: a new result */
+    if (plain && (check == Py_False || checked) && (!fresh || self->empty) && usable(self, args[0], 0)
+        && usable(self, args[1], 0) && usable(self, args[2], 0)
+        && (fresh
+            || (usable(self, out, 1) && apart(self, args[0], out) && apart(self, args[1], out)
+                && apart(self, args[2], out)))
         && (!checked
             || (Py_TYPE(args[0]) == self->ndarray && Py_TYPE(args[1]) == self->ndarray
                 && Py_TYPE(args[2]) == self->ndarray
-                && self->validate((double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
-                                  (double *)((ArrayFields *)args[2])->data, self->planp) == 0))) {
-        self->kernel(self->p, (double *)((ArrayFields *)args[0])->data, (double *)((ArrayFields *)args[1])->data,
-                     (double *)((ArrayFields *)args[2])->data, (double *)((ArrayFields *)out)->data, self->n);
-        Py_INCREF(out);
-        return out;
+                && self->validate(DATA(args[0]), DATA(args[1]), DATA(args[2]), self->planp) == 0))) {
+        PyObject *res = fresh ? new_result(self) : out;
+        if (!res) {
+            if (PyErr_Occurred()) return NULL;
+            return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+        }
+        if (self->forward) {
+            double *into = fresh ? DATA(res) : self->scratch;
+            if (self->forward(self->p, DATA(args[0]), DATA(args[1]), DATA(args[2]), into, self->n) != 0) {
+                if (fresh) Py_DECREF(res);
+                return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+            }
+            if (!fresh) memcpy(DATA(out), self->scratch, 8 * self->dof);
+        } else {
+            self->kernel(self->p, DATA(args[0]), DATA(args[1]), DATA(args[2]), DATA(res), self->n);
+        }
+        if (!fresh) Py_INCREF(out);
+        return res;
     }
     return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
 }
 
 static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
-    PyObject *fallback, *params, *ndarray, *f8, *plan = NULL;
+    static char *names[] = {"fallback", "params", "ndarray", "f8", "kernel", "p", "dof", "n", "plan", "validate",
+                            "planp", "empty", "forward", NULL};
+    PyObject *fallback, *params, *ndarray, *f8, *plan = NULL, *empty = NULL;
     unsigned long long kernel, p, validate = 0, planp = 0;
     Py_ssize_t dof;
     long long n;
-    if (!PyArg_ParseTuple(args, "OOOOKKnL|OKK", &fallback, &params, &ndarray, &f8, &kernel, &p, &dof, &n, &plan,
-                          &validate, &planp))
+    int forward = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOOOKKnL|OKKOp", names, &fallback, &params, &ndarray, &f8, &kernel,
+                                     &p, &dof, &n, &plan, &validate, &planp, &empty, &forward))
         return NULL;
-    if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p || (plan && (!validate || !planp))) {
-        PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n[, plan, validate, planp])");
+    if (plan == Py_None) plan = NULL;
+    if (empty == Py_None) empty = NULL;
+    if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p || dof < 1
+        || (plan && (!validate || !planp)) || (empty && !PyCallable_Check(empty))) {
+        PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n[, plan, validate, "
+                                          "planp][, empty=numpy.empty][, forward=False])");
         return NULL;
     }
+    double *scratch = NULL;
+    if (forward && !(scratch = PyMem_Calloc((size_t)dof, sizeof(double)))) return PyErr_NoMemory();
+    PyObject *dof_obj = PyLong_FromSsize_t(dof);
+    if (!dof_obj) { PyMem_Free(scratch); return NULL; }
     LeanCall *self = (LeanCall *)type->tp_alloc(type, 0);
-    if (!self) return NULL;
-    Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8);
+    if (!self) { PyMem_Free(scratch); Py_DECREF(dof_obj); return NULL; }
+    Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8); Py_XINCREF(empty);
     self->fallback = fallback; self->params = params; self->ndarray = (PyTypeObject *)ndarray; self->f8 = f8;
-    self->kernel = (kernel_t)(uintptr_t)kernel; self->p = (double *)(uintptr_t)p; self->dof = dof; self->n = n;
+    self->empty = empty; self->dof_obj = dof_obj; self->scratch = scratch;
+    self->p = (double *)(uintptr_t)p; self->dof = dof; self->n = n;
+    if (forward) self->forward = (forward_t)(uintptr_t)kernel; else self->kernel = (kernel_t)(uintptr_t)kernel;
     Py_XINCREF(plan);
     self->plan = plan; self->validate = plan ? (validate_t)(uintptr_t)validate : NULL;
     self->planp = plan ? (long long *)(uintptr_t)planp : NULL;
@@ -130,11 +181,13 @@ static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
 
 static int lean_traverse(LeanCall *self, visitproc visit, void *arg) {
     Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8); Py_VISIT(self->plan);
+    Py_VISIT(self->empty);
     return 0;
 }
 
 static int lean_clear(LeanCall *self) {
     Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8); Py_CLEAR(self->plan);
+    Py_CLEAR(self->empty); Py_CLEAR(self->dof_obj);
     self->validate = NULL;
     return 0;
 }
@@ -142,6 +195,8 @@ static int lean_clear(LeanCall *self) {
 static void lean_dealloc(LeanCall *self) {
     PyObject_GC_UnTrack(self);
     lean_clear(self);
+    PyMem_Free(self->scratch);
+    self->scratch = NULL;
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -184,5 +239,6 @@ PyMODINIT_FUNC PyInit__lean_call(void) {
     if (!m) return NULL;
     Py_INCREF(&LeanCallType);
     if (PyModule_AddObject(m, "LeanCall", (PyObject *)&LeanCallType) < 0) return NULL;
+    if (PyModule_AddIntConstant(m, "VERSION", VERSION) < 0) return NULL;
     return m;
 }

@@ -28,13 +28,16 @@ BATCH = "batch"
 NUMBA_BYTES = 128 * 2**20
 
 
-@dataclass
+@dataclass(slots=True)
 class Entries:
     """What the kernels of one option supply to a prepared model (None: not supplied, the base
     class's generic path runs). Arrays are float64, C-ordered; ``out`` is written and returned.
 
-    * ``lean(q, qd, qdd, False, out) -> out``: one sample with ``check=False`` and an ``out``, checking
-      only what memory safety needs; None (having touched nothing) where it does not take the call.
+    * ``lean(q, qd, qdd, check, out) -> out``: one sample of inverse dynamics, called first with the
+      public call's arguments (``out`` may be None: a new result); None (having touched nothing) where
+      it does not take the call (models/lean_call.py).
+    * ``forward_lean(q, qd, tau, check, out)``: the same for forward dynamics, with ``check=True`` the
+      checks of ``forward_checked`` in the same call, declining every state they do not clear.
     * ``inverse_one(q, qd, qdd, out)``, ``forward_one(q, qd, tau, out)``: one sample, 1-D arrays.
     * ``forward_checked(q, qd, tau) -> qdd``: one validated sample with ``check=True``: the model's
       ``check_regular`` and ``check_finite`` refusals, the common case decided in compiled code
@@ -44,6 +47,7 @@ class Entries:
     """
 
     lean: Callable[..., Any] | None = None
+    forward_lean: Callable[..., Any] | None = None
     inverse_one: Callable[..., Any] | None = None
     forward_one: Callable[..., Any] | None = None
     forward_checked: Callable[..., Any] | None = None

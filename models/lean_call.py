@@ -1,17 +1,26 @@
 """The lean one-sample call of a compiled kernel: the C wrapper models/_lean_call.c (built by setup.py,
 optional) around a numba ``cfunc`` ``void f(double *params, double *q, double *qd, double *qdd,
-double *out, int64 n)``, bound once per prepared model and held by its kernel's entries (nothing is
-rebound). matrix-factored's lean kernel (:mod:`exo_bench.matrix_method.numba_kernels.lean`) and
-newton-euler's (:mod:`exo_bench.models.newton_euler.lean`) are such calls.
+double *out, int64 n)`` (inverse dynamics) or ``int64 f(double *params, double *q, double *qd, double
+*tau, double *out, int64 n)`` (forward dynamics, answering 0 where it computed the result), bound once
+per prepared model and held by its kernel's entries (nothing is rebound). matrix-factored's lean kernel
+(:mod:`exo_bench.matrix_method.numba_kernels.lean`), newton-euler's
+(:mod:`exo_bench.models.newton_euler.lean`) and their checked forward dynamics of one sample
+(``cholesky-forward``: :mod:`exo_bench.matrix_method.numba_kernels.cholesky_forward_c`; ``tree-forward``:
+:mod:`exo_bench.models.newton_euler.forward_lean`) are such calls.
 
-The wrapper takes the arguments of ``inverse_dynamics(q, qd, qdd, check, out)``; for ``check=False``
-with an ``out`` it checks in C what memory safety needs (ndarrays, one dimension of ``dof``, stride 8,
-float64, ``out`` writable and apart from the inputs: data pointers and extents compared as integers)
-and calls the cfunc with the raw pointers. Given the mechanism's validation ``plan``, it takes
-``check=True`` too, on plain ndarrays only: the validation pass of one sample
-(:func:`exo_bench.models.validation_pass.status_address`, the same compiled checks as ``check=True``'s
-Python path) runs first, through its C address, and the kernel only where it answers OK. Every other
-call goes to ``fallback`` unchanged, having written nothing (PreparedModel then names the problem).
+The wrapper takes the arguments of ``inverse_dynamics(q, qd, qdd, check, out)`` (or
+``forward_dynamics(q, qd, tau, check, out)``); for ``check=False`` it checks in C what memory safety
+needs (ndarrays, one dimension of ``dof``, stride 8, float64, ``out`` writable and apart from the
+inputs: data pointers and extents compared as integers) and calls the cfunc with the raw pointers,
+into ``out`` or, without one, into a new array (``numpy.empty(dof)``, called from C). Given the
+mechanism's validation ``plan``, it takes ``check=True`` too, on plain ndarrays only: the validation
+pass of one sample (:func:`exo_bench.models.validation_pass.status_address`, the same compiled checks
+as ``check=True``'s Python path) runs first, through its C address, and the kernel only where it
+answers OK. A forward kernel that answers anything but 0 (a state near a bound of the checks, an answer
+that is not finite) declines the call, having written nothing the caller sees (it writes into the
+wrapper's scratch memory, copied into ``out`` only when it answers 0). Every call it does not take
+goes to ``fallback`` unchanged (:func:`declined`: PreparedModel's Python path then runs and names
+the problem).
 """
 
 from __future__ import annotations
@@ -41,16 +50,37 @@ def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries
     )
 
 
-def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: int, plan: Any = None) -> Any:
+#: The interface of models/_lean_call.c this module calls (its ``VERSION``): an extension built
+#: before it (no ``out``-less calls, no forward kernels) is not used.
+VERSION = 2
+
+
+def declined(*args: Any, **kw: Any) -> None:
+    """The fallback of a lean call: the call is not one it takes (None: PreparedModel's path goes on)."""
+    return None
+
+
+def c_call(
+    address: int | None,
+    params: np.ndarray,
+    fallback: Any,
+    dof: int,
+    n: int,
+    plan: Any = None,
+    forward: bool = False,
+) -> Any:
     """The compiled wrapper around the cfunc at ``address``, called with ``params``'s data and ``n``:
     a callable ``(q, qd, qdd, check, out)`` (module docstring), taking ``check=True`` where ``plan``
-    (:func:`exo_bench.models.validation_pass.plan` of the mechanism) is given; None where the extension was not built
-    (no C compiler at install), there is no cfunc (``address`` None: ``NUMBA_DISABLE_JIT``), ``params`` is
-    not a C-ordered float64 array, or the extension reads
-    numpy's arrays differently from what numpy reports (checked here on probe arrays, before any use)."""
+    (:func:`exo_bench.models.validation_pass.plan` of the mechanism) is given; ``forward``: the cfunc is a
+    forward kernel (answers 0 when done). None where the extension was not built (no C compiler at
+    install) or is of another :data:`VERSION`, there is no cfunc (``address`` None: ``NUMBA_DISABLE_JIT``),
+    ``params`` is not a C-ordered float64 array, or the extension reads numpy's arrays differently from
+    what numpy reports (checked here on probe arrays, before any use)."""
     try:
         from exo_bench.models import _lean_call  # type: ignore[attr-defined]  # C, setup.py
     except ImportError:
+        return None
+    if getattr(_lean_call, "VERSION", None) != VERSION:  # built from an older models/_lean_call.c
         return None
     f8 = np.dtype(np.float64)
     if address is None or not (params.dtype is f8 and params.flags.c_contiguous):
@@ -62,7 +92,9 @@ def c_call(address: int | None, params: np.ndarray, fallback: Any, dof: int, n: 
         validate = status_address()
         if validate is not None and plan.dtype == np.int64 and plan.flags.c_contiguous and int(plan[0]) == dof:
             checked = (plan, validate, plan.ctypes.data)
-    call = _lean_call.LeanCall(fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n, *checked)
+    call = _lean_call.LeanCall(
+        fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n, *checked, empty=np.empty, forward=forward
+    )
     ro = np.zeros(dof)
     ro.flags.writeable = False
     probes = [

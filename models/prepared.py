@@ -42,7 +42,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from exo_bench.models.kernels import Kernel, select
+from exo_bench.models.kernels import Entries, Kernel, select
 from exo_bench.models.kernels import load as load_kernels
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.memory import (
@@ -112,15 +112,9 @@ class PreparedModel:
     kernels: ClassVar[tuple[Kernel, ...]] = ()
     #: The option ``kernel`` this model runs ("" for a method without the option).
     kernel: str = ""
-    # The entries of the chosen kernels (models/kernels.py, Entries): None where none supplies one.
-    _lean: Callable[..., Any] | None = None
-    _inverse_one: Callable[..., Any] | None = None
-    _forward_one: Callable[..., Any] | None = None
-    _forward_checked: Callable[..., Any] | None = None
-    _inverse_whole: Callable[..., Any] | None = None
-    _forward_whole: Callable[..., Any] | None = None
-    _inverse_chunk: Callable[..., Any] | None = None
-    _forward_chunk: Callable[..., Any] | None = None
+    #: The entries of the chosen kernels (:class:`~exo_bench.models.kernels.Entries`, bound by
+    #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run.
+    _entries: Entries = Entries()
     # forward dynamics' compiled checks (models/forward_check.py), resolved on first use
     _forward_checks: tuple[Callable[..., bool], Callable[..., bool]] | None = None
 
@@ -215,11 +209,7 @@ class PreparedModel:
         otherwise): their entries (:class:`~exo_bench.models.kernels.Entries`), bound to this model, are
         what the calls below run. Called by a method with kernels once its arguments are prepared."""
         chosen = select(self.method, self.kernels, option)
-        entries = load_kernels(self, chosen)
-        self._lean, self._inverse_one, self._forward_one = entries.lean, entries.inverse_one, entries.forward_one
-        self._forward_checked = entries.forward_checked
-        self._inverse_whole, self._forward_whole = entries.inverse_whole, entries.forward_whole
-        self._inverse_chunk, self._forward_chunk = entries.inverse_chunk, entries.forward_chunk
+        self._entries = load_kernels(self, chosen)
         self.kernel = self._options["kernel"] = chosen[0].option
         return self.kernel
 
@@ -236,47 +226,39 @@ class PreparedModel:
         dim)`` (:mod:`exo_bench.models.external_forces`): ``tau = ID - Q(q, f_ext)``."""
         if f_ext is not None:
             return external_forces.inverse_dynamics(self, q, qd, qdd, f_ext, check, out)
+        e = self._entries
+        # one sample, checked (validated first) or not, in C; None (having touched nothing) where it does not take it
+        if (lean := e.lean) is not None and (tau := lean(q, qd, qdd, check, out)) is not None:
+            return tau
         if not check:
-            lean = self._lean  # one sample in C, or None (having touched nothing) where it does not take it
-            if (
-                lean is not None
-                and (tau := lean(q, qd, qdd, False, np.empty(self._dof) if out is None else out)) is not None
-            ):
-                return tau
             unchecked_states(self.method, self._dof, (q, qd, qdd), out)
             if q.ndim == 1:
-                if self._inverse_one is not None:
-                    return self._inverse_one(q, qd, qdd, np.empty(self._dof) if out is None else out)
+                if e.inverse_one is not None:
+                    return e.inverse_one(q, qd, qdd, np.empty(self._dof) if out is None else out)
                 tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-            elif self._inverse_whole is not None:
-                return self._inverse_whole(q, qd, qdd, out)
+            elif e.inverse_whole is not None:
+                return e.inverse_whole(q, qd, qdd, out)
             else:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
         else:
-            lean = self._lean  # one sample validated and computed in C, or None (having touched nothing)
-            if (
-                lean is not None
-                and (tau := lean(q, qd, qdd, True, np.empty(self._dof) if out is None else out)) is not None
-            ):
-                return tau
             if qd is None or qdd is None:
                 require_rates(self.method, qd, qdd)
             single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
             q, qd, qdd = checked_states(self._mechanism, q, qd, qdd)  # one C-ordered float64 sample stays 1-D
             if out is not None:
                 check_out(out, q.shape[-1:] if single else q.shape, self.method)
-            if not single and self._inverse_whole is not None:  # the route of check=False: same numbers
+            if not single and e.inverse_whole is not None:  # the route of check=False: same numbers
                 into = None if out is None or not apart(out, (q, qd, qdd)) else out  # overlap: a copy below
-                if (tau := self._inverse_whole(q, qd, qdd, into)) is out:
+                if (tau := e.inverse_whole(q, qd, qdd, into)) is out:
                     return out
             elif not single:
                 tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
-            elif self._inverse_one is not None:  # the kernel of check=False: check never changes the result
+            elif e.inverse_one is not None:  # the kernel of check=False: check never changes the result
                 if q.ndim == 2:
                     q, qd, qdd = q[0], qd[0], qdd[0]
-                lean, tau = self._lean, np.empty(self._dof)  # the route of check=False: lean, else one
+                tau = np.empty(self._dof)  # the route of check=False: lean, else one
                 if lean is None or lean(q, qd, qdd, False, tau) is None:
-                    tau = self._inverse_one(q, qd, qdd, tau)
+                    tau = e.inverse_one(q, qd, qdd, tau)
             else:
                 tau = self._inverse_dynamics(q.reshape(1, -1), qd.reshape(1, -1), qdd.reshape(1, -1))[0]
         if out is None:
@@ -340,18 +322,24 @@ class PreparedModel:
         :meth:`inverse_dynamics`: ``qdd = FD(q, qd, tau + Q(q, f_ext))``."""
         if f_ext is not None:
             return external_forces.forward_dynamics(self, q, qd, tau, f_ext, check, out)
+        e = self._entries
+        # one sample in C, checked (states validated, the checks' common case) or not; None where it does not take it
+        if (lean := e.forward_lean) is not None and (qdd := lean(q, qd, tau, check, out)) is not None:
+            return qdd
         single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
             if qd is None or tau is None:
                 require_rates(self.method, qd, tau)
             try:
                 q, qd, tau = checked_states(self._mechanism, q, qd, tau, source="forward dynamics")
-            except ValueError as e:  # the third array of as_states is called qdd: here it is tau
-                raise ValueError(str(e).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")) from None
+            except ValueError as err:  # the third array of as_states is called qdd: here it is tau
+                raise ValueError(
+                    str(err).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")
+                ) from None
             if out is not None:
                 check_out(out, q.shape[-1:] if single else q.shape, self.method)
-            if single and self._forward_checked is not None:  # checks and passes in one compiled call
-                qdd = self._forward_checked(q, qd, tau) if q.ndim == 1 else self._forward_checked(q[0], qd[0], tau[0])
+            if single and (checked := e.forward_checked) is not None:  # checks and passes compiled
+                qdd = checked(q, qd, tau) if q.ndim == 1 else checked(q[0], qd[0], tau[0])
                 if out is None:
                     return qdd
                 out[...] = qdd
@@ -361,10 +349,10 @@ class PreparedModel:
             self.check_regular(q)
         else:
             unchecked_forward(self.method, self._dof, q, qd, tau, out)
-            if single and self._forward_one is not None:
-                return self._forward_one(q, qd, tau, np.empty(self._dof) if out is None else out)
-            if not single and self._forward_whole is not None:
-                return self._forward_whole(q, qd, tau, out)
+            if single and e.forward_one is not None:
+                return e.forward_one(q, qd, tau, np.empty(self._dof) if out is None else out)
+            if not single and e.forward_whole is not None:
+                return e.forward_whole(q, qd, tau, out)
             if single:
                 q, qd, tau = q[None], qd[None], tau[None]
         qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
@@ -410,9 +398,9 @@ class PreparedModel:
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """Inverse dynamics of a validated batch of at most :attr:`chunk_samples` samples: the
         kernels' entry, or the method's own code (a method without kernels overrides this)."""
-        if self._inverse_chunk is None:
+        if (chunk := self._entries.inverse_chunk) is None:
             raise NotImplementedError(f"{self.method}: no inverse dynamics")
-        return self._inverse_chunk(q, qd, qdd)
+        return chunk(q, qd, qdd)
 
     def _mass_matrix(self, q: np.ndarray) -> np.ndarray:
         return terms_in_chunks(self._inverse_dynamics, self._dof, q, np.zeros_like(q), self._chunk)[0]
@@ -426,7 +414,7 @@ class PreparedModel:
         return external_forces.generalized_forces_compiled(self._mechanism, q, f)
 
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        if self._forward_chunk is not None:
-            return self._forward_chunk(q, qd, tau)
+        if (chunk := self._entries.forward_chunk) is not None:
+            return chunk(q, qd, tau)
         M, h = self.mass_matrix_and_bias(q, qd, check=False)
         return cholesky_solve(M, tau - h)

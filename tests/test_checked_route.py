@@ -45,10 +45,10 @@ def test_a_checked_batch_runs_the_unchecked_route(method, with_out):
     """A batch longer than a chunk: check=True calls the whole-batch entry once (as check=False
     does), never the chunked one, and the results are bit-identical, with and without ``out``."""
     model = prepare(MECH, method)
-    assert model._inverse_whole is not None
+    assert model._entries.inverse_whole is not None
     model.chunk_samples = 7
     q, qd, qdd = _states(50, 3)
-    calls = _counting(model, whole="_inverse_whole", chunk="_inverse_chunk")
+    calls = _counting(model._entries, whole="inverse_whole", chunk="inverse_chunk")
     outs = [np.empty_like(q), np.empty_like(q)] if with_out else [None, None]
     checked = model.inverse_dynamics(q, qd, qdd, out=outs[0])
     assert calls == {"whole": 1, "chunk": 0}
@@ -77,9 +77,9 @@ def test_a_checked_sample_runs_the_lean_entry_of_check_false(method):
     """One sample, check=True: after the validation pass, the lean entry (in C where it was built)
     as check=False runs it, the per-sample entry only where the lean one declines; the same bits."""
     model = prepare(MECH, method)
-    if model._lean is None:
+    if model._entries.lean is None:
         pytest.skip("no lean entry here (the C wrapper was not built): the per-sample entry runs")
-    calls = _counting(model, lean="_lean", one="_inverse_one")
+    calls = _counting(model._entries, lean="lean", one="inverse_one")
     q, qd, qdd = (np.ascontiguousarray(a[0]) for a in _states(3, 5))
     checked = model.inverse_dynamics(q, qd, qdd)
     assert calls == {"lean": 1, "one": 0}

@@ -188,7 +188,7 @@ def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_a
     want = model.inverse_dynamics(q, qd, qdd)
     out = np.empty(mech.dof)
     model.inverse_dynamics(q, qd, qdd, check=False, out=out)
-    assert isinstance(model._lean, _lean_call.LeanCall)
+    assert isinstance(model._entries.lean, _lean_call.LeanCall)
     assert "inverse_dynamics" not in vars(model)
     forms = [
         ((q, qd, qdd), {"check": False, "out": out}),

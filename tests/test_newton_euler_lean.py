@@ -38,14 +38,14 @@ def test_the_lean_call_is_bit_identical_to_the_per_sample_kernel(tree):
     model = prepare(mech, "newton-euler")
     from exo_bench.models import _lean_call
 
-    assert isinstance(model._lean, _lean_call.LeanCall)
+    assert isinstance(model._entries.lean, _lean_call.LeanCall)
     q, qd, qdd = random_states(mech, 6, seed=5)
     q[4, 0], qd[5, -1] = np.nan, np.inf  # never hidden: the same NaN as the kernel's
     for s in range(q.shape[0]):
         one = [np.ascontiguousarray(a[s]) for a in (q, qd, qdd)]
-        want = model._inverse_one(*one, np.empty(mech.dof))
+        want = model._entries.inverse_one(*one, np.empty(mech.dof))
         out = np.full(mech.dof, -1.0)
-        assert model._lean(*one, False, out) is out  # the C call took it
+        assert model._entries.lean(*one, False, out) is out  # the C call took it
         assert _bits(out) == _bits(want)
         assert _bits(model.inverse_dynamics(*one, check=False)) == _bits(want)
         if np.isfinite(q[s]).all() and np.isfinite(qd[s]).all():
@@ -73,7 +73,7 @@ def test_the_lean_call_declines_what_it_does_not_take():
         (q, qd, qdd, 1, out),
         (q, qd, out, False, out),
     ]:
-        assert model._lean(*args) is None
+        assert model._entries.lean(*args) is None
         assert (out == 7.0).all()
     with pytest.raises(ValueError, match="field 'out'.*overlaps 'qdd'"):
         model.inverse_dynamics(q, qd, out, check=False, out=out)

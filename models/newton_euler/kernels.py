@@ -84,9 +84,13 @@ def _tree_forward(model: Any) -> Entries:
     from exo_bench.models.forward_check import checked_entry
     from exo_bench.models.newton_euler.forward_fused import entry
 
+    from exo_bench.models.forward_check import lean_entry
+    from exo_bench.models.newton_euler import forward_lean as c
+
     forward_one = _forward_one(model, _serial_entry(model))
-    # forward_one: the per-sample kernel's (the same passes)
-    return Entries(forward_checked=checked_entry(model, entry(), (model.table,), forward_one))
+    # forward_one: the per-sample kernel's (the same passes); forward_lean: the same fused call in C
+    lean = lean_entry(model, c.checked_forward_c, lambda plan: c.packed(model.table, plan))
+    return Entries(forward_checked=checked_entry(model, entry(), (model.table,), forward_one), forward_lean=lean)
 
 
 def _simd(model: Any) -> Entries:

@@ -1,0 +1,34 @@
+"""``tree-forward``'s checked forward dynamics of one sample as a C function (numba ``cfunc``), for the
+compiled wrapper models/_lean_call.c (:func:`exo_bench.models.lean_call.c_call` with ``forward``):
+``int64 f(double *packed, double *q, double *qd, double *tau, double *out, int64 n)`` runs
+:func:`~exo_bench.models.newton_euler.forward_fused.checked_forward` on raw pointers (the wrapper has
+checked every array and, with ``check=True``, validated the states) and answers its code
+(:data:`~exo_bench.models.forward_check.DONE` is 0). ``packed`` is :func:`packed`: the model's
+``(8, n)`` table and the checks' plan in one array. Imported on first use (compiling on a fresh
+machine, loading from numba's on-disk cache after)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import carray, cfunc, types
+
+from exo_bench.models.forward_check import PLAN_SIZE
+from exo_bench.models.newton_euler.forward_fused import checked_forward
+
+_P = types.CPointer(types.float64)
+SIGNATURE = types.int64(_P, _P, _P, _P, _P, types.int64)
+
+
+@cfunc(SIGNATURE, cache=True)  # a cfunc is always compiled in nopython mode
+def checked_forward_c(packed, q, qd, tau, o, n):
+    whole = carray(packed, (8 * n + PLAN_SIZE,))
+    plan = whole[8 * n :]
+    d = int(plan[1]) * n  # plan[1]: the dimension (forward_check.plan)
+    return checked_forward(
+        whole[: 8 * n].reshape((8, n)), plan, carray(q, (d,)), carray(qd, (d,)), carray(tau, (d,)), carray(o, (d,))
+    )
+
+
+def packed(table: np.ndarray, plan: np.ndarray) -> np.ndarray:
+    """The cfunc's first argument: the ``(8, n)`` table and ``plan``, flat, C-ordered."""
+    return np.concatenate([np.ravel(table), np.ravel(plan)]).astype(np.float64)
