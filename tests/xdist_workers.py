@@ -1,0 +1,85 @@
+"""The README's test command on two pytest-xdist workers, each a test process of its own.
+
+Hooks of tests/conftest.py (imported there, so they are conftest hooks):
+
+* :func:`pytest_cmdline_main`: a run that names no paths (the README's ``python -m pytest``: pyproject's
+  testpaths) gets ``-n 2 --dist loadgroup`` unless it chose ``-n``, ``--dist`` or ``--tx`` itself, asks
+  for ``--pdb`` or only collects. A run that names files stays in one process (``-s`` and ``--pdb``
+  work; ``-n 2`` makes it parallel). Not in pyproject's addopts: ``exo-bench run`` and ``exo-bench
+  bench`` run pytest on bench/ with that ini, and an ``-n`` there fails with "unrecognized arguments"
+  where the [test] extra (pytest-xdist) is not installed, and disables every benchmark where it is
+  (pytest-benchmark refuses to time under xdist). tests/conftest.py is not loaded by those runs.
+* :func:`pytest_configure`, in a worker: what a test process shares with the other worker is made its
+  own. numba's cache folder (``NUMBA_CACHE_DIR``, inherited by the CLI processes its tests start):
+  numba's index of a function's machine code is read, extended and replaced without a lock
+  (numba/core/caching.py, ``IndexDataCacheFile.save``), so two processes compiling two signatures
+  of one kernel at once can both take data file 1, and the index left can name the other
+  signature's code (numba issues 4807, 10128). And ``PYTEST_XDIST_*``, which xdist sets in the
+  worker's environment: a pytest its tests start (the benchmark rows of ``exo-bench bench``) would
+  read it and take itself for a worker, and pytest-benchmark would time nothing.
+
+Tests that share a session fixture too costly to build in both workers are kept on one worker with
+``@pytest.mark.xdist_group(...)`` (tests/test_compiled.py, tests/test_kernel_cache.py: the warm
+package copy).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+#: Workers of the whole suite: the cores of the 2-core machine CI runs on.
+WORKERS = 2
+#: xdist's variables in a worker's environment (xdist/remote.py, ``setup_config``'s caller).
+XDIST_VARIABLES = ("PYTEST_XDIST_WORKER", "PYTEST_XDIST_TESTRUNUID", "PYTEST_XDIST_WORKER_COUNT")
+
+
+def whole_suite_in_workers(config: pytest.Config) -> bool:
+    """Whether this run is the whole suite, to be run on :data:`WORKERS` workers (module docstring)."""
+    o = config.option
+    return (
+        config.pluginmanager.hasplugin("xdist")
+        and not hasattr(config, "workerinput")
+        and config.args_source is pytest.Config.ArgsSource.TESTPATHS
+        and getattr(o, "numprocesses", None) is None
+        and getattr(o, "dist", "no") == "no"
+        and not getattr(o, "tx", None)
+        and not o.usepdb
+        and not o.collectonly
+    )
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_cmdline_main(config: pytest.Config):
+    if whole_suite_in_workers(config):
+        config.option.numprocesses = WORKERS
+        config.option.dist = "loadgroup"
+    return (yield)
+
+
+def numba_cache_folder(config: pytest.Config, worker: str) -> Path:
+    """The worker's own numba cache: under the user's ``NUMBA_CACHE_DIR`` if set, else in pytest's
+    cache folder (kept between runs, like numba's ``__pycache__``), else (``-p no:cacheprovider``) in
+    the worker's temporary folder (xdist's ``basetemp``; pytest keeps the last three runs')."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"]) / worker
+    cache = getattr(config, "cache", None)
+    if cache is not None:
+        return cache.mkdir(f"numba-{worker}")
+    return Path(config.option.basetemp) / "numba-cache"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    worker = getattr(config, "workerinput", {}).get("workerid")
+    if worker is None:
+        return
+    os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_folder(config, worker))
+    for name in XDIST_VARIABLES:
+        os.environ.pop(name, None)
+    if "numba" in sys.modules:  # numba reads its environment when imported
+        from numba.core import config as numba_config
+
+        numba_config.reload_config()
