@@ -71,7 +71,7 @@ def cmd_stride(args) -> int:
             raise
         stored, settings = None, problem.settings_for(mech, args.variant, speed)
     try:
-        new = problem.solve(mech, settings, verbose=args.verbose)
+        new = problem.solve_stages(mech, settings, verbose=args.verbose)
     except RuntimeError as e:
         print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
         return 2

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -76,8 +76,9 @@ class StrideSettings:
     hip_x0: float = 1.0  # the hips' x at t = 0 (m; O is on the floor behind them)
     w_positive: float = 1.0
     w_negative: float = 0.5
+    eps_power: float = 0.0  # W: 0 prices the exact positive and negative parts (transcription)
     w_moment: float = 0.1
-    w_force: float = 0.01
+    w_force: float = 0.1
     w_accel: float = 1e-6
     tol: float = 1e-10
     stature: float = 1.75
@@ -203,9 +204,36 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
         "constr_viol_tol": opts["ipopt.constr_viol_tol"],
         "constraint_violation": float(viol),
         "casadi": ca.__version__,  # type: ignore[attr-defined]
-        "half_stride": {"T": T, "z": z.tolist(), "zd": zd.tolist(), "zdd": zdd.tolist()},
     }
     return assemble(mech, fm, s, node, rows, np.linspace(0, T, s.intervals + 1), z, zd, zdd, stats)
+
+
+def half_of(stride: data.StoredStride, mech: Mechanism):
+    """``(T, z, zd, zdd)`` of the solved half of a stored stride (a start for :func:`solve`)."""
+    from exo_bench.models.posture import balanced_standing
+
+    fm = free_map(mech, balanced_standing(mech))
+    N = (len(stride.t) - 1) // 2
+    return float(stride.t[N]), *(x[: N + 1, fm.free] for x in (stride.q, stride.qd, stride.qdd))
+
+
+#: The continuation of :func:`solve_stages`: effort only, then work with ``|P|`` smoothed (10 W), each
+#: to a loose tolerance, then the problem as set.
+STAGES = ({"w_positive": 0.0, "w_negative": 0.0, "tol": 1e-4}, {"eps_power": 10.0, "tol": 1e-6})
+
+
+def solve_stages(mech: Mechanism, s: StrideSettings, verbose: bool = False) -> data.StoredStride:
+    """:func:`solve` from the initial guess through the continuation :data:`STAGES`, each stage started
+    from the last one's solution; the result's ``meta["solver"]`` has every stage's iterations and
+    seconds, ``solve_seconds`` their sum."""
+    start, stages = None, []
+    for over in (*STAGES, {}):
+        st = solve(mech, replace(s, **over), start=start, verbose=verbose and not over)
+        start = half_of(st, mech)
+        stages.append({k: st.solver[k] for k in ("iterations", "solve_seconds", "objective", "tol")})
+    st.meta["solver"]["stages"] = stages
+    st.meta["solver"]["solve_seconds"] = sum(x["solve_seconds"] for x in stages)
+    return st
 
 
 def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.StoredStride:

@@ -19,9 +19,12 @@ at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``
 **Objective.** Work per metre over body weight, positive and negative parts priced separately: each
 power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
 prices ``w_positive U+ + w_negative U-`` make one of them zero at the optimum, so the priced work is
-:func:`~.actuators.work_terms`' without smoothing (a smoothed ``|P|``, ``sqrt(P^2 + eps^2)``, was tried
-first: with ``eps`` = 1 W IPOPT wandered for 500 iterations without converging); plus the effort,
-averaged over the half stride (trapezoidal weights).
+:func:`~.actuators.work_terms`' without smoothing (``eps_power == 0``, the stored strides); or, with
+``eps_power > 0`` (W), ``|P|`` smoothed as :func:`~.actuators.work_terms` does, ``sqrt(P^2 + eps^2)``: the
+continuation's middle stage (:func:`~.problem.solve_stages`; with ``eps`` = 1 W from the effort-only
+start IPOPT wandered for 500 iterations; with 10 W it converges, and the exact split from there lands on
+a nearby optimum, where from the effort-only start it found a worse one). Plus the effort, averaged
+over the half stride (trapezoidal weights).
 
 **Constraints.** Trapezoidal defects ``z_{k+1} - z_k = h/2 (zd_k + zd_{k+1})`` and the same for the
 rates; zero residuals at every node; joint ranges (linear); the symmetry (the end is the start mirrored,
@@ -119,9 +122,10 @@ class NLP:
     unit: float  # W: body weight times speed
 
     def x0(self, T: float, z: np.ndarray, zd: np.ndarray, zdd: np.ndarray, powers: np.ndarray) -> np.ndarray:
-        """The variables of a half stride, its powers ``(N + 1, npow)`` (W) split into their two parts."""
+        """The variables of a half stride, its priced powers ``(N + 1, 10)`` (W) split into their two parts
+        (none when ``npow`` is 0: the smoothed objective has no slack variables)."""
         u = np.asarray(powers, dtype=float) / self.unit
-        parts = [np.maximum(u, 0).ravel() + 1e-4, np.maximum(-u, 0).ravel() + 1e-4]
+        parts = [np.maximum(u, 0).ravel() + 1e-4, np.maximum(-u, 0).ravel() + 1e-4] if self.npow else []
         return np.concatenate([np.concatenate([z, zd, zdd], axis=1).ravel(), [T], *parts])
 
     def split(self, x: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
@@ -152,7 +156,8 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     """The half stride's NLP (module docstring) for settings ``s`` (:class:`~.problem.StrideSettings`)."""
     node, rows = node_function(mech, s)
     N, nz = s.intervals, fm.nz
-    npow = rows.powers.stop - rows.powers.start
+    smooth = s.eps_power > 0  # |P| ~ sqrt(P^2 + eps^2); else the exact split with slack variables
+    npow = 0 if smooth else rows.powers.stop - rows.powers.start
     nZ = (N + 1) * 3 * nz
     x = ca.SX.sym("x", nZ + 1 + 2 * npow * (N + 1))
     Z = ca.reshape(x[:nZ], 3 * nz, N + 1)
@@ -179,7 +184,8 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     bw = mech.total_mass * mech.g
     for k, y in enumerate(Y):
         add(y[rows.residuals] / bw, 0, 0)  # in body weights (and body weight x 1 m): scaled as the defects
-        add(y[rows.powers] / unit - (Up[:, k] - Un[:, k]), 0, 0)  # each power's positive and negative part
+        if not smooth:
+            add(y[rows.powers] / unit - (Up[:, k] - Un[:, k]), 0, 0)  # each power's positive and negative part
     A = np.stack([a for a, _, _ in joint_rows(mech, fm, s)])
     lo_j = np.array([lo for _, lo, _ in joint_rows(mech, fm, s)])
     hi_j = np.array([hi for _, _, hi in joint_rows(mech, fm, s)])
@@ -201,7 +207,12 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     add(y0[rows.heel_height], 0, 0)
     w = np.full(N + 1, 1.0 / N)
     w[[0, -1]] /= 2
-    work = s.w_positive * ca.sum1(Up) + s.w_negative * ca.sum1(Un)  # (1, N + 1): work per metre over BW
+    if smooth:
+        P = ca.horzcat(*[y[rows.powers] for y in Y]) / unit
+        a = ca.sqrt(P**2 + (s.eps_power / unit) ** 2)  # as actuators.work_terms smooths |P|
+        work = ca.sum1(s.w_positive * (a + P) / 2 + s.w_negative * (a - P) / 2)
+    else:
+        work = s.w_positive * ca.sum1(Up) + s.w_negative * ca.sum1(Un)  # (1, N + 1): work per metre over BW
     f = sum(float(w[k]) * (work[k] + Y[k][rows.effort]) for k in range(N + 1))
     lbz, ubz = _variable_bounds(mech, fm, s)
     slack = 2 * npow * (N + 1)
