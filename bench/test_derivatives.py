@@ -46,7 +46,7 @@ CHAIN_N = {"quick": (10, 20), "full": (10, 20, 30, 50, 100, 200, 300)}
 SAMPLES = {"quick": 64, "full": 256}
 #: Seconds one timed batch may take (projected from one sample): the batch is cut to fit.
 BUDGET = {"quick": 2.0, "full": 10.0}
-REF_N, REF_N_FORWARD = 30, 10
+REF_N, REF_N_FORWARD = 100, 20
 CASADI_MAX_N = 100  # CasADi's preparation: 7.3 s and 26 ms per sample at n = 100 (issue 36), minutes beyond
 #: Pinocchio's Data is 32 nv^3 bytes (0.87 GB at n = 100, 23 GB at 300); Drake's AutoDiffXd carries
 #: 3 dof directions through every operation and MuJoCo's finite differences call mj_inverse 3 nv + 1
