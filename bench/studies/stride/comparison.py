@@ -17,8 +17,9 @@ omega_reference)`` on both sides (:func:`exo_bench.bench.studies.stride.actuator
 :func:`.winter.joint_powers`). The model's angles are Winter's segment angles by construction
 (:func:`exo_bench.models.presets.human`: the vector from the distal to the proximal joint).
 
-**Scale.** Each curve's RMS error is set beside Winter's own RMS over the cycle: the transcription is one
-subject, with no inter-subject spread to compare with.
+**Scale.** Each curve's RMS error is set beside Winter's own RMS over the cycle (a segment angle's about
+its mean, so the scale is the angle's swing, not its offset from +x): the transcription is one subject,
+with no inter-subject spread to compare with.
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ class Curve:
 
     @property
     def winter_rms(self) -> float:
-        return rms(self.winter)
+        """Winter's curve's RMS over the cycle; an angle's about its mean (its swing, not its offset)."""
+        return rms(self.winter - np.mean(self.winter)) if self.key.endswith("angle") else rms(self.winter)
 
 
 @dataclass(frozen=True)
@@ -220,6 +222,11 @@ def double_hump(fy: np.ndarray) -> tuple[list[tuple[int, float]], tuple[int, flo
     return [(a, float(x[a])), (b, float(x[b]))], (v, float(x[v]))
 
 
+def _peak(label: str, x: np.ndarray) -> float:
+    """``max |x|``, ``max x`` or ``min x`` (label ``|max|``, ``max``, ``min``)."""
+    return float(np.max(np.abs(x)) if label == "|max|" else np.max(x) if label == "max" else np.min(x))
+
+
 def peak_table(cs: dict[str, Curve], stance: tuple[float, float]) -> list[tuple[str, float, float]]:
     """``(name, ours, Winter's)`` of every comparable peak: max |moment| per phase, the positive and the
     negative power peaks per phase, and the ground force's extremes in stance (see :data:`COMPARABLE`)."""
@@ -233,13 +240,10 @@ def peak_table(cs: dict[str, Curve], stance: tuple[float, float]) -> list[tuple[
         for phase, (mo, mw) in phases.items():
             if key.endswith("GRF") and phase == "swing":
                 continue
-            kinds = [("|max|", np.abs)] if key.endswith("moment") else [("max", np.asarray), ("min", np.negative)]
-            for label, f in kinds:
-                w = float(np.max(f(c.winter[mw])))
-                if w >= scale and w > 0:
-                    o = float(np.max(f(c.ours[mo])))
-                    sign = -1.0 if label == "min" else 1.0
-                    out.append((f"{key}, {phase}, {label}", sign * o, sign * w))
+            for label in ("|max|",) if key.endswith("moment") else ("max", "min"):
+                w, o = (_peak(label, x) for x in (c.winter[mw], c.ours[mo]))
+                if (-w if label == "min" else w) >= max(scale, np.finfo(float).tiny):  # a min peak is negative
+                    out.append((f"{key}, {phase}, {label}", o, w))
     return out
 
 
