@@ -257,3 +257,25 @@ def test_a_stride_scene_loads_its_stored_stride_and_refuses_bad_fields(mech, sto
         (tmp_path / "b.toml").write_text(head + bad + "\n")
         with pytest.raises(ValueError, match=f"b.toml: field '{field}'"):
             load_scene(tmp_path / "b.toml")
+
+
+def test_a_single_hump_fails_with_the_knee_yield_as_evidence(mech):
+    s = winter_stride(mech)
+    grf = s.grf.copy()
+    stance = s.t <= winter.table()["t"][42]  # frames 28-70
+    grf[:, 0, 1] = np.where(stance, 1.2 * winter.MASS * G * np.sin(np.pi * s.t / s.t[42]), 0.0)
+    c = cmp.compare(mech, StoredStride(**{**s.__dict__, "grf": grf}), start=0.0)
+    v = next(x for x in c.verdicts if x.name.startswith("vertical GRF"))
+    his = cmp.stance_knee_flexion(c.curves, winters=True)
+    assert not v.passed and "(fewer than two peaks)" in v.measured
+    assert f"knee yield in the first 30 % of the cycle: {his:.1f} deg (Winter's {his:.1f} deg)" in v.measured
+    assert 10.0 < his < 20.0  # Winter's early-stance knee flexion (about 16 deg at its peak)
+
+
+def test_the_report_says_what_the_methods_table_shows_without_the_floor(mech):
+    from exo_bench.bench.studies.stride.report import without_floor
+
+    s = winter_stride(mech)
+    tau = np.zeros_like(s.tau)
+    tau[:, mech.nlinks + mech.names.index("root")] = np.linspace(0.0, 612.5, len(s.t))
+    assert "its root length row peaks at 612.5 N" in without_floor(mech, s, tau)

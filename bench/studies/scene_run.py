@@ -182,7 +182,9 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.studies.stride import report as stride_report, scene as stride_scene
 
         figure = stride_scene.extra_files(sc)
-        lines += ["", stride_report.markdown(mech, sc.motion["stored"], figure[0] if figure else None).rstrip("\n")]
+        tau = st.tau(sc.reference) if st.results[sc.reference].ok else None
+        section = stride_report.markdown(mech, sc.motion["stored"], figure[0] if figure else None, tau=tau)
+        lines += ["", section.rstrip("\n")]
     return "\n".join(lines) + "\n"
 
 

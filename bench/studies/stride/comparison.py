@@ -294,6 +294,9 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators) -> list[
     measured = f"peaks {pk}" + (
         f", valley {valley[1]:.2f} BW at {valley[0] + 0.5:.1f} %" if valley else " (fewer than two peaks)"
     )
+    if not ok:  # the knee's yield as the body is loaded shapes the humps: a stiff stance knee vaults
+        ours, his = stance_knee_flexion(cs), stance_knee_flexion(cs, winters=True)
+        measured += f"; stance knee yield in the first 30 % of the cycle: {ours:.1f} deg (Winter's {his:.1f} deg)"
     out.append(
         Verdict(
             "vertical GRF: two peaks >= 1.0 BW, valley <= 0.85 BW",
@@ -326,6 +329,14 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators) -> list[
         )
     )
     return out
+
+
+def stance_knee_flexion(cs: dict[str, Curve], winters: bool = False) -> float:
+    """The knee's yield as the body is loaded: the largest knee flexion (thigh angle - leg angle,
+    degrees) in the first 30 % of the cycle minus the flexion at heel strike (bin means of the angles)."""
+    thigh, leg = cs["thigh angle"], cs["leg angle"]
+    flex = (thigh.winter - leg.winter) if winters else (thigh.ours - leg.ours)
+    return float(np.max(flex[: int(0.3 * BINS)]) - flex[0])
 
 
 def best_lag(c: Curve) -> tuple[int, float]:

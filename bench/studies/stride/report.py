@@ -87,9 +87,23 @@ def stored_sizings(mech: Mechanism, folder=None) -> list[Sizing]:
     return [sizing(mech, data.load(v, s, mech, folder)) for v, s in keys]
 
 
-def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = None, folder=None) -> str:
+def without_floor(mech: Mechanism, stride: data.StoredStride, tau) -> str:
+    """What the scene's methods table shows along the stride, measured: inverse dynamics without the floor's
+    force, so the root's rows carry what the floor carries in the stride (``tau``: a method's, ``(K, dof)``)."""
+    row = mech.nlinks + mech.names.index("root")
+    return (
+        "The methods' table above runs every method's inverse dynamics along the stored stride without the "
+        f"floor's force (the scene runner passes no external force): its root length row peaks at "
+        f"{float(abs(tau[:, row]).max()):.4g} N, where in the stride the floor carries the body (the stored "
+        f"residual of that row peaks at {float(abs(stride.residuals[:, 2]).max()):.2g} N). The loads below are "
+        "the optimiser's, with the floor's contact forces."
+    )
+
+
+def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = None, folder=None, tau=None) -> str:
     """The section: the stride against Winter's (``figure``: the file of its curves, written beside the
-    report), the verdicts, and the sizing table of every stored stride (in ``folder``)."""
+    report), the verdicts, and the sizing table of every stored stride (in ``folder``); ``tau``: the
+    scene's reference method's generalised forces along the stride, to say what its methods table shows."""
     c = cmp.compare(mech, stride)
     cadence = 120.0 / stride.period
     lines = [
@@ -106,6 +120,8 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         md(CONVENTION),
         "",
     ]
+    if tau is not None:
+        lines += [without_floor(mech, stride, tau), ""]
     if figure is not None:
         lines += [f"![the stride's curves against Winter's]({figure})", ""]
     lines += ["### Verdicts", "", *verdicts_table(c), ""]
