@@ -14,8 +14,9 @@
   (:mod:`exo_bench.models.newton_euler.forward_jacobians`): O(n^2) time and memory, the size of the
   output, and no dense LU;
 * the directional derivatives, O(n) per sample, for users who need no full Jacobian
-  (:mod:`exo_bench.models.newton_euler.products`): :meth:`Derivatives.inverse_dynamics_jvp` ``(q, qd, qdd,
-  dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
+  (:mod:`exo_bench.models.newton_euler.products`, compiled in
+  :mod:`exo_bench.models.newton_euler.products_compiled`): :meth:`Derivatives.inverse_dynamics_jvp` ``(q,
+  qd, qdd, dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
   w^T dtau/dqd, w^T M)``, and the same of forward dynamics (:meth:`Derivatives.forward_dynamics_jvp`,
   :meth:`Derivatives.forward_dynamics_vjp`).
 
@@ -44,6 +45,7 @@ from exo_bench.models.conditioning import (
     coupling_reason,
 )
 from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.result_pool import ResultPool
 from exo_bench.models.singularity import SingularConfigurationError, mechanism_reasons, singular_reasons
 from exo_bench.models.states import is_one_sample
 
@@ -126,6 +128,9 @@ class Derivatives:
         #: tree and table the forward passes share
         self.inverse_derivatives = prepare_inverse_derivatives(mechanism)
         self.tree, self.table = self.inverse_derivatives.tree, self.inverse_derivatives.table
+        #: new batched results of the forward calls, recycled once dropped (models/result_pool.py): the
+        #: four of two calls (a loop holds the previous ones during the next call)
+        self._results = ResultPool(keep=8)
 
     def __repr__(self) -> str:
         return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {self.source}>"
@@ -147,7 +152,7 @@ class Derivatives:
         from exo_bench.models.numba_runtime import run
 
         x, xd, y = (np.ascontiguousarray(a).reshape(-1) for a in (q, qd, tau))
-        o = np.empty(q.shape)
+        o = self._results.empty(q.shape)
         args = (self.table, g, dim, True, x, xd, y, o.reshape(-1))
         run(compiled.newton_euler, compiled.newton_euler_parallel, args, q.shape[0])
         return o
@@ -177,7 +182,9 @@ class Derivatives:
         (:mod:`exo_bench.models.newton_euler.forward_jacobians`, compiled in
         :mod:`exo_bench.models.newton_euler.forward_jacobians_compiled`)."""
         S, d = q.shape
-        Minv = self._solve(q, np.broadcast_to(np.eye(d), (S, d, d)).copy())
+        Minv = self._results.empty((S, d, d))
+        Minv[...] = np.eye(d)  # the columns of M^-1 I, solved in place
+        Minv = self._solve(q, Minv, out=Minv)
         if self.reference:
             from exo_bench.models.newton_euler.forward_jacobians import forward_jacobians
 
@@ -186,7 +193,7 @@ class Derivatives:
         from exo_bench.models.newton_euler import forward_jacobians_compiled as fc
         from exo_bench.models.numba_runtime import run
 
-        jq, jqd = np.empty((S, d, d)), np.empty((S, d, d))
+        jq, jqd = self._results.empty((S, d, d)), self._results.empty((S, d, d))
         states = (np.ascontiguousarray(a) for a in (q, qd, qdd, tau))
         run(fc.forward_jacobians, fc.forward_jacobians_parallel, (self.mechanism.dim, *states, Minv, jq, jqd), S)
         return jq, jqd, Minv
@@ -228,8 +235,11 @@ class Derivatives:
         return [np.ascontiguousarray(np.atleast_2d(np.asarray(a, dtype=float))) for a in shaped], single
 
     def _check_memory(self, source: str, samples: int, jacobians: int) -> None:
-        """Refuse, before any work, a call whose :func:`derivative_bytes` exceed :func:`exo_bench.models.memory.usable_memory`."""
+        """Refuse, before any work, a call whose :func:`derivative_bytes` exceed :func:`exo_bench.models.memory.usable_memory`
+        (asked only above :data:`exo_bench.models.memory.CHUNK_BYTES`)."""
         need = derivative_bytes(self.mechanism.dof, samples, jacobians, self.kernel)
+        if need <= memory.CHUNK_BYTES:  # no larger than one chunk's temporaries, which every batched call
+            return  # allocates unasked; reading /proc/meminfo costs ~0.1 ms, more than exo5-3d's 256 samples
         limit = memory.usable_memory()
         if limit is not None and need > limit:
             raise DerivativesTooLarge(
@@ -292,6 +302,8 @@ class Derivatives:
     def _finite(self, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
         """Never NaN or inf: a vector names its coordinate, a Jacobian the row of its coordinate."""
         for x, name in zip(out, names):
+            if np.isfinite(x.sum()):  # one pass, no temporary: NaN and inf propagate (a false alarm only on overflow)
+                continue
             if x.ndim == 2:
                 check_finite(self.mechanism, x, name)
             else:
@@ -340,42 +352,44 @@ class Derivatives:
         return tuple(x[0] for x in out) if single else out
 
     # ------------------------------------------------------------------ directional derivatives
+    def _products(self, which: str, *arrays):
+        """The ``"jvp"`` or ``"vjp"`` of inverse dynamics on validated C-ordered ``(S, dof)`` arrays, O(n)
+        per sample: compiled, or the numpy reference (:mod:`exo_bench.models.newton_euler.products_compiled`)."""
+        from exo_bench.models.newton_euler import products_compiled as pc
+
+        return getattr(pc, which)(
+            self.tree, self.table, self.mechanism.dim, float(self.mechanism.g), *arrays, self.reference
+        )
+
     def inverse_dynamics_jvp(self, q, qd, qdd, dq, dqd, dqdd, check: bool = True):
         """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_jvp`)."""
-        from exo_bench.models.newton_euler.products import inverse_jvp
-
         names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
         arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics JVP")
-        out = inverse_jvp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
+        out = self._products("jvp", *arrays)
         return out[0] if single else out
 
     def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
         """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each: reverse mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_vjp`)."""
-        from exo_bench.models.newton_euler.products import inverse_vjp
-
         arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics VJP")
-        out = inverse_vjp(self.tree, self.mechanism.dim, float(self.mechanism.g), *arrays)
+        out = self._products("vjp", *arrays)
         return tuple(x[0] for x in out) if single else out
 
     def forward_dynamics_jvp(self, q, qd, tau, dq, dqd, dtau, check: bool = True):
         """``(qdd, dqdd)`` with ``dqdd = M^-1 (dtau - dID/dq dq - dID/dqd dqd)`` at ``qdd = FD(q, qd, tau)``:
         O(n) per sample; refuses what :meth:`forward_dynamics` refuses."""
-        from exo_bench.models.newton_euler.products import inverse_jvp
-
         names = ("q", "qd", "tau", "dq", "dqd", "dtau")
         (q, qd, tau, dq, dqd, dtau), single = self._states(
             "forward-dynamics JVP", names, (q, qd, tau, dq, dqd, dtau), check
         )
         self._refuse_singular(q, check)
         qdd = self._accelerations(q, qd, tau)
-        g = float(self.mechanism.g)
-        rhs = dtau - inverse_jvp(self.tree, self.mechanism.dim, g, q, qd, qdd, dq, dqd, np.zeros_like(q))
+        rhs = dtau - self._products("jvp", q, qd, qdd, dq, dqd, np.zeros_like(q))
         out = (qdd, self._solve(q, rhs[:, :, None])[:, :, 0])
         if check:
             self._finite(out, ("qdd", "dqdd"))
@@ -384,13 +398,11 @@ class Derivatives:
     def forward_dynamics_vjp(self, q, qd, tau, w, check: bool = True):
         """``(qdd, w^T dqdd/dq, w^T dqdd/dqd, w^T M^-1)`` at ``qdd = FD(q, qd, tau)``: with ``u = M^-1 w``
         (``M`` symmetric), ``-u^T dID/dq``, ``-u^T dID/dqd`` and ``u``. O(n) per sample."""
-        from exo_bench.models.newton_euler.products import inverse_vjp
-
         (q, qd, tau, w), single = self._states("forward-dynamics VJP", ("q", "qd", "tau", "w"), (q, qd, tau, w), check)
         self._refuse_singular(q, check)
         qdd = self._accelerations(q, qd, tau)
         u = self._solve(q, w[:, :, None])[:, :, 0]
-        wq, wqd, _ = inverse_vjp(self.tree, self.mechanism.dim, float(self.mechanism.g), q, qd, qdd, u)
+        wq, wqd, _ = self._products("vjp", q, qd, qdd, np.ascontiguousarray(u))
         out = (qdd, -wq, -wqd, u)
         if check:
             self._finite(out, ("qdd", "w_dqdd_dq", "w_dqdd_dqd", "w_Minv"))
