@@ -38,9 +38,14 @@ typedef struct {
 typedef void (*kernel_t)(double *, double *, double *, double *, double *, long long);
 typedef long long (*forward_t)(double *, double *, double *, double *, double *, long long);
 typedef long long (*validate_t)(double *, double *, double *, long long *);
+/* numpy's PyArray_NewFromDescr, entry 94 of its C-API table (the capsule numpy.core.multiarray._ARRAY_API; the
+   entries are numbered once and never renumbered: numpy/_core/include/numpy/__multiarray_api.h). */
+typedef PyObject *(*new_from_descr_t)(PyTypeObject *, PyObject *, int, const Py_ssize_t *, const Py_ssize_t *, void *,
+                                      int, PyObject *);
+#define NEW_FROM_DESCR 94
 
 /* The interface of this module: models/lean_call.py uses it only where VERSION is the one it knows. */
-#define VERSION 2
+#define VERSION 3
 
 typedef struct {
     PyObject_HEAD
@@ -52,7 +57,9 @@ typedef struct {
     PyObject *plan;          /* the validation's plan (int64), kept alive; NULL: check=True is not taken */
     long long *planp;
     validate_t validate;
-    PyObject *empty;         /* numpy.empty: the result where out is None */
+    PyObject *empty;         /* numpy.empty: the result where out is None (unless new_from_descr) */
+    PyObject *api;           /* numpy's C-API capsule, kept alive; NULL: numpy.empty is called */
+    new_from_descr_t new_from_descr;
     PyObject *dof_obj;       /* dof as a Python int, empty's argument */
     double *p;
     kernel_t kernel;         /* an inverse kernel (void), or NULL */
@@ -83,8 +90,15 @@ static inline int apart(LeanCall *self, PyObject *a, PyObject *out) {
 /* A new result array (numpy.empty(dof)), NULL with an exception set if numpy fails (no memory), or NULL without
    one if it is not what usable() takes (then the call is declined). */
 static PyObject *new_result(LeanCall *self) {
-    PyObject *arg = self->dof_obj;
-    PyObject *res = PyObject_Vectorcall(self->empty, &arg, 1, NULL);
+    PyObject *res;
+    if (self->new_from_descr) { /* numpy.empty(dof) without parsing its arguments: one dimension, C order */
+        Py_ssize_t dims[1] = {self->dof};
+        Py_INCREF(self->f8); /* the descriptor's reference is stolen */
+        res = self->new_from_descr(self->ndarray, self->f8, 1, dims, NULL, NULL, 0, NULL);
+    } else {
+        PyObject *arg = self->dof_obj;
+        res = PyObject_Vectorcall(self->empty, &arg, 1, NULL);
+    }
     if (res && !usable(self, res, 1)) Py_CLEAR(res);
     return res;
 }
@@ -112,7 +126,7 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
     }
     int checked = check == Py_True && self->validate;
     int fresh = !out || out == Py_None; /* no out: a new result */
-    if (plain && (check == Py_False || checked) && (!fresh || self->empty) && usable(self, args[0], 0)
+    if (plain && (check == Py_False || checked) && (!fresh || self->empty || self->new_from_descr) && usable(self, args[0], 0)
         && usable(self, args[1], 0) && usable(self, args[2], 0)
         && (fresh
             || (usable(self, out, 1) && apart(self, args[0], out) && apart(self, args[1], out)
@@ -144,17 +158,20 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
 
 static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
     static char *names[] = {"fallback", "params", "ndarray", "f8", "kernel", "p", "dof", "n", "plan", "validate",
-                            "planp", "empty", "forward", NULL};
-    PyObject *fallback, *params, *ndarray, *f8, *plan = NULL, *empty = NULL;
+                            "planp", "empty", "forward", "api", NULL};
+    PyObject *fallback, *params, *ndarray, *f8, *plan = NULL, *empty = NULL, *api = NULL;
     unsigned long long kernel, p, validate = 0, planp = 0;
     Py_ssize_t dof;
     long long n;
     int forward = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOOOKKnL|OKKOp", names, &fallback, &params, &ndarray, &f8, &kernel,
-                                     &p, &dof, &n, &plan, &validate, &planp, &empty, &forward))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOOOKKnL|OKKOpO", names, &fallback, &params, &ndarray, &f8,
+                                     &kernel, &p, &dof, &n, &plan, &validate, &planp, &empty, &forward, &api))
         return NULL;
     if (plan == Py_None) plan = NULL;
     if (empty == Py_None) empty = NULL;
+    if (api == Py_None) api = NULL;
+    void **table = NULL;
+    if (api && !(table = (void **)PyCapsule_GetPointer(api, PyCapsule_GetName(api)))) return NULL;
     if (!PyType_Check(ndarray) || !PyCallable_Check(fallback) || !kernel || !p || dof < 1
         || (plan && (!validate || !planp)) || (empty && !PyCallable_Check(empty))) {
         PyErr_SetString(PyExc_ValueError, "LeanCall(fallback, params, ndarray, f8, kernel, p, dof, n[, plan, validate, "
@@ -167,7 +184,9 @@ static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
     if (!dof_obj) { PyMem_Free(scratch); return NULL; }
     LeanCall *self = (LeanCall *)type->tp_alloc(type, 0);
     if (!self) { PyMem_Free(scratch); Py_DECREF(dof_obj); return NULL; }
-    Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8); Py_XINCREF(empty);
+    Py_INCREF(fallback); Py_INCREF(params); Py_INCREF(ndarray); Py_INCREF(f8); Py_XINCREF(empty); Py_XINCREF(api);
+    self->api = api;
+    self->new_from_descr = table ? (new_from_descr_t)table[NEW_FROM_DESCR] : NULL;
     self->fallback = fallback; self->params = params; self->ndarray = (PyTypeObject *)ndarray; self->f8 = f8;
     self->empty = empty; self->dof_obj = dof_obj; self->scratch = scratch;
     self->p = (double *)(uintptr_t)p; self->dof = dof; self->n = n;
@@ -181,13 +200,14 @@ static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
 
 static int lean_traverse(LeanCall *self, visitproc visit, void *arg) {
     Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8); Py_VISIT(self->plan);
-    Py_VISIT(self->empty);
+    Py_VISIT(self->empty); Py_VISIT(self->api);
     return 0;
 }
 
 static int lean_clear(LeanCall *self) {
     Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8); Py_CLEAR(self->plan);
-    Py_CLEAR(self->empty); Py_CLEAR(self->dof_obj);
+    Py_CLEAR(self->empty); Py_CLEAR(self->dof_obj); Py_CLEAR(self->api);
+    self->new_from_descr = NULL;
     self->validate = NULL;
     return 0;
 }
@@ -208,8 +228,17 @@ static PyObject *lean_probe(LeanCall *self, PyObject *a) {
                          PyBool_FromLong(f->flags & WRITEABLE), PyBool_FromLong(f->descr == self->f8), PyBool_FromLong(1));
 }
 
+/* allocate() -> a new result array as a call without out makes it (None: not one the call takes). */
+static PyObject *lean_allocate(LeanCall *self, PyObject *unused) {
+    if (!self->empty && !self->new_from_descr) Py_RETURN_NONE;
+    PyObject *res = new_result(self);
+    if (!res && !PyErr_Occurred()) Py_RETURN_NONE;
+    return res;
+}
+
 static PyMethodDef lean_methods[] = {
     {"probe", (PyCFunction)lean_probe, METH_O, "what the lean call reads of an array"},
+    {"allocate", (PyCFunction)lean_allocate, METH_NOARGS, "a new result array, as a call without out makes it"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -51,8 +51,8 @@ def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries
 
 
 #: The interface of models/_lean_call.c this module calls (its ``VERSION``): an extension built
-#: before it (no ``out``-less calls, no forward kernels) is not used.
-VERSION = 2
+#: before it (no ``out``-less calls, no forward kernels, no allocation through numpy's C API) is not used.
+VERSION = 3
 
 
 def declined(*args: Any, **kw: Any) -> None:
@@ -92,9 +92,24 @@ def c_call(
         validate = status_address()
         if validate is not None and plan.dtype == np.int64 and plan.flags.c_contiguous and int(plan[0]) == dof:
             checked = (plan, validate, plan.ctypes.data)
-    call = _lean_call.LeanCall(
-        fallback, params, np.ndarray, f8, address, params.ctypes.data, dof, n, *checked, empty=np.empty, forward=forward
-    )
+
+    def build(api: Any) -> Any:
+        return _lean_call.LeanCall(
+            fallback,
+            params,
+            np.ndarray,
+            f8,
+            address,
+            params.ctypes.data,
+            dof,
+            n,
+            *checked,
+            empty=np.empty,
+            forward=forward,
+            api=api,
+        )
+
+    call = build(_numpy_api())  # results allocated through numpy's C API, else by numpy.empty
     ro = np.zeros(dof)
     ro.flags.writeable = False
     probes = [
@@ -107,4 +122,36 @@ def c_call(
     ]
     if any(call.probe(a) != want for a, want in probes):
         return None
-    return call
+    if not _fresh(call.allocate(), dof):
+        call = build(None)
+    return call if _fresh(call.allocate(), dof) else None
+
+
+def _fresh(a: Any, dof: int) -> bool:
+    """``a`` is a new result as the lean call makes it: a writable C-ordered float64 ndarray of ``dof``
+    entries that owns its memory."""
+    return (
+        type(a) is np.ndarray
+        and a.shape == (dof,)
+        and a.dtype == np.float64
+        and a.dtype.isnative
+        and a.flags.c_contiguous
+        and a.flags.writeable
+        and a.flags.owndata
+    )
+
+
+def _numpy_api() -> Any:
+    """numpy's C-API capsule (``_ARRAY_API`` of its multiarray module), through which the wrapper
+    allocates results without calling ``numpy.empty`` (entry 94, ``PyArray_NewFromDescr``); None where
+    numpy has none."""
+    import importlib
+
+    for name in ("numpy._core._multiarray_umath", "numpy.core._multiarray_umath"):
+        try:
+            capsule = getattr(importlib.import_module(name), "_ARRAY_API", None)
+        except ImportError:
+            continue
+        if capsule is not None and type(capsule).__name__ == "PyCapsule":
+            return capsule
+    return None

@@ -57,8 +57,8 @@ from exo_bench.models.memory import (
 from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics, terms_in_chunks
 from exo_bench.models import external_forces
 from exo_bench.models.result_pool import ResultPool
-from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
-from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.conditioning import check_finite
+from exo_bench.models.regularity import Regular
 from exo_bench.models.unchecked import apart, check_out, require_rates, unchecked_forward, unchecked_states
 from exo_bench.models.states import checked_states, is_one_sample
 
@@ -100,10 +100,11 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
 derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
-class PreparedModel:
+class PreparedModel(Regular):
     """A mechanism prepared for one method. Subclasses set :attr:`method` and either list their
     :attr:`kernels` (and call :meth:`_use_kernels`) or implement :meth:`_inverse_dynamics`; they may
-    override ``_mass_matrix``, ``_bias_forces`` and ``check_regular``, never a public call."""
+    override ``_mass_matrix``, ``_bias_forces`` and ``check_regular`` (forward dynamics' refusal of
+    singular configurations, :class:`~exo_bench.models.regularity.Regular`), never a public call."""
 
     #: The registry name of the method; the algorithm timed under it.
     method: ClassVar[str] = ""
@@ -115,8 +116,6 @@ class PreparedModel:
     #: The entries of the chosen kernels (:class:`~exo_bench.models.kernels.Entries`, bound by
     #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run.
     _entries: Entries = Entries()
-    # forward dynamics' compiled checks (models/forward_check.py), resolved on first use
-    _forward_checks: tuple[Callable[..., bool], Callable[..., bool]] | None = None
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):
@@ -363,36 +362,6 @@ class PreparedModel:
             return qdd
         out[...] = qdd
         return out
-
-    def check_regular(self, q: np.ndarray) -> None:
-        """Raise :class:`SingularConfigurationError` where ``M(q)`` is exactly singular
-        (:func:`exo_bench.models.singularity.singular_reasons`), then where it is singular to working
-        precision: the conditioning test that every method shares, O(n) per sample
-        (:func:`exo_bench.models.conditioning.check_conditioning`)."""
-        if (self._forward_checks or self._resolve_forward_checks())[0](q):  # compiled: the common case
-            return
-        q = q if q.ndim == 2 else q.reshape(1, -1)
-        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
-        if reasons:
-            raise SingularConfigurationError(reasons)
-        check_conditioning(self._mechanism, q, self.coupling_condition)
-
-    def _resolve_forward_checks(self) -> tuple[Callable[..., bool], Callable[..., bool]]:
-        """``(clear, finite)`` (models/forward_check.py :func:`checks`) and their plan, kept."""
-        from exo_bench.models.forward_check import checks, plan_of
-
-        self.forward_plan = plan_of(self._mechanism, self.coupling_condition)
-        self._forward_checks = checks(self._mechanism.nlinks, self.forward_plan)
-        return self._forward_checks
-
-    @property
-    def coupling_condition(self) -> CouplingCondition:
-        """The mechanism's part of the condition of ``M`` (:func:`exo_bench.models.conditioning.coupling_condition`),
-        O(n), estimated on first use."""
-        c = getattr(self, "_coupling_condition", None)
-        if c is None:
-            c = self._coupling_condition = coupling_condition(self._mechanism)
-        return c
 
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:

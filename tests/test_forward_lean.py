@@ -161,3 +161,17 @@ def test_what_the_wrapper_does_not_take_gets_the_python_paths_answer(model, form
         return
     assert model.forward_dynamics(*args, out=out) is out
     assert _bits(out) == _bits(want)
+
+
+def test_each_call_without_out_returns_a_new_array(model):
+    """Without ``out`` the wrapper allocates the result (through numpy's C API where it can): a new array
+    each call, never one handed out before, for inverse and forward dynamics, checked or not."""
+    q, qd, tau = _sample(model)
+    for call, third in ((model.forward_dynamics, tau), (model.inverse_dynamics, tau)):
+        for check in (True, False):
+            first = call(q, qd, third, check=check)
+            kept = first.copy()
+            second = call(q, qd, third, check=check)
+            assert second is not first and not np.shares_memory(first, second)
+            assert first.flags.owndata and first.flags.writeable and first.flags.c_contiguous
+            assert _bits(first) == _bits(kept) == _bits(second)

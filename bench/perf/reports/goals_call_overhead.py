@@ -13,7 +13,7 @@ only the public API: ``exo_bench.prepare`` and the prepared model's calls):
   no checks): the denominator of the one-sample goals;
 * one sample, 1-D arrays: ``inverse_dynamics`` by default (``check=True``), with ``check=False``,
   with ``check=False, out=``; ``newton-euler``'s the same three ways; ``forward_dynamics``
-  checked and unchecked;
+  checked and unchecked, and newton-euler's checked;
 * a batch of ``samples`` states: ``inverse_dynamics`` and ``forward_dynamics`` with and without
   ``check`` (no ``out``, the call as the README shows it).
 
@@ -65,6 +65,7 @@ GOALS = (
 ALSO = (
     ("newton-euler, one sample, default call (`check=True`)", "newton_euler_checked", "rnea"),
     ("`forward_dynamics`, one sample, `check=False`", "forward_unchecked", "rnea"),
+    ("newton-euler `forward_dynamics`, one sample, checked", "newton_euler_forward_checked", "rnea"),
 )
 #: Which timings are one sample per call (the rest are batches).
 ONE_SAMPLE = (
@@ -77,6 +78,7 @@ ONE_SAMPLE = (
     "newton_euler_unchecked_out",
     "forward_checked",
     "forward_unchecked",
+    "newton_euler_forward_checked",
 )
 BATCH = ("inverse_batch_checked", "inverse_batch_unchecked", "forward_batch_checked", "forward_batch_unchecked")
 
@@ -119,6 +121,7 @@ def calls(samples: int) -> tuple[dict[str, Call], dict]:
         "newton_euler_unchecked_out": Call(ne.inverse_dynamics, one, {"check": False, "out": o_ne}),
         "forward_checked": Call(mf.forward_dynamics, (q0, qd0, tau0), {}),
         "forward_unchecked": Call(mf.forward_dynamics, (q0, qd0, tau0), unchecked),
+        "newton_euler_forward_checked": Call(ne.forward_dynamics, (q0, qd0, tau0), {}),
         "inverse_batch_checked": Call(mf.inverse_dynamics, (q, qd, qdd), {}),
         "inverse_batch_unchecked": Call(mf.inverse_dynamics, (q, qd, qdd), unchecked),
         "forward_batch_checked": Call(mf.forward_dynamics, (q, qd, tau), {}),
@@ -173,13 +176,14 @@ def _agreement(c: dict[str, Call], st: dict, results: dict) -> dict:
     res["inverse_err"] = {
         key: float(np.abs(np.asarray(results[key]) - want[0]).max())
         for key in ONE_SAMPLE
-        if key in results and not key.startswith(("forward", "rnea"))
+        if key in results and "forward" not in key and key != "rnea"
     }
     if "rnea" in results:
         res["inverse_err"]["rnea"] = float(np.abs(np.asarray(results["rnea"]) @ st["rnea_to_paper"] - want[0]).max())
     idx = np.unique(np.linspace(0, q.shape[0] - 1, min(q.shape[0], 64)).round().astype(int))
     backward = {}
-    for key in ("forward_checked", "forward_unchecked", "forward_batch_checked", "forward_batch_unchecked"):
+    forward = ("forward_checked", "forward_unchecked", "newton_euler_forward_checked")
+    for key in (*forward, "forward_batch_checked", "forward_batch_unchecked"):
         got = np.asarray(results[key]).reshape(-1, mech.dof)
         batch = got.shape[0] == q.shape[0]
         at = idx if batch else np.arange(got.shape[0])  # a batch: a subsample; one sample: sample 0
