@@ -9,8 +9,9 @@ bench/perf/derivative_routes.py:
   analytic kernels ``analytic (numpy|numba|simd)``; ``model.derivatives (newton-euler)``;
   ``casadi AD`` (today's path); ``central differences (newton-euler batched)``; ``mjd_inverseFD
   (mujoco)``; ``CalcInverseDynamics AutoDiffXd (drake)``; ``computeRNEADerivatives (pinocchio)``
-  (refused on mimic joints: the row is skipped with Pinocchio's own message); and the baseline
-  ``ID (newton-euler batched)``;
+  (refused on mimic joints: the row is skipped with Pinocchio's own message); the baseline
+  ``ID (newton-euler batched)``; and ``write floor (fill)``, the memory bandwidth floor of the output
+  (``fill`` of three preallocated ``(S, dof, dof)`` arrays: no derivative can write them faster);
 * one sample per call (``test_inverse_derivatives_one_sample``): ``analytic (auto)`` and ``casadi AD``
   against the baseline ``pin.rnea (bare)`` (preallocated joint arrays, as bench/test_inverse_dynamics.py);
 * forward derivatives ``(dqdd/dq, dqdd/dqd, M^-1)``, batched (``test_forward_derivatives``):
@@ -69,6 +70,7 @@ INVERSE = (
     "CalcInverseDynamics AutoDiffXd (drake)",
     "computeRNEADerivatives (pinocchio)",
     "ID (newton-euler batched)",
+    "write floor (fill)",
 )
 ONE_SAMPLE = ("analytic (auto)", "casadi AD", "pin.rnea (bare)")
 FORWARD = ("model.derivatives (newton-euler)", "casadi AD + LU", "FD (newton-euler batched)")
@@ -258,6 +260,11 @@ def test_inverse_derivatives(benchmark, sweep, references, case):
         model = prepare(mech, "newton-euler")
         call = lambda q, qd, qdd: model.inverse_dynamics(q, qd, qdd, check=False)  # noqa: E731
         _timed(benchmark, sweep, method, call, (q, qd, qdd), _info(method, n, topology, mech, "ID"))
+        return
+    if method == "write floor (fill)":
+        _timed(
+            benchmark, sweep, method, routes.write_floor(mech), (q, qd, qdd), _info(method, n, topology, mech, "fill")
+        )
         return
     _derivative_row(benchmark, sweep, references, case, mech, (q, qd, qdd), forward=False)
 

@@ -4,6 +4,7 @@ paper's coordinates (``x = qdd`` for inverse dynamics, ``tau`` for forward dynam
 
 * :func:`analytic` -- the analytic kernels of exo_bench.models.newton_euler.derivatives (issue 36), into
   preallocated ``out``; a kernel not built in this commit raises there, and the row says so;
+* :func:`write_floor` -- the memory bandwidth floor: ``fill`` of the three ``(S, dof, dof)`` outputs;
 * :func:`casadi_inverse` / :func:`casadi_forward` -- CasADi's AD of the factored closed forms
   (matrix_method/derivatives.py, today's path) and its implicit-function forward derivatives (LU);
 * :func:`model_derivatives` -- ``prepare(mech, method).derivatives`` (whatever source it reports);
@@ -36,6 +37,24 @@ def analytic(mech: Mechanism, kernel: str):
 
     def call(q, qd, qdd, out=None):
         return d(q, qd, qdd, out=out, kernel=kernel)
+
+    return call
+
+
+def write_floor(mech: Mechanism):
+    """The memory bandwidth floor of a derivative call: ``fill`` of three ``(S, dof, dof)`` float64 arrays,
+    allocated once per batch size (the bytes every route must write, and nothing else)."""
+    d = mech.dof
+    arrays: dict[int, tuple[np.ndarray, ...]] = {}
+
+    def call(q, qd, qdd):
+        S = q.shape[0]
+        if S not in arrays:
+            arrays[S] = tuple(np.empty((S, d, d)) for _ in range(3))
+        out = arrays[S]
+        for o in out:
+            o.fill(1.0)
+        return out
 
     return call
 

@@ -33,6 +33,7 @@ from exo_bench.bench.perf.reports.scaling import fit_exponent
 
 ID, FD, RNEA = "ID (newton-euler batched)", "FD (newton-euler batched)", "pin.rnea (bare)"
 CASADI, PROVIDER, ONE = "casadi AD", "model.derivatives (newton-euler)", "analytic (auto)"
+FLOOR = "write floor (fill)"
 
 
 def rows(df: pd.DataFrame) -> pd.DataFrame:
@@ -91,12 +92,14 @@ def goals(df: pd.DataFrame) -> list[dict]:
     fwd, fd = _pick(d, "forward-batched", "exo5-3d", PROVIDER), _pick(d, "forward-batched", "exo5-3d", FD)
     _ratio(add, "exo5-3d forward derivatives / batched FD, per sample", 25.0, fwd, fd, "FD")
     c100 = _pick(d, "inverse-batched", "chain100-3d", prefix="analytic")
+    f100 = _pick(d, "inverse-batched", "chain100-3d", FLOOR)
     if c100 is not None:
+        floor = "" if f100 is None else f"; write floor {f100['us'] / 1e3:.3g} ms ({FLOOR}: the output's bytes)"
         add(
             "chain 100 (3D) dtau/d(q,qd) per sample, ms",
             0.5,
             c100["us"] / 1e3,
-            f"{c100['us'] / 1e3:.3g} ms ({c100['method']})",
+            f"{c100['us'] / 1e3:.3g} ms ({c100['method']}){floor}",
         )
     else:
         add(
@@ -112,8 +115,21 @@ def goals(df: pd.DataFrame) -> list[dict]:
     span = f"n = {int(ns.min())}..{int(ns.max())}" if len(ns) else "no chain rows"
     judged = len(ns) >= 2 and ns.min() <= 10 and ns.max() >= 300
     add("growth exponent over n = 10..300", 2.1, p if judged else None,
-        f"{p:.2f} over {span} ({kernel})" + ("" if judged else ": the goal's range is not covered"))  # fmt: skip
+        f"{p:.2f} over {span} ({kernel})" + ("" if judged else ": the goal's range is not covered")
+        + _floor_exponent(d))  # fmt: skip
     return out
+
+
+def _floor_exponent(d: pd.DataFrame) -> str:
+    """The write floor's own exponent over the same chains, and its time at the largest n: where the
+    output leaves the caches (3 dof^2 8 bytes a sample: 2.2 MB at n = 100, 19 MB at 300), writing it
+    grows faster than n^2, and no kernel can beat the floor."""
+    f = d[(d["group"] == "derivatives-inverse-batched") & (d["topology"] == "chain") & (d["method"] == FLOOR)]
+    if len(f) < 2:
+        return ""
+    big = f.sort_values("n").iloc[-1]
+    p = fit_exponent(f["n"].to_numpy(float), f["us"].to_numpy(float))
+    return f"; the write floor ({FLOOR}) grows as n^{p:.2f} and takes {big['us'] / 1e3:.3g} ms at n = {int(big['n'])}"
 
 
 def _fmt(x) -> str:
