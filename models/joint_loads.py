@@ -119,4 +119,25 @@ def sagittal_moments(mech: Mechanism, M: np.ndarray) -> np.ndarray:
     return -M[..., 1] if mech.dim == 3 else M
 
 
-__all__ = ["gravity_vector", "net_joint_loads", "point_mass_accelerations", "sagittal_moments", "subtree"]
+def moment_components(mech: Mechanism, M: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
+    """The components of net joint moments ``M`` (:func:`net_joint_loads`) that the scene reports and
+    figures show, each ``(name, sign convention, (S, n) array)``: the sagittal one
+    (:func:`sagittal_moments`), and in 3D the frontal (about +x, forward) and transverse (about +z, up)
+    ones, right-handed. The figures and the report's Plausibility table both read them from here."""
+    out = [("sagittal", "positive turns a rod from forward (+x) towards up, Winter's sign", sagittal_moments(mech, M))]
+    if mech.dim == 3:
+        out += [
+            ("frontal", "about +x (forward), right-handed", M[..., 0]),
+            ("transverse", "about +z (up), right-handed", M[..., 2]),
+        ]
+    return out
+
+
+__all__ = [
+    "gravity_vector",
+    "moment_components",
+    "net_joint_loads",
+    "point_mass_accelerations",
+    "sagittal_moments",
+    "subtree",
+]

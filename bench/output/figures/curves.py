@@ -1,9 +1,10 @@
-"""The curves of a study: the moments in the joints (the paper's Fig. 7), the rod forces (Fig. 8)
-and every method minus the reference, in panels grouped by scale.
+"""The curves of a study: the rod forces (the paper's Fig. 8) and every method minus the reference,
+in panels grouped by scale. The joint moments figure (Fig. 7) is :mod:`.net_moments` (net joint moments).
 
-**Which moments.** The joint moments ``tau_joint = G^-T tau``, not the generalised forces of the
-absolute angles (:mod:`exo_bench.models.joint_coordinates`). Every figure says in its title which of
-the two it shows.
+**Which moments** the differences compare: those of the joint coordinates, ``tau_joint = G^-T tau``
+(:mod:`exo_bench.models.joint_coordinates`), per method; not the generalised forces of the absolute
+angles, and not the net joint moments (which depend on the motion alone). Every figure says in its
+title which it shows, with units and signs.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from exo_bench.bench.output.figures.palette import LINK_COLORS, TEXT_PT, TITLE_PT, link_color, method_color
-from exo_bench.models.joint_coordinates import force_labels, joint_basis, moment_labels, moments_and_forces
+from exo_bench.models.joint_coordinates import force_labels, joint_basis, moments_and_forces
 from exo_bench.models.mechanism import Mechanism
 
 if TYPE_CHECKING:
@@ -142,42 +143,30 @@ def _check_ok(study: Study) -> str:
     return ref
 
 
+#: Characters per title line: 10 pt across an 11.5 in wide figure, with a margin (a predicted step's
+#: motion label is long: its title once ran off both sides of the figure).
+TITLE_WIDTH = 105
+
+
 def _header(study: Study, what: str) -> str:
+    """The figure's title: the study, its model and motion (in lines that fit), then ``what`` it shows
+    (its lines as the figure breaks them)."""
     mech = study.mechanism
-    return f"{study.name} ({mech.dim}D, {mech.nlinks} links) — {study.motion_label}\n{what}"
+    first = f"{study.name} ({mech.dim}D, {mech.nlinks} links) — {study.motion_label}"
+    return "\n".join([*textwrap.wrap(first, TITLE_WIDTH, break_on_hyphens=False), what])
 
 
 # ----------------------------------------------------------------------------- Figs. 7 and 8
-def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figure:
+def _curves_figure(study: Study, ratio: float = SCALE_RATIO) -> Figure:
     ref = _check_ok(study)
     mech = study.mechanism
     ok = study.ok_methods()
-    if kind == "moments":
-        data = {m: moments_and_forces(mech, study.tau(m))[0] for m in ok}
-        labels, unit, sym = moment_labels(mech), "N·m", "M"
-        what = (
-            "Control moments in the joints (the paper's Fig. 7): joint moments τ_joint = G⁻ᵀ τ\n"
-            "about each joint's own angle ("
-            + (
-                "relative azimuth φ_k − φ_parent, absolute elevation ψ_k"
-                if mech.dim == 3
-                else "relative angle φ_k − φ_parent"
-            )
-            + "), not the generalised forces of the absolute angles"
-            + (
-                "\n(Mψ of a link with children is its joint's moment minus its children's: net joint moments "
-                "are in the scene report)"
-                if mech.dim == 3
-                else ""
-            )
-        )
-    else:
-        data = {m: moments_and_forces(mech, study.tau(m))[1] for m in ok}
-        labels, unit, sym = force_labels(mech), "N", "F"
-        what = (
-            "Longitudinal rod forces (the paper's Fig. 8): F_k along rod k\n"
-            "(the same in joint and in absolute coordinates: l_k maps to itself)"
-        )
+    data = {m: moments_and_forces(mech, study.tau(m))[1] for m in ok}
+    labels, unit, sym = force_labels(mech), "N", "F"
+    what = (
+        "Longitudinal rod forces (the paper's Fig. 8) in N: F_k along rod k, positive where the rod is pushed\n"
+        "longer (the same in joint and in absolute coordinates: l_k maps to itself)"
+    )
     t = study.motion.t
     # The reference's scales decide the panels; other methods overlay it. NaN are reported, not grouped.
     finite = np.where(np.isfinite(data[ref]), np.abs(data[ref]), 0.0)
@@ -194,7 +183,7 @@ def _curves_figure(study: Study, kind: str, ratio: float = SCALE_RATIO) -> Figur
     notes = _wrap_notes(notes + nonfinite_notes(study))
     fig = Figure(figsize=(11.5, 1.6 + 2.35 * rows + 0.2 * len(notes)), layout="constrained")
     axes, note_ax = _panels(fig, rows, len(notes))
-    curve_color = curve_colors(mech, kind)
+    curve_color = curve_colors(mech, "forces")
     for g, ax in enumerate(axes):
         idx = groups.groups[g] if groups.groups else ()
         for j in idx:
@@ -274,14 +263,9 @@ def curve_colors(mech: Mechanism, kind: str) -> list[str]:
     return [link_color(jb.link[r] + (len(LINK_COLORS) // 2 if jb.kind[r] == "psi" else 0)) for r in rows]
 
 
-def moments_figure(study: Study, ratio: float = SCALE_RATIO) -> Figure:
-    """The joint moments along the motion (the paper's Fig. 7), panels grouped by scale."""
-    return _curves_figure(study, "moments", ratio)
-
-
 def forces_figure(study: Study, ratio: float = SCALE_RATIO) -> Figure:
     """The longitudinal rod forces along the motion (the paper's Fig. 8), panels grouped by scale."""
-    return _curves_figure(study, "forces", ratio)
+    return _curves_figure(study, ratio)
 
 
 # ----------------------------------------------------------------------------- differences
@@ -318,7 +302,7 @@ def differences_figure(study: Study) -> Figure | None:
                 gid=f"diff:{m}",
                 label=f"{m} − {ref}: max {dmax:.2g} {unit}\n({dmax / scale:.1e} of the largest {ref} value)",
             )
-        name = "joint moments ΔM" if part == 0 else "rod forces ΔF"
+        name = "joint-coordinate moments Δτ_joint" if part == 0 else "rod forces ΔF"
         ax.set_ylabel(f"max |Δ| ({unit})", fontsize=TEXT_PT)
         ax.set_title(f"{name}: largest |method − {ref}| over the joints", loc="left", fontsize=TEXT_PT)
         ax.grid(True, which="both", alpha=0.3)
@@ -328,7 +312,9 @@ def differences_figure(study: Study) -> Figure | None:
     axes[-1].set_xlim(t[0], t[-1])
     fig.suptitle(
         _header(
-            study, f"Differences between methods, method − {ref}, in the joint moments τ_joint = G⁻ᵀ τ and rod forces"
+            study,
+            f"Differences between methods, |method − {ref}| (no sign), in the joint-coordinate moments "
+            "τ_joint = G⁻ᵀ τ (N·m) and rod forces (N)",
         ),
         fontsize=TITLE_PT,
     )

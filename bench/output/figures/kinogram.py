@@ -14,7 +14,8 @@ from matplotlib.lines import Line2D
 
 from exo_bench.bench.output.figures.curves import _check_ok, _header, curve_colors
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color
-from exo_bench.models.joint_coordinates import force_labels, joint_quantities, moment_labels, moments_and_forces
+from exo_bench.bench.output.figures.net_moments import draw_net_moments, net_moment_curves
+from exo_bench.models.joint_coordinates import force_labels, joint_quantities, moments_and_forces
 from exo_bench.models.kinematics import point_mass_positions
 from exo_bench.models.mechanism import Mechanism
 
@@ -271,30 +272,26 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
     ax3.view_init(elev=12, azim=-60)
     ax3.set_title(f"3D view at t = {t[s]:.2f} s; dot area ∝ point mass", fontsize=TEXT_PT)
     fig.legend(handles=handles, loc="outside lower left", fontsize=TEXT_PT, ncols=3, frameon=False)
-    M = moments_and_forces(mech, study.tau(ref))
-    for r, (vals, labels, unit, sym, title) in enumerate(
-        (
-            (M[0], moment_labels(mech), "N·m", "M", "joint moments τ_joint = G⁻ᵀ τ"),
-            (M[1], force_labels(mech), "N", "F", "rod forces F"),
-        )
-    ):
-        ax = fig.add_subplot(gs[r, 1])
-        inv = curve_colors(mech, "moments" if r == 0 else "forces")
-        for j in range(vals.shape[1]):
-            ax.plot(t, vals[:, j], color=inv[j], lw=1.3, label=labels[j])
-        ax.set_ylabel(f"{sym} ({unit})", fontsize=TEXT_PT)
-        ax.set_title(f"{title} ({ref})", loc="left", fontsize=TEXT_PT)
-        ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize=TEXT_PT)
-        ax.legend(
-            fontsize=TEXT_PT,
-            ncols=2 if vals.shape[1] > 6 else 1,
-            loc="center left",
-            bbox_to_anchor=(1.0, 0.5),
-            frameon=False,
-        )
-        ax.set_xlim(t[0], t[-1])
-        ax.tick_params(labelbottom=False)
+    sagittal = net_moment_curves(study)[
+        0
+    ]  # the report's numbers (net joint moments, bench/output/figures/net_moments.py)
+    ax = fig.add_subplot(gs[0, 1])
+    draw_net_moments(ax, study, sagittal, [f"M{k + 1} {name}" for k, name in enumerate(mech.names)])
+    ax.set_title(f"net joint moments, {ax.get_title(loc='left')}", loc="left", fontsize=TEXT_PT)
+    ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
+    ax.tick_params(labelbottom=False)
+    forces = moments_and_forces(mech, study.tau(ref))[1]
+    ax = fig.add_subplot(gs[1, 1], sharex=ax)
+    inv = curve_colors(mech, "forces")
+    for j, label in enumerate(force_labels(mech)):
+        ax.plot(t, forces[:, j], color=inv[j], lw=1.3, label=label)
+    ax.set_ylabel("F (N)", fontsize=TEXT_PT)
+    ax.set_title(f"rod forces F ({ref}; positive pushes the rod longer)", loc="left", fontsize=TEXT_PT)
+    ax.grid(True, alpha=0.3)
+    ax.tick_params(labelsize=TEXT_PT)
+    ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
+    ax.set_xlim(t[0], t[-1])
+    ax.tick_params(labelbottom=False)
     ax = fig.add_subplot(gs[2, 1])
     others = [m for m in ok if m != ref]
     for m in others:
@@ -306,14 +303,14 @@ def overview_figure(study: Study, frame: float = 0.3) -> Figure:
         loc="left",
         fontsize=TEXT_PT,
     )
-    ax.set_ylabel("max |Δ| (N·m or N)", fontsize=TEXT_PT)
+    ax.set_ylabel("max |Δ| (N·m or N)", fontsize=TEXT_PT)  # of tau_joint = G^-T tau: no sign
     if others:
         ax.legend(fontsize=TEXT_PT, loc="center left", bbox_to_anchor=(1.0, 0.5), frameon=False)
     ax.grid(True, which="both", alpha=0.3)
     ax.tick_params(labelsize=TEXT_PT)
     ax.set_xlabel("time t (s)", fontsize=TEXT_PT)
     ax.set_xlim(t[0], t[-1])
-    what = f"Overview in the layout of the rerun recording: moments and forces of {ref}" + (
+    what = f"Overview in the layout of the rerun recording: net joint moments (N·m/kg), forces of {ref} (N)" + (
         f"; differences of {', '.join(others)} from it" if others else ""
     )
     fig.suptitle(_header(study, what), fontsize=TITLE_PT)

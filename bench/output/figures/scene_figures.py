@@ -1,19 +1,20 @@
 """Figures of a :class:`exo_bench.bench.studies.study.Study`: the paper's Figs. 7-9 and the differences between methods.
 
-* :func:`moments_figure` - the control moments in the joints (Fig. 7),
+* :func:`moments_figure` - the net joint moments (Fig. 7), the numbers of the scene report,
 * :func:`forces_figure` - the longitudinal forces along the rods (Fig. 8),
 * :func:`kinogram_figure` - stick-figure frames of the motion (Fig. 9),
 * :func:`differences_figure` - every method minus the reference,
 * :func:`overview_figure` - one picture of a scene (kinogram, moments, forces, differences).
 
 **Which moments.** A study's ``tau`` are the generalised forces of the paper's *absolute*
-angles (eq. 4 has ``M1 - M2`` on ``phi_1``). The physical moments in the joints (what Fig. 7
-shows) are ``tau_joint = G^-T tau`` with ``G`` the constant map ``q_joint = G q`` of
-:func:`exo_bench.models.pinocchio_backend.build_model`: each joint turns link k relative to its parent
-(azimuth ``phi_k - phi_parent``; in 3D also the elevation ``psi_k``; the prismatic joint
-``l_k``). The rod forces ``F_k`` are the same in both sets, because the column of ``G`` of
-``l_k`` is a unit vector (``l_k`` maps to itself), so ``F_k = tau_joint[len_k] = tau[l_k]``.
-Every figure says in its title which of the two it shows.
+angles (eq. 4 has ``M1 - M2`` on ``phi_1``). The moments figure shows the NET joint moments (the
+moment the parent side exerts on everything beyond a joint, about it: :mod:`.net_moments`), the
+numbers of the scene report's Plausibility table. The differences compare the methods in the joint
+coordinates, ``tau_joint = G^-T tau`` with ``G`` the constant map ``q_joint = G q`` of
+:func:`exo_bench.models.pinocchio_backend.build_model`, whose elevation rows of a link with children
+are its joint's moment minus its children's. The rod forces ``F_k`` are the same in both sets,
+because the column of ``G`` of ``l_k`` is a unit vector, so ``F_k = tau_joint[len_k] = tau[l_k]``.
+Every figure says in its title which it shows, with units and sign conventions.
 
 Figures are built with matplotlib's object API (no pyplot, no global backend switch) and are
 saved atomically by :func:`save_figure`.
@@ -35,7 +36,6 @@ from exo_bench.bench.output.figures.curves import (  # noqa: F401
     differences_figure,
     forces_figure,
     group_by_scale,
-    moments_figure,
     nonfinite_notes,
     reference_method,
     scale_caption,
@@ -51,6 +51,7 @@ from exo_bench.bench.output.figures.kinogram import (  # noqa: F401
     projections,
     trail_points,
 )
+from exo_bench.bench.output.figures.net_moments import joint_labels, moments_figure, net_moment_curves  # noqa: F401
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color  # noqa: F401
 from exo_bench.bench.output.provenance import save_figure  # noqa: F401 (re-exported: the scene figures' writer)
 from exo_bench.models.joint_coordinates import (  # noqa: F401
