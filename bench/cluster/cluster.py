@@ -267,7 +267,8 @@ def run_sweep(
     ran, nworkers = [], 0
     if todo:
         folder.mkdir(parents=True, exist_ok=True)
-        with cluster(scheduler, workers) as client:
+        # the rows' temporary folders go in this one, removed when the sweep ends, whatever the workers did
+        with tempfile.TemporaryDirectory(prefix="exo-bench-sweep-") as scratch, cluster(scheduler, workers) as client:
             nworkers = len(client.scheduler_info().get("workers", {})) or (workers or 0)
             running: set[str] = set()
             counts = {"done": 0, "failed": 0}
@@ -309,6 +310,7 @@ def run_sweep(
                         tuple(pytest_args),
                         where,
                         prior,
+                        scratch,
                         key=f"exo-bench-row-{_rows.safe_name(r['key'])}-{uuid.uuid4().hex[:8]}",
                         pure=False,
                         retries=RETRIES,

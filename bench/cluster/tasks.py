@@ -64,13 +64,18 @@ def run_row(
     pytest_args: tuple = (),
     repo: str | None = None,
     prior: dict | None = None,
+    scratch: str | None = None,
 ) -> dict:
     """Run one row (every benchmark of it) in a pytest subprocess; its record (see :func:`exo_bench.bench.perf.rows.merge`).
 
     Runs on a worker. ``code`` is the client's :func:`code_key`: a worker running other code refuses
     the row (timings of other code would be merged silently otherwise). ``prior``: the record of the
     row before this one in its chain (:data:`CHAINED`), whose skips (and those it inherited) reach
-    pytest as ``--prior-skips``, so a method over budget at a smaller n is not tried again."""
+    pytest as ``--prior-skips``, so a method over budget at a smaller n is not tried again.
+    ``scratch``: the sweep's temporary folder (:func:`exo_bench.bench.cluster.cluster.run_sweep` removes
+    it at its end), where the row's own folder goes when this host has it: a worker killed mid-row
+    (the cluster closing, Ctrl-C) cannot remove its folder, the sweep does (issue 38: empty
+    ``/tmp/exo-bench-row-*`` folders were left behind); elsewhere, the system's temporary folder."""
     t0 = time.perf_counter()
     host, cpu = host_and_cpu()
     inherited = ((prior.get("skips") or []) + (prior.get("inherited") or [])) if prior else []
@@ -99,7 +104,8 @@ def run_row(
         if mine != code:
             rec["reason"] = f"worker {host} runs code {mine}, the sweep measures {code}; install the same commit"
             return rec
-    with tempfile.TemporaryDirectory(prefix="exo-bench-row-") as d:
+    parent = scratch if scratch and Path(scratch).is_dir() else None
+    with tempfile.TemporaryDirectory(prefix="exo-bench-row-", dir=parent) as d:
         bjson, sjson, pjson = Path(d) / "benchmarks.json", Path(d) / "skips.json", Path(d) / "prior-skips.json"
         cmd = [
             sys.executable,
