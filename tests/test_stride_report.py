@@ -203,6 +203,7 @@ def test_the_report_states_every_verdict_and_the_sizing_of_every_stored_stride(m
     assert "| right\\_ankle | joint motor | 89.8 N·m |" in text  # Winter's peak ankle moment, name encoded
     assert "| right\\_ankle | joint motor | 269.4 N·m |" in text  # the 3x stride
     assert "![the stride's curves against Winter's](x-winter.png)" in text
+    assert text.count("The telescopic rods do 0.0% of these actuators' positive work (0.0 of ") == 2
 
 
 def _legend_over_data(fig) -> list[str]:

@@ -73,11 +73,18 @@ def sizing_table(z: Sizing) -> list[str]:
         "| energy - (J/stride) |",
         "|---|---|---|---|---|---|---|---|",
     ]
+    rods = sum(r.energy_positive for r in z.rows if r.kind == "telescopic rod")
+    total = sum(r.energy_positive for r in z.rows)
     for r in z.rows:
         lines.append(
             f"| {md(r.actuator)} | {md(r.kind)} | {r.peak:.4g} {md(r.unit)} | {r.rms:.4g} {md(r.unit)} | "
             f"{r.power_max:.4g} | {r.power_min:.4g} | {r.energy_positive:.4g} | {r.energy_negative:.4g} |"
         )
+    if total > 0:
+        lines += [
+            "",
+            f"The telescopic rods do {rods / total:.1%} of these actuators' positive work ({rods:.1f} of {total:.1f} J).",
+        ]
     return lines
 
 
