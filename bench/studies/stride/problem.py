@@ -160,6 +160,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
 
     fm = free_map(mech, balanced_standing(mech))
     nlp, node, rows = transcription.build(mech, fm, s)
+    warm = start is not None
     if start is None:
         t0, z0, zd0, zdd0 = initial_guess(mech, fm, s, T=0.5 * stride_period(s.speed))
         start = (float(t0[-1]), z0, zd0, zdd0)
@@ -169,6 +170,9 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
         "ipopt.acceptable_iter": 0,
         "ipopt.max_iter": 3000,
         "ipopt.mu_strategy": "adaptive",
+        # a start from a solution: a small barrier, or IPOPT's first steps push the work's slack variables
+        # far into the interior (the 1.0 m/s human's last stage went from objective 0.37 to 88 and wandered)
+        "ipopt.mu_init": 1e-6 if warm else 0.1,
         "ipopt.print_level": 5 if verbose else 0,
         "print_time": verbose,
         "ipopt.sb": "yes",
