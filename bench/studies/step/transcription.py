@@ -249,7 +249,8 @@ def build(mech: Mechanism, s, point: ca.Function) -> Transcription:
     xs, Ys = ca.SX.sym("x", lay.nx), ca.SX.sym("Y", ny, K)
     G, lbg, ubg, lbx, ubx = _constraints(mech, s, lay, rows, xs, Ys)
     JY = ca.evalf(ca.jacobian(G, ca.vec(Ys)))
-    assert not np.asarray(JY)[:, rows["effort"].start :: ny].any(), "no constraint takes the effort"
+    cols, vals = np.asarray(JY.sparsity().get_col()), np.asarray(JY.nonzeros())  # sparse: dense took 0.8 s CPU
+    assert not vals[cols % ny == rows["effort"].start].any(), "no constraint takes the effort"
     lam = ca.SX.sym("lam", G.numel())
     G_fun = ca.Function("step_G", [xs, Ys], [G])
     Gx_fun = ca.Function("step_G_x", [xs], [ca.jacobian(G, xs)])
