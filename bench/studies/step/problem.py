@@ -208,6 +208,12 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
         "ipopt.bound_relax_factor": 0.0,
         "ipopt.max_iter": 3000,
         "ipopt.mu_strategy": "adaptive",
+        # MUMPS's workspace 20 % over its estimate (IPOPT's default 1000 % made each factorization fault in
+        # pages: system time) and the AMD ordering: exo5-3d's solve 4.1-4.4 -> 3.2 s CPU (IPOPT's own count,
+        # loaded host); 57 iterations instead of 60, 2e-10 from the stored step (REPRODUCE_TOL 1e-6). SPRAL,
+        # the other solver in CasADi's IPOPT, took 34 s; the probing and LOQO mu oracles 93-111 iterations
+        "ipopt.mumps_mem_percent": 20,
+        "ipopt.mumps_pivot_order": 0,
         "ipopt.print_level": 5 if verbose else 0,
         "print_time": verbose,
         "ipopt.sb": "yes",
