@@ -169,9 +169,10 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
         "ipopt.constr_viol_tol": 1e-10,
         "ipopt.acceptable_iter": 0,
         "ipopt.max_iter": 3000,
-        "ipopt.mu_strategy": "adaptive",
-        # a start from a solution: a small barrier, or IPOPT's first steps push the work's slack variables
-        # far into the interior (the 1.0 m/s human's last stage went from objective 0.37 to 88 and wandered)
+        # a start from a solution: a small barrier, decreased monotonically (the adaptive strategy ignores
+        # mu_init), or IPOPT's first steps push the work's slack variables far into the interior (the 1.0
+        # m/s human's last stage went from objective 0.37 to 88 and wandered)
+        "ipopt.mu_strategy": "monotone" if warm else "adaptive",
         "ipopt.mu_init": 1e-6 if warm else 0.1,
         "ipopt.print_level": 5 if verbose else 0,
         "print_time": verbose,
