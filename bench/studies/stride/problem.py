@@ -160,7 +160,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
 
     fm = free_map(mech, balanced_standing(mech))
     nlp, node, rows = transcription.build(mech, fm, s)
-    warm = start is not None
+    warm = start is not None and s.eps_power == 0  # from a solution, with the work's slack variables
     if start is None:
         t0, z0, zd0, zdd0 = initial_guess(mech, fm, s, T=0.5 * stride_period(s.speed))
         start = (float(t0[-1]), z0, zd0, zdd0)
@@ -169,7 +169,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
         "ipopt.constr_viol_tol": 1e-10,
         "ipopt.acceptable_iter": 0,
         "ipopt.max_iter": 3000,
-        # a start from a solution: a small barrier, decreased monotonically (the adaptive strategy ignores
+        # the exact work from a solution: a small barrier, decreased monotonically (the adaptive strategy ignores
         # mu_init), or IPOPT's first steps push the work's slack variables far into the interior (the 1.0
         # m/s human's last stage went from objective 0.37 to 88 and wandered)
         "ipopt.mu_strategy": "monotone" if warm else "adaptive",
