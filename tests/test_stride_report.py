@@ -280,3 +280,34 @@ def test_the_report_says_what_the_methods_table_shows_without_the_floor(mech):
     tau = np.zeros_like(s.tau)
     tau[:, mech.nlinks + mech.names.index("root")] = np.linspace(0.0, 612.5, len(s.t))
     assert "its root length row peaks at 612.5 N" in without_floor(mech, s, tau)
+
+
+def test_the_recording_logs_the_actuators_and_the_ground_force(mech, stored, tmp_path, monkeypatch):
+    """The scene's extra series, written with rr.send_columns and read back with ``rerun rrd print``."""
+    import subprocess
+
+    import rerun as rr
+
+    from exo_bench.bench.output.rerun_viewer import rerun_executable
+    from exo_bench.bench.studies.scenes import load_scene
+    from exo_bench.bench.studies.stride import data
+    from exo_bench.bench.studies.stride.scene import log_stride
+
+    monkeypatch.setattr(data, "DATA", stored)
+    (tmp_path / "s.toml").write_text(
+        'mechanism = "human-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "stride"\nvariant = "human"\nspeed = 1.41\n'
+    )
+    sc = load_scene(tmp_path / "s.toml")
+    stream = rr.RecordingStream("stride-test")
+    stream.save(str(tmp_path / "s.rrd"))
+    log_stride(sc)(stream, rr.TimeColumn("t", duration=sc.motion["stored"].t))
+    stream.flush()
+    stream.disconnect()
+    exe = rerun_executable()
+    if exe is None:
+        pytest.skip("no rerun executable to read the recording back")
+    out = subprocess.run(
+        [str(exe), "rrd", "print", str(tmp_path / "s.rrd")], capture_output=True, text=True, timeout=120
+    )
+    for entity in ("joint_moments/right_ankle", "rod_forces/right_leg", "ground_force/right_vertical"):
+        assert f"stride/{entity}" in out.stdout + out.stderr
