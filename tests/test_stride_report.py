@@ -163,6 +163,7 @@ def test_sizing_energy_equals_the_actuators_work(mech):
     assert (rod.peak, rod.rms, rod.power_max) == pytest.approx((500.0, 500.0, 20.0))
     assert (knee.energy_positive, knee.energy_negative) == pytest.approx((0.0, 15.0), abs=1e-9)
     assert knee.power_min == pytest.approx(-15.0) and rows["right_hip"].peak == 0.0
+    assert cmp.rod_travel(mech, stride) == "their length ranges over at most 2.00 cm, at rates up to 0.04 m/s"
 
 
 def test_sizing_of_winters_stride_balances_with_the_integral_of_power(mech):
@@ -311,3 +312,19 @@ def test_the_recording_logs_the_actuators_and_the_ground_force(mech, stored, tmp
     )
     for entity in ("joint_moments/right_ankle", "rod_forces/right_leg", "ground_force/right_vertical"):
         assert f"stride/{entity}" in out.stdout + out.stderr
+
+
+def test_contacts_and_double_support_count_the_intervals_on_the_ground():
+    """11 nodes over 1 s, node 10 the same instant as node 0: the right foot down at nodes 0-5 (and 10), the
+    left at 4-10 (and 0). Both down at nodes 4, 5 and 0 = 10: the interval [0.4, 0.5] whole and half of each
+    of the four next to those nodes, 30 %; the right foot 60 %, the left 70 %, each one contact."""
+    from types import SimpleNamespace
+
+    t = np.linspace(0.0, 1.0, 11)
+    grf = np.zeros((11, 2, 2))
+    grf[[0, 1, 2, 3, 4, 5, 10], 0, 1] = 500.0
+    grf[[0, 4, 5, 6, 7, 8, 9, 10], 1, 1] = 500.0
+    s = SimpleNamespace(t=t, grf=grf, body_weight=1.0)
+    assert cmp.double_support(s) == pytest.approx(30.0)
+    assert cmp.contacts(s, 0) == (1, pytest.approx(60.0))
+    assert cmp.contacts(s, 1) == (1, pytest.approx(70.0))

@@ -31,7 +31,7 @@ import numpy as np
 from exo_bench.bench.studies.stride import winter
 from exo_bench.bench.studies.stride.actuators import Actuators, actuators, powers, work_terms
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.normative import G
+from exo_bench.models.normative import G, HEEL_CONTACT, NEXT_HEEL_CONTACT, SINGLE_SUPPORT, TOE_OFF
 
 BINS = 100
 #: The right foot is on the ground while its vertical force exceeds this many body weights.
@@ -296,6 +296,11 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
         if valley
         else " (no lower value between them: one hump)"
     )
+    ds, (k, on) = double_support(stride), contacts(stride)
+    measured += (
+        f"; stance {stance_end:.1f} % of the cycle (the right foot's longest contact; it touches the ground {k} "
+        f"time(s), {on:.1f} % in all), double support {ds:.1f} % (Winter's {WINTER_DOUBLE_SUPPORT:.1f} %)"
+    )
     if not ok:  # the knee's yield as the body is loaded shapes the humps: a stiff stance knee vaults
         ours, his = stance_knee_flexion(cs), stance_knee_flexion(cs, winters=True)
         measured += f"; stance knee yield in the first 30 % of the cycle: {ours:.1f} deg (Winter's {his:.1f} deg)"
@@ -327,7 +332,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             f"rods' share of positive mechanical work ({stride.variant} variant)",
             share <= ROD_SHARE,
             f"<= {ROD_SHARE:.0%}",
-            f"{share:.1%}: rods {wr:.1f} J of {total:.1f} J positive work per stride",
+            f"{share:.1%}: rods {wr:.1f} J of {total:.1f} J positive work per stride; " + rod_travel(mech, stride),
         )
     )
     return out
@@ -339,6 +344,40 @@ def stance_knee_flexion(cs: dict[str, Curve], winters: bool = False) -> float:
     thigh, leg = cs["thigh angle"], cs["leg angle"]
     flex = (thigh.winter - leg.winter) if winters else (thigh.ours - leg.ours)
     return float(np.max(flex[: int(0.3 * BINS)]) - flex[0])
+
+
+#: Winter's double support, % of the stride: frames 28-36 and 62-70 of 28-97 (his left-foot events are
+#: estimated by symmetry, :data:`exo_bench.models.normative.SINGLE_SUPPORT`).
+WINTER_DOUBLE_SUPPORT = (
+    100.0 * ((SINGLE_SUPPORT[0] - HEEL_CONTACT) + (TOE_OFF - SINGLE_SUPPORT[1])) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
+)
+
+
+def double_support(stride) -> float:
+    """% of the stride (time-weighted over the stored nodes' intervals, by their midpoints) in which both
+    feet's vertical forces exceed :data:`CONTACT_THRESHOLD` body weights."""
+    on = (stride.grf[:, :, 1] > CONTACT_THRESHOLD * stride.body_weight).all(axis=1)
+    both = (on[1:] & on[:-1]) + 0.5 * (on[1:] ^ on[:-1])
+    return float(100.0 * np.sum(both * np.diff(stride.t)) / (stride.t[-1] - stride.t[0]))
+
+
+def contacts(stride, foot: int = 0) -> tuple[int, float]:
+    """How many separate contacts a foot (0: right) makes over the periodic stride, and the % of the stride
+    it is on the ground (vertical force above :data:`CONTACT_THRESHOLD` body weights; node midpoints)."""
+    on = stride.grf[:-1, foot, 1] > CONTACT_THRESHOLD * stride.body_weight
+    k = int(np.count_nonzero(on & ~np.roll(on, 1)))
+    frac = (on.astype(float) + np.roll(on, -1)) / 2.0  # node k's interval [t_k, t_k+1]: 1 on both ends, 1/2 on one
+    return k, float(100.0 * np.sum(frac * np.diff(stride.t)) / (stride.t[-1] - stride.t[0]))
+
+
+def rod_travel(mech: Mechanism, stride) -> str:
+    """The telescopic rods' largest length range over the stride (cm) and largest rate (m/s), as text."""
+    rods = [mech.nlinks + mech.names.index(r) for r in stride.telescopic]
+    if not rods:
+        return "no telescopic rods"
+    span = float(np.max(np.ptp(stride.q[:, rods], axis=0))) * 100.0
+    rate = float(np.max(np.abs(stride.qd[:, rods])))
+    return f"their length ranges over at most {span:.2f} cm, at rates up to {rate:.3g} m/s"
 
 
 def best_lag(c: Curve) -> tuple[int, float]:
