@@ -274,7 +274,8 @@ def compare(mech: Mechanism, stride, start: float | None = None) -> Comparison:
 
 
 def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_end: float) -> list[Verdict]:
-    """The four done-when checks of issue 37, each with the numbers it rests on (``stance_end``: our
+    """Issue 37's four done-when checks and whether the stance is a walking one (read with the ground
+    force's humps), each with the numbers it rests on (``stance_end``: our
     toe-off, % of the cycle)."""
     out = []
     bad = [(n, o / w) for n, o, w in peaks if not (1 / FACTOR <= o / w <= FACTOR)]
@@ -326,6 +327,15 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             measured,
         )
     )
+    out.append(
+        Verdict(
+            "a walking stance (not in issue 37's list; read with the GRF check)",
+            stance_end > 50.0 and ds > 0.0,
+            "stance > 50 % of the cycle, both feet down at once for a while",
+            f"stance {stance_end:.1f} % (Winter's {WINTER_STANCE:.1f} %), double support {ds:.1f} % "
+            f"(Winter's {WINTER_DOUBLE_SUPPORT:.1f} %)",
+        )
+    )
     share, wr, total = rod_share(mech, stride, act)
     out.append(
         Verdict(
@@ -351,6 +361,9 @@ def stance_knee_flexion(cs: dict[str, Curve], winters: bool = False) -> float:
 WINTER_DOUBLE_SUPPORT = (
     100.0 * ((SINGLE_SUPPORT[0] - HEEL_CONTACT) + (TOE_OFF - SINGLE_SUPPORT[1])) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
 )
+
+
+WINTER_STANCE = 100.0 * (TOE_OFF - HEEL_CONTACT) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
 
 
 def double_support(stride) -> float:
