@@ -34,11 +34,13 @@ def describe(stride: StoredStride, mech: Mechanism) -> list[str]:
     sv, prov = stride.solver, stride.meta.get("provenance", {})
     viol = violations(stride, mech)
     worst = max(viol, key=lambda k: viol[k])
+    stages = [x for x in sv.get("stages", []) if "iterations" in x]
+    its = f"{sum(x['iterations'] for x in stages)} iterations in {len(stages)} stages" if stages else "? iterations"
     return [
         f"{mech.name}, {stride.variant} variant: one stride of {stride.period:.4f} s, {stride.stride_length:.4f} m at "
         f"the prescribed {stride.speed:g} m/s; {len(stride.t) - 1} trapezoidal intervals (half solved, half mirrored)",
         f"  solved at {prov.get('commit', '?')} on {prov.get('date', '?')}: IPOPT {sv.get('status')}, "
-        f"{sv.get('iterations')} iterations, {sv.get('solve_seconds', float('nan')):.1f} s, tol {sv.get('tol')}, "
+        f"{its}, {sv.get('solve_seconds', float('nan')):.1f} s, tol {sv.get('tol')}, "
         f"objective {sv.get('objective', float('nan')):.6g}, constraint violation (CasADi) "
         f"{sv.get('constraint_violation', float('nan')):.1e}",
         f"  constraints re-evaluated in numpy: largest violation {viol[worst]:.1e} ({worst})",
