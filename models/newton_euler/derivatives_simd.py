@@ -14,18 +14,17 @@ Per block, one driver for 2D and 3D (``dim`` chooses the forward pass):
    (:func:`exo_bench.models.rod_elements.rod_force`) and the signed columns of
    :mod:`.derivative_elements` into ``Y`` (row ``r`` of link ``k`` at ``(r n + k) B``: the rows of
    :mod:`.derivatives_compiled`, one lane per sample) and ``P``;
-3. **the blocks** ``mu_ij J_i^T Y_j``, each output entry for the ``B`` samples of the block in one
-   vectorised loop into ``G`` (lane-major: entry ``e`` of sample ``s`` at ``e B + s``), then ``P`` on
-   the diagonal;
-4. **transpose out**: each sample's entries from ``G`` into its contiguous ``(dof, dof)`` outputs.
-   (Storing straight into the outputs, at the stride of one sample's ``3 dof^2`` entries, took 3.6
-   and 180 us per sample on exo5-3d and a 3D chain of 20 against 3.3 and 19 for the per-sample
-   kernel, the shared machine at load 6-9.)
+3. **the blocks**, sample by sample: its lane of ``Y`` and ``P`` gathered (O(n)) into the layout of
+   :mod:`.derivatives_compiled`, whose row loops (one vectorised loop of ``dof`` per output row) write
+   the sample's contiguous ``(dof, dof)`` outputs. (Before: each entry for the ``B`` samples in one
+   loop into a lane-major ``G``, then a transpose out of ``G``: exo5-3d 1.68 us per sample against
+   ID's 0.168, 10.0x, at load 15-19; storing lane-major entries straight into the outputs was slower
+   still, 3.6 us.)
 
 Its sines and cosines are newton-euler's batched kernel's: it differs from the per-sample kernel
 (libm's) by those only (:data:`~exo_bench.models.fast_trig.ULPS` ulp each). Scratch per thread
 (:func:`scratch`): the passes' ``(W, F, T)``, ``A (3 n B)``, ``Y (27 n B)``, ``P (9 n B)``,
-``G (3 dof^2 B)`` (173 kB at exo5-3d: the kernel is for small mechanisms; ``kernel="auto"`` takes the
+``G (3 dof^2 B)``, of which step 3 uses ``39 n`` entries (173 kB at exo5-3d: the kernel is for small mechanisms; ``kernel="auto"`` takes the
 per-sample kernel from :data:`exo_bench.models.newton_euler.derivatives.SIMD_BELOW_LINKS` links on).
 """
 
@@ -35,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler.derivatives_compiled import _blocks as _row_blocks
 from exo_bench.models import rod_elements as el
 from exo_bench.models.newton_euler import simd
 from exo_bench.models.numba_cache import inline
@@ -107,48 +107,26 @@ def _columns(t, dim, m, W, F, A, Y, P):
 
 
 @njit(**JIT)
-def _blocks(mu, dim, m, Y, P, G):
-    """3. Every block ``mu_ij J_i^T Y_j`` of ``m`` lanes into ``G`` (entry ``e = (kind dof + row) dof +
-    column`` at ``e B``, kinds ``M, dtau_dq, dtau_dqd``), then ``P`` on the diagonal of ``dtau_dq``."""
+def _samples_out(mu, dim, m, s0, Y, P, G, om, oq, oqd):
+    """3. Per sample of the block: its lane of ``Y`` and ``P`` gathered into the per-sample kernel's layout
+    (O(n), in ``G``), and the blocks by that kernel's row loops straight into its contiguous outputs
+    (:func:`exo_bench.models.newton_euler.derivatives_compiled._blocks`)."""
     n = mu.shape[0]
-    dd, dof = dim * dim, dim * n
-    for i in range(n):
-        for c in range(dim):
-            z = Y[(c * dim * n + i) * B :]  # row c of s_i J_i^T: component e at (e n) B
-            r = c * n + i
-            for kind in range(3):
-                for d in range(dim):
-                    y = Y[(kind * dd + d * dim) * n * B :]
-                    for j in range(n):
-                        mij, at = mu[i, j], j * B
-                        g = G[((kind * dof + r) * dof + d * n + j) * B :]
-                        if dim == 3:
-                            for s in range(m):
-                                g[s] = mij * (
-                                    z[s] * y[at + s]
-                                    + z[n * B + s] * y[(n + j) * B + s]
-                                    + z[2 * n * B + s] * y[(2 * n + j) * B + s]
-                                )
-                        else:
-                            for s in range(m):
-                                g[s] = mij * (z[s] * y[at + s] + z[n * B + s] * y[(n + j) * B + s])
-        for c in range(dim):
-            for d in range(dim):
-                p, g = ((d * dim + c) * n + i) * B, G[((dof + c * n + i) * dof + d * n + i) * B :]
-                for s in range(m):
-                    g[s] += P[p + s]
-
-
-@njit(**JIT)
-def _rows_out(dof, s0, m, G, om, oq, oqd):
-    """4. The lanes of ``G`` into samples ``s0 .. s0 + m - 1`` of the three outputs (contiguous rows)."""
-    E = dof * dof
+    dd = dim * dim
+    Ys = G[: 27 * n].reshape((9, 3 * n))
+    Ps = G[27 * n : 36 * n].reshape((9, n))
+    row = G[36 * n : 39 * n]
     for s in range(m):
         for kind in range(3):
-            o = (om if kind == 0 else (oq if kind == 1 else oqd))[s0 + s].reshape(E)
-            g = G[kind * E * B + s :]
-            for e in range(E):
-                o[e] = g[e * B]
+            for d in range(dim):
+                for e in range(dim):
+                    src = (kind * dd + d * dim + e) * n
+                    for k in range(n):
+                        Ys[kind * dim + e, d * n + k] = Y[(src + k) * B + s]
+        for r in range(dd):
+            for k in range(n):
+                Ps[r, k] = P[(r * n + k) * B + s]
+        _row_blocks(mu, dim, Ys, Ps, oq[s0 + s], oqd[s0 + s], om[s0 + s], row)
 
 
 @njit(**JIT)
@@ -165,8 +143,7 @@ def _block(t, mu, g, dim, q, qd, qdd, oq, oqd, om, s0, m, S):
     _save_start_points(n, m, F, A)
     _backward(t, dim, m, W, F)
     _columns(t, dim, m, W, F, A, Y, P)
-    _blocks(mu, dim, m, Y, P, G)
-    _rows_out(dim * n, s0, m, G, om, oq, oqd)
+    _samples_out(mu, dim, m, s0, Y, P, G, om, oq, oqd)
 
 
 @njit(**JIT)
