@@ -107,6 +107,10 @@ def test_gait_events_are_the_threshold_crossings():
     fy = np.where((t > 0.3) & (t < 0.9), np.sin(np.pi * (t - 0.3) / 0.6), 0.0)  # stance 0.3 .. 0.9
     hs, to = cmp.gait_events(t, fy, weight=1.0, threshold=0.5)
     assert hs == pytest.approx(0.3 + 0.6 / 6, abs=1e-6) and to == pytest.approx(0.9 - 0.6 / 6, abs=1e-6)
+    bounce = np.where((t > 0.5) & (t < 0.52), 0.0, fy)  # lifted for 2 % of the cycle: still one stance
+    assert cmp.gait_events(t, bounce, weight=1.0, threshold=0.5) == pytest.approx((hs, to), abs=1e-6)
+    apart = np.where((t > 0.5) & (t < 0.58), 0.0, fy)  # lifted for 8 %: the longer contact is the stance
+    assert cmp.gait_events(t, apart, weight=1.0, threshold=0.5) == pytest.approx((0.58, to), abs=1e-3)
     with pytest.raises(ValueError, match="never touches"):
         cmp.gait_events(t, 0 * fy, weight=1.0)
 

@@ -36,6 +36,9 @@ from exo_bench.models.normative import G, HEEL_CONTACT, NEXT_HEEL_CONTACT, SINGL
 BINS = 100
 #: The right foot is on the ground while its vertical force exceeds this many body weights.
 CONTACT_THRESHOLD = 0.02
+#: A lift of the foot shorter than this fraction of the cycle (5 %: 49 ms in Winter's stride) is a bounce
+#: within one stance, not a toe-off and a heel strike.
+BOUNCE = 0.05
 #: A peak is comparable when within this factor of Winter's, either way.
 FACTOR = 2.0
 #: A phase's peak is compared only when Winter's is at least this fraction of the curve's largest |value|
@@ -129,7 +132,8 @@ def gait_events(
     t: np.ndarray, fy: np.ndarray, weight: float, threshold: float = CONTACT_THRESHOLD
 ) -> tuple[float, float]:
     """``(heel strike, toe-off)`` times of the longest contact of a foot with vertical force ``fy (K,)``
-    over one periodic cycle ``t``: where ``fy`` crosses ``threshold x weight`` up and down (interpolated)."""
+    over one periodic cycle ``t``: where ``fy`` crosses ``threshold x weight`` up and down (interpolated);
+    contacts apart by less than :data:`BOUNCE` of the cycle are one (the foot bounced)."""
     f = np.asarray(fy, float) - threshold * weight
     T = t[-1] - t[0]
     on = f[:-1] > 0
@@ -145,9 +149,20 @@ def gait_events(
         return float(ta + (t[j] - ta) * a / (a - b))
 
     ups, downs = [cross(j) for j in up], [cross(j) for j in down]
-    best = max(ups, key=lambda u: min((d - u) % T for d in downs))
-    off = min(downs, key=lambda d: (d - best) % T)
-    return best % T + t[0], off % T + t[0]
+    runs = sorted((u, min((d - u) % T for d in downs)) for u in ups)  # (touch-down, duration), in time order
+    merged = True
+    while merged and len(runs) > 1:  # a lift shorter than BOUNCE of the cycle does not end the stance
+        merged = False
+        for i in range(len(runs)):
+            (u, dur), (u2, dur2) = runs[i], runs[(i + 1) % len(runs)]
+            gap = (u2 - (u + dur)) % T
+            if gap < BOUNCE * T:
+                runs[i] = (u, dur + gap + dur2)
+                del runs[(i + 1) % len(runs)]
+                merged = True
+                break
+    u, dur = max(runs, key=lambda r: r[1])
+    return u % T + t[0], (u + dur) % T + t[0]
 
 
 def _angle_deg(ours_rad: np.ndarray, winter_deg: np.ndarray) -> np.ndarray:
@@ -299,7 +314,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
     )
     ds, (k, on) = double_support(stride), contacts(stride)
     measured += (
-        f"; stance {stance_end:.1f} % of the cycle (the right foot's longest contact; it touches the ground {k} "
+        f"; stance {stance_end:.1f} % of the cycle (the right foot's longest contact, bounces under {BOUNCE:.0%} of the cycle within; it touches the ground {k} "
         f"time(s), {on:.1f} % in all), double support {ds:.1f} % (Winter's {WINTER_DOUBLE_SUPPORT:.1f} %)"
     )
     if not ok:  # the knee's yield as the body is loaded shapes the humps: a stiff stance knee vaults
