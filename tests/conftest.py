@@ -43,7 +43,7 @@ Other error models used in the tests (each stated where it is used):
 
 import numpy as np
 import pytest
-from xdist_workers import pytest_cmdline_main, pytest_configure  # noqa: F401  (conftest hooks)
+from xdist_workers import pytest_cmdline_main, pytest_configure, pytest_xdist_make_scheduler  # noqa: F401  (conftest hooks)
 
 EPS = float(np.finfo(float).eps)
 

@@ -194,7 +194,6 @@ print(json.dumps({"file": planar.__file__, "tau": tau.tolist(), "numpy": ref.tol
 """
 
 
-@pytest.mark.xdist_group("warm_package")  # on the worker that builds the warm copy (tests/xdist_workers.py)
 def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path, warm_package):
     """numba keys its cache on the kernel's own file; ours also on every function a kernel inlines
     (numba_kernels/cache.py). In a copy of the package: run the compiled ``matrix`` kernel (cached),

@@ -6,11 +6,7 @@ from __future__ import annotations
 
 
 import numpy as np
-import pytest
 from package_copy import package_copy_prober
-
-#: One worker builds the warm package copy these tests start from (tests/xdist_workers.py).
-pytestmark = pytest.mark.xdist_group("warm_package")
 
 _PROBE = """
 import json

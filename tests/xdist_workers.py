@@ -3,7 +3,7 @@
 Hooks of tests/conftest.py (imported there, so they are conftest hooks):
 
 * :func:`pytest_cmdline_main`: a run that names no paths (the README's ``python -m pytest``: pyproject's
-  testpaths) gets ``-n 2 --dist loadgroup`` unless it chose ``-n``, ``--dist`` or ``--tx`` itself, asks
+  testpaths) gets ``-n 2 --dist loadfile`` unless it chose ``-n``, ``--dist`` or ``--tx`` itself, asks
   for ``--pdb`` or only collects. A run that names files stays in one process (``-s`` and ``--pdb``
   work; ``-n 2`` makes it parallel). Not in pyproject's addopts: ``exo-bench run`` and ``exo-bench
   bench`` run pytest on bench/ with that ini, and an ``-n`` there fails with "unrecognized arguments"
@@ -18,9 +18,8 @@ Hooks of tests/conftest.py (imported there, so they are conftest hooks):
   worker's environment: a pytest its tests start (the benchmark rows of ``exo-bench bench``) would
   read it and take itself for a worker, and pytest-benchmark would time nothing.
 
-Tests that share a session fixture too costly to build in both workers are kept on one worker with
-``@pytest.mark.xdist_group(...)`` (tests/test_compiled.py, tests/test_kernel_cache.py: the warm
-package copy).
+* :func:`pytest_xdist_make_scheduler`: each file on one worker, and the files of
+  :data:`SHARED_WORKER` on one worker together.
 """
 
 from __future__ import annotations
@@ -56,8 +55,31 @@ def whole_suite_in_workers(config: pytest.Config) -> bool:
 def pytest_cmdline_main(config: pytest.Config):
     if whole_suite_in_workers(config):
         config.option.numprocesses = WORKERS
-        config.option.dist = "loadgroup"
+        config.option.dist = "loadfile"
     return (yield)
+
+
+#: Test files that run on one worker together: they share a session fixture too costly to build in
+#: both (the warm package copy, tests/package_copy.py).
+SHARED_WORKER = {"tests/test_compiled.py": "warm_package", "tests/test_kernel_cache.py": "warm_package"}
+
+
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``--dist loadfile`` with :data:`SHARED_WORKER`: a file runs on one worker, so its module's
+    fixtures and caches and the first compiles of its kernels are paid once, not in both workers
+    (``load`` splits a file; xdist's ``loadgroup`` cannot group here: it renames ``item._nodeid``,
+    which pytest 9 no longer reads)."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class FilesTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            file = nodeid.split("::", 1)[0]
+            return SHARED_WORKER.get(file, file)
+
+    return FilesTogether(config, log)
 
 
 def numba_cache_folder(config: pytest.Config, worker: str) -> Path:
