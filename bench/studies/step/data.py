@@ -148,17 +148,24 @@ _ARRAYS = ("t", "q", "qd", "qdd", "tau", "moments", "forces")
 
 def _read(path: Path) -> tuple[dict, dict[str, np.ndarray]]:
     """The meta (a JSON object) and the arrays of a stored step; a ValueError naming the file."""
+    return read_stored(path, _ARRAYS, "step")
+
+
+def read_stored(path: Path, names: tuple[str, ...], what: str) -> tuple[dict, dict[str, np.ndarray]]:
+    """The JSON ``meta`` (an object with ``settings``) and the float arrays ``names`` of a stored ``what``
+    (a step, a stride: bench/studies/stride/data.py reads its files with it), without pickle; a
+    one-line ValueError naming the file otherwise."""
     try:
         with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in (*_ARRAYS, "meta") if k not in z.files]
+            missing = [k for k in (*names, "meta") if k not in z.files]
             meta = None if missing else json.loads(str(z["meta"]))
-            arrays = {} if missing else {k: np.ascontiguousarray(z[k], dtype=float) for k in _ARRAYS}
+            arrays = {} if missing else {k: np.ascontiguousarray(z[k], dtype=float) for k in names}
     except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as e:
-        raise ValueError(f"step: {path}: not a readable stored step ({type(e).__name__}: {e})") from None
+        raise ValueError(f"{what}: {path}: not a readable stored {what} ({type(e).__name__}: {e})") from None
     if missing:
-        raise ValueError(f"step: {path}: expected the arrays {', '.join(_ARRAYS)} and meta, missing {missing}")
+        raise ValueError(f"{what}: {path}: expected the arrays {', '.join(names)} and meta, missing {missing}")
     if not isinstance(meta, dict) or not isinstance(meta.get("settings"), dict):
-        raise ValueError(f"step: {path}: field 'meta': expected an object with 'settings', got {type(meta).__name__}")
+        raise ValueError(f"{what}: {path}: field 'meta': expected an object with 'settings', got {type(meta).__name__}")
     return meta, arrays
 
 
@@ -313,6 +320,7 @@ __all__ = [
     "load",
     "lowest_swing_mass",
     "path_of",
+    "read_stored",
     "save",
     "violations",
     "walking_motion",

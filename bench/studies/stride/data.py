@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import json
 import math
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from exo_bench.bench.studies.step import identity
+from exo_bench.bench.studies.step.data import read_stored
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.names import file_stem
 
@@ -199,21 +199,6 @@ def check_shapes(arrays: dict[str, np.ndarray], mech: Mechanism, source: str) ->
             raise ValueError(f"stride: {source}: field {k!r}: expected finite values, got a NaN or an infinity")
 
 
-def _read(path: Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in (*ARRAYS, "meta") if k not in z.files]
-            meta = None if missing else json.loads(str(z["meta"]))
-            arrays = {} if missing else {k: np.ascontiguousarray(z[k], dtype=float) for k in ARRAYS}
-    except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as e:
-        raise ValueError(f"stride: {path}: not a readable stored stride ({type(e).__name__}: {e})") from None
-    if missing:
-        raise ValueError(f"stride: {path}: expected the arrays {', '.join(ARRAYS)} and meta, missing {missing}")
-    if not isinstance(meta, dict) or not isinstance(meta.get("settings"), dict):
-        raise ValueError(f"stride: {path}: field 'meta': expected an object with 'settings', got {type(meta).__name__}")
-    return meta, arrays
-
-
 def _check_mechanism(meta: dict[str, Any], mech: Mechanism, source: str) -> None:
     if meta.get("mechanism_digest") == identity.digest(mech):
         return
@@ -236,7 +221,7 @@ def load(variant: str, speed: float, mech: Mechanism | None = None, folder: Path
     if not p.is_file():
         known = ", ".join(sorted(x.stem for x in p.parent.glob("*.npz")))
         raise ValueError(f"stride: no stored stride {p.name} in {p.parent} (stored: {known or 'none'}); {HOW_TO_SOLVE}")
-    meta, arrays = _read(p)
+    meta, arrays = read_stored(p, ARRAYS, "stride")
     _check_mechanism(meta, mech, str(p))
     check_shapes(arrays, mech, str(p))
     return StoredStride(**arrays, meta=meta, path=str(p))
