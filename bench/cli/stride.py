@@ -71,7 +71,12 @@ def cmd_stride(args) -> int:
             raise
         stored, settings = None, problem.settings_for(mech, args.variant, speed)
     try:
-        new = problem.solve_stages(mech, settings, verbose=args.verbose)
+        source = (stored.solver.get("start") if stored is not None else None) or {}
+        if source:  # solved as a continuation from another stored stride: the same again
+            src = data.load(source["variant"], source["speed"], mech)
+            new = problem.solve_from(mech, settings, src, verbose=args.verbose)
+        else:
+            new = problem.solve_stages(mech, settings, verbose=args.verbose)
     except RuntimeError as e:
         print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
         return 2
