@@ -304,27 +304,54 @@ class ControlsWithForces:
         self.model, self.controls, self.f_ext = model, controls, f_ext
 
     def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        tau = self.controls(t, q, qd)
+        return self.controls(t, q, qd) + self.model._external_forces(q, self.forces(t, q, qd))
+
+    def forces(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """``f_ext(t, q, qd)``, checked, ``(k, links, 3, dim)``."""
         f = np.asarray(self.f_ext(t, q, qd), dtype=float)
         mech = self.model.mechanism
         if q.shape[0] == 1 and f.shape == (mech.nlinks, 3, mech.dim):
             f = f[None]
-        f = check_f_ext(mech, f, q.shape, True, f"simulate at t = {t:.6g} s")
-        return tau + self.model._external_forces(q, f)
+        return check_f_ext(mech, f, q.shape, True, f"simulate at t = {t:.6g} s")
+
+
+class ControlsWithForcesJacobian(ControlsWithForces):
+    """:class:`ControlsWithForces` whose controls and ``f_ext`` both have a ``jacobian(t, q, qd)``, with
+    the Jacobian of the sum for ``simulate(jacobian="analytic")``: ``dQ/dq = dQ/dq|_f + J^T df/dq`` (the
+    geometry, :func:`dQ_dq`, and the forces' own change, ``Q`` being linear in ``f``), ``dQ/dqd = J^T
+    df/dqd``. ``f_ext.jacobian`` returns ``(df/dq, df/dqd)``, each ``(k, links, 3, dim, dof)``."""
+
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mech = self.model.mechanism
+        cq, cqd = self.controls.jacobian(t, q, qd)  # type: ignore[attr-defined]  # checked by with_external_forces
+        want = (q.shape[0], mech.nlinks, 3, mech.dim, mech.dof)
+        fq, fqd = (np.broadcast_to(np.asarray(a, dtype=float), want) for a in self.f_ext.jacobian(t, q, qd))  # type: ignore[attr-defined]
+        return cq + dQ_dq(mech, q, self.forces(t, q, qd)) + _through(mech, q, fq), cqd + _through(mech, q, fqd)
+
+
+def _through(mech: Mechanism, q: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """``J^T G``, ``(k, dof, dof)``: column ``j`` the generalised forces of the forces' derivative ``G[..., j]``."""
+    k, d = q.shape
+    cols = np.moveaxis(G, -1, 1).reshape(k * d, *G.shape[1:-1])
+    return generalized_forces(mech, np.repeat(q, d, axis=0), cols).reshape(k, d, d).transpose(0, 2, 1)
 
 
 def with_external_forces(model: Any, controls: Callable[..., Any], f_ext: Any, jacobian: str) -> ControlsWithForces:
     """``simulate``'s controls with the external forces ``f_ext(t, q, qd)`` added (:class:`ControlsWithForces`),
-    after checking that ``f_ext`` is a function; the analytic Jacobian has no derivative of ``f_ext``
-    to use, so it is refused by name."""
+    after checking that ``f_ext`` is a function. The analytic Jacobian needs ``f_ext.jacobian(t, q, qd) ->
+    (df/dq, df/dqd)`` (:class:`ControlsWithForcesJacobian`, when the controls have theirs too); without it
+    it is refused by name."""
     if not callable(f_ext):
         raise ValueError(
             f"simulate: field 'f_ext': expected a function (t, q, qd) -> forces (samples, links, 3, dim) in "
             f"newtons, got {type(f_ext).__name__}"
         )
-    if jacobian == "analytic":
+    if jacobian == "analytic" and not callable(getattr(f_ext, "jacobian", None)):
         raise ValueError(
             "simulate: field 'jacobian': expected 'finite-difference' with f_ext (the analytic Jacobian has no "
-            "derivative of f_ext(t, q, qd)), got 'analytic'"
+            "derivative of f_ext(t, q, qd): give f_ext a jacobian(t, q, qd) -> (df/dq, df/dqd) attribute, each "
+            "(samples, links, 3, dim, dof)), got 'analytic'"
         )
+    if jacobian == "analytic" and callable(getattr(controls, "jacobian", None)):
+        return ControlsWithForcesJacobian(model, controls, f_ext)
     return ControlsWithForces(model, controls, f_ext)
