@@ -144,6 +144,58 @@ class KernelSourceLocator(_CacheLocator):
         return None
 
 
+# --------------------------------------------------------------------------- an installed copy's cache
+#: numba's in-tree locator (``InTreeCacheLocator`` in numba 0.68; ``_InTreeCacheLocator`` before).
+_InTreeLocator: Any = getattr(caching, "InTreeCacheLocator", None) or getattr(caching, "_InTreeCacheLocator")  # noqa: B009
+#: The folder beside an installed package (``<package><suffix>``) that holds its compiled kernels.
+INSTALLED_CACHE_SUFFIX = ".numba-cache"
+
+
+def installed_cache_folder(py_file: str | Path, package: str | Path) -> Path | None:
+    """Where numba's cache of ``py_file`` goes when ``package`` is an installed copy of exo_bench:
+    ``<package>.numba-cache/<the file's folder relative to the package>``, beside the package, never
+    inside it. None for a file outside ``package``."""
+    package = Path(package)
+    try:
+        rel = Path(py_file).resolve().parent.relative_to(package.resolve())
+    except (OSError, ValueError):
+        return None
+    return package.parent / f"{package.name}{INSTALLED_CACHE_SUFFIX}" / rel
+
+
+def installed_package() -> Path | None:
+    """The ``exo_bench`` folder when this is an installed copy (``pip install .``: the modules inside
+    the package folder), None in a checkout (the editable install: the modules at the top level)."""
+    root = _HERE.parent
+    return root if root.name == "exo_bench" and (root / "__init__.py").is_file() else None
+
+
+class InstalledCacheLocator(_InTreeLocator):
+    """numba's in-tree locator, with the cache folder of an installed copy beside the package instead
+    of in its ``__pycache__`` folders (:func:`installed_cache_folder`).
+
+    Why: pip removes only the files it installed. The machine code numba wrote into
+    ``site-packages/exo_bench/**/__pycache__`` stayed after ``pip uninstall`` (and after the uninstall
+    that ``pip install -e .`` does first), and the ``exo_bench`` folder it kept is a namespace
+    package to Python's path finder, which runs before the editable install's finder:
+    ``from exo_bench import prepare`` failed with "cannot import name 'prepare'" (issue 38).
+    ``exo_bench.numba-cache`` is no package name: left behind, it shadows nothing."""
+
+    def __init__(self, py_func: Callable[..., Any], py_file: str, folder: Path) -> None:
+        super().__init__(py_func, py_file)
+        self._cache_path = str(folder)
+
+    @classmethod
+    def from_function(cls, py_func: Callable[..., Any], py_file: str) -> InstalledCacheLocator | None:
+        from numba.core import config
+
+        if getattr(config, "CACHE_DIR", ""):  # NUMBA_CACHE_DIR: the user's choice, numba's own locator
+            return None
+        package = installed_package()
+        folder = installed_cache_folder(py_file, package) if package is not None else None
+        return None if folder is None else cls(py_func, py_file, folder)
+
+
 # --------------------------------------------------------------------------- closures' index keys
 def _describe(value: Any, depth: int = 0) -> Any:
     """A description of a closure cell's value that is the same in every process: a compiled or

@@ -12,7 +12,9 @@ this order:
    :class:`exo_bench.models.numba_cache.KernelSourceLocator` is put first in numba's list of cache
    locators (``CacheImpl._locator_classes``, numba/core/caching.py). It serves the kernel folders of
    :data:`exo_bench.models.numba_cache.KERNEL_SOURCES` only; a locator is chosen when a kernel is
-   defined (``cache=True``), hence "before its first kernel".
+   defined (``cache=True``), hence "before its first kernel". Second in that list,
+   :class:`exo_bench.models.numba_cache.InstalledCacheLocator` keeps an installed copy's cache beside
+   the package, not inside it (a later editable install is not shadowed by what pip leaves behind).
 3. **Keys closures by their code** (patch): numba's ``FunctionCache._index_key`` is wrapped by
    :func:`exo_bench.models.numba_cache.index_key_by_code`, so that the closures of a kernel folder
    hit the cache in every process (numba's own key for every other function).
@@ -116,12 +118,14 @@ def ensure() -> str:
     import numba
     from numba.core import caching as numba_caching
 
-    from exo_bench.models.numba_cache import KernelSourceLocator, index_key_by_code
+    from exo_bench.models.numba_cache import InstalledCacheLocator, KernelSourceLocator, index_key_by_code
 
     caching: Any = numba_caching  # its internals, which numba's type hints do not describe
     impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl  # (numba < 0.68)
     if KernelSourceLocator not in impl._locator_classes:
         impl._locator_classes.insert(0, KernelSourceLocator)
+    if InstalledCacheLocator not in impl._locator_classes:  # before numba's own (the kernels' locator wraps it)
+        impl._locator_classes.insert(1, InstalledCacheLocator)
     if not getattr(caching.FunctionCache._index_key, "keyed_by_code", False):
         caching.FunctionCache._index_key = index_key_by_code(caching.FunctionCache._index_key)
     config: Any = numba.config  # numba.config sets its options at run time (the stubs do not list them)

@@ -18,6 +18,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from exo_bench.models.numba_cache import INSTALLED_CACHE_SUFFIX
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -63,6 +64,10 @@ def package_copy_prober(tmp_path: Path, probe: str, template: Path | None = None
     else:
         pkg = tmp_path / "exo_bench"
         shutil.copytree(template, pkg)
+        # a copy laid out as installed keeps its compiled kernels beside the package (models/numba_cache.py)
+        cache = template.parent / f"{template.name}{INSTALLED_CACHE_SUFFIX}"
+        if cache.is_dir():
+            shutil.copytree(cache, tmp_path / cache.name)
     env = {**{k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}, "PYTHONPATH": str(tmp_path)}
 
     def run() -> dict:

@@ -120,9 +120,12 @@ def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(t
     from conftest import assert_forces_agree
     from exo_bench import prepare, presets
     from exo_bench.models.motion import smooth_random_motion
+    from exo_bench.models.numba_cache import installed_cache_folder
 
     pkg, probe = package_copy_prober(tmp_path, _PROBE_LANES, template=warm_package)
-    cached = [f.name for f in (pkg / "models" / "newton_euler" / "__pycache__").glob("simd.*.nbi")]
+    folder = installed_cache_folder(pkg / "models" / "newton_euler" / "simd.py", pkg)  # beside the copy's package
+    assert folder is not None
+    cached = [f.name for f in folder.glob("simd.*.nbi")]
     assert any("32lanes" in f for f in cached) and not any("16lanes" in f for f in cached), cached
     for which, compiles in (("narrow", "narrow"), ("wide narrow", "")):
         (tmp_path / "which.txt").write_text(which)
