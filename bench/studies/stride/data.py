@@ -180,9 +180,8 @@ def save(stride: StoredStride, mech: Mechanism, folder: Path | None = None) -> P
     text = json.dumps(meta, allow_nan=False, sort_keys=True)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez_compressed(
-                f, **{k: np.asarray(getattr(stride, k), dtype=float) for k in ARRAYS}, meta=np.array(text)
-            )
+            arrays: dict[str, Any] = {k: np.asarray(getattr(stride, k), dtype=float) for k in ARRAYS}
+            np.savez_compressed(f, meta=np.array(text), **arrays)
     return path
 
 

@@ -106,7 +106,8 @@ def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> Stri
 def settings_from(d: dict) -> StrideSettings:
     """The settings stored with a stride (JSON: lists back to tuples); a ValueError naming a bad field."""
     try:
-        return StrideSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+        values: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}  # from JSON
+        return StrideSettings(**values)
     except TypeError as e:
         raise ValueError(f"stride: field 'meta.settings': {e}") from None
 
