@@ -80,6 +80,7 @@ class Verdict:
     passed: bool
     target: str
     measured: str
+    short: str = ""  # a column title for tables of many strides
 
 
 @dataclass(frozen=True)
@@ -301,6 +302,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             not bad,
             f"ours / Winter's in [{1 / FACTOR:g}, {FACTOR:g}] for each of {len(peaks)} peaks",
             f"{len(peaks) - len(bad)} of {len(peaks)} within" + (f"; outside: {worst}" if bad else ""),
+            short="peaks within 2x",
         )
     )
     fy = cs["vertical GRF"].ours
@@ -326,6 +328,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             ok,
             f"peaks >= {GRF_PEAK} BW, valley <= {GRF_VALLEY} BW",
             measured,
+            short="GRF two humps",
         )
     )
     rs = {j: cs[f"{j} moment"].r for j in JOINTS}
@@ -340,6 +343,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             all(r >= R_MIN for r in rs.values()),
             f"r >= {R_MIN}",
             measured,
+            short="moments r >= 0.7",
         )
     )
     out.append(
@@ -349,6 +353,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             "stance > 50 % of the cycle, both feet down at once for a while",
             f"stance {stance_end:.1f} % (Winter's {WINTER_STANCE:.1f} %), double support {ds:.1f} % "
             f"(Winter's {WINTER_DOUBLE_SUPPORT:.1f} %)",
+            short="walking stance",
         )
     )
     share, wr, total = rod_share(mech, stride, act)
@@ -358,6 +363,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             share <= ROD_SHARE,
             f"<= {ROD_SHARE:.0%}",
             f"{share:.1%}: rods {wr:.1f} J of {total:.1f} J positive work per stride; " + rod_travel(mech, stride),
+            short="rods <= 25 % of positive work",
         )
     )
     return out

@@ -88,10 +88,30 @@ def sizing_table(z: Sizing) -> list[str]:
     return lines
 
 
+def _stored(mech: Mechanism, folder=None) -> list[data.StoredStride]:
+    """Every stride stored for ``mech`` (speeds ascending, human variant first)."""
+    keys = sorted(data.stored(folder), key=lambda k: (k[0] != "human", k[1]))
+    return [data.load(v, s, mech, folder) for v, s in keys]
+
+
 def stored_sizings(mech: Mechanism, folder=None) -> list[Sizing]:
     """The sizing of every stride stored for ``mech`` (speeds ascending, human variant first)."""
-    keys = sorted(data.stored(folder), key=lambda k: (k[0] != "human", k[1]))
-    return [sizing(mech, data.load(v, s, mech, folder)) for v, s in keys]
+    return [sizing(mech, s) for s in _stored(mech, folder)]
+
+
+def verdicts_by_stride(mech: Mechanism, folder=None) -> list[str]:
+    """One row per stored stride: whether each verdict holds, against Winter's 1.41 m/s stride."""
+    rows = []
+    for s in _stored(mech, folder):
+        vs = cmp.compare(mech, s).verdicts
+        rows.append(
+            f"| {md(s.variant)} | {s.speed:g} | "
+            + " | ".join(("met" if v.passed else "**not met**") for v in vs)
+            + " |"
+        )
+    names = [v.short for v in cmp.compare(mech, _stored(mech, folder)[0]).verdicts] if rows else []
+    head = ["| variant | m/s | " + " | ".join(md(n) for n in names) + " |", "|---|---|" + "---|" * len(names)]
+    return head + rows if rows else []
 
 
 def without_floor(mech: Mechanism, stride: data.StoredStride, tau) -> str:
@@ -149,6 +169,13 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "|moment| per phase, the positive and negative power peaks, the ground force's extremes in stance.",
         "",
         *peaks_table(c),
+        "",
+        "### Every stored stride against Winter's",
+        "",
+        "The same checks on every stored stride (each against Winter's stride at 1.41 m/s, so the other speeds' "
+        "timing differs from his by construction):",
+        "",
+        *verdicts_by_stride(mech, folder),
         "",
         "### Actuator sizing",
         "",
