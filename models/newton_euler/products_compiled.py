@@ -73,6 +73,16 @@ def _transpose_apply(Y, kind, dim, n, k, c, V, at):
 
 
 @njit(**JIT)
+def _diagonal(P, dim, n, k, c, v, transpose):
+    """Row ``c`` of rod ``k``'s ``P_k`` (of ``P_k^T`` with ``transpose``) times its coordinates of ``v``;
+    entry ``(c, d)`` of ``P_k`` is ``P[d dim + c, k]``."""
+    a = 0.0
+    for d in range(dim):
+        a += (P[c * dim + d, k] if transpose else P[d * dim + c, k]) * v[d * n + k]
+    return a
+
+
+@njit(**JIT)
 def _prepare(t, g, dim, x, xd, xdd, W, Y, P, tau):
     """1. The passes and the per-rod columns of one sample."""
     _inverse_sample(t, g, dim, x, xd, xdd, tau, 0, W)
@@ -92,10 +102,7 @@ def jvp_sample(t, g, dim, x, xd, xdd, dx, dxd, dxdd, o, W, Y, P, tau, V):
     _passes(t, dim, V)
     for k in range(n):
         for c in range(dim):
-            a = _transpose_apply(Y, _J, dim, n, k, c, V, 6)
-            for d in range(dim):
-                a += P[d * dim + c, k] * dx[d * n + k]
-            o[c * n + k] = a
+            o[c * n + k] = _transpose_apply(Y, _J, dim, n, k, c, V, 6) + _diagonal(P, dim, n, k, c, dx, False)
 
 
 @njit(**JIT)
@@ -108,10 +115,7 @@ def vjp_sample(t, g, dim, x, xd, xdd, w, oq, oqd, om, W, Y, P, tau, V):
     _passes(t, dim, V)
     for k in range(n):
         for d in range(dim):
-            a = _transpose_apply(Y, _AQ, dim, n, k, d, V, 6)
-            for c in range(dim):
-                a += P[d * dim + c, k] * w[c * n + k]
-            oq[d * n + k] = a
+            oq[d * n + k] = _transpose_apply(Y, _AQ, dim, n, k, d, V, 6) + _diagonal(P, dim, n, k, d, w, True)
             oqd[d * n + k] = _transpose_apply(Y, _AR, dim, n, k, d, V, 6)
             om[d * n + k] = _transpose_apply(Y, _J, dim, n, k, d, V, 6)
 
