@@ -192,7 +192,9 @@ def stored(mech, tmp_path_factory):
     folder = tmp_path_factory.mktemp("strides")
     data.save(winter_stride(mech), mech, folder)
     fast = winter_stride(mech, moment_scale=3.0)
-    data.save(StoredStride(**{**fast.__dict__, "meta": {**fast.meta, "speed": 1.8}}), mech, folder)
+    staged = {"solve_seconds": 30.0, "iterations": 5, "stages": [{"iterations": 20}, {"iterations": 5}]}
+    staged["start"] = {"variant": "human", "speed": 1.41}
+    data.save(StoredStride(**{**fast.__dict__, "meta": {**fast.meta, "speed": 1.8, "solver": staged}}), mech, folder)
     return folder
 
 
@@ -207,7 +209,10 @@ def test_the_report_states_every_verdict_and_the_sizing_of_every_stored_stride(m
     assert "| human | 1.41 | met | met | met | met | met |" in text  # every stored stride's verdicts
     assert "| human | 1.8 | **not met** | met | met | met | met |" in text  # 3x the moments: r stays 1
     assert "**human variant at 1.41 m/s**" in text and "**human variant at 1.8 m/s**" in text
-    assert "solved in 12.5 s, 40 iterations" in text
+    assert "solved in 12.5 s, 40 iterations in 1 stage(s) (stored provenance)" in text
+    assert (
+        "solved in 30.0 s, 25 iterations in 2 stage(s), starting from the stored human stride at 1\\.41 m\\/s" in text
+    )
     assert "| right\\_ankle | joint motor | 89.8 N·m |" in text  # Winter's peak ankle moment, name encoded
     assert "| right\\_ankle | joint motor | 269.4 N·m |" in text  # the 3x stride
     assert "![the stride's curves against Winter's](x-winter.png)" in text

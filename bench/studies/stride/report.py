@@ -64,7 +64,9 @@ def sizing_table(z: Sizing) -> list[str]:
     solve = (
         "solve time not stored"
         if z.solve_seconds is None
-        else f"solved in {z.solve_seconds:.1f} s, {z.iterations} iterations (stored provenance)"
+        else f"solved in {z.solve_seconds:.1f} s, {z.iterations} iterations in {z.stages} stage(s)"
+        + (f", starting from {md(z.start)}" if z.start else "")
+        + " (stored provenance)"
     )
     lines = [
         f"**{md(z.variant)} variant at {z.speed:g} m/s** (stride {z.period:.3f} s; {solve}):",

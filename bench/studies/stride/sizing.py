@@ -12,7 +12,8 @@ forces (:func:`exo_bench.bench.studies.stride.actuators.actuators`):
   :func:`exo_bench.bench.studies.stride.actuators.work_terms`, whose difference is the net work.
 
 Each stride's row block carries its solve's wall time and iterations from the stored provenance
-(``meta["solver"]``), measured on the host that solved it.
+(``meta["solver"]``: summed over the stages of a staged solve, and what it started from when that was
+another stored stride), measured on the host that solved it.
 """
 
 from __future__ import annotations
@@ -48,8 +49,10 @@ class Sizing:
     speed: float
     period: float
     solve_seconds: float | None
-    iterations: int | None
+    iterations: int | None  # over every stage of the solve
     rows: list[Row]
+    stages: int = 1
+    start: str = ""  # what the solve started from, when another stored stride
 
 
 def time_rms(x: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -86,14 +89,19 @@ def sizing(mech: Mechanism, stride) -> Sizing:
     rows = _rows("joint motor", "N·m", [act.joint_names[k] for k in motors], act.moments[:, motors], Pj[:, motors], t)
     rows += _rows("telescopic rod", "N", [act.rod_names[k] for k in rods], act.forces[:, rods], Pr[:, rods], t)
     solver = stride.solver
-    seconds, its = solver.get("solve_seconds"), solver.get("iterations")
+    stages = solver.get("stages") or [solver]  # a staged solve stores each stage's iterations
+    its = [st.get("iterations") for st in stages]
+    seconds = solver.get("solve_seconds")
+    start = solver.get("start")
     return Sizing(
         stride.variant,
         stride.speed,
         stride.period,
         None if seconds is None else float(seconds),
-        None if its is None else int(its),
+        None if None in its else int(sum(its)),
         rows,
+        len(stages),
+        f"the stored {start.get('variant')} stride at {start.get('speed')} m/s" if isinstance(start, dict) else "",
     )
 
 
