@@ -141,6 +141,7 @@ def test_failed_targets_state_their_computed_evidence(mech):
     v = {x.name.split(":")[0].split(" ")[0]: x for x in c.verdicts}
     assert not v["every"].passed and "ankle moment, stance, |max|: 3.00x" in v["every"].measured
     assert not v["hip,"].passed and "ankle r = -1.00" in v["hip,"].measured
+    assert "the right toe carries nan% of the right foot's vertical impulse" in v["hip,"].measured  # no contacts
     assert v["vertical"].passed  # the ground force is Winter's
 
 
@@ -340,3 +341,6 @@ def test_contacts_and_double_support_count_the_intervals_on_the_ground():
     assert cmp.double_support(s) == pytest.approx(30.0)
     assert cmp.contacts(s, 0) == (1, pytest.approx(60.0))
     assert cmp.contacts(s, 1) == (1, pytest.approx(70.0))
+    contact = np.zeros((11, 4, 2))
+    contact[:, 0, 1], contact[:, 1, 1] = 300.0, 100.0  # right heel 300 N, right toe 100 N throughout
+    assert cmp.toe_share(SimpleNamespace(t=t, contact=contact)) == pytest.approx(0.25)

@@ -31,11 +31,18 @@ import numpy as np
 from exo_bench.bench.studies.stride import winter
 from exo_bench.bench.studies.stride.actuators import Actuators, actuators, powers, work_terms
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.normative import G, HEEL_CONTACT, NEXT_HEEL_CONTACT, SINGLE_SUPPORT, TOE_OFF
+from exo_bench.bench.studies.stride.evidence import (
+    CONTACT_THRESHOLD,
+    WINTER_DOUBLE_SUPPORT,
+    WINTER_STANCE,
+    contacts,
+    double_support,
+    rod_travel,
+    toe_share,
+)
+from exo_bench.models.normative import G
 
 BINS = 100
-#: The right foot is on the ground while its vertical force exceeds this many body weights.
-CONTACT_THRESHOLD = 0.02
 #: A lift of the foot shorter than this fraction of the cycle (5 %: 49 ms in Winter's stride) is a bounce
 #: within one stance, not a toe-off and a heel strike.
 BOUNCE = 0.05
@@ -337,6 +344,8 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
         f"{j} r = {r:.2f}" + (f" (best r {lags[j][1]:.2f} shifted by {lags[j][0]:+d} %)" if not r >= R_MIN else "")
         for j, r in rs.items()
     )
+    if not all(r >= R_MIN for r in rs.values()):  # where the floor pushes the foot decides the moments
+        measured += f"; the right toe carries {toe_share(stride):.1%} of the right foot's vertical impulse"
     out.append(
         Verdict(
             "hip, knee and ankle moments correlate with Winter's",
@@ -375,43 +384,6 @@ def stance_knee_flexion(cs: dict[str, Curve], winters: bool = False) -> float:
     thigh, leg = cs["thigh angle"], cs["leg angle"]
     flex = (thigh.winter - leg.winter) if winters else (thigh.ours - leg.ours)
     return float(np.max(flex[: int(0.3 * BINS)]) - flex[0])
-
-
-#: Winter's double support, % of the stride: frames 28-36 and 62-70 of 28-97 (his left-foot events are
-#: estimated by symmetry, :data:`exo_bench.models.normative.SINGLE_SUPPORT`).
-WINTER_DOUBLE_SUPPORT = (
-    100.0 * ((SINGLE_SUPPORT[0] - HEEL_CONTACT) + (TOE_OFF - SINGLE_SUPPORT[1])) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
-)
-
-
-WINTER_STANCE = 100.0 * (TOE_OFF - HEEL_CONTACT) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
-
-
-def double_support(stride) -> float:
-    """% of the stride (time-weighted over the stored nodes' intervals, by their midpoints) in which both
-    feet's vertical forces exceed :data:`CONTACT_THRESHOLD` body weights."""
-    on = (stride.grf[:, :, 1] > CONTACT_THRESHOLD * stride.body_weight).all(axis=1)
-    both = (on[1:] & on[:-1]) + 0.5 * (on[1:] ^ on[:-1])
-    return float(100.0 * np.sum(both * np.diff(stride.t)) / (stride.t[-1] - stride.t[0]))
-
-
-def contacts(stride, foot: int = 0) -> tuple[int, float]:
-    """How many separate contacts a foot (0: right) makes over the periodic stride, and the % of the stride
-    it is on the ground (vertical force above :data:`CONTACT_THRESHOLD` body weights; node midpoints)."""
-    on = stride.grf[:-1, foot, 1] > CONTACT_THRESHOLD * stride.body_weight
-    k = int(np.count_nonzero(on & ~np.roll(on, 1)))
-    frac = (on.astype(float) + np.roll(on, -1)) / 2.0  # node k's interval [t_k, t_k+1]: 1 on both ends, 1/2 on one
-    return k, float(100.0 * np.sum(frac * np.diff(stride.t)) / (stride.t[-1] - stride.t[0]))
-
-
-def rod_travel(mech: Mechanism, stride) -> str:
-    """The telescopic rods' largest length range over the stride (cm) and largest rate (m/s), as text."""
-    rods = [mech.nlinks + mech.names.index(r) for r in stride.telescopic]
-    if not rods:
-        return "no telescopic rods"
-    span = float(np.max(np.ptp(stride.q[:, rods], axis=0))) * 100.0
-    rate = float(np.max(np.abs(stride.qd[:, rods])))
-    return f"their length ranges over at most {span:.2f} cm, at rates up to {rate:.3g} m/s"
 
 
 def best_lag(c: Curve) -> tuple[int, float]:
