@@ -217,14 +217,32 @@ def test_newton_euler_goals_are_judged_against_matrix_factoreds_fastest_kernel()
     assert "`matrix-factored (numba)` 700 us, 23.3x" in text  # the slower kernel, stated beside
 
 
-def test_the_readme_is_rewritten_only_when_a_block_changes(tmp_path, monkeypatch):
+def test_the_highlights_page_is_rewritten_only_when_a_block_changes(tmp_path, monkeypatch):
+    """The generated blocks live in reports/full/highlights.md, which the README links (issue 38: they
+    were in the README); the page is written only when a block changes, and never created."""
     from exo_bench.bench.output import provenance
-    from exo_bench.bench.perf.reports.readme_blocks import replace_block, rewrite_readme
+    from exo_bench.bench.perf.reports.readme_blocks import HIGHLIGHTS, replace_block, rewrite_highlights
 
     monkeypatch.setattr(provenance, "REPO", tmp_path)
-    assert rewrite_readme(lambda r: r + "x") is False  # no README.md: nothing written
-    readme = tmp_path / "README.md"
-    readme.write_text("a\n<!-- b:start -->\nold\n<!-- b:end -->\n")
-    assert rewrite_readme(lambda r: replace_block(r, "b", "old")) is False
-    assert rewrite_readme(lambda r: replace_block(r, "b", "new")) is True
-    assert readme.read_text() == "a\n<!-- b:start -->\nnew\n<!-- b:end -->\n"
+    assert rewrite_highlights(lambda r: r + "x") is None  # no page: nothing written
+    assert not (tmp_path / HIGHLIGHTS).exists()
+    page = tmp_path / HIGHLIGHTS
+    page.parent.mkdir(parents=True)
+    page.write_text("a\n<!-- b:start -->\nold\n<!-- b:end -->\n")
+    assert rewrite_highlights(lambda r: replace_block(r, "b", "old")) is None
+    assert rewrite_highlights(lambda r: replace_block(r, "b", "new")) == page
+    assert page.read_text() == "a\n<!-- b:start -->\nnew\n<!-- b:end -->\n"
+    assert not (tmp_path / "README.md").exists()  # the README is not touched
+
+
+def test_the_committed_highlights_page_has_both_blocks_and_the_readme_links_it():
+    """Both generated blocks are in the committed page, and the README links the page, not the blocks."""
+    from exo_bench.bench.output.provenance import REPO
+    from exo_bench.bench.perf.reports.readme_blocks import HIGHLIGHTS, markers
+
+    page = (REPO / HIGHLIGHTS).read_text()
+    readme = (REPO / "README.md").read_text()
+    for name in ("paper-table", "simd-goals"):
+        start, end = markers(name)
+        assert start in page and end in page and start not in readme
+    assert f"]({HIGHLIGHTS.as_posix()})" in readme

@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument(
         "--update-readme",
         action="store_true",
-        help="also replace the paper table in the checkout's README.md (only then is README.md changed)",
+        help="also replace the paper table and issue 23's figures in the checkout's reports/full/highlights.md, which the README links (only then is it changed)",
     )
     s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
     s.add_argument(

@@ -238,9 +238,7 @@ def readme_with_table(readme: str, table_md: str, command: str) -> str:
     block = block[: 2 + len(PAPER_TABLE)]
     body = "\n".join(
         [
-            inserted_by(
-                command, "seconds to compose the equations; details in [reports/paper_table.md](reports/paper_table.md)"
-            ),
+            inserted_by(command, "seconds to compose the equations; details in [paper_table.md](paper_table.md)"),
             "",
             *block,
         ]

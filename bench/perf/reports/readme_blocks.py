@@ -1,12 +1,17 @@
-"""Blocks of the README written by code: the text between ``<!-- NAME:start -->`` and
-``<!-- NAME:end -->`` is replaced, the rest left as it is (the paper table of
+"""Blocks written by code into the page of highlights that the README links (:data:`HIGHLIGHTS`,
+``reports/full/highlights.md``; until issue 38 they were in the README itself): the text between
+``<!-- NAME:start -->`` and ``<!-- NAME:end -->`` is replaced, the rest left as it is (the paper table of
 :mod:`~exo_bench.bench.perf.reports.paper_table`, issue 23's figures of
 :mod:`~exo_bench.bench.perf.reports.simd_goals`). Nothing outside the markers is touched, and a
-README without them is returned unchanged."""
+page without them is returned unchanged. Links inside a block are relative to the page's folder."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
+
+#: The page of generated blocks, relative to the checkout: the full sweep's highlights, in its folder.
+HIGHLIGHTS = Path("reports") / "full" / "highlights.md"
 
 
 def markers(name: str) -> tuple[str, str]:
@@ -33,17 +38,18 @@ def inserted_by(command: str, details: str) -> str:
     return f"_Inserted by `{command}` on {info['date (UTC)']} UTC ({info['cpu']}); {details}._"
 
 
-def rewrite_readme(update: Callable[[str], str]) -> bool:
-    """Apply ``update`` to the checkout's README.md and write it (atomically) only if it changed;
-    whether it did. Nothing happens where there is no README.md (an installed package)."""
+def rewrite_highlights(update: Callable[[str], str]) -> Path | None:
+    """Apply ``update`` to the checkout's :data:`HIGHLIGHTS` page and write it (atomically) only if it
+    changed; the page's path if it did, else None. Nothing happens where there is no such page (an
+    installed package)."""
     from exo_bench.bench.output.provenance import REPO, atomic_write
 
-    path = REPO / "README.md"
+    path = REPO / HIGHLIGHTS
     if not path.exists():
-        return False
-    readme = path.read_text()
-    updated = update(readme)
-    if updated == readme:
-        return False
+        return None
+    page = path.read_text()
+    updated = update(page)
+    if updated == page:
+        return None
     atomic_write(path, updated)
-    return True
+    return path

@@ -366,7 +366,7 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--update-readme",
         action="store_true",
-        help="also replace the figures in the checkout's README.md (its simd-goals block)",
+        help="also replace the figures in the checkout's reports/full/highlights.md (its simd-goals block), which the README links",
     )
     a = ap.parse_args(argv)
     command = " ".join(["python -m exo_bench.bench.perf.reports.simd_goals", *(sys.argv[1:] if argv is None else argv)])
@@ -388,10 +388,11 @@ def main(argv=None) -> int:
             + "\n",
         )
     if a.update_readme:
-        from exo_bench.bench.perf.reports.readme_blocks import rewrite_readme
+        from exo_bench.bench.perf.reports.readme_blocks import rewrite_highlights
 
-        if rewrite_readme(lambda readme: readme_with_goals(readme, goals_lines(r), command)):
-            print("updated issue 23's figures in README.md")
+        page = rewrite_highlights(lambda readme: readme_with_goals(readme, goals_lines(r), command, "../simd-goals.md"))
+        if page is not None:
+            print(f"updated issue 23's figures in {page}")
     return 0
 
 
