@@ -48,7 +48,7 @@ BINS = 100
 BOUNCE = 0.05
 #: A peak is comparable when within this factor of Winter's, either way.
 FACTOR = 2.0
-#: A phase's peak is compared only when Winter's is at least this fraction of the curve's largest |value|
+#: A phase's peak is compared only when Winter's is at least this fraction of the curve's largest absolute value
 #: (smaller ones, such as the ankle moment in swing, are at the transcription's rounding).
 COMPARABLE = 0.1
 R_MIN, GRF_PEAK, GRF_VALLEY, ROD_SHARE = 0.7, 1.0, 0.85, 0.25
@@ -250,7 +250,7 @@ def _peak(label: str, x: np.ndarray) -> float:
 
 
 def peak_table(cs: dict[str, Curve], stance: tuple[float, float]) -> list[tuple[str, float, float]]:
-    """``(name, ours, Winter's)`` of every comparable peak: max |moment| per phase, the positive and the
+    """``(name, ours, Winter's)`` of every comparable peak: max ``|moment|`` per phase, the positive and the
     negative power peaks per phase, and the ground force's extremes in stance (see :data:`COMPARABLE`)."""
     pct = (np.arange(BINS) + 0.5) * 100.0 / BINS
     phases = {"stance": (pct < stance[0], pct < stance[1]), "swing": (pct >= stance[0], pct >= stance[1])}

@@ -12,7 +12,7 @@ HAT and the root (:mod:`exo_bench.bench.studies.stride.transcription`).
 
 **Objective** (:class:`StrideSettings`): actuator work per metre over body weight, positive work priced
 ``w_positive``, negative ``w_negative`` (each power split exactly into its two parts:
-:mod:`~.transcription`), over the six sagittal joints and the four telescopic rods; plus effort, the mean over the
+:mod:`~exo_bench.bench.studies.stride.transcription`), over the six sagittal joints and the four telescopic rods; plus effort, the mean over the
 stride of ``w_moment sum (M_j / m)^2`` (N·m/kg) over the six joints, ``w_force sum (F / BW)^2`` over the
 telescopic rods and a small ``w_accel sum qdd^2``.
 
@@ -151,7 +151,7 @@ def initial_guess(mech: Mechanism, fm: FreeMap, s: StrideSettings, T: float):
 
 # ----------------------------------------------------------------------------- the solve
 def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False) -> data.StoredStride:
-    """Solve the half stride and return the full stride as stored (:mod:`~.data`), with the solver's
+    """Solve the half stride and return the full stride as stored (:mod:`~exo_bench.bench.studies.stride.data`), with the solver's
     stats in ``meta["solver"]``; ``start``: ``(T, z, zd, zdd)`` of a half stride to start from (the
     initial guess of :func:`initial_guess` by default). A ``RuntimeError`` (one line) when IPOPT fails."""
     import casadi as ca

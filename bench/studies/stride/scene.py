@@ -12,7 +12,7 @@ No solve runs: the stride is read (:func:`exo_bench.bench.studies.stride.data.lo
 equal mechanism) and every method's inverse dynamics runs along its nodes. Beside the scene's usual
 outputs the scene writes the comparison with Winter's curves (``<scene>-winter.png``,
 :func:`extra_files`), its own kinogram (the stride walks from O: the root rod carries the hips), its
-section of the report (:mod:`.report`) and, in the recording, the actuators' loads and the ground force
+section of the report (:mod:`~exo_bench.bench.studies.stride.report`) and, in the recording, the actuators' loads and the ground force
 over time (:func:`log_stride`).
 """
 
