@@ -1,5 +1,5 @@
 """Computed evidence beside the stride's verdicts (:mod:`.comparison`): how the feet meet the floor and
-how far the telescopic rods move, from the stored stride alone (:mod:`.data`)."""
+how far the telescopic rods move, from the stored stride alone (:mod:`~exo_bench.bench.studies.stride.data`)."""
 
 from __future__ import annotations
 
