@@ -76,6 +76,8 @@ ONE_SAMPLE = ("analytic (auto)", "casadi AD", "pin.rnea (bare)")
 FORWARD = ("model.derivatives (newton-euler)", "casadi AD + LU", "FD (newton-euler batched)")
 #: The module each peer's route imports (skipped where it is not installed), by the route's row name.
 NEEDS = {
+    "casadi AD": "casadi",  # the optional extra [casadi]: without it (the main job's default install) the rows skip
+    "casadi AD + LU": "casadi",
     "mjd_inverseFD (mujoco)": "mujoco",
     "CalcInverseDynamics AutoDiffXd (drake)": "pydrake",
     "computeRNEADerivatives (pinocchio)": "pinocchio",
