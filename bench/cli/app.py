@@ -134,6 +134,13 @@ def error_line(e: BaseException) -> str:
     return _one_line(e)
 
 
+def _solve_failed(e: BaseException) -> bool:
+    """Whether ``e`` is a solve that ended without a solution (IPOPT): one line, never an internal error."""
+    from exo_bench.bench.studies.solve_failed import SolveFailed
+
+    return isinstance(e, SolveFailed)
+
+
 def _available() -> str:
     from exo_bench.models.prepared import available_memory
 
@@ -185,7 +192,7 @@ def _main(argv, warnings) -> int:
             print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             return 2
         except Exception as e:  # noqa: BLE001 - never a traceback: budgets and anything unforeseen, one line
-            if getattr(e, "skip_reason", None) or isinstance(e, RuntimeError) and "alloc" in str(e):
+            if getattr(e, "skip_reason", None) or isinstance(e, RuntimeError) and "alloc" in str(e) or _solve_failed(e):
                 print(f"exo-bench: error: {_shorten(error_line(e))}", file=sys.stderr)
             else:
                 print(

@@ -12,7 +12,6 @@
 from __future__ import annotations
 
 import datetime as _dt
-import sys
 
 import numpy as np
 
@@ -101,11 +100,7 @@ def cmd_gait(args) -> int:
         from exo_bench.bench.studies.step.problem import StepSettings
 
         stored, settings = None, StepSettings(dim=args.dim)
-    try:
-        sol = solve(mech, settings, verbose=args.verbose)
-    except RuntimeError as e:  # IPOPT did not converge: one line, exit 2, nothing written
-        print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
-        return 2
+    sol = solve(mech, settings, verbose=args.verbose)  # SolveFailed: one line, exit 2 (bench/cli/app.py)
     st = sol.stats
     print(
         f"{mech.name}: IPOPT {st['status']} in {st['iterations']} iterations, {st['solve_seconds']:.2f} s "

@@ -11,7 +11,6 @@
 from __future__ import annotations
 
 import datetime as _dt
-import sys
 
 
 def _speed(text: str) -> float:
@@ -70,16 +69,12 @@ def cmd_stride(args) -> int:
         if not args.store:
             raise
         stored, settings = None, problem.settings_for(mech, args.variant, speed)
-    try:
-        source = (stored.solver.get("start") if stored is not None else None) or {}
-        if source:  # solved as a continuation from another stored stride: the same again
-            src = data.load(source["variant"], source["speed"], mech)
-            new = problem.solve_from(mech, settings, src, verbose=args.verbose)
-        else:
-            new = problem.solve_stages(mech, settings, verbose=args.verbose)
-    except RuntimeError as e:
-        print(f"exo-bench: error: {str(e).splitlines()[0]}", file=sys.stderr)
-        return 2
+    source = (stored.solver.get("start") if stored is not None else None) or {}
+    if source:  # solved as a continuation from another stored stride: the same again
+        src = data.load(source["variant"], source["speed"], mech)
+        new = problem.solve_from(mech, settings, src, verbose=args.verbose)
+    else:  # SolveFailed: one line, exit 2 (bench/cli/app.py)
+        new = problem.solve_stages(mech, settings, verbose=args.verbose)
     sv = new.solver
     print(
         f"{mech.name} {args.variant} at {speed:g} m/s: IPOPT {sv['status']} in {sv['iterations']} iterations, "

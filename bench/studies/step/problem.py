@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from exo_bench.bench.output.interrupts import check as check_interrupt
+from exo_bench.bench.studies.solve_failed import SolveFailed
 from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
 from exo_bench.models.mechanism import Mechanism
 
@@ -226,9 +227,10 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     st = solver.stats()
     if not st.get("success"):
         check_interrupt()  # IPOPT stopped by Ctrl-C or SIGTERM: interrupted, not "did not solve"
-        raise RuntimeError(
+        raise SolveFailed(
             f"step: IPOPT did not solve the {mech.name} step: {st.get('return_status')} after "
-            f"{st.get('iter_count')} iterations ({seconds:.1f} s)"
+            f"{st.get('iter_count')} iterations ({seconds:.1f} s)",
+            st,
         )
     xv = np.asarray(res["x"], dtype=float).ravel()
     Tv, zq, zv, za = nlp.split(xv)

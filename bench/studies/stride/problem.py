@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from exo_bench.bench.output.interrupts import check as check_interrupt
+from exo_bench.bench.studies.solve_failed import SolveFailed
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
 from exo_bench.models.kinematics import point_mass_positions
@@ -189,9 +190,10 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
     st = solver.stats()
     if not st.get("success"):
         check_interrupt()
-        raise RuntimeError(
+        raise SolveFailed(
             f"stride: IPOPT did not solve the {s.variant} stride at {s.speed:g} m/s: {st.get('return_status')} "
-            f"after {st.get('iter_count')} iterations ({seconds:.1f} s)"
+            f"after {st.get('iter_count')} iterations ({seconds:.1f} s)",
+            st,
         )
     xv = np.asarray(res["x"], dtype=float).ravel()
     g = np.asarray(res["g"], dtype=float).ravel()
