@@ -79,6 +79,8 @@ class StrideSettings:
     w_negative: float = 0.5
     eps_power: float = 0.0  # W: 0 prices the exact positive and negative parts (transcription)
     w_moment: float = 0.1
+    strength: tuple[float, float, float] = (1.0, 1.0, 1.0)  # N·m/kg: hip, knee, ankle (effort of M / (m strength))
+    w_rod_work: float = 1.0  # the telescopic rods' work priced at this times the joints'
     w_force: float = 0.1
     w_accel: float = 1e-6
     tol: float = 1e-10

@@ -24,11 +24,16 @@ prices ``w_positive U+ + w_negative U-`` make one of them zero at the optimum, s
 continuation's middle stage (:func:`~.problem.solve_stages`; with ``eps`` = 1 W from the effort-only
 start IPOPT wandered for 500 iterations; with 10 W it converges, and the exact split from there lands on
 a nearby optimum, where from the effort-only start it found a worse one). Plus the effort, averaged
-over the half stride (trapezoidal weights).
+over the half stride (trapezoidal weights). The telescopic rods' work is priced at ``w_rod_work`` times the
+joints' (both parts), and each joint's moment in the effort is divided by its ``strength`` (N·m/kg,
+:func:`strength_of`): :class:`~.problem.StrideSettings` says why.
 
 **Constraints.** Trapezoidal defects ``z_{k+1} - z_k = h/2 (zd_k + zd_{k+1})`` and the same for the
 rates; zero residuals at every node; joint ranges (linear); the symmetry (the end is the start mirrored,
-the hips ``v T`` further on at the same height and velocity); the hips' x at ``t = 0`` (the walk is
+accelerations included, the hips ``v T`` further on at the same height, velocity and acceleration: without
+the accelerations the stored stride's loads jumped at the join of its halves, where only the
+coordinates and rates were mirrored; the exo stride's left knee power was 256.9 W at ``t = T`` and about 0
+at ``t = 0``, its accelerations there off the mirror by up to 382 rad/s^2); the hips' x at ``t = 0`` (the walk is
 invariant to a shift along the floor: it is pinned) and the right heel on the floor at ``t = 0`` (so
 is its phase: ``t = 0`` is the right heel's touchdown). Rod strokes, rod rates, trunk angle and ``T`` are
 variable bounds.
@@ -64,10 +69,18 @@ class Rows:
     contact: slice
     hip_p: slice
     hip_v: slice
+    hip_a: slice
     heel_height: int
     powers: slice
     effort: int
     size: int
+
+
+def strength_of(s: Any, joint: str) -> float:
+    """The strength (N·m/kg) dividing ``joint``'s moment in the effort: ``s.strength`` is (hip, knee,
+    ankle); 1 each prices every joint's moment alike, per kg."""
+    hip, knee, ankle = s.strength
+    return float({"hip": hip, "knee": knee, "ankle": ankle}[joint.split("_", 1)[1]])
 
 
 def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
@@ -76,7 +89,7 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
 
     n, dof, dim = mech.nlinks, mech.dof, 2
     q, qd, qdd = (ca.SX.sym(x, dof) for x in ("q", "qd", "qdd"))
-    p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
+    p, v, acc = symbolic.kinematics_function(mech)(q, qd, qdd)
     at = lambda x, link: x[(3 * link + 2) * dim : (3 * link + 3) * dim]  # noqa: E731  the link's end mass
     links = contact_mask_order(mech)
     f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), DEFAULT_CONTACT) for i in links])
@@ -94,15 +107,16 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     priced = [eye.joint_names.index(j) for j in PRICED_JOINTS]
     powers = ca.vertcat(*[jp[k] for k in priced], rp)
     mass, bw = mech.total_mass, mech.total_mass * mech.g
-    effort = s.w_moment * ca.sumsqr(ca.vertcat(*[moments[k] for k in priced]) / mass)
+    strength = [strength_of(s, j) for j in PRICED_JOINTS]  # N·m/kg: each joint's effort in units of its strength
+    effort = s.w_moment * ca.sumsqr(ca.vertcat(*[moments[k] / (mass * w) for k, w in zip(priced, strength)]))
     effort += s.w_force * ca.sumsqr(ca.vertcat(*[rods[k] for k in tel]) / bw) + s.w_accel * ca.sumsqr(qdd)
     root = mech.names.index("root")
-    hip_p, hip_v = at(p, root), at(v, root)
+    hip_p, hip_v, hip_a = at(p, root), at(v, root), at(acc, root)
     heel = at(p, mech.names.index("right_heel"))[1]
-    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, powers, effort]
+    parts = [residuals, moments, rods, f, hip_p, hip_v, hip_a, heel, powers, effort]
     sizes = np.cumsum([0] + [x.numel() for x in parts])
     sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
-    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
+    rows = Rows(*sl[:7], sl[7].start, sl[8], sl[9].start, int(sizes[-1]))
     return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
 
 
@@ -199,20 +213,24 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     keep = [i for i, name in enumerate(fm.names) if not name.startswith("root")]
     add((zq[:, 0] - ca.mtimes(ca.DM(P), zq[:, N]))[keep], 0, 0)
     add((zv[:, 0] - ca.mtimes(ca.DM(P), zv[:, N]))[keep], 0, 0)
+    add((za[:, 0] - ca.mtimes(ca.DM(P), za[:, N]))[keep], 0, 0)  # so the loads do not jump at the join
     y0, yN = Y[0], Y[N]
     add(yN[rows.hip_p][0] - y0[rows.hip_p][0] - s.speed * T, 0, 0)
     add(yN[rows.hip_p][1] - y0[rows.hip_p][1], 0, 0)
     add(yN[rows.hip_v] - y0[rows.hip_v], 0, 0)
+    add(yN[rows.hip_a] - y0[rows.hip_a], 0, 0)
     add(y0[rows.hip_p][0], s.hip_x0, s.hip_x0)
     add(y0[rows.heel_height], 0, 0)
     w = np.full(N + 1, 1.0 / N)
     w[[0, -1]] /= 2
+    price = [1.0] * len(PRICED_JOINTS) + [float(s.w_rod_work)] * len(TELESCOPIC)
     if smooth:
         P = ca.horzcat(*[y[rows.powers] for y in Y]) / unit
         a = ca.sqrt(P**2 + (s.eps_power / unit) ** 2)  # as actuators.work_terms smooths |P|
-        work = ca.sum1(s.w_positive * (a + P) / 2 + s.w_negative * (a - P) / 2)
+        work = ca.sum1(ca.DM(price) * (s.w_positive * (a + P) / 2 + s.w_negative * (a - P) / 2))
     else:
-        work = s.w_positive * ca.sum1(Up) + s.w_negative * ca.sum1(Un)  # (1, N + 1): work per metre over BW
+        c = ca.DM(price)  # (npow, 1): the joints' work at 1, the rods' at w_rod_work
+        work = s.w_positive * ca.sum1(c * Up) + s.w_negative * ca.sum1(c * Un)  # (1, N + 1): work per metre over BW
     f = sum(float(w[k]) * (work[k] + Y[k][rows.effort]) for k in range(N + 1))
     lbz, ubz = _variable_bounds(mech, fm, s)
     slack = 2 * npow * (N + 1)
