@@ -27,18 +27,27 @@ elements newton-euler's kernels inline too. One implementation serves every meth
 
 The engines (Pinocchio ``fext``, MuJoCo ``xfrc_applied``, Drake's applied spatial forces) supply their
 own ``Q`` (``PreparedModel._external_forces``), so the methods cross-validate (docs/external-forces.md).
+
+**Speed.** Every other model's calls with ``f_ext`` run the compiled ``Q`` of
+:mod:`exo_bench.models.external_forces_compiled`, bound once per model: one sample costs the call
+without ``f_ext`` plus array checks and one compiled pass (bench/test_external_forces.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from functools import cache
 from typing import Any
 
 import numpy as np
 
+from exo_bench.models import external_forces_compiled as xc
+from exo_bench.models.external_forces_compiled import (
+    generalized_forces_compiled as generalized_forces_compiled,
+)  # re-exported: PreparedModel._external_forces
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.rod_elements import project_2d, project_3d
+from exo_bench.models.states import as_states
+from exo_bench.models.unchecked import check_out, unchecked_forward
 
 #: The points of every link, in the order of ``f_ext``'s third axis.
 POINTS = ("start", "middle", "end")
@@ -165,54 +174,6 @@ def dQ_dq(mech: Mechanism, q, f) -> np.ndarray:
     return out
 
 
-@cache
-def _kernel() -> Callable[..., Any]:
-    """The compiled ``Q`` of one batch (numba, compiled on first use): the same projections
-    (``register_jitable``) and the same leaves-first sums as :func:`generalized_forces`."""
-    from numba import njit
-    from numba.extending import register_jitable
-
-    from exo_bench.models.numba_runtime import ensure
-
-    ensure()
-    p2, p3 = register_jitable(project_2d), register_jitable(project_3d)
-
-    @njit(nogil=True)
-    def kernel(parent, sign, frac, dim, q, f, out):  # pragma: no cover - compiled
-        S, n = q.shape[0], parent.shape[0]
-        F = np.zeros((n, dim))
-        through = np.zeros((n, dim))
-        for s in range(S):
-            for k in range(n):
-                for c in range(dim):
-                    F[k, c] = frac[k, 0] * f[s, k, 0, c] + frac[k, 1] * f[s, k, 1, c] + frac[k, 2] * f[s, k, 2, c]
-                    through[k, c] = f[s, k, 0, c] + f[s, k, 1, c] + f[s, k, 2, c]
-            for k in range(n - 1, -1, -1):
-                p = parent[k]
-                if p >= 0:
-                    for c in range(dim):
-                        through[p, c] += through[k, c]
-                        F[p, c] += through[k, c]
-            for k in range(n):
-                cf, sf, sk = np.cos(q[s, k]), np.sin(q[s, k]), sign[k]
-                if dim == 2:
-                    a, b = p2(cf, sf, q[s, n + k], F[k, 0], F[k, 1])
-                    out[s, k], out[s, n + k] = sk * a, sk * b
-                else:
-                    cp, sp = np.cos(q[s, n + k]), np.sin(q[s, n + k])
-                    a, b, c3 = p3(cf, sf, cp, sp, q[s, 2 * n + k], F[k, 0], F[k, 1], F[k, 2])
-                    out[s, k], out[s, n + k], out[s, 2 * n + k] = sk * a, sk * b, sk * c3
-        return out
-
-    return kernel
-
-
-def generalized_forces_compiled(mech: Mechanism, q: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """:func:`generalized_forces` by the compiled loop (float64 ``q (S, dof)``, ``f (S, links, 3, dim)``)."""
-    parent = np.asarray(mech.parent, dtype=np.int64)
-    return _kernel()(parent, mech.sign_array, mech.fractions, mech.dim, q, f, np.empty(q.shape))
-
-
 def point_forces(mech: Mechanism, f: np.ndarray):
     """``(link, point, force (3,))`` of one sample's forces ``(links, 3, dim)`` at the engines' bodies (Pinocchio, MuJoCo, Drake):
     a middle point of zero mass has none, so its force goes ``(1 - n) : n`` to the start and the end
@@ -231,13 +192,21 @@ def point_forces(mech: Mechanism, f: np.ndarray):
 # ----------------------------------------------------------------------------- the calls
 def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndarray:
     """``model.inverse_dynamics(q, qd, qdd) - Q(q, f_ext)`` (``PreparedModel.inverse_dynamics`` with
-    ``f_ext``): the states checked by the call itself, ``f_ext`` by :func:`check_f_ext`, ``out`` as there."""
-    from exo_bench.models.unchecked import check_out
-
+    ``f_ext``): the states checked by the call itself, ``f_ext``'s shape always and its values with
+    ``check`` (:func:`check_f_ext`'s messages), ``out`` as there. ``Q`` by the model's bound compiled
+    kernel (:mod:`exo_bench.models.external_forces_compiled`; an engine's own ``Q`` otherwise)."""
+    b = model.__dict__.get("_f_ext_bound") or xc.bound(model)
     tau = model.inverse_dynamics(q, qd, qdd, check=check)
-    q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
-    f = check_f_ext(model.mechanism, f_ext, tau.shape, check, model.method)
-    tau = tau - model._external_forces(q2, f).reshape(tau.shape)
+    f = _forces(model, b, f_ext, tau.shape, check)
+    if b.apply is None:
+        q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, b.dof)
+        tau = tau - model._external_forces(q2, f.reshape(-1, *b.forces)).reshape(tau.shape)
+    else:
+        dest = np.empty(tau.shape)
+        status = b.apply(b.params, xc.flat(q), f, xc.flat(tau), dest.reshape(-1), xc.MINUS, bool(check))
+        if status != xc.DONE:
+            _refuse(model, f, tau.shape, status)
+        tau = dest
     if out is None:
         return tau
     check_out(out, tau.shape, model.method)
@@ -245,12 +214,51 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
     return out
 
 
+def _forces(model: Any, b: xc.Bound, f_ext: Any, shape: tuple, check: bool) -> np.ndarray:
+    """``f_ext`` flat and C-ordered float64 for states of ``shape``: its shape checked (always); its
+    values by :func:`check_f_ext` unless it is such an array already (then the kernel checks them)."""
+    if (
+        type(f_ext) is np.ndarray
+        and f_ext.dtype is xc.F8
+        and f_ext.flags.c_contiguous
+        and f_ext.shape == (b.forces if len(shape) == 1 else (*shape[:-1], *b.forces))
+    ):
+        return f_ext.reshape(-1)
+    return check_f_ext(model.mechanism, f_ext, shape, check, model.method).reshape(-1)
+
+
+def _refuse(model: Any, f: np.ndarray, shape: tuple, status: int) -> None:
+    """The ValueError of a kernel's status other than done: the force that is not finite, named by
+    :func:`check_f_ext`, or sizes that disagree."""
+    mech = model.mechanism
+    if status >= 0:
+        check_f_ext(mech, f.reshape(*shape[:-1], mech.nlinks, 3, mech.dim), shape, True, model.method)
+    raise ValueError(
+        f"{model.method}: field 'f_ext': expected forces of shape {(*shape[:-1], mech.nlinks, 3, mech.dim)} for "
+        f"states of shape {shape}, got {f.size} numbers"
+    )
+
+
 def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndarray:
     """``model.forward_dynamics(q, qd, tau + Q(q, f_ext))`` (``PreparedModel.forward_dynamics`` with
-    ``f_ext``): ``q`` and the shapes checked here first (``Q`` needs them), the rest by the call."""
-    from exo_bench.models.states import as_states
-    from exo_bench.models.unchecked import unchecked_forward
-
+    ``f_ext``): ``q`` and the shapes checked here first (``Q`` needs them), the rest by the call. Arrays
+    ``q`` and ``tau`` of one shape ``(dof,)`` or ``(samples, dof)`` go straight to the compiled ``Q``
+    (a bad value in ``q`` is then named by the call, as without ``f_ext``)."""
+    b = model.__dict__.get("_f_ext_bound") or xc.bound(model)
+    if (
+        b.apply is not None
+        and type(q) is np.ndarray
+        and type(tau) is np.ndarray
+        and q.shape == tau.shape
+        and 0 < q.ndim <= 2
+        and q.shape[-1] == b.dof
+    ):
+        f = _forces(model, b, f_ext, q.shape, check)
+        t = np.empty(q.shape)
+        status = b.apply(b.params, xc.flat(q), f, xc.flat(tau), t.reshape(-1), xc.PLUS, bool(check))
+        if status != xc.DONE:
+            _refuse(model, f, q.shape, status)
+        return model.forward_dynamics(q, qd, t, check=check, out=out)
     mech = model.mechanism
     if check:
         shape = np.shape(q)

@@ -1,0 +1,162 @@
+"""The compiled generalised forces of ``f_ext``, ``Q(q, f_ext)``, and the calls' fast path.
+
+One numba kernel, :func:`kernel`, serves the generalised forces themselves
+(:func:`generalized_forces_compiled`) and inverse and forward dynamics with ``f_ext``
+(:mod:`exo_bench.models.external_forces`): ``dest = tau - Q``, ``tau + Q`` or ``Q``, over flat
+C-ordered float64 arrays of any number of samples, with an optional finiteness check of the forces
+in the same pass. It holds the arithmetic of :func:`exo_bench.models.external_forces.generalized_forces`
+(the same leaves-first sums, the same rod projections of :mod:`exo_bench.models.rod_elements`, inlined
+by ``register_jitable``), so its numbers are the numpy ones to the last bit.
+
+A prepared model binds what is fixed once (:func:`bound`: the mechanism's parent indices, signs and
+middle fractions as one parameter array, and whether the model's ``Q`` is this one: the engines
+supply their own), so a call rebuilds nothing: one sample costs the call without ``f_ext``, a few
+array checks and one compiled call (bench/test_external_forces.py times it).
+
+**Memory safety.** The kernel reads and writes nothing outside its arrays whatever it is given: it
+compares every array's size with what the parameters and the sample count imply and answers
+:data:`BAD_SIZE` without touching anything when they differ. Its status is otherwise :data:`DONE`,
+or the flat index of the first force that is not finite (``check``: nothing written), which the
+caller names (:func:`exo_bench.models.external_forces.check_f_ext`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.rod_elements import project_2d, project_3d
+
+#: The kernel's status: done, or the arrays' sizes disagree with the parameters (nothing touched).
+DONE, BAD_SIZE = -1, -2
+#: What the kernel writes into ``dest``: ``tau - Q`` (inverse dynamics), ``tau + Q`` (forward), ``Q``.
+MINUS, PLUS, ONLY = -1, 1, 0
+
+F8 = np.dtype(np.float64)
+
+
+def parameters(mech: Mechanism) -> np.ndarray:
+    """The kernel's parameter array: ``[dim, parent..., sign..., n...]`` (parents as floats, -1 for a root)."""
+    return np.concatenate(([float(mech.dim)], np.asarray(mech.parent, float), mech.sign_array, mech.n))
+
+
+@cache
+def kernel() -> Callable[..., int]:
+    """The compiled kernel ``(params, q, f, tau, dest, mode, check) -> status`` (module text), numba,
+    compiled on first use. ``q``, ``tau``, ``dest``: flat ``(samples * dof,)``; ``f``: flat ``(samples *
+    links * 3 * dim,)``; ``mode``: :data:`MINUS`, :data:`PLUS` or :data:`ONLY` (``tau`` unread).
+    ``dest`` may be ``tau``; any other overlap with the inputs is the caller's to avoid."""
+    from numba import njit
+    from numba.extending import register_jitable
+
+    from exo_bench.models.numba_runtime import ensure
+
+    ensure()
+    p2, p3 = register_jitable(project_2d), register_jitable(project_3d)
+
+    @njit(nogil=True)
+    def apply(params, q, f, tau, dest, mode, check):  # pragma: no cover - compiled
+        n = (params.shape[0] - 1) // 3
+        dim = int(params[0])
+        dof = dim * n
+        if n < 1 or dim < 2 or dim > 3 or params.shape[0] != 3 * n + 1:
+            return -2
+        S = q.shape[0] // dof
+        if q.shape[0] != S * dof or f.shape[0] != S * n * 3 * dim or dest.shape[0] != q.shape[0]:
+            return -2
+        if mode != 0 and tau.shape[0] != q.shape[0]:
+            return -2
+        for k in range(n):  # parents come before their children
+            p = int(params[1 + k])
+            if p != params[1 + k] or p < -1 or p >= k:
+                return -2
+        if check:
+            for i in range(f.shape[0]):
+                if not np.isfinite(f[i]):
+                    return i
+        F = np.empty((n, dim))
+        through = np.empty((n, dim))
+        Q = np.empty(dof)
+        for s in range(S):
+            o, g = s * dof, s * n * 3 * dim
+            for k in range(n):
+                nk = params[1 + 2 * n + k]
+                for c in range(dim):
+                    a, b, e = f[g + (3 * k) * dim + c], f[g + (3 * k + 1) * dim + c], f[g + (3 * k + 2) * dim + c]
+                    F[k, c] = 0.0 * a + nk * b + 1.0 * e
+                    through[k, c] = a + b + e
+            for k in range(n - 1, -1, -1):
+                p = int(params[1 + k])
+                if p >= 0:
+                    for c in range(dim):
+                        through[p, c] += through[k, c]
+                        F[p, c] += through[k, c]
+            for k in range(n):
+                x, sk = q[o + k], params[1 + n + k]
+                cf, sf = np.cos(x), np.sin(x)
+                if dim == 2:
+                    u, v = p2(cf, sf, q[o + n + k], F[k, 0], F[k, 1])
+                    Q[k], Q[n + k] = sk * u, sk * v
+                else:
+                    cp, sp = np.cos(q[o + n + k]), np.sin(q[o + n + k])
+                    u, v, w = p3(cf, sf, cp, sp, q[o + 2 * n + k], F[k, 0], F[k, 1], F[k, 2])
+                    Q[k], Q[n + k], Q[2 * n + k] = sk * u, sk * v, sk * w
+            for j in range(dof):
+                if mode == 0:
+                    dest[o + j] = Q[j]
+                elif mode > 0:
+                    dest[o + j] = tau[o + j] + Q[j]
+                else:
+                    dest[o + j] = tau[o + j] - Q[j]
+        return -1
+
+    return apply
+
+
+def flat(a: Any) -> np.ndarray:
+    """``a`` as a flat C-ordered float64 array (a view where it is one already)."""
+    if type(a) is not np.ndarray or a.dtype is not F8 or not a.flags.c_contiguous:
+        a = np.ascontiguousarray(a, dtype=float)
+    return a.reshape(-1)
+
+
+def generalized_forces_compiled(mech: Mechanism, q: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """:func:`exo_bench.models.external_forces.generalized_forces` by the compiled kernel (float64 ``q (S,
+    dof)``, ``f (S, links, 3, dim)``): ``(S, dof)``."""
+    q2 = np.ascontiguousarray(q, dtype=float)
+    out = np.empty(q2.shape)
+    status = kernel()(parameters(mech), q2.reshape(-1), flat(f), out.reshape(-1), out.reshape(-1), ONLY, False)
+    if status != DONE or out.shape[-1:] != (mech.dof,):
+        raise ValueError(
+            f"f_ext: expected q of shape (samples, {mech.dof}) and forces of shape (samples, {mech.nlinks}, 3, "
+            f"{mech.dim}), got {q2.shape} and {np.shape(f)}"
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class Bound:
+    """What a prepared model's calls with ``f_ext`` need, bound once (:func:`bound`)."""
+
+    params: np.ndarray
+    apply: Callable[..., int] | None  # the kernel; None: the model has its own Q (an engine)
+    forces: tuple[int, int, int]  # one sample's f_ext shape, (links, 3, dim)
+    dof: int
+
+
+def bound(model: Any) -> Bound:
+    """The :class:`Bound` of a prepared model, made on its first call with ``f_ext`` and kept on it."""
+    b = model.__dict__.get("_f_ext_bound")
+    if b is None:
+        from exo_bench.models.prepared import PreparedModel  # prepared imports this layer's callers
+
+        mech = model.mechanism
+        native = type(model)._external_forces is PreparedModel._external_forces
+        b = Bound(parameters(mech), kernel() if native else None, (mech.nlinks, 3, mech.dim), mech.dof)
+        model.__dict__["_f_ext_bound"] = b
+    return b
