@@ -4,21 +4,29 @@
 (segment mass / body mass, centre of mass / segment length from the proximal end, radius of
 gyration about the centre of mass / segment length; Dempster's cadaver data as Winter adapts
 them) and Fig. 4.1 (segment lengths as fractions of the stature H, after Drillis and Contini).
-**We could not open the book.** The mass fractions and centre-of-mass locations of foot, leg and
-thigh below were checked against a public course handout that reprints Table 4.1 ("adapted from
-Winter, 3rd ed.", University of Rhode Island BME 207, 2016): foot 0.0145 / 0.500, leg 0.0465 /
-0.433, thigh 0.100 / 0.433. HAT's row (0.678 of body mass, centre of mass 0.626 of the way from
-the greater trochanter to the glenohumeral joint, radius of gyration 0.496 of that length) and
-the radii of gyration (foot 0.475, leg 0.302, thigh 0.323) are Table 4.1 as we remember it,
-**not checked** against a source we could open (they do obey the parallel-axis theorem with the
-radii about the proximal and distal ends we remember from the same table: HAT 0.798 / 0.621, leg
-0.528 / 0.643, thigh 0.540 / 0.653, foot 0.690 / 0.690, to 0.001). HAT = 0.678 is the fraction
+We did not open the book; every number below is checked against public transcriptions of it:
+
+* Table 4.1: the file ``data/BSP_DempsterWinter.txt`` of the repository BMClab/BMC (Marcos
+  Duarte's biomechanics notebooks, commit bb70ec694c7d7db237eb2a131a8cf37183d7e1f4), whose rows read
+  (mass, centre of mass from the proximal end and from the distal end, radius of gyration about the
+  centre of mass, the proximal end and the distal end): foot 0.0145, 0.5, 0.5, 0.475, 0.69, 0.69;
+  leg 0.0465, 0.433, 0.567, 0.302, 0.528, 0.643; thigh 0.1, 0.433, 0.567, 0.323, 0.54, 0.653; HAT
+  (greater trochanter to glenohumeral joint) 0.678, 0.626, 0.374, 0.496, 0.798, 0.621. A course
+  handout that reprints Table 4.1 ("adapted from Winter, 3rd ed.", University of Rhode Island BME
+  207, 2016) gives the same foot, leg and thigh masses and centres of mass.
+* Fig. 4.1: ``pyexphys/anthropometry.py`` of dpfens/PyExPhys (commit
+  89d19374d31d44a59e86e253731ea0d48ea25666, "Winter, ... 2009"): hips 0.530 H, knees 0.285 H,
+  ankles 0.039 H, shoulders 0.818 H, foot length 0.152 H.
+
+Every value used here is the transcriptions' (tests/test_anthropometry_source.py holds them with
+their sources); none had to change. The radii about the ends obey the parallel-axis theorem with
+those about the centre of mass to 0.001 (the table's rounding). HAT = 0.678 is the fraction
 :mod:`exo_bench.models.normative` already uses to find the 56.7 kg subject; the fractions sum to
 one (0.678 + 2 (0.100 + 0.0465 + 0.0145) = 1.000).
 
-Lengths (Fig. 4.1, the fractions :mod:`exo_bench.models.gait_fit` already uses, not checked by us
-either): greater trochanter 0.530 H above the floor, knee 0.285 H, ankle 0.039 H, so thigh
-0.245 H and leg 0.246 H; glenohumeral joint 0.818 H; foot length (heel to toe tip) 0.152 H. Where along the foot the ankle
+Lengths (Fig. 4.1, the fractions :mod:`exo_bench.models.gait_fit` already uses): greater
+trochanter 0.530 H above the floor, knee 0.285 H, ankle 0.039 H, so thigh 0.245 H and leg 0.246 H;
+glenohumeral joint 0.818 H; foot length (heel to toe tip) 0.152 H. Where along the foot the ankle
 lies is not in Fig. 4.1: **our assumption** puts the heel's contact point 0.20 of the foot length
 behind the ankle and the head of metatarsal II (the toe's contact point, the distal end of
 Winter's foot segment) 0.55 of it ahead, both on the floor. Winter's foot segment is then the rod
@@ -44,8 +52,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 SOURCE = (
-    "Winter, Biomechanics and Motor Control of Human Movement, Table 4.1 and Fig. 4.1 (not checked against the "
-    "book; foot, leg and thigh mass and centre-of-mass fractions checked against a reprint of Table 4.1)"
+    "Winter, Biomechanics and Motor Control of Human Movement, Table 4.1 and Fig. 4.1, as transcribed in "
+    "BMClab/BMC data/BSP_DempsterWinter.txt (Table 4.1) and dpfens/PyExPhys pyexphys/anthropometry.py (Fig. 4.1)"
 )
 
 #: The normative subject of :mod:`exo_bench.models.normative` (kg).
