@@ -344,3 +344,19 @@ def test_contacts_and_double_support_count_the_intervals_on_the_ground():
     contact = np.zeros((11, 4, 2))
     contact[:, 0, 1], contact[:, 1, 1] = 300.0, 100.0  # right heel 300 N, right toe 100 N throughout
     assert cmp.toe_share(SimpleNamespace(t=t, contact=contact)) == pytest.approx(0.25)
+
+
+def test_the_report_states_the_stored_strides_objective(mech, stored):
+    from dataclasses import replace
+
+    from exo_bench.bench.studies.stride import data, report
+    from exo_bench.bench.studies.stride.problem import settings_for
+    from exo_bench.models.encoders import markdown_text
+
+    s = data.load("human", 1.41, mech, stored)
+    assert "the telescopic rods' work at 1x the joints'" in report.objective_line(s)  # none stored: defaults
+    mine = replace(settings_for(mech, "human", 1.41), w_negative=0.2, strength=(2.5, 2.0, 3.0)).to_dict()
+    line = report.objective_line(StoredStride(**{**s.__dict__, "meta": {**s.meta, "settings": mine}}))
+    assert "positive priced 1 and negative 0.2, the telescopic rods' work at 10x the joints'" in line
+    assert "strengths hip 2.5, knee 2, ankle 3 N·m/kg" in line and "period fixed at 0.987 s" in line
+    assert report.markdown(mech, s, folder=stored).count(markdown_text(report.objective_line(s))) == 1

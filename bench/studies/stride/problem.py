@@ -19,6 +19,17 @@ telescopic rods and a small ``w_accel sum qdd^2``.
 **Actuator specifications** (:data:`EXO_STROKE`, :data:`EXO_RATE`): the "exo" variant's telescopic rods
 may move ±5 cm about the anthropometric length at up to 0.5 m/s; the "human" variant holds them within
 :data:`HUMAN_STROKE` (1 cm) of it, at the same rate bound.
+
+**The human variant's rods are priced, not only bounded.** A human leg is not telescopic: its length
+changes within the 1 cm hold stand for soft tissue (heel pad, cartilage, wobbling masses), which absorbs
+energy at each collision and returns part of it but generates none (Zelik and Kuo 2010, J Exp Biol
+213: 4257, measured soft tissue's work in walking as mostly negative). With rod work priced as the
+joints' (1x), the stored human stride at 1.41 m/s let the rods pump 32.1 J of its 60.9 J positive work
+(52.7 %) over a 2 cm range at up to 0.435 m/s: within the 1 cm hold, at 0.5 m/s, a 800 N rod still does
+8 J per stroke. A tighter rate bound would not stop that (work is force times stroke, not rate), so
+the human variant prices the rods' work at :data:`HUMAN_ROD_WORK` (10) times the joints', both parts:
+a rod's joule costs what ten muscle joules do, which leaves the rods what the floor's collisions make
+them do. The exo variant's rods are actuators and are priced as the joints (``w_rod_work`` 1).
 """
 
 from __future__ import annotations
@@ -45,6 +56,8 @@ EXO_STROKE = 0.05
 EXO_RATE = 0.5
 #: The human variant: leg rods within 1 cm of their rest length (issue 37).
 HUMAN_STROKE = 0.01
+#: The human variant's price of rod work, in units of the joints' (:data:`HUMAN_ROD_WORK`, module text).
+HUMAN_ROD_WORK = 10.0
 #: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.normative.WINTER`).
 WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
 
@@ -103,6 +116,7 @@ def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> Stri
     ankle = float(q0[ix["right_foot"]] - q0[ix["right_leg"]])
     stroke = HUMAN_STROKE if variant == "human" else EXO_STROKE
     kw.setdefault("period", (stride_period(speed), stride_period(speed)))
+    kw.setdefault("w_rod_work", HUMAN_ROD_WORK if variant == "human" else 1.0)
     return StrideSettings(variant, speed, stroke=stroke, rest_lengths=rest, ankle_standing=ankle, **kw)
 
 

@@ -129,6 +129,25 @@ def without_floor(mech: Mechanism, stride: data.StoredStride, tau) -> str:
     )
 
 
+def objective_line(stride: data.StoredStride) -> str:
+    """The stored stride's objective and rod specification, from its stored settings
+    (:class:`exo_bench.bench.studies.stride.problem.StrideSettings`; a setting not stored reads as its
+    default)."""
+    from exo_bench.bench.studies.stride.problem import StrideSettings
+
+    s = {**StrideSettings().to_dict(), **stride.settings}
+    hip, knee, ankle = s["strength"]
+    lo, hi = s["period"]
+    return (
+        f"The problem (bench/studies/stride/problem.py): work per metre over body weight, positive priced "
+        f"{s['w_positive']:g} and negative {s['w_negative']:g}, the telescopic rods' work at "
+        f"{s['w_rod_work']:g}x the joints'; effort {s['w_moment']:g} x (moment / (body mass x strength))^2 "
+        f"with strengths hip {hip:g}, knee {knee:g}, ankle {ankle:g} N·m/kg, plus {s['w_force']:g} x (rod force "
+        f"/ body weight)^2; rods within {100 * s['stroke']:g} cm of rest at up to {s['rate']:g} m/s; the stride "
+        + (f"period fixed at {lo:.3f} s." if lo == hi else f"period free in [{lo:g}, {hi:g}] s.")
+    )
+
+
 def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = None, folder=None, tau=None) -> str:
     """The section: the stride against Winter's (``figure``: the file of its curves, written beside the
     report), the verdicts, and the sizing table of every stored stride (in ``folder``); ``tau``: the
@@ -147,6 +166,8 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         f"Both strides are resampled to {cmp.BINS} bins of the cycle (bin means, which keep every integral).",
         "",
         md(CONVENTION),
+        "",
+        md(objective_line(stride)),
         "",
     ]
     if tau is not None:
