@@ -21,10 +21,12 @@ gap for our kernels (numba/core/caching.py: ``_CacheLocator.get_source_stamp``, 
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import inspect
-from collections.abc import Callable, Iterable, Mapping
+import os
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -249,3 +251,49 @@ def index_key_by_code(numba_index_key: Callable[..., Any]) -> Callable[..., Any]
 
     _index_key.keyed_by_code = True  # type: ignore[attr-defined]  # numba_runtime.ensure installs it once
     return _index_key
+
+
+# --------------------------------------------------------------------------- one writer at a time
+@contextlib.contextmanager
+def index_lock(index_path: str, shared: bool) -> Iterator[None]:
+    """Hold ``<index_path>.lock`` (an ``flock``: shared to read, exclusive to write) while numba reads
+    or rewrites a function's cache index. Not held where no lock can be taken (no ``fcntl``, or a
+    read-only cache folder without the lock file: no process writes there)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: numba's own unlocked index
+        yield
+        return
+    path = f"{index_path}.lock"
+    flags = getattr(os, "O_NOFOLLOW", 0)  # never a link planted in the cache folder
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | flags, 0o666)
+    except OSError:
+        try:
+            fd = os.open(path, os.O_RDONLY | flags)
+        except OSError:
+            yield
+            return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH if shared else fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def index_locked(method: Callable[..., Any], shared: bool) -> Callable[..., Any]:
+    """numba's ``IndexDataCacheFile.save`` (``shared=False``) or ``.load`` (``shared=True``), holding
+    :func:`index_lock` on the function's index. numba's save reads the index, takes the first free data
+    file, rewrites the index and then writes the data, without a lock: two processes saving two
+    signatures of one function at once (two commands or Dask workers in one checkout, the test suite's
+    two workers on one ``NUMBA_CACHE_DIR``) both took data file 1, and the index left named one
+    signature, possibly beside the other's machine code (numba issues 4807, 10128). Saves now take
+    turns, and a load never sees an index entry before its data file is written."""
+
+    @functools.wraps(method)
+    def locked(self: Any, *args: Any) -> Any:
+        with index_lock(self._index_path, shared):
+            return method(self, *args)
+
+    locked.index_locked = True  # type: ignore[attr-defined]  # numba_runtime.ensure installs it once
+    return locked

@@ -18,7 +18,11 @@ this order:
 3. **Keys closures by their code** (patch): numba's ``FunctionCache._index_key`` is wrapped by
    :func:`exo_bench.models.numba_cache.index_key_by_code`, so that the closures of a kernel folder
    hit the cache in every process (numba's own key for every other function).
-4. **Chooses numba's threading layer** (numba's config): ``workqueue``, unless the user chose one
+4. **Lets one process at a time write a cache index** (patch): numba's ``IndexDataCacheFile.save`` and
+   ``.load`` hold a lock on the index (:func:`exo_bench.models.numba_cache.index_locked`), so that
+   processes sharing a cache folder (two commands in one checkout, Dask workers, the test suite's
+   workers) never lose a kernel or pair an index entry with another signature's machine code.
+5. **Chooses numba's threading layer** (numba's config): ``workqueue``, unless the user chose one
    (``NUMBA_THREADING_LAYER``) or numba's threads already run (then numba keeps its own). Why
    ``workqueue``: :mod:`exo_bench.matrix_method.numba_kernels.common`.
 
@@ -118,7 +122,7 @@ def ensure() -> str:
     import numba
     from numba.core import caching as numba_caching
 
-    from exo_bench.models.numba_cache import InstalledCacheLocator, KernelSourceLocator, index_key_by_code
+    from exo_bench.models.numba_cache import InstalledCacheLocator, KernelSourceLocator, index_key_by_code, index_locked
 
     caching: Any = numba_caching  # its internals, which numba's type hints do not describe
     impl = caching.CacheImpl if hasattr(caching, "CacheImpl") else caching._CacheImpl  # (numba < 0.68)
@@ -128,6 +132,10 @@ def ensure() -> str:
         impl._locator_classes.insert(1, InstalledCacheLocator)
     if not getattr(caching.FunctionCache._index_key, "keyed_by_code", False):
         caching.FunctionCache._index_key = index_key_by_code(caching.FunctionCache._index_key)
+    cache_file = caching.IndexDataCacheFile
+    if not getattr(cache_file.save, "index_locked", False):
+        cache_file.save = index_locked(cache_file.save, shared=False)
+        cache_file.load = index_locked(cache_file.load, shared=True)
     config: Any = numba.config  # numba.config sets its options at run time (the stubs do not list them)
     if not _threads_started() and "NUMBA_THREADING_LAYER" not in os.environ:
         config.THREADING_LAYER = "workqueue"

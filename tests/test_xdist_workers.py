@@ -1,4 +1,4 @@
-"""The whole suite runs on two pytest-xdist workers, each with its own numba cache and no xdist
+"""The whole suite runs on two pytest-xdist workers, sharing one numba cache, with no xdist
 variables for the processes its tests start (tests/xdist_workers.py); a run that names files stays
 in one process.
 
@@ -69,7 +69,7 @@ def _run_probe(folder: Path, *args: str) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted(folder.glob("seen-*.json"))]
 
 
-def test_the_whole_suite_runs_on_two_workers_each_with_its_own_numba_cache(tmp_path):
+def test_the_whole_suite_runs_on_two_workers_sharing_one_numba_cache(tmp_path):
     seen = _run_probe(tmp_path, "-p", "no:cacheprovider")
     assert len(seen) == 12
     pids = {s["pid"] for s in seen}
@@ -77,7 +77,7 @@ def test_the_whole_suite_runs_on_two_workers_each_with_its_own_numba_cache(tmp_p
     for f in ("a_test", "b_test"):  # each file on one worker (pytest_xdist_make_scheduler)
         assert len({s["pid"] for s in seen if s["file"] == f}) == 1, seen
     caches = {s["pid"]: s["numba_cache"] for s in seen}
-    assert len(set(caches.values())) == 2 and None not in caches.values(), caches
+    assert len(set(caches.values())) == 1 and None not in caches.values(), caches  # locked: test_numba_cache_lock
     assert all(s["child_xdist_variables"] == [] for s in seen), seen
 
 

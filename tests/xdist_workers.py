@@ -9,14 +9,16 @@ Hooks of tests/conftest.py (imported there, so they are conftest hooks):
   bench`` run pytest on bench/ with that ini, and an ``-n`` there fails with "unrecognized arguments"
   where the [test] extra (pytest-xdist) is not installed, and disables every benchmark where it is
   (pytest-benchmark refuses to time under xdist). tests/conftest.py is not loaded by those runs.
-* :func:`pytest_configure`, in a worker: what a test process shares with the other worker is made its
-  own. numba's cache folder (``NUMBA_CACHE_DIR``, inherited by the CLI processes its tests start):
-  numba's index of a function's machine code is read, extended and replaced without a lock
-  (numba/core/caching.py, ``IndexDataCacheFile.save``), so two processes compiling two signatures
-  of one kernel at once can both take data file 1, and the index left can name the other
-  signature's code (numba issues 4807, 10128). And ``PYTEST_XDIST_*``, which xdist sets in the
-  worker's environment: a pytest its tests start (the benchmark rows of ``exo-bench bench``) would
-  read it and take itself for a worker, and pytest-benchmark would time nothing.
+* :func:`pytest_configure`, in a worker: numba's cache folder (``NUMBA_CACHE_DIR``, inherited by the
+  CLI processes its tests start) is one folder for both workers, so a kernel one worker compiled is
+  loaded, not compiled again, by the other (numba's compiles were about two thirds of a cold run's
+  time). Safe since numba's index of a function's machine code is read and rewritten under a lock
+  (:func:`exo_bench.models.numba_cache.index_locked`, tests/test_numba_cache_lock.py): without it, two
+  processes compiling two signatures of one kernel at once could both take data file 1, and the index
+  left could name the other signature's code (numba issues 4807, 10128), hence one folder per worker
+  before. And ``PYTEST_XDIST_*``, which xdist sets in the worker's environment, is removed: a pytest
+  its tests start (the benchmark rows of ``exo-bench bench``) would read it and take itself for a
+  worker, and pytest-benchmark would time nothing.
 
 * :func:`pytest_xdist_make_scheduler`: each file on one worker, and the files of
   :data:`SHARED_WORKER` on one worker together.
@@ -82,23 +84,26 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     return FilesTogether(config, log)
 
 
-def numba_cache_folder(config: pytest.Config, worker: str) -> Path:
-    """The worker's own numba cache: under the user's ``NUMBA_CACHE_DIR`` if set, else in pytest's
+def numba_cache_folder(config: pytest.Config) -> Path:
+    """The workers' numba cache, one for both: the user's ``NUMBA_CACHE_DIR`` if set, else in pytest's
     cache folder (kept between runs, like numba's ``__pycache__``), else (``-p no:cacheprovider``) in
-    the worker's temporary folder (xdist's ``basetemp``; pytest keeps the last three runs')."""
+    the run's temporary folder (the parent of each worker's ``basetemp``; pytest keeps the last three
+    runs')."""
     if os.environ.get("NUMBA_CACHE_DIR"):
-        return Path(os.environ["NUMBA_CACHE_DIR"]) / worker
+        return Path(os.environ["NUMBA_CACHE_DIR"])
     cache = getattr(config, "cache", None)
     if cache is not None:
-        return cache.mkdir(f"numba-{worker}")
-    return Path(config.option.basetemp) / "numba-cache"
+        return cache.mkdir("numba")
+    folder = Path(config.option.basetemp).parent / "numba-cache"
+    folder.mkdir(exist_ok=True)
+    return folder
 
 
 def pytest_configure(config: pytest.Config) -> None:
     worker = getattr(config, "workerinput", {}).get("workerid")
     if worker is None:
         return
-    os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_folder(config, worker))
+    os.environ["NUMBA_CACHE_DIR"] = str(numba_cache_folder(config))
     for name in XDIST_VARIABLES:
         os.environ.pop(name, None)
     if "numba" in sys.modules:  # numba reads its environment when imported
