@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from exo_bench.bench.output.provenance import atomic_write, provenance
+from exo_bench.bench.studies.scene_forces import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
 from exo_bench.models.encoders import markdown_code
@@ -34,6 +35,7 @@ class SceneOutcome:
     notes: list[str] = field(default_factory=list)
     error: str | None = None
     seconds: float = 0.0
+    external: bool = False  # its methods were given the motion's external forces (bench/studies/scene_forces.py)
 
     def ran(self) -> Study:
         """The scene's study; a scene that failed before its methods ran has none (ValueError)."""
@@ -122,7 +124,8 @@ def _scene_table(o: SceneOutcome) -> str:
         f"- **motion**: {sc.motion_label()}",
         f"- **methods**: {', '.join(sc.methods)}; agreement is measured against `{sc.reference}`",
         "- **quantities**: generalised forces of the paper's absolute coordinates "
-        "(`M_phi`, `M_psi` in N·m, `F` in N), not joint moments",
+        "(`M_phi`, `M_psi` in N·m, `F` in N), not joint moments"
+        + ("; with the motion's external forces (notes)" if o.external else ""),
         "",
     ]
     lines += [
@@ -182,7 +185,8 @@ def _scene_table(o: SceneOutcome) -> str:
         from exo_bench.bench.studies.stride import report as stride_report, scene as stride_scene
 
         figure = stride_scene.extra_files(sc)
-        tau = st.tau(sc.reference) if st.results[sc.reference].ok else None
+        # without the floor (no external forces) the report says what the table shows instead
+        tau = st.tau(sc.reference) if st.results[sc.reference].ok and not o.external else None
         section = stride_report.markdown(mech, sc.motion["stored"], figure[0] if figure else None, tau=tau)
         lines += ["", section.rstrip("\n")]
     return "\n".join(lines) + "\n"
@@ -267,6 +271,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
     t0 = time.perf_counter()
     check_samples(scene.mechanism, scene.samples(), limits, f"scene {scene.name!r}")  # before the motion is built
     motion = scene.build_motion()
+    forces = scene.external_forces()  # the stride's floor: every method's loads include it
     o.study = study = run_methods(
         scene.name,
         scene.mechanism,
@@ -275,7 +280,11 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         list(scene.methods),
         reference=scene.reference,
         limits=limits,
+        f_ext=None if forces is None else forces.f_ext,
     )
+    o.external = forces is not None
+    if forces is not None:
+        o.notes.append(forces_note(forces, study))
     for m, r in study.results.items():
         if r.tau is not None and not np.isfinite(r.tau).all():
             o.notes.append(
@@ -284,7 +293,9 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             )
     o.notes += disagreement_notes(study)
     o.power_balance = power_balance(scene, study)
-    if scene.wants("reference-error"):
+    if scene.wants("reference-error") and forces is not None:
+        o.notes.append("50-digit reference skipped: it has no external forces")
+    elif scene.wants("reference-error"):
         try:
             o.reference_error = reference_errors(study)
             o.notes.append(

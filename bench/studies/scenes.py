@@ -129,6 +129,13 @@ class Scene:
             return lambda t: smooth_random_motion(m, t, seed=self.motion["seed"])
         return None
 
+    def external_forces(self):
+        """The forces from outside the mechanism along the motion, ``f_ext`` per sample, or None
+        (:func:`exo_bench.bench.studies.scene_forces.scene_forces`: the stride's floor contact)."""
+        from exo_bench.bench.studies.scene_forces import scene_forces
+
+        return scene_forces(self.motion, self.mechanism)
+
     def samples(self) -> int:
         """How many samples :meth:`build_motion` makes (known before building it)."""
         k = self.motion["kind"]

@@ -104,11 +104,14 @@ def run_methods(
     reference: str = "pinocchio",
     options: dict[str, dict] | None = None,
     limits=None,
+    f_ext: np.ndarray | None = None,
 ) -> Study:
     """Run each method along the motion; a method that raises is recorded with its error and
     does not stop the others. ``options``: method -> its :func:`prepare` options. A method whose
     estimated memory or time exceeds ``limits`` (:class:`exo_bench.api.cost_model.Limits`; default: a share
-    of the available memory) is recorded as skipped with the estimate, before it runs."""
+    of the available memory) is recorded as skipped with the estimate, before it runs. ``f_ext``: forces
+    at the point masses along the motion, ``(samples, links, 3, dim)``, given to every method
+    (bench/studies/scene_forces.py)."""
     from exo_bench.api.cost_model import check
 
     study = Study(name, mech, motion, motion_label, reference=reference)
@@ -120,9 +123,10 @@ def run_methods(
             t0 = time.perf_counter()
             model = prepare(mech, m, **options.get(m, {}))  # build / derive / compile once
             setup = time.perf_counter() - t0
-            model.inverse_dynamics(motion.q[:1], motion.qd[:1], motion.qdd[:1])  # warm (first-call costs)
+            first = None if f_ext is None else f_ext[:1]
+            model.inverse_dynamics(motion.q[:1], motion.qd[:1], motion.qdd[:1], f_ext=first)  # warm (first-call costs)
             t0 = time.perf_counter()
-            tau = np.asarray(model.inverse_dynamics(motion.q, motion.qd, motion.qdd), dtype=float)
+            tau = np.asarray(model.inverse_dynamics(motion.q, motion.qd, motion.qdd, f_ext=f_ext), dtype=float)
             dt = (time.perf_counter() - t0) / S
             study.results[m] = MethodResult(m, tau, dt, setup_seconds=setup)
         except Exception as e:  # noqa: BLE001 - one failing method must not lose the others
