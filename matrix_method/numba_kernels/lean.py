@@ -91,4 +91,5 @@ def c_call(dim: int, params: np.ndarray, fallback, dof: int, plan: np.ndarray | 
         return None
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c
 
-    return wrap(compiled_lean_c.CFUNCS[dim].address, params, fallback, dof, n, plan)
+    cfunc, rows = compiled_lean_c.CFUNCS[dim], compiled_lean_c.SCRATCH_ROWS[dim]
+    return wrap(cfunc.address, params, fallback, dof, n, plan, scratch=rows * n)

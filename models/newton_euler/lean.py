@@ -4,8 +4,9 @@ wrapper of :mod:`exo_bench.models.lean_call`, the code of the ``lean`` kernel ob
 :data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`.
 
 ``void f(double *p, double *q, double *qd, double *qdd, double *out, int64 n)``: ``p`` is the model's
-``(8, n)`` table followed by ``g`` (:func:`params`), ``n`` the number of links; the wrapper has checked
-every array. The same function as the serial kernel's, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
+``(8, n)`` table followed by ``g`` (:func:`params`) and the pass's ``(n, WIDTH)`` scratch (zeroed at
+each call, as ``np.zeros`` did, in :func:`exo_bench.models.lean_call.block`: a call allocates
+nothing), ``n`` the number of links; the wrapper has checked every array. The same function as the serial kernel's, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
 on the same scratch row width, so the forces are bit-identical to it (tests/test_newton_euler_lean.py).
 Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
 
@@ -26,8 +27,9 @@ SIGNATURE = types.void(_P, _P, _P, _P, _P, types.int64)
 
 @njit(inline="always", **JIT)  # in each cfunc's own code
 def _sample(p, q, qd, qdd, o, n, dim):
-    g, d = carray(p, (8 * n + 1,))[8 * n], dim * n
-    W = np.zeros((n, WIDTH))
+    whole, d = carray(p, (8 * n + 1 + n * WIDTH,)), dim * n
+    g, W = whole[8 * n], whole[8 * n + 1 :].reshape((n, WIDTH))
+    W[:] = 0.0
     _inverse_sample(
         carray(p, (8, n)), g, dim, carray(q, (d,)), carray(qd, (d,)), carray(qdd, (d,)), carray(o, (d,)), 0, W
     )
@@ -65,5 +67,6 @@ def entries(model: Any) -> Entries:
     from exo_bench.models.states import validation_plan
 
     plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
-    call = c_call(address, params(model.table, model._g), _declined, model.dof, int(model.table.shape[1]), plan)
+    n = int(model.table.shape[1])
+    call = c_call(address, params(model.table, model._g), _declined, model.dof, n, plan, scratch=n * WIDTH)
     return Entries() if call is None else Entries(lean=call)
