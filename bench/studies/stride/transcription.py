@@ -21,9 +21,11 @@ node accelerations, and the loads, jump where its halves meet (the exo stride at
 power 256.9 W at ``t = T``, about 0 at ``t = 0``; accelerations off the mirror by up to 382 rad/s^2): the
 end nodes' accelerations enter one trapezoidal defect each, at half weight, and the scheme's
 node-to-node zig-zag of accelerations is free there. Mirroring them too (``za_0 = P za_N`` and the hips'
-acceleration) was tried: from the stored human stride the warm-started solve had not converged after 13
-min wall (3.7 min CPU, load 8-9) where without it the same start converged in 74 s, so it is not in the
-stored problem; the sizing table's peaks at the join are the transcription's, not the walk's.
+acceleration) was tried, twice, warm-started from human strides at 1.41 m/s: neither had converged after
+3.7 and 4.5 min of CPU (13 and 14 min wall at load 8-10; stopped), where the same problem without it
+converged in 74 s wall (load 3) from the stored stride; so it is not in the stored problem (not shown:
+whether it converges given longer), and the sizing table's peaks at the join are the transcription's,
+not the walk's.
 
 **Objective.** Work per metre over body weight, positive and negative parts priced separately: each
 power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
