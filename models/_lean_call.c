@@ -3,7 +3,8 @@
  * and, for check=False, checks in C what memory safety needs and calls the numba cfunc of the kernel with the raw
  * pointers; with check=True (given a validation cfunc and its plan: models/validation_pass.py status for one
  * sample) the same, on plain numpy.ndarrays only, once the validation answers 0 (OK). Without out (None or not
- * given) the result is a new array from numpy.empty(dof), called here. A forward kernel answers a code: 0, its
+ * given) the result is one of the two last results this object made that nothing else refers to any more
+ * (reusable(): the caller dropped it), else a new array (numpy's PyArray_NewFromDescr or numpy.empty(dof)). A forward kernel answers a code: 0, its
  * result is taken; anything else (a state near a bound, not finite), the call is declined: a forward kernel writes
  * into scratch memory of this object (the GIL is held throughout) or into the new array, so a declined call has
  * written nothing a caller sees. Every other call (a batch, any layout it does not take, a state the validation
@@ -31,9 +32,14 @@ typedef struct {
     PyObject *base;
     PyObject *descr;
     int flags;
+    PyObject *weakreflist;
 } ArrayFields;
 
 #define WRITEABLE 0x0400
+#define OWNDATA 0x0004
+#define C_CONTIGUOUS 0x0001
+/* Results made without out that this object keeps, to reuse once nothing else refers to them. */
+#define KEPT 2
 
 typedef void (*kernel_t)(double *, double *, double *, double *, double *, long long);
 typedef long long (*forward_t)(double *, double *, double *, double *, double *, long long);
@@ -45,7 +51,7 @@ typedef PyObject *(*new_from_descr_t)(PyTypeObject *, PyObject *, int, const Py_
 #define NEW_FROM_DESCR 94
 
 /* The interface of this module: models/lean_call.py uses it only where VERSION is the one it knows. */
-#define VERSION 3
+#define VERSION 4
 
 typedef struct {
     PyObject_HEAD
@@ -67,6 +73,8 @@ typedef struct {
     double *scratch;         /* a forward kernel's result before it is copied into out */
     Py_ssize_t dof;
     long long n;
+    PyObject *kept[KEPT];    /* the last results made without out (NULL: none), see new_result */
+    int next;                /* the slot of kept that the next new result takes */
 } LeanCall;
 
 static PyObject *str_check, *str_out;
@@ -87,9 +95,28 @@ static inline int apart(LeanCall *self, PyObject *a, PyObject *out) {
     return o + bytes <= x || x + bytes <= o;
 }
 
-/* A new result array (numpy.empty(dof)), NULL with an exception set if numpy fails (no memory), or NULL without
-   one if it is not what usable() takes (then the call is declined). */
+/* Whether a kept result can be handed out again: nothing but this object refers to it (no variable, view,
+   buffer export or weak reference), it is still a plain writable C-ordered ndarray of dof float64 that owns
+   its memory (its flags, shape or dtype may have been changed while the caller held it). */
+static inline int reusable(LeanCall *self, PyObject *r) {
+    ArrayFields *f = (ArrayFields *)r;
+    return Py_REFCNT(r) == 1 && Py_TYPE(r) == self->ndarray && usable(self, r, 1) && !f->weakreflist && !f->base
+           && (f->flags & (OWNDATA | C_CONTIGUOUS)) == (OWNDATA | C_CONTIGUOUS);
+}
+
+/* The result of a call without out: a kept one that nothing else refers to any more (the caller dropped
+   it: a loop that assigns each result to the same name drops the one before at the call after, so two are
+   kept), else a new array (numpy.empty(dof)), kept in turn; NULL with an exception set if numpy fails (no
+   memory), or NULL without one if it is not what usable() takes (then the call is declined). Reusing one
+   saves numpy's allocation and deallocation, a third of a one-sample call without out. */
 static PyObject *new_result(LeanCall *self) {
+    for (int k = 0; k < KEPT; k++) {
+        PyObject *r = self->kept[k];
+        if (r && reusable(self, r)) {
+            Py_INCREF(r);
+            return r;
+        }
+    }
     PyObject *res;
     if (self->new_from_descr) { /* numpy.empty(dof) without parsing its arguments: one dimension, C order */
         Py_ssize_t dims[1] = {self->dof};
@@ -100,6 +127,10 @@ static PyObject *new_result(LeanCall *self) {
         res = PyObject_Vectorcall(self->empty, &arg, 1, NULL);
     }
     if (res && !usable(self, res, 1)) Py_CLEAR(res);
+    if (res) {
+        Py_XSETREF(self->kept[self->next], Py_NewRef(res));
+        self->next = (self->next + 1) % KEPT;
+    }
     return res;
 }
 
@@ -201,12 +232,14 @@ static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
 static int lean_traverse(LeanCall *self, visitproc visit, void *arg) {
     Py_VISIT(self->fallback); Py_VISIT(self->params); Py_VISIT(self->ndarray); Py_VISIT(self->f8); Py_VISIT(self->plan);
     Py_VISIT(self->empty); Py_VISIT(self->api);
+    for (int k = 0; k < KEPT; k++) Py_VISIT(self->kept[k]);
     return 0;
 }
 
 static int lean_clear(LeanCall *self) {
     Py_CLEAR(self->fallback); Py_CLEAR(self->params); Py_CLEAR(self->ndarray); Py_CLEAR(self->f8); Py_CLEAR(self->plan);
     Py_CLEAR(self->empty); Py_CLEAR(self->dof_obj); Py_CLEAR(self->api);
+    for (int k = 0; k < KEPT; k++) Py_CLEAR(self->kept[k]);
     self->new_from_descr = NULL;
     self->validate = NULL;
     return 0;
@@ -220,12 +253,16 @@ static void lean_dealloc(LeanCall *self) {
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
-/* probe(a) -> (nd, dim0, stride0, writable, descr is f8, is ndarray): what this module reads of a. */
+/* probe(a) -> (nd, dim0, stride0, writable, descr is f8, is ndarray, has weak references, owns data,
+   C-ordered, base): what this module reads of a. */
 static PyObject *lean_probe(LeanCall *self, PyObject *a) {
-    if (!PyObject_TypeCheck(a, self->ndarray)) return Py_BuildValue("(iiiiii)", -1, -1, -1, 0, 0, 0);
+    if (!PyObject_TypeCheck(a, self->ndarray))
+        return Py_BuildValue("(iiiiiiiiiO)", -1, -1, -1, 0, 0, 0, 0, 0, 0, Py_None);
     ArrayFields *f = (ArrayFields *)a;
-    return Py_BuildValue("(innNNN)", f->nd, f->nd > 0 ? f->dimensions[0] : -1, f->nd > 0 ? f->strides[0] : -1,
-                         PyBool_FromLong(f->flags & WRITEABLE), PyBool_FromLong(f->descr == self->f8), PyBool_FromLong(1));
+    return Py_BuildValue("(innNNNNNNO)", f->nd, f->nd > 0 ? f->dimensions[0] : -1, f->nd > 0 ? f->strides[0] : -1,
+                         PyBool_FromLong(f->flags & WRITEABLE), PyBool_FromLong(f->descr == self->f8), PyBool_FromLong(1),
+                         PyBool_FromLong(f->weakreflist != NULL), PyBool_FromLong(f->flags & OWNDATA),
+                         PyBool_FromLong(f->flags & C_CONTIGUOUS), f->base ? f->base : Py_None);
 }
 
 /* allocate() -> a new result array as a call without out makes it (None: not one the call takes). */

@@ -12,7 +12,9 @@ The wrapper takes the arguments of ``inverse_dynamics(q, qd, qdd, check, out)`` 
 ``forward_dynamics(q, qd, tau, check, out)``); for ``check=False`` it checks in C what memory safety
 needs (ndarrays, one dimension of ``dof``, stride 8, float64, ``out`` writable and apart from the
 inputs: data pointers and extents compared as integers) and calls the cfunc with the raw pointers,
-into ``out`` or, without one, into a new array (``numpy.empty(dof)``, called from C). Given the
+into ``out`` or, without one, into a result of its own: one of the two it returned last that nothing
+refers to any more (no name, view, buffer or weak reference: the caller dropped it, as a loop that
+assigns each result to one name does), else a new array (``numpy.empty(dof)``, called from C). Given the
 mechanism's validation ``plan``, it takes ``check=True`` too, on plain ndarrays only: the validation
 pass of one sample (:func:`exo_bench.models.validation_pass.status_address`, the same compiled checks
 as ``check=True``'s Python path) runs first, through its C address, and the kernel only where it
@@ -26,6 +28,7 @@ the problem).
 from __future__ import annotations
 
 from collections.abc import Callable
+import weakref
 from typing import Any
 
 import numpy as np
@@ -51,8 +54,9 @@ def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries
 
 
 #: The interface of models/_lean_call.c this module calls (its ``VERSION``): an extension built
-#: before it (no ``out``-less calls, no forward kernels, no allocation through numpy's C API) is not used.
-VERSION = 3
+#: before it (no ``out``-less calls, no forward kernels, no allocation through numpy's C API, no reuse of
+#: dropped results) is not used.
+VERSION = 4
 
 
 def declined(*args: Any, **kw: Any) -> None:
@@ -113,17 +117,20 @@ def c_call(
         )
 
     call = build(_numpy_api())  # results allocated through numpy's C API, else by numpy.empty
-    ro = np.zeros(dof)
+    ro, held, whole = np.zeros(dof), np.zeros(dof), np.zeros(2 * dof)
     ro.flags.writeable = False
+    ref = weakref.ref(held)
+    plain = (True, True, False, True, True, None)  # f8, ndarray, no weak reference, owns data, C-ordered, no base
     probes = [
-        (np.zeros(dof), (1, dof, 8, True, True, True)),
-        (np.zeros(2 * dof)[::2], (1, dof, 16, True, True, True)),
-        (ro, (1, dof, 8, False, True, True)),
-        (np.zeros((2, dof)), (2, 2, 8 * dof, True, True, True)),
-        (np.zeros(dof, np.float32), (1, dof, 4, True, False, True)),
-        (np.zeros(dof, ">f8"), (1, dof, 8, True, False, True)),
+        (np.zeros(dof), (1, dof, 8, True, *plain)),
+        (whole[::2], (1, dof, 16, True, True, True, False, False, False, whole)),
+        (ro, (1, dof, 8, False, *plain)),
+        (np.zeros((2, dof)), (2, 2, 8 * dof, True, *plain)),
+        (np.zeros(dof, np.float32), (1, dof, 4, True, False, *plain[1:])),
+        (np.zeros(dof, ">f8"), (1, dof, 8, True, False, *plain[1:])),
+        (held, (1, dof, 8, True, True, True, True, True, True, None)),
     ]
-    if any(call.probe(a) != want for a, want in probes):
+    if ref() is not held or any(not _same(call.probe(a), want) for a, want in probes):
         return None
     if not _fresh(call.allocate(), dof):
         call = build(None)
@@ -146,6 +153,11 @@ def block(params: np.ndarray, scratch: int = 0) -> np.ndarray:
     out = raw[start : start + size]
     out[: params.size] = params.reshape(-1)
     return out
+
+
+def _same(got: tuple, want: tuple) -> bool:
+    """A probe's answer is ``want`` (its last entry, the array's base, compared by identity)."""
+    return len(got) == len(want) and got[:-1] == want[:-1] and got[-1] is want[-1]
 
 
 def _fresh(a: Any, dof: int) -> bool:

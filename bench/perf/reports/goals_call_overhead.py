@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from exo_bench.bench.perf.reports.goals_agreement import agreement
 from exo_bench.bench.perf.reports.simd_goals import _states
 
 
@@ -168,44 +169,6 @@ def _round_times(timers: dict[str, timeit.Timer], most: int, rounds: int, round_
     return seconds, number
 
 
-def _agreement(c: dict[str, Call], st: dict, results: dict) -> dict:
-    """Errors of the one-sample inverse results against the 50-digit reference, and the backward
-    errors of the forward results (the same bound as bench/test_forward_dynamics.py)."""
-    from exo_bench.bench.studies.reference_forces import reference
-
-    mech, mf, eps, k = st["mech"], st["mf"], float(np.finfo(float).eps), 16
-    q, qd, qdd, tau = st["q"], st["qd"], st["qdd"], st["tau"]
-    want, label = reference(mech, q[:1], qd[:1], qdd[:1])
-    res: dict[str, Any] = {"reference": label, "err_bound": float(k * eps * mech.dof * np.abs(want).max())}
-    res["inverse_err"] = {
-        key: float(np.abs(np.asarray(results[key]) - want[0]).max())
-        for key in ONE_SAMPLE
-        if key in results and "forward" not in key and key != "rnea"
-    }
-    if "rnea" in results:
-        res["inverse_err"]["rnea"] = float(np.abs(np.asarray(results["rnea"]) @ st["rnea_to_paper"] - want[0]).max())
-    idx = np.unique(np.linspace(0, q.shape[0] - 1, min(q.shape[0], 64)).round().astype(int))
-    backward = {}
-    forward = ("forward_checked", "forward_unchecked", "newton_euler_forward_checked")
-    for key in (*forward, "forward_batch_checked", "forward_batch_unchecked"):
-        got = np.asarray(results[key]).reshape(-1, mech.dof)
-        batch = got.shape[0] == q.shape[0]
-        at = idx if batch else np.arange(got.shape[0])  # a batch: a subsample; one sample: sample 0
-        got = got[at] if batch else got
-        s = (q[at], qd[at], got)
-        zero = np.zeros_like(got)
-        h = mf.inverse_dynamics(s[0], s[1], zero, check=False)
-        mq = mf.inverse_dynamics(s[0], zero, got, check=False) - mf.inverse_dynamics(s[0], zero, zero, check=False)
-        residual = mf.inverse_dynamics(*s, check=False) - tau[at]
-        scale = np.abs(tau[at]).max() + np.abs(mq).max() + np.abs(h).max()
-        backward[key] = (float(np.abs(residual).max()), float(k * eps * mech.dof * scale))
-    res["forward_backward_err"] = backward
-    res["inverse_batch_diff"] = float(
-        np.abs(np.asarray(results["inverse_batch_checked"]) - np.asarray(results["inverse_batch_unchecked"])).max()
-    )
-    return res
-
-
 #: The clocks of one-sample rounds (module docstring); batches read the wall clock.
 CLOCKS = {"thread": time.thread_time, "wall": time.perf_counter}
 
@@ -239,7 +202,7 @@ def measure(
     }
     if "rnea_missing" in st:
         r["rnea_missing"] = st["rnea_missing"]
-    r.update(_agreement(c, st, results))
+    r.update(agreement(st, results, ONE_SAMPLE))
     return r
 
 
