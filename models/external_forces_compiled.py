@@ -1,12 +1,12 @@
 """The compiled generalised forces of ``f_ext``, ``Q(q, f_ext)``, and the calls' fast path.
 
-One numba kernel, :func:`kernel`, serves the generalised forces themselves
+One numba kernel, :func:`kernel` (models/external_forces_kernel.py), serves the generalised forces themselves
 (:func:`generalized_forces_compiled`) and inverse and forward dynamics with ``f_ext``
 (:mod:`exo_bench.models.external_forces`): ``dest = tau - Q``, ``tau + Q`` or ``Q``, over flat
 C-ordered float64 arrays of any number of samples, with an optional finiteness check of the forces
 in the same pass. It holds the arithmetic of :func:`exo_bench.models.external_forces.generalized_forces`
-(the same leaves-first sums, the same rod projections of :mod:`exo_bench.models.rod_elements`, inlined
-by ``register_jitable``), so its numbers are the numpy ones to the last bit.
+(the same leaves-first sums, the same rod projections as :mod:`exo_bench.models.rod_elements`), so its
+numbers are the numpy ones to the last bit.
 
 A prepared model binds what is fixed once (:func:`bound`: the mechanism's parent indices, signs and
 middle fractions as one parameter array, and whether the model's ``Q`` is this one: the engines
@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.rod_elements import project_2d, project_3d
 
 #: The kernel's status: done, or the arrays' sizes disagree with the parameters (nothing touched).
 DONE, BAD_SIZE = -1, -2
@@ -47,75 +46,27 @@ def parameters(mech: Mechanism) -> np.ndarray:
 
 @cache
 def kernel() -> Callable[..., int]:
-    """The compiled kernel ``(params, q, f, tau, dest, mode, check) -> status`` (module text), numba,
-    compiled on first use. ``q``, ``tau``, ``dest``: flat ``(samples * dof,)``; ``f``: flat ``(samples *
-    links * 3 * dim,)``; ``mode``: :data:`MINUS`, :data:`PLUS` or :data:`ONLY` (``tau`` unread).
-    ``dest`` may be ``tau``; any other overlap with the inputs is the caller's to avoid."""
-    from numba import njit
-    from numba.extending import register_jitable
+    """The compiled kernel ``(params, q, f, tau, dest, mode, check) -> status`` (module text):
+    :func:`exo_bench.models.external_forces_kernel.apply`'s compiled entry point for flat C-ordered
+    float64 arrays, an int64 ``mode`` and a boolean ``check``, loaded from numba's on-disk cache or
+    compiled on the first call in a process. ``q``, ``tau``, ``dest``: ``(samples * dof,)``; ``f``:
+    ``(samples * links * 3 * dim,)``; ``mode``: :data:`MINUS`, :data:`PLUS` or :data:`ONLY` (``tau``
+    unread). ``dest`` may be ``tau``; any other overlap with the inputs is the caller's to avoid.
 
-    from exo_bench.models.numba_runtime import ensure
+    The entry point types nothing (no dispatch: a call costs the unboxing and the pass), so its
+    callers pass exactly those types (:func:`flat`, ``np.empty``); under ``NUMBA_DISABLE_JIT`` it is
+    the Python function."""
+    from exo_bench.models.numba_runtime import ensure, jit_disabled
 
-    ensure()
-    p2, p3 = register_jitable(project_2d), register_jitable(project_3d)
+    ensure()  # before the kernel is defined: numba's cache locators
+    from exo_bench.models.external_forces_kernel import apply
 
-    @njit(nogil=True)
-    def apply(params, q, f, tau, dest, mode, check):  # pragma: no cover - compiled
-        n = (params.shape[0] - 1) // 3
-        dim = int(params[0])
-        dof = dim * n
-        if n < 1 or dim < 2 or dim > 3 or params.shape[0] != 3 * n + 1:
-            return -2
-        S = q.shape[0] // dof
-        if q.shape[0] != S * dof or f.shape[0] != S * n * 3 * dim or dest.shape[0] != q.shape[0]:
-            return -2
-        if mode != 0 and tau.shape[0] != q.shape[0]:
-            return -2
-        for k in range(n):  # parents come before their children
-            p = int(params[1 + k])
-            if p != params[1 + k] or p < -1 or p >= k:
-                return -2
-        if check:
-            for i in range(f.shape[0]):
-                if not np.isfinite(f[i]):
-                    return i
-        F = np.empty((n, dim))
-        through = np.empty((n, dim))
-        Q = np.empty(dof)
-        for s in range(S):
-            o, g = s * dof, s * n * 3 * dim
-            for k in range(n):
-                nk = params[1 + 2 * n + k]
-                for c in range(dim):
-                    a, b, e = f[g + (3 * k) * dim + c], f[g + (3 * k + 1) * dim + c], f[g + (3 * k + 2) * dim + c]
-                    F[k, c] = 0.0 * a + nk * b + 1.0 * e
-                    through[k, c] = a + b + e
-            for k in range(n - 1, -1, -1):
-                p = int(params[1 + k])
-                if p >= 0:
-                    for c in range(dim):
-                        through[p, c] += through[k, c]
-                        F[p, c] += through[k, c]
-            for k in range(n):
-                x, sk = q[o + k], params[1 + n + k]
-                cf, sf = np.cos(x), np.sin(x)
-                if dim == 2:
-                    u, v = p2(cf, sf, q[o + n + k], F[k, 0], F[k, 1])
-                    Q[k], Q[n + k] = sk * u, sk * v
-                else:
-                    cp, sp = np.cos(q[o + n + k]), np.sin(q[o + n + k])
-                    u, v, w = p3(cf, sf, cp, sp, q[o + 2 * n + k], F[k, 0], F[k, 1], F[k, 2])
-                    Q[k], Q[n + k], Q[2 * n + k] = sk * u, sk * v, sk * w
-            for j in range(dof):
-                if mode == 0:
-                    dest[o + j] = Q[j]
-                elif mode > 0:
-                    dest[o + j] = tau[o + j] + Q[j]
-                else:
-                    dest[o + j] = tau[o + j] - Q[j]
-        return -1
+    if jit_disabled():
+        return apply
+    from numba import types
 
-    return apply
+    flat_f8 = types.Array(types.float64, 1, "C")
+    return apply.compile((flat_f8, flat_f8, flat_f8, flat_f8, flat_f8, types.int64, types.boolean))
 
 
 def flat(a: Any) -> np.ndarray:
