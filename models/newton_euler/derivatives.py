@@ -254,9 +254,10 @@ class InverseDerivatives:
 
     def _numba(self, q, qd, qdd, out) -> None:
         from exo_bench.models.newton_euler import derivatives_compiled as dc
+        from exo_bench.models.newton_euler.derivatives_streaming import streams
         from exo_bench.models.numba_runtime import run
 
-        args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out)
+        args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out, streams(out, self.dof))
         run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))
 
     def _auto(self, q, qd, qdd, out) -> None:

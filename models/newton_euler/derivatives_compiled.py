@@ -36,6 +36,7 @@ from numba import njit, prange
 from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models import rod_elements as el
 from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
+from exo_bench.models.newton_euler.derivatives_streaming import store_fence, stream_row
 from exo_bench.models.numba_cache import inline
 from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 
@@ -142,11 +143,46 @@ def _blocks(mu, dim, Y, P, oq, oqd, om, m):
 
 
 @njit(**JIT)
-def derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau, m):
-    """One sample: flat ``(dof,)`` states, ``(dof, dof)`` outputs; ``(W, Y, P, tau, m)`` from :func:`scratch`."""
+def _streamed_blocks(mu, dim, Y, P, oq, oqd, om, m, row):
+    """:func:`_blocks` for outputs larger than the caches: each row computed into the scratch ``row`` with
+    the same operations (the same bits), ``P`` added on its diagonal, then streamed out
+    (:mod:`.derivatives_streaming`). One output at a time, its rows in order: the streamed lines are
+    written in sequence (a row of 300 float64 ends inside a cache line, which the next row completes)."""
+    n = mu.shape[0]
+    dof = dim * n
+    for kind in range(3):  # no view and no call inside the loops below: each counts references atomically
+        out = om if kind == _J else (oq if kind == _AQ else oqd)
+        g0, g1, g2 = Y[dim * kind], Y[dim * kind + 1], Y[dim * kind + 2 if dim == 3 else dim * kind + 1]
+        for c in range(dim):
+            for i in range(n):
+                for d in range(dim):
+                    for j in range(n):
+                        m[d * n + j] = mu[i, j]
+                col = c * n + i
+                z0, z1 = Y[0, col], Y[1, col]
+                if dim == 3:
+                    z2 = Y[2, col]
+                    for k in range(dof):
+                        row[k] = m[k] * (z0 * g0[k] + z1 * g1[k] + z2 * g2[k])
+                else:
+                    for k in range(dof):
+                        row[k] = m[k] * (z0 * g0[k] + z1 * g1[k])
+                if kind == _AQ:
+                    for d in range(dim):
+                        row[d * n + i] += P[d * dim + c, i]
+                stream_row(out, col * dof, row)
+
+
+@njit(**JIT)
+def derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau, m, row, stream):
+    """One sample: flat ``(dof,)`` states, ``(dof, dof)`` outputs; ``(W, Y, P, tau, m)`` from :func:`scratch`;
+    ``stream``: rows streamed out through the ``(dof,)`` scratch ``row`` (:func:`_streamed_blocks`)."""
     _inverse_sample(t, g, dim, x, xd, xdd, tau, 0, W)
     _columns(t, dim, x, xd, xdd, W, Y, P)
-    _blocks(mu, dim, Y, P, oq, oqd, om, m)
+    if stream:
+        _streamed_blocks(mu, dim, Y, P, oq, oqd, om, m, row)
+    else:
+        _blocks(mu, dim, Y, P, oq, oqd, om, m)
 
 
 @njit(**JIT)
@@ -176,30 +212,34 @@ def derivatives_one(ws, n, g, dim, x, xd, xdd, oq, oqd, om):
             if _overlap(o, outs[j]):
                 return k + 1
     t, mu, W, Y, P, tau, m = _unpack(ws, n, dim)
-    derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau, m)
+    derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau, m, m, False)  # not streamed: in cache
     return 0
 
 
 @njit(**JIT)
-def _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, start, stop):
-    """Samples ``start .. stop - 1`` of ``(S, dof)`` states into ``(S, dof, dof)`` outputs (scratch once)."""
+def _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream, start, stop):
+    """Samples ``start .. stop - 1`` of ``(S, dof)`` states into ``(S, dof, dof)`` outputs (scratch once);
+    ``stream``: by streaming stores (:mod:`.derivatives_streaming`; :func:`streams` decides)."""
     n = t.shape[1]
     W, Y, P = np.zeros((n, WIDTH)), np.zeros((9, 3 * n)), np.zeros((9, n))
-    tau, m = np.zeros(dim * n), np.zeros(dim * n)
+    tau, m, row = np.zeros(dim * n), np.zeros(dim * n), np.zeros(dim * n)
     for s in range(start, stop):
-        derivatives_sample(t, mu, g, dim, q[s], qd[s], qdd[s], oq[s], oqd[s], om[s], W, Y, P, tau, m)
+        derivatives_sample(t, mu, g, dim, q[s], qd[s], qdd[s], oq[s], oqd[s], om[s], W, Y, P, tau, m, row, stream)
+    if stream:
+        store_fence()
 
 
 @njit(**JIT)
-def derivatives_serial(t, mu, g, dim, q, qd, qdd, oq, oqd, om):
+def derivatives_serial(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream=False):
     """Every sample of a batch in turn."""
-    _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, 0, q.shape[0])
+    _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream, 0, q.shape[0])
 
 
 @njit(parallel=True, **JIT)
-def derivatives_parallel(t, mu, g, dim, q, qd, qdd, oq, oqd, om):
+def derivatives_parallel(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream=False):
     """:func:`derivatives_serial` in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK`
     samples over numba's threads."""
     S = q.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
-        _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK))
+        stop = min(S, (b + 1) * SAMPLES_PER_TASK)
+        _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream, b * SAMPLES_PER_TASK, stop)
