@@ -109,4 +109,8 @@ def load_mechanism(spec: str | Path) -> Mechanism:
 
 
 def save_mechanism(mech: Mechanism, path: str | Path) -> None:
-    Path(path).write_text(mech.to_json() + "\n")
+    """``mech`` as JSON to ``path``, whole or not at all, never through a symlink planted there
+    (:func:`exo_bench.models.atomic_files.atomic_write`)."""
+    from exo_bench.models.atomic_files import atomic_write
+
+    atomic_write(path, mech.to_json() + "\n")

@@ -31,23 +31,21 @@ def atomic_path(path: str | Path):
     """Yield a temporary path beside ``path`` for a writer that needs a file name (a rerun file
     sink, a PNG renderer); on success it is renamed into place, on any error or Ctrl-C it is
     removed, so that no half-written file is ever left. The one writer's rules hold
-    (:func:`exo_bench.bench.output.files.replace_atomically`): never through a symlink, a replaced
+    (:func:`exo_bench.models.atomic_files.replace_atomically`): never through a symlink, a replaced
     file keeps its mode, every error names ``path``."""
-    from exo_bench.bench.output.files import replace_atomically
+    from exo_bench.models.atomic_files import atomic_path as _atomic_path
 
-    with replace_atomically(path) as (tmp, _):
+    with _atomic_path(path) as tmp:
         yield tmp
 
 
 def atomic_write(path: str | Path, data: str | bytes) -> Path:
     """Write to a temporary file beside ``path`` and rename it into place, so that an
-    error or Ctrl-C never leaves a half-written report (:func:`exo_bench.bench.output.files.write_output`'s
-    rules, without its streams: ``path`` is always a file)."""
-    from exo_bench.bench.output.files import replace_atomically, write_all
+    error or Ctrl-C never leaves a half-written report (:func:`exo_bench.models.atomic_files.atomic_write`:
+    ``path`` is always a file, never a stream)."""
+    from exo_bench.models.atomic_files import atomic_write as _atomic_write
 
-    with replace_atomically(path) as (_, fd):
-        write_all(fd, data)
-    return Path(path)
+    return _atomic_write(path, data)
 
 
 def sci(x, digits: int = 1) -> str:

@@ -239,12 +239,18 @@ class CasadiEquations:
             return {p.name: p.read_text(encoding="ascii") for p in self.save(tmp)}
 
     def save(self, folder) -> list[Path]:
-        """Every function into ``folder/<name>.casadi`` (``Function.save``); returns the paths."""
+        """Every function into ``folder/<name>.casadi`` (``Function.save``); returns the paths. Each
+        is written whole or not at all, never through a symlink planted there
+        (:func:`exo_bench.models.atomic_files.atomic_path`)."""
+        from exo_bench.models.atomic_files import atomic_path
+
         folder = Path(folder)
         paths = []
         for name, f in self.functions().items():
             p = folder / f"{name}.casadi"
-            f.save(str(p))
+            with atomic_path(p) as tmp:
+                f.save(str(tmp))
+                _check_saved(tmp, p)
             paths.append(p)
         return paths
 
@@ -277,6 +283,21 @@ class CasadiEquations:
 
 
 @lru_cache(maxsize=32)
+def _check_saved(tmp: Path, path: Path) -> None:
+    """An OSError naming ``path`` unless ``tmp`` reads back as a CasADi function: ``Function.save``
+    reports no write error (a full disk or a file size limit left a truncated file, no exception)."""
+    import casadi as ca
+
+    try:
+        ca.Function.load(str(tmp))
+    except Exception:  # noqa: BLE001 - CasADi's parse errors come as RuntimeError or UnicodeDecodeError
+        import errno
+
+        raise OSError(
+            errno.EIO, "CasADi wrote an incomplete file (the disk full or a file size limit?)", str(path)
+        ) from None
+
+
 def casadi_functions(mechanism: Mechanism, parameters: bool = False) -> CasadiEquations:
     """The CasADi functions of ``mechanism``'s equations of motion (built once per mechanism):
     :class:`CasadiEquations`; ``parameters=True``: masses, fractions and g as one more input.
