@@ -60,6 +60,8 @@ SCHEDULER_TIMEOUT = 10.0
 #: Task retries after an exception in the task itself (a worker's death is counted by the
 #: scheduler's ``allowed-failures`` instead).
 RETRIES = 1
+#: Seconds ``pytest --collect-only`` may take to list the rows (it takes about 10 s: imports only).
+COLLECT_SECONDS = 600.0
 #: Benchmark files whose rows form chains: the rows of one (file, dim, topology) run in increasing
 #: n, each after the one before, whose skips it receives (``--prior-skips``): a sympy peer over its
 #: budget at n is skipped at every larger n without spending its budget again.
@@ -159,7 +161,15 @@ def enumerate_rows(files: list[str], sweep: str, repo: Path = REPO, pytest_args:
             f"--sweep={sweep}",
             *pytest_args,
         ]
-        r = subprocess.run(cmd, cwd=repo, capture_output=True, text=True, stdin=subprocess.DEVNULL)
+        try:
+            r = subprocess.run(
+                cmd, cwd=repo, capture_output=True, text=True, stdin=subprocess.DEVNULL, timeout=COLLECT_SECONDS
+            )
+        except subprocess.TimeoutExpired:
+            raise TimeoutError(
+                f"collecting the benchmark rows (pytest --collect-only in {str(repo)!r}) did not finish within "
+                f"{COLLECT_SECONDS:g} s"
+            ) from None
         if r.returncode != 0 or not path.exists():
             raise ValueError(
                 f"collecting the benchmark rows failed (pytest exit code {r.returncode}): "
@@ -227,6 +237,7 @@ def run_sweep(
     progress: bool = True,
     on_result=None,
     log=print,
+    wait_timeout: float | None = None,
 ) -> SweepOutcome:
     """Run every row of the benchmark ``files`` on a Dask cluster (see the module docstring).
 
@@ -236,8 +247,10 @@ def run_sweep(
     worker too: each resolves its own copy unless it is given); ``only``: row keys to keep (the
     others are left out, as if not collected); ``chained``: files whose rows run as chains
     (:data:`CHAINED`); ``on_result(record)``: called in this process as each row
-    finishes (after its checkpoint is written)."""
-    from distributed import as_completed
+    finishes (after its checkpoint is written); ``wait_timeout``: seconds the running rows may all
+    go without one finishing (default :func:`exo_bench.bench.cluster.waits.sweep_silence` of the budget),
+    then a TimeoutError (the finished rows' checkpoints are kept)."""
+    from exo_bench.bench.cluster.waits import completed, sweep_silence
 
     from exo_bench.bench.perf.profiles import current
 
@@ -246,6 +259,7 @@ def run_sweep(
         check_count("--workers", workers, "worker processes")
     if budget is None:
         budget = float(getattr(current(sweep), "row_budget", 3600.0))
+    silence = sweep_silence(budget, RETRIES) if wait_timeout is None else wait_timeout
     code = code_key(repo)
     folder = checkpoint_dir(checkpoints, code)
     rows = enumerate_rows(list(files), sweep, repo=repo, pytest_args=pytest_args)
@@ -319,7 +333,7 @@ def run_sweep(
                     futures[f] = r
                     submitted[r["key"]] = f
                 try:
-                    for f in as_completed(list(futures)):
+                    for f in completed(list(futures), silence, what=f"sweep {sweep}: rows", option="wait_timeout"):
                         check_interrupt()  # a signal swallowed where it landed still ends the sweep
                         r = futures[f]
                         try:

@@ -142,7 +142,7 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
     check_scheduler(where.scheduler)
 
     def evaluate(profile, methods, log):
-        from distributed import as_completed
+        from exo_bench.bench.cluster.waits import completed
 
         folder = checkpoint_dir(default_checkpoints(out), code_key())
         parts = [f"family:{name}" for name in cases.FAMILIES] + ["forward"]
@@ -176,7 +176,12 @@ def stability_evaluator(options: StabilityOptions) -> Evaluator:
                 try:
                     with progress_bar(len(todo), True) as bar:
                         task = bar.add_task("stability parts", total=len(todo))
-                        for f in as_completed(list(futures)):
+                        for f in completed(
+                            list(futures),
+                            where.wait_timeout,
+                            what="stability parts",
+                            option="ClusterOptions.wait_timeout",
+                        ):
                             part = futures[f]
                             results[part] = f.result()
                             save_part(folder, tag(part), results[part])

@@ -36,6 +36,8 @@ class ClusterOptions:
 
     workers: int | None = None
     scheduler: str | None = None
+    #: seconds the parts may all run without one finishing (bench/cluster/waits.py PART_SILENCE)
+    wait_timeout: float = 3 * 3600.0  # equal to PART_SILENCE (options sit below cluster in the layers)
 
 
 #: ``evaluate(profile, methods, log) -> (families, forward)``: computes the stability study's results
