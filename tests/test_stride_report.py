@@ -360,3 +360,22 @@ def test_the_report_states_the_stored_strides_objective(mech, stored):
     assert "positive priced 1 and negative 0.2, the telescopic rods' work at 10x the joints'" in line
     assert "strengths hip 2.5, knee 2, ankle 3 N·m/kg" in line and "period fixed at 0.987 s" in line
     assert report.markdown(mech, s, folder=stored).count(markdown_text(report.objective_line(s))) == 1
+
+
+def test_trials_are_tabled_beside_the_stored_stride_with_what_they_change(mech, stored, tmp_path):
+    from exo_bench.bench.studies.stride import data, report
+    from exo_bench.models.encoders import markdown_text
+
+    s = data.load("human", 1.41, mech, stored)
+    assert report.trials_table(mech, s, tmp_path / "none") == []  # no trials: no section
+    assert "Trials of the problem" not in report.markdown(mech, s, folder=stored)
+    fast = winter_stride(mech, moment_scale=3.0)
+    meta = {**fast.meta, "settings": {"w_negative": 0.2, "strength": [1.0, 1.0, 2.0]}}
+    data.save(StoredStride(**{**fast.__dict__, "meta": meta}), mech, tmp_path / "trials" / "cheaper")
+    rows = report.trials_table(mech, s, tmp_path / "trials")
+    assert len(rows) == 4 and rows[2].startswith("| \\(the stored stride\\) |  | 5 of 5 | 17 of 17 | hip ")
+    diff = "strength 1, 1, 2 (stored: 1, 1, 1); w_negative 0.2 (stored: 0.5)"
+    assert rows[3].startswith(f"| cheaper | {markdown_text(diff)} | 4 of 5 | 5 of 17 | hip ")  # 3x: peaks fail
+    assert rows[3].split(" | ")[4] == rows[2].split(" | ")[4]  # the same r: the moments scaled
+    assert "| cheaper |" in report.markdown(mech, s, folder=tmp_path)
+    assert report.settings_difference({"w_rod_work": 10.0}, {"w_rod_work": 10.0}) == "none"

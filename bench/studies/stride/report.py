@@ -148,6 +148,63 @@ def objective_line(stride: data.StoredStride) -> str:
     )
 
 
+#: Trial solves of the stored strides' problem with one setting changed, each stored in a folder of its own.
+TRIALS = data.DATA / "trials"
+
+
+def settings_difference(stored: dict, trial: dict) -> str:
+    """The settings in which ``trial`` differs from ``stored`` (a setting not stored reads as its default)."""
+    from exo_bench.bench.studies.stride.problem import StrideSettings
+
+    base = StrideSettings().to_dict()
+    a, b = {**base, **stored}, {**base, **trial}
+    out = [f"{k} {_value(b[k])} (stored: {_value(a[k])})" for k in sorted(a) if _value(a[k]) != _value(b[k])]
+    return "; ".join(out) or "none"
+
+
+def _value(x) -> str:
+    return (
+        ", ".join(_value(v) for v in x)
+        if isinstance(x, (list, tuple))
+        else format(x, "g")
+        if isinstance(x, float)
+        else str(x)
+    )
+
+
+def trials_table(mech: Mechanism, stride: data.StoredStride, trials=None) -> list[str]:
+    """The stored stride and every trial of its variant and speed (a folder of ``trials``, :data:`TRIALS`
+    by default, holding it): the settings changed, the verdicts met, each joint moment's r, the toe's
+    share of the foot's vertical impulse and the rods' share of positive work, all computed here."""
+    from pathlib import Path
+
+    from exo_bench.bench.studies.stride.evidence import toe_share
+
+    root = Path(TRIALS if trials is None else trials)
+    found = []
+    for d in sorted(p for p in root.glob("*") if p.is_dir()) if root.is_dir() else []:
+        try:
+            found.append((d.name, data.load(stride.variant, stride.speed, mech, d)))
+        except ValueError:
+            continue
+    rows = []
+    for name, t in [("(the stored stride)", stride), *found]:
+        c = cmp.compare(mech, t)
+        met = sum(v.passed for v in c.verdicts)
+        rs = ", ".join(f"{j} {c.curves[f'{j} moment'].r:.2f}" for j in cmp.JOINTS)
+        inside = sum(1 / cmp.FACTOR <= o / w <= cmp.FACTOR for _, o, w in c.peaks)
+        diff = "" if t is stride else settings_difference(stride.settings, t.settings)
+        rows.append(
+            f"| {md(name)} | {md(diff)} | {met} of {len(c.verdicts)} | {inside} of {len(c.peaks)} | {rs} | "
+            f"{toe_share(t):.1%} | {cmp.rod_share(mech, t)[0]:.1%} | {t.solver.get('objective', float('nan')):.4g} |"
+        )
+    head = [
+        "| trial | settings changed | checks met | peaks within 2x | moment r | toe's share | rods' share | objective |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    return head + rows if found else []
+
+
 def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = None, folder=None, tau=None) -> str:
     """The section: the stride against Winter's (``figure``: the file of its curves, written beside the
     report), the verdicts, and the sizing table of every stored stride (in ``folder``); ``tau``: the
@@ -193,6 +250,7 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "",
         *peaks_table(c),
         "",
+        *_trials_section(mech, stride, folder),
         "### Every stored stride against Winter's",
         "",
         "The same checks on every stored stride (each against Winter's stride at 1.41 m/s, so the other speeds' "
@@ -212,10 +270,31 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
+def _trials_section(mech: Mechanism, stride: data.StoredStride, folder=None) -> list[str]:
+    """The trials' section (none when no trial of this stride is stored; ``folder``: the stored strides'
+    folder, whose ``trials`` folder holds them)."""
+    from pathlib import Path
+
+    rows = trials_table(mech, stride, None if folder is None else Path(folder) / "trials")
+    if not rows:
+        return []
+    return [
+        "### Trials of the problem",
+        "",
+        "The same problem solved with one setting changed, from the stored stride, each stored beside it "
+        "(bench/studies/stride/data/trials/): what the change does to the checks above. A trial's objective is "
+        "its own problem's (not comparable across rows). Each is one local optimum, not a proof of what the "
+        "model class can do.",
+        "",
+        *rows,
+        "",
+    ]
+
+
 def text(mech: Mechanism, stride: data.StoredStride) -> str:
     """The verdicts as Markdown, for the recording's description."""
     c = cmp.compare(mech, stride)
     return "\n".join(verdicts_table(c)) + "\n"
 
 
-__all__ = ["CONVENTION", "markdown", "stored_sizings", "text"]
+__all__ = ["CONVENTION", "TRIALS", "markdown", "settings_difference", "stored_sizings", "text", "trials_table"]
