@@ -254,11 +254,11 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         and q.shape[-1] == b.dof
     ):
         f = _forces(model, b, f_ext, q.shape, check)
-        t = np.empty(q.shape)
-        status = b.apply(b.params, xc.flat(q), f, xc.flat(tau), t.reshape(-1), xc.PLUS, bool(check))
+        total = np.empty(q.shape)
+        status = b.apply(b.params, xc.flat(q), f, xc.flat(tau), total.reshape(-1), xc.PLUS, bool(check))
         if status != xc.DONE:
             _refuse(model, f, q.shape, status)
-        return model.forward_dynamics(q, qd, t, check=check, out=out)
+        return model.forward_dynamics(q, qd, total, check=check, out=out)
     mech = model.mechanism
     if check:
         shape = np.shape(q)

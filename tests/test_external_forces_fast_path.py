@@ -56,10 +56,12 @@ def test_one_sample_and_batch_are_the_numpy_q_to_the_last_bit(mech, method, mode
 
 
 def test_the_parameters_are_bound_once_per_model(monkeypatch):
-    """No per-call rebuild: 40 calls of each kind build the kernel's parameters once (the first call)."""
+    """No per-call rebuild: 40 calls of each kind build the kernel's parameters once (the model's first
+    call), and ``Q`` alone (``simulate``'s right-hand side with ``f_ext``) once per mechanism."""
     built = []
     real = xc.parameters
     monkeypatch.setattr(xc, "parameters", lambda mech: built.append(mech.name) or real(mech))
+    xc._parameters_of.cache_clear()
     mech = exo5(3)
     model = prepare(mech, "newton-euler")
     q, qd, qdd, f = _states(mech, 3)
@@ -68,6 +70,9 @@ def test_the_parameters_are_bound_once_per_model(monkeypatch):
         model.inverse_dynamics(q, qd, qdd, check=False, f_ext=f)
         model.forward_dynamics(q[0], qd[0], tau, f_ext=f[0])
     assert built == [mech.name]
+    for _ in range(40):
+        model._external_forces(q, f)
+    assert built == [mech.name] * 2
 
 
 def test_the_kernel_checks_its_sizes_and_touches_nothing_when_they_disagree():
