@@ -26,6 +26,15 @@ thread by default (:data:`CLOCKS`: every one-sample candidate runs in that threa
 spent descheduled by other jobs on a shared machine is not counted; ``clock="wall"`` reads the wall
 clock), a batch round the wall clock. The goals are judged on the medians; the ratios of the
 fastest rounds are stated beside them (on a shared machine, the least disturbed figures).
+
+**Fast and slow processes.** On the 2-vCPU KVM machine the one-sample calls ran at two speeds:
+0.33 or 0.60 us for the lean kernel with ``out``, and a pure-Python loop 9 or 17 us alongside it, in
+the same process with the same arrays, switching every second or so (steal time 1-6 %), and in
+processes whose every address was the same (``setarch -R``, one ``PYTHONHASHSEED``). So the machine
+(its host), not memory layout, sets the speed; but ``pin.rnea`` slows by only 1.2x where the public
+call slows by 1.4-1.7x, so a ratio measured in a slow phase is 1.4x larger. The goals hold in both
+phases once the call costs less: no allocation per call (models/lean_call.py ``block``), dropped
+results reused (models/_lean_call.c), ``self._entries`` specialised by Python (models/prepared.py).
 """
 
 from __future__ import annotations
