@@ -123,7 +123,7 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     parts = [residuals, moments, rods, f, hip_p, hip_v, heel, powers, effort]
     sizes = np.cumsum([0] + [x.numel() for x in parts])
     sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
-    rows = Rows(*sl[:6], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
+    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
     return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
 
 
