@@ -196,11 +196,13 @@ def trials_table(mech: Mechanism, stride: data.StoredStride, trials=None) -> lis
         diff = "" if t is stride else settings_difference(stride.settings, t.settings)
         rows.append(
             f"| {md(name)} | {md(diff)} | {met} of {len(c.verdicts)} | {inside} of {len(c.peaks)} | {rs} | "
-            f"{toe_share(t):.1%} | {cmp.rod_share(mech, t)[0]:.1%} | {t.solver.get('objective', float('nan')):.4g} |"
+            f"{toe_share(t):.1%} | {cmp.rod_share(mech, t)[0]:.1%} | {t.period:.3f} | "
+            f"{t.solver.get('objective', float('nan')):.4g} |"
         )
     head = [
-        "| trial | settings changed | checks met | peaks within 2x | moment r | toe's share | rods' share | objective |",
-        "|---|---|---|---|---|---|---|---|",
+        "| trial | settings changed | checks met | peaks within 2x | moment r | toe's share | rods' share | period s "
+        "| objective |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     return head + rows if found else []
 
