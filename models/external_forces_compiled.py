@@ -111,10 +111,12 @@ def bound(model: Any) -> Bound:
     """The :class:`Bound` of a prepared model, made on its first call with ``f_ext`` and kept on it."""
     b = model.__dict__.get("_f_ext_bound")
     if b is None:
-        from exo_bench.models.prepared import PreparedModel  # prepared imports this layer's callers
-
         mech = model.mechanism
-        native = type(model)._external_forces is PreparedModel._external_forces
+        # the model's Q is PreparedModel's default (the first class in its lineage to define one; not
+        # imported here: prepared imports this module's callers), not an engine's override
+        cls = type(model)
+        first = next(c for c in reversed(cls.__mro__) if "_external_forces" in vars(c))
+        native = cls._external_forces is vars(first)["_external_forces"]
         b = Bound(parameters(mech), kernel() if native else None, (mech.nlinks, 3, mech.dim), mech.dof)
         model.__dict__["_f_ext_bound"] = b
     return b
