@@ -79,7 +79,30 @@ def _exemption(command: str) -> str | None:
 
 
 BLOCKS = shown_blocks()
-RUNNABLE = [b for b in BLOCKS if any(_exemption(c) is None for c in _commands(b[3], b[2] == "console")[0])]
+
+
+def runnable(blocks: list[tuple[str, int, str, str]]) -> list[tuple[str, int, str, str]]:
+    """The blocks with a command to run, each run once: a block that runs the same commands and shows the
+    same output as one before it (the README's MuJoCo check, repeated in docs/guide/engines.md beside the
+    viewer) is that block's run, named by both places."""
+    seen: dict[tuple, int] = {}
+    out: list[tuple[str, int, str, str]] = []
+    for where, line, language, block in blocks:
+        commands, shown = _commands(block, language == "console")
+        run = tuple(c for c in commands if _exemption(c) is None)
+        if not run:
+            continue
+        key = (tuple(tuple(shlex.split(c, comments=True)) for c in run), tuple(shown))  # comments aside
+        if key in seen:
+            first = out[seen[key]]
+            out[seen[key]] = (f"{first[0]}:{first[1]}+{where}", line, first[2], first[3])
+            continue
+        seen[key] = len(out)
+        out.append((where, line, language, block))
+    return out
+
+
+RUNNABLE = runnable(BLOCKS)
 
 
 def test_the_docs_show_commands_and_every_exemption_is_used():
@@ -88,6 +111,16 @@ def test_the_docs_show_commands_and_every_exemption_is_used():
     assert any(b[0] == "README.md" for b in RUNNABLE)
     unused = [key for key in EXEMPT if not any(key in c for c in commands)]
     assert not unused, f"exemptions that match no shown command: {unused}"
+
+
+def test_every_block_with_a_command_is_run_once():
+    """Running a repeated block once drops no block: each block with a runnable command is named by a run."""
+    named = " ".join(f"{b[0]}:{b[1]}" for b in RUNNABLE)
+    for where, line, language, block in BLOCKS:
+        if any(_exemption(c) is None for c in _commands(block, language == "console")[0]):
+            assert f"{where}:{line}" in named, (where, line)
+    twice = [("a.md", 1, "sh", "x run  # says why\n"), ("b.md", 5, "sh", "x run\nx --mjcf=f  # mujoco.viewer\n")]
+    assert [(w, n) for w, n, *_ in runnable(twice)] == [("a.md:1+b.md", 5)]
 
 
 def _as_here(command: str) -> str:
