@@ -131,7 +131,7 @@ def evaluate_case(
     rows = {}
     for m in methods:
         row = MethodRow(m)
-        known = _memo_skip(memo, m, mech)
+        known = _memo_skip(memo, m, mech) or predicted_skip(m, mech, models)
         if known:
             row.status, row.reason = "skipped", known
             rows[m] = row
@@ -283,9 +283,47 @@ def _nan_or_rel(row: MethodRow) -> str:
 
 
 # ----------------------------------------------------------------------------- run
+#: A lagrange derivation predicted within the profile's budget runs with this many times the budget:
+#: on a loaded machine it finishes rather than turning its row into a skip. Which rows skip is the
+#: cost model's prediction alone (:func:`predicted_skip`), the same on every machine.
+LOAD_ALLOWANCE = 10.0
+
+
 def method_options(profile: Profile) -> dict[str, dict]:
-    """The :func:`prepare` options of the profile: the symbolic budget of ``lagrange``."""
-    return {"lagrange": {"budget": profile.lagrange_budget}}
+    """The :func:`prepare` options of the profile: ``lagrange``'s derivation budget, the profile's
+    times :data:`LOAD_ALLOWANCE` (the skip itself is decided by :func:`predicted_skip`)."""
+    return {"lagrange": {"budget": LOAD_ALLOWANCE * profile.lagrange_budget}}
+
+
+def predicted_skip(method: str, mech: Mechanism, models: PreparedSet) -> str | None:
+    """Why ``method`` is skipped on ``mech`` before any work: its derivation predicted (the cost
+    model, exo_bench/api/cost_model.py) over the profile's budget (``models``' budget over
+    :data:`LOAD_ALLOWANCE`); None when it is not a derivation or fits."""
+    budget = models.options.get(method, {}).get("budget")
+    if method != "lagrange" or budget is None:
+        return None
+    from exo_bench.api.cost_model import estimate
+
+    predicted, allowed = estimate(mech, method).setup_seconds, float(budget) / LOAD_ALLOWANCE
+    if predicted <= allowed:
+        return None
+    return (
+        f"its derivation is predicted to take {predicted:.3g} s (the cost model), over the profile's budget "
+        f"of {allowed:g} s"
+    )
+
+
+def predicted_skips(profile: Profile, method: str = "lagrange") -> dict[str, str]:
+    """``mechanism name -> reason`` of every mechanism of the profile's families that
+    :func:`predicted_skip` skips (what the report's skipped rows are, on any machine)."""
+    models = PreparedSet(method_options(profile))
+    out: dict[str, str] = {}
+    for make in FAMILIES.values():
+        for case in make(profile):
+            reason = predicted_skip(method, case.mechanism, models)
+            if reason:
+                out[case.mechanism.name] = reason
+    return out
 
 
 def evaluate_families(profile: Profile, methods: list[str], log=print) -> list[FamilyResult]:
