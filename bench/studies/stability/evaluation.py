@@ -300,7 +300,9 @@ def predicted_skip(method: str, mech: Mechanism, models: PreparedSet) -> str | N
     model, exo_bench/api/cost_model.py) over the profile's budget (``models``' budget over
     :data:`LOAD_ALLOWANCE`); None when it is not a derivation or fits."""
     budget = models.options.get(method, {}).get("budget")
-    if method != "lagrange" or budget is None:
+    from exo_bench.api.methods import derives_within_budget
+
+    if not derives_within_budget(method) or budget is None:
         return None
     from exo_bench.api.cost_model import estimate
 
