@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache, lru_cache
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -42,13 +42,6 @@ F8 = np.dtype(np.float64)
 def parameters(mech: Mechanism) -> np.ndarray:
     """The kernel's parameter array: ``[dim, parent..., sign..., n...]`` (parents as floats, -1 for a root)."""
     return np.concatenate(([float(mech.dim)], np.asarray(mech.parent, float), mech.sign_array, mech.n))
-
-
-@lru_cache(maxsize=64)
-def _parameters_of(mech: Mechanism) -> np.ndarray:
-    """:func:`parameters`, kept per mechanism (equal mechanisms share them; the kernel only reads them):
-    ``PreparedModel._external_forces`` in an ODE right-hand side (``simulate`` with ``f_ext``) rebuilds nothing."""
-    return parameters(mech)
 
 
 @cache
@@ -83,12 +76,15 @@ def flat(a: Any) -> np.ndarray:
     return a.reshape(-1)
 
 
-def generalized_forces_compiled(mech: Mechanism, q: np.ndarray, f: np.ndarray) -> np.ndarray:
+def generalized_forces_compiled(
+    mech: Mechanism, q: np.ndarray, f: np.ndarray, params: np.ndarray | None = None
+) -> np.ndarray:
     """:func:`exo_bench.models.external_forces.generalized_forces` by the compiled kernel (float64 ``q (S,
     dof)``, ``f (S, links, 3, dim)``): ``(S, dof)``."""
     q2 = np.ascontiguousarray(q, dtype=float)
     out = np.empty(q2.shape)
-    status = kernel()(_parameters_of(mech), q2.reshape(-1), flat(f), out.reshape(-1), out.reshape(-1), ONLY, False)
+    p = parameters(mech) if params is None else params  # a prepared model passes its own (:func:`bound`)
+    status = kernel()(p, q2.reshape(-1), flat(f), out.reshape(-1), out.reshape(-1), ONLY, False)
     if status != DONE or out.shape[-1:] != (mech.dof,):
         raise ValueError(
             f"f_ext: expected q of shape (samples, {mech.dof}) and forces of shape (samples, {mech.nlinks}, 3, "
