@@ -20,7 +20,10 @@ Per sample:
    5 (with a view per loop) and 0.50 us in one loop of 15; chain 100 3D 127 -> 92-98 us (out in cache).
 
 Work per sample: ``3 dim^2 n^2`` entries of ``dim`` multiply-adds and one product, the size of the output;
-the passes and the per-rod columns are O(n). Scratch (per thread): ``W (n, 16)``, ``Y (9, 3n)``,
+the passes and the per-rod columns are O(n). A large batch is bound by writing that output (chain 100 3D:
+2.16 MB per sample, 92-115 us of arithmetic in cache): over
+:data:`exo_bench.models.newton_euler.derivatives_streaming.STREAM_MIN_BYTES` of output the batched drivers
+take :func:`_streamed_blocks`, the same rows streamed past the caches (:mod:`.derivatives_streaming`). Scratch (per thread): ``W (n, 16)``, ``Y (9, 3n)``,
 ``P (9, n)``, ``tau (dof,)``, ``m (dof,)``; the one-sample entry (:func:`derivatives_one`) takes them and
 the mechanism's numbers in one packed array (:func:`workspace`): each array argument of a compiled
 entry costs its unboxing (about 0.1 us), so 7 arrays instead of 14.
