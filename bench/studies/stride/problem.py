@@ -71,10 +71,10 @@ WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
 
 def stride_period(speed: float) -> float:
     """The prescribed stride period at ``speed``: Winter's 0.987 s at 1.41 m/s, and at other speeds the
-        stride frequency in proportion to the square root of the speed (so the stride length grows with it
-        too, as it does in people; an assumption, stated, not fitted). With the period free the optimum
-        walked at the lower bound of its range (0.70 s at 1.41 m/s, 171 steps/min, a flight phase between
-        the stances): nothing in the objective prices what makes people choose their cadence. Freed again from
+    stride frequency in proportion to the square root of the speed (so the stride length grows with it
+    too, as it does in people; an assumption, stated, not fitted). With the period free the optimum
+    walked at the lower bound of its range (0.70 s at 1.41 m/s, 171 steps/min, a flight phase between
+    the stances): nothing in the objective prices what makes people choose their cadence. Freed again from
     the stored human stride at 1.41 m/s (rods priced 10x), the local optimum moved to 1.034 s with every check
     as before (the trial ``period-free`` in data/trials/, tabled in the report)."""
     return WINTER_PERIOD * math.sqrt(WINTER_SPEED / speed)
