@@ -21,6 +21,7 @@ import pandas as pd
 import pytest
 
 from exo_bench.bench.perf import rows
+from test_interrupts import keyboard_signals_at_default
 from exo_bench.bench.cluster.cluster import run_sweep
 
 PLUGIN = ("-p", "exo_bench.bench.conftest")
@@ -257,6 +258,7 @@ def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=keyboard_signals_at_default,  # a user's Ctrl-C, whatever the test worker inherited
     )
     seen, deadline = {}, time.monotonic() + 600  # a safety net: a row starts in seconds
     try:

@@ -14,6 +14,16 @@ import textwrap
 
 import pytest
 
+
+def keyboard_signals_at_default() -> None:
+    """In the child before exec: SIGINT and SIGTERM as a terminal gives them. A process that starts with
+    SIGINT ignored keeps it ignored (``nohup``'s convention, which bench/output/interrupts.py honours),
+    and a test worker's ignored SIGINT (inherited from how the suite was started, or left by a library)
+    would otherwise pass to the child: the test is of a user's Ctrl-C, not of its environment."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 SCENE = """
 description = "a small scene"
 mechanism = "exo5-3d"
@@ -83,7 +93,13 @@ def test_a_signal_swallowed_by_a_callback_still_ends_the_run_as_interrupted(trap
     reports = tmp_path / "rep"
     mark = tmp_path / "callback-finished"
     code = _CHILD.format(signal=signame, trap=trap, scene=str(scene), reports=str(reports), mark=str(mark))
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=keyboard_signals_at_default,
+    )
     assert r.returncode == 130, (r.returncode, r.stderr[-3000:])
     assert "interrupted" in r.stderr and "Exception ignored" not in r.stderr, r.stderr[-3000:]
     assert mark.exists()  # the handler raised nothing inside the callback: it ran to its end
@@ -159,6 +175,7 @@ def test_ctrl_c_in_gait_solve_reports_interrupted(signame):
         capture_output=True,
         text=True,
         timeout=600,
+        preexec_fn=keyboard_signals_at_default,
     )
     assert r.returncode == 130, (r.returncode, r.stderr[-3000:])
     assert "interrupted" in r.stderr and "did not solve" not in r.stderr, r.stderr[-3000:]

@@ -282,7 +282,6 @@ class CasadiEquations:
         return f"<CasadiEquations of {self.mechanism.name!r} ({self.dof} dof, {self.mechanism.dim}D)>"
 
 
-@lru_cache(maxsize=32)
 def _check_saved(tmp: Path, path: Path) -> None:
     """An OSError naming ``path`` unless ``tmp`` reads back as a CasADi function: ``Function.save``
     reports no write error (a full disk or a file size limit left a truncated file, no exception)."""
@@ -298,6 +297,7 @@ def _check_saved(tmp: Path, path: Path) -> None:
         ) from None
 
 
+@lru_cache(maxsize=32)
 def casadi_functions(mechanism: Mechanism, parameters: bool = False) -> CasadiEquations:
     """The CasADi functions of ``mechanism``'s equations of motion (built once per mechanism):
     :class:`CasadiEquations`; ``parameters=True``: masses, fractions and g as one more input.
