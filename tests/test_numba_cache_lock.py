@@ -10,11 +10,12 @@ checkout (its ``__pycache__``), the two xdist workers of the README's test comma
 index's save and load hold a lock on the index (``<index>.lock``), so they take turns.
 
 The test forces the interleaving: each process, having read the index inside a save, waits until the
-other has begun its save and (up to WAIT s) read the index too; without the lock both read the empty
-index before either writes. With it the second waits on the lock, the first's wait runs out, and the
-saves follow one another. A third process then
+other has begun its save and either read the index too or stands blocked on the index's lock (a
+waiter, ``->``, in /proc/locks on the lock file); without the lock both read the empty index before
+either writes. With it the second waits on the lock, the first sees it waiting, and the saves follow
+one another. No clock: each outcome is observed, whatever the machine's speed. A third process then
 loads both signatures from the cache, compiling nothing, and computes with each. About 5 s: three
-processes importing numba, one WAIT.
+processes importing numba.
 """
 
 from __future__ import annotations
@@ -24,9 +25,6 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-
-#: Seconds a process that has read the index in a save waits for the other, saving too, to read it.
-WAIT = 3.0
 
 KERNEL = """
 from numba import njit
@@ -38,7 +36,7 @@ def twice(x):
 """
 
 SAVER = """
-import sys, threading, time
+import os, sys, threading, time
 from pathlib import Path
 
 import numpy as np
@@ -48,11 +46,19 @@ from exo_bench.models import numba_runtime
 numba_runtime.ensure()
 from numba.core import caching
 
-me, other, kind, wait = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
+me, other, kind = sys.argv[1], sys.argv[2], sys.argv[3]
 here = Path.cwd()
 saving = threading.local()
 read_index = caching.IndexDataCacheFile._load_index
 save = caching.IndexDataCacheFile.save
+
+
+def blocked_on(lock):  # whether a process waits for an flock on the file lock (a -> line of /proc/locks)
+    try:
+        inode = f":{os.stat(lock).st_ino} "
+    except FileNotFoundError:  # no lock file: nobody locks this index
+        return False
+    return any("->" in line and "FLOCK" in line and inode in line for line in open("/proc/locks"))
 
 
 def load_index_meeting_the_other(self):
@@ -61,8 +67,8 @@ def load_index_meeting_the_other(self):
         (here / f"read-{me}").touch()
         while not (here / f"saving-{other}").exists():  # the other process is still compiling
             time.sleep(0.01)
-        deadline = time.monotonic() + wait  # it has begun its save: has it read the index too?
-        while not (here / f"read-{other}").exists() and time.monotonic() < deadline:
+        lock = f"{self._index_path}.lock"  # it has begun its save: has it read the index, or is it locked out?
+        while not (here / f"read-{other}").exists() and not blocked_on(lock):
             time.sleep(0.01)
     return index
 
@@ -117,7 +123,7 @@ def test_two_processes_saving_one_kernels_signatures_at_once_keep_both(tmp_path)
     env = _env(tmp_path)
     savers = [
         subprocess.Popen(
-            [sys.executable, "saver.py", me, other, kind, str(WAIT)],
+            [sys.executable, "saver.py", me, other, kind],
             cwd=tmp_path,
             env=env,
             stdout=subprocess.PIPE,
