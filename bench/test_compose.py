@@ -13,13 +13,13 @@ import random
 import pytest
 import sympy as sp
 
-from exo_bench.bench.perf.rows import OVER_BUDGET, prior_over_budget
+from exo_bench.bench.perf.compose_cost import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
+from exo_bench.bench.perf.rows import OVER_BUDGET
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.presets import chain
 
 COMPOSERS = ("lagrange", "lagrange-expr", "sympy-lagrangesmethod", "sympy-kanesmethod", "matrix", "recurrence")
-_FAILED: dict[tuple, str] = {}
 _REFERENCE: dict[Mechanism, tuple] = {}
 _WARM: set[str] = set()
 
@@ -109,27 +109,25 @@ def test_compose(benchmark, sweep, compose_case, request):
     method, n, dim, topo = compose_case
     mech = model(n, dim, topo)
     benchmark.group = f"compose-{dim}d"
-    key = (method, dim, topo)
-    for k, v in prior_over_budget(request.config).items():  # found by earlier rows of a distributed sweep
-        _FAILED.setdefault(k, v)
-    if key in _FAILED and _FAILED[key][0] <= n:  # a smaller model of this kind was already over budget
-        request.node.user_properties.append((OVER_BUDGET, [method, *_FAILED[key][:1], dim, topo, _FAILED[key][1]]))
-        pytest.skip(f"{method}: over budget at n={_FAILED[key][0]}, so at n={n} too ({_FAILED[key][1]})")
-    compose = _composer(method, sweep.compose_budget)
+    # which rows run is predicted from the row's size (bench/perf/compose_cost.py), never timed: the
+    # same rows run on every machine; a row that runs gets LOAD_ALLOWANCE times the budget as its limit
+    reason = predicted_skip(method, n, dim, sweep.compose_budget)
+    if reason:
+        request.node.user_properties.append((OVER_BUDGET, [method, n, dim, topo, reason]))
+        pytest.skip(f"{method}: {reason}")
+    compose = _composer(method, LOAD_ALLOWANCE * sweep.compose_budget)
     if method not in _WARM:  # imports and first-use set-up are not part of composing
         compose(model(1, dim, "chain"))
         _WARM.add(method)
     rounds = 5 if method in ("matrix", "recurrence") else 1
     benchmark.extra_info.update(method=method, n=n, dim=dim, topology=topo, mechanism=mech.name)
+    benchmark.extra_info["predicted_seconds"] = predicted_seconds(method, n, dim)
     try:
         eqs = benchmark.pedantic(compose, args=(mech,), setup=_clear_caches, rounds=rounds, iterations=1)
     except Exception as e:  # noqa: BLE001
-        reason = getattr(e, "skip_reason", None)
-        if not reason:
-            raise
-        _FAILED[key] = (n, reason)
-        request.node.user_properties.append((OVER_BUDGET, [method, n, dim, topo, reason]))
-        pytest.skip(f"{method}: {reason}")
+        if getattr(e, "skip_reason", None):  # over LOAD_ALLOWANCE x the budget: the prediction was wrong
+            pytest.fail(f"{method}: predicted {predicted_seconds(method, n, dim):.3g} s, but {e.skip_reason}")
+        raise
     assert len(eqs) == mech.dof
     diff = _same_equations(mech, eqs)
     benchmark.extra_info["max_rel_diff_vs_matrix"] = diff
