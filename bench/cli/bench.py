@@ -34,6 +34,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "'*test_forward_dynamics.py:3d-chain-*'); their reports go to REPORTS/selected-rows, never over "
         "a whole sweep's, and their checkpoints are resumed by a later whole sweep",
     )
+    s.add_argument(
+        "--suite-timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="stop the serial suite after SECONDS (default: the profile's predicted time x 10)",
+    )
     add_cluster_args(s)
     s.set_defaults(func=cmd_bench)
 
@@ -51,6 +58,7 @@ def options(args: argparse.Namespace) -> BenchOptions:
         update_readme=args.update_readme,
         cluster=cluster,
         rows=rows,
+        suite_timeout=args.suite_timeout,
     )
 
 

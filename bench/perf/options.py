@@ -17,3 +17,6 @@ class BenchOptions(ReportOptions):
     cluster: ClusterOptions | None = None
     #: Only the sweep's rows whose key matches one of these shell-style patterns (empty: every row).
     rows: tuple[str, ...] = ()
+    #: Seconds the serial benchmark suite may run before it is stopped (None: the profile's predicted
+    #: time times an allowance, bench/perf/reports/benchmark_reports.py suite_timeout).
+    suite_timeout: float | None = None

@@ -128,11 +128,44 @@ def write_reports(
     return published
 
 
+#: Seconds of the serial suite on the reference machine (2-core AMD EPYC, load 0.4-1.3): quick measured
+#: (reports/main-job.log: 479 s); full predicted from its benchmarks' timed total (3026 s in
+#: reports/full/benchmarks-full.json) times the quick suite's ratio of wall time to timed total (479 / 169).
+SUITE_SECONDS = {"quick": 479.0, "full": 3026.0 * 479.0 / 169.0}
+#: The default limit is this many times the prediction: a loaded machine finishes, a hung suite ends.
+SUITE_ALLOWANCE = 10.0
+
+
+def suite_timeout(sweep: str, option: float | None = None) -> float:
+    """The suite's time limit: ``option`` (BenchOptions.suite_timeout) or :data:`SUITE_ALLOWANCE` times
+    the profile's :data:`SUITE_SECONDS`; a ValueError names a bad option."""
+    if option is None:
+        return SUITE_ALLOWANCE * SUITE_SECONDS[sweep]
+    ok = isinstance(option, int | float) and not isinstance(option, bool) and 0 < float(option) < float("inf")
+    if not ok:
+        raise ValueError(f"BenchOptions.suite_timeout: expected a finite number of seconds > 0, got {option!r}")
+    return float(option)
+
+
+def run_suite(cmd: list[str], cwd: Path, timeout: float, sweep: str, runner=subprocess.run) -> int:
+    """Run the suite's pytest ``cmd``; its exit code, or a TimeoutError (an OSError: one line, exit 2)
+    naming the suite and the limit when it runs longer than ``timeout`` seconds (the child is killed)."""
+    try:
+        return runner(cmd, cwd=cwd, timeout=timeout).returncode
+    except subprocess.TimeoutExpired:
+        raise TimeoutError(
+            f"the benchmark suite (pytest bench --sweep={sweep}) did not finish within its limit of {timeout:g} s "
+            "(BenchOptions.suite_timeout; default: the profile's predicted time x "
+            f"{SUITE_ALLOWANCE:g}); no report written"
+        ) from None
+
+
 def run(options: BenchOptions) -> int:
     """``exo-bench bench`` in this process: the benchmark suite under pytest, then its reports."""
     full = options.full
     sweep = "full" if full else "quick"
     out = options.folder.resolve()
+    limit = suite_timeout(sweep, options.suite_timeout)  # checked before any work
     command = "exo-bench bench" + (" --full" if full else "")
     with staging_dir(out) as st:
         bjson, sjson = st / benchmark_json(sweep), st / "skips.json"
@@ -151,8 +184,8 @@ def run(options: BenchOptions) -> int:
             "--benchmark-columns=min,median,rounds",
         ]
         print("running:", " ".join(cmd[2:]), flush=True)
-        r = subprocess.run(cmd, cwd=REPO)
-        if r.returncode not in (0,) or not bjson.exists():
-            raise ValueError(f"benchmark suite failed (pytest exit code {r.returncode}); no report written")
+        code = run_suite(cmd, REPO, limit, sweep)
+        if code != 0 or not bjson.exists():
+            raise ValueError(f"benchmark suite failed (pytest exit code {code}); no report written")
         write_reports(bjson, sjson, st, out, sweep, command, options.update_readme, options.published_to)
     return 0

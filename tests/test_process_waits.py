@@ -1,0 +1,47 @@
+"""Every wait for a process the package starts has a limit (issue 34: "every network wait has a timeout";
+the guide: "Budgets and memory are predicted before the work"). Stand-in processes, no real waiting."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from exo_bench.bench.perf.reports import benchmark_reports as br
+
+
+def test_the_suite_is_stopped_at_its_limit_naming_it(tmp_path):
+    """A stand-in suite (a child that sleeps 60 s) with a 0.2 s limit: a TimeoutError naming the suite,
+    the limit and the option, and the child is gone."""
+    cmd = [sys.executable, "-c", "import time; time.sleep(60)"]
+    with pytest.raises(TimeoutError, match=r"benchmark suite .*--sweep=quick.* limit of 0\.2 s .*suite_timeout"):
+        br.run_suite(cmd, tmp_path, 0.2, "quick")
+
+
+def test_the_suite_gets_a_limit_from_its_prediction():
+    """The default is the profile's predicted seconds times the allowance; the limit reaches the runner."""
+    seen = {}
+
+    def runner(cmd, cwd, timeout):
+        seen["timeout"] = timeout
+        return subprocess.CompletedProcess(cmd, 0)
+
+    assert br.run_suite(["pytest"], br.REPO, br.suite_timeout("quick"), "quick", runner=runner) == 0
+    assert seen["timeout"] == pytest.approx(br.SUITE_ALLOWANCE * br.SUITE_SECONDS["quick"])
+    assert br.suite_timeout("full") > br.suite_timeout("quick") > 600
+    assert br.suite_timeout("quick", 5) == 5.0
+
+
+@pytest.mark.parametrize("bad", [0, -1, float("nan"), float("inf"), True, "60"])
+def test_a_bad_suite_timeout_is_named(bad):
+    with pytest.raises(ValueError, match=r"BenchOptions.suite_timeout: expected a finite number of seconds > 0"):
+        br.suite_timeout("quick", bad)
+
+
+def test_the_bench_command_passes_the_option():
+    from exo_bench.bench.cli.app import build_parser
+    from exo_bench.bench.cli.bench import options
+
+    args = build_parser().parse_args(["bench", "--suite-timeout", "90"])
+    assert options(args).suite_timeout == 90.0
