@@ -21,7 +21,7 @@ import numpy as np
 
 from exo_bench.bench.studies.stride.actuators import actuators
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, free_map, mirror_matrix
-from exo_bench.bench.studies.stride.data import StoredStride, contact_forces
+from exo_bench.bench.studies.stride.data import StoredStride, contact_forces, contact_of
 from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.posture import balanced_standing, ground_reaction
@@ -34,8 +34,8 @@ def _excess(x, lo, hi) -> float:
 
 def optimiser_loads_by(model, stride: StoredStride) -> np.ndarray:
     """``tau = ID(q, qd, qdd) - Q(f_contact)`` along the stride by a prepared model (any method), the
-    contact forces recomputed from ``q, qd``."""
-    f = ground_reaction(model.mechanism, stride.q, stride.qd)
+    contact forces recomputed from ``q, qd`` with the stride's contact parameters (:func:`~.data.contact_of`)."""
+    f = ground_reaction(model.mechanism, stride.q, stride.qd, contact_of(stride.settings))
     return model.inverse_dynamics(stride.q, stride.qd, stride.qdd, f_ext=f)
 
 
@@ -88,7 +88,7 @@ def violations(stride: StoredStride, mech: Mechanism) -> dict[str, float]:
     out[f"rod strokes (±{s['stroke'] * 100:g} cm)"] = max(strokes)
     out[f"rod rates (<= {s['rate']:g} m/s)"] = max(rates)
     out["period range"] = _excess(np.array([t[-1]]), *s["period"])
-    out["contact forces as stored"] = float(np.abs(contact_forces(mech, q, qd) - stride.contact).max())
+    out["contact forces as stored"] = float(np.abs(contact_forces(mech, q, qd, contact_of(s)) - stride.contact).max())
     return out
 
 

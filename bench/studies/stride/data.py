@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +47,7 @@ import numpy as np
 
 from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.data import read_stored
+from exo_bench.models.contact import DEFAULT_CONTACT, ContactParameters
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.names import file_stem
 
@@ -131,10 +132,19 @@ def contact_mask_order(mech: Mechanism) -> list[int]:
     return [mech.names.index(link) for _, link in CONTACTS]
 
 
+def contact_of(settings: Any) -> ContactParameters:
+    """The floor's contact parameters of a stride problem (its settings, or their stored dict):
+    :data:`~exo_bench.models.contact.DEFAULT_CONTACT` with the fields of its ``contact`` changed (a stride
+    stored without the field has the defaults); a ValueError naming a bad field."""
+    over = settings.get("contact", {}) if isinstance(settings, dict) else settings.contact
+    if not isinstance(over, dict) or not set(over) <= {f.name for f in fields(ContactParameters)}:
+        raise ValueError(f"stride: field 'settings.contact': expected fields of ContactParameters, got {over!r}")
+    return replace(DEFAULT_CONTACT, **over) if over else DEFAULT_CONTACT
+
+
 def contact_forces(mech: Mechanism, q: np.ndarray, qd: np.ndarray, params=None) -> np.ndarray:
     """``(K, 4, 2)``: the floor's force at each contact point of :data:`CONTACTS` from ``q, qd``
     (:func:`exo_bench.models.posture.ground_reaction`, the default contact parameters unless given)."""
-    from exo_bench.models.contact import DEFAULT_CONTACT
     from exo_bench.models.posture import ground_reaction
 
     f = ground_reaction(mech, np.atleast_2d(q), np.atleast_2d(qd), params or DEFAULT_CONTACT)
@@ -250,6 +260,7 @@ __all__ = [
     "VARIANTS",
     "StoredStride",
     "contact_forces",
+    "contact_of",
     "grf_per_foot",
     "load",
     "path_of",

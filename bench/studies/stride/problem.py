@@ -107,6 +107,9 @@ class StrideSettings:
     w_accel: float = 1e-6
     tol: float = 1e-10
     stature: float = 1.75
+    passive: str = "none"  # passive joint moments (passive.py): "none" or "anderson-pandy"
+    spring: tuple[float, float, float] = (0.0, 0.0, 0.0)  # N·m/kg/rad: hip, knee, ankle springs (passive.py)
+    contact: dict = field(default_factory=dict)  # the floor's contact: fields changed (data.contact_of)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -57,8 +57,8 @@ import numpy as np
 
 from exo_bench.bench.studies.stride.actuators import actuators
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, FreeMap, mirror_matrix
-from exo_bench.bench.studies.stride.data import contact_mask_order
-from exo_bench.models.contact import DEFAULT_CONTACT
+from exo_bench.bench.studies.stride.data import contact_mask_order, contact_of
+from exo_bench.bench.studies.stride.passive import passive_moment
 from exo_bench.models.contact_casadi import contact_force_expr
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.posture import joints
@@ -99,7 +99,8 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
     at = lambda x, link: x[(3 * link + 2) * dim : (3 * link + 3) * dim]  # noqa: E731  the link's end mass
     links = contact_mask_order(mech)
-    f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), DEFAULT_CONTACT) for i in links])
+    floor = contact_of(s)
+    f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), floor) for i in links])
     pc = ca.vertcat(*[at(p, i) for i in links])
     tau = symbolic.inverse_dynamics_function(mech)(q, qd, qdd) - ca.mtimes(ca.jacobian(pc, q).T, f)
     eye = actuators(mech, np.eye(dof))  # the split is linear: its matrix, row i the split of e_i
@@ -108,14 +109,14 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     residuals = ca.mtimes(ca.DM(eye.residuals.T), tau)
     js = joints(mech)
     rel = ca.vertcat(*[qd[link] - qd[ref] for link, ref, _ in js])
-    jp = moments * rel
     tel = [eye.rod_names.index(r) for r in TELESCOPIC]
     rp = ca.vertcat(*[rods[k] * qd[n + mech.names.index(eye.rod_names[k])] for k in tel])
     priced = [eye.joint_names.index(j) for j in PRICED_JOINTS]
-    powers = ca.vertcat(*[jp[k] for k in priced], rp)
     mass, bw = mech.total_mass, mech.total_mass * mech.g
+    active = _active_moments(mech, s, q, moments, priced)  # the net moments less the passive elements'
+    powers = ca.vertcat(*[active[i] * rel[k] for i, k in enumerate(priced)], rp)
     strength = [strength_of(s, j) for j in PRICED_JOINTS]  # N·m/kg: each joint's effort in units of its strength
-    effort = s.w_moment * ca.sumsqr(ca.vertcat(*[moments[k] / (mass * w) for k, w in zip(priced, strength)]))
+    effort = s.w_moment * ca.sumsqr(ca.vertcat(*[a / (mass * w) for a, w in zip(active, strength)]))
     effort += s.w_force * ca.sumsqr(ca.vertcat(*[rods[k] for k in tel]) / bw) + s.w_accel * ca.sumsqr(qdd)
     root = mech.names.index("root")
     hip_p, hip_v = at(p, root), at(v, root)
@@ -125,6 +126,21 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
     rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
     return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
+
+
+def _active_moments(mech: Mechanism, s: Any, q: Any, moments: Any, priced: list[int]) -> list:
+    """The priced joints' active moments: each net moment less its passive element's
+    (:func:`~exo_bench.bench.studies.stride.passive.passive_moment`, about the standing posture)."""
+    from exo_bench.models.posture import balanced_standing
+
+    q0 = balanced_standing(mech, s.stature)[0]
+    js = joints(mech)
+    out = []
+    for k, name in zip(priced, PRICED_JOINTS):
+        link, ref, _ = js[k]
+        theta, theta_0 = q[link] - q[ref], float(q0[link] - q0[ref])
+        out.append(moments[k] - passive_moment(s, name.split("_", 1)[1], theta, theta_0, mech.total_mass, ca.exp))
+    return out
 
 
 @dataclass

@@ -1,0 +1,61 @@
+"""Trials of the stride problem: the stored problem with settings changed, solved from a stored stride and
+stored beside it (data/trials/<name>/, tabled in the stride's report by :func:`~.report.trials_table`).
+
+``python -m exo_bench.bench.studies.stride.trials NAME KEY=VALUE ...`` solves one (values are Python
+literals: ``w_accel=1e-5``, ``passive=True``) from the stored human stride at 1.41 m/s and writes it,
+with the command and commit in its provenance. One solve at a time: each takes a minute or more.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from exo_bench.bench.studies.stride import data, problem
+from exo_bench.models.names import check_name
+
+
+def trial_folder(name: str, root: Path | None = None) -> Path:
+    """The folder of trial ``name`` (a checked name, never a path)."""
+    check_name(name, "trial")
+    from exo_bench.models.names import file_stem
+
+    return Path(data.DATA / "trials" if root is None else root) / file_stem(name)
+
+
+def run(name: str, overrides: dict[str, Any], variant: str = "human", speed: float = 1.41, root=None) -> Path:
+    """Solve the stored problem of ``variant`` at ``speed`` with ``overrides`` from its stored stride; store it."""
+    import subprocess
+
+    from exo_bench.models.presets import human
+
+    mech = human(2)
+    source = data.load(variant, speed, mech)
+    s = replace(problem.settings_for(mech, variant, speed), **overrides)
+    st = problem.solve_from(mech, s, source)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    args = ", ".join(f"{k}={v!r}" for k, v in overrides.items())
+    st.meta["provenance"] = {
+        "command": f"trial: problem.solve_from(mech, replace(settings_for(mech, {variant!r}, {speed:g}), {args}), "
+        f"the stored {variant} stride at {speed:g} m/s of {commit})",
+        "commit": commit,
+        "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    }
+    return data.save(st, mech, trial_folder(name, root))
+
+
+def main(argv: list[str]) -> int:
+    name, *pairs = argv
+    overrides = {k: ast.literal_eval(v) for k, v in (p.split("=", 1) for p in pairs)}
+    path = run(name, overrides)
+    st = data.load("human", 1.41, folder=path.parent)
+    print(path, st.solver["solve_seconds"], st.solver["objective"])
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - a maintainer's command
+    sys.exit(main(sys.argv[1:]))
