@@ -18,6 +18,7 @@ family's simd.py, which imports it).
 from __future__ import annotations
 
 import threading
+import time
 
 import numba
 import numpy as np
@@ -271,8 +272,24 @@ class ThreadScratch:
         return s
 
 
+#: The calling thread waits for the pool's last shares at most this many times the longest share it
+#: computed itself (the same kernel on a share of the same size: the predicted cost of one share) ...
+WAIT_ALLOWANCE = 1000.0
+#: ... and at least this many seconds (a pool thread the OS keeps off its core on a loaded machine).
+WAIT_FLOOR = 120.0
+
+
 def run(
-    kernel, params, q, qd, qdd, o, samples: int, threads: int | None = None, scratch: ThreadScratch | None = None
+    kernel,
+    params,
+    q,
+    qd,
+    qdd,
+    o,
+    samples: int,
+    threads: int | None = None,
+    scratch: ThreadScratch | None = None,
+    wait_limit: float | None = None,
 ) -> None:
     """``kernel`` over a batch of flat states into ``o``: in the calling thread, or for at least
     :data:`PARALLEL_MIN_ELEMENTS` state elements (:func:`parallel_min_samples`) over ``threads`` (default
@@ -285,7 +302,10 @@ def run(
     10,000 exo5-3d samples took 0.1-0.7 us per sample against 0.09 on one thread; on a quiet
     machine it is the two cores' speed. ``numba.set_num_threads(1)`` keeps a batch on the calling
     thread. ``scratch``: each thread passes its own scratch to the kernel (:class:`ThreadScratch`);
-    without it the kernel allocates its scratch at each call."""
+    without it the kernel allocates its scratch at each call. The wait for the pool's shares is bounded:
+    ``wait_limit`` seconds (default: :data:`WAIT_ALLOWANCE` times the calling thread's longest share, at
+    least :data:`WAIT_FLOOR`); beyond it no further share starts and a TimeoutError names the batch and
+    the limit (``o`` is then incomplete, as after any error of the kernel)."""
     small = samples < parallel_min_samples(q.shape[0] // samples if samples else 1)
     if threads is None:
         threads = 1 if small else numba.get_num_threads()
@@ -297,8 +317,9 @@ def run(
     cond = threading.Condition()
     busy = [0]
     errors = []
+    longest = [0.0]  # the calling thread's longest share, seconds
 
-    def work():
+    def work(timed: bool = False):
         mine = () if scratch is None else (scratch(),)
         while True:
             with cond:
@@ -307,7 +328,10 @@ def run(
                     return
                 busy[0] += 1
             try:
+                t0 = time.perf_counter() if timed else 0.0
                 kernel(params, q, qd, qdd, o, s0, min(samples, s0 + size), *mine)
+                if timed:
+                    longest[0] = max(longest[0], time.perf_counter() - t0)
             except BaseException as e:  # noqa: BLE001 - re-raised in the calling thread
                 errors.append(e)
             finally:
@@ -318,9 +342,15 @@ def run(
     pool = RUNTIME.pool(threads - 1)  # numba_runtime holds the one pool
     for _ in range(threads - 1):
         pool.submit(work)
-    work()
+    work(timed=True)
+    limit = max(WAIT_FLOOR, WAIT_ALLOWANCE * longest[0]) if wait_limit is None else float(wait_limit)
     with cond:
-        while busy[0]:
-            cond.wait()
+        if not cond.wait_for(lambda: not busy[0], timeout=limit):
+            starts = iter(())  # no share starts after this (work() reads this variable of run)
+            raise TimeoutError(
+                f"SIMD batch of {samples} samples on {threads} threads: {busy[0]} share(s) of {size} samples "
+                f"still running after the limit of {limit:g} s (the calling thread's longest share took "
+                f"{longest[0]:.3g} s)"
+            )
     if errors:
         raise errors[0]

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import threading
 
+import numpy as np
 import pytest
 
 from exo_bench.bench.perf.reports import benchmark_reports as br
@@ -45,3 +47,44 @@ def test_the_bench_command_passes_the_option():
 
     args = build_parser().parse_args(["bench", "--suite-timeout", "90"])
     assert options(args).suite_timeout == 90.0
+
+
+def _split_batch(kernel, wait_limit):
+    """models.simd_blocks.run over 2 threads with a stand-in kernel (a Python function: run takes any)."""
+    from exo_bench.models import simd_blocks
+
+    samples = simd_blocks.parallel_min_samples(1)
+    q = np.zeros(samples)
+    o = np.zeros(samples)
+    simd_blocks.run(kernel, None, q, q, q, o, samples, threads=2, wait_limit=wait_limit)
+    return o
+
+
+def test_a_stuck_pool_share_is_a_named_timeout():
+    """A pool thread stuck in its share (a stand-in kernel waiting on an event): the calling thread
+    computes every other share, then waits 0.2 s, not forever, and names the batch and the limit."""
+    main, release = threading.get_ident(), threading.Event()
+
+    def kernel(params, q, qd, qdd, o, s0, s1):
+        if threading.get_ident() != main:
+            release.wait(30)
+        o[s0:s1] = 1.0
+
+    try:
+        with pytest.raises(
+            TimeoutError, match=r"SIMD batch of \d+ samples on 2 threads: 1 share\(s\).*limit of 0\.2 s"
+        ):
+            _split_batch(kernel, 0.2)
+    finally:
+        release.set()
+
+
+def test_the_default_wait_is_bounded_and_a_split_batch_completes():
+    """Without a stuck thread every share is computed; the default limit is WAIT_FLOOR at least."""
+    from exo_bench.models import simd_blocks
+
+    def kernel(params, q, qd, qdd, o, s0, s1):
+        o[s0:s1] = 1.0
+
+    assert np.all(_split_batch(kernel, None) == 1.0)
+    assert 0 < simd_blocks.WAIT_FLOOR < float("inf") and simd_blocks.WAIT_ALLOWANCE > 1

@@ -143,7 +143,8 @@ def run_row(
         except subprocess.TimeoutExpired:
             with contextlib.suppress(ProcessLookupError):
                 os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
+            with contextlib.suppress(subprocess.TimeoutExpired):  # a child in a session of its own may hold the pipe
+                proc.communicate(timeout=60)
             rec.update(
                 status="over budget",
                 reason=f"over the row budget of {budget:g} s (killed)",

@@ -29,15 +29,14 @@ def trial_folder(name: str, root: Path | None = None) -> Path:
 
 def run(name: str, overrides: dict[str, Any], variant: str = "human", speed: float = 1.41, root=None) -> Path:
     """Solve the stored problem of ``variant`` at ``speed`` with ``overrides`` from its stored stride; store it."""
-    import subprocess
-
+    from exo_bench.bench.output.provenance import _git_commit  # git with a timeout (issue 34: no unbounded wait)
     from exo_bench.models.presets import human
 
     mech = human(2)
     source = data.load(variant, speed, mech)
     s = replace(problem.settings_for(mech, variant, speed), **overrides)
     st = problem.solve_from(mech, s, source)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    commit = _git_commit()
     args = ", ".join(f"{k}={v!r}" for k, v in overrides.items())
     st.meta["provenance"] = {
         "command": f"trial: problem.solve_from(mech, replace(settings_for(mech, {variant!r}, {speed:g}), {args}), "
