@@ -44,6 +44,28 @@ def toe_share(stride) -> float:
     return float(toe / (heel + toe)) if heel + toe > 0 else float("nan")
 
 
+def floor_work(mech: Mechanism, stride) -> float:
+    """The floor's work on the body over the stride (J; negative: absorbed), the contact forces times their
+    points' velocities summed over the heels and toes (trapezoidal in time). Its Hertz part is elastic and
+    returns what it stores over a periodic stride, so what is left is the contact's damping and friction:
+    energy the body loses at the floor and the objective does not price."""
+    from exo_bench.bench.studies.stride.data import contact_mask_order
+    from exo_bench.models.kinematics import point_mass_velocities
+
+    v = point_mass_velocities(mech, stride.q, stride.qd)[:, contact_mask_order(mech), 2, :]
+    return float(np.trapezoid(np.einsum("kpd,kpd->k", stride.contact, v), stride.t))
+
+
+def negative_joint_work(curves: dict, period: tuple[float, float], mass: float) -> tuple[float, float]:
+    """The hips', knees' and ankles' negative work per stride (J, both legs: twice the right leg's), ours and
+    Winter's scaled to ``mass``, from the cycle's power curves (W/kg, bin means); ``period`` (ours, his) in s."""
+    out = []
+    for side, T in zip(("ours", "winter"), period):
+        p = np.stack([getattr(curves[f"{j} power"], side) for j in ("hip", "knee", "ankle")])
+        out.append(float(2.0 * mass * np.minimum(p, 0.0).sum() * T / p.shape[1]))
+    return out[0], out[1]
+
+
 def rod_travel(mech: Mechanism, stride) -> str:
     """The telescopic rods' largest length range over the stride (cm) and largest rate (m/s), as text."""
     rods = [mech.nlinks + mech.names.index(r) for r in stride.telescopic]
@@ -60,6 +82,8 @@ __all__ = [
     "WINTER_STANCE",
     "contacts",
     "double_support",
+    "floor_work",
+    "negative_joint_work",
     "rod_travel",
     "toe_share",
 ]

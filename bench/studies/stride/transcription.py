@@ -80,6 +80,7 @@ class Rows:
     heel_height: int
     powers: slice
     effort: int
+    floor: int
     size: int
 
 
@@ -99,9 +100,10 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
     at = lambda x, link: x[(3 * link + 2) * dim : (3 * link + 3) * dim]  # noqa: E731  the link's end mass
     links = contact_mask_order(mech)
-    floor = contact_of(s)
-    f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), floor) for i in links])
+    params = contact_of(s)
+    f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), params) for i in links])
     pc = ca.vertcat(*[at(p, i) for i in links])
+    floor = ca.dot(f, ca.vertcat(*[at(v, i) for i in links]))  # W: the floor's power on the body
     tau = symbolic.inverse_dynamics_function(mech)(q, qd, qdd) - ca.mtimes(ca.jacobian(pc, q).T, f)
     eye = actuators(mech, np.eye(dof))  # the split is linear: its matrix, row i the split of e_i
     moments = ca.mtimes(ca.DM(eye.moments.T), tau)
@@ -121,10 +123,10 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     root = mech.names.index("root")
     hip_p, hip_v = at(p, root), at(v, root)
     heel = at(p, mech.names.index("right_heel"))[1]
-    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, powers, effort]
+    parts = [residuals, moments, rods, f, hip_p, hip_v, heel, powers, effort, floor]
     sizes = np.cumsum([0] + [x.numel() for x in parts])
     sl = [slice(int(a_), int(b_)) for a_, b_ in zip(sizes[:-1], sizes[1:])]
-    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7], sl[8].start, int(sizes[-1]))
+    rows = Rows(sl[0], sl[1], sl[2], sl[3], sl[4], sl[5], sl[6].start, sl[7], sl[8].start, sl[9].start, int(sizes[-1]))
     return ca.Function("stride_node", [q, qd, qdd], [ca.vertcat(*parts), tau]), rows
 
 
@@ -253,6 +255,8 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
         c = ca.DM(price)  # (npow, 1): the joints' work at 1, the rods' at w_rod_work
         work = s.w_positive * ca.sum1(c * Up) + s.w_negative * ca.sum1(c * Un)  # (1, N + 1): work per metre over BW
     f = sum(float(w[k]) * (work[k] + Y[k][rows.effort]) for k in range(N + 1))
+    if s.w_floor:  # the floor's absorbed work per metre over BW (its elastic part returns over the stride)
+        f += s.w_floor * sum(float(w[k]) * -Y[k][rows.floor] / unit for k in range(N + 1))
     lbz, ubz = _variable_bounds(mech, fm, s)
     slack = 2 * npow * (N + 1)
     lbx = np.concatenate([np.tile(lbz, N + 1), [s.period[0] / 2], np.zeros(slack)])
