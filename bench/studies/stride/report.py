@@ -178,7 +178,7 @@ def trials_table(mech: Mechanism, stride: data.StoredStride, trials=None) -> lis
     share of the foot's vertical impulse and the rods' share of positive work, all computed here."""
     from pathlib import Path
 
-    from exo_bench.bench.studies.stride.evidence import toe_share
+    from exo_bench.bench.studies.stride.evidence import floor_work, toe_share
 
     root = Path(TRIALS if trials is None else trials)
     found = []
@@ -197,12 +197,12 @@ def trials_table(mech: Mechanism, stride: data.StoredStride, trials=None) -> lis
         rows.append(
             f"| {md(name)} | {md(diff)} | {met} of {len(c.verdicts)} | {inside} of {len(c.peaks)} | {rs} | "
             f"{toe_share(t):.1%} | {cmp.rod_share(mech, t)[0]:.1%} | {t.period:.3f} | "
-            f"{t.solver.get('objective', float('nan')):.4g} |"
+            f"{t.solver.get('objective', float('nan')):.4g} | {-floor_work(mech, t):.1f} |"
         )
     head = [
         "| trial | settings changed | checks met | peaks within 2x | moment r | toe's share | rods' share | period s "
-        "| objective |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| objective | floor absorbs J |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     return head + rows if found else []
 
