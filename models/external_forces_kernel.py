@@ -1,18 +1,24 @@
 """The compiled pass of ``f_ext``: ``dest = tau - Q``, ``tau + Q`` or ``Q`` (:func:`apply`), with the
 generalised forces ``Q(q, f_ext) = sum_k J_k^T f_k`` of :func:`exo_bench.models.external_forces.generalized_forces`.
 
-Imported only by :func:`exo_bench.models.external_forces_compiled.kernel`, after numba's set-up. The
-machine code is cached on disk (``cache=True``), keyed on this file, which therefore inlines nothing
-from another: the rod projections of :mod:`exo_bench.models.rod_elements` (``project_2d``/``_3d``) are
-written out here in the same expressions, so the numbers are the numpy ones to the last bit
-(tests/test_external_forces.py and tests/test_external_forces_fast_path.py assert it; an edit there
-that is not made here fails them).
+Imported only by :func:`exo_bench.models.external_forces_compiled.kernel`, after numba's set-up. Each
+rod's ``J^T F`` is the rod elements' own ``project_2d``/``project_3d`` (:mod:`exo_bench.models.rod_elements`,
+the functions the numpy reference and newton-euler's kernels call): nothing physical is written twice,
+and the numbers are the numpy ones to the last bit (tests/test_external_forces.py and
+tests/test_external_forces_fast_path.py assert it). The machine code is cached on disk (``cache=True``),
+keyed on this file and on rod_elements.py (:data:`exo_bench.models.numba_cache.KERNEL_SOURCES`): an edit to
+an element recompiles this kernel (tests/test_external_forces_elements.py).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from exo_bench.models import numba_cache
+from exo_bench.models.rod_elements import project_2d, project_3d
+
+numba_cache.inline((project_2d, project_3d), __file__)  # callable from the kernel below, keyed on their file
 
 
 @njit(cache=True, nogil=True)
@@ -56,17 +62,15 @@ def apply(params, q, f, tau, dest, mode, check):  # pragma: no cover - compiled
                 for c in range(dim):
                     through[p, c] += through[k, c]
                     F[p, c] += through[k, c]
-        for k in range(n):  # J^T F of each rod, signed (rod_elements.project_2d / project_3d)
-            cf, sf, sk, fx, fy = np.cos(q[o + k]), np.sin(q[o + k]), params[1 + n + k], F[k, 0], F[k, 1]
+        for k in range(n):  # J^T F of each rod (unsigned elements), signed
+            cf, sf, sk = np.cos(q[o + k]), np.sin(q[o + k]), params[1 + n + k]
             if dim == 2:
-                l = q[o + n + k]  # noqa: E741 - the rod's length, as in rod_elements
-                Q[k], Q[n + k] = sk * (l * (cf * fy - sf * fx)), sk * (cf * fx + sf * fy)
+                m_phi, f_l = project_2d(cf, sf, q[o + n + k], F[k, 0], F[k, 1])
+                Q[k], Q[n + k] = sk * m_phi, sk * f_l
             else:
-                cp, sp, l, fz = np.cos(q[o + n + k]), np.sin(q[o + n + k]), q[o + 2 * n + k], F[k, 2]  # noqa: E741
-                radial = cf * fx + sf * fy
-                Q[k] = sk * (l * cp * (cf * fy - sf * fx))
-                Q[n + k] = sk * (l * (cp * fz - sp * radial))
-                Q[2 * n + k] = sk * (cp * radial + sp * fz)
+                cp, sp = np.cos(q[o + n + k]), np.sin(q[o + n + k])
+                m_phi, m_psi, f_l = project_3d(cf, sf, cp, sp, q[o + 2 * n + k], F[k, 0], F[k, 1], F[k, 2])
+                Q[k], Q[n + k], Q[2 * n + k] = sk * m_phi, sk * m_psi, sk * f_l
         for j in range(dof):
             if mode == 0:
                 dest[o + j] = Q[j]

@@ -55,6 +55,9 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
         # its kernels inline the rod elements (rod_elements.py, below every method: external_forces.py
         # projects with them too); forward_fused.py calls the compiled checks of forward_check.py
         _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py"),
+        # one kernel file of its own (a key may be a file: its kernels are keyed on it and these, not on
+        # the rest of models/): f_ext's pass projects with the rod elements
+        _HERE / "external_forces_kernel.py": (_HERE / "rod_elements.py",),
     }
 )
 
@@ -95,7 +98,7 @@ def inlined_sources(kernel_dir: str | Path) -> list[Path]:
     """The source files the kernels of ``kernel_dir`` depend on: every module of that folder, the
     modules of the element functions registered for it, and :data:`SHARED_SOURCES`."""
     folder = Path(kernel_dir).resolve()
-    own = sorted(p.resolve() for p in folder.glob("*.py"))
+    own = [folder] if folder.suffix == ".py" else sorted(p.resolve() for p in folder.glob("*.py"))
     extra = list(KERNEL_SOURCES.get(folder, ())) + list(SHARED_SOURCES)
     return own + list(dict.fromkeys(p for p in extra if p not in own))
 
@@ -132,9 +135,10 @@ class KernelSourceLocator(_CacheLocator):
     @classmethod
     def from_function(cls, py_func: Callable[..., Any], py_file: str) -> KernelSourceLocator | None:
         try:
-            folder = Path(py_file).resolve().parent
+            file = Path(py_file).resolve()
         except OSError:
             return None
+        folder = file if file in KERNEL_SOURCES else file.parent  # a kernel file of its own, else its folder
         if folder not in KERNEL_SOURCES:
             return None
         for base in _CacheImpl._locator_classes:
