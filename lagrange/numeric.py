@@ -20,6 +20,7 @@ import sympy as sp
 
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
 from exo_bench.lagrange.derivation import Derivation, derive
+from exo_bench.models.bounded_cache import BoundedCache
 from exo_bench.models.mechanism import Mechanism, as_states
 
 DEFAULT_BUDGET = 120.0
@@ -36,8 +37,9 @@ class Lambdified:
     seconds: float  # wall time of the lambdify call
 
 
-_CACHE: dict[tuple[Mechanism, str], Lambdified] = {}
-_FAILED: dict[tuple[Mechanism, str], float] = {}  # seconds an unfinished compilation ran
+# Bounded memos (models/bounded_cache.py): four functions per mechanism, of the latest eight or so.
+_CACHE: BoundedCache[tuple[Mechanism, str], Lambdified] = BoundedCache(32)
+_FAILED: BoundedCache[tuple[Mechanism, str], float] = BoundedCache(256)  # seconds an unfinished compilation ran
 
 
 def _columns(fn: Callable, args: list[np.ndarray], samples: int, width: int) -> np.ndarray:

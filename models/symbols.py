@@ -8,7 +8,7 @@ Coordinates, rates and accelerations are plain symbols (not functions of time):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
+from functools import lru_cache
 
 import sympy as sp
 
@@ -53,7 +53,7 @@ class Symbols:
         return out
 
 
-@cache
+@lru_cache(maxsize=64)  # keyed on a user n: bounded (issue 34); equal names give equal sympy symbols
 def symbols_for(nlinks: int, dim: int) -> Symbols:
     """The shared symbols of an ``nlinks``-link model in ``dim`` dimensions (real-valued)."""
     k = range(1, nlinks + 1)

@@ -20,6 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from exo_bench.models.bounded_cache import BoundedCache
 from exo_bench.models.mechanism import Mechanism
 
 
@@ -46,7 +47,9 @@ class PydyFunction:
     compose_seconds: float
 
 
-_CACHE: dict[Mechanism, PydyFunction] = {}
+#: PyDy's compiled functions of the latest mechanisms (bounded: models/bounded_cache.py; a dropped one's
+#: extension module stays imported, as Python cannot unload it, but its generated sources are freed).
+_CACHE: BoundedCache[Mechanism, PydyFunction] = BoundedCache(16)
 
 
 def pydy_cython(mech: Mechanism) -> PydyFunction:
