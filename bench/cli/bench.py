@@ -9,6 +9,17 @@ from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, des
 from exo_bench.bench.perf.options import BenchOptions
 
 
+def full_help() -> str:
+    """``--full``'s help, from the full sweep's definition (bench/perf/profiles.py FULL): its largest models
+    and its samples per batch."""
+    from exo_bench.bench.perf import profiles
+
+    full = profiles.FULL
+    largest = max((*full.inverse_n, *full.scaling_n, *full.forward_n))
+    alone = f", newton-euler alone to {max(full.newton_euler_n):,}" if full.newton_euler_n else ""
+    return f"the whole sweep (n up to {largest:,}{alone}, {full.samples:,} samples per batch); slow"
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
     s = sub.add_parser(
         "bench",
@@ -18,7 +29,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "exo-bench bench --full --workers 2",
         ),
     )
-    s.add_argument("--full", action="store_true", help="the whole sweep (n up to 100, 10,000 samples); slow")
+    s.add_argument("--full", action="store_true", help=full_help())
     s.add_argument(
         "--update-readme",
         action="store_true",
