@@ -10,8 +10,9 @@ each adds its stack, its scratch (a Pinocchio ``Data`` per thread) or a whole pr
 leaves room for hyper-threads and waits and refuses the typo (1000 threads on two cores ran the
 process out of address space, and libgomp ended it with no exception: issue 34, C1).
 
-Within the bound, what the count creates is predicted before it is created: the threads' stacks and
-scratch against the address space left under ``ulimit -v`` (:func:`check_thread_room`; the stacks are
+Within the bound, the count must also fit under the user's process limit (RLIMIT_NPROC, ``ulimit -u``,
+which counts threads too): :func:`task_room`. Within both, what the count creates is predicted before
+it is created: the threads' stacks and scratch against the address space left under ``ulimit -v`` (:func:`check_thread_room`; the stacks are
 reserved whole, whether or not they are touched), a Pinocchio ``Data`` per thread against the memory
 (:mod:`exo_bench.api.cost_model`), and :data:`WORKER_BYTES` per local worker (``--workers``).
 """
@@ -57,11 +58,48 @@ def count_problem(value: object, what: str = "threads") -> str | None:
         except ImportError:  # pragma: no cover - numpy is a dependency
             pass
     if ok_type and 1 <= int(value) <= bound:  # type: ignore[call-overload]
-        return None
+        room = task_room()
+        if room is None or int(value) <= room:  # type: ignore[call-overload]
+            return None
+        return (
+            f"expected at most {room} {what}: this user may start {room} more threads or processes under its "
+            f"process limit (RLIMIT_NPROC, ulimit -u {resource.getrlimit(resource.RLIMIT_NPROC)[0]}, "
+            f"threads included), got {value!r}"
+        )
     return (
         f"expected a whole number of {what} from 1 to at most {bound} ({PER_CPU} per usable CPU, "
         f"{usable_cpus()} here: more only take turns on the cores), got {value!r}"
     )
+
+
+def user_tasks(uid: int) -> int:
+    """Threads of every process of real user ``uid`` (what RLIMIT_NPROC counts), from /proc; 0 where
+    /proc cannot be read."""
+    total = 0
+    try:
+        pids = [p for p in os.listdir("/proc") if p.isdigit()]
+    except OSError:
+        return 0
+    for pid in pids:
+        try:
+            with open(f"/proc/{pid}/status") as f:
+                fields = dict(line.split(":", 1) for line in f if ":" in line)
+            if int(fields["Uid"].split()[0]) == uid:
+                total += int(fields["Threads"])
+        except (OSError, ValueError, KeyError):  # a process that ended meanwhile
+            continue
+    return total
+
+
+def task_room() -> int | None:
+    """Threads or processes this user may still start under RLIMIT_NPROC (``ulimit -u``): the soft limit
+    less the user's running threads (:func:`user_tasks`); None when unlimited or not enforced (the kernel
+    does not apply it to root)."""
+    soft = resource.getrlimit(resource.RLIMIT_NPROC)[0]
+    uid = os.getuid()
+    if soft in (resource.RLIM_INFINITY, -1) or uid == 0:
+        return None
+    return max(0, int(soft) - user_tasks(uid))
 
 
 def check_count(option: str, value: object, what: str = "threads") -> int:
