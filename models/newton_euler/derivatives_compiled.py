@@ -117,29 +117,33 @@ def _columns(t, dim, x, xd, xdd, W, Y, P):
 @njit(**JIT)
 def _blocks(mu, dim, Y, P, oq, oqd, om, m):
     """3. Every block ``mu_ij J_i^T Y_j`` into the three ``(dof, dof)`` outputs, row by row (module
-    docstring; ``m``: ``(dof,)`` scratch), then ``P`` on the diagonal."""
+    docstring; ``m``: ``(dof,)`` scratch), then ``P`` on the diagonal. No view and no call inside: each
+    would count references by an atomic instruction (exo5-3d: 0.91 us per sample with a view of each
+    output row and of the rows of ``Y``, 0.63 with these 2D indices; the same operations, the same bits)."""
     n = mu.shape[0]
     dof = dim * n
     for i in range(n):
         for d in range(dim):
-            m[d * n : (d + 1) * n] = mu[i]
+            for j in range(n):
+                m[d * n + j] = mu[i, j]
         for c in range(dim):
-            col = c * n + i  # row c of s_i J_i^T: column c of s_i J_i, its components in rows 0..dim-1 of Y
-            z0, z1 = Y[0, col], Y[1, col]
-            r = c * n + i
+            r = c * n + i  # row c of s_i J_i^T: column c of s_i J_i, its components in rows 0..dim-1 of Y
+            z0, z1 = Y[0, r], Y[1, r]
             if dim == 3:
-                z2 = Y[2, col]
-                for kind in range(3):
-                    o = om[r] if kind == _J else (oq[r] if kind == _AQ else oqd[r])
-                    g0, g1, g2 = Y[3 * kind], Y[3 * kind + 1], Y[3 * kind + 2]
-                    for k in range(dof):
-                        o[k] = m[k] * (z0 * g0[k] + z1 * g1[k] + z2 * g2[k])
+                z2 = Y[2, r]
+                for k in range(dof):
+                    om[r, k] = m[k] * (z0 * Y[0, k] + z1 * Y[1, k] + z2 * Y[2, k])
+                for k in range(dof):
+                    oq[r, k] = m[k] * (z0 * Y[3, k] + z1 * Y[4, k] + z2 * Y[5, k])
+                for k in range(dof):
+                    oqd[r, k] = m[k] * (z0 * Y[6, k] + z1 * Y[7, k] + z2 * Y[8, k])
             else:
-                for kind in range(3):
-                    o = om[r] if kind == _J else (oq[r] if kind == _AQ else oqd[r])
-                    g0, g1 = Y[2 * kind], Y[2 * kind + 1]
-                    for k in range(dof):
-                        o[k] = m[k] * (z0 * g0[k] + z1 * g1[k])
+                for k in range(dof):
+                    om[r, k] = m[k] * (z0 * Y[0, k] + z1 * Y[1, k])
+                for k in range(dof):
+                    oq[r, k] = m[k] * (z0 * Y[2, k] + z1 * Y[3, k])
+                for k in range(dof):
+                    oqd[r, k] = m[k] * (z0 * Y[4, k] + z1 * Y[5, k])
         for c in range(dim):
             for d in range(dim):
                 oq[c * n + i, d * n + i] += P[d * dim + c, i]
