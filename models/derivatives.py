@@ -107,7 +107,7 @@ class Derivatives(DerivativeChecks):
     check (:class:`exo_bench.models.derivative_checks.DerivativeChecks`: states, singular states, no NaN out)."""
 
     def __init__(self, mechanism: Mechanism, method: str = "newton-euler", source: str | None = None, kernel="auto"):
-        from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
+        from exo_bench.models.newton_euler.derivatives import RECYCLE_MIN_BYTES, prepare_inverse_derivatives
 
         self.mechanism = mechanism
         self.method = method
@@ -121,8 +121,9 @@ class Derivatives(DerivativeChecks):
         self.inverse_derivatives = prepare_inverse_derivatives(mechanism)
         self.tree, self.table = self.inverse_derivatives.tree, self.inverse_derivatives.table
         #: new batched results of the forward calls, recycled once dropped (models/result_pool.py): the
-        #: four of two calls (a loop holds the previous ones during the next call)
-        self._results = ResultPool(keep=8)
+        #: four of two calls (a loop holds the previous ones during the next call), from the size the
+        #: inverse derivatives recycle (:data:`exo_bench.models.newton_euler.derivatives.RECYCLE_MIN_BYTES`)
+        self._results = ResultPool(keep=8, min_bytes=RECYCLE_MIN_BYTES)
 
     def __repr__(self) -> str:
         return f"<Derivatives of {self.mechanism.name!r} for {self.method!r}: {self.source}>"

@@ -81,6 +81,10 @@ SIMD_BELOW_LINKS = 10
 PARALLEL_MIN_SAMPLES = 4096
 #: A batch of at least this many output entries runs on numba's threads.
 PARALLEL_MIN_ENTRIES = 2**18
+#: Results of at least this many bytes are recycled once dropped (:class:`InverseDerivatives`): glibc's
+#: initial mmap threshold, above which a result may come from a fresh mapping (result_pool's own default,
+#: 4 MiB, is for results of inverse dynamics, of which a batch is ``dof`` times smaller).
+RECYCLE_MIN_BYTES = 1 << 17
 
 
 def _state_problem(name: str, a, dof: int) -> str | None:
@@ -154,10 +158,11 @@ class InverseDerivatives:
         self._shapes = ((self.dof,), (self.dof, self.dof))
         self._simd_scratch: Any = None  # the SIMD kernel's ThreadScratch, made at its first call
         #: New batched results, recycled once dropped (:mod:`exo_bench.models.result_pool`): a fresh
-        #: ``(S, dof, dof)`` array of 4 MiB or more is a new mapping whose pages the OS zeroes on first
-        #: touch; chain 100 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``.
+        #: ``(S, dof, dof)`` array may be a new mapping whose pages the OS zeroes on first touch; chain 100
+        #: 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``; exo5-3d, 256 samples
+        #: (460 kB each): 3.6 us against 1.6 (193 page faults a call), so from :data:`RECYCLE_MIN_BYTES`.
         #: Six: the three results of two calls (a loop holds the previous ones during the next call).
-        self._results = ResultPool(keep=2 * len(OUTPUTS))
+        self._results = ResultPool(keep=2 * len(OUTPUTS), min_bytes=RECYCLE_MIN_BYTES)
 
     def __repr__(self) -> str:
         return f"<InverseDerivatives of {self.mechanism.name!r}: {self.dof} dof, {self.dim}D>"
