@@ -46,8 +46,10 @@ from exo_bench.models.external_forces_compiled import (
 )  # re-exported: PreparedModel._external_forces
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.rod_elements import project_2d, project_3d
-from exo_bench.models.states import as_states
+from exo_bench.models.state_conversion import converted
+from exo_bench.models.states import as_states, coordinate_names
 from exo_bench.models.unchecked import check_out, unchecked_forward
+from exo_bench.models.validation import _is_number
 
 #: The points of every link, in the order of ``f_ext``'s third axis.
 POINTS = ("start", "middle", "end")
@@ -95,9 +97,12 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
             f"{who}field 'f_ext': expected forces of shape {full} (samples, links, 3 points: start, middle, "
             f"end, dim; one sample: {want}) in newtons, world axes, got {shape}"
         )
+    why = _not_real_numbers(f_ext)
+    if why:
+        raise ValueError(f"{who}field 'f_ext': expected forces in newtons (numbers), got {why}")
     try:
         f = np.ascontiguousarray(f_ext, dtype=float).reshape(-1, *want)
-    except (ValueError, TypeError) as e:  # entries that are not numbers
+    except (ValueError, TypeError, OverflowError) as e:  # entries that are not numbers
         raise ValueError(f"{who}field 'f_ext': expected forces in newtons (numbers), got {e}") from None
     if check and not np.isfinite(f).all():
         s, i, b, c = (int(x) for x in np.argwhere(~np.isfinite(f))[0])
@@ -106,6 +111,50 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
             f"{'xyz'[c]}: expected a finite force in newtons, got {f[s, i, b, c]}"
         )
     return f
+
+
+def _not_real_numbers(f_ext: Any) -> str:
+    """Why ``f_ext`` is not real numbers ('' if it is): an array of another dtype (str, bool, complex,
+    object), a masked entry, or a list entry that numpy would read as a number ("1.5", True, Decimal)."""
+    if isinstance(f_ext, np.ma.MaskedArray) and np.ma.is_masked(f_ext):
+        at = tuple(int(i) for i in np.argwhere(np.ma.getmaskarray(f_ext))[0])
+        return f"a masked entry at {at}"
+    if isinstance(f_ext, np.ndarray):
+        return "" if f_ext.dtype.kind in "iuf" else f"dtype {f_ext.dtype}"
+    objects = np.asarray(f_ext, dtype=object)
+    for at in np.ndindex(objects.shape):
+        if not _is_number(objects[at]):
+            return f"{objects[at]!r} ({type(objects[at]).__name__}) at {at}"
+    return ""
+
+
+def _tau(mech: Mechanism, tau: Any, shape: tuple, source: str) -> np.ndarray | None:
+    """``tau`` beside ``f_ext`` read as without it, by the states' converter (models/state_conversion.py:
+    real numbers only, a ValueError naming 'tau'); one sample stays 1-D; None stays None."""
+    if tau is None:
+        return None
+    t = converted(tau, "tau", source, coordinate_names(mech))
+    return t[0] if len(shape) == 1 and np.ndim(tau) == 1 else t
+
+
+def refuse_overflow(model: Any, f: np.ndarray, result: np.ndarray, what: str) -> None:
+    """With finite forces ``f`` (flat or ``(samples, links, 3, dim)``), a ValueError naming ``f_ext`` and
+    the first sample where ``result`` (``what``: Q added to tau, dQ/dq) is not finite: forces too large
+    for float64, never returned as inf or NaN nor blamed on another field. Cheap when all is finite
+    (one sum)."""
+    if np.isfinite(result.sum()):  # the sum of finite numbers may overflow: then look closer
+        return
+    mech = model.mechanism
+    forces = f.reshape(-1, mech.nlinks * 3 * mech.dim)  # one row per sample, as result's
+    bad = ~np.isfinite(result.reshape(forces.shape[0], -1)).all(axis=1)
+    if not bad.any():
+        return
+    s = int(np.argmax(bad))
+    big = float(np.abs(forces[s]).max())
+    raise ValueError(
+        f"{model.method}: field 'f_ext': sample {s}: expected forces whose {what} is finite in float64, got "
+        f"{what} not finite (largest |force| {big:.3g} N); express the forces in other units"
+    )
 
 
 # ----------------------------------------------------------------------------- Q and its derivative
@@ -207,6 +256,8 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
         if status != xc.DONE:
             _refuse(model, f, tau.shape, status)
         tau = dest
+    if check:
+        refuse_overflow(model, f, tau, "tau - Q")
     if out is None:
         return tau
     check_out(out, tau.shape, model.method)
@@ -250,6 +301,7 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         and type(q) is np.ndarray
         and type(tau) is np.ndarray
         and q.shape == tau.shape
+        and tau.dtype.kind in "iuf"
         and 0 < q.ndim <= 2
         and q.shape[-1] == b.dof
     ):
@@ -258,12 +310,14 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         status = b.apply(b.params, xc.flat(q), f, xc.flat(tau), total.reshape(-1), xc.PLUS, bool(check))
         if status != xc.DONE:
             _refuse(model, f, q.shape, status)
+        if check:
+            refuse_overflow(model, f, total, "tau + Q")
         return model.forward_dynamics(q, qd, total, check=check, out=out)
     mech = model.mechanism
     if check:
         shape = np.shape(q)
         q2, _, _ = as_states(mech, q, source="forward dynamics")
-        t = np.asarray(tau, dtype=float) if tau is not None else None
+        t = _tau(mech, tau, shape, "forward dynamics")
         if t is None or t.shape != shape:
             raise ValueError(
                 f"{model.method}: forward dynamics: field 'tau': expected an array of the shape of q, {shape}, "
@@ -273,7 +327,10 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         unchecked_forward(model.method, model.dof, q, qd, tau, out)
         shape, q2, t = q.shape, q.reshape(-1, model.dof), tau
     f = check_f_ext(mech, f_ext, shape, check, model.method)
-    return model.forward_dynamics(q, qd, t + model._external_forces(q2, f).reshape(shape), check=check, out=out)
+    total = t + model._external_forces(q2, f).reshape(shape)
+    if check:
+        refuse_overflow(model, f, total, "tau + Q")
+    return model.forward_dynamics(q, qd, total, check=check, out=out)
 
 
 def inverse_derivatives(model: Any, q, qd, qdd, f_ext, check: bool = True):
@@ -282,22 +339,27 @@ def inverse_derivatives(model: Any, q, qd, qdd, f_ext, check: bool = True):
     dq, dqd, M = model.derivatives.inverse_dynamics(q, qd, qdd, check=check)
     q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
     f = check_f_ext(model.mechanism, f_ext, q2.shape if dq.ndim == 3 else (model.dof,), check, model.method)
-    return dq - dQ_dq(model.mechanism, q2, f).reshape(dq.shape), dqd, M
+    dQ = dQ_dq(model.mechanism, q2, f)
+    if check:
+        refuse_overflow(model, f, dQ, "dQ/dq")
+    return dq - dQ.reshape(dq.shape), dqd, M
 
 
 def forward_derivatives(model: Any, q, qd, tau, f_ext, check: bool = True):
     """``model.derivatives.forward_dynamics`` with ``f_ext``: at ``tau + Q``, ``(qdd, dqdd_dq + M^-1 dQ/dq,
     dqdd_dqd, M^-1)``, shapes as there."""
     q2 = np.ascontiguousarray(q, dtype=float).reshape(-1, model.dof)
-    t = np.asarray(tau, dtype=float)
+    t = _tau(model.mechanism, tau, np.shape(q), "forward-dynamics derivatives") if check else np.asarray(tau, float)
     f = check_f_ext(model.mechanism, f_ext, np.shape(q), check, model.method)
-    if t.shape != np.shape(q):
+    if t is None or t.shape != np.shape(q):
         raise ValueError(
-            f"{model.method}: field 'tau': expected an array of the shape of q, {np.shape(q)}, got {t.shape}"
+            f"{model.method}: field 'tau': expected an array of the shape of q, {np.shape(q)}, "
+            f"got {None if t is None else t.shape}"
         )
-    qdd, aq, aqd, minv = model.derivatives.forward_dynamics(
-        q, qd, t + model._external_forces(q2, f).reshape(t.shape), check=check
-    )
+    total = t + model._external_forces(q2, f).reshape(t.shape)
+    if check:
+        refuse_overflow(model, f, total, "tau + Q")
+    qdd, aq, aqd, minv = model.derivatives.forward_dynamics(q, qd, total, check=check)
     return qdd, aq + minv @ dQ_dq(model.mechanism, q2, f).reshape(aq.shape), aqd, minv
 
 

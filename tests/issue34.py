@@ -62,6 +62,10 @@ FINDINGS: dict[str, str] = {
     "U12": "`simulate(max_seconds=-1)` was accepted",
     "F1": "the README's test command flaked: `test_lagrange_budget` raced a 50 ms budget",
     "F2": "the README's test command flaked: `test_estimate_vs_measured` compared wall-clock and memory on a loaded machine",
+    # The probe of the surfaces added since (f_ext, human model and contact, stride CLI, derivatives).
+    "P1": "`f_ext` of strings, Decimals, booleans, complex numbers or masked entries was read as numbers",
+    "P2": "with `f_ext`, forward dynamics and its derivatives read a `tau` of strings, Decimals or complex numbers",
+    "P3": "`f_ext` of 1e308 N: inverse dynamics returned inf and NaN, forward dynamics blamed `tau`",
 }
 
 
