@@ -15,13 +15,17 @@ bench/perf/derivative_routes.py:
 * one sample per call (``test_inverse_derivatives_one_sample``): ``analytic (auto)`` and ``casadi AD``
   against the baseline ``pin.rnea (bare)`` (preallocated joint arrays, as bench/test_inverse_dynamics.py);
 * forward derivatives ``(dqdd/dq, dqdd/dqd, M^-1)``, batched (``test_forward_derivatives``):
-  ``model.derivatives (newton-euler)``, ``casadi AD + LU``, and the baseline ``FD (newton-euler batched)``.
+  ``model.derivatives (newton-euler)``, ``casadi AD + LU``, and the baseline ``FD (newton-euler batched)``;
+* the directional derivatives of inverse dynamics, batched (``test_inverse_products``): ``JVP
+  (model.derivatives)`` (``dtau`` along seeded ``(dq, dqd, dqdd)``) and ``VJP (model.derivatives)``
+  (``w^T`` of the three Jacobians, seeded ``w``), the public calls with ``check=False``; the issue asks
+  about 2-3x batched ID, whose row is the inverse group's (same states, same process).
 
 **Error** against the 50-digit reference (exo_bench.lagrange.derivative_reference) on the first
 :func:`_ref_count` samples: ``max_rel_err`` (``max |ours - ref|`` over the largest ``|ref|``, over the three
 matrices) and, for inverse derivatives, ``err_ratio``, the error in units of the error model
 (``eps * scale``, the sum of ``|terms|`` of each entry). The reference goes to n = :data:`REF_N` for
-inverse and :data:`REF_N_FORWARD` for forward derivatives (its cost: the module's docstring);
+inverse derivatives and their products and :data:`REF_N_FORWARD` for forward derivatives (its cost: the module's docstring);
 beyond, ``reference`` says "none". The routes that differentiate exactly (:data:`EXACT`) are held to
 ``K eps scale`` (asserted); finite differences are recorded. A route not built in this commit skips
 with "not available in this commit" and its error; a projected batch over the profile's budget is cut
@@ -74,6 +78,7 @@ INVERSE = (
 )
 ONE_SAMPLE = ("analytic (auto)", "casadi AD", "pin.rnea (bare)")
 FORWARD = ("model.derivatives (newton-euler)", "casadi AD + LU", "FD (newton-euler batched)")
+PRODUCTS = ("JVP (model.derivatives)", "VJP (model.derivatives)")
 #: The module each peer's route imports (skipped where it is not installed), by the route's row name.
 NEEDS = {
     "casadi AD": "casadi",  # the optional extra [casadi]: without it (the main job's default install) the rows skip
@@ -84,7 +89,7 @@ NEEDS = {
 }
 #: Routes that differentiate exactly (no step): their error is ASSERTED within the error model,
 #: ``K eps scale`` with K of tests/conftest.py (finite differences are recorded, not asserted).
-EXACT = ("analytic", "model.derivatives", "casadi AD", "CalcInverseDynamics")
+EXACT = ("analytic", "model.derivatives", "casadi AD", "CalcInverseDynamics", "JVP", "VJP")
 K = 8
 UNTIMED = (
     "derivatives: the chains are measured when the benchmarks are timed (exo-bench bench); untimed "
@@ -109,6 +114,7 @@ def pytest_generate_tests(metafunc):
         "test_inverse_derivatives": INVERSE,
         "test_inverse_derivatives_one_sample": ONE_SAMPLE,
         "test_forward_derivatives": FORWARD,
+        "test_inverse_products": PRODUCTS,
     }[metafunc.function.__name__]
     cases = _cases(methods, sw)
     ids = [f"{m.replace(' ', '')}-{'exo5' if t == 'exo5' else f'chain{n}'}-3d" for m, n, _, t in cases]
@@ -318,3 +324,47 @@ def test_forward_derivatives(benchmark, sweep, references, case):
         _timed(benchmark, sweep, method, call, (q, qd, tau), _info(method, n, topology, mech, "FD"))
         return
     _derivative_row(benchmark, sweep, references, case, mech, (q, qd, tau), forward=True)
+
+
+def _product_errors(got, ref, v, jvp: bool) -> dict:
+    """A product's error against the products of the 50-digit Jacobians (rounded to float64) with the same
+    directions ``v``. Error model: each Jacobian entry carries at most ``K eps s_ij`` (``s`` its
+    :func:`~exo_bench.lagrange.derivative_reference.derivative_scale`) and the sums of the product add
+    ``eps`` per level of their terms ``|J_ij v_j|``, so a product entry carries at most ``K eps sum_j
+    s_ij |v_j|`` (transposed for the VJP): ``err_ratio`` is in those units."""
+    if ref is None:
+        return _errors(got, None)
+    (jq, jqd, M), scales = ref
+    k = jq.shape[0]
+    if jvp:
+        refs = (sum(np.einsum("sij,sj->si", J, x[:k]) for J, x in zip((jq, jqd, M), v)),)
+        units = (sum(np.einsum("sij,sj->si", S, np.abs(x[:k])) for S, x in zip(scales, v)),)
+        got = (got,)
+    else:
+        refs = tuple(np.einsum("si,sij->sj", v[0][:k], J) for J in (jq, jqd, M))
+        units = tuple(np.einsum("si,sij->sj", np.abs(v[0][:k]), S) for S in scales)
+    rel = max(dr.max_relative_error(a[:k], b) for a, b in zip(got, refs))
+    ratio = max(dr.error_ratio(a[:k], b, u) for a, b, u in zip(got, refs, units))
+    return {"reference": f"50-digit Jacobians times the directions, {k} sample(s)", "max_rel_err": rel,
+            "err_ratio": ratio}  # fmt: skip
+
+
+def test_inverse_products(benchmark, sweep, references, case):
+    method, n, dim, topology = case
+    benchmark.group = "derivatives-products-batched"
+    mech = _mech(n, topology)
+    q, qd, qdd = _states(mech, _untimed(benchmark, topology, sweep), sweep)
+    rng = np.random.default_rng(mech.nlinks)
+    jvp = method.startswith("JVP")
+    v = tuple(rng.normal(size=q.shape) for _ in range(3 if jvp else 1))
+    d = prepare(mech, "newton-euler").derivatives
+    call = d.inverse_dynamics_jvp if jvp else d.inverse_dynamics_vjp
+    route = lambda *a: call(*a, check=False)  # noqa: E731
+    args = (q, qd, qdd, *v)
+    prep = _first_call(method, route, args)
+    info = _info(method, n, topology, mech, "JVP" if jvp else "VJP", d.source) | {"prepare_s": prep}
+    got = _timed(benchmark, sweep, method, route, args, info)
+    assert all(np.isfinite(g).all() for g in (got if isinstance(got, tuple) else (got,))), f"{method}: NaN/Inf"
+    errors = _product_errors(got, _reference(references, mech, q, qd, qdd, forward=False), v, jvp)
+    benchmark.extra_info.update(errors)
+    _check_error(method, errors)

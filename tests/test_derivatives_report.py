@@ -17,7 +17,10 @@ def _row(group, method, mech, n, median, samples, topology="chain", **extra):
                 min=median, median=3 * median, samples=samples, **extra)  # fmt: skip
 
 
-def _frame(analytic_exo5=2.0e-4, one=3e-6, fwd=1e-3, c100=4e-4 * 10, chain_ns=(10, 20, 50, 100, 200, 300), p=2.0):
+def _frame(
+    analytic_exo5=2.0e-4, one=3e-6, fwd=1e-3, c100=4e-4 * 10, chain_ns=(10, 20, 50, 100, 200, 300), p=2.0,
+    jvp=1e-4, vjp=1.1e-4,
+):  # fmt: skip
     err = dict(max_rel_err=3e-16, err_ratio=0.4, reference="50-digit", prepare_s=0.1)
     r = [
         _row("inverse-batched", "ID (newton-euler batched)", "exo5-3d", 5, 4e-5, 100, "exo5"),
@@ -28,6 +31,8 @@ def _frame(analytic_exo5=2.0e-4, one=3e-6, fwd=1e-3, c100=4e-4 * 10, chain_ns=(1
         _row("inverse-one-sample", "pin.rnea (bare)", "exo5-3d", 5, 4e-6, 1, "exo5"),
         _row("forward-batched", "model.derivatives (newton-euler)", "exo5-3d", 5, fwd, 100, "exo5", **err),
         _row("forward-batched", "FD (newton-euler batched)", "exo5-3d", 5, 8e-5, 100, "exo5"),
+        _row("products-batched", "JVP (model.derivatives)", "exo5-3d", 5, jvp, 100, "exo5", **err),
+        _row("products-batched", "VJP (model.derivatives)", "exo5-3d", 5, vjp, 100, "exo5", **err),
     ]
     for n in chain_ns:  # t = c100 / 10 * (n / 100) ** p seconds per batch of 10
         r.append(_row("inverse-batched", "analytic (numba)", f"chain{n}-3d", n, c100 * (n / 100) ** p, 10, **err))
@@ -42,24 +47,27 @@ def test_goals_are_ratios_of_the_named_rows_and_judged_against_their_targets():
     """Times are the fastest rounds (``min``); the fake medians are 3x (the chain-100 figure from
     them, 1.2 ms, would not meet its goal)."""
     g = rep.goals(_frame())
-    assert [x["target"] for x in g] == [10.0, 1.0, 25.0, 0.5, 2.1]
+    assert [x["target"] for x in g] == [10.0, 1.0, 25.0, 0.5, 2.1, 3.0, 3.0]
     # exo5: 2e-4/100 per sample over 4e-5/100 -> 5x; one sample 3/4; forward 1e-3/8e-5 = 12.5x
     assert [round(x["value"], 6) for x in g[:3]] == [5.0, 0.75, 12.5]
     assert g[3]["value"] == pytest.approx(0.4)  # 4e-3 s / 10 samples = 0.4 ms
     assert g[4]["value"] == pytest.approx(2.0)
+    assert [x["value"] for x in g[5:]] == pytest.approx([2.5, 2.75])  # JVP 1e-4, VJP 1.1e-4 over ID's 4e-5
+    assert "JVP (model.derivatives)" in g[5]["measured"] and "VJP" in g[6]["goal"]
     assert all(x["verdict"] == "**met**" for x in g)
     assert "CasADi (today's path) 100x" in g[0]["measured"]
 
 
 def test_goals_not_met_are_said_so():
-    g = rep.goals(_frame(analytic_exo5=2e-3, one=5e-6, fwd=3e-3, c100=1e-2, p=2.5))
-    assert [x["verdict"] for x in g] == ["**not met**"] * 5
+    g = rep.goals(_frame(analytic_exo5=2e-3, one=5e-6, fwd=3e-3, c100=1e-2, p=2.5, jvp=1.3e-4, vjp=2e-4))
+    assert [x["verdict"] for x in g] == ["**not met**"] * 7
 
 
 def test_a_missing_row_or_range_is_not_judged():
     df = _frame(chain_ns=(10, 20))
-    df = df[df["method"] != "pin.rnea (bare)"]
+    df = df[(df["method"] != "pin.rnea (bare)") & (df["method"] != "VJP (model.derivatives)")]
     g = rep.goals(df)
+    assert g[6]["verdict"] == "not judged" and g[5]["verdict"] == "**met**"
     assert g[1]["verdict"] == "not judged" and "pin.rnea" in g[1]["measured"]
     assert g[3]["verdict"] == "not judged" and "--full" in g[3]["measured"]
     assert g[4]["verdict"] == "not judged" and "n = 10..20" in g[4]["measured"]
@@ -72,6 +80,7 @@ def test_report_uses_the_injected_header_and_clock_and_lists_rows_and_skips(tmp_
     assert "HEADER" in text and "2031-02-03" in text and "(busy)" in text
     assert "| exo5-3d analytic batched" not in text  # goals are named, not pasted rows
     assert "| chain300-3d | analytic (numba) |" in text
+    assert "### Directional derivatives" in text and "| exo5-3d | JVP (model.derivatives) |" in text
     assert "refused: mimic" in text
     assert png.exists() and png.stat().st_size > 0
 

@@ -14,7 +14,9 @@ The goals (issue 36), each from measured rows, stated as met, not met, or not ju
   batched forward dynamics per sample;
 * 3D chain of 100 links: dtau/d(q, qd) <= 0.5 ms per sample (the fastest analytic kernel there);
 * growth exponent of that kernel's time per sample over n = 10 to 300 <= 2.1 (least squares of log t
-  on log n over the chains measured; judged only when they span 10 to 300).
+  on log n over the chains measured; judged only when they span 10 to 300);
+* exo5-3d, batched JVP and VJP of inverse dynamics per sample (``model.derivatives``' directional
+  derivatives) <= 3x batched ID per sample: the issue's "about 2-3x the cost of ID", its upper end.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from exo_bench.bench.perf.reports.scaling import fit_exponent
 
 ID, FD, RNEA = "ID (newton-euler batched)", "FD (newton-euler batched)", "pin.rnea (bare)"
 CASADI, PROVIDER, ONE = "casadi AD", "model.derivatives (newton-euler)", "analytic (auto)"
+JVP, VJP = "JVP (model.derivatives)", "VJP (model.derivatives)"
 FLOOR = "write floor (fill)"
 
 
@@ -117,6 +120,9 @@ def goals(df: pd.DataFrame) -> list[dict]:
     add("growth exponent over n = 10..300", 2.1, p if judged else None,
         f"{p:.2f} over {span} ({kernel})" + ("" if judged else ": the goal's range is not covered")
         + _floor_exponent(d))  # fmt: skip
+    for product in (JVP, VJP):
+        row = _pick(d, "products-batched", "exo5-3d", product)
+        _ratio(add, f"exo5-3d batched {product[:3]} / batched ID, per sample", 3.0, row, base, "ID")
     return out
 
 
@@ -203,6 +209,9 @@ def derivatives_report(
     lines += _table(d, "inverse-one-sample", "One sample per call", "us/call")
     lines += _table(
         d, "forward-batched", "Forward dynamics derivatives (dqdd/dq, dqdd/dqd, M^-1), batched", "us/sample"
+    )
+    lines += _table(
+        d, "products-batched", "Directional derivatives of inverse dynamics (JVP, VJP), batched", "us/sample"
     )
     if "engine_warnings" in d:
         warned = d[d["engine_warnings"].notna()]
