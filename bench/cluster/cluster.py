@@ -49,7 +49,8 @@ from exo_bench.models import memory
 from exo_bench.models.resource_counts import check_count, check_workers, usable_cpus
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.interrupts import check as check_interrupt
-from exo_bench.bench.output.provenance import REPO, atomic_write
+from exo_bench.bench.output.provenance import REPO
+from exo_bench.models.atomic_files import atomic_write
 from exo_bench.bench.cluster.scheduler_probe import _first_line, probe_scheduler
 from exo_bench.bench.cluster.checkpoints import FINAL, checkpoint_dir, code_key, load_checkpoint
 from exo_bench.bench.cluster.tasks import TOPIC, failure_lines, run_row

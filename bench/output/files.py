@@ -2,7 +2,7 @@
 
 * :func:`write_output` / :func:`replace_atomically` (:mod:`exo_bench.models.atomic_files`): the one
   writer behind every file the suite writes (``-o``, ``--reports``, the main job's publishing: :func:`move_into`;
-  :func:`exo_bench.bench.output.provenance.atomic_write` and ``atomic_path`` call it). A file is
+  :mod:`exo_bench.models.atomic_files`' ``atomic_write`` and ``atomic_path`` are the same writer). A file is
   written only where there is nothing or a regular file (:func:`output_target`): a symlink (to
   anything), a FIFO, a device, a socket or a folder is refused in one line (a ValueError, exit 2
   from the CLI), and so is the command's own input. The write goes to a new temporary file in the
@@ -29,7 +29,6 @@ from pathlib import Path
 from exo_bench.models.atomic_files import (  # the one writer, in models so that every layer can use it
     _named,
     atomic_write,
-    kind_of as kind_of,  # re-exported: bench/output/reports_lock.py
     output_target,
     replace_atomically,
     write_all,

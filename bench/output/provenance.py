@@ -14,9 +14,12 @@ import os
 import platform
 import subprocess
 import sys
-from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
+
+# The one writer (models/atomic_files.py: never through a symlink, whole or not at all, a replaced file
+# keeps its mode, every error names the file), re-exported for the reports that import it from here.
+from exo_bench.models.atomic_files import atomic_path as atomic_path, atomic_write as atomic_write
 
 #: The source checkout when exo-bench runs from one (editable install); for a regular install this
 #: is the installed package folder, which has no git metadata and no README.
@@ -24,28 +27,6 @@ REPO = Path(__file__).resolve().parents[2]
 #: The default output folder: ``./reports`` in the current directory (a relative path, resolved
 #: when it is used), so that an installed exo-bench writes where the user runs it.
 REPORTS = Path("reports")
-
-
-@contextmanager
-def atomic_path(path: str | Path):
-    """Yield a temporary path beside ``path`` for a writer that needs a file name (a rerun file
-    sink, a PNG renderer); on success it is renamed into place, on any error or Ctrl-C it is
-    removed, so that no half-written file is ever left. The one writer's rules hold
-    (:func:`exo_bench.models.atomic_files.replace_atomically`): never through a symlink, a replaced
-    file keeps its mode, every error names ``path``."""
-    from exo_bench.models.atomic_files import atomic_path as _atomic_path
-
-    with _atomic_path(path) as tmp:
-        yield tmp
-
-
-def atomic_write(path: str | Path, data: str | bytes) -> Path:
-    """Write to a temporary file beside ``path`` and rename it into place, so that an
-    error or Ctrl-C never leaves a half-written report (:func:`exo_bench.models.atomic_files.atomic_write`:
-    ``path`` is always a file, never a stream)."""
-    from exo_bench.models.atomic_files import atomic_write as _atomic_write
-
-    return _atomic_write(path, data)
 
 
 def sci(x, digits: int = 1) -> str:
