@@ -51,7 +51,7 @@ typedef PyObject *(*new_from_descr_t)(PyTypeObject *, PyObject *, int, const Py_
 #define NEW_FROM_DESCR 94
 
 /* The interface of this module: models/lean_call.py uses it only where VERSION is the one it knows. */
-#define VERSION 4
+#define VERSION 5
 
 typedef struct {
     PyObject_HEAD
@@ -136,9 +136,13 @@ static PyObject *new_result(LeanCall *self) {
 
 #define DATA(a) ((double *)((ArrayFields *)(a))->data)
 
-static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
-    LeanCall *self = (LeanCall *)callable;
-    Py_ssize_t np_ = PyVectorcall_NARGS(nargsf);
+/* What lean_try answers for a call it does not take (no object: nothing to release). */
+static char declined_tag;
+#define DECLINED ((PyObject *)&declined_tag)
+
+/* The call (q, qd, qdd[, check[, out]]) with check and out also by name: its result, NULL with an
+   exception set (numpy could not allocate), or DECLINED having written nothing a caller sees. */
+static PyObject *lean_try(LeanCall *self, PyObject *const *args, Py_ssize_t np_, PyObject *kwnames) {
     PyObject *check = np_ > 3 ? args[3] : NULL, *out = np_ > 4 ? args[4] : NULL;
     int plain = np_ >= 3 && np_ <= 5;
     if (plain && kwnames) {
@@ -155,6 +159,7 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
         }
         if (PyErr_Occurred()) PyErr_Clear();
     }
+    if (!check) check = Py_True; /* the public call's default (PublicCall passes the caller's arguments as given) */
     int checked = check == Py_True && self->validate;
     int fresh = !out || out == Py_None; /* no out: a new result */
     if (plain && (check == Py_False || checked) && (!fresh || self->empty || self->new_from_descr) && usable(self, args[0], 0)
@@ -167,15 +172,12 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
                 && Py_TYPE(args[2]) == self->ndarray
                 && self->validate(DATA(args[0]), DATA(args[1]), DATA(args[2]), self->planp) == 0))) {
         PyObject *res = fresh ? new_result(self) : out;
-        if (!res) {
-            if (PyErr_Occurred()) return NULL;
-            return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
-        }
+        if (!res) return PyErr_Occurred() ? NULL : DECLINED;
         if (self->forward) {
             double *into = fresh ? DATA(res) : self->scratch;
             if (self->forward(self->p, DATA(args[0]), DATA(args[1]), DATA(args[2]), into, self->n) != 0) {
                 if (fresh) Py_DECREF(res);
-                return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+                return DECLINED;
             }
             if (!fresh) memcpy(DATA(out), self->scratch, 8 * self->dof);
         } else {
@@ -184,7 +186,12 @@ static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size
         if (!fresh) Py_INCREF(out);
         return res;
     }
-    return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+    return DECLINED;
+}
+
+static PyObject *lean_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    PyObject *res = lean_try((LeanCall *)callable, args, PyVectorcall_NARGS(nargsf), kwnames);
+    return res == DECLINED ? PyObject_Vectorcall(((LeanCall *)callable)->fallback, args, nargsf, kwnames) : res;
 }
 
 static PyObject *lean_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
@@ -294,17 +301,118 @@ static PyTypeObject LeanCallType = {
     .tp_doc = "the lean one-sample call of a compiled kernel; see models/lean_call.py",
 };
 
+/* A public call of PreparedModel (inverse_dynamics, forward_dynamics), defined once, in the base class: a method
+   descriptor around the Python function that first offers the call to the instance's lean entry (its
+   self._entries.<entry>: a LeanCall, which the kernel's entries hold) and calls the function with the same
+   arguments where there is none or it declines (lean_try: having written nothing), so the one-sample call
+   runs no Python frame. Like a function in a class body: model.f(...) calls it with the instance first,
+   nothing bound (Py_TPFLAGS_METHOD_DESCRIPTOR); model.f is a bound method; PreparedModel.f is itself. Its
+   __dict__ holds what functools.update_wrapper copies (the function's name, docstring, __wrapped__). */
+typedef struct {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    PyObject *function; /* the Python function: every call the lean entry does not take */
+    PyObject *entry;    /* the name of the Entries field that holds the lean entry (interned) */
+    PyObject *dict;
+} PublicCall;
+
+static PyObject *str_entries;
+
+static PyObject *public_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    PublicCall *self = (PublicCall *)callable;
+    Py_ssize_t n = PyVectorcall_NARGS(nargsf);
+    if (n >= 1) {
+        PyObject *entries = PyObject_GetAttr(args[0], str_entries);
+        PyObject *lean = entries ? PyObject_GetAttr(entries, self->entry) : NULL;
+        Py_XDECREF(entries);
+        if (!lean) {
+            if (!PyErr_ExceptionMatches(PyExc_AttributeError)) return NULL;
+            PyErr_Clear(); /* not a prepared model's (or not yet): the function says what is wrong */
+        } else {
+            PyObject *res = Py_TYPE(lean) == &LeanCallType ? lean_try((LeanCall *)lean, args + 1, n - 1, kwnames)
+                                                          : DECLINED;
+            Py_DECREF(lean);
+            if (res != DECLINED) return res;
+        }
+    }
+    return PyObject_Vectorcall(self->function, args, nargsf, kwnames);
+}
+
+static PyObject *public_get(PyObject *self, PyObject *obj, PyObject *type) {
+    if (obj == NULL || obj == Py_None) return Py_NewRef(self);
+    return PyMethod_New(self, obj);
+}
+
+static PyObject *public_new(PyTypeObject *type, PyObject *args, PyObject *kw) {
+    static char *names[] = {"function", "entry", NULL};
+    PyObject *function, *entry;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OU", names, &function, &entry)) return NULL;
+    if (!PyCallable_Check(function)) {
+        PyErr_SetString(PyExc_ValueError, "PublicCall(function, entry): function must be callable");
+        return NULL;
+    }
+    PublicCall *self = (PublicCall *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    Py_INCREF(entry);
+    PyUnicode_InternInPlace(&entry);
+    self->function = Py_NewRef(function);
+    self->entry = entry;
+    self->vectorcall = public_vectorcall;
+    return (PyObject *)self;
+}
+
+static int public_traverse(PublicCall *self, visitproc visit, void *arg) {
+    Py_VISIT(self->function); Py_VISIT(self->dict);
+    return 0;
+}
+
+static int public_clear(PublicCall *self) {
+    Py_CLEAR(self->function); Py_CLEAR(self->entry); Py_CLEAR(self->dict);
+    return 0;
+}
+
+static void public_dealloc(PublicCall *self) {
+    PyObject_GC_UnTrack(self);
+    public_clear(self);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyGetSetDef public_getset[] = {
+    {"__dict__", PyObject_GenericGetDict, PyObject_GenericSetDict, NULL, NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyTypeObject PublicCallType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "exo_bench.models._lean_call.PublicCall",
+    .tp_basicsize = sizeof(PublicCall),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL | Py_TPFLAGS_METHOD_DESCRIPTOR,
+    .tp_new = public_new,
+    .tp_dealloc = (destructor)public_dealloc,
+    .tp_traverse = (traverseproc)public_traverse,
+    .tp_clear = (inquiry)public_clear,
+    .tp_call = PyVectorcall_Call,
+    .tp_vectorcall_offset = offsetof(PublicCall, vectorcall),
+    .tp_descr_get = public_get,
+    .tp_dictoffset = offsetof(PublicCall, dict),
+    .tp_getset = public_getset,
+    .tp_doc = "a public call of PreparedModel that offers one sample to the lean entry first; see models/lean_call.py",
+};
+
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_lean_call", NULL, -1, NULL};
 
 PyMODINIT_FUNC PyInit__lean_call(void) {
-    if (PyType_Ready(&LeanCallType) < 0) return NULL;
+    if (PyType_Ready(&LeanCallType) < 0 || PyType_Ready(&PublicCallType) < 0) return NULL;
     str_check = PyUnicode_InternFromString("check");
     str_out = PyUnicode_InternFromString("out");
-    if (!str_check || !str_out) return NULL;
+    str_entries = PyUnicode_InternFromString("_entries");
+    if (!str_check || !str_out || !str_entries) return NULL;
     PyObject *m = PyModule_Create(&module);
     if (!m) return NULL;
     Py_INCREF(&LeanCallType);
     if (PyModule_AddObject(m, "LeanCall", (PyObject *)&LeanCallType) < 0) return NULL;
+    Py_INCREF(&PublicCallType);
+    if (PyModule_AddObject(m, "PublicCall", (PyObject *)&PublicCallType) < 0) return NULL;
     if (PyModule_AddIntConstant(m, "VERSION", VERSION) < 0) return NULL;
     return m;
 }

@@ -44,6 +44,7 @@ import numpy as np
 
 from exo_bench.models.kernels import Entries, Kernel, select
 from exo_bench.models.kernels import load as load_kernels
+from exo_bench.models.lean_call import public_call
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.memory import (
     CHUNK_BYTES,
@@ -216,6 +217,7 @@ class PreparedModel(Regular):
         return self.kernel
 
     # ------------------------------------------------------------------ calls
+    @public_call("lean")  # one sample offered to the lean entry in C first (models/lean_call.py)
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Generalised forces ``tau = [M_phi..., M_psi..., F...]`` of the paper's absolute
         coordinates for states in block order ``[phi..., psi..., l...]``: ``(dof,)`` in gives
@@ -312,6 +314,7 @@ class PreparedModel(Regular):
             return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
         return terms_in_chunks(self._inverse_dynamics, d, q, qd, self._chunk)
 
+    @public_call("forward_lean")
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
         and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
