@@ -51,6 +51,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from exo_bench.models.validation import _finite, _is_number
+
 SOURCE = (
     "Winter, Biomechanics and Motor Control of Human Movement, Table 4.1 and Fig. 4.1, as transcribed in "
     "BMClab/BMC data/BSP_DempsterWinter.txt (Table 4.1) and dpfens/PyExPhys pyexphys/anthropometry.py (Fig. 4.1)"
@@ -126,5 +128,5 @@ def check_body(body_mass: float, stature: float) -> None:
     """A ValueError naming the field unless both are finite and positive, within human-like bounds
     wide enough for any person (1-1000 kg, 0.3-3 m)."""
     for name, x, lo, hi, unit in (("body_mass", body_mass, 1.0, 1000.0, "kg"), ("stature", stature, 0.3, 3.0, "m")):
-        if isinstance(x, bool) or not isinstance(x, (int, float)) or not lo <= float(x) <= hi:
+        if not (_is_number(x) and _finite(x)) or not lo <= float(x) <= hi:
             raise ValueError(f"human model: field {name!r}: expected a number in [{lo:g}, {hi:g}] {unit}, got {x!r}")

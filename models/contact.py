@@ -50,6 +50,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from exo_bench.models.validation import _finite, _is_number
+
 #: Positions and velocities beyond this are refused: the force's powers of them overflow float64
 #: (``d^(3/2) * E`` near 1e308) long before, and a NaN must not come out.
 MAX_INPUT = 1e50
@@ -74,10 +76,11 @@ class ContactParameters:
         for f in fields(self):
             x = getattr(self, f.name)
             zero_ok = f.name in ("dissipation", "static_friction", "dynamic_friction", "viscous_friction")
-            ok = isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+            ok = _is_number(x) and _finite(x)
             if not ok or not (x == 0 and zero_ok or 1e-9 <= x <= 1e12):
                 want = "0 or a number in [1e-9, 1e12]" if zero_ok else "a number in [1e-9, 1e12]"
                 raise ValueError(f"contact: field {f.name!r}: expected {want}, got {x!r}")
+            object.__setattr__(self, f.name, float(x))  # float64: a numpy float32 would compute in float32
         if self.dynamic_friction > self.static_friction:
             raise ValueError(
                 f"contact: field 'dynamic_friction': expected <= static_friction = {self.static_friction!r}, "
@@ -111,7 +114,9 @@ def sigmoid(x: np.ndarray, width: float) -> np.ndarray:
 
 
 def _check(name: str, a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a)
+    a = a if isinstance(a, np.ndarray) else np.asarray(a)
+    if a.dtype.kind not in "iufc" or isinstance(a, np.ma.MaskedArray):  # complex: complex-step derivatives
+        raise ValueError(f"contact: field {name!r}: expected an array of real numbers in SI units, got {_kind(a)}")
     if a.ndim == 0 or a.shape[-1] not in (2, 3):
         raise ValueError(f"contact: field {name!r}: expected an array (..., dim) with dim 2 or 3, got shape {a.shape}")
     if not np.all(np.isfinite(a)) or np.any(np.abs(a) > MAX_INPUT):
@@ -122,6 +127,11 @@ def _check(name: str, a: np.ndarray) -> np.ndarray:
             f"contact: field {name!r}: expected finite values within +-{MAX_INPUT:g}, got {a[bad].item()!r} at {bad}"
         )
     return a
+
+
+def _kind(a: np.ndarray) -> str:
+    """What an array that is not real numbers holds, for a message."""
+    return "a masked array" if isinstance(a, np.ma.MaskedArray) else f"dtype {a.dtype}"
 
 
 def _parts(p: np.ndarray, v: np.ndarray, c: ContactParameters):
@@ -195,12 +205,17 @@ def ground_forces(
     heels' and toes' end masses of :func:`exo_bench.models.presets.human`), zero elsewhere.
     ``positions`` and ``velocities`` are those of :func:`exo_bench.models.kinematics.point_mass_positions`
     and ``point_mass_velocities``."""
-    positions, velocities = np.asarray(positions), np.asarray(velocities)
-    points = np.asarray(points, dtype=bool)
-    if points.shape != positions.shape[1:3]:
+    positions, velocities = _check("positions", positions), _check("velocities", velocities)
+    if velocities.shape != positions.shape:
         raise ValueError(
-            f"contact: field 'points': expected a mask of shape {positions.shape[1:3]}, got {points.shape}"
+            f"contact: field 'velocities': expected the shape of the positions, {positions.shape}, got {velocities.shape}"
         )
-    out = np.zeros(np.broadcast_shapes(positions.shape, velocities.shape))
+    points = np.asarray(points)
+    if points.dtype.kind != "b" or points.shape != positions.shape[1:3]:
+        raise ValueError(
+            f"contact: field 'points': expected a mask of shape {positions.shape[1:3]}, got {points.shape} "
+            f"(expected booleans, got dtype {points.dtype})"
+        )
+    out = np.zeros(positions.shape)
     out[:, points] = contact_force(positions[:, points], velocities[:, points], params)
     return out

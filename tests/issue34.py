@@ -66,6 +66,8 @@ FINDINGS: dict[str, str] = {
     "P1": "`f_ext` of strings, Decimals, booleans, complex numbers or masked entries was read as numbers",
     "P2": "with `f_ext`, forward dynamics and its derivatives read a `tau` of strings, Decimals or complex numbers",
     "P3": "`f_ext` of 1e308 N: inverse dynamics returned inf and NaN, forward dynamics blamed `tau`",
+    "P4": "contact points of strings, booleans or Decimals, huge ints as body mass: raw TypeError or OverflowError",
+    "P5": "a ground mask of the strings 'False' put every point in contact; unequal sample counts broadcast",
 }
 
 
