@@ -19,7 +19,18 @@ from exo_bench.models.conditioning import (
 )
 from exo_bench.models.mechanism import Mechanism, as_states
 from exo_bench.models.singularity import SingularConfigurationError, mechanism_reasons, singular_reasons
-from exo_bench.models.states import is_one_sample
+from exo_bench.models.states import coordinate_names, is_one_sample
+
+
+def _real(source: str, name: str, a) -> np.ndarray:
+    """``a`` as a float array if it holds real numbers (any layout, lists too); a ValueError naming the
+    field otherwise: strings ("0.3"), booleans, Decimals and complex numbers are not read as numbers,
+    with or without ``check`` (the main calls with ``check=False`` take float64 arrays only)."""
+    raw = a if isinstance(a, np.ndarray) else np.asarray(a)
+    if raw.dtype.kind not in "iuf" or isinstance(raw, np.ma.MaskedArray):
+        what = "a masked array" if isinstance(raw, np.ma.MaskedArray) else f"dtype {raw.dtype}"
+        raise ValueError(f"{source}: field '{name}': expected real numbers, got {what}")
+    return np.asarray(raw, dtype=float)
 
 
 class DerivativeChecks:
@@ -37,7 +48,7 @@ class DerivativeChecks:
         d = self.mechanism.dof
         shaped = []
         for name, a in zip(names, arrays):
-            a = np.asarray(a, dtype=float) if not check else a
+            a = _real(source, name, a) if not check or len(shaped) >= 3 else a
             nd = np.ndim(a)
             if nd not in (1, 2) or np.shape(a)[-1] != d or (nd == 1) != single:
                 want = f"({d},)" if single else f"(samples, {d})"
@@ -56,7 +67,7 @@ class DerivativeChecks:
             except ValueError as e:  # the third array of as_states is called qdd
                 raise ValueError(str(e).replace("field 'qdd'", f"field '{names[2]}'")) from None
             for name, a in zip(names[3:], shaped[3:]):
-                bad = ~np.isfinite(np.asarray(a, dtype=float))
+                bad = ~np.isfinite(a)
                 if bad.any():
                     s, j = (int(x[0]) for x in np.nonzero(np.atleast_2d(bad)))
                     raise ValueError(f"{source}: field '{name}': sample {s}, entry {j}: expected a finite value")
@@ -112,6 +123,21 @@ class DerivativeChecks:
         except SingularConfigurationError as e:
             e.args = (f"{source}: {e}",)
             raise
+
+    def _finite_inverse(self, source: str, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
+        """Never NaN or inf from an inverse product (``(S, dof)`` arrays): a ValueError naming the field of
+        the result, the sample, the coordinate and its link (inverse dynamics is defined there; the
+        inputs are too large for float64). One sum per array when all is finite."""
+        for x, name in zip(out, names):
+            if np.isfinite(x.sum()):
+                continue
+            s, j = (int(i) for i in np.argwhere(~np.isfinite(x))[0])
+            i, mech = j % self.mechanism.nlinks, self.mechanism
+            raise ValueError(
+                f"{source}: field '{name}' sample {s} coordinate {coordinate_names(mech)[j]} (link {i + 1}, "
+                f"{mech.names[i]!r}): expected a finite result, got {x[s, j]!r}: the directions, weights or "
+                "states are too large for float64"
+            )
 
     def _finite(self, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
         """Never NaN or inf: a vector names its coordinate, a Jacobian the row of its coordinate."""

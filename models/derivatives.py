@@ -266,6 +266,8 @@ class Derivatives(DerivativeChecks):
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics JVP")
         out = self._products("jvp", *arrays)
+        if check:
+            self._finite_inverse("inverse-dynamics JVP", (out,), ("dtau",))
         return out[0] if single else out
 
     def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
@@ -275,6 +277,8 @@ class Derivatives(DerivativeChecks):
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics VJP")
         out = self._products("vjp", *arrays)
+        if check:
+            self._finite_inverse("inverse-dynamics VJP", out, ("w_dtau_dq", "w_dtau_dqd", "w_M"))
         return tuple(x[0] for x in out) if single else out
 
     def forward_dynamics_jvp(self, q, qd, tau, dq, dqd, dtau, check: bool = True):

@@ -68,6 +68,8 @@ FINDINGS: dict[str, str] = {
     "P3": "`f_ext` of 1e308 N: inverse dynamics returned inf and NaN, forward dynamics blamed `tau`",
     "P4": "contact points of strings, booleans or Decimals, huge ints as body mass: raw TypeError or OverflowError",
     "P5": "a ground mask of the strings 'False' put every point in contact; unequal sample counts broadcast",
+    "P6": "the inverse-dynamics JVP and VJP returned NaN and inf with check=True for finite huge directions",
+    "P7": "with check=False the derivatives read states of strings, booleans or Decimals as numbers",
 }
 
 
