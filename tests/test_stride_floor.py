@@ -77,3 +77,17 @@ def test_the_floors_absorbed_work_is_priced_at_w_floor():
     want = 0.5 * float(np.array([0.25, 0.5, 0.25]) @ -power) / unit
     assert abs(want) > 1e-4, want
     assert f[1] - f[0] == pytest.approx(want, rel=1e-9)
+
+
+def test_the_report_states_the_floor_price_and_the_springs():
+    from exo_bench.bench.studies.stride import report
+    from exo_bench.bench.studies.stride.data import StoredStride
+
+    st = data.load("human", 1.41, M)
+    plain = {**st.settings, "w_floor": 0.0, "spring": [0.0, 0.0, 0.0]}
+    line = report.objective_line(StoredStride(**{**st.__dict__, "meta": {**st.meta, "settings": plain}}))
+    assert "Also:" not in line
+    mine = {**plain, "w_floor": 4.0, "spring": [0.0, 0.0, 0.5]}
+    line = report.objective_line(StoredStride(**{**st.__dict__, "meta": {**st.meta, "settings": mine}}))
+    assert "the work the floor absorbs (its contact's damping and friction) priced at 4 per metre" in line
+    assert "passive springs about standing (N·m/kg/rad): ankle 0.5" in line and "hip 0" not in line

@@ -145,7 +145,26 @@ def objective_line(stride: data.StoredStride) -> str:
         f"with strengths hip {hip:g}, knee {knee:g}, ankle {ankle:g} N·m/kg, plus {s['w_force']:g} x (rod force "
         f"/ body weight)^2; rods within {100 * s['stroke']:g} cm of rest at up to {s['rate']:g} m/s; the stride "
         + (f"period fixed at {lo:.3f} s." if lo == hi else f"period free in [{lo:g}, {hi:g}] s.")
+        + _passive_and_floor(s)
     )
+
+
+def _passive_and_floor(s: dict) -> str:
+    """The stored problem's passive joint elements, floor price and contact changes, in words (none: empty)."""
+    out = []
+    if s.get("w_floor"):
+        out.append(
+            f"the work the floor absorbs (its contact's damping and friction) priced at {s['w_floor']:g} per "
+            "metre over body weight"
+        )
+    springs = [f"{j} {k:g}" for j, k in zip(("hip", "knee", "ankle"), s.get("spring", ())) if k]
+    if springs:
+        out.append(f"passive springs about standing (N·m/kg/rad): {', '.join(springs)}; the active moment priced")
+    if s.get("passive", "none") != "none":
+        out.append(f"passive end-range moments: {s['passive']}")
+    if s.get("contact"):
+        out.append("floor contact changed: " + ", ".join(f"{k} {v:g}" for k, v in sorted(s["contact"].items())))
+    return (" Also: " + "; ".join(out) + ".") if out else ""
 
 
 #: Trial solves of the stored strides' problem with one setting changed, each stored in a folder of its own.

@@ -2,8 +2,10 @@
 stored beside it (data/trials/<name>/, tabled in the stride's report by :func:`~.report.trials_table`).
 
 ``python -m exo_bench.bench.studies.stride.trials NAME KEY=VALUE ...`` solves one (values are Python
-literals: ``w_accel=1e-5``, ``passive=True``) from the stored human stride at 1.41 m/s and writes it,
-with the command and commit in its provenance. One solve at a time: each takes a minute or more.
+literals: ``w_accel=1e-5``, ``spring=(0.0, 0.0, 1.0)``) from the stored human stride at 1.41 m/s and
+writes it, with the command and commit in its provenance; ``--store-all [human|exo]`` solves the stored
+strides again with the problem as it is now (:func:`store_all`). One solve at a time: each takes a minute
+or more.
 """
 
 from __future__ import annotations
@@ -47,7 +49,40 @@ def run(name: str, overrides: dict[str, Any], variant: str = "human", speed: flo
     return data.save(st, mech, trial_folder(name, root))
 
 
+#: The stored strides, in the order :func:`store_all` solves them: ``(variant, speed, the stride it starts from)``.
+STORED = (("human", 1.41, ("human", 1.41)), ("human", 1.0, ("human", 1.41)), ("human", 1.8, ("human", 1.41)))
+STORED_EXO = (("exo", 1.41, ("exo", 1.41)),)
+
+
+def store_all(keys=STORED + STORED_EXO) -> list[str]:
+    """Solve every stored stride again with the problem as :func:`~.problem.settings_for` sets it now, each
+    from the stride named (the human at 1.41 m/s first, so the others start from the new one), and store
+    it; one line per stride."""
+    import subprocess
+
+    from exo_bench.models.presets import human
+
+    mech = human(2)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    out = []
+    for variant, speed, (sv, ss) in keys:
+        st = problem.solve_from(mech, problem.settings_for(mech, variant, speed), data.load(sv, ss, mech))
+        st.meta["provenance"] = {
+            "commit": commit,
+            "date": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+            "command": f"trials.store_all: problem.solve_from(mech, settings_for(mech, {variant!r}, {speed:g}), "
+            f"the stored {sv} stride at {ss:g} m/s)",
+        }
+        path = data.save(st, mech)
+        out.append(f"{path.name}: {st.solver['solve_seconds']:.1f} s, objective {st.solver['objective']:.6g}")
+        print(out[-1], flush=True)
+    return out
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--store-all"]:
+        store_all(STORED if argv[1:] == ["human"] else STORED_EXO if argv[1:] == ["exo"] else STORED + STORED_EXO)
+        return 0
     name, *pairs = argv
     overrides = {k: ast.literal_eval(v) for k, v in (p.split("=", 1) for p in pairs)}
     path = run(name, overrides)
