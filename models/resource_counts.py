@@ -31,6 +31,11 @@ DEFAULT_STACK = 8 * 2**20
 #: and the pytest process it runs a benchmark row in (190 MB with numpy, numba, Pinocchio and the
 #: package imported), rounded up; the row's own work is estimated by its own tests.
 WORKER_BYTES = 256 * 2**20
+#: Threads and processes one local Dask worker adds (RLIMIT_NPROC counts both): its process's 3 threads
+#: (measured, distributed 2026.8, threads_per_worker=1) and at least one for its row's pytest process.
+WORKER_TASKS = 4
+#: Threads a local cluster adds in this process (its scheduler and client: 7 measured), rounded up.
+CLUSTER_TASKS = 8
 
 
 def usable_cpus() -> int:
@@ -177,6 +182,14 @@ def check_workers(value: object, usable: int | None) -> int:
             f"--workers: {n} local workers need about {_mb(n * WORKER_BYTES)} of memory ({_mb(WORKER_BYTES)} each: "
             f"the worker process and the pytest process of its row), more than the {_mb(usable)} a run may use; "
             f"expected at most {fits}, got {n}"
+        )
+    room, need = task_room(), n * WORKER_TASKS + CLUSTER_TASKS
+    if room is not None and need > room:
+        raise ValueError(
+            f"--workers: {n} local workers start about {need} threads and processes ({WORKER_TASKS} per worker, "
+            f"{CLUSTER_TASKS} for the cluster in this process), more than the {room} this user may still start "
+            f"under its process limit (RLIMIT_NPROC, ulimit -u {resource.getrlimit(resource.RLIMIT_NPROC)[0]}); "
+            f"expected at most {max(0, (room - CLUSTER_TASKS) // WORKER_TASKS)}, got {n}"
         )
     return n
 

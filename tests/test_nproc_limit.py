@@ -75,3 +75,12 @@ def test_the_users_threads_are_counted():
     with open("/proc/self/status") as f:
         mine = int(next(line for line in f if line.startswith("Threads:")).split()[1])
     assert resource_counts.user_tasks(os.getuid()) >= mine >= 1
+
+
+def test_local_workers_count_their_threads(tight, monkeypatch):
+    """A local worker adds WORKER_TASKS threads and processes and the cluster CLUSTER_TASKS: with room for
+    20, three workers (20) fit and four (24) are refused, naming how many fit."""
+    monkeypatch.setattr(resource_counts, "user_tasks", lambda uid: LIMIT - 20)
+    assert resource_counts.check_workers(3, None) == 3
+    with pytest.raises(ValueError, match=r"--workers: 4 local workers start about 24 .*RLIMIT_NPROC.*at most 3, got 4"):
+        resource_counts.check_workers(4, None)
