@@ -70,6 +70,7 @@ FINDINGS: dict[str, str] = {
     "P5": "a ground mask of the strings 'False' put every point in contact; unequal sample counts broadcast",
     "P6": "the inverse-dynamics JVP and VJP returned NaN and inf with check=True for finite huge directions",
     "P7": "with check=False the derivatives read states of strings, booleans or Decimals as numbers",
+    "P8": "an edited stored stride (string arrays, reversed times, a meta of another speed) was described as valid",
 }
 
 

@@ -159,11 +159,16 @@ def read_stored(path: Path, names: tuple[str, ...], what: str) -> tuple[dict, di
         with np.load(path, allow_pickle=False) as z:
             missing = [k for k in (*names, "meta") if k not in z.files]
             meta = None if missing else json.loads(str(z["meta"]))
-            arrays = {} if missing else {k: np.ascontiguousarray(z[k], dtype=float) for k in names}
+            raw = {} if missing else {k: z[k] for k in names}
+            dtypes = {k: a.dtype for k, a in raw.items()}  # not "0.3" nor 1+1j read as numbers:
+            arrays = {k: np.ascontiguousarray(a, dtype=float) for k, a in raw.items() if a.dtype.kind in "iuf"}
     except (OSError, EOFError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as e:
         raise ValueError(f"{what}: {path}: not a readable stored {what} ({type(e).__name__}: {e})") from None
     if missing:
         raise ValueError(f"{what}: {path}: expected the arrays {', '.join(names)} and meta, missing {missing}")
+    for k in names:
+        if k not in arrays:
+            raise ValueError(f"{what}: {path}: field {k!r}: expected an array of real numbers, got dtype {dtypes[k]}")
     if not isinstance(meta, dict) or not isinstance(meta.get("settings"), dict):
         raise ValueError(f"{what}: {path}: field 'meta': expected an object with 'settings', got {type(meta).__name__}")
     return meta, arrays

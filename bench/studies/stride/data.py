@@ -206,6 +206,39 @@ def check_shapes(arrays: dict[str, np.ndarray], mech: Mechanism, source: str) ->
             raise ValueError(f"stride: {source}: field {k!r}: expected shape {shape} (K >= 3), got {arrays[k].shape}")
         if not np.all(np.isfinite(arrays[k])):
             raise ValueError(f"stride: {source}: field {k!r}: expected finite values, got a NaN or an infinity")
+    steps = np.diff(arrays["t"])
+    if not np.all(steps > 0):
+        k = int(np.argmax(~(steps > 0)))
+        raise ValueError(
+            f"stride: {source}: field 't': expected increasing times, got t[{k}] = {arrays['t'][k]!r} then "
+            f"t[{k + 1}] = {arrays['t'][k + 1]!r}"
+        )
+
+
+def _check_meta(meta: dict[str, Any], variant: str, speed: float, source: str) -> None:
+    """A one-line ValueError naming the file unless ``meta`` is the stride of its file's key (its
+    variant and speed) and the fields it holds have their types: numbers are real, positive and finite,
+    the solver and the provenance objects, the names lists of strings (an edited file is refused, not
+    described)."""
+
+    def bad(key: str, want: str) -> ValueError:
+        return ValueError(f"stride: {source}: field 'meta.{key}': expected {want}, got {meta.get(key)!r}")
+
+    if meta.get("variant") != variant:
+        raise bad("variant", f"{variant!r} (the file's key)")
+    for key in ("speed", "stride_length", "body_weight"):
+        x = meta.get(key, 1.0 if key == "body_weight" else None)
+        if not (isinstance(x, int | float) and not isinstance(x, bool) and np.isfinite(x) and x > 0):
+            raise bad(key, "a positive finite number")
+    if speed_key(meta["speed"]) != speed_key(speed):
+        raise bad("speed", f"{speed:g} m/s (the file's key)")
+    for key in ("solver", "provenance"):
+        if not isinstance(meta.get(key, {}), dict):
+            raise bad(key, "an object")
+    for key in ("joint_names", "rod_names", "telescopic", "contact_names", "feet"):
+        x = meta.get(key, [])
+        if not (isinstance(x, list) and all(isinstance(n, str) for n in x)):
+            raise bad(key, "a list of names")
 
 
 def _check_mechanism(meta: dict[str, Any], mech: Mechanism, source: str) -> None:
@@ -231,6 +264,7 @@ def load(variant: str, speed: float, mech: Mechanism | None = None, folder: Path
         known = ", ".join(sorted(x.stem for x in p.parent.glob("*.npz")))
         raise ValueError(f"stride: no stored stride {p.name} in {p.parent} (stored: {known or 'none'}); {HOW_TO_SOLVE}")
     meta, arrays = read_stored(p, ARRAYS, "stride")
+    _check_meta(meta, variant, speed, str(p))
     _check_mechanism(meta, mech, str(p))
     check_shapes(arrays, mech, str(p))
     return StoredStride(**arrays, meta=meta, path=str(p))
