@@ -19,6 +19,7 @@
  * without a C compiler the package installs without it and the Python lean path runs). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <structmember.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -308,25 +309,83 @@ static PyTypeObject LeanCallType = {
    runs no Python frame. Like a function in a class body: model.f(...) calls it with the instance first,
    nothing bound (Py_TPFLAGS_METHOD_DESCRIPTOR); model.f is a bound method; PreparedModel.f is itself. Its
    __dict__ holds what functools.update_wrapper copies (the function's name, docstring, __wrapped__). */
+/* Where a type keeps an attribute that is a slot (an object field at a fixed offset, T_OBJECT_EX): the type
+   (compared, never dereferenced) and its version tag when it was looked up. CPython gives a type a new tag
+   whenever it or a base changes, and never reuses one, so an equal tag on the same type means the same
+   lookup, as in the interpreter's own attribute caches. */
+typedef struct {
+    PyTypeObject *type;
+    unsigned int version;
+    Py_ssize_t offset;
+} SlotCache;
+
+/* The value of obj's attribute name where its type holds it in a slot, read at the offset (borrowed; NULL:
+   the slot is empty): 1; 0 where it is not a slot (the caller asks PyObject_GetAttr); -1 with an error set. */
+static int slot_read(SlotCache *c, PyObject *obj, PyObject *name, PyObject **value) {
+    PyTypeObject *t = Py_TYPE(obj);
+    if (c->type != t || c->version != t->tp_version_tag || !c->version) {
+        PyObject *d = PyObject_GetAttr((PyObject *)t, name); /* a slot's member descriptor is its own class attribute */
+        if (!d) {
+            if (!PyErr_ExceptionMatches(PyExc_AttributeError)) return -1;
+            PyErr_Clear();
+            return 0;
+        }
+        int slot = Py_TYPE(d) == &PyMemberDescr_Type && ((PyMemberDescrObject *)d)->d_member->type == T_OBJECT_EX
+                   && PyObject_TypeCheck(obj, PyDescr_TYPE(d));
+        Py_ssize_t offset = slot ? ((PyMemberDescrObject *)d)->d_member->offset : 0;
+        Py_DECREF(d);
+        if (!slot) return 0;
+        c->type = t;
+        c->version = t->tp_version_tag; /* 0 (no tag): looked up again at the next call */
+        c->offset = offset;
+    }
+    *value = *(PyObject **)((char *)obj + c->offset);
+    return 1;
+}
+
 typedef struct {
     PyObject_HEAD
     vectorcallfunc vectorcall;
     PyObject *function; /* the Python function: every call the lean entry does not take */
     PyObject *entry;    /* the name of the Entries field that holds the lean entry (interned) */
     PyObject *dict;
+    SlotCache entries_at, lean_at; /* the model's _entries, the Entries' lean entry: slots of their types */
 } PublicCall;
 
 static PyObject *str_entries;
+
+/* The lean entry of the model obj (a new reference), NULL where it has none (nothing set), or NULL with an
+   error set. obj._entries.<entry>, read from the slots (PreparedModel's and the Entries dataclass's) where
+   they are slots, else by PyObject_GetAttr. */
+static PyObject *lean_of(PublicCall *self, PyObject *obj) {
+    PyObject *entries, *lean;
+    int found = slot_read(&self->entries_at, obj, str_entries, &entries);
+    if (found < 0) return NULL;
+    if (found) {
+        if (!entries) return NULL;
+        Py_INCREF(entries);
+    } else if (!(entries = PyObject_GetAttr(obj, str_entries))) {
+        return NULL;
+    }
+    found = slot_read(&self->lean_at, entries, self->entry, &lean);
+    if (found > 0) {
+        Py_XINCREF(lean);
+    } else if (found == 0) {
+        lean = PyObject_GetAttr(entries, self->entry);
+    } else {
+        lean = NULL;
+    }
+    Py_DECREF(entries);
+    return lean;
+}
 
 static PyObject *public_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
     PublicCall *self = (PublicCall *)callable;
     Py_ssize_t n = PyVectorcall_NARGS(nargsf);
     if (n >= 1) {
-        PyObject *entries = PyObject_GetAttr(args[0], str_entries);
-        PyObject *lean = entries ? PyObject_GetAttr(entries, self->entry) : NULL;
-        Py_XDECREF(entries);
+        PyObject *lean = lean_of(self, args[0]);
         if (!lean) {
-            if (!PyErr_ExceptionMatches(PyExc_AttributeError)) return NULL;
+            if (PyErr_Occurred() && !PyErr_ExceptionMatches(PyExc_AttributeError)) return NULL;
             PyErr_Clear(); /* not a prepared model's (or not yet): the function says what is wrong */
         } else {
             PyObject *res = Py_TYPE(lean) == &LeanCallType ? lean_try((LeanCall *)lean, args + 1, n - 1, kwnames)

@@ -117,8 +117,10 @@ class PreparedModel(Regular):
     #: The entries of the chosen kernels (:class:`~exo_bench.models.kernels.Entries`, bound by
     #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run. Set on the
     #: instance only: a class-level default (an instance of a mutable class) kept Python 3.11 from
-    #: specialising ``self._entries`` in the calls, about 65 ns of a 0.45 us one-sample call.
+    #: specialising ``self._entries`` in the calls, about 65 ns of a 0.45 us one-sample call. A slot: the
+    #: public call reads it in C at its offset (models/_lean_call.c ``slot_read``; by name it cost 60 ns).
     _entries: Entries
+    __slots__ = ("_entries",)  # subclasses keep a __dict__ (Regular has one)
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):

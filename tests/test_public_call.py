@@ -118,3 +118,29 @@ def test_the_descriptor_is_the_functions_likeness(models):
         )
         bound = getattr(mf, name)
         assert bound.__self__ is mf and pickle.loads(pickle.dumps(bound)).__name__ == name
+
+
+def test_the_entries_are_read_as_they_are_now(models):
+    """The descriptor reads ``_entries`` from its slot at each call (only the offset is kept, while the
+    type is unchanged): entries replaced on the instance, or a class whose ``_entries`` is no slot, are
+    honoured (the Python path then runs, with the same numbers)."""
+    from exo_bench.models.kernels import Entries
+
+    mech, _, (q, qd, qdd, tau) = models
+    m = prepare(mech, "matrix-factored")
+    want = m.inverse_dynamics(q, qd, qdd, check=False)
+    assert _python_calls(lambda: m.inverse_dynamics(q, qd, qdd, check=False)) == 1
+    lean, m._entries = m._entries, Entries(inverse_one=m._entries.inverse_one)
+    assert _python_calls(lambda: m.inverse_dynamics(q, qd, qdd, check=False)) > 1
+    assert np.array_equal(m.inverse_dynamics(q, qd, qdd, check=False), want)
+    m._entries = lean
+
+    class Shadowed(type(m)):
+        @property
+        def _entries(self):  # no slot: the descriptor asks by name
+            return Entries(inverse_one=lean.inverse_one)
+
+    s = Shadowed.__new__(Shadowed)
+    s.__dict__.update(m.__dict__)
+    assert _python_calls(lambda: s.inverse_dynamics(q, qd, qdd, check=False)) > 1
+    assert np.array_equal(s.inverse_dynamics(q, qd, qdd, check=False), want)
