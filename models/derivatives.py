@@ -66,6 +66,13 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
 
 
+def _samples(q: Any) -> int:
+    """The sample count of an array ``(samples, dof)`` (1 for one sample), read from its shape without
+    converting it; 0 for what has no shape (a list: estimated once converted)."""
+    shape = getattr(q, "shape", None)
+    return int(shape[0]) if isinstance(shape, tuple) and len(shape) == 2 else 0 if shape is None else 1
+
+
 def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE) -> str:
     """What computes the derivatives for ``method``: its own equations (``own``), the correct ones for a
     method known to be wrong, or the unique equations of motion that every other method agrees with (the
@@ -214,11 +221,14 @@ class Derivatives(DerivativeChecks):
         bound) is refused, naming the sample and the link (:meth:`_refuse_singular_states`); without it
         the values are finite there too (inverse dynamics is a polynomial in ``l``, ``cos`` and ``sin``)."""
         source = "inverse-dynamics derivatives"
+        samples = _samples(q)
+        self._check_memory(source, samples, 3)  # before the states are copied
         (q, qd, qdd), single = self._states(source, ("q", "qd", "qdd"), (q, qd, qdd), check)
         d = self.mechanism.dof
+        if samples != q.shape[0]:  # a list: estimated once converted
+            self._check_memory(source, q.shape[0], 3)
         if check:
             self._refuse_singular_states(q, source)
-        self._check_memory(source, q.shape[0], 3)
         if q.shape[0] == 0:
             return tuple(np.zeros((0, d, d)) for _ in range(3))
         out = self._inverse(q, qd, qdd)
@@ -236,10 +246,13 @@ class Derivatives(DerivativeChecks):
         ``check`` only the shapes are checked, and the mechanism itself: a link that moves no mass
         (``mu`` singular at every configuration) is refused either way."""
         source = "forward-dynamics derivatives"
+        samples = _samples(q)
+        self._check_memory(source, samples, 3)  # before the states are copied
         (q, qd, tau), single = self._states(source, ("q", "qd", "tau"), (q, qd, tau), check)
         d = self.mechanism.dof
+        if samples != q.shape[0]:  # a list: estimated once converted
+            self._check_memory(source, q.shape[0], 3)
         self._refuse_singular(q, check)
-        self._check_memory(source, q.shape[0], 3)
         if q.shape[0] == 0:
             return (np.zeros((0, d)), *(np.zeros((0, d, d)) for _ in range(3)))
         qdd = self._accelerations(q, qd, tau)

@@ -71,6 +71,7 @@ FINDINGS: dict[str, str] = {
     "P6": "the inverse-dynamics JVP and VJP returned NaN and inf with check=True for finite huge directions",
     "P7": "with check=False the derivatives read states of strings, booleans or Decimals as numbers",
     "P8": "an edited stored stride (string arrays, reversed times, a meta of another speed) was described as valid",
+    "P9": "the derivatives copied the states before their memory estimate: a raw MemoryError at 10^9 samples",
 }
 
 

@@ -80,3 +80,28 @@ def test_directions_and_weights_are_numbers_with_check():
         d.inverse_dynamics_vjp(Q, QD, QDD, QD.astype(str))
     with pytest.raises(ValueError, match=r"field 'dqd': expected real numbers"):
         d.inverse_dynamics_jvp(Q, QD, QDD, QD, QD.astype(str).tolist(), QDD)
+
+
+@pytest.mark.case("P9")
+@pytest.mark.parametrize("call", ["inverse_dynamics", "forward_dynamics"])
+def test_the_memory_estimate_comes_before_the_states_are_copied(monkeypatch, call):
+    """A call too large for the memory a run may use is refused by its estimate before any work: the
+    states were first converted (three (samples, dof) copies of read-only broadcast views: 14.9 GiB
+    each at 10^9 samples, a raw MemoryError) and only then estimated. Counted by tracemalloc, not
+    timed: the refusal allocates almost nothing."""
+    import tracemalloc
+
+    from exo_bench.models import memory
+    from exo_bench.models.derivatives import DerivativesTooLarge
+
+    d = _derivatives()
+    states = np.broadcast_to(Q[0], (10**6, 2))  # 16 MB per copy; the estimate is ~400 MB
+    monkeypatch.setattr(memory, "usable_memory", lambda: 100 * 2**20)
+    tracemalloc.start()
+    try:
+        with pytest.raises(DerivativesTooLarge, match="samples"):
+            getattr(d, call)(states, states, states)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2**20, f"{peak / 2**20:.1f} MiB allocated before the refusal"
