@@ -78,7 +78,7 @@ def test_an_ankle_twice_as_strong_costs_a_quarter(small):
     from exo_bench.bench.studies.stride.actuators import actuators
 
     s, fm, start = small
-    s = replace(s, eps_power=10.0)
+    s = replace(s, eps_power=10.0, spring=(0.0, 0.0, 0.0))  # net moments: the springs' share has its own test
     f1, _, moments = _objective(s, fm, start)
     f2, _, _ = _objective(replace(s, strength=(1.0, 1.0, 2.0)), fm, start)
     names = actuators(M, np.zeros((1, M.dof))).joint_names

@@ -53,7 +53,9 @@ def test_the_objective_prices_the_net_moment_less_the_passive_one():
     from exo_bench.bench.studies.stride.coordinates import free_map
     from exo_bench.models.posture import balanced_standing, joints
 
-    s = problem.settings_for(M, "human", 1.41, intervals=2, eps_power=10.0, w_positive=0.0, w_negative=0.0)
+    s = problem.settings_for(
+        M, "human", 1.41, intervals=2, eps_power=10.0, w_positive=0.0, w_negative=0.0, spring=(0.0, 0.0, 0.0)
+    )
     fm = free_map(M, balanced_standing(M))
     t, z, zd, zdd = problem.initial_guess(M, fm, s, T=0.5)
     z[:, fm.index("right_foot angle")] += np.array([0.1, -0.05, 0.2])  # the ankles away from standing

@@ -302,10 +302,11 @@ def _trials_section(mech: Mechanism, stride: data.StoredStride, folder=None) -> 
     return [
         "### Trials of the problem",
         "",
-        "The same problem solved with one setting changed, from the stored stride, each stored beside it "
-        "(bench/studies/stride/data/trials/): what the change does to the checks above. A trial's objective is "
-        "its own problem's (not comparable across rows). Each is one local optimum, not a proof of what the "
-        "model class can do.",
+        "The problem solved with settings changed (the column: against the stored stride's), each stored "
+        "beside it (bench/studies/stride/data/trials/): what the change does to the checks above. Each trial "
+        "started from the human stride at 1.41 m/s stored before the floor's absorbed work was priced (the row "
+        "floor-unpriced, that stride itself). A trial's objective is its own problem's (not comparable across "
+        "rows). Each is one local optimum, not a proof of what the model class can do.",
         "",
         *rows,
         "",
