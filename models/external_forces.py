@@ -62,6 +62,10 @@ def forces_at(mech: Mechanism, loads: Mapping[tuple[str, str], Any], samples: in
     ``samples=None``, else ``(samples, links, 3, dim)``; points not named get zero. A name that is not
     the mechanism's is a ValueError listing the names."""
     d = mech.dim
+    if samples is not None and not (
+        isinstance(samples, int | np.integer) and not isinstance(samples, bool) and samples >= 0
+    ):
+        raise ValueError(f"f_ext: field 'samples': expected None or a count >= 0, got {samples!r}")
     out = np.zeros((mech.nlinks, 3, d) if samples is None else (samples, mech.nlinks, 3, d))
     for key, value in loads.items():
         if not (isinstance(key, tuple) and len(key) == 2):
@@ -72,6 +76,9 @@ def forces_at(mech: Mechanism, loads: Mapping[tuple[str, str], Any], samples: in
         if point not in POINTS:
             raise ValueError(f"f_ext: link {link!r}: point {point!r}: expected one of {', '.join(POINTS)}")
         i, b = mech.names.index(link), POINTS.index(point)
+        why = _not_real_numbers(value)
+        if why:
+            raise ValueError(f"f_ext: link {link!r}, point {point!r}: expected a force of real numbers, got {why}")
         v = np.asarray(value, dtype=float)
         want = (d,) if samples is None else (samples, d)
         if v.shape != want and not (samples is not None and v.shape == (d,)):
@@ -142,7 +149,9 @@ def refuse_overflow(model: Any, f: np.ndarray, result: np.ndarray, what: str) ->
     the first sample where ``result`` (``what``: Q added to tau, dQ/dq) is not finite: forces too large
     for float64, never returned as inf or NaN nor blamed on another field. Cheap when all is finite
     (one sum)."""
-    if np.isfinite(result.sum()):  # the sum of finite numbers may overflow: then look closer
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = result.sum()
+    if np.isfinite(total):  # the sum of finite numbers may overflow: then look closer
         return
     mech = model.mechanism
     forces = f.reshape(-1, mech.nlinks * 3 * mech.dim)  # one row per sample, as result's

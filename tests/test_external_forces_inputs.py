@@ -112,3 +112,19 @@ def test_forces_whose_generalised_force_overflows_are_named(method):
     f[2] = 1e3
     assert np.isfinite(model.inverse_dynamics(Q, QD, QDD, f_ext=f)).all()
     assert np.isfinite(model.forward_dynamics(Q, QD, tau, f_ext=f)).all()
+
+
+@pytest.mark.case("P1")
+@pytest.mark.parametrize("kind", ["str", "Decimal", "bool", "complex"])
+def test_forces_at_takes_real_numbers_and_a_sample_count(kind):
+    """forces_at, the named way to build f_ext, read a force of strings ("700") or Decimals as numbers
+    and booleans as 1 N, and took samples=-1 or True (numpy's "negative dimensions", a batch of one):
+    each is a ValueError naming the link, the point and the field."""
+    name = MECH.names[0]
+    value = {"str": ["0", "700"], "Decimal": [Decimal(0), Decimal(700)], "bool": [False, True], "complex": [0, 7j]}
+    with pytest.raises(ValueError, match=rf"f_ext: link '{name}', point 'end': expected .*real numbers"):
+        xf.forces_at(MECH, {(name, "end"): value[kind]})
+    for samples in (-1, True, 2.0):
+        with pytest.raises(ValueError, match=r"f_ext: field 'samples': expected"):
+            xf.forces_at(MECH, {(name, "end"): [0.0, 700.0]}, samples=samples)
+    np.testing.assert_array_equal(xf.forces_at(MECH, {(name, "end"): [0, 700]})[0, 2], [0.0, 700.0])
