@@ -92,3 +92,16 @@ def test_a_strides_contact_is_the_default_with_its_fields_changed():
     assert c.dissipation == 0.5667 and c.stiffness == DEFAULT_CONTACT.stiffness
     with pytest.raises(ValueError, match="settings.contact.*'heel'"):
         data.contact_of({"contact": {"heel": 1.0}})
+
+
+def test_the_join_pairs_each_load_with_its_mirror_image():
+    pytest.importorskip("casadi")
+    from exo_bench.bench.studies.stride.actuators import actuators
+    from exo_bench.bench.studies.stride.transcription import PRICED_JOINTS, join_pairs
+
+    eye = actuators(M, np.eye(M.dof))
+    (ja, jb), (ra, rb) = join_pairs(M)
+    assert [eye.joint_names[i] for i in ja] == list(PRICED_JOINTS)
+    assert [eye.joint_names[i] for i in jb] == [*PRICED_JOINTS[3:], *PRICED_JOINTS[:3]]
+    assert [eye.rod_names[i] for i in rb] == ["left_thigh", "left_leg", "right_thigh", "right_leg"]
+    assert sorted(ra) == sorted(rb) and [eye.rod_names[i] for i in ra][0] == "right_thigh"

@@ -88,6 +88,17 @@ def violations(stride: StoredStride, mech: Mechanism) -> dict[str, float]:
     out[f"rod strokes (±{s['stroke'] * 100:g} cm)"] = max(strokes)
     out[f"rod rates (<= {s['rate']:g} m/s)"] = max(rates)
     out["period range"] = _excess(np.array([t[-1]]), *s["period"])
+    if s.get("join_loads"):
+        from exo_bench.bench.studies.stride.transcription import join_pairs
+
+        (ja, jb), (ra, rb) = join_pairs(mech)
+        act = actuators(mech, tau)
+        out["join: loads mirrored (N·m, N)"] = float(
+            max(
+                np.abs(act.moments[0, ja] - act.moments[N, jb]).max(),
+                np.abs(act.forces[0, ra] - act.forces[N, rb]).max(),
+            )
+        )
     out["contact forces as stored"] = float(np.abs(contact_forces(mech, q, qd, contact_of(s)) - stride.contact).max())
     return out
 

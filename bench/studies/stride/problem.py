@@ -126,6 +126,7 @@ class StrideSettings:
     stature: float = 1.75
     passive: str = "none"  # passive joint moments (passive.py): "none" or "anderson-pandy"
     spring: tuple[float, float, float] = (0.0, 0.0, 0.0)  # N·m/kg/rad: hip, knee, ankle springs (passive.py)
+    join_loads: bool = False  # the joint moments and rod forces continuous across the mirrored join
     w_floor: float = 0.0  # the floor's absorbed work (its contact's damping and friction) priced at this
     contact: dict = field(default_factory=dict)  # the floor's contact: fields changed (data.contact_of)
 

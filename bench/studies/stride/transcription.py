@@ -242,6 +242,10 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     add(yN[rows.hip_p][0] - y0[rows.hip_p][0] - s.speed * T, 0, 0)
     add(yN[rows.hip_p][1] - y0[rows.hip_p][1], 0, 0)
     add(yN[rows.hip_v] - y0[rows.hip_v], 0, 0)
+    if getattr(s, "join_loads", False):  # the actuators' loads continuous across the mirrored join
+        mirrored, scale = join_pairs(mech), [mech.total_mass, bw]
+        for part, (a, b), unit_ in zip((rows.moments, rows.rod_forces), mirrored, scale):
+            add((y0[part][a] - yN[part][b]) / unit_, 0, 0)
     add(y0[rows.hip_p][0], s.hip_x0, s.hip_x0)
     add(y0[rows.heel_height], 0, 0)
     w = np.full(N + 1, 1.0 / N)
@@ -265,6 +269,17 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     return NLP(nlp, lbx, ubx, np.concatenate(lb), np.concatenate(ub), nz, N, npow, unit), node, rows
 
 
+def join_pairs(mech: Mechanism) -> list[tuple[list[int], list[int]]]:
+    """For the priced joints' moments and the telescopic rods' forces: ``(a, b)`` index lists into a node's
+    moments and rod forces, ``b`` the mirror image (right and left exchanged) of ``a``."""
+    eye = actuators(mech, np.eye(mech.dof))
+    swap = lambda n: n.replace("right_", "@").replace("left_", "right_").replace("@", "left_")  # noqa: E731
+    out = []
+    for names, chosen in ((eye.joint_names, PRICED_JOINTS), (eye.rod_names, TELESCOPIC)):
+        out.append(([names.index(n) for n in chosen], [names.index(swap(n)) for n in chosen]))
+    return out
+
+
 def _variable_bounds(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[np.ndarray, np.ndarray]:
     """Bounds of one node's ``(z, zd, zdd)``: trunk angle, rod strokes about rest, rod rates."""
     nz = fm.nz
@@ -281,4 +296,4 @@ def _variable_bounds(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[np.ndarray, 
     return lo, hi
 
 
-__all__ = ["NLP", "PRICED_JOINTS", "Rows", "build", "joint_rows", "node_function"]
+__all__ = ["NLP", "PRICED_JOINTS", "Rows", "build", "join_pairs", "joint_rows", "node_function"]

@@ -85,8 +85,9 @@ def main(argv: list[str]) -> int:
         return 0
     name, *pairs = argv
     overrides = {k: ast.literal_eval(v) for k, v in (p.split("=", 1) for p in pairs)}
-    path = run(name, overrides)
-    st = data.load("human", 1.41, folder=path.parent)
+    variant = overrides.pop("variant", "human")  # the stored stride of this variant at 1.41 m/s is the start
+    path = run(name, overrides, variant)
+    st = data.load(variant, 1.41, folder=path.parent)
     print(path, st.solver["solve_seconds"], st.solver["objective"])
     return 0
 
