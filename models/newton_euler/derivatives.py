@@ -156,7 +156,7 @@ class InverseDerivatives:
         self._entry: tuple | None = None
         #: The shapes of one sample's states and outputs, ``(dof,)`` and ``(dof, dof)``.
         self._shapes = ((self.dof,), (self.dof, self.dof))
-        self._simd_scratch: Any = None  # the SIMD kernel's ThreadScratch, made at its first call
+        self._simd_scratch: Any = None  # the SIMD kernel's driver, kernel, parameters and scratch (_simd_prepare)
         #: New batched results, recycled once dropped (:mod:`exo_bench.models.result_pool`): a fresh
         #: ``(S, dof, dof)`` array may be a new mapping whose pages the OS zeroes on first touch; chain 100
         #: 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``; exo5-3d, 256 samples
@@ -247,15 +247,20 @@ class InverseDerivatives:
             o[...] = r
 
     def _simd(self, q, qd, qdd, out) -> None:
+        run_simd, kernel, params, scratch = self._simd_scratch or self._simd_prepare()
+        flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
+        run_simd(kernel, params, *flat, tuple(out), q.shape[0], scratch=scratch)
+
+    def _simd_prepare(self) -> tuple:
+        """The SIMD kernel's driver, kernel, parameters and ThreadScratch, made at its first call (the
+        imports and the tuple once, not per call: a few us of a batch's fixed cost)."""
         from exo_bench.models.newton_euler import derivatives_simd as ds
         from exo_bench.models.simd_blocks import ThreadScratch
         from exo_bench.models.simd_blocks import run as run_simd
 
-        if self._simd_scratch is None:
-            self._simd_scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
-        params = (self.table, self.mu, self.g, self.dim)
-        flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
-        run_simd(ds.simd_derivatives, params, *flat, tuple(out), q.shape[0], scratch=self._simd_scratch)
+        scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
+        self._simd_scratch = (run_simd, ds.simd_derivatives, (self.table, self.mu, self.g, self.dim), scratch)
+        return self._simd_scratch
 
     def _numba(self, q, qd, qdd, out) -> None:
         from exo_bench.models.newton_euler import derivatives_compiled as dc
