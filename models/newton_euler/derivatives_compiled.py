@@ -13,11 +13,12 @@ Per sample:
    output: row ``kind dim + e``, column ``d n + j`` holds component ``e`` of column ``d`` of ``s_j J_j``
    (kind 0), ``s_j da_j/dq_j`` (1) or ``s_j da_j/dqd_j`` (2); ``s_i d(J_i^T F_i)/dq_i`` into ``P``;
 3. **the blocks**: for each row link ``i``, ``mu_i`` repeated ``dim`` times (``m[d n + j] = mu_ij``), then
-   for each coordinate ``c`` and kind one loop over the whole output row ``out[c n + i, :] = m *
-   ((J_i^T)[c, :] . Y_kind)``: ``dim`` rows of ``Y`` read contiguously, one contiguous row written, LLVM
-   vectorises it; then the diagonal blocks of ``dtau/dq`` gain ``P``. One loop of ``dof`` per output
-   row, not ``dim`` loops of ``n``: exo5-3d's blocks took 1.28 us of CPU per sample in ``dim`` loops of
-   5 (with a view per loop) and 0.50 us in one loop of 15; chain 100 3D 127 -> 92-98 us (out in cache).
+   per kind the ``dim`` output rows ``out[c n + i, :] = m * ((J_i^T)[c, :] . Y_kind)`` in one loop over
+   the whole row, 4 columns at a time (:mod:`.derivatives_rows`): ``dim`` rows of ``Y`` read contiguously,
+   contiguous rows written; then the diagonal blocks of ``dtau/dq`` gain ``P``. Whole rows, not ``dim``
+   loops of ``n``: exo5-3d's blocks took 1.28 us of CPU per sample in ``dim`` loops of 5 (with a view per
+   loop), 0.50 us in one numba loop of 15 per row, 0.38 by :mod:`.derivatives_rows`; chain 100 3D 127 ->
+   92-98 us (out in cache).
 
 Work per sample: ``3 dim^2 n^2`` entries of ``dim`` multiply-adds and one product, the size of the output;
 the passes and the per-rod columns are O(n). A large batch is bound by writing that output (chain 100 3D:
