@@ -39,7 +39,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 import weakref
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numpy as np
 
@@ -92,7 +92,7 @@ def public_call(entry: str) -> Callable[[F], F]:
         ext = extension()
         if ext is None:
             return f
-        return functools.update_wrapper(ext.PublicCall(f, entry), f)  # type: ignore[no-any-return]
+        return cast(F, functools.update_wrapper(ext.PublicCall(f, entry), f))
 
     return wrap
 
