@@ -25,7 +25,15 @@ acceleration) was tried, twice, warm-started from human strides at 1.41 m/s: nei
 3.7 and 4.5 min of CPU (13 and 14 min wall at load 8-10; stopped), where the same problem without it
 converged in 74 s wall (load 3) from the stored stride; so it is not in the stored problem (not shown:
 whether it converges given longer), and the sizing table's peaks at the join are the transcription's,
-not the walk's.
+not the walk's. ``join_loads`` asks instead for the loads' continuity: the priced joints' moments and
+the telescopic rods' forces at ``t = 0`` equal the mirror image of those at ``t = T``. From the stored exo
+stride (w_floor 5, ankle spring 0.25) it converged in 77 s of IPOPT (114 s wall at load 8; the trial
+``exo-join-loads``): the left knee's power at the stride's end is 0.0 W as at its start (was 167.6 W), the
+largest joint power 107.9 W (was 167.6), loads mirrored to 2e-12, objective 0.4473 (0.4379 without).
+It is not in the stored problem: the human stride at 1.41 m/s solved with it (trial ``human-join-loads``)
+keeps its r (0.72/0.84/0.94) but has 15 of 17 peaks within 2x (knee power in swing 2.2x, ankle power in
+stance 2.1x), where the stored one has 17; one problem for every stored stride keeps the sizing table one
+problem's.
 
 **Objective.** Work per metre over body weight, positive and negative parts priced separately: each
 power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
