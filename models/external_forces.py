@@ -144,7 +144,7 @@ def _tau(mech: Mechanism, tau: Any, shape: tuple, source: str) -> np.ndarray | N
     return t[0] if len(shape) == 1 and np.ndim(tau) == 1 else t
 
 
-def refuse_overflow(model: Any, f: np.ndarray, result: np.ndarray, what: str) -> None:
+def refuse_overflow(mech: Mechanism, who: str, f: np.ndarray, result: np.ndarray, what: str) -> None:
     """With finite forces ``f`` (flat or ``(samples, links, 3, dim)``), a ValueError naming ``f_ext`` and
     the first sample where ``result`` (``what``: Q added to tau, dQ/dq) is not finite: forces too large
     for float64, never returned as inf or NaN nor blamed on another field. Cheap when all is finite
@@ -153,15 +153,14 @@ def refuse_overflow(model: Any, f: np.ndarray, result: np.ndarray, what: str) ->
         total = result.sum()
     if np.isfinite(total):  # the sum of finite numbers may overflow: then look closer
         return
-    mech = model.mechanism
-    forces = f.reshape(-1, mech.nlinks * 3 * mech.dim)  # one row per sample, as result's
+    forces = np.asarray(f).reshape(-1, mech.nlinks * 3 * mech.dim)  # one row per sample, as result's
     bad = ~np.isfinite(result.reshape(forces.shape[0], -1)).all(axis=1)
     if not bad.any():
         return
     s = int(np.argmax(bad))
     big = float(np.abs(forces[s]).max())
     raise ValueError(
-        f"{model.method}: field 'f_ext': sample {s}: expected forces whose {what} is finite in float64, got "
+        f"{who}: field 'f_ext': sample {s}: expected forces whose {what} is finite in float64, got "
         f"{what} not finite (largest |force| {big:.3g} N); express the forces in other units"
     )
 
@@ -266,7 +265,7 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
             _refuse(model, f, tau.shape, status)
         tau = dest
     if check:
-        refuse_overflow(model, f, tau, "tau - Q")
+        refuse_overflow(model.mechanism, model.method, f, tau, "tau - Q")
     if out is None:
         return tau
     check_out(out, tau.shape, model.method)
@@ -320,7 +319,7 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
         if status != xc.DONE:
             _refuse(model, f, q.shape, status)
         if check:
-            refuse_overflow(model, f, total, "tau + Q")
+            refuse_overflow(model.mechanism, model.method, f, total, "tau + Q")
         return model.forward_dynamics(q, qd, total, check=check, out=out)
     mech = model.mechanism
     if check:
@@ -338,7 +337,7 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
     f = check_f_ext(mech, f_ext, shape, check, model.method)
     total = t + model._external_forces(q2, f).reshape(shape)
     if check:
-        refuse_overflow(model, f, total, "tau + Q")
+        refuse_overflow(model.mechanism, model.method, f, total, "tau + Q")
     return model.forward_dynamics(q, qd, total, check=check, out=out)
 
 
@@ -350,7 +349,7 @@ def inverse_derivatives(model: Any, q, qd, qdd, f_ext, check: bool = True):
     f = check_f_ext(model.mechanism, f_ext, q2.shape if dq.ndim == 3 else (model.dof,), check, model.method)
     dQ = dQ_dq(model.mechanism, q2, f)
     if check:
-        refuse_overflow(model, f, dQ, "dQ/dq")
+        refuse_overflow(model.mechanism, model.method, f, dQ, "dQ/dq")
     return dq - dQ.reshape(dq.shape), dqd, M
 
 
@@ -367,7 +366,7 @@ def forward_derivatives(model: Any, q, qd, tau, f_ext, check: bool = True):
         )
     total = t + model._external_forces(q2, f).reshape(t.shape)
     if check:
-        refuse_overflow(model, f, total, "tau + Q")
+        refuse_overflow(model.mechanism, model.method, f, total, "tau + Q")
     qdd, aq, aqd, minv = model.derivatives.forward_dynamics(q, qd, total, check=check)
     return qdd, aq + minv @ dQ_dq(model.mechanism, q2, f).reshape(aq.shape), aqd, minv
 
@@ -383,15 +382,25 @@ class ControlsWithForces:
         self.model, self.controls, self.f_ext = model, controls, f_ext
 
     def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return self.controls(t, q, qd) + self.model._external_forces(q, self.forces(t, q, qd))
+        f = self.forces(t, q, qd)
+        Q = self.model._external_forces(q, f)
+        refuse_overflow(self.model.mechanism, f"simulate at t = {t:.6g} s", f, Q, "Q")
+        return self.controls(t, q, qd) + Q
 
     def forces(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """``f_ext(t, q, qd)``, checked, ``(k, links, 3, dim)``."""
-        f = np.asarray(self.f_ext(t, q, qd), dtype=float)
+        f = self.f_ext(t, q, qd)  # read by check_f_ext: real numbers only, as the calls read f_ext
         mech = self.model.mechanism
-        if q.shape[0] == 1 and f.shape == (mech.nlinks, 3, mech.dim):
-            f = f[None]
+        if q.shape[0] == 1 and _shape(f) == (mech.nlinks, 3, mech.dim):
+            f = np.asarray(f)[None]
         return check_f_ext(mech, f, q.shape, True, f"simulate at t = {t:.6g} s")
+
+
+def _shape(a: Any) -> tuple | None:
+    try:
+        return np.shape(a)
+    except ValueError:  # ragged: check_f_ext names it
+        return None
 
 
 class ControlsWithForcesJacobian(ControlsWithForces):

@@ -128,3 +128,25 @@ def test_forces_at_takes_real_numbers_and_a_sample_count(kind):
         with pytest.raises(ValueError, match=r"f_ext: field 'samples': expected"):
             xf.forces_at(MECH, {(name, "end"): [0.0, 700.0]}, samples=samples)
     np.testing.assert_array_equal(xf.forces_at(MECH, {(name, "end"): [0, 700]})[0, 2], [0.0, 700.0])
+
+
+@pytest.mark.case("P1", "P3")
+@pytest.mark.parametrize("kind", ["str", "Decimal", "complex", "huge"])
+def test_simulate_reads_the_forces_of_its_f_ext_function_as_the_calls_do(kind):
+    """simulate's f_ext(t, q, qd) is read as the calls read f_ext (ControlsWithForces, the right-hand
+    side's edge; called here without integrating): its forces of strings or Decimals were read as
+    numbers (np.asarray(dtype=float) before the check), a complex force dropped its imaginary part,
+    and forces whose Q overflows gave an infinite right-hand side; each is a ValueError naming f_ext."""
+    model = _model("newton-euler")
+    force = {"str": "700", "Decimal": Decimal(700), "complex": 700j, "huge": 1e308}[kind]  # huge: Q = inf
+
+    def f_ext(t, q, qd):
+        f = np.zeros(SHAPE[1:], dtype=object if kind != "huge" else float)
+        f[0, :, :] = force
+        return f.tolist() if kind == "str" else f
+
+    rhs = xf.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), f_ext)
+    with pytest.raises(ValueError, match=r"simulate at t = 0 s: field 'f_ext'"):
+        rhs(0.0, Q[:1], QD[:1])
+    ok = xf.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), lambda t, q, qd: np.ones(SHAPE[1:]))
+    assert np.isfinite(ok(0.0, Q[:1], QD[:1])).all()
