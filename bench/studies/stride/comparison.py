@@ -36,9 +36,8 @@ from exo_bench.bench.studies.stride.evidence import (
     WINTER_DOUBLE_SUPPORT,
     WINTER_STANCE,
     contacts,
+    absorbed,
     double_support,
-    floor_work,
-    negative_joint_work,
     rod_travel,
     toe_share,
 )
@@ -298,16 +297,6 @@ def compare(mech: Mechanism, stride, start: float | None = None) -> Comparison:
     return Comparison(cs, stance, hs, peaks, verdicts(mech, stride, cs, peaks, act, stance[0]))
 
 
-def _absorbed(mech: Mechanism, stride, cs: dict[str, Curve]) -> str:
-    """Where the stride's energy is absorbed: at the floor (unpriced) and by the joints, beside Winter's joints."""
-    wt = winter.table()["t"]
-    ours, his = negative_joint_work(cs, (stride.t[-1] - stride.t[0], float(wt[-1] - wt[0])), mech.total_mass)
-    return (
-        f"the floor's contact absorbs {-floor_work(mech, stride):.1f} J per stride (its damping and friction, "
-        f"not priced), the hips, knees and ankles {-ours:.1f} J (Winter's, at this body mass, {-his:.1f} J)"
-    )
-
-
 def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_end: float) -> list[Verdict]:
     """Issue 37's four done-when checks and whether the stance is a walking one (read with the ground
     force's humps), each with the numbers it rests on (``stance_end``: our
@@ -321,7 +310,7 @@ def verdicts(mech, stride, cs: dict[str, Curve], peaks, act: Actuators, stance_e
             not bad,
             f"ours / Winter's in [{1 / FACTOR:g}, {FACTOR:g}] for each of {len(peaks)} peaks",
             f"{len(peaks) - len(bad)} of {len(peaks)} within"
-            + (f"; outside: {worst}; " + _absorbed(mech, stride, cs) if bad else ""),
+            + (f"; outside: {worst}; " + absorbed(mech, stride, cs) if bad else ""),
             short="peaks within 2x",
         )
     )

@@ -66,6 +66,19 @@ def negative_joint_work(curves: dict, period: tuple[float, float], mass: float) 
     return out[0], out[1]
 
 
+def absorbed(mech: Mechanism, stride, cs: dict) -> str:
+    """Where the stride's energy is absorbed, as text: at the floor (unpriced unless ``w_floor``) and by the
+    hips, knees and ankles, beside Winter's joints at this body mass (``cs``: the compared curves)."""
+    from exo_bench.bench.studies.stride import winter
+
+    wt = winter.table()["t"]
+    ours, his = negative_joint_work(cs, (stride.t[-1] - stride.t[0], float(wt[-1] - wt[0])), mech.total_mass)
+    return (
+        f"the floor's contact absorbs {-floor_work(mech, stride):.1f} J per stride (its damping and friction), "
+        f"the hips, knees and ankles {-ours:.1f} J (Winter's, at this body mass, {-his:.1f} J)"
+    )
+
+
 def rod_travel(mech: Mechanism, stride) -> str:
     """The telescopic rods' largest length range over the stride (cm) and largest rate (m/s), as text."""
     rods = [mech.nlinks + mech.names.index(r) for r in stride.telescopic]
@@ -77,6 +90,7 @@ def rod_travel(mech: Mechanism, stride) -> str:
 
 
 __all__ = [
+    "absorbed",
     "CONTACT_THRESHOLD",
     "WINTER_DOUBLE_SUPPORT",
     "WINTER_STANCE",

@@ -43,10 +43,13 @@ against Winter's, stated; the objective tracks no curve of his): they meet all f
 trials (``w_floor`` 6, ankle 0.25 or 0.4) miss one peak each, so the margin is one local optimum's. The
 spring stands for the ankle's parallel elasticity; its value is not from a checked source.
 
-**Trials** (data/trials/<name>/, tabled in the stride's report with what each changes): the stored
-problem with one setting changed, solved from the stored human stride at 1.41 m/s: the rods priced 1x
-(the stride stored before), negative work priced 0.2, strength-weighted effort, a free period, a 0.1
-m/s rod rate bound. ``strength`` stays (1, 1, 1) in the stored problem: the trials with a stronger
+**Trials** (data/trials/<name>/, tabled in the stride's report with what each changes; solved by
+:mod:`~exo_bench.bench.studies.stride.trials`): the problem with settings changed, each solved from the
+human stride at 1.41 m/s stored before the floor was priced (kept as the trial ``floor-unpriced``): the
+rods priced 1x, negative work priced 0.2, strength-weighted effort, a free period, a 0.1 m/s rod rate
+bound, a joint-acceleration penalty, gait2d's contact damping and friction, a stiffer heel, Anderson and
+Pandy's end-range moments, ankle springs, the floor priced, the loads continuous across the join.
+``strength`` stays (1, 1, 1) in the stored problem: the trials with a stronger
 ankle raised the ankle moment's r and lowered the knee's, and we have no checked source for per-joint
 strengths to state.
 """
