@@ -38,7 +38,7 @@ results reused (models/_lean_call.c), ``self._entries`` specialised by Python (m
 no Python frame in a one-sample call (the public call is the extension's ``PublicCall``, which offers
 it to the lean entry in C: models/lean_call.py ``public_call``). Measured before that last step (load
 1.1, 16:18 UTC, 2026-11-27): ``check=False, out=`` 0.704 us, 0.104x (not met), the Python frame of
-the public call about 130 ns of it; after, in five processes at load 7-9 (17:00 UTC), the same call
+the public call about 130 ns of it; after, in four processes at load 7-9 (17:00 UTC), the same call
 0.34-0.35 us, 0.059-0.061x, and in the one slow-phase process 0.62 us, 0.082x.
 """
 
