@@ -46,7 +46,7 @@ class DerivativeChecks:
         (directions, weights) are finite."""
         single = is_one_sample(arrays[0])
         d = self.mechanism.dof
-        shaped = []
+        shaped: list = []
         for name, a in zip(names, arrays):
             a = _real(source, name, a) if not check or len(shaped) >= 3 else a
             nd = np.ndim(a)

@@ -208,10 +208,10 @@ def check_shapes(arrays: dict[str, np.ndarray], mech: Mechanism, source: str) ->
             raise ValueError(f"stride: {source}: field {k!r}: expected finite values, got a NaN or an infinity")
     steps = np.diff(arrays["t"])
     if not np.all(steps > 0):
-        k = int(np.argmax(~(steps > 0)))
+        at = int(np.argmax(~(steps > 0)))
         raise ValueError(
-            f"stride: {source}: field 't': expected increasing times, got t[{k}] = {arrays['t'][k]!r} then "
-            f"t[{k + 1}] = {arrays['t'][k + 1]!r}"
+            f"stride: {source}: field 't': expected increasing times, got t[{at}] = {arrays['t'][at]!r} then "
+            f"t[{at + 1}] = {arrays['t'][at + 1]!r}"
         )
 
 
