@@ -43,7 +43,12 @@ Other error models used in the tests (each stated where it is used):
 
 import numpy as np
 import pytest
-from xdist_workers import pytest_cmdline_main, pytest_configure, pytest_xdist_make_scheduler  # noqa: F401  (conftest hooks)
+from xdist_workers import (  # noqa: F401  (conftest hooks)
+    pytest_cmdline_main,
+    pytest_configure,
+    pytest_sessionstart,
+    pytest_xdist_make_scheduler,
+)
 
 EPS = float(np.finfo(float).eps)
 

@@ -22,12 +22,18 @@ Hooks of tests/conftest.py (imported there, so they are conftest hooks):
 
 * :func:`pytest_xdist_make_scheduler`: each file on one worker, and the files of
   :data:`SHARED_WORKER` on one worker together.
+* :func:`pytest_sessionstart`, in the controller of a run on workers: the kernels are compiled into
+  the workers' numba cache before the workers start (tests/warm_kernels.py, its parts at once), so
+  that the workers and the CLI processes their tests start load them instead of each compiling
+  them on a fresh clone (a process that misses the cache compiles; the lock only orders the saving).
 """
 
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -110,3 +116,61 @@ def pytest_configure(config: pytest.Config) -> None:
         from numba.core import config as numba_config
 
         numba_config.reload_config()
+
+
+#: The warm-up script (its parts: ``PARTS`` there) and how long a part may take before the run goes on
+#: without it (its kernels are then compiled by the tests that need them, as without a warm-up).
+WARM_KERNELS = Path(__file__).resolve().parent / "warm_kernels.py"
+WARM_PARTS = ("matrix", "newton-euler")
+WARM_TIMEOUT = 1800
+
+
+def warm_numba_cache(folder: Path, timeout: float = WARM_TIMEOUT) -> list[str]:
+    """Run the parts of tests/warm_kernels.py at once with ``NUMBA_CACHE_DIR=folder``; one line per
+    part: its own last line, or why it did not finish (a failed part only costs the time it took)."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(folder)}
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(WARM_KERNELS), part],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for part in WARM_PARTS
+    ]
+    lines = []
+    for part, proc in zip(WARM_PARTS, procs):
+        try:
+            out, _ = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, _ = proc.communicate()
+            lines.append(f"warm_kernels {part}: stopped after {timeout} s; its kernels compile in the tests")
+            continue
+        tail = out.strip().splitlines()[-1:] or [""]
+        if proc.returncode != 0:
+            lines.append(f"warm_kernels {part}: exit {proc.returncode}: {tail[0]}; its kernels compile in the tests")
+        else:
+            lines.append(tail[0])
+    return lines
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """In the controller of a run on workers (module docstring), before xdist starts them."""
+    config = session.config
+    if (
+        hasattr(config, "workerinput")
+        or not config.pluginmanager.hasplugin("xdist")
+        or not getattr(config.option, "numprocesses", None)
+        or config.option.collectonly
+        or (getattr(config, "cache", None) is None and not os.environ.get("NUMBA_CACHE_DIR"))
+    ):
+        return
+    start = time.monotonic()
+    lines = warm_numba_cache(numba_cache_folder(config))
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line(
+            f"numba cache {numba_cache_folder(config)} warmed in {time.monotonic() - start:.0f} s: " + "; ".join(lines)
+        )
