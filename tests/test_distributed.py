@@ -248,30 +248,58 @@ def _descendants(pid: int) -> list:
         return []
 
 
+# The child: ``exo-bench bench --workers 2`` as the console script runs it (``app.main``), on the tiny
+# benchmark file instead of bench/. Its code key is then the tiny folder's (no git checkout there), the
+# same for the client and the workers: on the checkout, a commit or an edit by anyone between the
+# client's code key and the workers' made every worker refuse every row ("worker ... runs code X, the
+# sweep measures Y"), no row ever started, and the sweep ran to its end (seen twice at 17:13 UTC).
+_BENCH = """
+import sys
+from exo_bench.bench.cli import app
+from exo_bench.bench.cluster import commands
+
+real = commands.run_sweep
+
+def run_sweep(files, sweep, **kw):
+    return real(["tiny_rows.py"], sweep, repo={folder!r}, pytest_args={plugin!r}, **kw)
+
+commands.run_sweep = run_sweep
+sys.exit(app.main(["bench", "--workers", "2", "--reports", {reports!r}]))
+"""
+
+
 def test_ctrl_c_leaves_no_worker_processes_and_nothing_in_reports(tmp_path):
+    """Ctrl-C while a row runs on a worker: exit 130, "interrupted", no worker or row process left, no
+    report published. The signal is sent once the row that sleeps an hour (3D, n = 5) is seen running,
+    an observed event; if the command ends first, the test fails at once with its output (it waited
+    600 s for a row that could no longer start, and the output was lost)."""
     import psutil
 
-    exe = Path(sys.executable).with_name("exo-bench")
+    folder = tiny_bench(tmp_path / "b", ns=(5,), sleep=3600.0)
+    code = _BENCH.format(folder=str(folder), plugin=PLUGIN, reports=str(tmp_path / "reports"))
     proc = subprocess.Popen(
-        [str(exe), "bench", "--workers", "2", "--reports", str(tmp_path / "reports")],
+        [sys.executable, "-c", code],
         cwd=tmp_path,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         preexec_fn=keyboard_signals_at_default,  # a user's Ctrl-C, whatever the test worker inherited
     )
-    seen, deadline = {}, time.monotonic() + 600  # a safety net: a row starts in seconds
+    seen, running, deadline = {}, False, time.monotonic() + 600  # a hang guard only: a row starts in seconds
     try:
-        while time.monotonic() < deadline:  # until a row's pytest runs on a worker
+        while not running and proc.poll() is None and time.monotonic() < deadline:
             for p in _descendants(proc.pid):
                 try:
                     seen[p.pid] = p
-                    if "--row" in p.cmdline():
-                        deadline = 0
+                    cmd = p.cmdline()
+                    running = running or ("--row" in cmd and any(a.endswith("3d-chain-n5") for a in cmd))
                 except psutil.NoSuchProcess:
                     pass
-            time.sleep(0.3)
-        assert deadline == 0, "no row started within 600 s"
+            time.sleep(0.3)  # a poll's interval, not a wait for something to happen
+        if not running:
+            proc.kill()
+            out, err = proc.communicate(timeout=600)
+            pytest.fail(f"the sleeping row never ran (exit {proc.returncode}): {out[-3000:]} {err[-3000:]}")
         for p in _descendants(proc.pid):
             seen[p.pid] = p
         proc.send_signal(signal.SIGINT)
