@@ -150,3 +150,20 @@ def test_simulate_reads_the_forces_of_its_f_ext_function_as_the_calls_do(kind):
         rhs(0.0, Q[:1], QD[:1])
     ok = xf.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), lambda t, q, qd: np.ones(SHAPE[1:]))
     assert np.isfinite(ok(0.0, Q[:1], QD[:1])).all()
+
+
+@pytest.mark.case("P2")
+def test_a_labelled_tau_beside_f_ext_is_read_by_name():
+    """A DataFrame tau whose columns are the coordinate names in another order is read by name with f_ext,
+    as without it (with f_ext it was read by position: phi1's moment taken as l1's force)."""
+    pd = pytest.importorskip("pandas")
+    from exo_bench.models.states import coordinate_names
+
+    model = _model("newton-euler")
+    tau = model.inverse_dynamics(Q, QD, QDD)
+    names = coordinate_names(MECH)
+    labelled = pd.DataFrame(tau, columns=names)[names[::-1]]
+    f = np.ones(SHAPE)
+    np.testing.assert_array_equal(
+        model.forward_dynamics(Q, QD, labelled, f_ext=f), model.forward_dynamics(Q, QD, tau, f_ext=f)
+    )
