@@ -62,12 +62,18 @@ def _split_batch(kernel, wait_limit):
 
 def test_a_stuck_pool_share_is_a_named_timeout():
     """A pool thread stuck in its share (a stand-in kernel waiting on an event): the calling thread
-    computes every other share, then waits 0.2 s, not forever, and names the batch and the limit."""
-    main, release = threading.get_ident(), threading.Event()
+    computes every other share, then waits 0.2 s, not forever, and names the batch and the limit. The
+    calling thread's first share waits until a pool thread has taken one (an observed event): under load
+    the calling thread pulled every share before the pool thread ran (8 of 30 runs, load 6-8), and
+    nothing was stuck."""
+    main, taken, release = threading.get_ident(), threading.Event(), threading.Event()
 
     def kernel(params, q, qd, qdd, o, s0, s1):
         if threading.get_ident() != main:
+            taken.set()
             release.wait(30)
+        else:
+            taken.wait(600)  # a hang guard only: the pool thread takes a share once it runs
         o[s0:s1] = 1.0
 
     try:
