@@ -169,11 +169,14 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
         text=True,
     )
     deadline = time.monotonic() + 600  # a safety net: the staging folder appears in seconds
-    while time.monotonic() < deadline and not any((tmp_path / "rep").glob(".staging-*")):
-        time.sleep(0.05)
+    staged = False  # the observed event; the wait also ends if the run ends first (it waited 600 s then)
+    while not staged and proc.poll() is None and time.monotonic() < deadline:
+        staged = any((tmp_path / "rep").glob(".staging-*"))
+        time.sleep(0.05)  # a poll's interval
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=600)
-    assert proc.returncode == 130 and "interrupted" in err
+    assert staged, (proc.returncode, err[-3000:])
+    assert proc.returncode == 130 and "interrupted" in err, (proc.returncode, err[-3000:])
     assert list((tmp_path / "rep").iterdir()) == []
 
 
