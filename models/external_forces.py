@@ -46,10 +46,9 @@ from exo_bench.models.external_forces_compiled import (
 )  # re-exported: PreparedModel._external_forces
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.rod_elements import project_2d, project_3d
-from exo_bench.models.state_conversion import converted
+from exo_bench.models.state_conversion import converted, real_numbers_problem
 from exo_bench.models.states import as_states, coordinate_names
 from exo_bench.models.unchecked import check_out, unchecked_forward
-from exo_bench.models.validation import _is_number
 
 #: The points of every link, in the order of ``f_ext``'s third axis.
 POINTS = ("start", "middle", "end")
@@ -76,7 +75,7 @@ def forces_at(mech: Mechanism, loads: Mapping[tuple[str, str], Any], samples: in
         if point not in POINTS:
             raise ValueError(f"f_ext: link {link!r}: point {point!r}: expected one of {', '.join(POINTS)}")
         i, b = mech.names.index(link), POINTS.index(point)
-        why = _not_real_numbers(value)
+        why = real_numbers_problem(value)
         if why:
             raise ValueError(f"f_ext: link {link!r}, point {point!r}: expected a force of real numbers, got {why}")
         v = np.asarray(value, dtype=float)
@@ -104,7 +103,7 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
             f"{who}field 'f_ext': expected forces of shape {full} (samples, links, 3 points: start, middle, "
             f"end, dim; one sample: {want}) in newtons, world axes, got {shape}"
         )
-    why = _not_real_numbers(f_ext)
+    why = real_numbers_problem(f_ext)
     if why:
         raise ValueError(f"{who}field 'f_ext': expected forces in newtons (numbers), got {why}")
     try:
@@ -118,21 +117,6 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
             f"{'xyz'[c]}: expected a finite force in newtons, got {f[s, i, b, c]}"
         )
     return f
-
-
-def _not_real_numbers(f_ext: Any) -> str:
-    """Why ``f_ext`` is not real numbers ('' if it is): an array of another dtype (str, bool, complex,
-    object), a masked entry, or a list entry that numpy would read as a number ("1.5", True, Decimal)."""
-    if isinstance(f_ext, np.ma.MaskedArray) and np.ma.is_masked(f_ext):
-        at = tuple(int(i) for i in np.argwhere(np.ma.getmaskarray(f_ext))[0])
-        return f"a masked entry at {at}"
-    if isinstance(f_ext, np.ndarray):
-        return "" if f_ext.dtype.kind in "iuf" else f"dtype {f_ext.dtype}"
-    objects = np.asarray(f_ext, dtype=object)
-    for at in np.ndindex(objects.shape):
-        if not _is_number(objects[at]):
-            return f"{objects[at]!r} ({type(objects[at]).__name__}) at {at}"
-    return ""
 
 
 def _tau(mech: Mechanism, tau: Any, shape: tuple, source: str) -> np.ndarray | None:

@@ -155,3 +155,19 @@ def converted(arr: Any, label: str, source: str, names: list[str]) -> np.ndarray
             f"{names[0]}..{names[-1]}, got {tuple(np.shape(arr))}"
         )
     return a
+
+
+def real_numbers_problem(arr: Any) -> str:
+    """Why ``arr``, of any shape (``f_ext``), is not real numbers ('' if it is): an array of another dtype
+    (str, bool, complex, object), a masked entry, or a list entry that numpy would read as a number
+    ("1.5", True, Decimal)."""
+    if isinstance(arr, np.ma.MaskedArray) and np.ma.is_masked(arr):
+        at = tuple(int(i) for i in np.argwhere(np.ma.getmaskarray(arr))[0])
+        return f"a masked entry at {at}"
+    if isinstance(arr, np.ndarray):
+        return "" if arr.dtype.kind in "iuf" else f"dtype {arr.dtype}"
+    objects = np.asarray(arr, dtype=object)
+    for at in np.ndindex(objects.shape):
+        if not _is_number(objects[at]):
+            return f"{objects[at]!r} ({type(objects[at]).__name__}) at {at}"
+    return ""
