@@ -127,11 +127,9 @@ class DerivativeChecks:
     def _finite_inverse(self, source: str, out: tuple[np.ndarray, ...], names: tuple[str, ...]) -> None:
         """Never NaN or inf from an inverse product (``(S, dof)`` arrays): a ValueError naming the field of
         the result, the sample, the coordinate and its link (inverse dynamics is defined there; the
-        inputs are too large for float64). One sum per array when all is finite."""
+        inputs are too large for float64). One isfinite pass per array."""
         for x, name in zip(out, names):
-            with np.errstate(over="ignore", invalid="ignore"):
-                total = x.sum()
-            if np.isfinite(total):
+            if np.isfinite(x).all():  # not a sum under np.errstate: entering one costs ~5 us
                 continue
             s, j = (int(i) for i in np.argwhere(~np.isfinite(x))[0])
             i, mech = j % self.mechanism.nlinks, self.mechanism
