@@ -47,9 +47,11 @@ import numpy as np
 
 from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.data import read_stored
+from exo_bench.bench.studies.stride.passive import check_passive, check_spring
 from exo_bench.models.contact import DEFAULT_CONTACT, ContactParameters
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.names import file_stem
+from exo_bench.models.validation import _finite, _is_number
 
 DATA = Path(__file__).resolve().parent / "data"
 VARIANTS = ("human", "exo")
@@ -132,14 +134,39 @@ def contact_mask_order(mech: Mechanism) -> list[int]:
     return [mech.names.index(link) for _, link in CONTACTS]
 
 
-def contact_of(settings: Any) -> ContactParameters:
+def contact_of(settings: Any, where: str = "stride: field 'settings.contact'") -> ContactParameters:
     """The floor's contact parameters of a stride problem (its settings, or their stored dict):
     :data:`~exo_bench.models.contact.DEFAULT_CONTACT` with the fields of its ``contact`` changed (a stride
-    stored without the field has the defaults); a ValueError naming a bad field."""
+    stored without the field has the defaults); a one-line ValueError ``where: ...`` naming a bad field
+    (unknown, or a value :class:`~exo_bench.models.contact.ContactParameters` refuses)."""
     over = settings.get("contact", {}) if isinstance(settings, dict) else settings.contact
-    if not isinstance(over, dict) or not set(over) <= {f.name for f in fields(ContactParameters)}:
-        raise ValueError(f"stride: field 'settings.contact': expected fields of ContactParameters, got {over!r}")
-    return replace(DEFAULT_CONTACT, **over) if over else DEFAULT_CONTACT
+    names = [f.name for f in fields(ContactParameters)]
+    unknown = [k for k in over if k not in names] if isinstance(over, dict) else [over]
+    if unknown:
+        raise ValueError(f"{where}: expected fields of ContactParameters ({', '.join(names)}), got {unknown[0]!r}")
+    try:
+        return replace(DEFAULT_CONTACT, **over) if over else DEFAULT_CONTACT
+    except ValueError as e:
+        raise ValueError(f"{where}: {e}") from None
+
+
+def check_settings(s: Any, source: str = "stride", prefix: str = "") -> None:
+    """Check the settings that price and shape a stride problem where they are made (a
+    :class:`~exo_bench.bench.studies.stride.problem.StrideSettings`, or the dict stored with a stride, a
+    field it lacks having its default): ``passive`` and ``spring``
+    (:mod:`~exo_bench.bench.studies.stride.passive`), ``w_floor`` a finite price >= 0 (a negative one would
+    reward the floor's damping), ``contact`` (:func:`contact_of`). A one-line ValueError
+    ``source: field 'prefix<name>': expected ..., got ...`` otherwise."""
+    get = s.get if isinstance(s, dict) else lambda key, default: getattr(s, key, default)
+    check_passive(get("passive", "none"), f"{source}: field '{prefix}passive'")
+    check_spring(get("spring", (0.0, 0.0, 0.0)), f"{source}: field '{prefix}spring'")
+    w = get("w_floor", 0.0)
+    if not (_is_number(w) and _finite(w) and w >= 0):
+        raise ValueError(
+            f"{source}: field '{prefix}w_floor': expected a finite number >= 0 (the floor's absorbed work per metre "
+            f"over body weight, priced as the joints'), got {w!r}"
+        )
+    contact_of(s, f"{source}: field '{prefix}contact'")
 
 
 def contact_forces(mech: Mechanism, q: np.ndarray, qd: np.ndarray, params=None) -> np.ndarray:
@@ -232,9 +259,10 @@ def _check_meta(meta: dict[str, Any], variant: str, speed: float, source: str) -
             raise bad(key, "a positive finite number")
     if speed_key(meta["speed"]) != speed_key(speed):
         raise bad("speed", f"{speed:g} m/s (the file's key)")
-    for key in ("solver", "provenance"):
+    for key in ("solver", "provenance", "settings"):
         if not isinstance(meta.get(key, {}), dict):
             raise bad(key, "an object")
+    check_settings(meta.get("settings", {}), f"stride: {source}", "meta.settings.")
     for key in ("joint_names", "rod_names", "telescopic", "contact_names", "feet"):
         x = meta.get(key, [])
         if not (isinstance(x, list) and all(isinstance(n, str) for n in x)):
@@ -293,6 +321,7 @@ __all__ = [
     "FEET",
     "VARIANTS",
     "StoredStride",
+    "check_settings",
     "contact_forces",
     "contact_of",
     "grf_per_foot",

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from exo_bench.models.validation import _finite, _is_number
+
 #: Anderson and Pandy's coefficients as 3dpredictsim tables them: joint -> ((k1, k2, k3, k4), (x_min, x_max)).
 ANDERSON_PANDY = {
     "hip": ((-2.44, 5.05, 1.51, -21.88), (-0.6981, 1.81)),
@@ -34,9 +36,25 @@ ANDERSON_PANDY = {
 PASSIVE = ("none", "anderson-pandy")
 
 
-def check_passive(value: Any) -> str:
-    if value not in PASSIVE:
-        raise ValueError(f"stride: field 'passive': expected one of {', '.join(PASSIVE)}, got {value!r}")
+JOINTS = ("hip", "knee", "ankle")
+
+
+def check_passive(value: Any, where: str = "stride: field 'passive'") -> str:
+    """``value`` if it names a passive model of :data:`PASSIVE`; a ValueError ``where: expected ..., got ...``."""
+    if not (isinstance(value, str) and value in PASSIVE):
+        raise ValueError(f"{where}: expected one of {', '.join(PASSIVE)}, got {value!r}")
+    return value
+
+
+def check_spring(value: Any, where: str = "stride: field 'spring'") -> Any:
+    """``value`` if it is three springs (hip, knee, ankle; N·m/kg/rad), each a finite number >= 0 (a
+    negative one would push the joint away from standing: not a passive element); a ValueError naming
+    the joint otherwise."""
+    if not (isinstance(value, tuple | list) and len(value) == len(JOINTS)):
+        raise ValueError(f"{where}: expected 3 springs (hip, knee, ankle; N·m/kg/rad), got {value!r}")
+    for joint, k in zip(JOINTS, value):
+        if not (_is_number(k) and _finite(k) and k >= 0):
+            raise ValueError(f"{where} of the {joint}: expected a finite number >= 0 (N·m/kg/rad), got {k!r}")
     return value
 
 
@@ -56,8 +74,8 @@ def passive_moment(s: Any, joint: str, theta: Any, theta_0: float, mass: float, 
         (k1, k2, k3, k4), (lo, hi) = ANDERSON_PANDY[joint]
         x = opensim_coordinate(joint, theta, theta_0)
         out = out + (k1 * exp(k2 * (x - hi)) + k3 * exp(k4 * (x - lo)))
-    k = dict(zip(("hip", "knee", "ankle"), getattr(s, "spring", (0.0, 0.0, 0.0))))[joint]
+    k = dict(zip(JOINTS, getattr(s, "spring", (0.0, 0.0, 0.0))))[joint]
     return out - k * mass * (theta - theta_0) if k else out
 
 
-__all__ = ["ANDERSON_PANDY", "PASSIVE", "check_passive", "passive_moment"]
+__all__ = ["ANDERSON_PANDY", "JOINTS", "PASSIVE", "check_passive", "check_spring", "passive_moment"]

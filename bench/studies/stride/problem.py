@@ -133,6 +133,9 @@ class StrideSettings:
     w_floor: float = 0.0  # the floor's absorbed work (its contact's damping and friction) priced at this
     contact: dict = field(default_factory=dict)  # the floor's contact: fields changed (data.contact_of)
 
+    def __post_init__(self) -> None:
+        data.check_settings(self)  # passive, spring, w_floor, contact: refused here, not at the solve
+
     def to_dict(self) -> dict:
         return asdict(self)
 
