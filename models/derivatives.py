@@ -52,7 +52,7 @@ SOURCE = (
 PER_COORDINATE = 64
 
 
-class DerivativesTooLarge(MemoryError):
+class DerivativesTooLarge(memory.CallTooLarge):
     """A derivative call whose estimated memory exceeds what a run may use, refused before any work."""
 
 
@@ -62,7 +62,7 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     (:data:`PER_COORDINATE`), and with the numpy kernel the columns as samples (``(samples, dof, dof)``
     twice more: :func:`exo_bench.models.newton_euler.inverse_mass.numpy_columns`)."""
     square = float(samples) * dof * dof * 8.0
-    extra = 3 * square if REFERENCE[kernel] else 0.0
+    extra = 3 * square if REFERENCE[kernel] and jacobians else 0.0  # the products solve no columns
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
 
 
@@ -203,15 +203,8 @@ class Derivatives(DerivativeChecks):
         """Refuse, before any work, a call whose :func:`derivative_bytes` exceed :func:`exo_bench.models.memory.usable_memory`
         (asked only above :data:`exo_bench.models.memory.CHUNK_BYTES`)."""
         need = derivative_bytes(self.mechanism.dof, samples, jacobians, self.kernel)
-        if need <= memory.CHUNK_BYTES:  # no larger than one chunk's temporaries, which every batched call
-            return  # allocates unasked; reading /proc/meminfo costs ~0.1 ms, more than exo5-3d's 256 samples
-        limit = memory.usable_memory()
-        if limit is not None and need > limit:
-            raise DerivativesTooLarge(
-                f"{source}: {samples} samples of {self.mechanism.dof} coordinates need about {need / 2**30:.2f} GiB "
-                f"({jacobians} Jacobians of (samples, dof, dof) float64 and their work), over the "
-                f"{limit / 2**30:.2f} GiB a run may use; expected fewer samples per call"
-            )
+        what = f"{jacobians} Jacobians of (samples, dof, dof) float64 and their work" if jacobians else "O(n) work"
+        memory.check_call(source, samples, self.mechanism.dof, need, what, DerivativesTooLarge)
 
     # ------------------------------------------------------------------ full Jacobians
     def inverse_dynamics(self, q, qd, qdd, check: bool = True):
@@ -275,6 +268,7 @@ class Derivatives(DerivativeChecks):
         """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_jvp`)."""
         names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
+        self._check_memory("inverse-dynamics JVP", _samples(q), 0)  # before the states are copied
         arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics JVP")
@@ -286,6 +280,7 @@ class Derivatives(DerivativeChecks):
     def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
         """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each: reverse mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_vjp`)."""
+        self._check_memory("inverse-dynamics VJP", _samples(q), 0)
         arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
         if check:
             self._refuse_singular_states(arrays[0], "inverse-dynamics VJP")
@@ -298,6 +293,7 @@ class Derivatives(DerivativeChecks):
         """``(qdd, dqdd)`` with ``dqdd = M^-1 (dtau - dID/dq dq - dID/dqd dqd)`` at ``qdd = FD(q, qd, tau)``:
         O(n) per sample; refuses what :meth:`forward_dynamics` refuses."""
         names = ("q", "qd", "tau", "dq", "dqd", "dtau")
+        self._check_memory("forward-dynamics JVP", _samples(q), 0)
         (q, qd, tau, dq, dqd, dtau), single = self._states(
             "forward-dynamics JVP", names, (q, qd, tau, dq, dqd, dtau), check
         )
@@ -312,6 +308,7 @@ class Derivatives(DerivativeChecks):
     def forward_dynamics_vjp(self, q, qd, tau, w, check: bool = True):
         """``(qdd, w^T dqdd/dq, w^T dqdd/dqd, w^T M^-1)`` at ``qdd = FD(q, qd, tau)``: with ``u = M^-1 w``
         (``M`` symmetric), ``-u^T dID/dq``, ``-u^T dID/dqd`` and ``u``. O(n) per sample."""
+        self._check_memory("forward-dynamics VJP", _samples(q), 0)
         (q, qd, tau, w), single = self._states("forward-dynamics VJP", ("q", "qd", "tau", "w"), (q, qd, tau, w), check)
         self._refuse_singular(q, check)
         qdd = self._accelerations(q, qd, tau)

@@ -45,6 +45,7 @@ from exo_bench.models.external_forces_compiled import (
     generalized_forces_compiled as generalized_forces_compiled,
 )  # re-exported: PreparedModel._external_forces
 from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.memory import check_batch
 from exo_bench.models.rod_elements import project_2d, project_3d
 from exo_bench.models.state_conversion import converted, real_numbers_problem
 from exo_bench.models.states import as_states, coordinate_names
@@ -235,6 +236,7 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
     ``check`` (:func:`check_f_ext`'s messages), ``out`` as there. ``Q`` by the model's bound compiled
     kernel (:mod:`exo_bench.models.external_forces_compiled`; an engine's own ``Q`` otherwise)."""
     b = model.__dict__.get("_f_ext_bound") or xc.bound(model)
+    check_batch("inverse dynamics with f_ext", q, b.dof, 6 * b.dof + int(np.prod(b.forces)))  # before any copy
     tau = model.inverse_dynamics(q, qd, qdd, check=check)
     f = _forces(model, b, f_ext, tau.shape, check)
     if b.apply is None:
@@ -286,6 +288,7 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
     ``q`` and ``tau`` of one shape ``(dof,)`` or ``(samples, dof)`` go straight to the compiled ``Q``
     (a bad value in ``q`` is then named by the call, as without ``f_ext``)."""
     b = model.__dict__.get("_f_ext_bound") or xc.bound(model)
+    check_batch("forward dynamics with f_ext", q, b.dof, 6 * b.dof + int(np.prod(b.forces)))  # before any copy
     if (
         b.apply is not None
         and type(q) is np.ndarray

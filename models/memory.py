@@ -69,3 +69,38 @@ def usable_memory() -> int | None:
 def chunks(S: int, size: int):
     for s0 in range(0, S, size):
         yield slice(s0, min(S, s0 + size))
+
+
+class CallTooLarge(MemoryError):
+    """A call whose estimated memory exceeds what a run may use (:func:`usable_memory`), refused before
+    any work (issue 34: memory is predicted before the work, with ``check=False`` too)."""
+
+
+def batch_samples(q) -> int:
+    """The sample count of a batch ``(samples, dof)``, read from its shape without converting it; 0 for
+    one sample and for what has no shape (a list holds its memory already)."""
+    shape = getattr(q, "shape", None)
+    return int(shape[0]) if isinstance(shape, tuple) and len(shape) == 2 else 0
+
+
+def check_call(source: str, samples: int, dof: int, need: float, what: str, error=CallTooLarge) -> None:
+    """Refuse with ``error`` a call of ``samples`` states whose estimated bytes ``need`` exceed
+    :func:`usable_memory`; ``what`` says what they hold. Asked only above :data:`CHUNK_BYTES` (every
+    batched call allocates one chunk's temporaries unasked; reading /proc/meminfo costs ~0.1 ms)."""
+    if need <= CHUNK_BYTES:
+        return
+    limit = usable_memory()
+    if limit is not None and need > limit:
+        raise error(
+            f"{source}: {samples} samples of {dof} coordinates need about {need / 2**30:.2f} GiB ({what}), "
+            f"over the {limit / 2**30:.2f} GiB a run may use; expected fewer samples per call"
+        )
+
+
+def check_batch(source: str, q, dof: int, per_sample: int) -> None:
+    """Refuse, before the states are converted, a batch ``q`` whose ``per_sample`` float64 entries per
+    sample (the converted states, the result and the work, at most one chunk's) exceed
+    :func:`usable_memory`: a few integer multiplications, nothing for one sample."""
+    samples = batch_samples(q)
+    if samples:
+        check_call(source, samples, dof, 8.0 * samples * per_sample, "the states, the result and the work")

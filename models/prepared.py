@@ -51,6 +51,7 @@ from exo_bench.models.memory import (
     MAX_CHUNK,
     USABLE_SHARE,
     available_memory,
+    check_batch,
     chunks,
     default_chunk_samples,
     usable_memory,
@@ -236,6 +237,7 @@ class PreparedModel(Regular):
         # one sample, checked (validated first) or not, in C; None (having touched nothing) where it does not take it
         if (lean := e.lean) is not None and (tau := lean(q, qd, qdd, check, out)) is not None:
             return tau
+        check_batch("inverse dynamics", q, self._dof, 4 * self._dof)  # a batch: before the states are copied
         if not check:
             unchecked_states(self.method, self._dof, (q, qd, qdd), out)
             if q.ndim == 1:
@@ -275,6 +277,7 @@ class PreparedModel(Regular):
     def mass_matrix(self, q, check: bool = True) -> np.ndarray:
         """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
         single = is_one_sample(q)
+        check_batch("mass matrix", q, self._dof, self._dof * (self._dof + 1))
         if check:
             q, _, _ = as_states(self._mechanism, q)
         else:
@@ -288,6 +291,7 @@ class PreparedModel(Regular):
     def bias_forces(self, q, qd, check: bool = True) -> np.ndarray:
         """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
         single = is_one_sample(q)
+        check_batch("bias forces", q, self._dof, 3 * self._dof)
         if check:
             require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
@@ -301,6 +305,7 @@ class PreparedModel(Regular):
     def mass_matrix_and_bias(self, q, qd, check: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Both terms of ``M qdd + h = tau`` at once, ``(S, dof, dof)`` and ``(S, dof)`` (batch only):
         one batched inverse-dynamics call where the terms are derived."""
+        check_batch("mass_matrix_and_bias", q, self._dof, self._dof * (self._dof + 4))
         if check:
             require_rates(self.method, qd)
             q, qd, _ = as_states(self._mechanism, q, qd)
@@ -333,6 +338,7 @@ class PreparedModel(Regular):
         # one sample in C, checked (states validated, the checks' common case) or not; None where it does not take it
         if (lean := e.forward_lean) is not None and (qdd := lean(q, qd, tau, check, out)) is not None:
             return qdd
+        check_batch("forward dynamics", q, self._dof, 4 * self._dof)  # a batch: before the states are copied
         single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
         if check:
             if qd is None or tau is None:
