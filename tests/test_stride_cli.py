@@ -26,10 +26,12 @@ def test_describes_the_stored_stride_with_its_constraints(capsys):
 @pytest.mark.parametrize(
     "argv, words",
     [
-        (["--speed", "fast"], "field '--speed': expected a speed in m/s, got 'fast'"),
+        (["--speed", "fast"], "argument --speed: expected a decimal number such as 1.41, got 'fast'"),
+        (["--speed", "1.4_1"], "argument --speed: expected a decimal number such as 1.41, got '1.4_1'"),
         (["--speed", "-1"], "expected a speed in (0, 10) m/s"),
         (["--speed", "1.234"], "in steps of 0.01"),
-        (["--speed", "inf"], "expected a speed in (0, 10) m/s"),
+        (["--speed", "inf"], "argument --speed: expected a decimal number such as 1.41, got 'inf'"),
+        (["--speed", "1e9"], "expected a speed in (0, 10) m/s"),
         (["--speed", "1.23"], "no stored stride human-2d-human-v123.npz"),
         (["--store"], "--store needs --solve"),
         (["--variant", "robot"], "invalid choice: 'robot'"),

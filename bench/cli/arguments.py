@@ -4,6 +4,7 @@ the cluster options, and how a report job run on its own marks its files."""
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
@@ -65,9 +66,35 @@ def cluster_options(args: argparse.Namespace) -> ClusterOptions | None:
     return None
 
 
+#: A decimal literal: ASCII digits, an optional sign, point and exponent; no underscores, no spaces
+#: (``float()`` reads "1.4_1" as 1.41, " 2 " as 2 and Arabic-Indic digits).
+DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+#: A whole-number literal: ASCII digits with an optional sign.
+WHOLE = re.compile(r"[+-]?[0-9]+")
+_FORM = "(ASCII digits, an optional sign, point and exponent; no underscores or spaces)"
+_WHOLE_FORM = "(ASCII digits and an optional sign; no underscores or spaces)"
+
+
+def decimal(text: str) -> float:
+    """The one reader of a number option's text (issue 34, W8): a :data:`DECIMAL` literal, else argparse's
+    one-line error (argparse names the option)."""
+    if not DECIMAL.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a decimal number such as 1.41, got {text!r} {_FORM}")
+    return float(text)
+
+
+def whole(text: str) -> int:
+    """A whole-number option's text: a :data:`WHOLE` literal, else argparse's one-line error."""
+    if not WHOLE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a whole number such as 3, got {text!r} {_WHOLE_FORM}")
+    return int(text)
+
+
 def size_arg(text: str) -> int:
     from exo_bench.api.cost_model import parse_size
 
+    if text != text.strip():  # parse_size strips: an option's text is taken as typed
+        raise argparse.ArgumentTypeError(f"expected a size such as 2G, 512M or 1.5e9 (no spaces), got {text!r}")
     try:
         return parse_size(text)
     except ValueError as e:
@@ -78,16 +105,13 @@ def seconds_arg(text: str) -> float:
     from exo_bench.api.cost_model import parse_seconds
 
     try:
-        return parse_seconds(text)
+        return parse_seconds(decimal(text))
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e).removeprefix("--max-time: ")) from None
 
 
 def budget_arg(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    value = decimal(text)
     if not (value > 0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
     return value
@@ -95,10 +119,9 @@ def budget_arg(text: str) -> float:
 
 def at_least_one(text: str, plural: str, singular: str) -> int:
     """``text`` as a whole number of at least 1, else argparse's error naming ``plural``/``singular``."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of {plural}, got {text!r}") from None
+    if not WHOLE.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected a whole number of {plural}, got {text!r} {_WHOLE_FORM}")
+    value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected at least 1 {singular}, got {value}")
     return value

@@ -5,7 +5,14 @@ from __future__ import annotations
 
 import argparse
 
-from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, described, report_job, reports_folder
+from exo_bench.bench.cli.arguments import (
+    add_cluster_args,
+    budget_arg,
+    cluster_options,
+    described,
+    report_job,
+    reports_folder,
+)
 from exo_bench.bench.perf.options import BenchOptions
 
 
@@ -47,7 +54,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument(
         "--suite-timeout",
-        type=float,
+        type=budget_arg,
         default=None,
         metavar="SECONDS",
         help="stop the serial suite after SECONDS (default: the profile's predicted time x 10)",

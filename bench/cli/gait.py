@@ -20,7 +20,7 @@ from exo_bench.bench.studies.step import data
 
 def add_parser(sub) -> None:
     """Register ``exo-bench gait`` on the CLI's subparsers."""
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import described, whole
 
     s = sub.add_parser(
         "gait",
@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
             "exo-bench gait --dim 2 --solve",
         ),
     )
-    s.add_argument("--dim", type=int, choices=(2, 3), default=3, help="exo5-2d or exo5-3d (default 3)")
+    s.add_argument("--dim", type=whole, choices=(2, 3), default=3, help="exo5-2d or exo5-3d (default 3)")
     s.add_argument(
         "--solve",
         action="store_true",

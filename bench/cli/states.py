@@ -15,7 +15,7 @@ import argparse
 
 import numpy as np
 
-from exo_bench.bench.cli.arguments import at_least_one, described
+from exo_bench.bench.cli.arguments import at_least_one, described, whole
 
 #: Example states are for reading and copying: a default that prints in a screen.
 DEFAULT_SAMPLES = 10
@@ -65,10 +65,7 @@ def check_memory(samples: int, dof: int, npz: bool) -> None:
 
 
 def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    value = whole(text)
     if not 0 <= value < 2**63:
         raise argparse.ArgumentTypeError(f"expected a seed from 0 to 2**63 - 1, got {value}")
     return value

@@ -13,20 +13,17 @@ from __future__ import annotations
 import datetime as _dt
 
 
-def _speed(text: str) -> float:
+def _speed(v: float) -> float:
+    """``--speed``, read by the strict number parser (:func:`exo_bench.bench.cli.arguments.decimal`), in range."""
     from exo_bench.bench.studies.stride.data import speed_key
 
-    try:
-        v = float(text)
-    except ValueError:
-        raise ValueError(f"stride: field '--speed': expected a speed in m/s, got {text!r}") from None
     speed_key(v)  # (0, 10) m/s, finite: one line otherwise
     return v
 
 
 def add_parser(sub) -> None:
     """Register ``exo-bench stride`` on the CLI's subparsers."""
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import decimal, described
 
     s = sub.add_parser(
         "stride",
@@ -38,7 +35,7 @@ def add_parser(sub) -> None:
         ),
     )
     s.add_argument("--variant", choices=("human", "exo"), default="human", help="leg rods held (human) or free")
-    s.add_argument("--speed", type=str, default="1.41", help="the prescribed average speed, m/s (default 1.41)")
+    s.add_argument("--speed", type=decimal, default=1.41, help="the prescribed average speed, m/s (default 1.41)")
     s.add_argument("--solve", action="store_true", help="solve again (needs the extra 'casadi') and compare")
     s.add_argument("--store", action="store_true", help="with --solve: write the new solution as the stored one")
     s.add_argument("--verbose", action="store_true", help="with --solve: IPOPT's iteration log")
