@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from exo_bench.models.external_forces import with_external_forces
+from exo_bench.models.external_forces_controls import with_external_forces
 from exo_bench.models.forward_dynamics import Controls, mass_matrix_and_bias, solve_mass_matrix
 from exo_bench.models.implicit_integrators import CURRENT_JACOBIAN
 from exo_bench.models.mechanism import as_states, split
@@ -250,7 +250,7 @@ def simulate(
     * ``first_step``: ``None`` (scipy chooses) or in ``(0, t_span[1] - t_span[0]]``; ``dense``: a bool.
     * ``f_ext``: external forces at the point masses, ``f_ext(t, q, qd) -> (samples, links, 3, dim)``
       called as the controls are (ground contact, interaction, loads): with it ``M qdd + h = controls + Q(q,
-      f_ext)`` (:class:`exo_bench.models.external_forces.ControlsWithForces`, docs/external-forces.md);
+      f_ext)`` (:class:`exo_bench.models.external_forces_controls.ControlsWithForces`, docs/external-forces.md);
       ``jacobian="analytic"`` needs ``f_ext.jacobian(t, q, qd) -> (df/dq, df/dqd)``.
 
     Bad arguments raise ValueError before any work. The initial state is validated and checked for a

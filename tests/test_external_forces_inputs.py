@@ -15,6 +15,7 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.models import external_forces as xf
+from exo_bench.models import external_forces_controls as xc
 from exo_bench.models.presets import fig1
 
 MECH = fig1(2)
@@ -145,10 +146,10 @@ def test_simulate_reads_the_forces_of_its_f_ext_function_as_the_calls_do(kind):
         f[0, :, :] = force
         return f.tolist() if kind == "str" else f
 
-    rhs = xf.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), f_ext)
+    rhs = xc.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), f_ext)
     with pytest.raises(ValueError, match=r"simulate at t = 0 s: field 'f_ext'"):
         rhs(0.0, Q[:1], QD[:1])
-    ok = xf.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), lambda t, q, qd: np.ones(SHAPE[1:]))
+    ok = xc.ControlsWithForces(model, lambda t, q, qd: np.zeros_like(q), lambda t, q, qd: np.ones(SHAPE[1:]))
     assert np.isfinite(ok(0.0, Q[:1], QD[:1])).all()
 
 

@@ -21,6 +21,7 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.models import external_forces as ef
+from exo_bench.models import external_forces_controls as efc
 from exo_bench.models.forward_dynamics import RodSpringDamper
 from exo_bench.models.presets import random_tree
 from exo_bench.models.simulate import make_jacobian, simulate
@@ -84,7 +85,7 @@ def test_the_analytic_jacobian_with_f_ext_is_the_chain_rule(method):
     its largest entry; without the term through ``f`` the oracle moves by more than 1e-2 of it."""
     model = prepare(MECH, method)
     forces, controls = LinearForces(MECH), _controls(MECH)
-    wrapped = ef.with_external_forces(model, controls, forces, "analytic")
+    wrapped = efc.with_external_forces(model, controls, forces, "analytic")
     q, qd = _state()
     d = model.dof
     J = make_jacobian(model, wrapped)(0.0, np.concatenate([q, qd]))
