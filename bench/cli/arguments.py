@@ -104,8 +104,9 @@ def size_arg(text: str) -> int:
 def seconds_arg(text: str) -> float:
     from exo_bench.api.cost_model import parse_seconds
 
+    decimal(text)  # the strict literal first: parse_seconds' float() reads "1_0" and " 2 "
     try:
-        return parse_seconds(decimal(text))
+        return parse_seconds(text)
     except ValueError as e:
         raise argparse.ArgumentTypeError(str(e).removeprefix("--max-time: ")) from None
 
