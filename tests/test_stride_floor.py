@@ -91,3 +91,5 @@ def test_the_report_states_the_floor_price_and_the_springs():
     line = report.objective_line(StoredStride(**{**st.__dict__, "meta": {**st.meta, "settings": mine}}))
     assert "the work the floor absorbs (its contact's damping and friction) priced at 4 per metre" in line
     assert "passive springs about standing (N·m/kg/rad): ankle 0.5" in line and "hip 0" not in line
+    # the stored numbers were picked by the checks the report then shows: it says so beside them
+    assert "chosen from the trials below by the checks below" in line and "no checked source" in line

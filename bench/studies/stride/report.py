@@ -164,6 +164,12 @@ def _passive_and_floor(s: dict) -> str:
         out.append(f"passive end-range moments: {s['passive']}")
     if s.get("contact"):
         out.append("floor contact changed: " + ", ".join(f"{k} {v:g}" for k, v in sorted(s["contact"].items())))
+    if s.get("w_floor") or springs:
+        out.append(
+            "the floor price and the springs were chosen from the trials below by the checks below (a calibration "
+            "against Winter's, bench/studies/stride/problem.py; the objective tracks no curve of his), so those "
+            "checks do not test these numbers independently, and the springs' values have no checked source"
+        )
     return (" Also: " + "; ".join(out) + ".") if out else ""
 
 
