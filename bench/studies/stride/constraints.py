@@ -39,6 +39,21 @@ def optimiser_loads_by(model, stride: StoredStride) -> np.ndarray:
     return model.inverse_dynamics(stride.q, stride.qd, stride.qdd, f_ext=f)
 
 
+def load_jump(mech: Mechanism, moments: np.ndarray, forces: np.ndarray) -> tuple[float, float]:
+    """How far a stored stride's loads jump at the half-stride join: the largest ``|difference|`` between the
+    priced joints' moments (N·m), then the telescopic rods' forces (N), at ``t = 0`` and the mirror image
+    (right and left exchanged) of those at ``t = T`` (node ``N`` of the ``2N + 1``); ``moments (K, joints)``,
+    ``forces (K, rods)`` as :func:`~.actuators.actuators` splits them. What ``join_loads`` constrains."""
+    from exo_bench.bench.studies.stride.transcription import join_pairs
+
+    N = (len(moments) - 1) // 2
+    (ja, jb), (ra, rb) = join_pairs(mech)
+    return (
+        float(np.abs(moments[0, ja] - moments[N, jb]).max()),
+        float(np.abs(forces[0, ra] - forces[N, rb]).max()),
+    )
+
+
 def violations(stride: StoredStride, mech: Mechanism) -> dict[str, float]:
     """Every constraint of the stride problem, re-evaluated: name -> largest violation (module docstring)."""
     from exo_bench import prepare
@@ -89,18 +104,10 @@ def violations(stride: StoredStride, mech: Mechanism) -> dict[str, float]:
     out[f"rod rates (<= {s['rate']:g} m/s)"] = max(rates)
     out["period range"] = _excess(np.array([t[-1]]), *s["period"])
     if s.get("join_loads"):
-        from exo_bench.bench.studies.stride.transcription import join_pairs
-
-        (ja, jb), (ra, rb) = join_pairs(mech)
         act = actuators(mech, tau)
-        out["join: loads mirrored (N·m, N)"] = float(
-            max(
-                np.abs(act.moments[0, ja] - act.moments[N, jb]).max(),
-                np.abs(act.forces[0, ra] - act.forces[N, rb]).max(),
-            )
-        )
+        out["join: loads mirrored (N·m, N)"] = max(load_jump(mech, act.moments, act.forces))
     out["contact forces as stored"] = float(np.abs(contact_forces(mech, q, qd, contact_of(s)) - stride.contact).max())
     return out
 
 
-__all__ = ["optimiser_loads_by", "violations"]
+__all__ = ["load_jump", "optimiser_loads_by", "violations"]

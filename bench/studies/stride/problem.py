@@ -85,6 +85,10 @@ HUMAN_ROD_WORK = 10.0
 FLOOR_PRICE = 5.0
 #: A parallel ankle spring about the standing angle (N·m/kg/rad; hip, knee, ankle): module text.
 SPRING = (0.0, 0.0, 0.25)
+#: Per variant: the loads continuous across the half-stride join (``join_loads``): the exo's, whose sizing table
+#: is what motors are bought from (its loads jumped there by 49.5 N·m and 669 N without it); not the human's,
+#: which keeps its five checks only without it (:mod:`~.transcription`, "The join").
+JOIN_LOADS = (("human", False), ("exo", True))
 #: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.normative.WINTER`).
 WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
 
@@ -156,6 +160,7 @@ def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> Stri
     kw.setdefault("w_rod_work", HUMAN_ROD_WORK if variant == "human" else 1.0)
     kw.setdefault("w_floor", FLOOR_PRICE)
     kw.setdefault("spring", SPRING)
+    kw.setdefault("join_loads", dict(JOIN_LOADS)[variant])
     return StrideSettings(variant, speed, stroke=stroke, rest_lengths=rest, ankle_standing=ankle, **kw)
 
 
@@ -369,6 +374,7 @@ __all__ = [
     "FLOOR_PRICE",
     "SPRING",
     "HUMAN_STROKE",
+    "JOIN_LOADS",
     "StrideSettings",
     "assemble",
     "initial_guess",

@@ -58,12 +58,11 @@ def store_all(keys=STORED + STORED_EXO) -> list[str]:
     """Solve every stored stride again with the problem as :func:`~.problem.settings_for` sets it now, each
     from the stride named (the human at 1.41 m/s first, so the others start from the new one), and store
     it; one line per stride."""
-    import subprocess
-
+    from exo_bench.bench.output.provenance import _git_commit  # bounded wait; says when the tree differs
     from exo_bench.models.presets import human
 
     mech = human(2)
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    commit = _git_commit()
     out = []
     for variant, speed, (sv, ss) in keys:
         st = problem.solve_from(mech, problem.settings_for(mech, variant, speed), data.load(sv, ss, mech))
