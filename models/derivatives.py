@@ -95,6 +95,24 @@ def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE)
 REFERENCE = {"numba": False, "numpy": True}
 
 
+#: The option ``products``: the kernel of the directional derivatives (:meth:`Derivatives.products_kernel`):
+#: ``"simd"`` (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes),
+#: ``"numba"`` (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the
+#: reference), or ``"auto"``: the reference under ``kernel="numpy"``, else the SIMD kernel below
+#: :data:`PRODUCTS_SIMD_BELOW_LINKS` links and the per-sample kernel from there on.
+PRODUCT_KERNELS = ("auto", "simd", "numba", "numpy")
+#: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel (the
+#: SIMD kernel's scratch, ``(2 ROWS + 2 FROWS + 3)`` rows of 32 samples per link, 9.5 MB at this size, is
+#: far beyond L2; newton-euler's batched kernel narrows its blocks there, :data:`exo_bench.models.newton_euler.simd.NARROW_FROM_LINKS`).
+PRODUCTS_SIMD_BELOW_LINKS = 800
+
+
+def _products_option(option) -> str:
+    if option not in PRODUCT_KERNELS:
+        raise ValueError(f"derivatives: option 'products': expected one of {PRODUCT_KERNELS}, got {option!r}")
+    return option
+
+
 def _kernel(option: str) -> str:
     if option != "auto" and option not in REFERENCE:
         raise ValueError(f"derivatives: option 'kernel': expected 'auto', 'numba' or 'numpy', got {option!r}")
@@ -113,12 +131,21 @@ class Derivatives(DerivativeChecks):
     :meth:`_inverse`, :meth:`_accelerations`, :meth:`_solve` and :meth:`_forward_jacobians` and keep every
     check (:class:`exo_bench.models.derivative_checks.DerivativeChecks`: states, singular states, no NaN out)."""
 
-    def __init__(self, mechanism: Mechanism, method: str = "newton-euler", source: str | None = None, kernel="auto"):
+    def __init__(
+        self,
+        mechanism: Mechanism,
+        method: str = "newton-euler",
+        source: str | None = None,
+        kernel="auto",
+        products: str = "auto",
+    ):
         from exo_bench.models.newton_euler.derivatives import RECYCLE_MIN_BYTES, prepare_inverse_derivatives
 
         self.mechanism = mechanism
         self.method = method
         self.kernel = _kernel(kernel)
+        self._products_option = _products_option(products)
+        self._products_scratch: Any = None  # the SIMD products kernel's ThreadScratch (products_scratch)
         #: runs the numpy reference (the option ``kernel``, :data:`REFERENCE`), else the compiled kernels
         self.reference = REFERENCE[self.kernel]
         #: which physics computes these derivatives (module docstring)
@@ -255,14 +282,41 @@ class Derivatives(DerivativeChecks):
         return tuple(x[0] for x in out) if single else out
 
     # ------------------------------------------------------------------ directional derivatives
+    @property
+    def products_kernel(self) -> str:
+        """The kernel that computes the directional derivatives (:data:`PRODUCT_KERNELS`): ``"simd"``,
+        ``"numba"`` or ``"numpy"``, the option ``products`` resolved for this mechanism."""
+        option = self._products_option
+        if option != "auto":
+            return option
+        if self.reference:
+            return "numpy"
+        return "simd" if self.mechanism.nlinks < PRODUCTS_SIMD_BELOW_LINKS else "numba"
+
+    @property
+    def products_scratch(self):
+        """Each thread's scratch of the SIMD products kernel (made at its first use)."""
+        if self._products_scratch is None:
+            from exo_bench.models.newton_euler import products_simd
+            from exo_bench.models.simd_blocks import ThreadScratch
+
+            m = self.mechanism
+            self._products_scratch = ThreadScratch(products_simd.scratch, m.nlinks, m.dim)
+        return self._products_scratch
+
     def _products(self, which: str, *arrays):
         """The ``"jvp"`` or ``"vjp"`` of inverse dynamics on validated C-ordered ``(S, dof)`` arrays, O(n)
-        per sample: compiled, or the numpy reference (:mod:`exo_bench.models.newton_euler.products_compiled`)."""
+        per sample, by :attr:`products_kernel`: across SIMD lanes
+        (:mod:`exo_bench.models.newton_euler.products_simd`), per sample
+        (:mod:`exo_bench.models.newton_euler.products_compiled`) or the numpy reference."""
+        kernel, dim, g = self.products_kernel, self.mechanism.dim, float(self.mechanism.g)
+        if kernel == "simd":
+            from exo_bench.models.newton_euler import products_simd
+
+            return getattr(products_simd, which)(self.table, dim, g, *arrays, self.products_scratch)
         from exo_bench.models.newton_euler import products_compiled as pc
 
-        return getattr(pc, which)(
-            self.tree, self.table, self.mechanism.dim, float(self.mechanism.g), *arrays, self.reference
-        )
+        return getattr(pc, which)(self.tree, self.table, dim, g, *arrays, kernel == "numpy")
 
     def inverse_dynamics_jvp(self, q, qd, qdd, dq, dqd, dqdd, check: bool = True):
         """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,

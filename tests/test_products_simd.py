@@ -1,0 +1,94 @@
+"""The directional derivatives across SIMD lanes (models/newton_euler/products_simd.py, issue 36): the JVP and
+VJP of inverse dynamics in blocks of samples, against the numpy reference of the same formulas
+(models/newton_euler/products.py, which tests/test_jvp.py holds to the full Jacobians for every kernel).
+
+**Error model.** The two evaluate the same per-rod products and passes; their sines and cosines differ by
+an ulp or two (the batched kernel's branch-free ``sin``/``cos``, models/fast_trig.py) and their sums run in
+other orders, so they differ by the rounding of the Jacobian's entries times the direction, the bound of
+tests/test_jvp.py: ``K eps sum_j D_ij |v_j|`` with ``D`` the scale of each entry's differentiated terms
+(tests/test_derivatives_analytic.py's ``derivative_scales``, conftest's ``mass_matrix_scale``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_derivatives_analytic import derivative_scales, states
+from test_jvp import _directions, _mv, _vm
+
+from conftest import assert_close, mass_matrix_scale
+from exo_bench import presets
+from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.newton_euler import products
+from exo_bench.models.presets import random_tree
+from exo_bench.models.simd_blocks import LANES
+
+TREES = [random_tree(7, 2, 22), random_tree(9, 3, 23), presets.exo5(dim=3)]
+#: one sample; one whole block and a partial one (not a multiple of the block width)
+SAMPLES = (1, LANES + 5)
+
+
+@pytest.fixture(scope="module")
+def providers():
+    """One provider per tree (each holds the SIMD kernel's per-thread scratch), shared by the tests."""
+    return {m.name: Derivatives(m, kernel="numba", products="simd") for m in TREES}
+
+
+def test_the_trees_have_branch_signs(providers):
+    """The random trees hold rods of sign -1 (the kernel multiplies by them) and more than one root path."""
+    for m in TREES[:2]:
+        table = providers[m.name].table
+        assert (table[1] < 0).any() and (table[1] > 0).any(), m.name
+        assert len(set(m.parent)) > 2, m.name
+
+
+@pytest.mark.parametrize("samples", SAMPLES)
+@pytest.mark.parametrize("mech", TREES, ids=[m.name for m in TREES])
+def test_simd_products_equal_the_numpy_reference(providers, mech, samples):
+    """JVP and VJP of the SIMD kernel against the numpy reference, 2D and 3D trees with branch signs, one
+    sample and a batch of one whole block and a partial one."""
+    from exo_bench.models.newton_euler import products_simd as ps
+
+    D = providers[mech.name]
+    q, qd, qdd = states(mech, samples, 61)
+    dq, dqd, dqdd, w = _directions(mech, samples, 62)
+    g = float(mech.g)
+    sq, sqd = derivative_scales(mech, q, qd, qdd)
+    sm = mass_matrix_scale(mech, q)
+    ref = products.inverse_jvp(D.tree, mech.dim, g, q, qd, qdd, dq, dqd, dqdd)
+    got = ps.jvp(D.table, mech.dim, g, q, qd, qdd, dq, dqd, dqdd, D.products_scratch)
+    scale = _mv(sq, np.abs(dq)) + _mv(sqd, np.abs(dqd)) + _mv(sm, np.abs(dqdd))
+    assert_close(got, ref, scale, what=f"{mech.name} jvp")
+    refs = products.inverse_vjp(D.tree, mech.dim, g, q, qd, qdd, w)
+    gots = ps.vjp(D.table, mech.dim, g, q, qd, qdd, w, D.products_scratch)
+    for what, a, b, s in zip(("w dtau/dq", "w dtau/dqd", "w M"), gots, refs, (sq, sqd, sm)):
+        assert_close(a, b, _vm(np.abs(w), s), what=f"{mech.name} vjp {what}")
+
+
+def test_the_provider_runs_the_simd_products_for_batches(providers):
+    """``model.derivatives``' products run the SIMD kernel for a batch (``products="auto"``, the default),
+    say so (:meth:`Derivatives.products_kernel`), and give the SIMD kernel's numbers to the bit."""
+    mech = TREES[1]
+    auto, simd = Derivatives(mech), providers[mech.name]
+    assert auto.products_kernel == "simd"
+    q, qd, qdd = states(mech, 9, 63)
+    dq, dqd, dqdd, w = _directions(mech, 9, 64)
+    np.testing.assert_array_equal(
+        auto.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd), simd.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd)
+    )
+    for a, b in zip(auto.inverse_dynamics_vjp(q, qd, qdd, w), simd.inverse_dynamics_vjp(q, qd, qdd, w)):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_a_batch_equals_its_samples_one_by_one(providers):
+    """The result of a sample does not depend on the batch around it (where its block is cut): every row
+    of a batch of 37 equals that sample alone, to the bit."""
+    mech = TREES[2]
+    D = providers[mech.name]
+    q, qd, qdd = states(mech, LANES + 5, 65)
+    dq, dqd, dqdd, w = _directions(mech, LANES + 5, 66)
+    batch = D.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd)
+    vjp = D.inverse_dynamics_vjp(q, qd, qdd, w)
+    for s in (0, 17, LANES, LANES + 4):
+        np.testing.assert_array_equal(D.inverse_dynamics_jvp(q[s], qd[s], qdd[s], dq[s], dqd[s], dqdd[s]), batch[s])
+        for a, b in zip(D.inverse_dynamics_vjp(q[s], qd[s], qdd[s], w[s]), vjp):
+            np.testing.assert_array_equal(a, b[s])
