@@ -155,7 +155,7 @@ def check_settings(s: Any, source: str = "stride", prefix: str = "") -> None:
     :class:`~exo_bench.bench.studies.stride.problem.StrideSettings`, or the dict stored with a stride, a
     field it lacks having its default): ``passive`` and ``spring``
     (:mod:`~exo_bench.bench.studies.stride.passive`), ``w_floor`` a finite price >= 0 (a negative one would
-    reward the floor's damping), ``contact`` (:func:`contact_of`). A one-line ValueError
+    reward the floor's damping), ``contact`` (:func:`contact_of`), ``tol`` and ``constr_viol_tol`` in (0, 1). A one-line ValueError
     ``source: field 'prefix<name>': expected ..., got ...`` otherwise."""
     get = s.get if isinstance(s, dict) else lambda key, default: getattr(s, key, default)
     check_passive(get("passive", "none"), f"{source}: field '{prefix}passive'")
@@ -166,6 +166,10 @@ def check_settings(s: Any, source: str = "stride", prefix: str = "") -> None:
             f"{source}: field '{prefix}w_floor': expected a finite number >= 0 (the floor's absorbed work per metre "
             f"over body weight, priced as the joints'), got {w!r}"
         )
+    for key in ("tol", "constr_viol_tol"):
+        x = get(key, 1e-10)
+        if not (_is_number(x) and _finite(x) and 0 < x < 1):
+            raise ValueError(f"{source}: field '{prefix}{key}': expected IPOPT's tolerance in (0, 1), got {x!r}")
     contact_of(s, f"{source}: field '{prefix}contact'")
 
 
@@ -314,6 +318,18 @@ def stored(folder: Path | None = None) -> list[tuple[str, float]]:
     return sorted(out)
 
 
+def trials_of(variant: str, speed: float, mech: Mechanism, root: Path) -> list[tuple[str, StoredStride]]:
+    """``(name, stride)`` of every trial under ``root`` (a folder per trial, :mod:`~.trials`) that holds a
+    stride of ``variant`` at ``speed`` for ``mech``, by name; none when ``root`` is not a folder."""
+    found = []
+    for d in sorted(p for p in Path(root).glob("*") if p.is_dir()) if Path(root).is_dir() else []:
+        try:
+            found.append((d.name, load(variant, speed, mech, d)))
+        except ValueError:
+            continue
+    return found
+
+
 __all__ = [
     "ARRAYS",
     "CONTACTS",
@@ -329,4 +345,5 @@ __all__ = [
     "path_of",
     "save",
     "stored",
+    "trials_of",
 ]

@@ -89,6 +89,14 @@ SPRING = (0.0, 0.0, 0.25)
 #: is what motors are bought from (its loads jumped there by 49.5 N·m and 669 N without it); not the human's,
 #: which keeps its five checks only without it (:mod:`~.transcription`, "The join").
 JOIN_LOADS = (("human", False), ("exo", True))
+#: IPOPT's constraint tolerance for a new solve (the transcription's units: residuals in body weights, and body
+#: weights x 1 m for the angles'). The stored stride must hold every constraint to 1e-8 in its own unit on the
+#: **full** stride (issue 37), and a mirrored node's root-angle residual (a moment about O) is the solved node's
+#: plus the hips' half-stride move d (0.70 m at 1.41 m/s) times the residual force, itself at most sqrt(2) c BW
+#: (root length >= 1 m): at most (1 + sqrt(2) d) c BW, about 2 c BW. So c <= 1e-8 N / (2 BW) = 9e-12 at 556 N;
+#: 5e-12 leaves a factor of 2. At 1e-10 (the strides stored before it, :class:`StrideSettings`'s default) the exo
+#: stride with continuous loads left 1.5e-8 N·m at a mirrored node; at 5e-12, 1.5e-9 N·m (33 more iterations).
+CONSTR_VIOL_TOL = 5e-12
 #: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.normative.WINTER`).
 WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
 
@@ -130,6 +138,7 @@ class StrideSettings:
     w_force: float = 0.1
     w_accel: float = 1e-6
     tol: float = 1e-10
+    constr_viol_tol: float = 1e-10  # IPOPT's, in the transcription's units (settings_for: CONSTR_VIOL_TOL)
     stature: float = 1.75
     passive: str = "none"  # passive joint moments (passive.py): "none" or "anderson-pandy"
     spring: tuple[float, float, float] = (0.0, 0.0, 0.0)  # N·m/kg/rad: hip, knee, ankle springs (passive.py)
@@ -161,6 +170,7 @@ def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> Stri
     kw.setdefault("w_floor", FLOOR_PRICE)
     kw.setdefault("spring", SPRING)
     kw.setdefault("join_loads", dict(JOIN_LOADS)[variant])
+    kw.setdefault("constr_viol_tol", CONSTR_VIOL_TOL)
     return StrideSettings(variant, speed, stroke=stroke, rest_lengths=rest, ankle_standing=ankle, **kw)
 
 
@@ -228,7 +238,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
         start = (float(t0[-1]), *guess)
     opts: dict[str, Any] = {
         "ipopt.tol": s.tol,
-        "ipopt.constr_viol_tol": 1e-10,
+        "ipopt.constr_viol_tol": s.constr_viol_tol,
         "ipopt.acceptable_iter": 0,
         "ipopt.max_iter": 3000,
         # the exact work from a solution: a small barrier, decreased monotonically (the adaptive strategy ignores
@@ -369,6 +379,7 @@ def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.Stored
 
 
 __all__ = [
+    "CONSTR_VIOL_TOL",
     "EXO_RATE",
     "EXO_STROKE",
     "FLOOR_PRICE",

@@ -205,13 +205,7 @@ def trials_table(mech: Mechanism, stride: data.StoredStride, trials=None) -> lis
 
     from exo_bench.bench.studies.stride.evidence import floor_work, toe_share
 
-    root = Path(TRIALS if trials is None else trials)
-    found = []
-    for d in sorted(p for p in root.glob("*") if p.is_dir()) if root.is_dir() else []:
-        try:
-            found.append((d.name, data.load(stride.variant, stride.speed, mech, d)))
-        except ValueError:
-            continue
+    found = data.trials_of(stride.variant, stride.speed, mech, Path(TRIALS if trials is None else trials))
     rows = []
     for name, t in [("(the stored stride)", stride), *found]:
         c = cmp.compare(mech, t)
