@@ -41,6 +41,8 @@ from exo_bench.models.derivative_checks import DerivativeChecks
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.result_pool import ResultPool
 
+_F8 = np.dtype(np.float64)
+
 #: What computes the derivatives (:attr:`Derivatives.source`).
 SOURCE = (
     "analytic O(n) derivatives of the Newton-Euler passes (models/newton_euler/derivatives.py); "
@@ -309,7 +311,7 @@ class Derivatives(DerivativeChecks):
         per sample, by :attr:`products_kernel`: across SIMD lanes
         (:mod:`exo_bench.models.newton_euler.products_simd`), per sample
         (:mod:`exo_bench.models.newton_euler.products_compiled`) or the numpy reference."""
-        kernel, dim, g = self.products_kernel, self.mechanism.dim, float(self.mechanism.g)
+        kernel, dim, g = self.products_kernel, int(self.mechanism.dim), float(self.mechanism.g)
         if kernel == "simd":
             from exo_bench.models.newton_euler import products_simd
 
@@ -318,9 +320,30 @@ class Derivatives(DerivativeChecks):
 
         return getattr(pc, which)(self.tree, self.table, dim, g, *arrays, kernel == "numpy")
 
+    def _lean_products(self, which: str, source: str, arrays: tuple):
+        """The products of ``check=False`` on arrays the general path would pass on unchanged: numpy
+        float64 arrays, C-contiguous, all of one shape ``(S, dof)`` with ``S >= 1``, or ``(dof,)``. The
+        memory is estimated first, as there; None (having done nothing) for anything else, which the
+        general path converts or refuses, naming the field."""
+        q = arrays[0]
+        if type(q) is not np.ndarray or q.ndim not in (1, 2) or q.shape[-1] != self.mechanism.dof or not q.size:
+            return None
+        for a in arrays:
+            if type(a) is not np.ndarray or a.shape != q.shape or a.dtype != _F8 or not a.flags.c_contiguous:
+                return None
+        single = q.ndim == 1
+        self._check_memory(source, 1 if single else q.shape[0], 0)
+        if single:
+            out = self._products(which, *(a[None] for a in arrays))
+            return out[0] if which == "jvp" else tuple(x[0] for x in out)
+        return self._products(which, *arrays)
+
     def inverse_dynamics_jvp(self, q, qd, qdd, dq, dqd, dqdd, check: bool = True):
         """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_jvp`)."""
+        arrays = (q, qd, qdd, dq, dqd, dqdd)
+        if not check and (out := self._lean_products("jvp", "inverse-dynamics JVP", arrays)) is not None:
+            return out
         names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
         self._check_memory("inverse-dynamics JVP", _samples(q), 0)  # before the states are copied
         arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
@@ -334,6 +357,8 @@ class Derivatives(DerivativeChecks):
     def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
         """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each: reverse mode through the passes,
         O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_vjp`)."""
+        if not check and (out := self._lean_products("vjp", "inverse-dynamics VJP", (q, qd, qdd, w))) is not None:
+            return out
         self._check_memory("inverse-dynamics VJP", _samples(q), 0)
         arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
         if check:

@@ -19,10 +19,13 @@ from test_derivatives_analytic import derivative_scales, states
 
 from conftest import EPS, K, assert_close, mass_matrix_scale
 from exo_bench import prepare, presets
+from exo_bench.models.derivatives import Derivatives
 from exo_bench.models.presets import random_tree
 
 TREES = [random_tree(6, 3, 21), random_tree(7, 2, 22), presets.exo5(dim=3), random_tree(9, 3, 23)]
 IDS = [m.name for m in TREES]
+#: The products kernels (models/derivatives.py's option ``products``) held to the full Jacobians.
+PRODUCT_KERNELS = ("auto", "numba", "numpy")
 
 
 def _directions(mech, samples, seed):
@@ -38,14 +41,17 @@ def _vm(w, A):
     return np.einsum("si,sij->sj", w, A)
 
 
+@pytest.mark.parametrize("products", PRODUCT_KERNELS)
 @pytest.mark.parametrize("mech", TREES, ids=IDS)
-def test_inverse_dynamics_jvp_and_vjp_equal_the_full_jacobians(mech):
+def test_inverse_dynamics_jvp_and_vjp_equal_the_full_jacobians(mech, products):
     """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd`` and ``(w^T dtau/dq, w^T dtau/dqd, w^T M)`` equal the
-    products with the full Jacobians to the error model; checked to mean something (below 1e-12 of the
-    largest entry)."""
-    q, qd, qdd = states(mech, 5, 31)
-    dq, dqd, dqdd, w = _directions(mech, 5, 32)
-    D = prepare(mech, "newton-euler").derivatives
+    products with the full Jacobians to the error model, for each products kernel (``"auto"``: the one
+    ``model.derivatives`` runs, SIMD; the per-sample kernel; the numpy reference); checked to mean something
+    (below 1e-12 of the largest entry). 37 samples: one whole SIMD block and a partial one."""
+    q, qd, qdd = states(mech, 37, 31)
+    dq, dqd, dqdd, w = _directions(mech, 37, 32)
+    D = prepare(mech, "newton-euler").derivatives if products == "auto" else Derivatives(mech, products=products)
+    assert D.products_kernel == {"auto": "simd"}.get(products, products)
     jq, jqd, M = D.inverse_dynamics(q, qd, qdd)
     sq, sqd = derivative_scales(mech, q, qd, qdd)
     sm = mass_matrix_scale(mech, q)

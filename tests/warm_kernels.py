@@ -39,6 +39,7 @@ def states(dof: int, samples: int | None) -> np.ndarray:
 
 def warm(method: str, dim: int) -> None:
     from exo_bench import prepare, presets
+    from exo_bench.models.derivatives import Derivatives
 
     model = prepare(presets.exo5(dim=dim), method)
     for samples in (None, BATCH):
@@ -51,6 +52,7 @@ def warm(method: str, dim: int) -> None:
     if method == "newton-euler":
         d = model.derivatives
         for samples in (None, BATCH):
+            Derivatives(model.mechanism, products="numba").inverse_dynamics_vjp(*[states(model.dof, samples)] * 4)
             q = states(model.dof, samples)
             d.inverse_dynamics(q, q, q)
             d.forward_dynamics(q, q, q)

@@ -43,6 +43,7 @@ from exo_bench.models.numba_cache import inline
 from exo_bench.models.numba_runtime import JIT, ensure
 from exo_bench.models.simd_angles import states_2d, states_3d
 from exo_bench.models.simd_blocks import CF, CP, F0, FROWS, K0, LANES, LEN, LEN2, O0, ROWS, SF, SP, block_transposes
+from exo_bench.models.simd_blocks import parallel_min_samples, run
 
 ensure()
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -289,26 +290,46 @@ def simd_vjp(p, q, qd, qdd, o, start, stop, S):
             _vjp_block(t, g, dim, q, qd, qdd, w, oq, oqd, om, s0, stop - s0, S)
 
 
+@njit(**JIT)
+def jvp_whole(t, g, dim, q, qd, qdd, dq, dqd, dqdd, o, W, F, T, U, X, G, H):
+    """:func:`simd_jvp` of a whole ``(S, dof)`` batch in the calling thread, every argument an array or a
+    number: numba's dispatcher types those in C (a tuple argument it types in Python, a few us a call)."""
+    p = (t, g, dim, dq.reshape(dq.size), dqd.reshape(dqd.size), dqdd.reshape(dqdd.size))
+    S = (W, F, T, U, X, G, H)
+    simd_jvp(p, q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o.reshape(o.size), 0, q.shape[0], S)
+
+
+@njit(**JIT)
+def vjp_whole(t, g, dim, q, qd, qdd, w, oq, oqd, om, W, F, T, U, X, G, H):
+    """:func:`simd_vjp` of a whole batch in the calling thread (as :func:`jvp_whole`)."""
+    o = (oq.reshape(oq.size), oqd.reshape(oqd.size), om.reshape(om.size))
+    S = (W, F, T, U, X, G, H)
+    simd_vjp((t, g, dim, w.reshape(w.size)), q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o, 0,
+             q.shape[0], S)  # fmt: skip
+
+
 def _flat(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(a.reshape(-1) for a in arrays)
 
 
-def jvp(table, dim: int, g: float, q, qd, qdd, dq, dqd, dqdd, scratch, out=None) -> np.ndarray:
-    """``dtau (S, dof)`` of C-contiguous float64 ``(S, dof)`` arrays (the provider checks them) by
-    :func:`simd_jvp`; ``scratch`` a :class:`exo_bench.models.simd_blocks.ThreadScratch` of :func:`scratch`."""
-    from exo_bench.models.simd_blocks import run
-
-    o = np.empty(q.shape) if out is None else out
-    params = (table, float(g), int(dim), *_flat(dq, dqd, dqdd))
-    run(simd_jvp, params, *_flat(q, qd, qdd), o.reshape(-1), q.shape[0], scratch=scratch)
+def jvp(table, dim: int, g: float, q, qd, qdd, dq, dqd, dqdd, scratch) -> np.ndarray:
+    """``dtau (S, dof)`` of C-contiguous float64 ``(S, dof)`` arrays (the provider checks them), ``g`` a
+    float and ``dim`` an int: :func:`jvp_whole` in the calling thread, or a large batch over threads by
+    :func:`exo_bench.models.simd_blocks.run`; ``scratch`` a :class:`exo_bench.models.simd_blocks.ThreadScratch`
+    of :func:`scratch`."""
+    o = np.empty(q.shape)
+    if q.shape[0] < parallel_min_samples(q.shape[1]):
+        jvp_whole(table, g, dim, q, qd, qdd, dq, dqd, dqdd, o, *scratch())
+    else:
+        run(simd_jvp, (table, g, dim, *_flat(dq, dqd, dqdd)), *_flat(q, qd, qdd, o), q.shape[0], scratch=scratch)
     return o
 
 
 def vjp(table, dim: int, g: float, q, qd, qdd, w, scratch) -> tuple[np.ndarray, ...]:
-    """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each, by :func:`simd_vjp` (as :func:`jvp`)."""
-    from exo_bench.models.simd_blocks import run
-
+    """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each (as :func:`jvp`)."""
     out = (np.empty(q.shape), np.empty(q.shape), np.empty(q.shape))
-    params = (table, float(g), int(dim), w.reshape(-1))
-    run(simd_vjp, params, *_flat(q, qd, qdd), _flat(*out), q.shape[0], scratch=scratch)
+    if q.shape[0] < parallel_min_samples(q.shape[1]):
+        vjp_whole(table, g, dim, q, qd, qdd, w, *out, *scratch())
+    else:
+        run(simd_vjp, (table, g, dim, w.reshape(-1)), *_flat(q, qd, qdd), _flat(*out), q.shape[0], scratch=scratch)
     return out
