@@ -141,8 +141,10 @@ def test_the_second_half_is_the_first_mirrored(stride):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("key", [("human", 1.41)], ids=lambda k: f"{k[0]}-{k[1]:g}")
+@pytest.mark.parametrize("key", [("human", 1.41), ("exo", 1.41)], ids=lambda k: f"{k[0]}-{k[1]:g}")
 def test_a_re_solve_from_a_perturbed_start_reproduces_the_stored_stride(key):
+    """The stored problem (its settings: the exo's with ``join_loads``) solved again from the stored half
+    perturbed by 1e-6 relative lands within :data:`~.reproduce.REPRODUCE_TOL` of it."""
     pytest.importorskip("casadi")
     from exo_bench.bench.studies.stride import problem, reproduce
 

@@ -31,6 +31,11 @@ the human variant prices the rods' work at :data:`HUMAN_ROD_WORK` (10) times the
 a rod's joule costs what ten muscle joules do, which leaves the rods what the floor's collisions make
 them do. The exo variant's rods are actuators and are priced as the joints (``w_rod_work`` 1).
 
+**The exo variant's loads are continuous across the half-stride join** (``join_loads``, :data:`JOIN_LOADS`):
+its sizing table is what motors are bought from, and without it its loads jumped where the halves meet
+(:mod:`~exo_bench.bench.studies.stride.transcription`, "The join"). The human variant's are not: with it,
+the human stride loses two of its 17 peaks within 2x.
+
 **The floor is priced** (:data:`FLOOR_PRICE`, :data:`SPRING`). With only the actuators priced, the stored
 human stride at 1.41 m/s lost 28.4 J per stride at the floor (the contact's Hunt-Crossley damping and
 friction: the heel lands at 1.4 m/s forward and 0.3 m/s down and sinks and slides) for free, while its
@@ -48,7 +53,8 @@ spring stands for the ankle's parallel elasticity; its value is not from a check
 human stride at 1.41 m/s stored before the floor was priced (kept as the trial ``floor-unpriced``): the
 rods priced 1x, negative work priced 0.2, strength-weighted effort, a free period, a 0.1 m/s rod rate
 bound, a joint-acceleration penalty, gait2d's contact damping and friction, a stiffer heel, Anderson and
-Pandy's end-range moments, ankle springs, the floor priced, the loads continuous across the join.
+Pandy's end-range moments, ankle springs, the floor priced, the loads continuous across the join; and
+``exo-join-free``, no solve: the exo stride stored until its problem had continuous loads across the join.
 ``strength`` stays (1, 1, 1) in the stored problem: the trials with a stronger
 ankle raised the ankle moment's r and lowered the knee's, and we have no checked source for per-joint
 strengths to state.

@@ -16,24 +16,26 @@ at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``
   body up but the floor) are constrained to zero;
 * the priced actuators' powers (six sagittal joints, four telescopic rods) and the effort.
 
-**The join.** The accelerations are not mirrored: only coordinates and rates are. So the stored stride's
-node accelerations, and the loads, jump where its halves meet (the exo stride at 1.41 m/s: left knee
+**The join.** The accelerations are not mirrored: only coordinates and rates are. So a stride's node
+accelerations, and the loads, may jump where its halves meet (an exo stride at 1.41 m/s solved so: left knee
 power 256.9 W at ``t = T``, about 0 at ``t = 0``; accelerations off the mirror by up to 382 rad/s^2): the
 end nodes' accelerations enter one trapezoidal defect each, at half weight, and the scheme's
 node-to-node zig-zag of accelerations is free there. Mirroring them too (``za_0 = P za_N`` and the hips'
 acceleration) was tried, twice, warm-started from human strides at 1.41 m/s: neither had converged after
 3.7 and 4.5 min of CPU (13 and 14 min wall at load 8-10; stopped), where the same problem without it
 converged in 74 s wall (load 3) from the stored stride; so it is not in the stored problem (not shown:
-whether it converges given longer), and the sizing table's peaks at the join are the transcription's,
-not the walk's. ``join_loads`` asks instead for the loads' continuity: the priced joints' moments and
-the telescopic rods' forces at ``t = 0`` equal the mirror image of those at ``t = T``. From the stored exo
-stride (w_floor 5, ankle spring 0.25) it converged in 77 s of IPOPT (114 s wall at load 8; the trial
-``exo-join-loads``): the left knee's power at the stride's end is 0.0 W as at its start (was 167.6 W), the
-largest joint power 107.9 W (was 167.6), loads mirrored to 2e-12, objective 0.4473 (0.4379 without).
-It is not in the stored problem: the human stride at 1.41 m/s solved with it (trial ``human-join-loads``)
-keeps its r (0.72/0.84/0.94) but has 15 of 17 peaks within 2x (knee power in swing 2.2x, ankle power in
-stance 2.1x), where the stored one has 17; one problem for every stored stride keeps the sizing table one
-problem's.
+whether it converges given longer), and a sizing table's peaks at such a join would be the
+transcription's, not the walk's. ``join_loads`` asks instead for the loads' continuity: the priced joints' moments and
+the telescopic rods' forces at ``t = 0`` equal the mirror image of those at ``t = T``. **The exo variant's
+stored problem has it** (:data:`~.problem.JOIN_LOADS`): its sizing table is what motors are bought from.
+Without it (the exo stride stored until then, kept as the trial ``exo-join-free``) the exo's loads jumped
+at the join by 49.5 N·m and 669 N and its largest joint power was 167.6 W (a knee's, at the join); with
+it, from that stride, IPOPT converged in 25 s (load 4), the loads mirrored to 3e-13 N·m and 8e-13 N,
+the largest joint power 107.9 W, objective 0.4473 (0.4379 without). The human variant's stored problem
+does not have it: the human stride at 1.41 m/s solved with it (trial ``human-join-loads``) keeps its r
+(0.72/0.84/0.94) but has 15 of 17 peaks within 2x (knee power in swing 2.2x, ankle power in stance
+2.1x), where the stored one has 17; so the human strides' loads jump at the join (17.8 N·m and 150 N
+at 1.41 m/s), and the report says so, computed (:mod:`~.join`).
 
 **Objective.** Work per metre over body weight, positive and negative parts priced separately: each
 power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
