@@ -11,8 +11,8 @@ there is an artefact of the transcription, not of the walk, and the exo sizing t
   at most ``constr_viol_tol`` (stored with the solver's stats), so a moment jumps by at most
   ``constr_viol_tol x m`` N·m and a rod force by ``constr_viol_tol x BW`` N (5.7e-9 N·m and 5.6e-8 N at
   1e-10); the stored loads are CasADi's evaluation of the same node function at the same nodes, so only
-  the final subtraction's rounding adds, ``EPS`` times the loads' size. Measured on the trial
-  ``exo-join-loads``: 8e-13 N·m, 2e-12 N. The stored exo stride without it jumped by 49.5 N·m and 669 N.
+  the final subtraction's rounding adds, ``EPS`` times the loads' size. Measured on the stored
+  exo stride: 2.8e-13 N·m, 7.7e-13 N. Solved without it (trial ``exo-join-free``): 49.5 N·m and 669 N.
 * The report states each stored stride's jump, computed.
 """
 
@@ -97,3 +97,54 @@ def test_a_bad_solver_tolerance_is_refused_where_the_settings_are_made(key, bad)
 
     with pytest.raises(ValueError, match=rf"stride: field '{key}': expected IPOPT's tolerance in \(0, 1\), got"):
         replace(settings_for(M, "exo", 1.41), **{key: bad})
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """The stored human and exo strides at 1.41 m/s and their trials solved the other way about the join."""
+    import shutil
+
+    root = tmp_path_factory.mktemp("strides")
+    for key in (("human", 1.41), ("exo", 1.41)):
+        shutil.copy(data.path_of(M.name, *key), root)
+    for name in ("human-join-loads", "exo-join-free"):
+        shutil.copytree(data.DATA / "trials" / name, root / "trials" / name)
+    return root
+
+
+def test_the_report_states_each_stored_strides_jump_at_the_join(folder):
+    from exo_bench.bench.studies.stride import join, report
+    from exo_bench.models.encoders import markdown_text
+
+    text = report.markdown(M, data.load("human", 1.41, M, folder), folder=folder)
+    assert text.count("### The half-stride join") == 1
+    assert text.index("### The half-stride join") < text.index("### Actuator sizing")
+    for variant, trial in (("human", "human-join-loads"), ("exo", "exo-join-free")):
+        stride = data.load(variant, 1.41, M, folder)
+        moments, forces = load_jump(M, stride.moments, stride.rod_forces)
+        before = load_jump(
+            M, *(lambda t: (t.moments, t.rod_forces))(data.load(variant, 1.41, M, folder / "trials" / trial))
+        )
+        (group,) = [g for g in join.joins(M, [stride], folder / "trials")]
+        assert [j.name for j in group] == [join.STORED, trial]
+        said = join.sentence(group)
+        assert markdown_text(said) in text
+        if variant == "exo":
+            assert said.startswith("The exo stride at 1.41 m/s is solved with its loads continuous across the join")
+            assert f"at most {moments:.1g} N·m and {forces:.1g} N, within" in said
+            assert f"jumped by {before[0]:.3g} N·m and {before[1]:.3g} N" in said
+        else:
+            assert f"solved without it: its loads jump at the join by {moments:.3g} N·m and {forces:.3g} N" in said
+            assert moments > 1.0 and forces > 10.0  # the human's loads do jump: stated, not hidden
+
+
+def test_a_stride_asked_for_continuous_loads_that_jumps_is_reported_outside_the_tolerance(folder):
+    from exo_bench.bench.studies.stride import join
+
+    stride = data.load("exo", 1.41, M, folder)
+    moments = stride.moments.copy()
+    moments[0, 1] += 1e-6  # the right knee at t = 0
+    bad = data.StoredStride(**{**stride.__dict__, "moments": moments})
+    j = join.join_of(M, bad)
+    assert j.moments == pytest.approx(1e-6, rel=1e-3) and j.moments > j.bound[0]
+    assert "**outside** the solver's constraint tolerance" in join.sentence([j])

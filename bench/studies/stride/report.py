@@ -279,6 +279,7 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "",
         *verdicts_by_stride(mech, folder),
         "",
+        *_join_section(mech, folder),
         "### Actuator sizing",
         "",
         "Per joint motor (hips, knees, ankles) and telescopic rod, over one stride: peak and RMS torque (N·m) or "
@@ -311,6 +312,15 @@ def _trials_section(mech: Mechanism, stride: data.StoredStride, folder=None) -> 
         *rows,
         "",
     ]
+
+
+def _join_section(mech: Mechanism, folder=None) -> list[str]:
+    """The half-stride join of every stored stride in ``folder`` (:mod:`~.join`), beside its trials."""
+    from pathlib import Path
+
+    from exo_bench.bench.studies.stride import join
+
+    return join.section(mech, _stored(mech, folder), TRIALS if folder is None else Path(folder) / "trials")
 
 
 def text(mech: Mechanism, stride: data.StoredStride) -> str:
