@@ -17,9 +17,10 @@ bench/perf/derivative_routes.py:
 * forward derivatives ``(dqdd/dq, dqdd/dqd, M^-1)``, batched (``test_forward_derivatives``):
   ``model.derivatives (newton-euler)``, ``casadi AD + LU``, and the baseline ``FD (newton-euler batched)``;
 * the directional derivatives of inverse dynamics, batched (``test_inverse_products``): ``JVP
-  (model.derivatives)`` (``dtau`` along seeded ``(dq, dqd, dqdd)``) and ``VJP (model.derivatives)``
-  (``w^T`` of the three Jacobians, seeded ``w``), the public calls with ``check=False``; the issue asks
-  about 2-3x batched ID, whose row is the inverse group's (same states, same process).
+  (model.derivatives, KERNEL)`` (``dtau`` along seeded ``(dq, dqd, dqdd)``) and ``VJP (model.derivatives,
+  KERNEL)`` (``w^T`` of the three Jacobians, seeded ``w``), the public calls with ``check=False``, KERNEL
+  the products kernel that ran (``Derivatives.products_kernel``: ``simd`` for these mechanisms); the issue
+  asks about 2-3x batched ID, whose row is the inverse group's (same states, same process).
 
 **Error** against the 50-digit reference (exo_bench.lagrange.derivative_reference) on the first
 :func:`_ref_count` samples: ``max_rel_err`` (``max |ours - ref|`` over the largest ``|ref|``, over the three
@@ -362,7 +363,8 @@ def test_inverse_products(benchmark, sweep, references, case):
     route = lambda *a: call(*a, check=False)  # noqa: E731
     args = (q, qd, qdd, *v)
     prep = _first_call(method, route, args)
-    info = _info(method, n, topology, mech, "JVP" if jvp else "VJP", d.source) | {"prepare_s": prep}
+    name = f"{method[:-1]}, {d.products_kernel})"  # names say what runs: "JVP (model.derivatives, simd)"
+    info = _info(name, n, topology, mech, "JVP" if jvp else "VJP", d.source) | {"prepare_s": prep}
     got = _timed(benchmark, sweep, method, route, args, info)
     assert all(np.isfinite(g).all() for g in (got if isinstance(got, tuple) else (got,))), f"{method}: NaN/Inf"
     errors = _product_errors(got, _reference(references, mech, q, qd, qdd, forward=False), v, jvp)

@@ -141,3 +141,31 @@ def test_unchecked_products_estimate_their_memory_first(providers, monkeypatch):
         D.inverse_dynamics_jvp(q, q, q, q, q, q, check=False)
     with pytest.raises(memory.CallTooLarge, match="inverse-dynamics VJP"):
         D.inverse_dynamics_vjp(q, q, q, q, check=False)
+
+
+def test_the_kernel_cache_is_keyed_on_every_file_it_inlines():
+    """numba's on-disk cache of each compiled function of products_simd.py is keyed (models/numba_cache.py)
+    on the files whose code it compiles in: its own, the elements' derivatives, the rod elements,
+    newton-euler's batched passes, the branch-free sin/cos and the block layout. An edit to any of them
+    recompiles it (tests/test_kernel_cache.py edits rod_elements.py in a copy of the package and sees it)."""
+    from pathlib import Path
+
+    from numba.core.registry import CPUDispatcher
+
+    from exo_bench.models import fast_trig, numba_cache, rod_elements, simd_blocks
+    from exo_bench.models.newton_euler import derivative_elements, products_simd, simd
+
+    kernels = [
+        f
+        for f in vars(products_simd).values()
+        if isinstance(f, CPUDispatcher) and f.__module__ == products_simd.__name__
+    ]
+    assert {"simd_jvp", "simd_vjp", "jvp_whole", "vjp_whole", "_jvp_rods", "_vjp_out"} <= {f.__name__ for f in kernels}
+    wanted = {
+        Path(m.__file__).resolve()
+        for m in (products_simd, derivative_elements, rod_elements, simd, fast_trig, simd_blocks)
+    }
+    for f in kernels:
+        locator = f._cache._impl.locator
+        assert isinstance(locator, numba_cache.KernelSourceLocator), f.__name__
+        assert wanted <= set(numba_cache.inlined_sources(locator._kernel_dir)), f.__name__

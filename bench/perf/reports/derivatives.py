@@ -35,7 +35,8 @@ from exo_bench.bench.perf.reports.scaling import fit_exponent
 
 ID, FD, RNEA = "ID (newton-euler batched)", "FD (newton-euler batched)", "pin.rnea (bare)"
 CASADI, PROVIDER, ONE = "casadi AD", "model.derivatives (newton-euler)", "analytic (auto)"
-JVP, VJP = "JVP (model.derivatives)", "VJP (model.derivatives)"
+#: The products' rows, by prefix: their names end with the kernel that ran ("JVP (model.derivatives, simd)").
+JVP, VJP = "JVP (model.derivatives", "VJP (model.derivatives"
 FLOOR = "write floor (fill)"
 
 
@@ -121,7 +122,7 @@ def goals(df: pd.DataFrame) -> list[dict]:
         f"{p:.2f} over {span} ({kernel})" + ("" if judged else ": the goal's range is not covered")
         + _floor_exponent(d))  # fmt: skip
     for product in (JVP, VJP):
-        row = _pick(d, "products-batched", "exo5-3d", product)
+        row = _pick(d, "products-batched", "exo5-3d", prefix=product)
         _ratio(add, f"exo5-3d batched {product[:3]} / batched ID, per sample", 3.0, row, base, "ID")
     return out
 
