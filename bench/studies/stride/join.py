@@ -129,8 +129,8 @@ def sentence(group: list[Join]) -> str:
             text += (
                 f" Solved without it (trial {t.name}), they jumped by {t.moments:.3g} N·m and {t.forces:.3g} N, "
                 f"{t.at_join[0]} of its {t.at_join[1]} sizing peaks sat at the join, and its largest joint power "
-                f"was {t.power:.4g} W ({t.power_joint}), against {s.at_join[0]} and {s.power:.4g} W "
-                f"({s.power_joint}) now."
+                f"was {t.power:.4g} W ({t.power_joint}); now {s.at_join[0]} of {s.at_join[1]} and {s.power:.4g} W "
+                f"({s.power_joint})."
             )
         return text
     text = (
