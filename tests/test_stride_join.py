@@ -148,3 +148,16 @@ def test_a_stride_asked_for_continuous_loads_that_jumps_is_reported_outside_the_
     j = join.join_of(M, bad)
     assert j.moments == pytest.approx(1e-6, rel=1e-3) and j.moments > j.bound[0]
     assert "**outside** the solver's constraint tolerance" in join.sentence([j])
+
+
+def test_each_sizing_block_says_whether_its_loads_are_continuous_across_the_join(folder):
+    """Beside the numbers a motor is bought from: the exo's block says continuous, the human's the jump."""
+    from exo_bench.bench.studies.stride import report
+    from exo_bench.models.encoders import markdown_text
+
+    text = report.markdown(M, data.load("human", 1.41, M, folder), folder=folder)
+    sizing = text[text.index("### Actuator sizing") :]
+    human, exo = sizing.split("**exo variant at 1.41 m/s**")
+    m, f = load_jump(M, *(lambda s: (s.moments, s.rod_forces))(data.load("human", 1.41, M, folder)))
+    assert markdown_text(f"Loads at the half-stride join: they jump by {m:.3g} N·m and {f:.3g} N") in human
+    assert markdown_text("Loads at the half-stride join: continuous (within the solver's tolerance") in exo

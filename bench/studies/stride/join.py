@@ -147,9 +147,22 @@ def sentence(group: list[Join]) -> str:
     return text
 
 
-def section(mech: Mechanism, strides: list[data.StoredStride], trials: Path) -> list[str]:
-    """The report's section on the join: what it is, a table, a sentence per stored stride."""
-    groups = joins(mech, strides, trials)
+def note(j: Join) -> str:
+    """One line beside a stride's sizing table: whether its loads are continuous across the join."""
+    if j.join_loads and j.moments <= j.bound[0] and j.forces <= j.bound[1]:
+        return (
+            f"Loads at the half-stride join: continuous (within the solver's tolerance, {j.moments:.1g} N·m and "
+            f"{j.forces:.1g} N); {j.at_join[0]} of these {j.at_join[1]} peaks sit there."
+        )
+    return (
+        f"Loads at the half-stride join: they jump by {j.moments:.3g} N·m and {j.forces:.3g} N; {j.at_join[0]} of "
+        f"these {j.at_join[1]} peaks sit there and may carry that artefact (the half-stride join, above)."
+    )
+
+
+def section(groups: list[list[Join]]) -> list[str]:
+    """The report's section on the join (``groups``: :func:`joins`): what it is, a table, a sentence per
+    stored stride."""
     if not groups:
         return []
     lines = [
@@ -171,4 +184,4 @@ def section(mech: Mechanism, strides: list[data.StoredStride], trials: Path) -> 
     return lines
 
 
-__all__ = ["STORED", "Join", "join_of", "joins", "section", "sentence", "table"]
+__all__ = ["STORED", "Join", "join_of", "joins", "note", "section", "sentence", "table"]

@@ -230,8 +230,14 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
     """The section: the stride against Winter's (``figure``: the file of its curves, written beside the
     report), the verdicts, and the sizing table of every stored stride (in ``folder``); ``tau``: the
     scene's reference method's generalised forces along the stride, to say what its methods table shows."""
+    from pathlib import Path
+
+    from exo_bench.bench.studies.stride import join
+
     c = cmp.compare(mech, stride)
     cadence = 120.0 / stride.period
+    strides = _stored(mech, folder)  # every stored stride: the join of each, then its sizing
+    groups = join.joins(mech, strides, TRIALS if folder is None else Path(folder) / "trials")
     lines = [
         "## The stride against Winter's, over the whole gait cycle",
         "",
@@ -279,7 +285,7 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "",
         *verdicts_by_stride(mech, folder),
         "",
-        *_join_section(mech, folder),
+        *join.section(groups),
         "### Actuator sizing",
         "",
         "Per joint motor (hips, knees, ankles) and telescopic rod, over one stride: peak and RMS torque (N·m) or "
@@ -287,8 +293,8 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "(bench/studies/stride/sizing.py). Solve times are wall time on the host that solved the stride.",
         "",
     ]
-    for z in stored_sizings(mech, folder):
-        lines += [*sizing_table(z), ""]
+    for st, g in zip(strides, groups):
+        lines += [*sizing_table(sizing(mech, st)), "", md(join.note(g[0])), ""]
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
@@ -312,15 +318,6 @@ def _trials_section(mech: Mechanism, stride: data.StoredStride, folder=None) -> 
         *rows,
         "",
     ]
-
-
-def _join_section(mech: Mechanism, folder=None) -> list[str]:
-    """The half-stride join of every stored stride in ``folder`` (:mod:`~.join`), beside its trials."""
-    from pathlib import Path
-
-    from exo_bench.bench.studies.stride import join
-
-    return join.section(mech, _stored(mech, folder), TRIALS if folder is None else Path(folder) / "trials")
 
 
 def text(mech: Mechanism, stride: data.StoredStride) -> str:
