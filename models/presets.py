@@ -35,6 +35,23 @@ THIGH = (split_mass(8.93), 0.545)
 TRUNK = (split_mass(28.93), 0.500)
 
 
+def _whole(preset: str, field: str, value: object, expected: str, ok: Callable[[int], bool]) -> int:
+    """``value`` as an int, checked before it names anything: a ValueError naming the preset, the field
+    and the expected type for a bool, a float, a string or an int outside ``ok`` (``human(True)`` was
+    refused as "human-Trued", ``human(2.0)`` named "human-2.0d")."""
+    if not isinstance(value, int | np.integer) or isinstance(value, bool) or not ok(int(value)):
+        raise ValueError(f"{preset}: field {field!r}: expected an integer, {expected}, got {value!r}")
+    return int(value)
+
+
+def _check_dim(preset: str, dim: object) -> int:
+    return _whole(preset, "dim", dim, "2 or 3", lambda d: d in (2, 3))
+
+
+def _nlinks(preset: str, nlinks: object) -> int:
+    return _whole(preset, "nlinks", nlinks, ">= 1", lambda n: n >= 1)
+
+
 def _mech(name, dim, parent, sign, parts, names) -> Mechanism:
     return Mechanism(
         dim=dim,
@@ -50,21 +67,25 @@ def _mech(name, dim, parent, sign, parts, names) -> Mechanism:
 
 def fig1(dim: int = 2) -> Mechanism:
     """Fig. 1: one link hinged at the support point."""
+    dim = _check_dim("fig1", dim)
     return _mech(f"fig1-{dim}d", dim, [-1], [1], [SHIN], ["shin"])
 
 
 def fig2a(dim: int = 2) -> Mechanism:
     """Fig. 2a: two links in series (eq. 4, upper signs)."""
+    dim = _check_dim("fig2a", dim)
     return _mech(f"fig2a-{dim}d", dim, [-1, 0], [1, 1], [SHIN, THIGH], ["shin", "thigh"])
 
 
 def fig2b(dim: int = 2) -> Mechanism:
     """Fig. 2b: two links with a branch point at B, the second reversed (eq. 4, lower signs)."""
+    dim = _check_dim("fig2b", dim)
     return _mech(f"fig2b-{dim}d", dim, [-1, 0], [1, -1], [SHIN, THIGH], ["shin", "thigh"])
 
 
 def fig5(dim: int = 2) -> Mechanism:
     """Fig. 5: four links, branch point between links 2 and 3 (eq. 20: ``a11 + a12 - a13 - a14``)."""
+    dim = _check_dim("fig5", dim)
     return _mech(
         f"fig5-{dim}d",
         dim,
@@ -77,6 +98,7 @@ def fig5(dim: int = 2) -> Mechanism:
 
 def exo5(dim: int = 3) -> Mechanism:
     """Fig. 6: the five-link exoskeleton as a tree (stance leg, swing leg from the hip, trunk)."""
+    dim = _check_dim("exo5", dim)
     return _mech(
         f"exo5-{dim}d",
         dim,
@@ -89,8 +111,7 @@ def exo5(dim: int = 3) -> Mechanism:
 
 def chain(nlinks: int, dim: int = 2, seed: int | None = None) -> Mechanism:
     """An n-link serial chain (Fig. 2a style). With a seed, masses and fractions are random."""
-    if nlinks < 1:
-        raise ValueError(f"chain: field 'nlinks': expected >= 1, got {nlinks}")
+    nlinks, dim = _nlinks("chain", nlinks), _check_dim("chain", dim)
     if seed is None:
         parts = [(SHIN, THIGH)[i % 2] for i in range(nlinks)]
         return _mech(
@@ -101,6 +122,7 @@ def chain(nlinks: int, dim: int = 2, seed: int | None = None) -> Mechanism:
             parts,
             [f"link{i + 1}" for i in range(nlinks)],
         )
+    seed = _whole("chain", "seed", seed, ">= 0 or None", lambda s: s >= 0)
     rng = np.random.default_rng(seed)
     masses, fr = _random_masses(rng, nlinks)
     return Mechanism(
@@ -123,8 +145,8 @@ def _random_masses(rng: np.random.Generator, nlinks: int):
 def random_tree(nlinks: int, dim: int, seed: int) -> Mechanism:
     """A seeded random tree: each link hangs from a random earlier link or from the
     support point (so a tree may have several roots), random signs, masses in [0.2, 3] kg and fractions in [0.1, 0.9]."""
-    if nlinks < 1:
-        raise ValueError(f"random_tree: field 'nlinks': expected >= 1, got {nlinks}")
+    nlinks, dim = _nlinks("random_tree", nlinks), _check_dim("random_tree", dim)
+    seed = _whole("random_tree", "seed", seed, ">= 0", lambda s: s >= 0)
     rng = np.random.default_rng(seed)
     parent = [-1] + [int(rng.integers(-1, i)) for i in range(1, nlinks)]
     sign = [1] + [int(rng.choice([-1, 1])) for _ in range(1, nlinks)]
@@ -187,6 +209,7 @@ def human(dim: int = 2, body_mass: float = 56.7, stature: float = 1.75) -> Mecha
     """
     from exo_bench.models import anthropometry as a
 
+    dim = _check_dim("human", dim)
     a.check_body(body_mass, stature)
     foot, n_foot = a.point_masses(a.FOOT, body_mass)
     heel = 0.1 * sum(foot)
