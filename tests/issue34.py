@@ -38,6 +38,7 @@ FINDINGS: dict[str, str] = {
     "D6": "`-o /dev/stdout >> app.log` replaced app.log",
     "D7": "`urdf m.json -o m.json` overwrote its own input",
     "D8": "a runs.json of the right format but wrong types threw away a whole run with an internal error",
+    "D9": "a sweep whose workers refused its rows (another commit) replaced the published reports with error rows",
     "C1": '`prepare(..., "pinocchio", threads=1000)` under a memory limit exited through libgomp',
     "H1": "`simulate()` hung with `t_span=(0, nan)`, `rtol=0` or `rtol=nan`; no default budget",
     "H2": "`--scheduler` at a port that never speaks hung past 180 s; garbage gave 'Unable to allocate 3.07 EiB'",

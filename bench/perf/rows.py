@@ -212,6 +212,29 @@ def merge(results: list[dict]) -> tuple[dict, list[dict]]:
     return merged, skips
 
 
+class RowsRefused(ValueError):
+    """A sweep some of whose rows were refused or could not run (status ``"error"``): its reports are
+    not written, so they never replace a published report with error rows."""
+
+
+def check_rows_ran(merged: dict) -> None:
+    """Refuse (:class:`RowsRefused`, one line) the merged JSON of a sweep with a row in status
+    ``"error"``: a worker at another commit refused it, its worker died too often, or its pytest
+    stopped early (exit code 2 or more). Rows that ran to their end (``"ok"``, ``"failed"``) or past
+    their budget are results, reported with their reasons. The line says how many rows and the first
+    one's reason; the finished rows are checkpointed, so the command run again measures only the
+    others. A serial run's JSON has no rows (its pytest's exit code is checked instead)."""
+    rows = merged.get("rows") or {}
+    refused = [(k, r) for k, r in rows.items() if isinstance(r, dict) and r.get("status") == "error"]
+    if refused:
+        key, first = refused[0]
+        raise RowsRefused(
+            f"{len(refused)} of {len(rows)} rows of the sweep were refused or could not run (first: row {key}: "
+            f"{first.get('reason') or 'no reason given'}); no report written, the published ones are kept; "
+            "the finished rows are checkpointed: run the command again to measure only the others"
+        )
+
+
 # ----------------------------------------------------------------------------- the one-host rule
 class CrossHostRatio(ValueError):
     """A report was about to divide a timing measured on one host by one measured on another."""

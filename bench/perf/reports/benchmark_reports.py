@@ -34,6 +34,7 @@ from exo_bench.models.atomic_files import atomic_write
 # The reports, one module each (re-exported: the benchmark reports' interface).
 from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
 from exo_bench.bench.perf.reports.loading import _inverse, load
+from exo_bench.bench.perf.rows import check_rows_ran
 from exo_bench.bench.perf.reports.paper_table import (  # noqa: F401
     PAPER_TABLE,
     README_END,
@@ -83,6 +84,7 @@ def write_reports(
     table only with ``update_readme``. Used by the serial run and by the Dask sweep alike.
     ``published_to``: the folder these files finally land in when ``out`` is itself a staging
     folder (the main job's), whose runs.json decides :func:`report_names`."""
+    check_rows_ran(json.loads(bjson.read_text()))  # a sweep with refused rows publishes nothing
     df, skips, _ = load(bjson, sjson)
     _strip_raw_timings(bjson)
     names = report_names(Path(published_to) if published_to else out, sweep)
