@@ -14,11 +14,15 @@
   (:mod:`exo_bench.models.newton_euler.forward_jacobians`): O(n^2) time and memory, the size of the
   output, and no dense LU;
 * the directional derivatives, O(n) per sample, for users who need no full Jacobian
-  (:mod:`exo_bench.models.newton_euler.products`, compiled in
-  :mod:`exo_bench.models.newton_euler.products_compiled`): :meth:`Derivatives.inverse_dynamics_jvp` ``(q,
+  (:mod:`exo_bench.models.newton_euler.products`, compiled across SIMD lanes in
+  :mod:`exo_bench.models.newton_euler.products_simd` and per sample in
+  :mod:`exo_bench.models.newton_euler.products_compiled`; the option ``products`` and
+  :attr:`Derivatives.products_kernel` say which runs): :meth:`Derivatives.inverse_dynamics_jvp` ``(q,
   qd, qdd, dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
   w^T dtau/dqd, w^T M)``, and the same of forward dynamics (:meth:`Derivatives.forward_dynamics_jvp`,
-  :meth:`Derivatives.forward_dynamics_vjp`).
+  :meth:`Derivatives.forward_dynamics_vjp`). With ``check=False`` and float64 C-contiguous arrays of one
+  shape the inverse products go from the call to the kernel with no conversion (:meth:`Derivatives._lean_products`):
+  exo5-3d's JVP and VJP cost about 2x a batched inverse dynamics per sample.
 
 Arrays are ``(samples, dof)`` in and ``(samples, dof, dof)`` Jacobians out (``(dof,)`` and ``(dof, dof)``
 for one sample); ``J[s, i, j] = d out_i / d in_j``. The equations of motion are unique (the suite checks
@@ -37,11 +41,10 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models import memory
-from exo_bench.models.derivative_checks import DerivativeChecks
+from exo_bench.models.derivatives_products import DirectionalDerivatives, _products_option, _samples
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.result_pool import ResultPool
 
-_F8 = np.dtype(np.float64)
 
 #: What computes the derivatives (:attr:`Derivatives.source`).
 SOURCE = (
@@ -68,13 +71,6 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
 
 
-def _samples(q: Any) -> int:
-    """The sample count of an array ``(samples, dof)`` (1 for one sample), read from its shape without
-    converting it; 0 for what has no shape (a list: estimated once converted)."""
-    shape = getattr(q, "shape", None)
-    return int(shape[0]) if isinstance(shape, tuple) and len(shape) == 2 else 0 if shape is None else 1
-
-
 def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE) -> str:
     """What computes the derivatives for ``method``: its own equations (``own``), the correct ones for a
     method known to be wrong, or the unique equations of motion that every other method agrees with (the
@@ -97,24 +93,6 @@ def source_text(method: str, own: bool, known_wrong: bool, source: str = SOURCE)
 REFERENCE = {"numba": False, "numpy": True}
 
 
-#: The option ``products``: the kernel of the directional derivatives (:meth:`Derivatives.products_kernel`):
-#: ``"simd"`` (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes),
-#: ``"numba"`` (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the
-#: reference), or ``"auto"``: the reference under ``kernel="numpy"``, else the SIMD kernel below
-#: :data:`PRODUCTS_SIMD_BELOW_LINKS` links and the per-sample kernel from there on.
-PRODUCT_KERNELS = ("auto", "simd", "numba", "numpy")
-#: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel (the
-#: SIMD kernel's scratch, ``(2 ROWS + 2 FROWS + 3)`` rows of 32 samples per link, 9.5 MB at this size, is
-#: far beyond L2; newton-euler's batched kernel narrows its blocks there, :data:`exo_bench.models.newton_euler.simd.NARROW_FROM_LINKS`).
-PRODUCTS_SIMD_BELOW_LINKS = 800
-
-
-def _products_option(option) -> str:
-    if option not in PRODUCT_KERNELS:
-        raise ValueError(f"derivatives: option 'products': expected one of {PRODUCT_KERNELS}, got {option!r}")
-    return option
-
-
 def _kernel(option: str) -> str:
     if option != "auto" and option not in REFERENCE:
         raise ValueError(f"derivatives: option 'kernel': expected 'auto', 'numba' or 'numpy', got {option!r}")
@@ -125,11 +103,12 @@ def _kernel(option: str) -> str:
     return {True: "numpy", False: "numba"}[jit_disabled()]
 
 
-class Derivatives(DerivativeChecks):
+class Derivatives(DirectionalDerivatives):
     """The derivatives of one mechanism's equations of motion, for a prepared model of ``method``.
 
     ``kernel``: ``"numba"`` (compiled), ``"numpy"`` (the reference) or ``"auto"`` (numba unless
-    ``NUMBA_DISABLE_JIT``). Subclasses (CasADi's, :mod:`exo_bench.matrix_method.derivatives`) replace
+    ``NUMBA_DISABLE_JIT``); ``products``: the kernel of the directional derivatives
+    (:data:`exo_bench.models.derivatives_products.PRODUCT_KERNELS`). Subclasses (CasADi's, :mod:`exo_bench.matrix_method.derivatives`) replace
     :meth:`_inverse`, :meth:`_accelerations`, :meth:`_solve` and :meth:`_forward_jacobians` and keep every
     check (:class:`exo_bench.models.derivative_checks.DerivativeChecks`: states, singular states, no NaN out)."""
 
@@ -147,7 +126,7 @@ class Derivatives(DerivativeChecks):
         self.method = method
         self.kernel = _kernel(kernel)
         self._products_option = _products_option(products)
-        self._products_scratch: Any = None  # the SIMD products kernel's ThreadScratch (products_scratch)
+        self._products_scratch = None  # the SIMD products kernel's ThreadScratch (products_scratch)
         #: runs the numpy reference (the option ``kernel``, :data:`REFERENCE`), else the compiled kernels
         self.reference = REFERENCE[self.kernel]
         #: which physics computes these derivatives (module docstring)
@@ -281,121 +260,6 @@ class Derivatives(DerivativeChecks):
         out = (qdd, *self._forward_jacobians(q, qd, qdd, tau))
         if check:
             self._finite(out, ("qdd", "dqdd_dq", "dqdd_dqd", "Minv"))
-        return tuple(x[0] for x in out) if single else out
-
-    # ------------------------------------------------------------------ directional derivatives
-    @property
-    def products_kernel(self) -> str:
-        """The kernel that computes the directional derivatives (:data:`PRODUCT_KERNELS`): ``"simd"``,
-        ``"numba"`` or ``"numpy"``, the option ``products`` resolved for this mechanism."""
-        option = self._products_option
-        if option != "auto":
-            return option
-        if self.reference:
-            return "numpy"
-        return "simd" if self.mechanism.nlinks < PRODUCTS_SIMD_BELOW_LINKS else "numba"
-
-    @property
-    def products_scratch(self):
-        """Each thread's scratch of the SIMD products kernel (made at its first use)."""
-        if self._products_scratch is None:
-            from exo_bench.models.newton_euler import products_simd
-            from exo_bench.models.simd_blocks import ThreadScratch
-
-            m = self.mechanism
-            self._products_scratch = ThreadScratch(products_simd.scratch, m.nlinks, m.dim)
-        return self._products_scratch
-
-    def _products(self, which: str, *arrays):
-        """The ``"jvp"`` or ``"vjp"`` of inverse dynamics on validated C-ordered ``(S, dof)`` arrays, O(n)
-        per sample, by :attr:`products_kernel`: across SIMD lanes
-        (:mod:`exo_bench.models.newton_euler.products_simd`), per sample
-        (:mod:`exo_bench.models.newton_euler.products_compiled`) or the numpy reference."""
-        kernel, dim, g = self.products_kernel, int(self.mechanism.dim), float(self.mechanism.g)
-        if kernel == "simd":
-            from exo_bench.models.newton_euler import products_simd
-
-            return getattr(products_simd, which)(self.table, dim, g, *arrays, self.products_scratch)
-        from exo_bench.models.newton_euler import products_compiled as pc
-
-        return getattr(pc, which)(self.tree, self.table, dim, g, *arrays, kernel == "numpy")
-
-    def _lean_products(self, which: str, source: str, arrays: tuple):
-        """The products of ``check=False`` on arrays the general path would pass on unchanged: numpy
-        float64 arrays, C-contiguous, all of one shape ``(S, dof)`` with ``S >= 1``, or ``(dof,)``. The
-        memory is estimated first, as there; None (having done nothing) for anything else, which the
-        general path converts or refuses, naming the field."""
-        q = arrays[0]
-        if type(q) is not np.ndarray or q.ndim not in (1, 2) or q.shape[-1] != self.mechanism.dof or not q.size:
-            return None
-        for a in arrays:
-            if type(a) is not np.ndarray or a.shape != q.shape or a.dtype != _F8 or not a.flags.c_contiguous:
-                return None
-        single = q.ndim == 1
-        self._check_memory(source, 1 if single else q.shape[0], 0)
-        if single:
-            out = self._products(which, *(a[None] for a in arrays))
-            return out[0] if which == "jvp" else tuple(x[0] for x in out)
-        return self._products(which, *arrays)
-
-    def inverse_dynamics_jvp(self, q, qd, qdd, dq, dqd, dqdd, check: bool = True):
-        """``dtau = dtau/dq dq + dtau/dqd dqd + M dqdd``, ``(S, dof)``: forward mode through the passes,
-        O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_jvp`)."""
-        arrays = (q, qd, qdd, dq, dqd, dqdd)
-        if not check and (out := self._lean_products("jvp", "inverse-dynamics JVP", arrays)) is not None:
-            return out
-        names = ("q", "qd", "qdd", "dq", "dqd", "dqdd")
-        self._check_memory("inverse-dynamics JVP", _samples(q), 0)  # before the states are copied
-        arrays, single = self._states("inverse-dynamics JVP", names, (q, qd, qdd, dq, dqd, dqdd), check)
-        if check:
-            self._refuse_singular_states(arrays[0], "inverse-dynamics JVP")
-        out = self._products("jvp", *arrays)
-        if check:
-            self._finite_inverse("inverse-dynamics JVP", (out,), ("dtau",))
-        return out[0] if single else out
-
-    def inverse_dynamics_vjp(self, q, qd, qdd, w, check: bool = True):
-        """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each: reverse mode through the passes,
-        O(n) per sample (:func:`exo_bench.models.newton_euler.products.inverse_vjp`)."""
-        if not check and (out := self._lean_products("vjp", "inverse-dynamics VJP", (q, qd, qdd, w))) is not None:
-            return out
-        self._check_memory("inverse-dynamics VJP", _samples(q), 0)
-        arrays, single = self._states("inverse-dynamics VJP", ("q", "qd", "qdd", "w"), (q, qd, qdd, w), check)
-        if check:
-            self._refuse_singular_states(arrays[0], "inverse-dynamics VJP")
-        out = self._products("vjp", *arrays)
-        if check:
-            self._finite_inverse("inverse-dynamics VJP", out, ("w_dtau_dq", "w_dtau_dqd", "w_M"))
-        return tuple(x[0] for x in out) if single else out
-
-    def forward_dynamics_jvp(self, q, qd, tau, dq, dqd, dtau, check: bool = True):
-        """``(qdd, dqdd)`` with ``dqdd = M^-1 (dtau - dID/dq dq - dID/dqd dqd)`` at ``qdd = FD(q, qd, tau)``:
-        O(n) per sample; refuses what :meth:`forward_dynamics` refuses."""
-        names = ("q", "qd", "tau", "dq", "dqd", "dtau")
-        self._check_memory("forward-dynamics JVP", _samples(q), 0)
-        (q, qd, tau, dq, dqd, dtau), single = self._states(
-            "forward-dynamics JVP", names, (q, qd, tau, dq, dqd, dtau), check
-        )
-        self._refuse_singular(q, check)
-        qdd = self._accelerations(q, qd, tau)
-        rhs = dtau - self._products("jvp", q, qd, qdd, dq, dqd, np.zeros_like(q))
-        out = (qdd, self._solve(q, rhs[:, :, None])[:, :, 0])
-        if check:
-            self._finite(out, ("qdd", "dqdd"))
-        return tuple(x[0] for x in out) if single else out
-
-    def forward_dynamics_vjp(self, q, qd, tau, w, check: bool = True):
-        """``(qdd, w^T dqdd/dq, w^T dqdd/dqd, w^T M^-1)`` at ``qdd = FD(q, qd, tau)``: with ``u = M^-1 w``
-        (``M`` symmetric), ``-u^T dID/dq``, ``-u^T dID/dqd`` and ``u``. O(n) per sample."""
-        self._check_memory("forward-dynamics VJP", _samples(q), 0)
-        (q, qd, tau, w), single = self._states("forward-dynamics VJP", ("q", "qd", "tau", "w"), (q, qd, tau, w), check)
-        self._refuse_singular(q, check)
-        qdd = self._accelerations(q, qd, tau)
-        u = self._solve(q, w[:, :, None])[:, :, 0]
-        wq, wqd, _ = self._products("vjp", q, qd, qdd, np.ascontiguousarray(u))
-        out = (qdd, -wq, -wqd, u)
-        if check:
-            self._finite(out, ("qdd", "w_dqdd_dq", "w_dqdd_dqd", "w_Minv"))
         return tuple(x[0] for x in out) if single else out
 
 

@@ -169,3 +169,29 @@ def test_the_kernel_cache_is_keyed_on_every_file_it_inlines():
         locator = f._cache._impl.locator
         assert isinstance(locator, numba_cache.KernelSourceLocator), f.__name__
         assert wanted <= set(numba_cache.inlined_sources(locator._kernel_dir)), f.__name__
+
+
+def test_a_batch_split_over_threads_gives_the_same_bits(providers, monkeypatch):
+    """A batch large enough to be split over threads (simd_blocks.run, shares of whole blocks) gives the
+    numbers of the calling thread alone, to the bit: the threshold is lowered so that 100 samples split."""
+    import numba
+
+    from exo_bench.models import simd_blocks
+    from exo_bench.models.newton_euler import products_simd as ps
+
+    mech = TREES[1]
+    D = providers[mech.name]
+    q, qd, qdd = states(mech, 100, 69)
+    dq, dqd, dqdd, w = _directions(mech, 100, 70)
+    args = (D.table, mech.dim, float(mech.g), q, qd, qdd)
+    alone = ps.jvp(*args, dq, dqd, dqdd, D.products_scratch), ps.vjp(*args, w, D.products_scratch)
+    monkeypatch.setattr(simd_blocks, "PARALLEL_MIN_ELEMENTS", 1)
+    calls = []
+    run = simd_blocks.run
+    monkeypatch.setattr(ps, "run", lambda *a, **k: calls.append(run(*a, threads=2, **k)))
+    assert numba.config.NUMBA_NUM_THREADS >= 1
+    split = ps.jvp(*args, dq, dqd, dqdd, D.products_scratch), ps.vjp(*args, w, D.products_scratch)
+    assert len(calls) == 2
+    np.testing.assert_array_equal(split[0], alone[0])
+    for a, b in zip(split[1], alone[1]):
+        np.testing.assert_array_equal(a, b)

@@ -291,21 +291,23 @@ def simd_vjp(p, q, qd, qdd, o, start, stop, S):
 
 
 @njit(**JIT)
-def jvp_whole(t, g, dim, q, qd, qdd, dq, dqd, dqdd, o, W, F, T, U, X, G, H):
-    """:func:`simd_jvp` of a whole ``(S, dof)`` batch in the calling thread, every argument an array or a
-    number: numba's dispatcher types those in C (a tuple argument it types in Python, a few us a call)."""
+def jvp_whole(t, g, dim, q, qd, qdd, dq, dqd, dqdd, o, start, W, F, T, U, X, G, H):
+    """:func:`simd_jvp` of the samples from ``start`` of a ``(S, dof)`` batch in the calling thread, every
+    argument an array or a number: numba's dispatcher types those in C (a tuple argument it types in Python,
+    a few us a call). ``start`` comes from the caller (0): a constant here would be typed as a literal and
+    compile :func:`simd_jvp` a second time, apart from the signature :func:`exo_bench.models.simd_blocks.run` calls."""
     p = (t, g, dim, dq.reshape(dq.size), dqd.reshape(dqd.size), dqdd.reshape(dqdd.size))
     S = (W, F, T, U, X, G, H)
-    simd_jvp(p, q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o.reshape(o.size), 0, q.shape[0], S)
+    simd_jvp(p, q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o.reshape(o.size), start, q.shape[0], S)
 
 
 @njit(**JIT)
-def vjp_whole(t, g, dim, q, qd, qdd, w, oq, oqd, om, W, F, T, U, X, G, H):
-    """:func:`simd_vjp` of a whole batch in the calling thread (as :func:`jvp_whole`)."""
+def vjp_whole(t, g, dim, q, qd, qdd, w, oq, oqd, om, start, W, F, T, U, X, G, H):
+    """:func:`simd_vjp` of the samples from ``start`` of a batch in the calling thread (as :func:`jvp_whole`)."""
     o = (oq.reshape(oq.size), oqd.reshape(oqd.size), om.reshape(om.size))
     S = (W, F, T, U, X, G, H)
-    simd_vjp((t, g, dim, w.reshape(w.size)), q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o, 0,
-             q.shape[0], S)  # fmt: skip
+    simd_vjp((t, g, dim, w.reshape(w.size)), q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o,
+             start, q.shape[0], S)  # fmt: skip
 
 
 def _flat(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -319,9 +321,10 @@ def jvp(table, dim: int, g: float, q, qd, qdd, dq, dqd, dqdd, scratch) -> np.nda
     of :func:`scratch`."""
     o = np.empty(q.shape)
     if q.shape[0] < parallel_min_samples(q.shape[1]):
-        jvp_whole(table, g, dim, q, qd, qdd, dq, dqd, dqdd, o, *scratch())
+        jvp_whole(table, g, dim, q, qd, qdd, dq, dqd, dqdd, o, 0, *scratch())
     else:
-        run(simd_jvp, (table, g, dim, *_flat(dq, dqd, dqdd)), *_flat(q, qd, qdd, o), q.shape[0], scratch=scratch)
+        x, xd, xdd, flat = _flat(q, qd, qdd, o)
+        run(simd_jvp, (table, g, dim, *_flat(dq, dqd, dqdd)), x, xd, xdd, flat, q.shape[0], scratch=scratch)
     return o
 
 
@@ -329,7 +332,8 @@ def vjp(table, dim: int, g: float, q, qd, qdd, w, scratch) -> tuple[np.ndarray, 
     """``(w^T dtau/dq, w^T dtau/dqd, w^T M)``, ``(S, dof)`` each (as :func:`jvp`)."""
     out = (np.empty(q.shape), np.empty(q.shape), np.empty(q.shape))
     if q.shape[0] < parallel_min_samples(q.shape[1]):
-        vjp_whole(table, g, dim, q, qd, qdd, w, *out, *scratch())
+        vjp_whole(table, g, dim, q, qd, qdd, w, *out, 0, *scratch())
     else:
-        run(simd_vjp, (table, g, dim, w.reshape(-1)), *_flat(q, qd, qdd), _flat(*out), q.shape[0], scratch=scratch)
+        x, xd, xdd = _flat(q, qd, qdd)
+        run(simd_vjp, (table, g, dim, w.reshape(-1)), x, xd, xdd, _flat(*out), q.shape[0], scratch=scratch)
     return out
