@@ -83,8 +83,19 @@ def test_the_call_leaves_the_signal_handling_as_it_found_it(call, before):
 
 def test_a_background_job_starts_with_sigint_ignored():
     """``sh -c 'python ... &'``: the background Python finds SIGINT ignored (the inherited disposition
-    the Ctrl-C tests met in a worker); a foreground one finds Python's own handler."""
+    the Ctrl-C tests met in a worker); a foreground one finds Python's own handler. The shell starts with
+    SIGINT at its default, so the test holds when the suite itself runs as a background job (then every
+    process it starts inherits SIG_IGN: the fresh-clone run of 1cdc5cb started by ``setsid bash -c '... &'``
+    failed here)."""
     probe = f"{sys.executable} -c 'import signal; print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)'"
-    bg = subprocess.run(["sh", "-c", f"{probe} & wait"], capture_output=True, text=True, timeout=60)
-    fg = subprocess.run(["sh", "-c", probe], capture_output=True, text=True, timeout=60)
+
+    def default_sigint() -> None:  # the shell starts as a terminal's would, whatever the suite inherited
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    def run(script: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            ["sh", "-c", script], capture_output=True, text=True, timeout=60, preexec_fn=default_sigint
+        )
+
+    bg, fg = run(f"{probe} & wait"), run(probe)
     assert (bg.stdout.strip(), fg.stdout.strip()) == ("True", "False"), (bg, fg)
