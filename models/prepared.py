@@ -22,11 +22,8 @@ or ``(samples, dof)``, and ``out`` of that shape), so a wrong layout is a ValueE
 read or write past an array.
 
 **Chunks.** A batch is evaluated :attr:`PreparedModel.chunk_samples` samples at a time into a
-preallocated result, so that a batch of any length needs the inputs, the result and a fixed
-working set (one chunk's temporaries): 10^6 samples take no more scratch memory than one chunk
-(bench/test_memory.py measures it). The default chunk keeps the working set near
-:data:`CHUNK_BYTES` for the largest per-sample temporaries of any method (``n x n`` matrices);
-``exo_bench.prepare`` sets it from the method's calibrated cost model (exo_bench/api/cost_model.py).
+preallocated result, so that a batch of any length needs a fixed working set
+(:mod:`exo_bench.models.chunked_calls`, the base class that holds the chunks).
 
 **Threads and processes.** A prepared model holds no mutable state shared between calls other
 than per-thread scratch space, so one model can serve several threads. It pickles by
@@ -52,13 +49,12 @@ from exo_bench.models.memory import (
     USABLE_SHARE,
     available_memory,
     check_batch,
-    chunks,
     default_chunk_samples,
     usable_memory,
 )
 from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics, terms_in_chunks
 from exo_bench.models import external_forces
-from exo_bench.models.result_pool import ResultPool
+from exo_bench.models.chunked_calls import ChunkedCalls
 from exo_bench.models.conditioning import check_finite
 from exo_bench.models.regularity import Regular
 from exo_bench.models.unchecked import apart, check_out, require_rates, unchecked_forward, unchecked_states
@@ -102,7 +98,7 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
 derivative_provider: Callable[[Mechanism, str], Any] | None = None
 
 
-class PreparedModel(Regular):
+class PreparedModel(ChunkedCalls, Regular):
     """A mechanism prepared for one method. Subclasses set :attr:`method` and either list their
     :attr:`kernels` (and call :meth:`_use_kernels`) or implement :meth:`_inverse_dynamics`; they may
     override ``_mass_matrix``, ``_bias_forces`` and ``check_regular`` (forward dynamics' refusal of
@@ -132,15 +128,8 @@ class PreparedModel(Regular):
         self._mechanism = mechanism
         self._options = dict(options)
         self._dof = mechanism.dof
-        self._chunk = default_chunk_samples(mechanism.dof, self.sample_bytes(mechanism.nlinks, mechanism.dim))
-        self._results = ResultPool()  # new batched results, recycled once dropped (models/result_pool.py)
+        self._start_chunks(mechanism.dof, mechanism.nlinks, mechanism.dim)  # models/chunked_calls.py
         self._entries = Entries()  # no kernel's entries until _use_kernels
-
-    @classmethod
-    def sample_bytes(cls, nlinks: int, dim: int) -> float | None:
-        """Bytes of one sample's temporaries in a batch, measured (the cost model's figure, which
-        sizes the chunks); None: the bound of :func:`default_chunk_samples`."""
-        return None
 
     # ------------------------------------------------------------------ what it is
     @property
@@ -155,29 +144,6 @@ class PreparedModel(Regular):
     @property
     def dof(self) -> int:
         return self._dof
-
-    @property
-    def chunk_samples(self) -> int:
-        """Samples evaluated at a time: batches longer than this are split into chunks written
-        into one preallocated result (the working set stays that of one chunk)."""
-        return self._chunk
-
-    @chunk_samples.setter
-    def chunk_samples(self, value: int) -> None:
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{self.method}: chunk_samples: expected an integer >= 1, got {value!r}")
-        self._chunk = int(value)
-
-    def _chunked(self, fn, arrays, out_shape) -> np.ndarray:
-        """``fn(*chunks)`` over the rows of ``arrays`` in chunks of :attr:`chunk_samples`, into one
-        result of shape ``(S, *out_shape)``; one call when the batch fits in a chunk."""
-        S = arrays[0].shape[0]
-        if S <= self._chunk:
-            return fn(*arrays)
-        out = self._results.empty((S, *out_shape))
-        for c in chunks(S, self._chunk):
-            out[c] = fn(*(a[c] for a in arrays))
-        return out
 
     @property
     def native_terms(self) -> bool:
