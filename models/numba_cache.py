@@ -67,7 +67,10 @@ def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, alwa
     Python for numpy and sympy) for the kernels of ``kernel_dir``, whose cache is keyed on their source
     files; ``always``: inline them in numba's IR (generated call lists, which must compile as if
     written out). A ValueError if a function's file is neither in that folder, nor listed for it in
-    :data:`KERNEL_SOURCES`, nor one of :data:`SHARED_SOURCES`."""
+    :data:`KERNEL_SOURCES`, nor one of :data:`SHARED_SOURCES`. Every kernel file declares here what it
+    inlines (its key is checked at each call), and each function is registered once however many kernel
+    files inline it (the rod elements: the per-sample and SIMD Newton-Euler kernels and the f_ext kernel):
+    numba keeps every registration as one more overload template of the function."""
     folder = Path(kernel_dir).resolve()
     for f in functions:
         file = Path(inspect.getfile(f)).resolve()
@@ -77,10 +80,15 @@ def inline(functions: Iterable[Callable[..., Any]], kernel_dir: str | Path, alwa
                 "file listed for that folder in models/numba_cache.py KERNEL_SOURCES (else an edit to it "
                 "would leave stale machine code)"
             )
-        if always:
-            register_jitable(inline="always")(f)
-        else:
-            register_jitable(f)
+        _register(f, always)
+
+
+@functools.cache  # once per function: a second registration would add a second overload template
+def _register(f: Callable[..., Any], always: bool) -> None:
+    if always:
+        register_jitable(inline="always")(f)
+    else:
+        register_jitable(f)
 
 
 #: The modules of this layer that the kernels of every family compile in: the branch-free sin/cos, the

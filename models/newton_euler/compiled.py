@@ -2,8 +2,8 @@
 as loops over the links of one sample.
 
 Per sample the kernels call the very element functions of :mod:`exo_bench.models.rod_elements`
-(registered with ``register_jitable``), so nothing physical is written twice; tests/test_newton_euler.py
-holds them to the numpy reference. The layout follows the matrix family
+(registered with numba once, by :func:`exo_bench.models.numba_cache.inline`), so nothing physical is
+written twice; tests/test_newton_euler.py holds them to the numpy reference. The layout follows the matrix family
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
 driver, and a parallel driver over blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` samples for large
 batches (:func:`exo_bench.models.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
@@ -16,18 +16,18 @@ forward dynamics alike.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
-from numba.extending import register_jitable
 
+from exo_bench.models import numba_cache
 from exo_bench.models import rod_elements as el
 from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 
 ensure()  # numba's runtime set-up (models/numba_runtime.py), before the kernels below are defined
 
-for _f in el.ELEMENTS:
-    register_jitable(_f)
+numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
 _PARENT, _SIGN, _ZETA, _ETA, _THETA, _NU, _PIVOT, _MULT = range(8)
 #: Columns of the per-link scratch row ``W[k]``: cos/sin of phi and psi, ``kappa`` (or ``J' q'``),

@@ -60,19 +60,20 @@ an edit to any of them recompiles them.
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 from numba.extending import register_jitable
 
 from exo_bench.models import simd_angles
+from exo_bench.models import numba_cache
 from exo_bench.models import rod_elements as el
 from exo_bench.models.numba_runtime import jit_for
 from exo_bench.models.simd_angles import states_2d, states_3d
 from exo_bench.models.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
 from exo_bench.models.simd_blocks import ROWS, SF, SP, block_transposes, prefetch_share
 
-for _f in el.ELEMENTS:
-    register_jitable(_f)
+numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
 
 #: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
