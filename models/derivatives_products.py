@@ -18,21 +18,21 @@ from exo_bench.models.derivative_checks import DerivativeChecks
 
 _F8 = np.dtype(np.float64)
 
-#: The option ``products``: the kernel of the directional derivatives (:meth:`Derivatives.products_kernel`):
-#: ``"simd"`` (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes),
-#: ``"numba"`` (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the
-#: reference), or ``"auto"``: the reference under ``kernel="numpy"``, else the SIMD kernel below
-#: :data:`PRODUCTS_SIMD_BELOW_LINKS` links and the per-sample kernel from there on.
-PRODUCT_KERNELS = ("auto", "simd", "numba", "numpy")
-#: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel (the
-#: SIMD kernel's scratch, ``(2 ROWS + 2 FROWS + 3)`` rows of 32 samples per link, 9.5 MB at this size, is
-#: far beyond L2; newton-euler's batched kernel narrows its blocks there, :data:`exo_bench.models.newton_euler.simd.NARROW_FROM_LINKS`).
+#: The option ``products``: the kernel of the directional derivatives (:attr:`DirectionalDerivatives.products_kernel`),
+#: each the name of the method that runs it (a table: no branch on a kernel's name): ``"simd"``
+#: (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes), ``"numba"``
+#: (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the reference), or
+#: ``"auto"`` (:data:`AUTO`).
+PRODUCT_KERNELS = {"auto": "", "simd": "_simd_products", "numba": "_compiled_products", "numpy": "_reference_products"}
 PRODUCTS_SIMD_BELOW_LINKS = 800
+#: ``products="auto"`` by (the numpy reference runs, at least :data:`PRODUCTS_SIMD_BELOW_LINKS` links): the
+#: reference under ``kernel="numpy"``, else the SIMD kernel, and the per-sample kernel for the largest mechanisms.
+AUTO = {(True, False): "numpy", (True, True): "numpy", (False, False): "simd", (False, True): "numba"}
 
 
 def _products_option(option) -> str:
     if option not in PRODUCT_KERNELS:
-        raise ValueError(f"derivatives: option 'products': expected one of {PRODUCT_KERNELS}, got {option!r}")
+        raise ValueError(f"derivatives: option 'products': expected one of {tuple(PRODUCT_KERNELS)}, got {option!r}")
     return option
 
 
@@ -68,9 +68,7 @@ class DirectionalDerivatives(DerivativeChecks):
         option = self._products_option
         if option != "auto":
             return option
-        if self.reference:
-            return "numpy"
-        return "simd" if self.mechanism.nlinks < PRODUCTS_SIMD_BELOW_LINKS else "numba"
+        return AUTO[(self.reference, self.mechanism.nlinks >= PRODUCTS_SIMD_BELOW_LINKS)]
 
     @property
     def products_scratch(self):
@@ -85,17 +83,27 @@ class DirectionalDerivatives(DerivativeChecks):
 
     def _products(self, which: str, *arrays):
         """The ``"jvp"`` or ``"vjp"`` of inverse dynamics on validated C-ordered ``(S, dof)`` arrays, O(n)
-        per sample, by :attr:`products_kernel`: across SIMD lanes
-        (:mod:`exo_bench.models.newton_euler.products_simd`), per sample
-        (:mod:`exo_bench.models.newton_euler.products_compiled`) or the numpy reference."""
-        kernel, dim, g = self.products_kernel, int(self.mechanism.dim), float(self.mechanism.g)
-        if kernel == "simd":
-            from exo_bench.models.newton_euler import products_simd
+        per sample, by :attr:`products_kernel` (:data:`PRODUCT_KERNELS`)."""
+        return getattr(self, PRODUCT_KERNELS[self.products_kernel])(which, *arrays)
 
-            return getattr(products_simd, which)(self.table, dim, g, *arrays, self.products_scratch)
+    def _simd_products(self, which: str, *arrays):
+        """Across SIMD lanes (:mod:`exo_bench.models.newton_euler.products_simd`)."""
+        from exo_bench.models.newton_euler import products_simd
+
+        dim, g = int(self.mechanism.dim), float(self.mechanism.g)
+        return getattr(products_simd, which)(self.table, dim, g, *arrays, self.products_scratch)
+
+    def _compiled_products(self, which: str, *arrays, reference: bool = False):
+        """Per sample, compiled (:mod:`exo_bench.models.newton_euler.products_compiled`), or its numpy reference."""
         from exo_bench.models.newton_euler import products_compiled as pc
 
-        return getattr(pc, which)(self.tree, self.table, dim, g, *arrays, kernel == "numpy")
+        return getattr(pc, which)(
+            self.tree, self.table, self.mechanism.dim, float(self.mechanism.g), *arrays, reference
+        )
+
+    def _reference_products(self, which: str, *arrays):
+        """The numpy reference (:mod:`exo_bench.models.newton_euler.products`)."""
+        return self._compiled_products(which, *arrays, reference=True)
 
     def _lean_products(self, which: str, source: str, arrays: tuple):
         """The products of ``check=False`` on arrays the general path would pass on unchanged: numpy
