@@ -25,6 +25,10 @@ Faults:
   and the sweep goes on;
 * every finished row is checkpointed (:func:`checkpoint_dir`: a folder per code commit, a file per
   row, written atomically), so a sweep run again after an interruption runs only the missing rows;
+* a row refused by its worker (a worker at another commit) or that could not run (its worker died
+  too often, its pytest stopped early) has status "error": it is not checkpointed, and the sweep writes
+  no report (:func:`exo_bench.bench.perf.rows.check_rows_ran`: one line naming how many rows and the
+  first one's reason, exit 2), so the published reports stay; run again, only those rows run;
 * Ctrl-C cancels the cluster's tasks and closes it (no worker process is left) before anything is
   written into the reports folder.
 """
