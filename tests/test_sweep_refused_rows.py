@@ -134,3 +134,57 @@ def test_a_sweep_with_one_refused_row_publishes_nothing_and_a_rerun_runs_only_th
     assert "1 rows run" in out and "3 from checkpoints" in out, out
     assert code == 0, (code, out, err)
     assert published(reports)["paper_table.md"] != before["paper_table.md"]  # every row in: the reports are new
+
+
+def failing_suite(code: int):
+    """The serial suite's pytest as a stand-in: it wrote part of its JSON, then exited with ``code``."""
+
+    def run_suite(cmd, cwd, timeout, sweep, runner=None):
+        bjson = next(a.split("=", 1)[1] for a in cmd if a.startswith("--benchmark-json="))
+        with open(bjson, "w") as f:
+            f.write('{"benchmarks": []}')
+        return code
+
+    return run_suite
+
+
+@pytest.mark.parametrize("code", [1, 2, -9])
+def test_the_serial_suite_that_failed_publishes_nothing(code, tmp_path, monkeypatch):
+    """The serial path (``exo-bench bench`` without a cluster) has no rows: its pytest's exit code is the
+    refusal. A suite that failed, stopped or was killed publishes nothing: one line, exit 2, the earlier
+    reports kept."""
+    from exo_bench.bench.perf.reports import benchmark_reports as br
+
+    monkeypatch.setattr(br, "run_suite", failing_suite(code))
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    (reports / "paper_table.md").write_text(GOOD)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = cli.main(["bench", "--reports", str(reports)])
+    assert rc == 2 and len(err.getvalue().strip().splitlines()) == 1, (rc, err.getvalue())
+    assert f"pytest exit code {code}" in err.getvalue() and "no report written" in err.getvalue()
+    assert published(reports) == {"paper_table.md": GOOD.encode()}
+
+
+def test_the_main_jobs_benchmarks_that_failed_keep_the_published_reports(tmp_path, monkeypatch):
+    """``exo-bench run``'s benchmarks job is the serial path: when its suite fails the job fails (exit 1, its
+    line on stderr), and the benchmark reports published before are kept byte for byte."""
+    from exo_bench.bench.cli import run as main_job
+    from exo_bench.bench.perf.reports import benchmark_reports as br
+    from exo_bench.bench.studies.options import RunOptions
+
+    monkeypatch.setattr(br, "run_suite", failing_suite(1))
+    monkeypatch.setattr(main_job, "shipped_scene_names", lambda: [])  # no scene: the suite's jobs only
+    jobs = [j for j in main_job._suite_jobs() if j[0].startswith("benchmarks")]
+    monkeypatch.setattr(main_job, "_suite_jobs", lambda: jobs)
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    (reports / "paper_table.md").write_text(GOOD)
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        rc = main_job.run_main_job(RunOptions(scenes=(), reports=reports, full=False))
+    assert rc == 1, (rc, err.getvalue())
+    assert "benchmarks (exo-bench bench) failed" in err.getvalue(), err.getvalue()
+    assert "benchmark suite failed (pytest exit code 1); no report written" in err.getvalue(), err.getvalue()
+    assert (reports / "paper_table.md").read_text() == GOOD
