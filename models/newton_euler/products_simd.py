@@ -150,7 +150,7 @@ def _jvp_rods(t, dim, m, W, F, U, X):
                 dqdd = (Uk[_DQDD * B + s], Uk[(_DQDD + 1) * B + s], Uk[(_DQDD + 2) * B + s])
                 a = _apply_3d(de.acceleration_by_q_3d(cf, sf, cp, sp, l, wr, vr, lr, wa, va, la), *dq)
                 b = _apply_3d(de.acceleration_by_rates_3d(cf, sf, cp, sp, l, wr, vr, lr), *dqd)
-                c = _apply_3d(de.jacobian_3d(cf, sf, cp, sp, l), *dqdd)
+                c = el.rod_acceleration_3d(cf, sf, cp, sp, l, 0.0, 0.0, 0.0, *dqdd)  # J dqdd: zero rates
                 p = _transpose_apply_3d(de.projection_by_q_3d(cf, sf, cp, sp, l, f0, f1, f2), *dq)
                 for e in range(3):
                     Wk[(K0 + e) * B + s] = s_k * (a[e] + b[e] + c[e])
@@ -162,7 +162,7 @@ def _jvp_rods(t, dim, m, W, F, U, X):
                 dqdd2 = (Uk[_DQDD * B + s], Uk[(_DQDD + 1) * B + s])
                 a2 = _apply_2d(de.acceleration_by_q_2d(cf, sf, l, wr, lr, wa, la), *dq2)
                 b2 = _apply_2d(de.acceleration_by_rates_2d(cf, sf, l, wr, lr), *dqd2)
-                c2 = _apply_2d(de.jacobian_2d(cf, sf, l), *dqdd2)
+                c2 = el.rod_acceleration_2d(cf, sf, l, 0.0, 0.0, *dqdd2)
                 p2 = _transpose_apply_2d(de.projection_by_q_2d(cf, sf, l, f0, f1), *dq2)
                 for e in range(2):
                     Wk[(K0 + e) * B + s] = s_k * (a2[e] + b2[e] + c2[e])
@@ -216,13 +216,13 @@ def _vjp_in(t, dim, m, W, F, U, X):
             f = _forces(Fk, Wk, zeta, eta, s)
             cf, sf = Wk[CF * B + s], Wk[SF * B + s]
             if dim == 3:
-                J = de.jacobian_3d(cf, sf, Wk[CP * B + s], Wk[SP * B + s], Wk[LEN * B + s])
-                a = _apply_3d(J, Uk[s], Uk[B + s], Uk[2 * B + s])
+                cp, sp, l = Wk[CP * B + s], Wk[SP * B + s], Wk[LEN * B + s]
+                a = el.rod_acceleration_3d(cf, sf, cp, sp, l, 0.0, 0.0, 0.0, Uk[s], Uk[B + s], Uk[2 * B + s])  # J w
                 for e in range(3):
                     Xk[e * B + s] = f[e]
                     Wk[(K0 + e) * B + s] = s_k * a[e]
             else:
-                a2 = _apply_2d(de.jacobian_2d(cf, sf, Wk[LEN2 * B + s]), Uk[s], Uk[B + s])
+                a2 = el.rod_acceleration_2d(cf, sf, Wk[LEN2 * B + s], 0.0, 0.0, Uk[s], Uk[B + s])  # J w
                 Xk[s], Xk[B + s] = f[0], f[1]
                 Wk[K0 * B + s], Wk[(K0 + 1) * B + s], Wk[(K0 + 2) * B + s] = s_k * a2[0], s_k * a2[1], 0.0
 
