@@ -4,7 +4,7 @@ VJP of inverse and forward dynamics, O(n) per sample, and the choice of their ke
 computes the full Jacobians, this one the products; :mod:`exo_bench.models.derivative_checks` refuses).
 
 The kernels: across SIMD lanes (:mod:`exo_bench.models.newton_euler.products_simd`, the default for
-batches and single samples), per sample (:mod:`exo_bench.models.newton_euler.products_compiled`), and the
+batches and single samples below :data:`PRODUCTS_SIMD_BELOW_LINKS` links), per sample (:mod:`exo_bench.models.newton_euler.products_compiled`), and the
 numpy reference of the formulas (:mod:`exo_bench.models.newton_euler.products`).
 """
 
@@ -24,7 +24,12 @@ _F8 = np.dtype(np.float64)
 #: (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the reference), or
 #: ``"auto"`` (:data:`AUTO`).
 PRODUCT_KERNELS = {"auto": "", "simd": "_simd_products", "numba": "_compiled_products", "numpy": "_reference_products"}
-PRODUCTS_SIMD_BELOW_LINKS = 800
+#: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel. The SIMD
+#: kernel's scratch, 53 rows of 32 samples per link (13.6 kB), leaves the caches as n grows: 3D chains, 64
+#: samples, one process, load 2.7-3.1 (provisional), SIMD against per-sample, us per sample: n = 100 JVP 6.0
+#: / 20.8, VJP 6.8 / 19.5; n = 300 25 / 65 and 39 / 67; n = 500 66 / 110 and 94 / 111; n = 800 250 / 209 and
+#: 211 / 207 (per link, the SIMD JVP's 60 ns at n <= 100 grows to 83, 131 and 312 ns).
+PRODUCTS_SIMD_BELOW_LINKS = 500
 #: ``products="auto"`` by (the numpy reference runs, at least :data:`PRODUCTS_SIMD_BELOW_LINKS` links): the
 #: reference under ``kernel="numpy"``, else the SIMD kernel, and the per-sample kernel for the largest mechanisms.
 AUTO = {(True, False): "numpy", (True, True): "numpy", (False, False): "simd", (False, True): "numba"}

@@ -18,6 +18,7 @@ from test_jvp import _directions, _mv, _vm
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
 from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.derivatives_products import PRODUCTS_SIMD_BELOW_LINKS
 from exo_bench.models.newton_euler import products
 from exo_bench.models.presets import random_tree
 from exo_bench.models.simd_blocks import LANES
@@ -70,6 +71,8 @@ def test_the_provider_runs_the_simd_products_for_batches(providers):
     mech = TREES[1]
     auto, simd = Derivatives(mech), providers[mech.name]
     assert auto.products_kernel == "simd"
+    assert Derivatives(presets.chain(PRODUCTS_SIMD_BELOW_LINKS, 3)).products_kernel == "numba"  # the largest
+    assert Derivatives(mech, kernel="numpy").products_kernel == "numpy"
     q, qd, qdd = states(mech, 9, 63)
     dq, dqd, dqdd, w = _directions(mech, 9, 64)
     np.testing.assert_array_equal(
