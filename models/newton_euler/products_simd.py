@@ -102,6 +102,15 @@ def _transpose_apply_2d(Y, a, b):
 
 
 @njit(**JIT)
+def _link(t, k, W, F, U, X):
+    """Link ``k``'s rows of the scratch as views (their offsets folded into the pointers, so that LLVM
+    vectorises the loops over the samples, as in simd.py), its sign and its ``zeta``, ``eta``."""
+    Wk, Fk = W[k * ROWS * B : (k + 1) * ROWS * B], F[k * FROWS * B : (k + 1) * FROWS * B]
+    Uk, Xk = U[k * ROWS * B : (k + 1) * ROWS * B], X[3 * k * B : 3 * (k + 1) * B]
+    return Wk, Fk, Uk, Xk, t[_SIGN, k], t[_ZETA, k], t[_ETA, k]
+
+
+@njit(**JIT)
 def _forces(Fk, Wk, zeta, eta, s):
     """``F_k`` of lane ``s`` (:func:`exo_bench.models.rod_elements.rod_force`) from the link's rows."""
     return (
@@ -136,9 +145,7 @@ def _tangent_start_points(t, dim, m, W, F):
 def _jvp_rods(t, dim, m, W, F, U, X):
     """2. (JVP) per rod and lane: ``A^q dq + A^r dqd + J dqdd`` over ``kappa_k``, ``P_k dq_k`` into ``X``."""
     for k in range(t.shape[1]):
-        Wk, Fk, Uk = W[k * ROWS * B : (k + 1) * ROWS * B], F[k * FROWS * B : (k + 1) * FROWS * B], U[k * ROWS * B :]
-        Xk = X[3 * k * B : 3 * (k + 1) * B]
-        s_k, zeta, eta = t[_SIGN, k], t[_ZETA, k], t[_ETA, k]
+        Wk, Fk, Uk, Xk, s_k, zeta, eta = _link(t, k, W, F, U, X)
         for s in range(m):
             f0, f1, f2 = _forces(Fk, Wk, zeta, eta, s)
             cf, sf = Wk[CF * B + s], Wk[SF * B + s]
@@ -209,9 +216,7 @@ def simd_jvp(p, q, qd, qdd, o, start, stop, S):
 def _vjp_in(t, dim, m, W, F, U, X):
     """2. (VJP) per rod and lane: the force ``F_k`` into ``X``, ``J_k w_k`` over ``kappa_k``."""
     for k in range(t.shape[1]):
-        Wk, Fk, Uk = W[k * ROWS * B : (k + 1) * ROWS * B], F[k * FROWS * B : (k + 1) * FROWS * B], U[k * ROWS * B :]
-        Xk = X[3 * k * B : 3 * (k + 1) * B]
-        s_k, zeta, eta = t[_SIGN, k], t[_ZETA, k], t[_ETA, k]
+        Wk, Fk, Uk, Xk, s_k, zeta, eta = _link(t, k, W, F, U, X)
         for s in range(m):
             f = _forces(Fk, Wk, zeta, eta, s)
             cf, sf = Wk[CF * B + s], Wk[SF * B + s]
@@ -232,9 +237,8 @@ def _vjp_out(t, dim, m, W, F, U, X, G, H):
     """4. (VJP) per rod and lane, with ``v_k`` the force of the gravity-free passes: ``(A^q)^T v + P^T w``
     into ``F``'s result rows, ``(A^r)^T v`` into ``G``'s, ``J^T v`` into ``H``'s."""
     for k in range(t.shape[1]):
-        Wk, Fk, Uk = W[k * ROWS * B : (k + 1) * ROWS * B], F[k * FROWS * B : (k + 1) * FROWS * B], U[k * ROWS * B :]
-        Xk, Gk, Hk = X[3 * k * B : 3 * (k + 1) * B], G[k * FROWS * B : (k + 1) * FROWS * B], H[k * FROWS * B :]
-        s_k, zeta, eta = t[_SIGN, k], t[_ZETA, k], t[_ETA, k]
+        Wk, Fk, Uk, Xk, s_k, zeta, eta = _link(t, k, W, F, U, X)
+        Gk, Hk = G[k * FROWS * B : (k + 1) * FROWS * B], H[k * FROWS * B : (k + 1) * FROWS * B]
         for s in range(m):
             v0, v1, v2 = _forces(Fk, Wk, zeta, eta, s)
             cf, sf = Wk[CF * B + s], Wk[SF * B + s]
