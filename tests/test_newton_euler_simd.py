@@ -150,13 +150,43 @@ def test_the_counted_flops_are_the_kernel_s_and_grow_linearly(dim):
     assert flops[2] - flops[1] == 2 * (flops[1] - flops[0]) > 0, flops
 
 
+def test_the_block_size_changes_at_narrow_from_links():
+    """The batched kernel has blocks of :data:`LANES` samples below :data:`simd.NARROW_FROM_LINKS` links
+    and of :data:`simd.NARROW_LANES` from it on (what a prepared model of that size runs: the
+    tests below, by name)."""
+    n = simd.NARROW_FROM_LINKS
+    assert simd.NARROW_LANES < LANES
+    assert simd.kernel_for(n - 1) is simd.simd_inverse is simd.blocks_for(n - 1).simd_inverse
+    assert simd.kernel_for(n) is simd._NARROW.simd_inverse is simd.blocks_for(n).simd_inverse
+
+
+#: The narrow blocks on small trees: :data:`simd.NARROW_FROM_LINKS` moved down to this many links (the
+#: kernel and its scratch depend on the links only through their count; the block boundary is what is
+#: tested). The real sizes, n = 799 and 800 (a minute and a half), are marked slow.
+SMALL_NARROW_FROM = 12
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("n", [SMALL_NARROW_FROM - 1, SMALL_NARROW_FROM])
+def test_the_narrow_blocks_agree_with_the_numpy_reference_around_the_boundary(n, dim, monkeypatch):
+    """As the test below, with the boundary at :data:`SMALL_NARROW_FROM` links."""
+    monkeypatch.setattr(simd, "NARROW_FROM_LINKS", SMALL_NARROW_FROM)
+    _narrow_blocks_agree(n, dim)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("n", [simd.NARROW_FROM_LINKS - 1, simd.NARROW_FROM_LINKS])
 def test_large_mechanisms_run_the_narrow_blocks_and_agree_with_the_numpy_reference(n, dim):
     """Around :data:`simd.NARROW_FROM_LINKS` the block size changes (:data:`simd.NARROW_LANES` samples
     from it on): batch sizes that are not multiples of either block (partial blocks), against the
     numpy reference in the error model, and to the bit against the other block size (the same
-    operations per sample, so a batch's result does not depend on how it is blocked)."""
+    operations per sample, so a batch's result does not depend on how it is blocked). Slow: the
+    test above runs the same at 11 and 12 links with the boundary moved there."""
+    _narrow_blocks_agree(n, dim)
+
+
+def _narrow_blocks_agree(n: int, dim: int) -> None:
     m = random_tree(n, dim, 7)
     fast, ref = prepare(m, "newton-euler"), prepare(m, "newton-euler", kernel="numpy")
     narrow = n >= simd.NARROW_FROM_LINKS
