@@ -198,3 +198,26 @@ def test_a_batch_split_over_threads_gives_the_same_bits(providers, monkeypatch):
     np.testing.assert_array_equal(split[0], alone[0])
     for a, b in zip(split[1], alone[1]):
         np.testing.assert_array_equal(a, b)
+
+
+def test_angles_beyond_the_fast_range_and_nan_states(providers):
+    """Angles beyond the branch-free sin/cos's range (models/fast_trig.py's RANGE) are redone with libm by
+    newton-euler's forward pass, so the products still equal the numpy reference to the error model; a NaN
+    state (check=False) gives NaN in its own sample and nowhere else: never hidden, never spread."""
+    from exo_bench.models.fast_trig import RANGE
+
+    mech = TREES[1]
+    D = providers[mech.name]
+    q, qd, qdd = states(mech, LANES + 5, 71)
+    q[::3, 0] += 2e3 * np.pi
+    q[5, 1] = 1.5 * RANGE
+    dq, dqd, dqdd, _ = _directions(mech, LANES + 5, 72)
+    sq, sqd = derivative_scales(mech, q, qd, qdd)
+    scale = _mv(sq, np.abs(dq)) + _mv(sqd, np.abs(dqd)) + _mv(mass_matrix_scale(mech, q), np.abs(dqdd))
+    ref = products.inverse_jvp(D.tree, mech.dim, float(mech.g), q, qd, qdd, dq, dqd, dqdd)
+    assert_close(D.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd, check=False), ref, scale, what="beyond RANGE")
+    q[7, 2] = np.nan
+    got = D.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd, check=False)
+    assert np.isnan(got[7]).any() and np.isfinite(np.delete(got, 7, axis=0)).all()
+    vjp = D.inverse_dynamics_vjp(q, qd, qdd, dq, check=False)
+    assert all(np.isnan(x[7]).any() and np.isfinite(np.delete(x, 7, axis=0)).all() for x in vjp)
