@@ -50,12 +50,11 @@ import json
 import numpy as np
 from exo_bench import prepare, presets
 from exo_bench.models import fast_trig
-from exo_bench.matrix_method.numba_kernels import simd as factored_simd
 from exo_bench.models.newton_euler import simd as ne_simd
 mech = presets.exo5(dim=3)
 q = np.linspace(0.1, 0.9, 40 * mech.dof).reshape(40, mech.dof)
 out = {"file": fast_trig.__file__}
-for method, kernel in (("matrix-factored", factored_simd.simd_3d), ("newton-euler", ne_simd.kernel_for(mech.nlinks))):
+for method, kernel in (("newton-euler", ne_simd.kernel_for(mech.nlinks)),):
     m = prepare(mech, method)
     out[method] = m.inverse_dynamics(q, q, q, check=False).tolist()
     out[method + " numpy"] = prepare(mech, method, kernel="numpy").inverse_dynamics(q, q, q).tolist()
@@ -64,15 +63,18 @@ print(json.dumps(out))
 """
 
 
-def test_an_edit_to_the_shared_sin_cos_recompiles_both_families_simd_kernels(tmp_path, warm_package):
+def test_an_edit_to_the_shared_sin_cos_recompiles_the_simd_kernel(tmp_path, warm_package):
     """models/fast_trig.py is outside both kernel folders, and the SIMD kernels of ``matrix-factored`` and
-    ``newton-euler`` import its ``sincos_reduced`` by name (models/numba_cache.py, SHARED_SOURCES). In a
-    copy of the package: run both batched kernels (cached), spoil the sine polynomial's first
-    coefficient, run again: both recompile and their forces move away from the numpy references (which
-    use numpy's sin/cos) by far more than the error model. The copy starts from the session's warm template."""
+    ``newton-euler`` import its ``sincos_reduced`` by name (models/numba_cache.py, SHARED_SOURCES; an edit
+    to it once left both families' cached SIMD kernels on the old sin/cos). In a copy of the package:
+    run newton-euler's batched kernel (cached), spoil the sine polynomial's first coefficient, run
+    again: it recompiles and its forces move away from the numpy reference (which uses numpy's sin/cos)
+    by far more than the error model. One family's kernel shows the mechanism; that every cached kernel
+    of both families (and of every kernel folder) is keyed on the shared sources is
+    tests/test_kernel_cache_keys.py's, without compiling. The copy starts from the session's warm template."""
     pkg, probe = package_copy_prober(tmp_path, _PROBE_TRIG, template=warm_package)
     before = probe()
-    methods = ("matrix-factored", "newton-euler")
+    methods = ("newton-euler",)
     assert all(before[m + " misses"] == 0 for m in methods), before
     trig_py = pkg / "models" / "fast_trig.py"
     text = trig_py.read_text()
