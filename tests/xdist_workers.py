@@ -21,7 +21,7 @@ Hooks of tests/conftest.py (imported there, so they are conftest hooks):
   worker, and pytest-benchmark would time nothing.
 
 * :func:`pytest_xdist_make_scheduler`: each file on one worker, and the files of
-  :data:`SHARED_WORKER` on one worker together.
+  :data:`SHARED_WORKER` on one worker together; the costliest (:data:`COSTLY_FIRST`) handed out first.
 * :func:`pytest_sessionstart`, in the controller of a run on workers: the kernels are compiled into
   the workers' numba cache before the workers start (tests/warm_kernels.py, its parts at once), so
   that the workers and the CLI processes their tests start load them instead of each compiling
@@ -71,6 +71,43 @@ def pytest_cmdline_main(config: pytest.Config):
 #: both (the warm package copy, tests/package_copy.py).
 SHARED_WORKER = {"tests/test_compiled.py": "warm_package", "tests/test_kernel_cache.py": "warm_package"}
 
+#: The costliest files (or :data:`SHARED_WORKER` groups), costliest first: handed out before every
+#: other file, so that none of them starts last and keeps one worker busy while the other idles
+#: (xdist's own order is by the number of tests in a file, which put test_errata.py, one test of two
+#: minutes, among the last). Ranked by the worker seconds each took in a run with ``--durations=0``
+#: (a fresh clone of 1cdc5cb, 2026-11-27, loaded: /tmp/s7dur.log), after the cuts of that session;
+#: a file not listed keeps xdist's order after these. tests/test_xdist_order.py checks each exists.
+COSTLY_FIRST = (
+    "warm_package",
+    "tests/test_distributed.py",
+    "tests/test_stability.py",
+    "tests/test_errata.py",
+    "bench/test_compose.py",
+    "tests/test_analytic_jacobian.py",
+    "tests/test_reports_lock.py",
+    "tests/test_lagrange_reference.py",
+    "bench/test_inverse_dynamics.py",
+    "tests/test_runner.py",
+    "tests/test_figures.py",
+    "tests/test_forward_conditioning.py",
+    "tests/test_interrupts.py",
+    "tests/test_numeric_imports.py",
+    "tests/test_equations_export.py",
+    "tests/test_lagrange_peer.py",
+    "tests/test_fuzz_cli.py",
+    "tests/test_row_selection.py",
+    "bench/test_derivatives.py",
+    "tests/test_symbolic.py",
+    "tests/test_limits.py",
+    "tests/test_run_ids.py",
+)
+
+
+def costly_first(scopes: list[str]) -> list[str]:
+    """``scopes`` (xdist's order) with those of :data:`COSTLY_FIRST` first, in its order."""
+    rank = {scope: k for k, scope in enumerate(COSTLY_FIRST)}
+    return sorted(scopes, key=lambda scope: rank.get(scope, len(rank)))  # stable: the rest keep their order
+
 
 @pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log):
@@ -83,9 +120,19 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     from xdist.scheduler import LoadFileScheduling
 
     class FilesTogether(LoadFileScheduling):
+        _ordered = False
+
         def _split_scope(self, nodeid: str) -> str:
             file = nodeid.split("::", 1)[0]
             return SHARED_WORKER.get(file, file)
+
+        def _assign_work_unit(self, node) -> None:
+            if not self._ordered:  # the first hand-out: the queue is complete, nothing is assigned yet
+                self._ordered = True
+                queue = {scope: self.workqueue[scope] for scope in costly_first(list(self.workqueue))}
+                self.workqueue.clear()
+                self.workqueue.update(queue)
+            super()._assign_work_unit(node)
 
     return FilesTogether(config, log)
 
