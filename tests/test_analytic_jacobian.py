@@ -142,12 +142,15 @@ def test_the_analytic_jacobian_is_current_at_every_step():
         assert f.njev < f.steps / 2, "scipy's own rule (finite differences) holds its Jacobian across steps"
 
 
-@pytest.mark.parametrize("integ", fd.IMPLICIT)
+@pytest.mark.parametrize("integ", [pytest.param(i, marks=pytest.mark.slow) if i == "Radau" else i for i in fd.IMPLICIT])
 def test_fewer_evaluations_on_the_planar_gait_at_tight_tolerance(integ):
     """The stability report's round trip (exo5-2d planar gait, Pinocchio's M and h, the prescribed
     controls) at rtol 1e-12, where under scipy's Jacobian-reuse rule the analytic Radau run took more
     evaluations than finite differences: with the Jacobian kept current it takes fewer, and reaches the
-    prescribed motion within the report's factor of the finite-difference run's error."""
+    prescribed motion within the report's factor of the finite-difference run's error. Radau's run
+    (a minute and a half) is slow: the Jacobian kept current at every Radau step is
+    test_the_analytic_jacobian_is_current_at_every_step's, and fewer evaluations at tight tolerance on
+    this gait stay in the default run with BDF."""
     from exo_bench.bench.studies.stability.forward_cases import round_trip_cases
     from exo_bench.bench.studies.stability.forward_jacobian import SAME_ERROR
     from exo_bench.bench.studies.stability.forward_round_trip import round_trip_run
