@@ -22,8 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from exo_bench.bench.studies.stride.coordinates import TELESCOPIC
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.posture import joints
+
+
+#: The joints the objective prices (the arch is not an actuator: it holds the rigid foot).
+PRICED_JOINTS = tuple(f"{s}_{j}" for s in ("right", "left") for j in ("hip", "knee", "ankle"))
 
 
 @dataclass(frozen=True)
@@ -82,3 +87,14 @@ def work_terms(power: np.ndarray, t: np.ndarray, eps: float = 0.0) -> tuple[np.n
     ``eps / 2`` per second)."""
     a = np.sqrt(power**2 + eps**2) if eps > 0 else np.abs(power)
     return np.trapezoid((power + a) / 2, t, axis=0), np.trapezoid((a - power) / 2, t, axis=0)
+
+
+def join_pairs(mech: Mechanism) -> list[tuple[list[int], list[int]]]:
+    """For the priced joints' moments and the telescopic rods' forces: ``(a, b)`` index lists into a node's
+    moments and rod forces, ``b`` the mirror image (right and left exchanged) of ``a``."""
+    eye = actuators(mech, np.eye(mech.dof))
+    swap = lambda n: n.replace("right_", "@").replace("left_", "right_").replace("@", "left_")  # noqa: E731
+    out = []
+    for names, chosen in ((eye.joint_names, PRICED_JOINTS), (eye.rod_names, TELESCOPIC)):
+        out.append(([names.index(n) for n in chosen], [names.index(swap(n)) for n in chosen]))
+    return out

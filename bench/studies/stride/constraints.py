@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.bench.studies.stride.actuators import actuators
+from exo_bench.bench.studies.stride.actuators import actuators, join_pairs
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, free_map, mirror_matrix
 from exo_bench.bench.studies.stride.data import StoredStride, contact_forces, contact_of
 from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
@@ -44,8 +44,6 @@ def load_jump(mech: Mechanism, moments: np.ndarray, forces: np.ndarray) -> tuple
     priced joints' moments (N·m), then the telescopic rods' forces (N), at ``t = 0`` and the mirror image
     (right and left exchanged) of those at ``t = T`` (node ``N`` of the ``2N + 1``); ``moments (K, joints)``,
     ``forces (K, rods)`` as :func:`~.actuators.actuators` splits them. What ``join_loads`` constrains."""
-    from exo_bench.bench.studies.stride.transcription import join_pairs
-
     N = (len(moments) - 1) // 2
     (ja, jb), (ra, rb) = join_pairs(mech)
     return (

@@ -65,16 +65,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from exo_bench.bench.studies.stride.actuators import actuators
+from exo_bench.bench.studies.stride.actuators import PRICED_JOINTS, actuators, join_pairs
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, FreeMap, mirror_matrix
 from exo_bench.bench.studies.stride.data import contact_mask_order, contact_of
 from exo_bench.bench.studies.stride.passive import passive_moment
 from exo_bench.models.contact_casadi import contact_force_expr
 from exo_bench.models.mechanism import Mechanism
 from exo_bench.models.posture import joints
-
-#: The joints the objective prices (the arch is not an actuator: it holds the rigid foot).
-PRICED_JOINTS = tuple(f"{s}_{j}" for s in ("right", "left") for j in ("hip", "knee", "ankle"))
 
 
 @dataclass(frozen=True)
@@ -277,17 +274,6 @@ def build(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[NLP, ca.Function, Rows]
     ubx = np.concatenate([np.tile(ubz, N + 1), [s.period[1] / 2], np.full(slack, np.inf)])
     nlp = {"x": x, "f": f, "g": ca.vertcat(*g)}
     return NLP(nlp, lbx, ubx, np.concatenate(lb), np.concatenate(ub), nz, N, npow, unit), node, rows
-
-
-def join_pairs(mech: Mechanism) -> list[tuple[list[int], list[int]]]:
-    """For the priced joints' moments and the telescopic rods' forces: ``(a, b)`` index lists into a node's
-    moments and rod forces, ``b`` the mirror image (right and left exchanged) of ``a``."""
-    eye = actuators(mech, np.eye(mech.dof))
-    swap = lambda n: n.replace("right_", "@").replace("left_", "right_").replace("@", "left_")  # noqa: E731
-    out = []
-    for names, chosen in ((eye.joint_names, PRICED_JOINTS), (eye.rod_names, TELESCOPIC)):
-        out.append(([names.index(n) for n in chosen], [names.index(swap(n)) for n in chosen]))
-    return out
 
 
 def _variable_bounds(mech: Mechanism, fm: FreeMap, s: Any) -> tuple[np.ndarray, np.ndarray]:
