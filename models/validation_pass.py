@@ -297,7 +297,6 @@ def entries() -> Entries:
 _P8, _PI = types.CPointer(types.float64), types.CPointer(types.int64)
 
 
-@cfunc(types.int64(_P8, _P8, _P8, _PI), cache=True)
 def _status_c(q, qd, qdd, p):
     """:func:`status` of one sample of ``q, qd, qdd`` (``dof`` doubles each, all given) as a C function
     for the lean call's wrapper (models/_lean_call.c), which has checked the arrays' layout."""
@@ -310,8 +309,16 @@ def status_address() -> int | None:
     """The address of :func:`status` for one sample as a C function (``int64 f(double *q, double *qd,
     double *qdd, int64 *plan)``, all three rates given; :func:`plan` of the mechanism), compiled or
     loaded from numba's cache on first use; None under ``NUMBA_DISABLE_JIT``."""
-    address: Any = None if jit_disabled() else _status_c.address  # Any: numba's stubs type it int | None
+    address: Any = None if jit_disabled() else _status_cfunc().address  # Any: numba's stubs: int | None
     return None if address is None else int(address)
+
+
+@functools.cache
+def _status_cfunc() -> Any:
+    """:func:`_status_c` as a cfunc, built on first use: a ``@cfunc`` decorator compiles at import (it
+    ignores ``NUMBA_DISABLE_JIT``), so importing this module under ``NUMBA_DISABLE_JIT`` with no cached
+    copy failed (tests/test_validation_pass.py, on a fresh clone whose cache lay elsewhere)."""
+    return cfunc(types.int64(_P8, _P8, _P8, _PI), cache=True)(_status_c)
 
 
 _F8 = np.dtype(np.float64)

@@ -243,9 +243,11 @@ def test_importing_the_mechanism_does_not_import_numba():
     assert r.stdout.strip() == "False", r.stderr
 
 
-def test_the_numpy_reference_runs_under_numba_disable_jit():
+def test_the_numpy_reference_runs_under_numba_disable_jit(tmp_path):
     """Under ``NUMBA_DISABLE_JIT`` (the numpy kernels still run) the checks are the numpy reference,
-    with the same messages."""
+    with the same messages. With an empty numba cache: a cached cfunc elsewhere hid a compile at import
+    that fails under ``NUMBA_DISABLE_JIT`` (it failed on a fresh clone whose cache was in the workers'
+    shared folder)."""
     code = (
         "import numpy as np\n"
         "from exo_bench.models.presets import exo5\n"
@@ -254,8 +256,9 @@ def test_the_numpy_reference_runs_under_numba_disable_jit():
         "q[7, 13] = -2.0\n"
         "try:\n    as_states(m, q, q, q)\nexcept ValueError as e:\n    print(e)\n"
     )
-    env = {"NUMBA_DISABLE_JIT": "1", "PATH": "/usr/bin:/bin"}
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    env = {"NUMBA_DISABLE_JIT": "1", "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path)}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr[-3000:]
     assert "field 'q' sample 7 coordinate l4" in r.stdout and "expected a rod length >= 0, got -2.0" in r.stdout, r
 
 

@@ -17,7 +17,7 @@ Per block, O(n) per sample and no ``n x n`` array:
      and ``P_k dq_k`` aside (``X``);
    * VJP: ``J_k w_k`` over ``kappa_k``, and the force ``F_k`` aside (``X``);
 
-3. **the gravity-free passes** on those accelerations, newton-euler's own (:func:`simd._start_points` at
+3. **the gravity-free passes** on those accelerations, newton-euler's own (``_start_points`` of :func:`exo_bench.models.newton_euler.simd.build` at
    ``g = 0``, then for the JVP its backward pass, which leaves ``J^T dF`` where it leaves ``tau``; for the VJP
    the subtree sums again, so that the forces ``v = (mu (x) I) J w`` are ``rod_force`` per rod);
 4. JVP: ``J^T dF + P dq`` transposed out. VJP, per rod: ``(A^q)^T v + P^T w``, ``(A^r)^T v`` and ``J^T v``
