@@ -1,6 +1,6 @@
 """The half-stride join in the stride's report: how far each stored stride's loads jump where its halves meet.
 
-The stride is solved over half a stride and mirrored (:mod:`~.transcription`, "The join"): coordinates and
+The stride is solved over half a stride and mirrored (:mod:`~exo_bench.bench.studies.stride.transcription`, "The join"): coordinates and
 rates are mirrored at the join, the loads only when the problem asks for it (``join_loads``, per variant:
 :data:`~.problem.JOIN_LOADS`). A jump there is the transcription's, not the walk's, and a sizing table's
 peaks would carry it. For every stored stride, computed here from the stored loads (the optimiser's):

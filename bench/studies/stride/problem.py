@@ -93,7 +93,7 @@ FLOOR_PRICE = 5.0
 SPRING = (0.0, 0.0, 0.25)
 #: Per variant: the loads continuous across the half-stride join (``join_loads``): the exo's, whose sizing table
 #: is what motors are bought from (its loads jumped there by 49.5 N·m and 669 N without it); not the human's,
-#: which keeps its five checks only without it (:mod:`~.transcription`, "The join").
+#: which keeps its five checks only without it (:mod:`~exo_bench.bench.studies.stride.transcription`, "The join").
 JOIN_LOADS = (("human", False), ("exo", True))
 #: IPOPT's constraint tolerance for a new solve (the transcription's units: residuals in body weights, and body
 #: weights x 1 m for the angles'). The stored stride must hold every constraint to 1e-8 in its own unit on the
