@@ -16,8 +16,8 @@ import sympy as sp
 from exo_bench.bench.perf.compose_cost import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
 from exo_bench.bench.perf.rows import OVER_BUDGET
 from exo_bench.bench.perf.profiles import current
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.presets import chain
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.presets import chain
 
 COMPOSERS = ("lagrange", "lagrange-expr", "sympy-lagrangesmethod", "sympy-kanesmethod", "matrix", "recurrence")
 _REFERENCE: dict[Mechanism, tuple] = {}

@@ -45,8 +45,8 @@ from exo_bench.api import prepare
 from exo_bench.bench.perf import derivative_routes as routes
 from exo_bench.bench.perf.profiles import current
 from exo_bench.lagrange import derivative_reference as dr
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5
 
 CHAIN_N = {"quick": (10, 20), "full": (10, 20, 30, 50, 100, 200, 300)}
 SAMPLES = {"quick": 64, "full": 256}

@@ -43,7 +43,7 @@ import pytest
 from exo_bench.api import METHODS
 from exo_bench.api.cost_formulas import NUMBA_BYTES
 from exo_bench.api.cost_model import estimate
-from exo_bench.models.presets import chain
+from exo_bench.models.mechanism.presets import chain
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="VmHWM and clear_refs are Linux's")
 
@@ -51,8 +51,8 @@ CHILD = r"""
 import gc, json, sys, time
 method, dim, samples, ns = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), [int(x) for x in sys.argv[4:]]
 from exo_bench.api import method_class, prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain
 method_class(method)                                   # the method's imports, outside
 # numba's machine code, outside, for every method: the compiled kernel the batch takes (serial or
 # parallel) and the compiled validation pass that every method's checked call runs (pinocchio too: left

@@ -2,7 +2,7 @@
 
 Users put ``f_ext`` in controllers and ODE right-hand sides, so a one-sample call with it should cost the
 call without it plus the generalised forces ``Q(q, f_ext)`` (an O(n) pass, compiled:
-models/external_forces_compiled.py). Each row times one public call (``model.inverse_dynamics(q, qd, qdd,
+models/runtime/external_forces_compiled.py). Each row times one public call (``model.inverse_dynamics(q, qd, qdd,
 check=..., f_ext=...)``) on exo5-3d and on the 10-link human (``human-2d``), matrix-factored and
 newton-euler, ``check`` True and False, without and with ``f_ext``: the rows of one mechanism are one
 group (``f_ext-<mechanism>``), timed in one process, so ``py.test-benchmark compare`` reads the cost of
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as xf
-from exo_bench.models.presets import exo5, human, human_standing
+from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.mechanism.presets import exo5, human, human_standing
 
 MECHANISMS = {"exo5-3d": lambda: exo5(3), "human-2d": lambda: human(2)}
 METHODS = ("matrix-factored", "newton-euler")

@@ -8,7 +8,7 @@ one host (bench/perf/rows.py):
 * ``newton-euler (numba)`` / ``newton-euler (numpy)``: ``forward_dynamics``: ``r'' = M_r^-1 (J^-T tau
   - g_r)`` with ``M_r`` factored once, then ``J^-1``; O(n) per sample;
 * ``pinocchio (CRBA + Cholesky)``: Pinocchio's CRBA and ``nonLinearEffects``, then the Cholesky
-  solve of :meth:`exo_bench.models.prepared.PreparedModel.forward_dynamics` (its ABA refuses mimic joints);
+  solve of :meth:`exo_bench.models.runtime.prepared.PreparedModel.forward_dynamics` (its ABA refuses mimic joints);
 * ``matrix-factored (numba) + solve``: ``M`` and ``h`` derived from the compiled inverse dynamics
   (``dof + 2`` rows per sample), then the same Cholesky solve;
 * ``matrix (numba) + solve``: the matrix method's own ``A, B, Lambda`` blocks, then the solve.
@@ -44,8 +44,8 @@ import pytest
 
 from exo_bench.api import prepare
 from exo_bench.bench.perf.profiles import current
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5
 
 K = 16
 EPS = float(np.finfo(float).eps)
@@ -161,8 +161,8 @@ _MEMORY_PROBE = """
 import json, resource, sys
 import numpy as np
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain
 n, samples = int(sys.argv[1]), int(sys.argv[2])
 mech = chain(n, 3)
 q, qd, qdd = random_states(mech, samples, seed=n)

@@ -27,7 +27,7 @@ Rows are parametrized by ``method, kernel, n, dim, topology`` (explicit, readabl
   ``mj_comVel``, ``mj_rne``; Drake: ``SetPositions``, ``SetVelocities``, ``CalcInverseDynamics``,
   ``CalcGravityGeneralizedForces``), so their per-call and batched costs are mostly that overhead
   at small n; batched up to the n where the projected batch fits ``inverse_budget``; skipped with the
-  reason (printed) when the engine is not installed (:class:`exo_bench.models.prepared.MissingExtra`);
+  reason (printed) when the engine is not installed (:class:`exo_bench.models.runtime.prepared.MissingExtra`);
 * group ``wrapper``: on exo5-3d, a prepared model's call with ``check=False`` next to the kernel
   it calls, so the report gives the wrapper's own per-call cost (call minus kernel);
 * group ``compile``: the first call's compile time of each compiled kernel (a fresh numba cache
@@ -63,9 +63,9 @@ from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import ResourceLimit
 from exo_bench.bench.studies.reference_forces import reference
 from exo_bench.bench.perf.profiles import current
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models.presets import chain, exo5
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.mechanism.presets import chain, exo5
 
 K = 16
 EPS = float(np.finfo(float).eps)

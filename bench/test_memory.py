@@ -31,8 +31,8 @@ import pytest
 
 from exo_bench.api import prepare
 from exo_bench.api.cost_model import estimate
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
 SAMPLES = (10_000, 1_000_000)
 METHODS = ("matrix-factored", "matrix", "pinocchio", "recurrence")

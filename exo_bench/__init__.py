@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # what IDEs and type checkers see; at run time the names load lazily (__getattr__)
     from exo_bench.api.methods import MethodSpec, method_names
     from exo_bench.api.preparation import prepare
-    from exo_bench.models import presets
-    from exo_bench.models.loading import load_mechanism
-    from exo_bench.models.mechanism import Mechanism
+    from exo_bench.models.mechanism import presets
+    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.mechanism import Mechanism
 
 __version__ = "0.2.0"
 
@@ -34,9 +34,9 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "prepare": ("exo_bench.api.preparation", "prepare"),
     "method_names": ("exo_bench.api.methods", "method_names"),
     "MethodSpec": ("exo_bench.api.methods", "MethodSpec"),
-    "Mechanism": ("exo_bench.models.mechanism", "Mechanism"),
-    "load_mechanism": ("exo_bench.models.loading", "load_mechanism"),
-    "presets": ("exo_bench.models.presets", None),
+    "Mechanism": ("exo_bench.models.mechanism.mechanism", "Mechanism"),
+    "load_mechanism": ("exo_bench.models.mechanism.loading", "load_mechanism"),
+    "presets": ("exo_bench.models.mechanism.presets", None),
 }
 
 

@@ -36,9 +36,9 @@ from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, tim
 from exo_bench.lagrange.energies import Structure, derive_expr, energies_poly, lagrange_poly, structure_of
 from exo_bench.lagrange.matrix_form import BLOCKS, extract_ring, matrices_expr
 from exo_bench.lagrange.ring import TrigRing
-from exo_bench.models.bounded_cache import BoundedCache
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import Symbols, symbols_for
+from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import Symbols, symbols_for
 
 ENGINES = ("poly", "expr")
 
@@ -139,7 +139,7 @@ def _from_ring(
 
 
 # ------------------------------------------------------------------ entry point
-# Bounded memos (models/bounded_cache.py): a process deriving many mechanisms keeps the latest few. A
+# Bounded memos (models/machine/bounded_cache.py): a process deriving many mechanisms keeps the latest few. A
 # symbolic derivation of a 30-link chain holds gigabytes, so few of each; failures are a float each.
 _SYMBOLIC: BoundedCache[tuple[Structure, str], Derivation] = BoundedCache(16)
 _NUMERIC: BoundedCache[tuple[Mechanism, str], Derivation] = BoundedCache(16)

@@ -6,7 +6,7 @@ by the implicit-function theorem at 50 digits, ``qdd``, ``dqdd/dq``, ``dqdd/dqd`
 
 **How, and why it is independent.** The generalised forces are written by d'Alembert's principle on
 the point masses, ``tau_a = sum_k m_k (d r_k / d q_a) . (r_k'' + g e_up)``, from the geometry of
-:mod:`exo_bench.models.mechanism` alone: link ``i`` starts at the end of its parent, ``w_i = s_i l_i
+:mod:`exo_bench.models.mechanism.mechanism` alone: link ``i`` starts at the end of its parent, ``w_i = s_i l_i
 u_i(phi_i, psi_i)``, masses at fractions ``0, n_i, 1``. ``w_i''`` and ``d w_i / d q`` are hand-written
 trigonometry of one unit vector (below); the masses' forces are summed over each link's subtree.
 No code under test is used: not newton-euler's passes or its rod elements (spatial algebra), not the
@@ -50,7 +50,7 @@ import mpmath
 import numpy as np
 from mpmath.libmp import dps_to_prec, from_man_exp
 
-from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism, as_states
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Lagrange II from the point masses' T and Pi, built from the geometry alone.
 
-Positions are built link by link down the tree (:mod:`exo_bench.models.mechanism`): link ``i`` starts at the
+Positions are built link by link down the tree (:mod:`exo_bench.models.mechanism.mechanism`): link ``i`` starts at the
 end of its parent and its masses sit at fractions ``0, n_i, 1`` of ``w_i = sign_i l_i u_i``. Then
 
 * ``T = 1/2 sum_ib m_ib |v_ib|^2`` with ``v_ib = sum_a (d r_ib / d q_a) qd_a``,
@@ -23,8 +23,8 @@ from sympy.polys.rings import PolyElement
 
 from exo_bench.lagrange.budget import Deadline
 from exo_bench.lagrange.ring import TrigRing
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import Symbols
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import Symbols
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ from sympy import QQ
 
 from exo_bench.lagrange.budget import Deadline
 from exo_bench.lagrange.ring import TrigRing
-from exo_bench.models.equation_form import ACCELERATION, RATES, blocks, matrix_names
-from exo_bench.models.symbols import Symbols
+from exo_bench.models.states.equation_form import ACCELERATION, RATES, blocks, matrix_names
+from exo_bench.models.mechanism.symbols import Symbols
 
 #: blocks of coordinates (rows of the matrix form), in block order
 BLOCKS = {dim: blocks(dim) for dim in (2, 3)}  # models.equation_form: the block order, defined once

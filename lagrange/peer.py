@@ -24,8 +24,8 @@ from sympy.physics import mechanics as me
 
 from exo_bench.lagrange.budget import time_budget
 from exo_bench.lagrange.derivation import parameter_values
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import symbols_for
 
 KINDS = ("lagrange", "kane")
 

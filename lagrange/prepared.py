@@ -24,8 +24,8 @@ import contextlib
 
 from exo_bench.lagrange import numeric
 from exo_bench.lagrange.budget import without_interrupts
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.runtime.prepared import PreparedModel
 
 
 class LagrangeModel(PreparedModel):

@@ -16,7 +16,7 @@ import sympy as sp
 from sympy import QQ
 from sympy.polys.rings import ring
 
-from exo_bench.models.symbols import Symbols
+from exo_bench.models.mechanism.symbols import Symbols
 
 
 class TrigRing:

@@ -1,5 +1,5 @@
 """The kernels of the matrix family (``matrix``, ``matrix-factored``, ``recurrence``), as objects
-(:class:`~exo_bench.models.kernels.Kernel`): the tuples below are what each method's MethodSpec and
+(:class:`~exo_bench.models.runtime.kernels.Kernel`): the tuples below are what each method's MethodSpec and
 prepared-model class list. Each ``load`` binds a kernel to one prepared model of
 :mod:`exo_bench.matrix_method.prepared` (its ``kernel_args``, ``serial_kernel``, ``parallel_kernel``,
 ``batch_kernel``), importing the compiled code only then: importing this module imports no numba.
@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
-from exo_bench.models.unchecked import _may_overlap
+from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.states.unchecked import _may_overlap
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
-#: from it (matrix-factored, :func:`exo_bench.models.prepared.terms_from_inverse_dynamics`).
+#: from it (matrix-factored, :func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`).
 _DERIVED = ("inverse_dynamics", "bias_forces", "mass_matrix", "mass_matrix_and_bias", "forward_dynamics")
 _F8 = np.dtype(np.float64)
 
@@ -48,7 +48,7 @@ def _drivers(model: Any) -> Entries:
 
 def _simd(model: Any) -> Entries:
     """matrix-factored's batches: the kernel that vectorises across samples, in blocks over threads."""
-    from exo_bench.models.simd_blocks import run
+    from exo_bench.models.machine.simd_blocks import run
 
     def whole(q, qd, qdd, out=None):
         o = model._results.empty(q.shape) if out is None else out
@@ -70,7 +70,7 @@ def _lean(model: Any) -> Entries:
     else the kernel's compiled entry point behind the checks unboxing trusts; the per-sample kernel
     through numba's dispatcher where neither takes the arrays (the same arithmetic)."""
     from exo_bench.matrix_method.numba_kernels import lean
-    from exo_bench.models.states import validation_plan
+    from exo_bench.models.states.states import validation_plan
 
     dim, params = model.mechanism.dim, model.kernel_args[0]
     if not hasattr(lean.KERNELS[dim], "compile"):  # NUMBA_DISABLE_JIT: no entry point to resolve
@@ -124,7 +124,7 @@ def _cholesky_forward(model: Any) -> Entries:
     decides. Nothing where the coupling itself is not positive definite (the checks refuse the mechanism)."""
     from exo_bench.matrix_method.numba_kernels import cholesky_forward_c as c
     from exo_bench.matrix_method.numba_kernels.cholesky_forward import entries
-    from exo_bench.models.forward_check import checked_entry, lean_entry
+    from exo_bench.models.runtime.forward_check import checked_entry, lean_entry
 
     try:
         lc = np.ascontiguousarray(np.linalg.cholesky(model.coupling))

@@ -18,7 +18,7 @@ or a batch, threads for large batches; compiled on first use and cached on disk)
 vectorised numpy reference of :mod:`exo_bench.matrix_method.numpy_kernels.matrix`/:mod:`exo_bench.matrix_method.recurrence`.
 Both compute the same arithmetic and agree to rounding (tests/test_compiled.py). Each kernel is an object
 of :mod:`exo_bench.matrix_method.kernels` listed in the class's ``kernels`` (and its MethodSpec); the
-public calls are :class:`~exo_bench.models.prepared.PreparedModel`'s, which run the kernels' entries.
+public calls are :class:`~exo_bench.models.runtime.prepared.PreparedModel`'s, which run the kernels' entries.
 """
 
 from __future__ import annotations
@@ -35,13 +35,13 @@ from exo_bench.matrix_method.numba_kernels import (
 )
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.numba_kernels import simd as compiled_simd
-from exo_bench.models.simd_blocks import ThreadScratch
+from exo_bench.models.machine.simd_blocks import ThreadScratch
 from exo_bench.matrix_method import recurrence as _recurrence
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.kernels import MATRIX_FACTORED_KERNELS, MATRIX_KERNELS, RECURRENCE_KERNELS
-from exo_bench.models.kernels import select
-from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.runtime.kernels import select
+from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.runtime.prepared import PreparedModel
 
 
 def _tile_option(method: str, tile, block=None) -> int:

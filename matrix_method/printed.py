@@ -28,8 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from exo_bench.models.aggregates import link_aggregates
-from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.mechanism.aggregates import link_aggregates
+from exo_bench.models.mechanism.mechanism import Mechanism, split
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ K = 8
 
 def mass_coupling_oracle(mech) -> tuple[np.ndarray, np.ndarray]:
     """``mu (n, n)`` and ``nu (n,)`` of ``T = 1/2 sum_ij mu_ij w_i' . w_j'``, ``Pi = g sum_i nu_i w_i . up``
-    straight from the point masses, not from :mod:`exo_bench.models.aggregates`: mass ``m`` of link ``k`` at
+    straight from the point masses, not from :mod:`exo_bench.models.mechanism.aggregates`: mass ``m`` of link ``k`` at
     fraction ``f`` sits at ``sum_{a in anc(k)} w_a + f w_k``, so it adds ``m c_i c_j`` to ``mu_ij``
     and ``m c_i`` to ``nu_i`` with ``c_a = 1`` on the ancestors and ``c_k = f``."""
     n = len(mech.parent)
@@ -169,7 +169,7 @@ def mass_matrix_scale(mech, q, derived: bool = False) -> np.ndarray:
     the magnitude of the one term of each entry, times ``max(1, |angles|)``.
 
     ``derived``: ``M`` obtained from inverse dynamics as ``ID(q, 0, e_b) - ID(q, 0, 0)``
-    (:func:`exo_bench.models.prepared.terms_from_inverse_dynamics`), whose column ``b`` also carries the
+    (:func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`), whose column ``b`` also carries the
     rounding of the gravity forces it subtracts: the term scale of ``ID(q, 0, e_b)`` is added."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     mu, _ = mass_coupling_oracle(mech)
@@ -314,8 +314,8 @@ POWER_BALANCE_TOL = 1e-11
 def power_balance_residual(inverse_dynamics, mech, seed: int) -> float:
     """max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt| along a seeded smooth motion, with T and Pi
     summed over the point masses (models.kinematics): the power balance every method must satisfy."""
-    from exo_bench.models.kinematics import energy_rate
-    from exo_bench.models.motion import smooth_random_motion
+    from exo_bench.models.mechanism.kinematics import energy_rate
+    from exo_bench.models.gait.motion import smooth_random_motion
 
     f = lambda t: smooth_random_motion(mech, t, seed=seed)
     t = np.linspace(0.0, 3.0, 40)
@@ -343,15 +343,15 @@ def installed_methods() -> list[str]:
     """Every registered method whose engine is installed here, in registry order.
 
     ``mujoco`` and ``drake`` are the optional extra ``[peers]``: where it is missing, preparing them
-    raises :class:`~exo_bench.models.prepared.MissingExtra`, and the tests that iterate over every
+    raises :class:`~exo_bench.models.runtime.prepared.MissingExtra`, and the tests that iterate over every
     method leave them out (tests/test_mujoco_drake.py skips with the reason printed). Found by
     preparing each method once on the one-link planar model, so a method that is merely slow to
     import is not mistaken for a missing one."""
     global _INSTALLED
     if _INSTALLED is None:
         from exo_bench import method_names, prepare
-        from exo_bench.models.prepared import MissingExtra
-        from exo_bench.models.presets import fig1
+        from exo_bench.models.runtime.prepared import MissingExtra
+        from exo_bench.models.mechanism.presets import fig1
 
         found = []
         for name in method_names():

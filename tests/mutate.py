@@ -66,22 +66,22 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
         ["tests/test_coefficients.py", "tests/test_recurrence.py", "tests/test_planar.py", "tests/test_symbolic.py"],
     ),
     "aggregates": (
-        "models/aggregates.py",
+        "models/mechanism/aggregates.py",
         None,
         ["tests/test_coefficients.py", "tests/test_forward_dynamics.py", "tests/test_planar.py"],
     ),
     "urdf": (
-        "models/urdf.py",
+        "models/engines/urdf.py",
         ("_safe", "link_prefix", "_inertial", "_link", "_joint", "to_urdf", "pinocchio_model_size"),
         ["tests/test_urdf.py", "tests/test_pinocchio_backend.py"],
     ),
     "G": (
-        "models/pinocchio_backend.py",
+        "models/engines/pinocchio_backend.py",
         ("build_model", "_joint_states"),
         ["tests/test_pinocchio_backend.py", "tests/test_urdf.py"],
     ),
     "mjcf": (
-        "models/mjcf.py",
+        "models/engines/mjcf.py",
         ("_joint_rows", "joint_map"),
         [
             "tests/test_mujoco_drake.py::test_mjcf_ties_and_map_are_what_the_paper_coordinates_say",
@@ -92,7 +92,7 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
         ],
     ),
     "drake": (
-        "models/drake_backend.py",
+        "models/engines/drake_backend.py",
         ("build_plant",),
         [
             "tests/test_mujoco_drake.py::test_drake_bodies_are_the_point_masses",
@@ -101,12 +101,12 @@ TARGETS: dict[str, tuple[str, tuple[str, ...] | None, list[str]]] = {
         ],
     ),
     "mechanism": (
-        "models/mechanism.py",
+        "models/mechanism/mechanism.py",
         ("from_dict", "__post_init__"),
         ["tests/test_mechanism.py", "tests/test_bad_inputs.py"],
     ),
     "validation": (
-        "models/validation.py",
+        "models/states/validation.py",
         ("_is_number", "_finite", "validate"),
         ["tests/test_mechanism.py", "tests/test_bad_inputs.py"],
     ),

@@ -5,7 +5,7 @@ The copy is made from the checkout's sources, never from its ``__pycache__`` (an
 be writing numba's cache there while it is copied). A test that is not about a cold compile starts
 from :func:`warm_package` instead: one copy per session whose numba cache the kernels of the stale-cache
 probes were compiled into once, in a process of its own, then copied whole (the cache is keyed on
-the sources' contents, models/numba_cache.py, so a copy of it is valid in the copy of the sources).
+the sources' contents, models/machine/numba_cache.py, so a copy of it is valid in the copy of the sources).
 Each test edits its own copy; nothing is shared between tests but the untouched template.
 """
 
@@ -18,7 +18,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from exo_bench.models.numba_cache import INSTALLED_CACHE_SUFFIX
+from exo_bench.models.machine.numba_cache import INSTALLED_CACHE_SUFFIX
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,7 +30,7 @@ import json
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models import numba_runtime
+from exo_bench.models.machine import numba_runtime
 mech = presets.exo5(dim=3)
 for method, batches in (("matrix", [None]), ("newton-euler", [None, 40])):
     m, ref = prepare(mech, method), prepare(mech, method, kernel="numpy")
@@ -64,7 +64,7 @@ def package_copy_prober(tmp_path: Path, probe: str, template: Path | None = None
     else:
         pkg = tmp_path / "exo_bench"
         shutil.copytree(template, pkg)
-        # a copy laid out as installed keeps its compiled kernels beside the package (models/numba_cache.py)
+        # a copy laid out as installed keeps its compiled kernels beside the package (models/machine/numba_cache.py)
         cache = template.parent / f"{template.name}{INSTALLED_CACHE_SUFFIX}"
         if cache.is_dir():
             shutil.copytree(cache, tmp_path / cache.name)

@@ -17,7 +17,7 @@ import pytest
 from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, conservative_cases, stiff_case
-from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.simulation import forward_dynamics as fd
 
 pytest.importorskip("casadi")
 

@@ -1,4 +1,4 @@
-"""Winter's anthropometric table (models/anthropometry.py): the fractions, and the three point masses
+"""Winter's anthropometric table (models/mechanism/anthropometry.py): the fractions, and the three point masses
 that stand for a segment.
 
 Oracles: the table's own numbers (each checked against a reprint or stated unchecked in the module),
@@ -13,7 +13,7 @@ import math
 
 import pytest
 
-from exo_bench.models import anthropometry as a
+from exo_bench.models.mechanism import anthropometry as a
 
 SEGMENTS = [a.FOOT, a.LEG, a.THIGH, a.hat_to_vertex()]
 

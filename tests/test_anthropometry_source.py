@@ -1,9 +1,9 @@
-"""Winter's anthropometric numbers in models/anthropometry.py against the public transcriptions it cites,
+"""Winter's anthropometric numbers in models/mechanism/anthropometry.py against the public transcriptions it cites,
 and the human model built from them against the body it is asked for.
 
 Oracles: the transcribed rows below, copied from their files (repository, path and commit given), not
 from the module; the parallel-axis theorem, which ties each row's three radii of gyration together;
-the point masses' positions from models/kinematics.py. Error model: the table is given to three
+the point masses' positions from models/mechanism/kinematics.py. Error model: the table is given to three
 digits, so the parallel-axis check holds to the last digit's rounding (0.0005 on each radius, about
 1e-3 on the squares); masses and heights are closed forms of a few table numbers (1e-12 relative).
 """
@@ -15,9 +15,9 @@ import math
 import numpy as np
 import pytest
 
-from exo_bench.models import anthropometry as a
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.presets import human, human_standing
+from exo_bench.models.mechanism import anthropometry as a
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.presets import human, human_standing
 
 #: BMClab/BMC data/BSP_DempsterWinter.txt (commit bb70ec694c7d7db237eb2a131a8cf37183d7e1f4), Winter's
 #: Table 4.1: mass / body mass, centre of mass from the proximal end and from the distal end, radius of

@@ -27,8 +27,8 @@ import pytest
 
 import issue34
 from exo_bench.bench.cli import app as cli
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "errors.md"
@@ -139,11 +139,11 @@ def _method_raises(exc):
 
 def _pin_data_too_large(mp):
     _no_preflight(mp)
-    mp.setattr("exo_bench.models.pinocchio_backend.usable_memory", lambda: 50_000_000)
+    mp.setattr("exo_bench.models.engines.pinocchio_backend.usable_memory", lambda: 50_000_000)
 
 
 def _pin_bad_alloc(mp):
-    from exo_bench.models.pinocchio_backend import PinocchioRNEA
+    from exo_bench.models.engines.pinocchio_backend import PinocchioRNEA
 
     mp.setattr(PinocchioRNEA, "_inverse_dynamics", _raise(RuntimeError("std::bad_alloc")))
 
@@ -968,7 +968,7 @@ def test_the_300_link_chain_is_refused_with_the_default_limit_before_any_work(tm
     """Method pinocchio (the CLI's default before issue 26) and no --max-memory, on a machine where 16 GB
     may be used: one line naming a method that fits, and Pinocchio never builds a model or a Data (the
     refusal is the estimate alone)."""
-    import exo_bench.models.pinocchio_backend as pb
+    import exo_bench.models.engines.pinocchio_backend as pb
 
     monkeypatch.setattr("exo_bench.api.cost_model.usable_memory", lambda: 16 * 10**9)
     monkeypatch.setattr(pb, "build_model", lambda mech: pytest.fail("a model was built"))
@@ -1232,7 +1232,7 @@ def test_dashes_in_a_link_name_keep_the_urdf_valid(tmp_path):
     rc, out, err = run_cli(["urdf", _mech(tmp_path, link2_name="thigh--left-")])
     assert rc == 0 and err == ""
     ET.fromstring(out)  # parses: no "--" inside a comment
-    assert '"thigh\\u002d-left-",' in out  # models/encoders.py xml_comment: json.loads gives the name back
+    assert '"thigh\\u002d-left-",' in out  # models/files/encoders.py xml_comment: json.loads gives the name back
 
 
 # ------------------------------------------------------------------------------ docs/errors.md

@@ -32,8 +32,8 @@ from hypothesis import strategies as st
 
 from exo_bench import prepare
 from exo_bench.api.methods import METHODS, known_wrong
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig2a
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig2a
 
 #: Every installed method (conftest.installed_methods) and kernel, on a 3D and a 2D mechanism (lagrange on fig2a-2d only: its
 #: derivation for exo5-3d takes minutes).
@@ -204,8 +204,8 @@ def test_check_false_refusals_in_a_subprocess_do_not_crash_the_interpreter():
     code = """
 import numpy as np
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 mech = exo5(3)
 q, qd, qdd = random_states(mech, 5000, seed=0)
 for method in ("matrix", "matrix-factored", "recurrence"):

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 
 from exo_bench.lagrange import derivation, numeric
-from exo_bench.models.bounded_cache import BoundedCache
-from exo_bench.models.presets import chain
+from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.mechanism.presets import chain
 
 
 def test_the_bounded_cache_forgets_the_least_recent():
@@ -55,7 +55,7 @@ def test_lambdified_functions_of_many_mechanisms_stay_bounded(monkeypatch):
 def test_every_memo_keyed_on_user_input_is_bounded():
     """The module memos keyed on a mechanism or n: bounded (PyDy's compiled functions included)."""
     from exo_bench.bench.perf import peers
-    from exo_bench.models.symbols import symbols_for
+    from exo_bench.models.mechanism.symbols import symbols_for
 
     for memo in (derivation._SYMBOLIC, derivation._NUMERIC, derivation._FAILED, numeric._CACHE, numeric._FAILED):
         assert isinstance(memo, BoundedCache)

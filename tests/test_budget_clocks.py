@@ -8,7 +8,7 @@ import itertools
 import pytest
 
 from exo_bench.bench.output.equation_pages import EquationsBudget, _Clock
-from exo_bench.models.presets import fig1
+from exo_bench.models.mechanism.presets import fig1
 
 
 def ticks(step: float):

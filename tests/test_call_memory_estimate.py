@@ -2,8 +2,8 @@
 "Budgets and memory are predicted before the work"; "check=False skips validation of values, never of
 memory safety").
 
-A batch too large for the memory a run may use (:func:`exo_bench.models.memory.usable_memory`, patched
-here to 100 MiB) is refused by :class:`exo_bench.models.memory.CallTooLarge` (a ``MemoryError``) naming
+A batch too large for the memory a run may use (:func:`exo_bench.models.machine.memory.usable_memory`, patched
+here to 100 MiB) is refused by :class:`exo_bench.models.machine.memory.CallTooLarge` (a ``MemoryError``) naming
 the call, the samples and the bytes, before the states are copied: the batches are read-only
 ``np.broadcast_to`` views (no real memory), and tracemalloc counts what the refusal allocated (no clock).
 Before the estimate, the states were converted first (C-ordered copies, 16 MB each here, 80 GB each
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models import memory
-from exo_bench.models.presets import exo5
+from exo_bench.models.machine import memory
+from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(2)
 MODEL: dict = {}
@@ -53,7 +53,7 @@ def _calls():
 @pytest.mark.parametrize("check", [True, False], ids=["check", "no-check"])
 @pytest.mark.parametrize("call", list(_calls()))
 def test_a_batch_too_large_is_refused_before_its_states_are_copied(monkeypatch, call, check):
-    from exo_bench.models.memory import CallTooLarge
+    from exo_bench.models.machine.memory import CallTooLarge
 
     m = _model()
     m.derivatives  # built outside the count
@@ -72,8 +72,8 @@ def test_a_batch_too_large_is_refused_before_its_states_are_copied(monkeypatch, 
 
 def test_the_derivatives_refusal_is_the_same_mechanism():
     """One mechanism, one limit: the full Jacobians' refusal is a CallTooLarge too."""
-    from exo_bench.models.derivatives import DerivativesTooLarge
-    from exo_bench.models.memory import CallTooLarge
+    from exo_bench.models.derivatives.derivatives import DerivativesTooLarge
+    from exo_bench.models.machine.memory import CallTooLarge
 
     assert issubclass(DerivativesTooLarge, CallTooLarge)
 

@@ -42,8 +42,8 @@ from conftest import EPS, K, assert_close, assert_forces_agree, assert_mass_matr
 from exo_bench import prepare, presets
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import random_tree
 
 ca = pytest.importorskip("casadi")
 
@@ -321,7 +321,7 @@ def test_bad_input():
         model.derivatives.inverse_dynamics(q, qd[:, :3], qdd)
     q_bad = q.copy()
     q_bad[0, -1] = 0.0  # l5 = 0: M singular, forward dynamics undefined
-    from exo_bench.models.forward_dynamics import SingularConfigurationError
+    from exo_bench.models.simulation.forward_dynamics import SingularConfigurationError
 
     with pytest.raises(SingularConfigurationError, match="link 5"):
         model.derivatives.forward_dynamics(q_bad, qd, qdd)

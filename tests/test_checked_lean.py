@@ -1,6 +1,6 @@
 """The default one-sample call (``check=True``) validated and computed in the C wrapper of the lean call
-(models/_lean_call.c, models/lean_call.py): the validation pass of one sample through its C address
-(models/validation_pass.py ``status_address``), then the kernel; whatever it refuses or does not take
+(models/runtime/_lean_call.c, models/runtime/lean_call.py): the validation pass of one sample through its C address
+(models/states/validation_pass.py ``status_address``), then the kernel; whatever it refuses or does not take
 goes to PreparedModel's Python path, which names the problem. No wall clock: the tests assert which
 path ran (by refusing the Python path's check), the same bits as ``check=False``, and the messages.
 """
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
+pytest.importorskip("exo_bench.models.runtime._lean_call", reason="the C wrapper is optional (setup.py)")
 
 METHODS = ("matrix-factored", "newton-euler")
 
@@ -33,7 +33,7 @@ def test_a_valid_sample_never_reaches_the_python_check(model, monkeypatch):
     """A valid C-ordered float64 sample is validated and computed in C: the Python path's check is never
     called (it would raise), with or without ``out``, and the answer is ``check=False``'s bit for bit
     (seen failing before: the checked call ran checked_states)."""
-    from exo_bench.models import prepared
+    from exo_bench.models.runtime import prepared
 
     q, qd, qdd = _sample(model)
     want = model.inverse_dynamics(q, qd, qdd, check=False)
@@ -81,7 +81,7 @@ class _Sub(np.ndarray):
 def test_what_the_wrapper_does_not_take_goes_to_the_python_check(model, monkeypatch, form):
     """Subclasses, other layouts and dtypes, an ``out`` it cannot write apart from the inputs: the Python
     path runs (its check is called once) and answers as ``check=False`` on the converted sample."""
-    from exo_bench.models import prepared
+    from exo_bench.models.runtime import prepared
 
     q, qd, qdd = _sample(model, 7)
     want = model.inverse_dynamics(q, qd, qdd, check=False)

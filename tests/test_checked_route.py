@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from exo_bench.api import prepare
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(3)
 #: The methods whose kernels supply a whole-batch entry (inverse_whole) by default.

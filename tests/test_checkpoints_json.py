@@ -99,7 +99,7 @@ class _Payload:
 
 def _family():
     from exo_bench.bench.studies.stability import cases, evaluation
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.mechanism.presets import exo5
 
     mech = exo5(3)
     q = np.linspace(-1, 1, 2 * mech.dof).reshape(2, mech.dof)
@@ -115,7 +115,7 @@ def _family():
 def _forward():
     from exo_bench.bench.studies.stability import cases, forward_energy, forward_evaluation as fe
     from exo_bench.bench.studies.stability import forward_round_trip as frt, forward_terms as ft
-    from exo_bench.models.forward_dynamics import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
     sim = Simulation("DOP853", 1e-6, 1e-9, np.array([0.0, 0.5]), np.ones((2, 4)), nfev=10, status="ok")
     sim.solution = lambda t: t  # a dense output: never kept

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 K_BACKWARD = 16
 

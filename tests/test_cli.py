@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import gait, random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import gait, random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 
 def _cli(*args, cwd=None):

@@ -12,7 +12,7 @@ import numpy as np
 from test_external_forces import _case
 
 from exo_bench import prepare
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(2)
 

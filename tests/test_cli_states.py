@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.cli import app as cli
-from exo_bench.models.presets import PRESETS
+from exo_bench.models.mechanism.presets import PRESETS
 
 from conftest import EPS, K, assert_forces_agree, term_scale
 
@@ -35,7 +35,7 @@ def _run(*argv: str) -> tuple[int, str, str]:
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_states_of_every_preset_run_through_inverse_and_forward(preset, tmp_path):
     from exo_bench.api import prepare
-    from exo_bench.models.loading import load_mechanism
+    from exo_bench.models.mechanism.loading import load_mechanism
 
     path = tmp_path / "s.json"
     code, _, err = _run("states", preset, "-o", path, "--samples", "3", "--seed", "7")

@@ -7,12 +7,12 @@ from conftest import mass_coupling_oracle
 
 from exo_bench.matrix_method.closed_forms import coefficients as co
 from exo_bench.matrix_method.closed_forms import symbolic_coefficients as sco
-from exo_bench.models import aggregates as ag
-from exo_bench.models.kinematics import kinetic_energy, potential_energy, unit_vectors
-from exo_bench.models.mechanism import split
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, fig5, random_tree
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.mechanism import aggregates as ag
+from exo_bench.models.mechanism.kinematics import kinetic_energy, potential_energy, unit_vectors
+from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, fig5, random_tree
+from exo_bench.models.mechanism.symbols import symbols_for
 
 
 @pytest.mark.parametrize("n,dim,seed", [(1, 2, 1), (4, 2, 2), (6, 3, 3), (7, 3, 4), (5, 2, 5)])

@@ -30,7 +30,7 @@ import pytest
 from package_copy import package_copy_prober
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import common as compiled
-from exo_bench.models.presets import chain, exo5, random_tree
+from exo_bench.models.mechanism.presets import chain, exo5, random_tree
 
 TOL = 1e-14
 COMPILED = ("matrix-factored", "matrix", "recurrence")

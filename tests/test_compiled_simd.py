@@ -22,9 +22,9 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import simd as compiled_simd, fast_trig
-from exo_bench.models.presets import chain, exo5, random_tree
-from exo_bench.models import simd_blocks
-from exo_bench.models.simd_blocks import parallel_min_samples
+from exo_bench.models.mechanism.presets import chain, exo5, random_tree
+from exo_bench.models.machine import simd_blocks
+from exo_bench.models.machine.simd_blocks import parallel_min_samples
 
 TOL = 1e-14
 MECHS = [chain(1, 2), random_tree(6, 2, seed=0), chain(1, 3), chain(4, 3), random_tree(8, 3, seed=1), exo5(3)]
@@ -167,20 +167,22 @@ def test_lean_path_refuses_what_is_not_memory_safe():
 
 def _c_wrapper_built() -> bool:
     try:
-        from exo_bench.models import _lean_call  # noqa: F401
+        from exo_bench.models.runtime import _lean_call  # noqa: F401
     except ImportError:
         return False
     return True
 
 
 def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_agrees():
-    """Where setup.py built models/_lean_call.c, the lean kernel object holds the compiled
+    """Where setup.py built models/runtime/_lean_call.c, the lean kernel object holds the compiled
     wrapper (model.inverse_dynamics stays the class's method: nothing is rebound, issue 35); it computes
     one sample itself and declines every other form, which the method then runs; each form gives the
     same forces, and misuse the same errors."""
     if not _c_wrapper_built():
-        pytest.skip("models/_lean_call.c was not built here (no C compiler at install): the Python lean path runs")
-    from exo_bench.models import _lean_call
+        pytest.skip(
+            "models/runtime/_lean_call.c was not built here (no C compiler at install): the Python lean path runs"
+        )
+    from exo_bench.models.runtime import _lean_call
 
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")

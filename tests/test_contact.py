@@ -1,4 +1,4 @@
-"""Smooth ground contact (models/contact.py): where it pushes, how friction acts, its derivatives, and
+"""Smooth ground contact (models/simulation/contact.py): where it pushes, how friction acts, its derivatives, and
 that its dissipation takes energy out of a bounce.
 
 Error models: the Jacobians are closed forms of the same few operations as the force, so they agree
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from exo_bench.models.contact import (
+from exo_bench.models.simulation.contact import (
     MAX_INPUT,
     ContactParameters,
     contact_force,
@@ -166,8 +166,8 @@ def test_bad_parameters_are_named(kw, match):
 
 
 def test_ground_forces_fill_the_f_ext_layout_at_the_masked_points_only():
-    from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-    from exo_bench.models.presets import human, human_standing
+    from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+    from exo_bench.models.mechanism.presets import human, human_standing
 
     m = human(2)
     q = human_standing(m)

@@ -1,5 +1,5 @@
-"""The CasADi form of the ground contact (models/contact_casadi.py) is the numpy form, and CasADi's
-derivatives of it are the closed-form Jacobians (models/contact.py).
+"""The CasADi form of the ground contact (models/simulation/contact_casadi.py) is the numpy form, and CasADi's
+derivatives of it are the closed-form Jacobians (models/simulation/contact.py).
 
 Error model: the two forms evaluate the same operations in possibly different orders (CasADi's
 expression graph), a few roundings per term: 1e-13 of the largest force or Jacobian entry of the batch.
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.models.contact import ContactParameters, contact_force_jacobians
+from exo_bench.models.simulation.contact import ContactParameters, contact_force_jacobians
 
 ca = pytest.importorskip("casadi")
 
-from exo_bench.models.contact_casadi import contact_function  # noqa: E402
+from exo_bench.models.simulation.contact_casadi import contact_function  # noqa: E402
 
 
 def _cases(dim: int, n: int = 40):

@@ -12,8 +12,8 @@ from decimal import Decimal
 import numpy as np
 import pytest
 
-from exo_bench.models import contact
-from exo_bench.models.presets import human
+from exo_bench.models.simulation import contact
+from exo_bench.models.mechanism.presets import human
 
 POINTS_2D = np.array([[0.0, -0.01], [0.2, 0.003]])
 RATES_2D = np.array([[0.1, -0.2], [0.0, 0.0]])

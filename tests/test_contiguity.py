@@ -7,8 +7,8 @@ import pytest
 
 from conftest import assert_forces_agree
 from exo_bench.api import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
 
 @pytest.mark.parametrize("dim", [2, 3])

@@ -5,7 +5,7 @@ tests/test_forward_conditioning.py). Inverse dynamics has no division, so its de
 are finite there; but at those states ``M = dtau/dqdd`` is singular (a rod of length zero, a vertical rod
 in 3D: its azimuth is undefined and the chart singular) or beyond the conditioning bound, and an optimiser
 or an integrator that inverts or factors what it is given gets garbage. So the inverse calls refuse the
-same states with the same detector (models/singularity.py, conditioning.py, forward_check.py) and the
+same states with the same detector (models/mechanism/singularity.py, conditioning.py, forward_check.py) and the
 same reasons, prefixed by the call's name, for one sample and batches. ``check=False`` skips the values'
 checks (shapes and sample counts stay checked). A link that moves no mass is a property of the mechanism,
 not of the state: there the inverse calls stay defined (tests/test_forward_conditioning.py's T5 test).
@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.conditioning import NumericallySingularError
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.singularity import SingularConfigurationError
+from exo_bench.models.runtime.conditioning import NumericallySingularError
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
 NAMES = ("inverse-dynamics derivatives", "inverse-dynamics JVP", "inverse-dynamics VJP")
 

@@ -28,9 +28,9 @@ from conftest import EPS, K, _rates, assert_close, assert_mass_matrices_agree, m
 
 import exo_bench
 from exo_bench.matrix_method.derivatives import derivatives_of as casadi_derivatives_of
-from exo_bench.models import presets
+from exo_bench.models.mechanism import presets
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
 from exo_bench.models.newton_euler.tree import prepare_tree

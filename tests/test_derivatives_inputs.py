@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.presets import fig1
+from exo_bench.models.mechanism.presets import fig1
 
 MECH = fig1(2)
 Q = np.array([[0.3, 1.0]])
@@ -91,8 +91,8 @@ def test_the_memory_estimate_comes_before_the_states_are_copied(monkeypatch, cal
     timed: the refusal allocates almost nothing."""
     import tracemalloc
 
-    from exo_bench.models import memory
-    from exo_bench.models.derivatives import DerivativesTooLarge
+    from exo_bench.models.machine import memory
+    from exo_bench.models.derivatives.derivatives import DerivativesTooLarge
 
     d = _derivatives()
     states = np.broadcast_to(Q[0], (10**6, 2))  # 16 MB per copy; the estimate is ~400 MB

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from test_derivatives_analytic import H, complex_step, derivative_scales
 from test_properties import mechanisms, states
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
 
 FEW = settings(max_examples=10, deadline=None, derandomize=True, database=None)

@@ -19,8 +19,8 @@ from conftest import EPS, K
 from exo_bench.lagrange import derivative_reference as dr
 from exo_bench.lagrange import high_precision as lr
 from exo_bench.matrix_method.derivatives import Derivatives
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 TREES = [(3, 2, 70), (5, 2, 71), (3, 3, 72), (5, 3, 73)]
 

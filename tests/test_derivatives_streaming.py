@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.models import presets
-from exo_bench.models.motion import random_states
+from exo_bench.models.mechanism import presets
+from exo_bench.models.gait.motion import random_states
 from exo_bench.models.newton_euler import derivatives_compiled as dc
 from exo_bench.models.newton_euler import derivatives_streaming as ds
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives

@@ -1,5 +1,5 @@
-"""The rod elements (models/rod_elements.py) are registered with numba once, however many kernel files
-inline them (models/numba_cache.py :func:`inline`).
+"""The rod elements (models/mechanism/rod_elements.py) are registered with numba once, however many kernel files
+inline them (models/machine/numba_cache.py :func:`inline`).
 
 Three files registered ``project_2d`` and ``project_3d``: the per-sample and the SIMD Newton-Euler kernels
 (every element, each with its own ``register_jitable`` loop) and the f_ext kernel (through
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from exo_bench.models import numba_cache
-from exo_bench.models import rod_elements as el
+from exo_bench.models.machine import numba_cache
+from exo_bench.models.mechanism import rod_elements as el
 
 
 def _templates(f) -> int:
@@ -28,7 +28,7 @@ def _templates(f) -> int:
 
 
 def test_every_rod_element_is_registered_with_numba_once():
-    from exo_bench.models import external_forces_kernel  # noqa: F401 - each registers what it inlines
+    from exo_bench.models.runtime import external_forces_kernel  # noqa: F401 - each registers what it inlines
     from exo_bench.models.newton_euler import compiled, simd  # noqa: F401
 
     counts = {f.__name__: _templates(f) for f in el.ELEMENTS}

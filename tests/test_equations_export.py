@@ -31,8 +31,8 @@ import exo_bench
 from exo_bench import prepare
 from exo_bench.bench.cli import equations as beq
 from exo_bench.matrix_method.export import code as export_code, latex as export_latex
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig2a, fig2b, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig2a, fig2b, random_tree
 
 TOL = 1e-13
 
@@ -310,7 +310,7 @@ def _evaluate(text: str, values: dict[str, float]) -> float:
 def test_latex_parses_back_to_the_equations_of_pinocchio(mech, symbolic):
     """Every element of every matrix, parsed back from the LaTeX and assembled into eq. (5)/(17),
     gives Pinocchio's and Lagrange's M and tau."""
-    from exo_bench.models.equation_form import ACCELERATION, RATES, blocks, matrix_names
+    from exo_bench.models.states.equation_form import ACCELERATION, RATES, blocks, matrix_names
 
     els = export_latex.elements(mech, symbolic)
     q, qd, qdd = random_states(mech, 3, 21)
@@ -460,7 +460,7 @@ def test_size_points_of_the_three_routes_count_the_same_equations():
     """The matrix method's tau is at most as large after CSE as Lagrange's (the same equations, a
     compact form), and each route's C lines and timings are recorded."""
     from exo_bench.bench.studies import equations_size as es
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.presets import chain
 
     m = chain(2, 2)
     pts = {r: es.size_point(m, r, 30.0) for r in es.ROUTES}

@@ -11,9 +11,9 @@ from exo_bench.lagrange.derivation import parameter_values
 from exo_bench.lagrange.peer import peer_equations
 from exo_bench.bench.studies import errata
 from exo_bench.matrix_method import printed
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import random_tree
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import random_tree
+from exo_bench.models.mechanism.symbols import symbols_for
 
 
 def _model_scale(mats) -> float:

@@ -22,8 +22,8 @@ import pytest
 
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import estimate
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain
 
 #: method, dim, n, samples: the recurrence's increment tables (n^3), the matrix family's batch.
 POINTS = [("recurrence", 2, 120, 1), ("matrix-factored", 3, 20, 20_000), ("matrix", 2, 20, 2_000)]

@@ -15,9 +15,9 @@ import pytest
 from conftest import EPS, K, assert_close, term_scale
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as xf
-from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.presets import fig1, random_tree
+from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+from exo_bench.models.mechanism.presets import fig1, random_tree
 
 
 def external_force_scale(mech, q, f_ext) -> np.ndarray:
@@ -95,7 +95,7 @@ def test_start_force_of_a_root_does_nothing_and_weight_is_cancelled():
 
 @pytest.mark.parametrize("mech", TREES, ids=lambda m: m.name)
 def test_virtual_work(mech):
-    """``Q . qd = sum_k f_k . P_k'`` with the points' velocities from models/kinematics.py (the
+    """``Q . qd = sum_k f_k . P_k'`` with the points' velocities from models/mechanism/kinematics.py (the
     geometry alone), on seeded random trees."""
     q, qd, _, f = _case(mech, 11)
     Q = xf.generalized_forces(mech, q, f)

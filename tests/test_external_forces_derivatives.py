@@ -1,5 +1,5 @@
 """Derivatives with external forces (issue 37): ``model.derivatives``' calls with ``f_ext`` through
-:func:`exo_bench.models.external_forces.inverse_derivatives` and :func:`~exo_bench.models.external_forces.forward_derivatives`
+:func:`exo_bench.models.runtime.external_forces.inverse_derivatives` and :func:`~exo_bench.models.runtime.external_forces.forward_derivatives`
 (``dtau/dq - dQ/dq``; ``dqdd/dq + M^-1 dQ/dq`` at ``tau + Q``), against central differences of the
 public calls with ``f_ext``. Error model of the differences: truncation ``h^2 |f'''| / 6`` and rounding
 ``eps |f| / h``; with ``h = 1e-6`` and unit-scale states both stay below ``1e-7`` of the largest entry
@@ -12,8 +12,8 @@ import pytest
 from test_external_forces import _case
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as xf
-from exo_bench.models.presets import random_tree
+from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.mechanism.presets import random_tree
 
 
 def _central(fn, x, h=1e-6):

@@ -1,7 +1,7 @@
-"""The f_ext kernel (models/external_forces_kernel.py) projects with the rod elements' own functions
-(models/rod_elements.py ``project_2d``/``project_3d``): nothing physical is written twice, and numba's
+"""The f_ext kernel (models/runtime/external_forces_kernel.py) projects with the rod elements' own functions
+(models/mechanism/rod_elements.py ``project_2d``/``project_3d``): nothing physical is written twice, and numba's
 on-disk cache of the kernel is keyed on the elements' file too, so an edit there recompiles the kernel
-instead of loading stale machine code (models/numba_cache.py)."""
+instead of loading stale machine code (models/machine/numba_cache.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ import ast
 import inspect
 from pathlib import Path
 
-from exo_bench.models import external_forces_kernel, numba_cache, rod_elements
+from exo_bench.models.runtime import external_forces_kernel
+from exo_bench.models.machine import numba_cache
+from exo_bench.models.mechanism import rod_elements
 
 
 def _called_names(module) -> set[str]:
@@ -27,7 +29,7 @@ def test_the_kernel_calls_the_rod_projections():
 
 
 def test_the_kernel_cache_is_keyed_on_the_rod_elements():
-    from exo_bench.models.numba_runtime import ensure
+    from exo_bench.models.machine.numba_runtime import ensure
 
     ensure()  # numba's locators installed, as before any kernel is defined
     kernel_file = Path(external_forces_kernel.__file__).resolve()

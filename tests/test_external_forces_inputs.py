@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as xf
-from exo_bench.models import external_forces_controls as xc
-from exo_bench.models.presets import fig1
+from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.simulation import external_forces_controls as xc
+from exo_bench.models.mechanism.presets import fig1
 
 MECH = fig1(2)
 SHAPE = (4, MECH.nlinks, 3, MECH.dim)
@@ -158,7 +158,7 @@ def test_a_labelled_tau_beside_f_ext_is_read_by_name():
     """A DataFrame tau whose columns are the coordinate names in another order is read by name with f_ext,
     as without it (with f_ext it was read by position: phi1's moment taken as l1's force)."""
     pd = pytest.importorskip("pandas")
-    from exo_bench.models.states import coordinate_names
+    from exo_bench.models.states.states import coordinate_names
 
     model = _model("newton-euler")
     tau = model.inverse_dynamics(Q, QD, QDD)

@@ -3,7 +3,7 @@ external forces (issue 37's refusal lifted where ``f_ext`` has a derivative).
 
 The right-hand side integrates ``M qdd + h = tau(t, q, qd) + Q(q, f(t, q, qd))``, ``Q = sum_k J_k^T f_k``. Its
 Jacobian needs ``dQ/dy = dQ/dq|_f + J^T df/dy``: the first from the geometry
-(models/external_forces.py ``dQ_dq``), the second from the user's ``f_ext.jacobian(t, q, qd) -> (df/dq,
+(models/runtime/external_forces.py ``dQ_dq``), the second from the user's ``f_ext.jacobian(t, q, qd) -> (df/dq,
 df/dqd)``, each ``(samples, links, 3, dim, dof)``. An ``f_ext`` without it is refused by name, as before.
 
 Oracle: ``dQ/dy`` by complex step of ``Q(q, f(q, qd))`` (``h = 1e-30``: exact to rounding), then the
@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as ef
-from exo_bench.models import external_forces_controls as efc
-from exo_bench.models.forward_dynamics import RodSpringDamper
-from exo_bench.models.presets import random_tree
-from exo_bench.models.simulate import make_jacobian, simulate
+from exo_bench.models.runtime import external_forces as ef
+from exo_bench.models.simulation import external_forces_controls as efc
+from exo_bench.models.simulation.forward_dynamics import RodSpringDamper
+from exo_bench.models.mechanism.presets import random_tree
+from exo_bench.models.simulation.simulate import make_jacobian, simulate
 
 MECH = random_tree(3, 3, 5)
 H = 1e-30

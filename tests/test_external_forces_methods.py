@@ -12,9 +12,9 @@ from conftest import EPS, K, assert_close, installed_methods, term_scale
 from test_external_forces import _case, external_force_scale
 
 from exo_bench import prepare
-from exo_bench.models import external_forces as xf
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 SMALL = [random_tree(3, 2, 4), random_tree(3, 3, 7)]  # lagrange derives each (2-6 s)
 #: Their own Q: tests/test_external_forces_engines.py; matrix-paper is eq. (18) as printed, wrong in 3D by

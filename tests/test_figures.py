@@ -25,8 +25,8 @@ from exo_bench.bench.output.figures.scene_figures import FIGURES, TEXT_PT
 from exo_bench.bench.output.provenance import PNG_DPI
 from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
 from exo_bench.bench.studies.study import run_methods
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import chain
 
 METHOD_COLORS = {name: spec.colour for name, spec in METHODS.items()}
 
@@ -250,7 +250,7 @@ def test_all_text_lies_inside_the_figure_and_the_time_plots_use_its_width(scenes
 def test_the_dashed_line_at_height_0_is_a_floor_only_for_a_model_standing_on_a_stance_leg():
     """fig2b's thigh hangs from its shin's end and reaches below the level of O: that line is no
     floor there. The exoskeleton (and fig5's planar walker) stand on it."""
-    from exo_bench.models.presets import exo5, fig2b, fig5
+    from exo_bench.models.mechanism.presets import exo5, fig2b, fig5
 
     assert plots.ground_label(exo5(3)) == plots.ground_label(fig5(2)) == "floor (height 0)"
     for mech in (fig2b(2), chain(3, dim=3)):

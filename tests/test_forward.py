@@ -12,14 +12,14 @@ import pytest
 
 from exo_bench.bench.studies import stability as fw
 from exo_bench.api import METHODS
-from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.simulation import forward_dynamics as fd
 
 
 @pytest.fixture(scope="module")
 def gait_case():
     """The planar gait of the five-link exoskeleton, 0.3 s, with the parameters the case describes
     (T = 1.1 s: paper-assumed-v1; the shipped gait is now the fitted winter-fit-v1)."""
-    from exo_bench.models.motion import PAPER_ASSUMED_V1, planar_gait
+    from exo_bench.models.gait.motion import PAPER_ASSUMED_V1, planar_gait
 
     c = fw.round_trip_cases()[0]
     return fw.RoundTripCase(

@@ -1,6 +1,6 @@
-"""Forward dynamics' compiled checks (models/forward_check.py) decide only the common case:
-where they say a state is clear, the exact numpy checks (models/singularity.py,
-models/conditioning.py) find nothing; near a bound the exact checks decide. Newton-euler's one
+"""Forward dynamics' compiled checks (models/runtime/forward_check.py) decide only the common case:
+where they say a state is clear, the exact numpy checks (models/mechanism/singularity.py,
+models/runtime/conditioning.py) find nothing; near a bound the exact checks decide. Newton-euler's one
 sample, checked, runs them and its forward passes in one compiled call (``tree-forward``) and refuses
 what its batch refuses, with the same message; the other methods keep their own forward dynamics."""
 
@@ -14,10 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.conditioning import CONDITION_LIMIT, PIVOT_MIN, conditioning_reasons
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.runtime.conditioning import CONDITION_LIMIT, PIVOT_MIN, conditioning_reasons
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
 
 
 def _exact_refuses(model, q2) -> list[bool]:
@@ -146,7 +146,7 @@ def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what, m
 @pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
 def test_a_clear_one_sample_runs_no_exact_check(monkeypatch, method):
     """The common case costs one compiled call: the exact checks are not called (they would raise)."""
-    from exo_bench.models import prepared, regularity
+    from exo_bench.models.runtime import prepared, regularity
 
     mech = exo5(3)
     model = prepare(mech, method)
@@ -155,7 +155,9 @@ def test_a_clear_one_sample_runs_no_exact_check(monkeypatch, method):
     def refuse(*args, **kw):
         raise AssertionError("the exact check ran")
 
-    monkeypatch.setattr(regularity, "singular_reasons", refuse)  # PreparedModel.check_regular's (models/regularity.py)
+    monkeypatch.setattr(
+        regularity, "singular_reasons", refuse
+    )  # PreparedModel.check_regular's (models/runtime/regularity.py)
     monkeypatch.setattr(regularity, "check_conditioning", refuse)
     monkeypatch.setattr(prepared, "check_finite", refuse)
     assert np.isfinite(model.forward_dynamics(q[0], qd[0], qdd[0])).all()

@@ -1,7 +1,7 @@
 """Forward dynamics and its derivatives answer or refuse, never both wrong and silent (issue 34: W2, W3,
 W4, T5).
 
-**The one conditioning test** (:mod:`exo_bench.models.conditioning`) is shared by every method's
+**The one conditioning test** (:mod:`exo_bench.models.runtime.conditioning`) is shared by every method's
 forward dynamics, by ``model.derivatives.forward_dynamics`` and by ``exo-bench forward``. Its bound
 comes from the error model (tests/conftest.py): every method computes ``M`` to ``K eps`` of its term
 scale, lever arms ``l_i`` on the angles' rows, so the rod lengths drop out, and the solve magnifies
@@ -30,9 +30,9 @@ from hypothesis import strategies as st
 
 from exo_bench import prepare
 from exo_bench.api.methods import known_wrong_warning
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.singularity import SingularConfigurationError
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
 #: Lagrange derives its equations symbolically: only on small trees.
 LAGRANGE_MAX_LINKS = 3
@@ -190,7 +190,7 @@ def _near_bound_state(mech, seed, factor):
     """A seeded state of 3D ``mech`` whose condition is ``factor`` times the bound: one link's rod
     tilted towards vertical, ``cos psi`` from the formula of the module docstring with cond(mu_s)
     computed densely here (the tilted angle itself, near pi/2, enters the largest angle)."""
-    from exo_bench.models.conditioning import CONDITION_LIMIT
+    from exo_bench.models.runtime.conditioning import CONDITION_LIMIT
 
     q, qd, tau = _state(mech, seed)
     n = mech.nlinks
@@ -209,7 +209,7 @@ def test_near_the_bound_answers_within_the_error_model_and_beyond_it_refuses(see
     """Seeded random trees with a rod tilted so that the condition is 0.3 or 3 times the bound: below
     it every method answers with a backward error within the error model, above it every method
     refuses naming the tilted link (before: every method answered whatever the condition)."""
-    from exo_bench.models.conditioning import CONDITION_LIMIT
+    from exo_bench.models.runtime.conditioning import CONDITION_LIMIT
 
     mech = random_tree(2 + seed % 4, 3, 100 + seed)
     models = _models(mech)
@@ -328,7 +328,7 @@ def test_an_angle_too_large_for_its_rounding_is_refused_naming_the_coordinate(di
 def test_the_bound_is_the_error_models():
     """The conditioning test's roundings per term are conftest's ``K``, and its bound is ``K eps kappa``
     at ``FORWARD_RTOL``."""
-    from exo_bench.models import conditioning as c
+    from exo_bench.models.runtime import conditioning as c
 
     assert c.ROUNDINGS == K
     assert c.CONDITION_LIMIT * K * EPS == pytest.approx(c.FORWARD_RTOL)
@@ -338,7 +338,7 @@ def test_the_bound_is_the_error_models():
 def test_the_o_n_estimate_of_the_mass_distributions_condition_is_its_dense_cond_1(seed):
     """The O(n) estimate (Hager's, by the tree factor) is the dense ``cond_1(mu_s)`` of conftest's
     point-mass oracle, to rounding, on seeded random trees, chains and the presets."""
-    from exo_bench.models.conditioning import coupling_condition
+    from exo_bench.models.runtime.conditioning import coupling_condition
 
     mech = [random_tree(3 + 7 * seed, 2 + seed % 2, seed), exo5(3)][seed == 7]
     assert coupling_condition(mech).kappa == pytest.approx(_mu_condition(mech), rel=1e-9)
@@ -349,7 +349,7 @@ def test_the_check_is_o_n_per_sample_no_n_by_n_array():
     within 40 doubles per coordinate and sample, where one ``n x n`` matrix would be 3000 times that."""
     import tracemalloc
 
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.presets import chain
 
     mech = chain(3000, 3)
     model = prepare(mech, "newton-euler")

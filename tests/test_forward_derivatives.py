@@ -31,13 +31,13 @@ from test_derivatives_analytic import states
 
 from conftest import EPS, K, term_scale
 from exo_bench import prepare, presets
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.conditioning import NumericallySingularError
-from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.runtime.conditioning import NumericallySingularError
+from exo_bench.models.derivatives.derivatives import Derivatives
 from exo_bench.models.newton_euler import inverse_mass, passes
 from exo_bench.models.newton_euler.tree import prepare_tree
-from exo_bench.models.presets import random_tree
-from exo_bench.models.singularity import SingularConfigurationError
+from exo_bench.models.mechanism.presets import random_tree
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
 TREES = [random_tree(5, 2, 11), random_tree(6, 3, 12), presets.exo5(dim=3), presets.exo5(dim=2), random_tree(7, 3, 4)]
 IDS = [m.name for m in TREES]

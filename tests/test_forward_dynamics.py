@@ -1,4 +1,4 @@
-"""Forward dynamics (models/forward_dynamics.py): the mass matrix and bias forces from inverse
+"""Forward dynamics (models/simulation/forward_dynamics.py): the mass matrix and bias forces from inverse
 dynamics, the exact singular configurations, the configuration-independent equilibrated
 condition number, and the integrator plumbing (budgets, states outside the domain)."""
 
@@ -7,17 +7,17 @@ import math
 import numpy as np
 
 from exo_bench import prepare
-from exo_bench.models.prepared import terms_from_inverse_dynamics
+from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
 import pytest
 from conftest import assert_close, assert_forces_agree, mass_matrix_scale
 
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.aggregates import coupling
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.kinematics import kinetic_energy, point_mass_velocities
-from exo_bench.models.mechanism import split
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig1, random_tree
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.mechanism.kinematics import kinetic_energy, point_mass_velocities
+from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig1, random_tree
 
 TREES = [random_tree(5, 3, 11), random_tree(5, 2, 12), random_tree(4, 3, 13)]
 EPS = np.finfo(float).eps

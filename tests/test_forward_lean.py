@@ -1,4 +1,4 @@
-"""Forward dynamics of one sample in the C wrapper of the lean call (models/_lean_call.c, models/lean_call.py;
+"""Forward dynamics of one sample in the C wrapper of the lean call (models/runtime/_lean_call.c, models/runtime/lean_call.py;
 the ``forward_lean`` entries of ``cholesky-forward`` and ``tree-forward``): with ``check=True`` the validation
 pass of one sample, then the compiled common-case checks and the forward passes in one cfunc; the result is
 taken only where the checks clear the state and the answer is finite. Everything else goes to PreparedModel's
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
-from exo_bench.models.singularity import SingularConfigurationError
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
+pytest.importorskip("exo_bench.models.runtime._lean_call", reason="the C wrapper is optional (setup.py)")
 
 METHODS = ("matrix-factored", "newton-euler")
 
@@ -41,7 +41,7 @@ def _bits(a):
 
 
 def test_the_entry_is_the_c_wrapper(model):
-    from exo_bench.models import _lean_call
+    from exo_bench.models.runtime import _lean_call
 
     assert isinstance(model._entries.forward_lean, _lean_call.LeanCall)
 
@@ -50,7 +50,7 @@ def test_a_valid_sample_never_reaches_the_python_path(model, monkeypatch):
     """A valid C-ordered float64 sample is validated, checked and computed in C, with or without ``out``,
     ``check`` True or False: neither the Python check nor the Python entries run (they would raise), and
     the bits are the Python path's (seen failing with the entry removed: the Python check ran)."""
-    from exo_bench.models import prepared
+    from exo_bench.models.runtime import prepared
 
     q, qd, tau = _sample(model)
     want = {c: model.forward_dynamics(q, qd, tau, check=np.bool_(c)) for c in (True, False)}

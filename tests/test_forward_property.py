@@ -15,10 +15,10 @@ stable). A perturbation ``d`` of the right-hand side or ``dM`` of ``M`` moves th
 with ``k = K`` (8 roundings of each term), i.e. ``k eps cond(M)`` relative to ``|M| |qdd|``.
 ``|M^-1|_2`` is the exact-arithmetic ``1 / sigma_min`` of Pinocchio's ``M`` (CRBA) where it is
 resolved; where rounding hides ``sigma_min`` (rods of 1e-9 m near vertical) the bound is vacuous
-and only finiteness is asserted. Where :func:`exo_bench.models.singularity.singular_reasons` names a cause,
+and only finiteness is asserted. Where :func:`exo_bench.models.mechanism.singularity.singular_reasons` names a cause,
 every method raises :class:`SingularConfigurationError` with that reason instead (a singular ``mu``:
 newton-euler names the link whose pivot of ``M_r`` vanished, in its own words); where the conditioning
-test that every method shares (:mod:`exo_bench.models.conditioning`) is beyond its bound, every method
+test that every method shares (:mod:`exo_bench.models.runtime.conditioning`) is beyond its bound, every method
 refuses it as numerically singular.
 """
 
@@ -31,8 +31,8 @@ from hypothesis import event, example, given
 from test_properties import CHAIN3, EXAMPLE_RATES, PROFILE, VERTICAL, cases
 
 from exo_bench import prepare
-from exo_bench.models.conditioning import conditioning_reasons, coupling_condition
-from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.runtime.conditioning import conditioning_reasons, coupling_condition
+from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
 
 LAGRANGE_MAX_LINKS = 2
 

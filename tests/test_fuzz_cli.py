@@ -29,8 +29,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_bad_inputs import run_cli
 
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5, fig1
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5, fig1
 
 FUZZ = settings(
     max_examples=60,
@@ -492,7 +492,7 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
 def test_python_warnings_are_one_line_each_in_a_subprocess(tmp_path):
     """matrix-paper divides 0/0 at phi = 0 and warns (RuntimeWarning): on the command line that is one
     line, like every other line on stderr, not Python's two-line warning with a source line."""
-    from exo_bench.models.motion import gait
+    from exo_bench.models.gait.motion import gait
 
     mo = gait(exo5(3), np.array([0.0, 0.3]))
     (tmp_path / "s.json").write_text(json.dumps({"q": mo.q.tolist(), "qd": mo.qd.tolist(), "qdd": mo.qdd.tolist()}))

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies.scenes import load_scene
-from exo_bench.models import gait_fit
-from exo_bench.models.gait_fit import CLEARANCE, LATERAL_BOUND, SWING_LINKS, check_gait, describe, sagittal_angles
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.motion import GAITS, PAPER_ASSUMED_V1, GaitParams, gait
-from exo_bench.models.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, WINTER, winter_appendix
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait import gait_fit
+from exo_bench.models.gait.gait_fit import CLEARANCE, LATERAL_BOUND, SWING_LINKS, check_gait, describe, sagittal_angles
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.gait.motion import GAITS, PAPER_ASSUMED_V1, GaitParams, gait
+from exo_bench.models.gait.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, WINTER, winter_appendix
+from exo_bench.models.mechanism.presets import exo5
 
 #: Stored parameters are rounded to 1e-4 (rad, m): that moves a point mass by at most about
 #: 1e-4 * (sum of rod lengths, 2.2 m) = 0.2 mm from the fitted motion.

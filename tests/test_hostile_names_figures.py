@@ -15,8 +15,8 @@ from exo_bench.bench.output.figures import scene_figures as plots
 from exo_bench.bench.output.figures.scene_figures import FIGURES
 from exo_bench.bench.output.provenance import save_figure
 from exo_bench.bench.studies.study import run_methods
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import chain
 
 
 @pytest.mark.case("S2")

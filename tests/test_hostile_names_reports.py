@@ -22,7 +22,7 @@ from test_hostile_names import ACCEPTED
 
 import exo_bench.bench.cli.run as runner
 from exo_bench.bench.studies.options import RunOptions
-from exo_bench.models.presets import fig2a
+from exo_bench.models.mechanism.presets import fig2a
 
 SCENE = """name = "hostile"
 mechanism = {mechanism}

@@ -1,7 +1,7 @@
-"""The human-proportioned preset with feet (models/presets.py ``human``, ``human_standing``).
+"""The human-proportioned preset with feet (models/mechanism/presets.py ``human``, ``human_standing``).
 
-Oracles: Winter's fractions (models/anthropometry.py) and the point masses' positions from
-models/kinematics.py, which knows nothing of the preset. Error model: positions are sums of at most
+Oracles: Winter's fractions (models/mechanism/anthropometry.py) and the point masses' positions from
+models/mechanism/kinematics.py, which knows nothing of the preset. Error model: positions are sums of at most
 five rod vectors of closed-form lengths and angles (a few roundings each), masses closed forms of
 table numbers: 1e-12 relative (1e-12 m absolute for positions at the floor) holds with a wide margin.
 """
@@ -13,11 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from exo_bench.models import anthropometry as a
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mjcf import to_mjcf
-from exo_bench.models.presets import PRESETS, human, human_standing, preset_descriptions
-from exo_bench.models.urdf import to_urdf
+from exo_bench.models.mechanism import anthropometry as a
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.engines.mjcf import to_mjcf
+from exo_bench.models.mechanism.presets import PRESETS, human, human_standing, preset_descriptions
+from exo_bench.models.engines.urdf import to_urdf
 
 BODIES = [(56.7, 1.75), (80.0, 1.62)]
 LINK = {name: i for i, name in enumerate(human().names)}

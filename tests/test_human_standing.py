@@ -1,5 +1,5 @@
-"""The human model standing on its heels and toes (models/posture.py, models/contact.py through
-``simulate(..., f_ext=...)`` and models/external_forces.py): it comes to rest carrying its weight, and every method's
+"""The human model standing on its heels and toes (models/simulation/posture.py, models/simulation/contact.py through
+``simulate(..., f_ext=...)`` and models/runtime/external_forces.py): it comes to rest carrying its weight, and every method's
 inverse dynamics with the floor's ``f_ext`` returns the joint moments and rod forces that held it.
 
 One simulation (Radau, rtol 1e-4, 2 s of standing, about 130 steps: 3-6 s on this machine, the price of
@@ -7,7 +7,7 @@ a floating model on stiff contact) is shared by the tests through a module fixtu
 
 Error models: at rest the floor's vertical forces equal the weight plus ``sum m a_z``; the contact's
 dissipation has damped the vertical modes (about 15 1/s) by 1e-6 after 1 s, and what is left is the slow
-creep of the friction law, which has no stiction (models/contact.py): ``1e-3 m g`` bounds it with a
+creep of the friction law, which has no stiction (models/simulation/contact.py): ``1e-3 m g`` bounds it with a
 margin of 10 (measured 7e-5 at 1 s). The inverse dynamics agree to the error model of conftest.py
 with the external forces' own term (tests/test_external_forces.py).
 """
@@ -20,10 +20,10 @@ from conftest import K, assert_close, installed_methods, term_scale
 from test_external_forces import external_force_scale
 
 from exo_bench import prepare
-from exo_bench.models.contact import ContactParameters
-from exo_bench.models.posture import balanced_standing, centre_of_mass, ground_reaction, hold
-from exo_bench.models.presets import human
-from exo_bench.models.simulate import simulate
+from exo_bench.models.simulation.contact import ContactParameters
+from exo_bench.models.simulation.posture import balanced_standing, centre_of_mass, ground_reaction, hold
+from exo_bench.models.mechanism.presets import human
+from exo_bench.models.simulation.simulate import simulate
 
 C = ContactParameters()
 G = 9.81
@@ -47,8 +47,8 @@ def test_the_balanced_pose_has_the_centre_of_mass_over_the_middle_of_the_feet():
     m = human(2)
     q = balanced_standing(m)
     x = centre_of_mass(m, q)[0, 0]
-    from exo_bench.models.kinematics import point_mass_positions
-    from exo_bench.models.posture import contact_points
+    from exo_bench.models.mechanism.kinematics import point_mass_positions
+    from exo_bench.models.simulation.posture import contact_points
 
     feet = point_mass_positions(m, q)[0][contact_points(m)]
     assert abs(x - 0.5 * (feet[:, 0].min() + feet[:, 0].max())) < 1e-9

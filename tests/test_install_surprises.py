@@ -6,7 +6,7 @@ The cause: pip removes only the files it installed. numba's cache files, written
 first; the ``exo_bench`` folder they kept (no ``__init__.py`` any more) is a namespace package to
 Python's path finder, which runs before the editable install's finder, and it shadowed the checkout.
 Now an installed copy's compiled kernels go beside the package, in ``exo_bench.numba-cache``
-(models/numba_cache.py ``InstalledCacheLocator``), which no import can mistake for the package.
+(models/machine/numba_cache.py ``InstalledCacheLocator``), which no import can mistake for the package.
 
 The two installs are simulated (a real pair of pip installs takes minutes): the files pip leaves
 behind are laid out in a site folder, and the editable install is a finder appended to
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from exo_bench.models import numba_cache
+from exo_bench.models.machine import numba_cache
 
 #: A process (no site-packages of its own: -S) whose path has ``site`` (what pip left behind) and whose editable finder serves the
 #: package ``exo_bench`` from ``src`` (its ``__init__.py`` defines ``prepare``).
@@ -72,7 +72,10 @@ def test_the_leftovers_of_the_old_layout_shadow_the_editable_install(tmp_path):
 def test_an_installed_copys_cache_leaves_nothing_that_shadows_the_editable_install(tmp_path):
     site = tmp_path / "site-packages"
     package = site / "exo_bench"
-    leftovers = [_cache_file(package, "models/newton_euler/lean.py"), _cache_file(package, "models/fast_trig.py")]
+    leftovers = [
+        _cache_file(package, "models/newton_euler/lean.py"),
+        _cache_file(package, "models/machine/fast_trig.py"),
+    ]
     for f in leftovers:
         assert not f.is_relative_to(package), f  # never inside the package folder
         assert f.is_relative_to(site / "exo_bench.numba-cache"), f
@@ -93,7 +96,7 @@ def test_numbas_locators_put_the_installed_copys_first_and_a_checkout_keeps_numb
     pytest.importorskip("numba")
     from numba.core import caching
 
-    from exo_bench.models import numba_runtime
+    from exo_bench.models.machine import numba_runtime
 
     numba_runtime.ensure()
     impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl

@@ -1,5 +1,5 @@
 """The implicit integrators' Jacobian comes from the analytic derivatives of ``model.derivatives``
-(issue 36): models/simulate.py ``make_jacobian``, models/implicit_integrators.py.
+(issue 36): models/simulation/simulate.py ``make_jacobian``, models/simulation/implicit_integrators.py.
 
 Oracle: the provider's own *inverse*-dynamics derivatives ``(dID/dq, dID/dqd, M)`` at ``qdd = FD(q, qd,
 tau)``, through the implicit-function theorem with numpy's dense solve: ``dqdd/dy = M^-1 (dtau_ctrl/dy -
@@ -20,7 +20,7 @@ import pytest
 from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, stiff_case
-from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.simulation import forward_dynamics as fd
 
 METHODS = ("newton-euler", "matrix-factored", "recurrence")
 

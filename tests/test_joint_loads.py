@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.models.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments, subtree
-from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.motion import random_states, smooth_random_motion
-from exo_bench.models.pinocchio_backend import build_model, joint_torques
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments, subtree
+from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+from exo_bench.models.gait.motion import random_states, smooth_random_motion
+from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 EPS = np.finfo(float).eps
 K = 64

@@ -1,5 +1,5 @@
-"""numba's cache of the kernels is keyed on their whole folder and the shared sources (models/numba_cache.py,
-installed by models/numba_runtime.py): an edit to an element function in models/rod_elements.py,
+"""numba's cache of the kernels is keyed on their whole folder and the shared sources (models/machine/numba_cache.py,
+installed by models/machine/numba_runtime.py): an edit to an element function in models/mechanism/rod_elements.py,
 which the kernels of compiled.py inline, recompiles them instead of loading the stale machine code."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import json
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models import rod_elements as elements
+from exo_bench.models.mechanism import rod_elements as elements
 from exo_bench.models.newton_euler import compiled
 m = prepare(presets.exo5(dim=3), "newton-euler")
 q = np.linspace(0.1, 0.9, m.dof)
@@ -49,7 +49,7 @@ import json
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models import fast_trig
+from exo_bench.models.machine import fast_trig
 from exo_bench.models.newton_euler import simd as ne_simd
 mech = presets.exo5(dim=3)
 q = np.linspace(0.1, 0.9, 40 * mech.dof).reshape(40, mech.dof)
@@ -64,8 +64,8 @@ print(json.dumps(out))
 
 
 def test_an_edit_to_the_shared_sin_cos_recompiles_the_simd_kernel(tmp_path, warm_package):
-    """models/fast_trig.py is outside both kernel folders, and the SIMD kernels of ``matrix-factored`` and
-    ``newton-euler`` import its ``sincos_reduced`` by name (models/numba_cache.py, SHARED_SOURCES; an edit
+    """models/machine/fast_trig.py is outside both kernel folders, and the SIMD kernels of ``matrix-factored`` and
+    ``newton-euler`` import its ``sincos_reduced`` by name (models/machine/numba_cache.py, SHARED_SOURCES; an edit
     to it once left both families' cached SIMD kernels on the old sin/cos). In a copy of the package:
     run newton-euler's batched kernel (cached), spoil the sine polynomial's first coefficient, run
     again: it recompiles and its forces move away from the numpy reference (which uses numpy's sin/cos)
@@ -96,8 +96,8 @@ import pathlib
 
 import numpy as np
 from exo_bench import prepare, presets
-from exo_bench.models import numba_runtime
-from exo_bench.models.motion import smooth_random_motion
+from exo_bench.models.machine import numba_runtime
+from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.newton_euler import simd
 
 out = {"file": numba_runtime.__file__}
@@ -115,14 +115,14 @@ def test_kernels_of_both_block_sizes_compiled_in_other_processes_load_together(t
     """newton-euler's SIMD kernel for blocks of 32 (exo5-3d) and of 16 samples (a 3D chain of 900),
     each compiled first in its own process, then both loaded from the cache by a third process: each
     computes its own mechanism's forces (numba names a symbol after the qualified name and a
-    per-process counter; without the block size in the name, models/numba_runtime.jit_for, the third
+    per-process counter; without the block size in the name, models/machine/numba_runtime.jit_for, the third
     process segfaulted or LLVM aborted). The blocks of 32 were compiled by the process that built the
     session's warm template (tests/package_copy.py), the blocks of 16 by the first probe here; the
     probes' cache statistics show which process compiled and which loaded."""
     from conftest import assert_forces_agree
     from exo_bench import prepare, presets
-    from exo_bench.models.motion import smooth_random_motion
-    from exo_bench.models.numba_cache import installed_cache_folder
+    from exo_bench.models.gait.motion import smooth_random_motion
+    from exo_bench.models.machine.numba_cache import installed_cache_folder
 
     pkg, probe = package_copy_prober(tmp_path, _PROBE_LANES, template=warm_package)
     folder = installed_cache_folder(pkg / "models" / "newton_euler" / "simd.py", pkg)  # beside the copy's package

@@ -2,7 +2,7 @@
 
 The stale-cache probes (tests/test_compiled.py, tests/test_kernel_cache.py) edit an element file or the
 shared sin/cos in a copy of the package and see one real kernel per mechanism path recompile: the
-folder's key (models/numba_cache.py, ``KernelSourceLocator``: the folder's modules, the files listed
+folder's key (models/machine/numba_cache.py, ``KernelSourceLocator``: the folder's modules, the files listed
 for it in ``KERNEL_SOURCES`` and ``SHARED_SOURCES``). This file checks, for every ``cache=True``
 kernel of every kernel folder, that it is keyed by that locator and that its key covers its own
 file, the files listed for its folder and every shared source (the branch-free sin/cos among them),
@@ -17,9 +17,9 @@ from pathlib import Path
 import pytest
 from numba.core.registry import CPUDispatcher
 
-from exo_bench.models import fast_trig, numba_cache
+from exo_bench.models.machine import fast_trig, numba_cache
 
-ROOT = Path(numba_cache.__file__).resolve().parent.parent  # the folder holding models/ and matrix_method/
+ROOT = Path(numba_cache.__file__).resolve().parents[2]  # the folder holding models/ and matrix_method/
 
 
 def _module_name(file: Path) -> str:
@@ -58,7 +58,7 @@ def test_the_kernels_of_both_families_simd_modules_are_among_them():
     """The SIMD kernels that call ``sincos_reduced`` (the stale-cache probe of the shared sin/cos runs one
     of them) are cached kernels of the files checked above."""
     from exo_bench.matrix_method.numba_kernels import simd as factored_simd
-    from exo_bench.models import simd_angles
+    from exo_bench.models.machine import simd_angles
     from exo_bench.models.newton_euler import simd as ne_simd
 
     assert simd_angles.sincos_reduced is fast_trig.sincos_reduced  # the angles of both families' blocks

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from exo_bench.models.kinematics import (
+from exo_bench.models.mechanism.kinematics import (
     energy_rate,
     kinetic_energy,
     point_mass_positions,
@@ -11,8 +11,8 @@ from exo_bench.models.kinematics import (
     potential_energy,
     total_energy,
 )
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import fig1, random_tree
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import fig1, random_tree
 
 
 @pytest.mark.parametrize("dim", [2, 3])

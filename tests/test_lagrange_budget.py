@@ -22,8 +22,8 @@ from exo_bench.lagrange import BudgetExceeded, derive
 from exo_bench.lagrange import derivation as dv
 from exo_bench.lagrange import numeric as ln
 from exo_bench.lagrange.budget import budget_clock, time_budget
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import chain
 
 
 def ticks(step: float = 1.0):

@@ -8,9 +8,9 @@ import sympy as sp
 from exo_bench.lagrange import FormViolation, canonical_form, derive, extract_matrices, rebuild_equations
 from exo_bench.lagrange.energies import structure_of
 from exo_bench.lagrange.matrix_form import MATRIX_NAMES
-from exo_bench.models.kinematics import kinetic_energy, potential_energy
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, fig1, fig2a, fig2b, random_tree
+from exo_bench.models.mechanism.kinematics import kinetic_energy, potential_energy
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, fig1, fig2a, fig2b, random_tree
 
 
 def _aggregates(S, i):

@@ -10,9 +10,9 @@ from conftest import POWER_BALANCE_TOL, assert_forces_agree, assert_mass_matrice
 from exo_bench import prepare
 from exo_bench.bench.cli import main
 from exo_bench.lagrange import numeric as ln
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import gait, random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import gait, random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 # 50 seeded random trees: n = 1..4 links, 2D and 3D, random parents and signs.
 TREES = [(1 + seed % 4, dim, seed) for dim in (2, 3) for seed in range(100, 125)]

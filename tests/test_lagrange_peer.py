@@ -9,8 +9,8 @@ from conftest import assert_forces_agree
 from exo_bench.lagrange import canonical_form, derive
 from exo_bench.lagrange.derivation import parameter_values
 from exo_bench.lagrange.peer import peer_equations
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import fig1, fig2a, fig2b, random_tree
 
 CASES = [
     (fig1(2), "lagrange"),

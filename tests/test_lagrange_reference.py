@@ -8,8 +8,8 @@ from conftest import assert_forces_agree
 
 from exo_bench.lagrange import numeric as ln
 from exo_bench.lagrange import high_precision as lr
-from exo_bench.models.motion import gait, random_states
-from exo_bench.models.presets import exo5, fig1, random_tree
+from exo_bench.models.gait.motion import gait, random_states
+from exo_bench.models.mechanism.presets import exo5, fig1, random_tree
 
 
 @pytest.mark.parametrize("n,dim,seed", [(2, 2, 60), (4, 2, 61), (3, 3, 62), (4, 3, 63)])

@@ -51,7 +51,7 @@ def test_a_users_own_models_module_does_not_shadow_ours(tmp_path):
     script.write_text(
         "import numpy as np\n"
         "from exo_bench import prepare, presets\n"
-        "from exo_bench.models.motion import random_states\n"
+        "from exo_bench.models.gait.motion import random_states\n"
         "m = presets.exo5(dim=3)\n"
         "q, qd, qdd = random_states(m, 3, seed=0)\n"
         "a = prepare(m, 'matrix').inverse_dynamics(q, qd, qdd)\n"

@@ -1,5 +1,5 @@
 """A lean one-sample call without ``out`` reuses a result it returned before only once nothing refers to
-it any more (issue 35; models/_lean_call.c ``new_result``): numpy's allocation and deallocation were a
+it any more (issue 35; models/runtime/_lean_call.c ``new_result``): numpy's allocation and deallocation were a
 third of the call. A result anyone holds, by a name, a view, a buffer or a weak reference, is never
 written again, and one whose flags or shape the caller changed is not handed out again. Inverse and
 forward dynamics, matrix-factored and newton-euler (their cfuncs share the wrapper)."""
@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
+pytest.importorskip("exo_bench.models.runtime._lean_call", reason="the C wrapper is optional (setup.py)")
 
 METHODS = ["matrix-factored", "newton-euler"]
 
@@ -24,7 +24,7 @@ METHODS = ["matrix-factored", "newton-euler"]
 def case(request):
     mech = exo5(3)
     model = prepare(mech, request.param)
-    from exo_bench.models import _lean_call
+    from exo_bench.models.runtime import _lean_call
 
     assert isinstance(model._entries.lean, _lean_call.LeanCall)
     states = [tuple(np.ascontiguousarray(a[s]) for a in random_states(mech, 6, seed=11)) for s in range(6)]

@@ -1,5 +1,5 @@
 """The lean one-sample calls allocate nothing per call (issue 35): their kernels' scratch is part of the
-one 64-byte-aligned block that holds their parameters (:func:`exo_bench.models.lean_call.block`), made
+one 64-byte-aligned block that holds their parameters (:func:`exo_bench.models.runtime.lean_call.block`), made
 once per prepared model, so a call makes no numba runtime (NRT) allocation. Counted, not timed: numba's
 own allocation counters (``memsys_enable_stats``) over calls of every form the C wrapper takes.
 
@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
+pytest.importorskip("exo_bench.models.runtime._lean_call", reason="the C wrapper is optional (setup.py)")
 
 #: (method, kernel option or None, dimension): every lean one-sample call.
 CALLS = [("matrix-factored", 2), ("matrix-factored", 3), ("newton-euler", 2), ("newton-euler", 3)]
@@ -30,7 +30,7 @@ def case(request):
     method, dim = request.param
     mech = exo5(dim)
     model = prepare(mech, method)
-    from exo_bench.models import _lean_call
+    from exo_bench.models.runtime import _lean_call
 
     assert isinstance(model._entries.lean, _lean_call.LeanCall)
     q, qd, qdd = (np.ascontiguousarray(a) for a in random_states(mech, 4, seed=7))

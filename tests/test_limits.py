@@ -2,7 +2,7 @@
 (issue 34: C1, L3); numba's environment variables are checked at the edge (U6, T4).
 
 Counts (pinocchio's ``threads``, ``--workers``, NUMBA_NUM_THREADS) are held to
-:func:`exo_bench.models.resource_counts.max_count` (4 per usable CPU); within it, the threads' stacks
+:func:`exo_bench.models.machine.resource_counts.max_count` (4 per usable CPU); within it, the threads' stacks
 and Data must fit in the address space left under ``ulimit -v``. The processes that test those
 limits set ``RLIMIT_AS`` themselves, in a fresh interpreter, so nothing here can exhaust the machine.
 """
@@ -20,8 +20,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import assert_forces_agree
-from exo_bench.models import resource_counts
-from exo_bench.models.presets import exo5
+from exo_bench.models.machine import resource_counts
+from exo_bench.models.mechanism.presets import exo5
 
 
 def _python(code: str, env: dict | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
@@ -46,9 +46,9 @@ def _cli(*args, env: dict | None = None) -> subprocess.CompletedProcess:
 # prepares pinocchio with THREADS threads and runs a batch: it prints the error's line, or "ran".
 _UNDER_ULIMIT = """
 import resource, numpy as np
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 from exo_bench.api.preparation import prepare
-from exo_bench.models import pinocchio_backend
+from exo_bench.models.engines import pinocchio_backend
 mech = exo5(3)
 q = np.full((200, mech.dof), 0.3)
 prepare(mech, "pinocchio").inverse_dynamics(q, q, q)  # every import and first touch before the limit
@@ -102,7 +102,7 @@ def test_pinocchio_threads_over_the_bound_are_refused_before_any_data(extra):
     """Any ``threads`` over the bound is refused by the class itself and by ``prepare``, naming the
     option, the bound and the value."""
     from exo_bench.api.preparation import prepare
-    from exo_bench.models.pinocchio_backend import PinocchioRNEA
+    from exo_bench.models.engines.pinocchio_backend import PinocchioRNEA
 
     threads = resource_counts.max_count() + extra
     for make in (
@@ -171,7 +171,7 @@ def test_a_local_cluster_whose_workers_do_not_fit_in_memory_is_refused(monkeypat
     import distributed
 
     from exo_bench.bench.cluster import cluster as cluster_mod
-    from exo_bench.models import memory
+    from exo_bench.models.machine import memory
 
     def no_cluster(*a, **k):
         raise AssertionError("a LocalCluster was started")
@@ -191,7 +191,7 @@ def test_a_local_cluster_whose_workers_do_not_fit_in_memory_is_refused(monkeypat
 # ----------------------------------------------------------------------------- numba's environment
 _BATCH = """
 import numpy as np
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 from exo_bench.api.preparation import prepare
 mech = exo5(3)
 try:
@@ -259,7 +259,7 @@ def test_numba_disable_jit_refuses_the_compiled_kernels_in_one_line(method, tmp_
     out = tmp_path / "tau.npz"
     code = f"""
     import numpy as np
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.mechanism.presets import exo5
     from exo_bench.api.preparation import prepare
     mech = exo5(3)
     q = np.full((200, mech.dof), 0.3)

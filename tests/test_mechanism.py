@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from exo_bench.models.loading import load_mechanism, save_mechanism
-from exo_bench.models.mechanism import Mechanism, as_states, coordinate_names
-from exo_bench.models.presets import PRESETS, exo5, random_tree
+from exo_bench.models.mechanism.loading import load_mechanism, save_mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism, as_states, coordinate_names
+from exo_bench.models.mechanism.presets import PRESETS, exo5, random_tree
 
 ISSUE_EXAMPLE = {
     "dim": 3,

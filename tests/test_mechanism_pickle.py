@@ -8,11 +8,11 @@ import pickle
 import subprocess
 import sys
 
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 
 _CHILD = """
 import pickle, sys
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 received = pickle.loads(sys.stdin.buffer.read())
 rebuilt = exo5(3)
 print(hash(received) == hash(rebuilt), received == rebuilt, len({received, rebuilt}))

@@ -10,9 +10,9 @@ import pytest
 from conftest import assert_forces_agree, installed_methods
 
 from exo_bench import prepare
-from exo_bench.models.joint_coordinates import joint_basis
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.engines.joint_coordinates import joint_basis
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 
 def _arrays(mech) -> dict[str, np.ndarray]:

@@ -2,7 +2,7 @@
 
 The MJCF text is built in O(n) memory (the dense joint map ``G``, ``nv x dof``, is never formed for
 it: 447 GiB for a flat tree of 100,000 links); what MuJoCo allocates to compile the file grows as
-``nv^2`` and is predicted by :func:`exo_bench.models.mjcf.compile_bytes` (checked against MuJoCo's
+``nv^2`` and is predicted by :func:`exo_bench.models.engines.mjcf.compile_bytes` (checked against MuJoCo's
 own figure in tests/test_mujoco_drake.py), and refused in one line beyond ``--max-memory``; a tree
 deeper than MuJoCo's parser reads is refused with the depth.
 """
@@ -14,9 +14,9 @@ import tracemalloc
 import pytest
 from test_bad_inputs import run_cli
 
-from exo_bench.models import mjcf
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.presets import chain
+from exo_bench.models.engines import mjcf
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.presets import chain
 
 
 def _flat(n: int, dim: int = 2) -> Mechanism:

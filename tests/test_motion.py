@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from exo_bench.models.motion import GaitParams, gait, planar_gait, smooth_random_motion
-from exo_bench.models.presets import exo5, fig5, random_tree
+from exo_bench.models.gait.motion import GaitParams, gait, planar_gait, smooth_random_motion
+from exo_bench.models.mechanism.presets import exo5, fig5, random_tree
 
 T = np.linspace(0.0, 2.2, 37)
 

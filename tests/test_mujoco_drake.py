@@ -15,10 +15,10 @@ import pytest
 from conftest import assert_forces_agree, assert_mass_matrices_agree
 
 from exo_bench.api import prepare
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mjcf import joint_map, to_mjcf
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig2b, random_tree
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.engines.mjcf import joint_map, to_mjcf
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig2b, random_tree
 
 ENGINES = {"mujoco": "mujoco", "drake": "pydrake"}
 
@@ -120,7 +120,7 @@ def test_mujoco_rne_stages_equal_mj_inverse_with_constraints_off():
     _need("mujoco")
     import mujoco
 
-    from exo_bench.models.mujoco_backend import load_model
+    from exo_bench.models.engines.mujoco_backend import load_model
 
     mech = random_tree(6, 3, 7)
     q, qd, qdd = random_states(mech, 4, 7)
@@ -198,7 +198,7 @@ def _json(mech, tmp_path):
 @pytest.mark.parametrize("n,dim,seed", [(7, 3, 50), (7, 2, 51)])
 def test_drake_bodies_are_the_point_masses(n, dim, seed):
     _need("drake")
-    from exo_bench.models.drake_backend import body_positions
+    from exo_bench.models.engines.drake_backend import body_positions
 
     mech = random_tree(n, dim, seed)
     q, _, _ = random_states(mech, 10, seed)
@@ -297,7 +297,7 @@ def test_mujocos_com_frame_term_is_needed_and_enough(n, dim, seed, sample_seed):
 
 def _with_zero_masses(mech):
     """Zero start, middle and end masses on some links (links 1, 3, 4, 5, and link 6 a leaf with its
-    start mass alone): MuJoCo's compiler floors them at 1e-12 (models/mjcf.py), the backend puts the
+    start mass alone): MuJoCo's compiler floors them at 1e-12 (models/engines/mjcf.py), the backend puts the
     zeros back; a zero middle mass has no body or joint."""
     masses = [list(m) for m in mech.masses]
     masses[0][0] = 0.0
@@ -331,7 +331,7 @@ def test_zero_point_masses_are_exactly_zero(method, dim):
         )
     assert np.array_equal(tau[:, -1], np.zeros(len(q)))  # the massless leaf rod: no force along it, exactly
     if method == "drake":  # its bodies: each point mass where eq. (7) puts it, each with its mass
-        from exo_bench.models.drake_backend import body_positions, build_plant
+        from exo_bench.models.engines.drake_backend import body_positions, build_plant
 
         assert np.abs(body_positions(mech, q) - point_mass_positions(mech, q)).max() <= 1e-12
         dp = build_plant(mech)
@@ -356,8 +356,8 @@ def test_the_mjcf_nesting_depth_is_the_one_mujocos_parser_refuses_beyond_its_lim
     the `mujoco` method refuses deeper trees with the reason before any work (the benchmark row
     skips with it), and the export itself builds any depth without recursion (a 1000-link chain
     raised RecursionError in the full sweep)."""
-    from exo_bench.models.mjcf import MJCF_MAX_DEPTH, MjcfTooDeep, nesting_depth
-    from exo_bench.models.presets import chain
+    from exo_bench.models.engines.mjcf import MJCF_MAX_DEPTH, MjcfTooDeep, nesting_depth
+    from exo_bench.models.mechanism.presets import chain
 
     assert nesting_depth(chain(248, 3)) <= MJCF_MAX_DEPTH < nesting_depth(chain(249, 3))
     assert to_mjcf(chain(1000, 2)).count("<body ") == 3000  # start, end and middle: no RecursionError
@@ -373,7 +373,7 @@ def test_the_mjcf_nesting_depth_is_the_one_mujocos_parser_refuses_beyond_its_lim
 
 
 def test_the_mjcf_command_refuses_a_tree_too_deep_for_mujoco_in_one_line(tmp_path):
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.presets import chain
 
     path = tmp_path / "deep.json"
     path.write_text(chain(249, 3).to_json())
@@ -395,7 +395,7 @@ def test_mujoco_forces_agree_on_hostile_names():
     from test_hostile_names import ACCEPTED
 
     _need("mujoco")
-    from exo_bench.models.mujoco_backend import load_model
+    from exo_bench.models.engines.mujoco_backend import load_model
 
     plain = fig2b(2).replace(name="plain", names=("a", "b"))
 
@@ -419,10 +419,10 @@ def test_mujoco_compile_memory_is_predicted_from_above():
     """The memory predicted for compiling an MJCF (models.mjcf.compile_bytes) bounds MuJoCo's own
     arena (mjModel.narena) from above, within 1.6 times, on chains, flat and random trees."""
     _need("mujoco")
-    from exo_bench.models.mechanism import Mechanism
-    from exo_bench.models.mjcf import compile_bytes, mujoco_sizes
-    from exo_bench.models.mujoco_backend import compile_mjcf
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.mechanism import Mechanism
+    from exo_bench.models.engines.mjcf import compile_bytes, mujoco_sizes
+    from exo_bench.models.engines.mujoco_backend import compile_mjcf
+    from exo_bench.models.mechanism.presets import chain
 
     flat = lambda n, d, m1: Mechanism(d, 9.81, (-1,) * n, (1,) * n, ((1.0, m1, 1.0),) * n, (0.5,) * n)  # noqa: E731
     mechs = [chain(n, d) for n in (1, 20, 120) for d in (2, 3)] + [random_tree(60, d, 3) for d in (2, 3)]

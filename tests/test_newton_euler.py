@@ -18,14 +18,14 @@ from conftest import assert_forces_agree, assert_mass_matrices_agree, mass_coupl
 
 from exo_bench import prepare
 from exo_bench.bench.cli import main
-from exo_bench.models import virtual_work as vw
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import random_states
+from exo_bench.models.mechanism import virtual_work as vw
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import random_states
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.tree import prepare_tree, solve_coupling
-from exo_bench.models.numba_runtime import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.singularity import SingularConfigurationError
+from exo_bench.models.machine.numba_runtime import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
 #: Seeded random trees (n, dim, seed): between them several roots and signs -1 in 2D and 3D
 #: (checked by test_the_trees_cover_roots_and_signs).

@@ -1,5 +1,5 @@
 """newton-euler's lean one-sample call (issue 35): the per-sample inverse pass as a cfunc behind the
-C wrapper (models/newton_euler/lean.py, models/lean_call.py), held by the ``lean`` kernel object.
+C wrapper (models/newton_euler/lean.py, models/runtime/lean_call.py), held by the ``lean`` kernel object.
 Its forces are bit-identical to the per-sample kernel's (and so to check=True's and to the batch
 of one), on 2D/3D chains and trees, NaN states included; it declines what it does not take."""
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 #: Seeded random trees (n, dim, seed) of tests/test_newton_euler.py (several roots, signs -1) and exo5.
 MECHS = [(1, 2, 0), (4, 2, 1), (9, 2, 11), (1, 3, 3), (5, 3, 4), (9, 3, 12)]
@@ -18,13 +18,13 @@ MECHS = [(1, 2, 0), (4, 2, 1), (9, 2, 11), (1, 3, 3), (5, 3, 4), (9, 3, 12)]
 
 def _built() -> bool:
     try:
-        from exo_bench.models import _lean_call  # noqa: F401
+        from exo_bench.models.runtime import _lean_call  # noqa: F401
     except ImportError:
         return False
     return True
 
 
-needs_c = pytest.mark.skipif(not _built(), reason="models/_lean_call.c was not built here (no C compiler)")
+needs_c = pytest.mark.skipif(not _built(), reason="models/runtime/_lean_call.c was not built here (no C compiler)")
 
 
 def _bits(a):
@@ -36,7 +36,7 @@ def _bits(a):
 def test_the_lean_call_is_bit_identical_to_the_per_sample_kernel(tree):
     mech = exo5(int(tree[-2])) if isinstance(tree, str) else random_tree(*tree)
     model = prepare(mech, "newton-euler")
-    from exo_bench.models import _lean_call
+    from exo_bench.models.runtime import _lean_call
 
     assert isinstance(model._entries.lean, _lean_call.LeanCall)
     q, qd, qdd = random_states(mech, 6, seed=5)

@@ -3,7 +3,7 @@
 
 **Error model**: that of tests/conftest.py (``K eps term_scale``), as for the per-sample kernel: the
 SIMD kernel does the per-sample kernel's operations in the same order (the same element functions),
-except that its sines and cosines come from models/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy
+except that its sines and cosines come from models/machine/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy
 reference takes numpy's. Where an angle falls back to libm (beyond ``fast_trig.RANGE``) the SIMD
 kernel equals the per-sample kernel to the bit.
 
@@ -21,11 +21,11 @@ from conftest import assert_forces_agree
 from test_newton_euler import TREES  # seeded random trees with several roots and signs -1, 2D and 3D
 
 from exo_bench import prepare
-from exo_bench.models import fast_trig
-from exo_bench.models.motion import random_states
+from exo_bench.models.machine import fast_trig
+from exo_bench.models.gait.motion import random_states
 from exo_bench.models.newton_euler import simd
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.simd_blocks import LANES, parallel_min_samples, run
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.machine.simd_blocks import LANES, parallel_min_samples, run
 
 T, L = simd.MIN_SAMPLES, LANES
 SIZES = tuple(sorted({S for S in (1, 2, 7, 8, 9, T - 1, T, T + 1, L - 1, L, L + 1, 2 * L + 5, 3 * L + 17) if S >= 1}))
@@ -138,7 +138,7 @@ def test_the_counted_flops_are_the_kernel_s_and_grow_linearly(dim):
     equal the compiled kernel's to the bit (the same operations), and the count grows by the same
     number of flops per added link (O(n) per sample)."""
     from exo_bench.bench.perf.roofline_newton_euler import count_newton_euler_simd
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.presets import chain
 
     flops = []
     for n in (10, 20, 40):

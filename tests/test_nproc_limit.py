@@ -9,7 +9,7 @@ import resource
 
 import pytest
 
-from exo_bench.models import resource_counts
+from exo_bench.models.machine import resource_counts
 
 LIMIT, RUNNING = 40, 36  # four more threads or processes may start
 
@@ -40,7 +40,7 @@ def test_a_count_over_the_room_is_refused_naming_the_limit(tight):
 def test_pinocchio_threads_are_refused_before_the_work(tight):
     pytest.importorskip("pinocchio")
     from exo_bench.api.preparation import prepare
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.mechanism.presets import exo5
 
     with pytest.raises(ValueError, match=r"threads.*RLIMIT_NPROC.*got 6"):
         prepare(exo5(3), "pinocchio", threads=6)

@@ -1,4 +1,4 @@
-"""Two processes that compile into one numba cache at once keep both kernels (models/numba_cache.py).
+"""Two processes that compile into one numba cache at once keep both kernels (models/machine/numba_cache.py).
 
 numba's index of a cached function is read, extended and replaced without a lock
 (numba/core/caching.py, ``IndexDataCacheFile.save``): two processes saving two signatures of one
@@ -6,7 +6,7 @@ function at once both read the same index, both take data file 1, and the index 
 signature, possibly with the other's machine code in its data file (numba issues 4807, 10128). It
 happens wherever processes share a cache: two ``exo-bench`` commands or a Dask local cluster in one
 checkout (its ``__pycache__``), the two xdist workers of the README's test command (one
-``NUMBA_CACHE_DIR``, tests/xdist_workers.py). :func:`exo_bench.models.numba_runtime.ensure` makes the
+``NUMBA_CACHE_DIR``, tests/xdist_workers.py). :func:`exo_bench.models.machine.numba_runtime.ensure` makes the
 index's save and load hold a lock on the index (``<index>.lock``), so they take turns.
 
 The test forces the interleaving: each process, having read the index inside a save, waits until the
@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exo_bench.models import numba_runtime
+from exo_bench.models.machine import numba_runtime
 
 numba_runtime.ensure()
 from numba.core import caching
@@ -97,7 +97,7 @@ import json
 
 import numpy as np
 
-from exo_bench.models import numba_runtime
+from exo_bench.models.machine import numba_runtime
 
 numba_runtime.ensure()
 import kernel

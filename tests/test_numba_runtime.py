@@ -1,5 +1,5 @@
-"""numba's runtime set-up lives in one module (issue 35): models/numba_runtime.py patches numba's internals
-and chooses its threading layer, in :func:`~exo_bench.models.numba_runtime.ensure`, and no other module
+"""numba's runtime set-up lives in one module (issue 35): models/machine/numba_runtime.py patches numba's internals
+and chooses its threading layer, in :func:`~exo_bench.models.machine.numba_runtime.ensure`, and no other module
 of the library does; no module that compiles kernels keeps mutable module state; importing the runtime
 module changes nothing; ``ensure`` is idempotent.
 
@@ -180,8 +180,8 @@ def test_ensure_is_idempotent():
     """Called again, ``ensure`` installs no second locator and wraps numba's index key once."""
     from numba.core import caching
 
-    from exo_bench.models.numba_cache import KernelSourceLocator
-    from exo_bench.models.numba_runtime import ensure
+    from exo_bench.models.machine.numba_cache import KernelSourceLocator
+    from exo_bench.models.machine.numba_runtime import ensure
 
     layer = ensure()
     key = caching.FunctionCache._index_key

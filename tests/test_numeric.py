@@ -15,9 +15,9 @@ from exo_bench.lagrange import numeric as lagrange_numeric
 from exo_bench.bench.studies import errata
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import printed
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import gait, random_states
-from exo_bench.models.presets import exo5, fig5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import gait, random_states
+from exo_bench.models.mechanism.presets import exo5, fig5, random_tree
 
 #: 100 seeded random trees: n = 1..6, 2D and 3D, random parents (several roots) and signs.
 TREES = [(1 + s % 6, 2 if (s // 6) % 2 == 0 else 3, s) for s in range(100)]

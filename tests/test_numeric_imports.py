@@ -24,8 +24,8 @@ _PROBE = """
 import json, sys
 from exo_bench import prepare, presets
 from exo_bench.api.methods import METHODS
-from exo_bench.models.motion import random_states
-from exo_bench.models.prepared import MissingExtra
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.runtime.prepared import MissingExtra
 
 name = sys.argv[1]
 ran = []

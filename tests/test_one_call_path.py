@@ -12,16 +12,21 @@ import pytest
 
 from exo_bench.api import prepare
 from exo_bench.api.methods import METHODS
-from exo_bench.models.kernels import Kernel
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models.presets import exo5
+from exo_bench.models.runtime.kernels import Kernel
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.mechanism.presets import exo5
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The package's sources (the import package's subpackages are these top-level folders).
 PACKAGE = ("exo_bench", "models", "matrix_method", "lagrange", "bench")
 #: The table and the modules that define kernel objects: the only places that may name them.
-TABLE = {"exo_bench/api/methods.py", "models/kernels.py", "matrix_method/kernels.py", "models/newton_euler/kernels.py"}
+TABLE = {
+    "exo_bench/api/methods.py",
+    "models/runtime/kernels.py",
+    "matrix_method/kernels.py",
+    "models/newton_euler/kernels.py",
+}
 #: Where the same words name something else than a method of the table or a kernel: the routes of
 #: symbolic composition (the size study, the paper's table of composition rows, bench/test_compose.py's),
 #: and sympy's LagrangesMethod or KanesMethod (the sympy peer's ``kind``). Each file, the words it may compare.
@@ -129,7 +134,7 @@ def test_each_public_call_is_defined_once_in_the_base_class():
     assert {"PreparedModel", "MatrixFactored", "NewtonEuler", "LagrangeModel"} <= set(classes)
     for call in PUBLIC_CALLS:
         where = [f"{rel}:{name}" for name, (rel, node) in sorted(classes.items()) if _defines(node, call)]
-        assert where == ["models/prepared.py:PreparedModel"], f"{call} is defined in {where}"
+        assert where == ["models/runtime/prepared.py:PreparedModel"], f"{call} is defined in {where}"
 
 
 #: (method, kernel option) of every method with kernels, each option.

@@ -2,12 +2,12 @@
 (matrix_method/numba_kernels/simd.py) and ``newton-euler`` (models/newton_euler/simd.py) build each
 dimension's compiled functions from one Python function (``dim`` a constant of its closure), and both
 families run step 2 (trig, libm for the angles beyond the fast range) through the one pass of
-models/simd_angles.py. The numbers are held elsewhere: tests/test_compiled_simd.py and
+models/machine/simd_angles.py. The numbers are held elsewhere: tests/test_compiled_simd.py and
 tests/test_newton_euler_simd.py (agreement, bit-identity across block sizes and threads).
 
 Each compiled closure carries its dimension in its qualified name (numba names its symbol after it:
 two closures of one source that shared a name could swap machine code through the on-disk cache,
-models/numba_runtime.py ``jit_for``).
+models/machine/numba_runtime.py ``jit_for``).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import pytest
 
 from exo_bench.matrix_method.numba_kernels import simd as factored_simd
-from exo_bench.models import simd_angles
+from exo_bench.models.machine import simd_angles
 from exo_bench.models.newton_euler import simd as ne_simd
 
 

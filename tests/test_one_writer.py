@@ -1,11 +1,11 @@
 """The reports' writer is the one writer, not a wrapper around it (the guide: one responsibility per file;
 bench/output/provenance.py kept ``atomic_write`` and ``atomic_path`` as thin wrappers of
-models/atomic_files.py, which dropped its ``label`` and ``inputs`` options)."""
+models/files/atomic_files.py, which dropped its ``label`` and ``inputs`` options)."""
 
 from __future__ import annotations
 
 from exo_bench.bench.output import files, provenance
-from exo_bench.models import atomic_files
+from exo_bench.models.files import atomic_files
 
 
 def test_provenance_names_the_one_writer_itself():

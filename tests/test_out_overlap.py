@@ -3,8 +3,8 @@ refused (issue 34, W5).
 
 The kernels write ``out`` while they read ``q``, ``qd`` and ``qdd`` (or ``tau``): an ``out`` that
 overlapped an input by even one element gave errors of 1e7 to 1e277 and NaN, with no word; only an
-exact alias was caught. The test is numpy's bounds test (O(1)), in Python (models/unchecked.py) and in
-the compiled one-sample wrapper (models/_lean_call.c)."""
+exact alias was caught. The test is numpy's bounds test (O(1)), in Python (models/states/unchecked.py) and in
+the compiled one-sample wrapper (models/runtime/_lean_call.c)."""
 
 import numpy as np
 import pytest
@@ -13,8 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(3)
 DOF = MECH.dof

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from conftest import K, POWER_BALANCE_TOL, assert_close, assert_forces_agree, mass_matrix_scale, power_balance_residual
 
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.kinematics import kinetic_energy, point_mass_positions
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.mechanism.kinematics import kinetic_energy, point_mass_positions
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import fig1, fig2a, fig2b, random_tree
 
 
 def _one_link_aggregates(m):

@@ -16,10 +16,10 @@ import pinocchio as pin
 import pytest
 
 from exo_bench.api import prepare
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Refused on mimic models by pin 4.1 (RuntimeError), or wrong there (computeCoriolisMatrix).

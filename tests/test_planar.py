@@ -6,8 +6,8 @@ from conftest import assert_matrices_agree
 
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.bench.studies.errata import LagrangeWitness, pinocchio_matrices
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import fig2a, fig2b, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import fig2a, fig2b, random_tree
 
 TREES = [(1, 1), (2, 2), (3, 3), (4, 4), (5, 5), (6, 6), (6, 7)]
 

@@ -23,11 +23,11 @@ from exo_bench.bench.output.figures.scene_figures import (
     write_plots,
 )
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import split
-from exo_bench.models.motion import GaitParams, gait, planar_gait, random_states
-from exo_bench.models.pinocchio_backend import build_model, inverse_dynamics, joint_torques
-from exo_bench.models.presets import exo5, fig2b, fig5, random_tree
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.gait.motion import GaitParams, gait, planar_gait, random_states
+from exo_bench.models.engines.pinocchio_backend import build_model, inverse_dynamics, joint_torques
+from exo_bench.models.mechanism.presets import exo5, fig2b, fig5, random_tree
 
 
 def _study(mech, motion_fn, samples=120, noisy=False) -> Study:

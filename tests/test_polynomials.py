@@ -9,7 +9,7 @@ from sympy.core.basic import Basic
 
 from exo_bench.matrix_method.symbolic import polynomials, compose as symbolic
 from exo_bench.matrix_method.symbolic.polynomials import Poly, order_key
-from exo_bench.models.presets import exo5, random_tree
+from exo_bench.models.mechanism.presets import exo5, random_tree
 
 
 def _random_exprs(seed, count=60):

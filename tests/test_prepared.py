@@ -22,9 +22,9 @@ from conftest import (
 )
 
 from exo_bench import load_mechanism, prepare, presets
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import PRESETS, random_tree
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import PRESETS, random_tree
+from exo_bench.models.runtime.prepared import PreparedModel
 
 CORRECT = [m for m in installed_methods() if m != "matrix-paper"]  # matrix-paper is wrong in 3D by design
 

@@ -1,4 +1,4 @@
-"""The presets' arguments are checked before they name the mechanism (models/presets.py): ``human(True)``
+"""The presets' arguments are checked before they name the mechanism (models/mechanism/presets.py): ``human(True)``
 said "human-Trued: field 'dim': expected 2 or 3, got True", a name made from the bad value, and
 ``human(2.0)`` made a mechanism named "human-2.0d". A bool, a float or a string where a whole number is
 expected is refused in one ValueError naming the preset, the field and the expected type."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.models import presets
+from exo_bench.models.mechanism import presets
 
 BAD_WHOLE = [True, False, 2.0, 3.0, "2", None, 2.5, np.float64(3.0)]
 BUILDERS = {

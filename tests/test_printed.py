@@ -6,9 +6,9 @@ from conftest import K, assert_close, matrix_scale, term_scale
 
 from exo_bench.matrix_method import printed
 from exo_bench.bench.studies.errata import pinocchio_matrices
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig1, fig5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig1, fig5, random_tree
 
 BY_KEY = {f.key: f for f in printed.ALL}
 

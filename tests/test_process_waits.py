@@ -51,7 +51,7 @@ def test_the_bench_command_passes_the_option():
 
 def _split_batch(kernel, wait_limit):
     """models.simd_blocks.run over 2 threads with a stand-in kernel (a Python function: run takes any)."""
-    from exo_bench.models import simd_blocks
+    from exo_bench.models.machine import simd_blocks
 
     samples = simd_blocks.parallel_min_samples(1)
     q = np.zeros(samples)
@@ -87,7 +87,7 @@ def test_a_stuck_pool_share_is_a_named_timeout():
 
 def test_the_default_wait_is_bounded_and_a_split_batch_completes():
     """Without a stuck thread every share is computed; the default limit is WAIT_FLOOR at least."""
-    from exo_bench.models import simd_blocks
+    from exo_bench.models.machine import simd_blocks
 
     def kernel(params, q, qd, qdd, o, s0, s1):
         o[s0:s1] = 1.0

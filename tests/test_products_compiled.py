@@ -17,9 +17,9 @@ from test_jvp import _directions, _mv, _vm
 
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
-from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.derivatives.derivatives import Derivatives
 from exo_bench.models.newton_euler import products_compiled as pc
-from exo_bench.models.presets import random_tree
+from exo_bench.models.mechanism.presets import random_tree
 
 TREES = [random_tree(7, 2, 22), random_tree(9, 3, 23), presets.exo5(dim=3)]
 

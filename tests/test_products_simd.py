@@ -3,7 +3,7 @@ VJP of inverse dynamics in blocks of samples, against the numpy reference of the
 (models/newton_euler/products.py, which tests/test_jvp.py holds to the full Jacobians for every kernel).
 
 **Error model.** The two evaluate the same per-rod products and passes; their sines and cosines differ by
-an ulp or two (the batched kernel's branch-free ``sin``/``cos``, models/fast_trig.py) and their sums run in
+an ulp or two (the batched kernel's branch-free ``sin``/``cos``, models/machine/fast_trig.py) and their sums run in
 other orders, so they differ by the rounding of the Jacobian's entries times the direction, the bound of
 tests/test_jvp.py: ``K eps sum_j D_ij |v_j|`` with ``D`` the scale of each entry's differentiated terms
 (tests/test_derivatives_analytic.py's ``derivative_scales``, conftest's ``mass_matrix_scale``)."""
@@ -17,11 +17,11 @@ from test_jvp import _directions, _mv, _vm
 
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
-from exo_bench.models.derivatives import Derivatives
-from exo_bench.models.derivatives_products import PRODUCTS_SIMD_BELOW_LINKS
+from exo_bench.models.derivatives.derivatives import Derivatives
+from exo_bench.models.derivatives.derivatives_products import PRODUCTS_SIMD_BELOW_LINKS
 from exo_bench.models.newton_euler import products
-from exo_bench.models.presets import random_tree
-from exo_bench.models.simd_blocks import LANES
+from exo_bench.models.mechanism.presets import random_tree
+from exo_bench.models.machine.simd_blocks import LANES
 
 TREES = [random_tree(7, 2, 22), random_tree(9, 3, 23), presets.exo5(dim=3)]
 #: one sample; one whole block and a partial one (not a multiple of the block width)
@@ -134,7 +134,7 @@ def test_unchecked_products_take_the_lean_route_with_the_same_numbers(providers,
 def test_unchecked_products_estimate_their_memory_first(providers, monkeypatch):
     """The lean route refuses a batch over the usable memory before any work (CallTooLarge), as the general
     path does (tests/test_call_memory_estimate.py holds that path on broadcast views)."""
-    from exo_bench.models import memory
+    from exo_bench.models.machine import memory
 
     mech = TREES[0]
     D = providers[mech.name]
@@ -147,7 +147,7 @@ def test_unchecked_products_estimate_their_memory_first(providers, monkeypatch):
 
 
 def test_the_kernel_cache_is_keyed_on_every_file_it_inlines():
-    """numba's on-disk cache of each compiled function of products_simd.py is keyed (models/numba_cache.py)
+    """numba's on-disk cache of each compiled function of products_simd.py is keyed (models/machine/numba_cache.py)
     on the files whose code it compiles in: its own, the elements' derivatives, the rod elements,
     newton-euler's batched passes, the branch-free sin/cos and the block layout. An edit to any of them
     recompiles it (tests/test_kernel_cache.py edits rod_elements.py in a copy of the package and sees it)."""
@@ -155,7 +155,8 @@ def test_the_kernel_cache_is_keyed_on_every_file_it_inlines():
 
     from numba.core.registry import CPUDispatcher
 
-    from exo_bench.models import fast_trig, numba_cache, rod_elements, simd_blocks
+    from exo_bench.models.machine import fast_trig, numba_cache, simd_blocks
+    from exo_bench.models.mechanism import rod_elements
     from exo_bench.models.newton_euler import derivative_elements, products_simd, simd
 
     kernels = [
@@ -179,7 +180,7 @@ def test_a_batch_split_over_threads_gives_the_same_bits(providers, monkeypatch):
     numbers of the calling thread alone, to the bit: the threshold is lowered so that 100 samples split."""
     import numba
 
-    from exo_bench.models import simd_blocks
+    from exo_bench.models.machine import simd_blocks
     from exo_bench.models.newton_euler import products_simd as ps
 
     mech = TREES[1]
@@ -201,10 +202,10 @@ def test_a_batch_split_over_threads_gives_the_same_bits(providers, monkeypatch):
 
 
 def test_angles_beyond_the_fast_range_and_nan_states(providers):
-    """Angles beyond the branch-free sin/cos's range (models/fast_trig.py's RANGE) are redone with libm by
+    """Angles beyond the branch-free sin/cos's range (models/machine/fast_trig.py's RANGE) are redone with libm by
     newton-euler's forward pass, so the products still equal the numpy reference to the error model; a NaN
     state (check=False) gives NaN in its own sample and nowhere else: never hidden, never spread."""
-    from exo_bench.models.fast_trig import RANGE
+    from exo_bench.models.machine.fast_trig import RANGE
 
     mech = TREES[1]
     D = providers[mech.name]

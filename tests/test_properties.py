@@ -13,7 +13,7 @@ Properties:
   point masses' velocities and accelerations computed here from the unit vectors' derivatives
   (no difference stencil);
 * **M**: symmetric; ``D^-1/2 M D^-1/2`` (``D = diag M``) has the eigenvalues of the equilibrated
-  mass coupling ``mu`` (each ``dim`` times) wherever :func:`exo_bench.models.forward_dynamics.singular_reasons`
+  mass coupling ``mu`` (each ``dim`` times) wherever :func:`exo_bench.models.simulation.forward_dynamics.singular_reasons`
   finds nothing (positive definite, the null space empty), and where it names a link, the
   columns it names are zero (the null space is there).
 
@@ -31,8 +31,8 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.forward_dynamics import singular_reasons
-from exo_bench.models.mechanism import Mechanism, split
+from exo_bench.models.simulation.forward_dynamics import singular_reasons
+from exo_bench.models.mechanism.mechanism import Mechanism, split
 
 PROFILE = settings(
     max_examples=60,
@@ -217,7 +217,7 @@ def test_mass_matrix_is_symmetric_psd_with_its_null_space_where_singular_reasons
             event("singular" if reasons[s] else "regular, resolved" if resolved else "regular, below rounding")
             if not reasons[s] and resolved:
                 # M = J^T (mu (x) I) J: equilibrated, it is orthogonally similar to the equilibrated mu
-                # (x) I_dim (models/forward_dynamics.py), so it has mu's eigenvalues, all positive.
+                # (x) I_dim (models/simulation/forward_dynamics.py), so it has mu's eigenvalues, all positive.
                 # (Not resolved: a rod of 1e-9 m at 1e-9 rad from vertical, M_phiphi ~ 1e-36, below
                 # what M derived by differences can resolve; the PSD bound above still holds.)
                 d = np.sqrt(np.diagonal(M[s]))

@@ -1,5 +1,5 @@
 """The public one-sample call runs no Python frame (issue 35's ``check=False, out=`` goal): PreparedModel's
-``inverse_dynamics`` and ``forward_dynamics`` are the extension's ``PublicCall`` (models/lean_call.py
+``inverse_dynamics`` and ``forward_dynamics`` are the extension's ``PublicCall`` (models/runtime/lean_call.py
 :func:`public_call`), which offers the call to the instance's lean entry in C and runs the Python function
 only where the entry declines it. What it declines still reaches the Python path, which validates and
 names the problem; the descriptor keeps the function's name, docstring and signature."""
@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from exo_bench.api import prepare
-from exo_bench.models.lean_call import extension
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models.presets import exo5
+from exo_bench.models.runtime.lean_call import extension
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.mechanism.presets import exo5
 
-pytestmark = pytest.mark.skipif(extension() is None, reason="models/_lean_call.c was not built (optional)")
+pytestmark = pytest.mark.skipif(extension() is None, reason="models/runtime/_lean_call.c was not built (optional)")
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +124,7 @@ def test_the_entries_are_read_as_they_are_now(models):
     """The descriptor reads ``_entries`` from its slot at each call (only the offset is kept, while the
     type is unchanged): entries replaced on the instance, or a class whose ``_entries`` is no slot, are
     honoured (the Python path then runs, with the same numbers)."""
-    from exo_bench.models.kernels import Entries
+    from exo_bench.models.runtime.kernels import Entries
 
     mech, _, (q, qd, qdd, tau) = models
     m = prepare(mech, "matrix-factored")

@@ -29,10 +29,10 @@ from exo_bench.bench.output.recording import (
     write_recording,
 )
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.motion import GaitParams, gait, planar_gait
-from exo_bench.models.pinocchio_backend import build_model, joint_torques
-from exo_bench.models.presets import exo5, fig2a, fig2b, fig5
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.gait.motion import GaitParams, gait, planar_gait
+from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques
+from exo_bench.models.mechanism.presets import exo5, fig2a, fig2b, fig5
 
 NOISE = 1e-6
 

@@ -11,8 +11,8 @@ from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import recurrence
 from exo_bench.matrix_method.symbolic import compose as symbolic
 from exo_bench.bench.studies.errata import prefix, prefix_states
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig2b, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig2b, random_tree
 
 TREES = [(1 + s % 6, 2 if (s // 6) % 2 == 0 else 3, s) for s in range(100)]
 

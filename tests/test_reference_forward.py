@@ -24,8 +24,8 @@ from conftest import EPS, K
 
 from exo_bench import prepare
 from exo_bench.lagrange import derivative_reference as dr
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import random_tree
 
 NAMES = ("qdd", "dqdd_dq", "dqdd_dqd", "Minv")
 

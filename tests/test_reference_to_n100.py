@@ -18,8 +18,8 @@ from conftest import K
 
 from exo_bench import prepare
 from exo_bench.lagrange import derivative_reference as dr
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import random_tree
 
 
 @pytest.mark.parametrize("dim, seed", [(2, 102), (3, 103)])

@@ -13,11 +13,11 @@ from conftest import installed_methods
 from exo_bench.api import cost_model as resources
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import Limits, ResourceLimit, check, estimate, parse_size
-from exo_bench.models.prepared import CHUNK_BYTES
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5, random_tree
-from exo_bench.models.urdf import data_bytes, pinocchio_model_size
+from exo_bench.models.machine.memory import CHUNK_BYTES
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5, random_tree
+from exo_bench.models.engines.urdf import data_bytes, pinocchio_model_size
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -30,8 +30,8 @@ def test_model_size_is_the_built_models(dim, seed):
 
 _MEASURE_DATA = """
 import json, pinocchio as pin
-from exo_bench.models.presets import chain
-from exo_bench.models.urdf import to_urdf
+from exo_bench.models.mechanism.presets import chain
+from exo_bench.models.engines.urdf import to_urdf
 def status(key):
     for line in open("/proc/self/status"):
         if line.startswith(key):

@@ -15,7 +15,7 @@ import exo_bench.bench.cli.run as runner
 import exo_bench.bench.output.publish as publishing
 from exo_bench.bench.studies.options import RunOptions
 from exo_bench.bench.output.provenance import run_id_of
-from exo_bench.models.presets import random_tree
+from exo_bench.models.mechanism.presets import random_tree
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -197,7 +197,7 @@ def test_a_run_without_an_engine_goes_beside_the_reports_that_measured_it(tmp_pa
     the first run's; once the engine is back, the scene's report is replaced as before. A scene
     whose published rows never measured the method is replaced too."""
     import exo_bench.bench.studies.study as study
-    from exo_bench.models.prepared import MissingExtra
+    from exo_bench.models.runtime.prepared import MissingExtra
 
     a = _scene(tmp_path, "a", outputs='["table", "overview"]')
     rep = tmp_path / "rep"

@@ -9,9 +9,9 @@ import pytest
 
 import exo_bench.bench.cli.run as runner
 from exo_bench.bench.studies.options import RunOptions
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.api import methods
-from exo_bench.models.presets import random_tree
+from exo_bench.models.mechanism.presets import random_tree
 
 SCENE = """
 description = "a user's own scene"
@@ -184,7 +184,7 @@ class _Offset(PreparedModel):
     method = "offset"
 
     def _inverse_dynamics(self, q, qd, qdd):
-        from exo_bench.models.pinocchio_backend import inverse_dynamics
+        from exo_bench.models.engines.pinocchio_backend import inverse_dynamics
 
         tau = inverse_dynamics(self.mechanism, q, qd, qdd)
         tau[-1, 1] += 1e-6 * np.abs(tau).max()  # the last sample, on M_phi2

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 from test_bad_inputs import run_cli
 
-from exo_bench.models.presets import fig1
+from exo_bench.models.mechanism.presets import fig1
 
 EXO = [sys.executable, "-m", "exo_bench.bench.cli"]
 
@@ -299,7 +299,7 @@ def test_a_full_stdout_is_named(tmp_path, command):
 
 # ------------------------------------------------------------------------------ a reader that goes away
 def _states_file(d: Path) -> Path:
-    from exo_bench.models.motion import random_states
+    from exo_bench.models.gait.motion import random_states
 
     q, qd, qdd = random_states(fig1(2), 3, 0)
     (d / "s.json").write_text(

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
-from exo_bench.models.presets import random_tree
+from exo_bench.models.mechanism.presets import random_tree
 
 
 def test_every_shipped_scene_loads_and_builds_its_motion():
@@ -17,7 +17,7 @@ def test_every_shipped_scene_loads_and_builds_its_motion():
         mo = sc.build_motion()
         assert mo.q.shape[1] == sc.mechanism.dof
         if sc.mechanism.dim == 2:  # a 2D scene has no psi anywhere
-            from exo_bench.models.mechanism import coordinate_names, force_names
+            from exo_bench.models.mechanism.mechanism import coordinate_names, force_names
 
             assert not any("psi" in c for c in coordinate_names(sc.mechanism) + force_names(sc.mechanism))
 
@@ -69,7 +69,7 @@ def test_malformed_scene_names_file_and_field(case, tmp_path):
 
 
 def test_a_scene_selects_a_named_gait_and_overrides_its_fields(tmp_path):
-    from exo_bench.models.motion import GAITS, PAPER_ASSUMED_V1, GaitParams, planar_gait
+    from exo_bench.models.gait.motion import GAITS, PAPER_ASSUMED_V1, GaitParams, planar_gait
 
     default = load_scene(_write(tmp_path, GOOD, "a.toml"))
     assert default.motion["params"] == GaitParams() and "winter-fit-v1" in default.motion_label()

@@ -1,5 +1,5 @@
-"""The 8 x 8 SIMD transposes (models/simd_tiles.py) and the block transposes built on them
-(models/simd_blocks.py: block_transposes), against numpy's indexing: pure data movement, so the
+"""The 8 x 8 SIMD transposes (models/machine/simd_tiles.py) and the block transposes built on them
+(models/machine/simd_blocks.py: block_transposes), against numpy's indexing: pure data movement, so the
 oracle is equality to the bit, with every column count of the last tile (1-8) and the masked
 lanes neither read past the end of the states nor written into the result."""
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from exo_bench.models.simd_blocks import ROWS, FROWS, O0, block_transposes
-from exo_bench.models.simd_tiles import TILE, tile_in, tile_out
+from exo_bench.models.machine.simd_blocks import ROWS, FROWS, O0, block_transposes
+from exo_bench.models.machine.simd_tiles import TILE, tile_in, tile_out
 
 
 @njit

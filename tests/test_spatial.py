@@ -8,8 +8,8 @@ from conftest import assert_matrices_agree
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.bench.studies.errata import LagrangeWitness, pinocchio_matrices
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5, fig5, random_tree
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5, fig5, random_tree
 
 TREES = [(2, 1), (3, 2), (4, 3), (5, 4), (6, 5), (6, 6)]
 

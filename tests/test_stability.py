@@ -14,8 +14,8 @@ import pytest
 
 from exo_bench.bench.studies import stability as st
 from exo_bench.api import METHODS, MethodSpec, method_names, prepare
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models import pinocchio_backend as pb
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.engines import pinocchio_backend as pb
 
 TINY = dataclasses.replace(
     st.QUICK,

@@ -16,7 +16,7 @@ import pytest
 from exo_bench.api import PreparedSet
 from exo_bench.api.cost_model import estimate
 from exo_bench.bench.studies.stability import cases, evaluation
-from exo_bench.models.presets import chain
+from exo_bench.models.mechanism.presets import chain
 
 
 def _case(mech):

@@ -11,8 +11,8 @@ from test_bad_inputs import run_cli
 from conftest import K, assert_forces_agree
 
 from exo_bench.bench.cli import inverse as inverse_cli
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(3)
 

@@ -1,6 +1,6 @@
 """States are real numbers, read by name where they carry names (issue 34: W8, W9, U8).
 
-``as_states`` (models/states.py) is the edge every method's checked call goes through; these tests
+``as_states`` (models/states/states.py) is the edge every method's checked call goes through; these tests
 call it through ``prepare(...).inverse_dynamics`` as a user does, and check the answers against
 Pinocchio within the error model where the input is accepted."""
 
@@ -15,9 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import exo5
-from exo_bench.models.states import coordinate_names
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import exo5
+from exo_bench.models.states.states import coordinate_names
 
 MECH = exo5(3)
 NAMES = coordinate_names(MECH)

@@ -18,8 +18,8 @@ from conftest import EPS, K, assert_forces_agree
 from exo_bench.api.methods import method_names
 from exo_bench.bench.studies.step import data
 from exo_bench.bench.studies.step.problem import StepSettings, swap_matrix
-from exo_bench.models.kinematics import _rod_vectors, point_mass_positions
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.kinematics import _rod_vectors, point_mass_positions
+from exo_bench.models.mechanism.presets import exo5
 
 DIMS = (2, 3)
 REPO = Path(__file__).resolve().parents[1]
@@ -86,10 +86,10 @@ def test_every_method_equals_the_optimisers_loads(stored, method):
 
 
 def test_the_optimisers_net_joint_loads_are_those_of_joint_loads(stored):
-    """The stored moments and forces (CasADi, bench/studies/step/symbolic.py) against models/joint_loads.py. Each is a
+    """The stored moments and forces (CasADi, bench/studies/step/symbolic.py) against models/mechanism/joint_loads.py. Each is a
     sum over point masses of m (a - g) times an arm: the bound is K eps times the sum of |terms|, with each
     acceleration bounded by the sum of the magnitudes of its terms (l'' u, 2 l' u', l u'')."""
-    from exo_bench.models.joint_loads import net_joint_loads, subtree
+    from exo_bench.models.mechanism.joint_loads import net_joint_loads, subtree
 
     mech, st = stored
     M, F = net_joint_loads(mech, st.q, st.qd, st.qdd)
@@ -144,7 +144,7 @@ def test_swing_foot_clears_the_floor(stored):
 
 def test_leg_swap_is_the_rod_vector_relabelling():
     """``S q`` has rod vectors ``(-r4, -r3, -r2, -r1, r5)`` (3D: mirrored, y -> -y): derived, not assumed."""
-    from exo_bench.models.motion import random_states
+    from exo_bench.models.gait.motion import random_states
 
     for dim in DIMS:
         mech = exo5(dim)

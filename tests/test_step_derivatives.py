@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies.step import data
-from exo_bench.models.presets import exo5
+from exo_bench.models.mechanism.presets import exo5
 
 ca = pytest.importorskip("casadi")
 

@@ -26,10 +26,10 @@ from exo_bench import prepare
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.actuators import actuators, powers
 from exo_bench.bench.studies.stride.constraints import optimiser_loads_by, violations
-from exo_bench.models.contact import contact_force_jacobians
-from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.posture import ground_reaction
-from exo_bench.models.presets import human
+from exo_bench.models.simulation.contact import contact_force_jacobians
+from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+from exo_bench.models.simulation.posture import ground_reaction
+from exo_bench.models.mechanism.presets import human
 
 M = human(2)
 #: The strides issue 37 asks for: the human variant at three speeds, the exoskeleton at Winter's.

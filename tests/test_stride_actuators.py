@@ -14,10 +14,10 @@ from conftest import POWER_BALANCE_TOL
 
 from exo_bench import prepare
 from exo_bench.bench.studies.stride.actuators import actuators, powers, work_terms
-from exo_bench.models.kinematics import energy_rate
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.posture import joints
-from exo_bench.models.presets import exo5, human
+from exo_bench.models.mechanism.kinematics import energy_rate
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.simulation.posture import joints
+from exo_bench.models.mechanism.presets import exo5, human
 
 M = human(2)
 

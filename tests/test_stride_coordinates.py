@@ -13,10 +13,10 @@ from conftest import K, assert_close, term_scale
 
 from exo_bench import prepare
 from exo_bench.bench.studies.stride.coordinates import free_map, mirror_matrix, shift_root
-from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.posture import balanced_standing
-from exo_bench.models.presets import human
+from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.simulation.posture import balanced_standing
+from exo_bench.models.mechanism.presets import human
 
 M = human(2)
 N, ROOT = M.nlinks, M.names.index("root")

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from exo_bench.models.presets import human
+from exo_bench.models.mechanism.presets import human
 
 M = human(2)
 
@@ -25,7 +25,7 @@ def small():
     pytest.importorskip("casadi")
     from exo_bench.bench.studies.stride import problem
     from exo_bench.bench.studies.stride.coordinates import free_map
-    from exo_bench.models.posture import balanced_standing
+    from exo_bench.models.simulation.posture import balanced_standing
 
     s = problem.settings_for(M, "human", 1.41, intervals=2)
     fm = free_map(M, balanced_standing(M))

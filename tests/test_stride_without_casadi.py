@@ -16,7 +16,7 @@ import json, sys
 sys.modules["casadi"] = None  # import casadi -> ModuleNotFoundError, as without the extra
 from exo_bench.bench.studies.stride import data, join
 from exo_bench.bench.studies.stride.report import TRIALS, _stored
-from exo_bench.models.presets import human
+from exo_bench.models.mechanism.presets import human
 M = human(2)
 groups = join.joins(M, _stored(M), TRIALS)
 print(json.dumps({"casadi": sys.modules["casadi"] is None, "joins": [len(g) for g in groups],

@@ -9,9 +9,9 @@ from exo_bench import prepare
 from exo_bench.lagrange import canonical_form, derive
 from exo_bench.lagrange.peer import peer_equations
 from exo_bench.matrix_method.symbolic import compose as symbolic
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import fig1, fig2a, fig2b, random_tree
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import fig1, fig2a, fig2b, random_tree
+from exo_bench.models.mechanism.symbols import symbols_for
 
 MODELS = [
     fig1(2),

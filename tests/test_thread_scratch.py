@@ -1,4 +1,4 @@
-"""The SIMD kernels' scratch kept per thread (models/simd_blocks.ThreadScratch): each thread reuses its
+"""The SIMD kernels' scratch kept per thread (models/machine/simd_blocks.ThreadScratch): each thread reuses its
 own, and the forces are the same bits as with a scratch allocated per call, whatever ran in that
 scratch before (a bigger or smaller batch, another thread count, the other mechanism's model)."""
 
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from exo_bench import prepare
-from exo_bench.models import simd_blocks
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import chain, exo5, random_tree
+from exo_bench.models.machine import simd_blocks
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import chain, exo5, random_tree
 
 
 def _states(mech, samples, seed):

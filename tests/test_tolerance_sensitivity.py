@@ -18,8 +18,8 @@ from conftest import K, assert_forces_agree
 
 from exo_bench import prepare
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import random_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import random_states
 
 REL = 1e-12
 

@@ -6,8 +6,8 @@ import xml.etree.ElementTree as ET
 import pinocchio as pin
 import pytest
 
-from exo_bench.models.presets import exo5, fig2b, random_tree
-from exo_bench.models.urdf import to_urdf
+from exo_bench.models.mechanism.presets import exo5, fig2b, random_tree
+from exo_bench.models.engines.urdf import to_urdf
 
 
 def _parse(mech):
@@ -70,7 +70,7 @@ def test_model_size_predicted_without_building_is_pinocchios(mech, zero_middle):
     """pinocchio_model_size (the memory estimate's input) against the model Pinocchio builds from the
     URDF: nv = dof (mimic joints have no velocity), and the joints per link (phi, psi, the 3D undo
     mimic below a root, len, the mid mimic only for a middle mass)."""
-    from exo_bench.models.urdf import pinocchio_model_size
+    from exo_bench.models.engines.urdf import pinocchio_model_size
 
     if zero_middle:
         mech = mech.replace(masses=tuple((a, 0.0 if i % 2 == 0 else b, c) for i, (a, b, c) in enumerate(mech.masses)))

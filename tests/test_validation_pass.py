@@ -1,4 +1,4 @@
-"""Validation of states as one compiled pass (issue 35): models/validation_pass.py.
+"""Validation of states as one compiled pass (issue 35): models/states/validation_pass.py.
 
 The compiled pass (``status`` for the verdict, ``locate`` for where the first problem is) is held to
 the numpy reference of the same checks (``reference_status``, ``reference_locate``: the checks
@@ -16,11 +16,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from exo_bench.models import validation_pass as vp
-from exo_bench.models.mechanism import as_states, coordinate_names
-from exo_bench.models.presets import exo5, random_tree
-from exo_bench.models.states import checked_states, state_check
-from exo_bench.models.validation import MAX_FORCE_SCALE, _where, force_scale_log10
+from exo_bench.models.states import validation_pass as vp
+from exo_bench.models.mechanism.mechanism import as_states, coordinate_names
+from exo_bench.models.mechanism.presets import exo5, random_tree
+from exo_bench.models.states.states import checked_states, state_check
+from exo_bench.models.states.validation import MAX_FORCE_SCALE, _where, force_scale_log10
 
 LABELS = ("q", "qd", "qdd")
 
@@ -201,7 +201,7 @@ def test_checked_states_returns_c_ordered_float64_arrays_as_given():
 def test_an_accepted_call_makes_no_numpy_reductions_and_no_names(monkeypatch):
     """Per call, the fast path builds no coordinate names and runs no numpy reduction (the compiled
     pass does the work); they are built only to name a problem."""
-    from exo_bench.models import states
+    from exo_bench.models.states import states
 
     mech = exo5(3)
     q = np.full(mech.dof, 0.5)
@@ -237,8 +237,8 @@ def test_the_pass_is_compiled_once():
 
 
 def test_importing_the_mechanism_does_not_import_numba():
-    """numba is loaded by the first checked call, not by ``import exo_bench.models.mechanism``."""
-    code = "import sys, exo_bench.models.mechanism as m; m.Mechanism; print('numba' in sys.modules)"
+    """numba is loaded by the first checked call, not by ``import exo_bench.models.mechanism.mechanism``."""
+    code = "import sys, exo_bench.models.mechanism.mechanism as m; m.Mechanism; print('numba' in sys.modules)"
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "False", r.stderr
 
@@ -250,8 +250,8 @@ def test_the_numpy_reference_runs_under_numba_disable_jit(tmp_path):
     shared folder)."""
     code = (
         "import numpy as np\n"
-        "from exo_bench.models.presets import exo5\n"
-        "from exo_bench.models.mechanism import as_states\n"
+        "from exo_bench.models.mechanism.presets import exo5\n"
+        "from exo_bench.models.mechanism.mechanism import as_states\n"
         "m = exo5(3); q = np.full((50, m.dof), 0.3); as_states(m, q, q, q)\n"
         "q[7, 13] = -2.0\n"
         "try:\n    as_states(m, q, q, q)\nexcept ValueError as e:\n    print(e)\n"

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from conftest import EPS, assert_forces_agree
 
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models import virtual_work as vw
-from exo_bench.models.kinematics import energy_rate
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.mechanism import virtual_work as vw
+from exo_bench.models.mechanism.kinematics import energy_rate
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5, random_tree
 
 
 @pytest.mark.parametrize("n,dim,seed", [(1, 2, 0), (3, 2, 1), (7, 2, 2), (1, 3, 3), (4, 3, 4), (8, 3, 5)])
@@ -24,14 +24,14 @@ def test_power_balance_holds_to_many_digits_along_the_gait():
     truncation O(h^6) and rounding eps |T + Pi| / h (models.kinematics.energy_rate, h = 1e-3), the
     latter bounded here with the energy itself."""
     m = exo5(3)
-    from exo_bench.models.motion import gait
+    from exo_bench.models.gait.motion import gait
 
     f = lambda t: gait(m, t)
     t = np.linspace(0.05, 1.0, 7)
     mo = f(t)
     power = (vw.inverse_dynamics(m, mo.q, mo.qd, mo.qdd) * mo.qd).sum(1)
     rate = energy_rate(m, f, t)
-    from exo_bench.models.kinematics import _FD6, total_energy
+    from exo_bench.models.mechanism.kinematics import _FD6, total_energy
 
     # the stencil sums sum|c_k| E(t + k h) / h, each energy a sum of 2 terms (T and Pi) per point
     # mass rounded once each; twice that for the truncation and the forces' own rounding

@@ -1,4 +1,4 @@
-"""Every family of writers the package has goes through the one writer (exo_bench/models/atomic_files.py):
+"""Every family of writers the package has goes through the one writer (exo_bench/models/files/atomic_files.py):
 "Nothing half-written is left behind" and "Writes do not follow links planted in output folders".
 
 The families: the library's ``save_mechanism``, the CasADi functions' ``save`` (one ``.casadi`` file
@@ -29,13 +29,13 @@ OLD = "old content, kept\n"
 
 
 def _mechanism():
-    from exo_bench.models.presets import fig2a
+    from exo_bench.models.mechanism.presets import fig2a
 
     return fig2a(2)
 
 
 def _save_mechanism(folder: Path) -> None:
-    from exo_bench.models.loading import save_mechanism
+    from exo_bench.models.mechanism.loading import save_mechanism
 
     save_mechanism(_mechanism(), folder / "m.json")
 
@@ -50,7 +50,7 @@ def _step(folder: Path) -> None:
     from types import SimpleNamespace
 
     from exo_bench.bench.studies.step import data
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.mechanism.presets import exo5
 
     s = data.load("exo5-3d")
     arrays = {k: getattr(s, k) for k in ("t", "q", "qd", "qdd", "tau", "moments", "forces")}
@@ -59,7 +59,7 @@ def _step(folder: Path) -> None:
 
 def _stride(folder: Path) -> None:
     from exo_bench.bench.studies.stride import data
-    from exo_bench.models.presets import human
+    from exo_bench.models.mechanism.presets import human
 
     data.save(data.load("human", 1.41, human(2)), human(2), folder)
 
@@ -82,7 +82,7 @@ def _recording(folder: Path) -> None:
 
     from exo_bench.bench.output.recording import write_recording
     from exo_bench.bench.studies.study import run_methods
-    from exo_bench.models.motion import smooth_random_motion
+    from exo_bench.models.gait.motion import smooth_random_motion
 
     motion = smooth_random_motion(_mechanism(), np.linspace(0.0, 1.0, 5), seed=1)
     write_recording(run_methods("r", _mechanism(), motion, "a reach", ["matrix-factored"]), folder / "r.rrd")

@@ -4,7 +4,7 @@ Run by the controller of the README's test command (:func:`xdist_workers.pytest_
 ``python tests/warm_kernels.py PART`` with ``NUMBA_CACHE_DIR`` the workers' shared cache, one process
 per part, the parts at once. Without it the first tests of both workers, and every CLI process a test
 starts before the kernel it runs is saved, compile the same kernels again: each process that misses
-the cache compiles, and numba's index lock (models/numba_cache.py) serialises only the saving.
+the cache compiles, and numba's index lock (models/machine/numba_cache.py) serialises only the saving.
 With a warm cache this only loads (numba checks every index's source stamp, so a changed kernel is
 compiled here, once).
 
@@ -39,7 +39,7 @@ def states(dof: int, samples: int | None) -> np.ndarray:
 
 def warm(method: str, dim: int) -> None:
     from exo_bench import prepare, presets
-    from exo_bench.models.derivatives import Derivatives
+    from exo_bench.models.derivatives.derivatives import Derivatives
 
     model = prepare(presets.exo5(dim=dim), method)
     for samples in (None, BATCH):

@@ -13,7 +13,7 @@ Hooks of tests/conftest.py (imported there, so they are conftest hooks):
   CLI processes its tests start) is one folder for both workers, so a kernel one worker compiled is
   loaded, not compiled again, by the other (numba's compiles were about two thirds of a cold run's
   time). Safe since numba's index of a function's machine code is read and rewritten under a lock
-  (:func:`exo_bench.models.numba_cache.index_locked`, tests/test_numba_cache_lock.py): without it, two
+  (:func:`exo_bench.models.machine.numba_cache.index_locked`, tests/test_numba_cache_lock.py): without it, two
   processes compiling two signatures of one kernel at once could both take data file 1, and the index
   left could name the other signature's code (numba issues 4807, 10128), hence one folder per worker
   before. And ``PYTEST_XDIST_*``, which xdist sets in the worker's environment, is removed: a pytest

@@ -103,7 +103,7 @@ def error_line(e: BaseException) -> str:
 
     if isinstance(e, ResourceLimit):
         return str(e)
-    from exo_bench.models.prepared import MissingExtra
+    from exo_bench.models.runtime.prepared import MissingExtra
 
     if isinstance(e, MissingExtra):  # an engine not installed: the message names the extra; no budget to raise
         return f"{e}; or choose another method (matrix-factored)"
@@ -142,7 +142,7 @@ def _solve_failed(e: BaseException) -> bool:
 
 
 def _available() -> str:
-    from exo_bench.models.prepared import available_memory
+    from exo_bench.models.machine.memory import available_memory
 
     a = available_memory()
     return "memory" if a is None else f"{a / 1e9:.1f} GB of memory"

@@ -43,7 +43,7 @@ def add_parser(sub) -> None:
 
 
 def _mech(dim: int):
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.mechanism.presets import exo5
 
     return exo5(dim)
 

@@ -1,8 +1,8 @@
 """``exo-bench mjcf MECHANISM [-o FILE] [--no-check] [--max-memory SIZE]``: the MJCF (MuJoCo XML) of a
 mechanism, checked by compiling it with MuJoCo (extra [peers]). Before any work, a tree too deep for
 MuJoCo's parser, or one whose compilation would need more memory than ``--max-memory`` (default: the
-usable memory, :func:`exo_bench.models.memory.usable_memory`), is refused in one line
-(:func:`exo_bench.models.mjcf.compile_bytes`)."""
+usable memory, :func:`exo_bench.models.machine.memory.usable_memory`), is refused in one line
+(:func:`exo_bench.models.engines.mjcf.compile_bytes`)."""
 
 from __future__ import annotations
 
@@ -39,8 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_mjcf(args: argparse.Namespace) -> int:
     """The MJCF of a mechanism, compiled by MuJoCo before it is written (so that a file written loads
     in MuJoCo); ``--no-check`` writes it without MuJoCo."""
-    from exo_bench.models.loading import load_mechanism
-    from exo_bench.models.mjcf import to_mjcf
+    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.engines.mjcf import to_mjcf
 
     from exo_bench.bench.output.files import STDOUT, checked_output, stream_of, write_output
 
@@ -52,13 +52,13 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
 
         writable_folder(Path(out).resolve().parent, "-o")
     if not args.no_check:
-        from exo_bench.models.mjcf import check_nesting
+        from exo_bench.models.engines.mjcf import check_nesting
 
         check_nesting(mech)  # a ValueError before any work, where MuJoCo's parser would refuse the depth
         check_memory(mech, args.max_memory)
     text = to_mjcf(mech)
     if not args.no_check:
-        from exo_bench.models.mujoco_backend import compile_mjcf
+        from exo_bench.models.engines.mujoco_backend import compile_mjcf
 
         compile_mjcf(text, f"MJCF of {mech.name!r}")  # ValueError: MuJoCo missing, or refusing the file
     write_output(out, text, "mjcf -o", [args.mechanism])
@@ -68,8 +68,8 @@ def cmd_mjcf(args: argparse.Namespace) -> int:
 def check_memory(mech, limit: int | None) -> None:
     """A ValueError, before any work, when compiling the MJCF of ``mech`` in MuJoCo would need more
     than ``limit`` bytes (None: the usable memory; unknown: no check)."""
-    from exo_bench.models.memory import usable_memory
-    from exo_bench.models.mjcf import compile_bytes, mujoco_sizes
+    from exo_bench.models.machine.memory import usable_memory
+    from exo_bench.models.engines.mjcf import compile_bytes, mujoco_sizes
 
     source = "--max-memory"
     if limit is None:

@@ -13,7 +13,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_presets(args: argparse.Namespace) -> int:
-    from exo_bench.models.presets import preset_descriptions
+    from exo_bench.models.mechanism.presets import preset_descriptions
 
     for name, desc in preset_descriptions().items():
         print(f"{name:10s} {desc}")

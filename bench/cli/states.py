@@ -1,8 +1,8 @@
 """``exo-bench states MECHANISM -o FILE.json|FILE.npz [--samples N] [--seed S]``: example states.
 
-Seeded random states (:func:`exo_bench.models.motion.random_states`: elevations within 1.2 rad of
+Seeded random states (:func:`exo_bench.models.gait.motion.random_states`: elevations within 1.2 rad of
 the horizontal, lengths from 0.3 m), checked away from singular and ill-conditioned mass matrices
-(:meth:`exo_bench.models.prepared.PreparedModel.check_regular`, the check forward dynamics makes),
+(:meth:`exo_bench.models.runtime.prepared.PreparedModel.check_regular`, the check forward dynamics makes),
 with ``tau``, the generalised forces of those states by the default method: a file that
 ``exo-bench inverse`` (q, qd, qdd) and ``exo-bench forward`` (q, qd, tau) both read as written.
 The file goes through the one safe writer (bench/output/files.py: never through a link, never
@@ -52,7 +52,7 @@ def _count(text: str) -> int:
 
 def check_memory(samples: int, dof: int, npz: bool) -> None:
     """Before any work: one ValueError line when the file's peak memory would exceed the usable memory."""
-    from exo_bench.models.memory import usable_memory
+    from exo_bench.models.machine.memory import usable_memory
 
     need = 4 * samples * dof * (NPZ_BYTES_PER_NUMBER if npz else JSON_BYTES_PER_NUMBER)
     usable = usable_memory()
@@ -73,9 +73,9 @@ def _seed(text: str) -> int:
 
 def example_states(mechanism, samples: int, seed: int) -> dict[str, np.ndarray]:
     """``{"q", "qd", "qdd", "tau"}``, each ``(samples, dof)``; a singular or ill-conditioned sample is
-    one ValueError line naming it (:meth:`~exo_bench.models.prepared.PreparedModel.check_regular`)."""
+    one ValueError line naming it (:meth:`~exo_bench.models.runtime.prepared.PreparedModel.check_regular`)."""
     from exo_bench.api import prepare
-    from exo_bench.models.motion import random_states
+    from exo_bench.models.gait.motion import random_states
 
     q, qd, qdd = random_states(mechanism, samples, seed)
     model = prepare(mechanism)
@@ -99,7 +99,7 @@ def encoded(arrays: dict[str, np.ndarray], npz: bool) -> str | bytes:
 
 def cmd_states(args: argparse.Namespace) -> int:
     from exo_bench.bench.output.files import checked_output, write_output
-    from exo_bench.models.loading import load_mechanism
+    from exo_bench.models.mechanism.loading import load_mechanism
 
     checked_output(args.output, "states -o", [args.mechanism])  # before any work
     mech = load_mechanism(args.mechanism)

@@ -44,7 +44,7 @@ def add_parser(sub) -> None:
 
 def cmd_stride(args) -> int:
     from exo_bench.bench.studies.stride import data, reproduce
-    from exo_bench.models.presets import human
+    from exo_bench.models.mechanism.presets import human
 
     speed = _speed(args.speed)
     mech = human(2)

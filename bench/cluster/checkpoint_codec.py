@@ -6,7 +6,7 @@ read back by :func:`decode`, which builds only the dataclasses of :func:`registr
 result types, by name), each from exactly its declared fields, each field checked against its type
 hint; anything else in the file is one ValueError line naming the file and the field. Arrays are
 stored as their dtype (numbers only), shape and raw bytes (base64: the same bits back); a
-mechanism as its JSON (:meth:`exo_bench.models.mechanism.Mechanism.to_dict`, validated again on the
+mechanism as its JSON (:meth:`exo_bench.models.mechanism.mechanism.Mechanism.to_dict`, validated again on the
 way back). A simulation's dense output (a scipy ``OdeSolution``, a callable) is not kept: the
 reports never read it.
 """
@@ -35,7 +35,7 @@ def registry() -> dict[str, type]:
     """The dataclasses a checkpoint may hold, by class name."""
     from exo_bench.bench.studies.stability import cases, evaluation, forward_evaluation
     from exo_bench.bench.studies.stability import forward_energy, forward_round_trip, forward_terms
-    from exo_bench.models.forward_dynamics import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
     classes = (
         cases.Profile,
@@ -58,7 +58,7 @@ def registry() -> dict[str, type]:
 def encode(value: Any, where: str = "value") -> Any:
     """``value`` as JSON-able data (tagged: ``$tuple``, ``$dict``, ``$float``, ``$array``,
     ``$mechanism``, ``$dataclass``); a ValueError naming ``where`` for anything else."""
-    from exo_bench.models.mechanism import Mechanism
+    from exo_bench.models.mechanism.mechanism import Mechanism
 
     if value is None or isinstance(value, (bool, str)):
         return value
@@ -132,7 +132,7 @@ def decode(data: Any, where: str = "value") -> Any:
     if tag == "$array":
         return _array(body, where)
     if tag == "$mechanism":
-        from exo_bench.models.mechanism import Mechanism
+        from exo_bench.models.mechanism.mechanism import Mechanism
 
         return Mechanism.from_dict(body, source=f"field {where!r}")
     return _dataclass(body, data["fields"], where)

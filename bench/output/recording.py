@@ -104,7 +104,7 @@ def _lighter(color: str, k: int) -> tuple[int, int, int]:
 
 # ----------------------------------------------------------------------------- description
 def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
-    from exo_bench.models.encoders import markdown_code, markdown_text
+    from exo_bench.models.files.encoders import markdown_code, markdown_text
 
     mech = study.mechanism
     ok = study.ok_methods()

@@ -20,9 +20,9 @@ from exo_bench.bench.output.figures.scene_figures import (
     reference_method,
     scale_caption,
 )
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.names import file_stem
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.files.names import file_stem
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study
@@ -55,7 +55,7 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
 
 def trail_entity(name: str) -> str:
     """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``):
-    the file-name encoder's stem (:func:`exo_bench.models.names.file_stem`), its runs of ``_`` as one."""
+    the file-name encoder's stem (:func:`exo_bench.models.files.names.file_stem`), its runs of ``_`` as one."""
     return re.sub(r"_+", "_", file_stem(name)).strip("_") or "unnamed"
 
 

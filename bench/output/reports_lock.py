@@ -42,7 +42,7 @@ def _stderr(line: str) -> None:
 
 
 def _refused(path: Path, mode: int) -> ValueError:
-    from exo_bench.models.atomic_files import kind_of
+    from exo_bench.models.files.atomic_files import kind_of
 
     if stat.S_ISLNK(mode):
         return ValueError(

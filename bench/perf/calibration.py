@@ -13,8 +13,8 @@ from exo_bench.api.methods import derives_within_budget, preference
 _MEASURE = r"""
 import json, sys, time
 from exo_bench.api import prepare
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain
 import exo_bench.{module}  # imports outside the measurement
 
 def status(key):
@@ -57,7 +57,7 @@ def measure(method: str, n: int, dim: int, samples: int, options: dict | None = 
 
 def calibration_table(points=None) -> str:
     """Measured against estimated, as a Markdown table (``python -m exo_bench.bench.perf.calibration``)."""
-    from exo_bench.models.presets import chain
+    from exo_bench.models.mechanism.presets import chain
 
     points = points or [
         (m, n, d, s)

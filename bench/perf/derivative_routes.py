@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.api import prepare
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 EPS = float(np.finfo(float).eps)
 
@@ -111,7 +111,7 @@ def central_differences(mech: Mechanism, rows_per_call: int = 4096):
 def mujoco_inverse_fd(mech: Mechanism, eps: float = 1e-6):
     import mujoco
 
-    from exo_bench.models.mujoco_backend import MujocoRNE
+    from exo_bench.models.engines.mujoco_backend import MujocoRNE
 
     m = MujocoRNE(mech)
     model, data, G = m.mj_model, m.data, m.G
@@ -144,7 +144,7 @@ def drake_autodiff(mech: Mechanism):
     from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
     from pydrake.multibody.tree import MultibodyForces_
 
-    from exo_bench.models.drake_backend import DrakeID
+    from exo_bench.models.engines.drake_backend import DrakeID
 
     m = DrakeID(mech)
     plant = m.plant.ToAutoDiffXd()
@@ -174,7 +174,7 @@ def drake_autodiff(mech: Mechanism):
 def pinocchio_rnea_derivatives(mech: Mechanism):
     import pinocchio as pin
 
-    from exo_bench.models.pinocchio_backend import build_model
+    from exo_bench.models.engines.pinocchio_backend import build_model
 
     pm = build_model(mech)
     data, G = pm.create_data(), pm.G

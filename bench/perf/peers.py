@@ -20,8 +20,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from exo_bench.models.bounded_cache import BoundedCache
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def missing() -> str | None:
@@ -47,7 +47,7 @@ class PydyFunction:
     compose_seconds: float
 
 
-#: PyDy's compiled functions of the latest mechanisms (bounded: models/bounded_cache.py; a dropped one's
+#: PyDy's compiled functions of the latest mechanisms (bounded: models/machine/bounded_cache.py; a dropped one's
 #: extension module stays imported, as Python cannot unload it, but its generated sources are freed).
 _CACHE: BoundedCache[Mechanism, PydyFunction] = BoundedCache(16)
 
@@ -61,7 +61,7 @@ def pydy_cython(mech: Mechanism) -> PydyFunction:
     from pydy.codegen.cython_code import CythonMatrixGenerator
 
     from exo_bench.matrix_method.symbolic.compose import compose_equations
-    from exo_bench.models.symbols import symbols_for
+    from exo_bench.models.mechanism.symbols import symbols_for
 
     t0 = time.perf_counter()
     eqs = compose_equations(mech)

@@ -36,7 +36,7 @@ import numba
 import numpy as np
 from numba import njit
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 class Counted(float):

@@ -3,8 +3,8 @@
 Counted like :func:`exo_bench.bench.perf.roofline_simd.count_simd`: the kernel's own steps (their
 ``py_func``: the forward pass with its start points, the backward pass) run one sample on arrays of
 :class:`exo_bench.bench.perf.roofline.Counted` numbers, with the element functions of
-models/rod_elements.py and the branch-free ``sin``/``cos``
-(:func:`exo_bench.models.fast_trig.sincos_reduced`, whose ``floor`` counts as one flop) as they are:
+models/mechanism/rod_elements.py and the branch-free ``sin``/``cos``
+(:func:`exo_bench.models.machine.fast_trig.sincos_reduced`, whose ``floor`` counts as one flop) as they are:
 every ``+``, ``-``, ``*`` and ``floor`` of the code that runs is counted, the arithmetic sine and
 cosine included, and the per-mechanism numbers are counted numbers too (so a root's ``eta * 0``
 counts, as the compiled loop does it). Not counted: the comparisons and selects of the range check
@@ -21,7 +21,7 @@ import numpy as np
 
 from exo_bench.bench.perf.roofline import Counted, rebind
 from exo_bench.bench.perf.roofline_simd import _floor, _fma, estimate_simd
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 __all__ = ["count_newton_euler_simd", "estimate_simd"]
 
@@ -33,10 +33,10 @@ def _no_prefetch(*args) -> None:
 def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the newton-euler SIMD kernel on ``mech`` (module docstring),
     and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
-    from exo_bench.models import fast_trig, simd_angles
+    from exo_bench.models.machine import fast_trig, simd_angles
     from exo_bench.models.newton_euler import simd
     from exo_bench.models.newton_euler.tree import prepare_tree
-    from exo_bench.models.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
+    from exo_bench.models.machine.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
 
     trig = rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
     start = rebind(simd._start_points.py_func)

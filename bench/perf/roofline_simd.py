@@ -21,7 +21,7 @@ import types
 import numpy as np
 
 from exo_bench.bench.perf.roofline import Counted, rebind
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def _floor(x):
@@ -30,8 +30,8 @@ def _floor(x):
 
 
 def _fma(a, b, c):
-    """A fused multiply-add (:func:`exo_bench.models.fast_trig.fma`), counted as the multiply and the add it does."""
-    from exo_bench.models.fast_trig import fma
+    """A fused multiply-add (:func:`exo_bench.models.machine.fast_trig.fma`), counted as the multiply and the add it does."""
+    from exo_bench.models.machine.fast_trig import fma
 
     Counted.tally["mul"] += 1
     Counted.tally["add"] += 1
@@ -46,7 +46,7 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
 
     trig = fast_trig.sincos_reduced
     counted_trig = rebind(trig, math=types.SimpleNamespace(floor=_floor), fma=_fma)
-    from exo_bench.models import simd_angles
+    from exo_bench.models.machine import simd_angles
 
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
     counted_compute = rebind(compute, link_pass=rebind(simd_angles.link_pass, sincos_reduced=counted_trig))

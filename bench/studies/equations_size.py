@@ -49,7 +49,7 @@ def _size_point(mech, route: str, budget: float) -> SizePoint:
     import sympy as sp
 
     from exo_bench.matrix_method.export import code as export_code
-    from exo_bench.models.symbols import symbols_for
+    from exo_bench.models.mechanism.symbols import symbols_for
 
     S = symbols_for(mech.nlinks, mech.dim)
     t0 = time.perf_counter()
@@ -86,7 +86,7 @@ def size_report(options: ReportOptions) -> int:
     import matplotlib.pyplot as plt
 
     from exo_bench.bench.output.provenance import atomic_write, provenance, save_figure
-    from exo_bench.models.presets import chain, random_tree
+    from exo_bench.models.mechanism.presets import chain, random_tree
 
     full = options.full
     out = options.folder

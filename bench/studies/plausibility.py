@@ -4,7 +4,7 @@ For every joint of the model: the peak ``|net joint moment|`` (``models.joint_lo
 parent side exerts on the subtree, about the joint) per kg of the model's mass, its sagittal
 component, and the peak rod force ``F_k`` (the reference method's tau) in body weights, each
 beside the normative peak of the joint or segment it plays in level walking
-(:data:`exo_bench.models.normative.WINTER`, one subject). The joint a link's start plays is read from the
+(:data:`exo_bench.models.gait.normative.WINTER`, one subject). The joint a link's start plays is read from the
 link's name (the presets of the exoskeleton: ``stance_shin``, ``stance_thigh``, ``swing_thigh``,
 ``swing_shin``, ``trunk``); other links get no normative value.
 
@@ -19,10 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.bench.studies.study import Study
-from exo_bench.models.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import split
-from exo_bench.models.normative import SHORT_SOURCE, SOURCE, WINTER, Normative
+from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.gait.normative import SHORT_SOURCE, SOURCE, WINTER, Normative
 
 #: The joint at the start of a link of the exoskeleton, the normative key of its moment and of its
 #: rod's force, and whether the comparison means something (see :func:`limitations`).
@@ -165,7 +165,7 @@ def markdown(p: Plausibility) -> str:
         "## Plausibility: the loads beside level walking",
         "",
         f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, "
-        f"about the joint; `models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and "
+        f"about the joint; `models/mechanism/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and "
         f"peak rod forces ({p.reference}) in body weights (BW = {p.weight:.0f} N), beside the "
         f"normative peak of the joint each plays in level walking ({SHORT_SOURCE}).",
         "",

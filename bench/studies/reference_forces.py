@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 DPS = 50
 LAGRANGE_MAX_LINKS = {2: 6, 3: 5}  # beyond these, deriving costs more than a report should wait
@@ -29,6 +29,6 @@ def reference(mech: Mechanism, q, qd, qdd, budget: float = 30.0) -> tuple[np.nda
         except Exception as e:  # noqa: BLE001 - over budget: fall back, and say so in the label
             if not getattr(e, "skip_reason", None):
                 raise
-    from exo_bench.models import virtual_work
+    from exo_bench.models.mechanism import virtual_work
 
     return virtual_work.inverse_dynamics(mech, q, qd, qdd, dps=DPS), "d'Alembert, mpmath 50 digits"

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.loading import read_json
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import DEFAULT_GAIT, GAITS, GaitParams, from_arrays, gait, planar_gait
+from exo_bench.models.mechanism.loading import read_json
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import DEFAULT_GAIT, GAITS, GaitParams, from_arrays, gait, planar_gait
 
 
 MOTIONS = ("gait", "planar-gait", "smooth-random", "states", "step", "stride")  # step, stride: bench/studies/*/scene.py
@@ -144,7 +144,7 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
 def _probe_gait(path: Path, kind: str, mech: Mechanism, params, period_given: bool) -> None:
     """Refuse, before the run, a gait whose rates or accelerations are not finite float64 or whose
     forces would overflow (a period T of 1e-300 s): 16 samples of one period, numpy's warnings off."""
-    from exo_bench.models.mechanism import as_states
+    from exo_bench.models.mechanism.mechanism import as_states
 
     fn = gait if kind == "gait" else planar_gait
     with np.errstate(all="ignore"):

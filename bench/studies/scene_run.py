@@ -18,8 +18,8 @@ from exo_bench.bench.output.provenance import atomic_write, provenance
 from exo_bench.bench.studies.scene_forces import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
-from exo_bench.models.encoders import markdown_code
-from exo_bench.models.names import file_stem
+from exo_bench.models.files.encoders import markdown_code
+from exo_bench.models.files.names import file_stem
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -51,7 +51,7 @@ def _us(seconds: float | None) -> str:
 
 def power_balance(scene: Scene, study: Study) -> dict[str, float]:
     """``max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|`` per method, along an analytic motion."""
-    from exo_bench.models.kinematics import energy_rate
+    from exo_bench.models.mechanism.kinematics import energy_rate
 
     f = scene.motion_function()
     if f is None:
@@ -155,7 +155,7 @@ def _scene_table(o: SceneOutcome) -> str:
         "",
         "`setup s`: the first call (building the model, deriving, compiling), timed apart from the batch. "
         "`power balance`: max |tau . qd - d(T+Pi)/dt| / max |d(T+Pi)/dt|, with T and Pi summed over the "
-        "point masses (models/kinematics.py) and differentiated by a sixth-order central difference.",
+        "point masses (models/mechanism/kinematics.py) and differentiated by a sixth-order central difference.",
         "",
     ]
     ref = st.results.get(sc.reference)
@@ -198,7 +198,7 @@ FIGURES = ("moments", "forces", "kinogram", "differences", "overview")
 
 def scene_file(scene: Scene, output: str) -> str:
     """The file of one output of a scene (``table``, a figure, ``recording``), named by the
-    file-name encoder (models/names.py ``file_stem``) from the scene's name."""
+    file-name encoder (models/files/names.py ``file_stem``) from the scene's name."""
     stem = file_stem(scene.name)
     if output == "table":
         return f"{stem}.md"

@@ -13,9 +13,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from exo_bench.api import prepare
-from exo_bench.models.mechanism import Mechanism, force_names
-from exo_bench.models.motion import Motion
-from exo_bench.models.prepared import MissingExtra
+from exo_bench.models.mechanism.mechanism import Mechanism, force_names
+from exo_bench.models.gait.motion import Motion
+from exo_bench.models.runtime.prepared import MissingExtra
 
 
 @dataclass

@@ -10,9 +10,9 @@ prepared model's calls are cheap. Arrays are batch-first, ``(samples, dof)``, in
 import numpy as np
 
 from exo_bench import prepare, presets
-from exo_bench.models.joint_loads import net_joint_loads
-from exo_bench.models.motion import random_states
-from exo_bench.models.pinocchio_backend import build_model, joint_torques
+from exo_bench.models.mechanism.joint_loads import net_joint_loads
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques
 
 mech = presets.exo5(dim=3)  # the paper's five-link 3D exoskeleton: 15 coordinates
 model = prepare(mech, "matrix-factored")

@@ -12,7 +12,7 @@ saves them as ``.casadi`` files.
 import numpy as np
 
 from exo_bench import prepare, presets
-from exo_bench.models.motion import random_states
+from exo_bench.models.gait.motion import random_states
 
 mech = presets.exo5(dim=3)
 model = prepare(mech, "matrix-factored")

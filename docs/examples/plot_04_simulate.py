@@ -12,8 +12,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from exo_bench import prepare, presets
-from exo_bench.models.forward_dynamics import prescribed_controls, simulate
-from exo_bench.models.motion import planar_gait as gait
+from exo_bench.models.simulation.forward_dynamics import prescribed_controls, simulate
+from exo_bench.models.gait.motion import planar_gait as gait
 
 mech = presets.exo5(dim=2)
 model = prepare(mech, "newton-euler")  # O(n) forward dynamics per sample

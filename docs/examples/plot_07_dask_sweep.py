@@ -17,7 +17,7 @@ def agreement(nlinks: int, seed: int) -> tuple[int, float]:
     import numpy as np
 
     from exo_bench import prepare, presets
-    from exo_bench.models.motion import random_states
+    from exo_bench.models.gait.motion import random_states
 
     mech = presets.random_tree(nlinks, dim=3, seed=seed)
     q, qd, qdd = random_states(mech, 200, seed=seed)

@@ -11,10 +11,12 @@ import math
 from dataclasses import dataclass
 from collections.abc import Callable
 
-from exo_bench.models.kernels import NUMBA_BYTES, Kernel
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.runtime.kernels import NUMBA_BYTES, Kernel
+from exo_bench.models.mechanism.mechanism import Mechanism
 
-__all__ = ["NUMBA_BYTES"]  # re-exported: the memory of numba's runtime is the kernel objects' (models/kernels.py)
+__all__ = [
+    "NUMBA_BYTES"
+]  # re-exported: the memory of numba's runtime is the kernel objects' (models/runtime/kernels.py)
 
 F8 = 8  # bytes per float64
 
@@ -43,7 +45,7 @@ class CostModel:
     """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample seconds, and a note on
     what dominates (the per-sample bytes are the prepared-model class's ``sample_bytes``). What a
     kernel adds (its speed against these figures, its compile time, its runtime's memory) is the
-    kernel object's (:class:`~exo_bench.models.kernels.Kernel`, :func:`kernel_note`)."""
+    kernel object's (:class:`~exo_bench.models.runtime.kernels.Kernel`, :func:`kernel_note`)."""
 
     setup_bytes: Callable[[Mechanism, dict], float]
     setup_seconds: Callable[[Mechanism, dict], float]
@@ -69,7 +71,7 @@ def _seconds(x: float) -> str:
 
 
 def _pin_data(mech: Mechanism, options: dict) -> tuple[int, int]:
-    from exo_bench.models.urdf import pinocchio_data_bytes
+    from exo_bench.models.engines.urdf import pinocchio_data_bytes
 
     threads = int(options.get("threads", 1) or 1)
     count = 1 + (threads + 1 if threads > 1 else 0)  # this thread's Data, the pool's and its construction's copy
@@ -91,7 +93,7 @@ def _pin_setup_seconds(mech, options):
 
 
 def _pin_note(mech, options):
-    from exo_bench.models.urdf import pinocchio_model_size
+    from exo_bench.models.engines.urdf import pinocchio_model_size
 
     nv, _ = pinocchio_model_size(mech)
     one, count = _pin_data(mech, options)

@@ -98,8 +98,8 @@ from dataclasses import dataclass, field
 
 from exo_bench.api.cost_formulas import ARRAY_BANDWIDTH, BASE_BYTES, F8, LOADED, _loglog, _seconds, _size, kernel_note
 from exo_bench.api.methods import METHODS, method_class, preference
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import USABLE_SHARE, default_chunk_samples, usable_memory
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.machine.memory import USABLE_SHARE, default_chunk_samples, usable_memory
 
 
 def sample_bytes(mech: Mechanism, method: str) -> float:
@@ -110,7 +110,7 @@ def sample_bytes(mech: Mechanism, method: str) -> float:
 
 def chunk_samples(mech: Mechanism, method: str) -> int:
     """Samples per chunk of ``method`` on ``mech``: the chunk its prepared model uses (one chunk's
-    temporaries near :data:`~exo_bench.models.prepared.CHUNK_BYTES`)."""
+    temporaries near :data:`~exo_bench.models.runtime.prepared.CHUNK_BYTES`)."""
     return default_chunk_samples(mech.dof, sample_bytes(mech, method))
 
 

@@ -1,6 +1,6 @@
 """The methods of the suite, one :class:`MethodSpec` each: every fact the suite knows about a method.
 
-Each spec names a :class:`~exo_bench.models.prepared.PreparedModel` subclass (imported lazily, so
+Each spec names a :class:`~exo_bench.models.runtime.prepared.PreparedModel` subclass (imported lazily, so
 a scene that does not use a method never imports, or derives, it), a one-line text of what runs,
 whether its results are known to be wrong and why, its cost formulas
 (:mod:`exo_bench.api.cost_formulas`), its colour in every figure, the values of its ``kernel``
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 from exo_bench.api import cost_formulas as cost
 from exo_bench.api.cost_formulas import CostModel
 from exo_bench.matrix_method.kernels import MATRIX_FACTORED_KERNELS, MATRIX_KERNELS, RECURRENCE_KERNELS
-from exo_bench.models.kernels import Kernel, kernel_options
+from exo_bench.models.runtime.kernels import Kernel, kernel_options
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.runtime.prepared import PreparedModel
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class MethodSpec:
     """What the suite knows about one method. The name says what runs."""
 
     name: str
-    #: Module and class of its :class:`~exo_bench.models.prepared.PreparedModel` subclass.
+    #: Module and class of its :class:`~exo_bench.models.runtime.prepared.PreparedModel` subclass.
     module: str
     cls: str
     #: One line: what runs, and its options.
@@ -39,7 +39,7 @@ class MethodSpec:
     colour: str = ""
     #: The cost formulas of :mod:`exo_bench.api.cost_formulas` (None: its arrays only).
     cost: CostModel | None = None
-    #: Its kernels (:mod:`exo_bench.models.kernels`), the tuple its prepared-model class lists; the
+    #: Its kernels (:mod:`exo_bench.models.runtime.kernels`), the tuple its prepared-model class lists; the
     #: option ``kernel`` chooses among them by their ``option`` (empty: no such option).
     kernels: tuple[Kernel, ...] = ()
     #: Why its results are known to be wrong (None: they are not), in one line.
@@ -52,7 +52,7 @@ class MethodSpec:
     #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
     #: about a minute): a benchmark row that composes only such methods needs no chain.
     composes_within_budget: bool = False
-    #: Its ``derivatives`` (the analytic derivatives of the Newton-Euler passes, exo_bench.models.derivatives)
+    #: Its ``derivatives`` (the analytic derivatives of the Newton-Euler passes, exo_bench.models.derivatives.derivatives)
     #: differentiate the very passes it evaluates (newton-euler), not merely equations it agrees with to
     #: rounding.
     derivatives_are_its_own: bool = False
@@ -99,9 +99,9 @@ class MethodSpec:
     def load(self) -> type[PreparedModel]:
         """The prepared-model class (imports its module). A method with compiled kernels first checks
         numba's environment variables, before numba is imported (a ValueError naming the variable:
-        :func:`exo_bench.models.numba_runtime.environment_problem`), in numba's runtime set-up."""
+        :func:`exo_bench.models.machine.numba_runtime.environment_problem`), in numba's runtime set-up."""
         if any(k.compiled for k in self.kernels):
-            importlib.import_module("exo_bench.models.numba_runtime").ensure()
+            importlib.import_module("exo_bench.models.machine.numba_runtime").ensure()
         return getattr(importlib.import_module(self.module), self.cls)
 
 
@@ -113,7 +113,7 @@ METHODS: dict[str, MethodSpec] = {
     for s in (
         MethodSpec(
             "pinocchio",
-            "exo_bench.models.pinocchio_backend",
+            "exo_bench.models.engines.pinocchio_backend",
             "PinocchioRNEA",
             "Pinocchio RNEA on the generated URDF, tau = G^T tau_joint (option: threads)",
             colour="#1b9e77",
@@ -200,7 +200,7 @@ METHODS: dict[str, MethodSpec] = {
         ),
         MethodSpec(
             "mujoco",
-            "exo_bench.models.mujoco_backend",
+            "exo_bench.models.engines.mujoco_backend",
             "MujocoRNE",
             "MuJoCo's RNE (mj_kinematics, mj_comPos, mj_comVel, mj_rne) on the exported MJCF, tau = G^T tau_joint; "
             "a Python loop over the samples (optional extra [peers])",
@@ -214,7 +214,7 @@ METHODS: dict[str, MethodSpec] = {
         ),
         MethodSpec(
             "drake",
-            "exo_bench.models.drake_backend",
+            "exo_bench.models.engines.drake_backend",
             "DrakeID",
             "Drake MultibodyPlant.CalcInverseDynamics minus CalcGravityGeneralizedForces, tau = G^T tau_joint; "
             "a Python loop over the samples (optional extra [peers])",

@@ -1,7 +1,7 @@
 """:func:`prepare`, the library's entry point, and :class:`PreparedSet`, the prepared models of one run.
 
 ``prepare(mechanism, name, **options)`` builds a method's
-:class:`~exo_bench.models.prepared.PreparedModel` once (all per-mechanism work); its
+:class:`~exo_bench.models.runtime.prepared.PreparedModel` once (all per-mechanism work); its
 ``inverse_dynamics(q, qd, qdd)`` takes batch-first ``(samples, dof)`` (or one ``(dof,)``) arrays in
 the block order ``[phi..., psi..., l...]`` and returns ``[M_phi..., M_psi..., F...]``: the
 generalised forces of the paper's absolute coordinates. The model is the class's own: calling the
@@ -13,16 +13,16 @@ from __future__ import annotations
 from typing import Any
 
 from exo_bench.api.methods import method_class, spec
-from exo_bench.models import prepared
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.runtime import prepared
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.runtime.prepared import PreparedModel
 
 
 def _derivatives(mechanism: Mechanism, method: str) -> Any:
-    """The analytic derivatives (:mod:`exo_bench.models.derivatives`) for every method, no CasADi; CasADi's
+    """The analytic derivatives (:mod:`exo_bench.models.derivatives.derivatives`) for every method, no CasADi; CasADi's
     stay reachable as ``exo_bench.matrix_method.derivatives.derivatives_of(mechanism, method)``."""
     from exo_bench.api.methods import METHODS
-    from exo_bench.models.derivatives import derivatives_of, source_text
+    from exo_bench.models.derivatives.derivatives import derivatives_of, source_text
 
     method_spec = METHODS.get(method)
     source = source_text(
@@ -45,7 +45,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     A lagrange derivation whose estimated time exceeds its ``budget`` (or whose memory exceeds what
     a run may use) is refused before it starts (:func:`exo_bench.api.cost_model.check`, a ValueError
     naming the estimate and the budget). Pinocchio's ``threads`` is a count from 1 to
-    :func:`exo_bench.models.resource_counts.max_count`, and its Data per thread (and the pool's copy)
+    :func:`exo_bench.models.machine.resource_counts.max_count`, and its Data per thread (and the pool's copy)
     are estimated by the same cost model and refused before any is made when they exceed the memory.
     """
     cls = method_class(method)
@@ -74,7 +74,7 @@ def _threads(method: str, options: dict[str, Any]) -> int:
     """The option ``threads`` (pinocchio's), checked against its bound (1 for other methods)."""
     if not spec(method).threads_option or "threads" not in options:
         return 1
-    from exo_bench.models.resource_counts import check_count
+    from exo_bench.models.machine.resource_counts import check_count
 
     return check_count(f"{method}: option 'threads'", options["threads"])
 
@@ -88,7 +88,7 @@ def _refuse_uncompiled_kernels(method: str, options: dict[str, Any]) -> None:
     method_spec = METHODS.get(method)
     if method_spec is None or not any(k.compiled for k in method_spec.kernels_for(options.get("kernel"))):
         return
-    from exo_bench.models.numba_runtime import jit_disabled
+    from exo_bench.models.machine.numba_runtime import jit_disabled
 
     if jit_disabled():
         import os

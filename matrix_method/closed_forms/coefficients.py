@@ -2,7 +2,7 @@
 
 The aggregates ``zeta, eta, theta`` of eq. (6), the descendant masses ``Theta`` and the mass
 coupling ``mu_ij`` / gravity coefficients ``nu_k`` of ``T = 1/2 sum_ij mu_ij w_i' . w_j'`` and
-``Pi = g sum_k nu_k (w_k . up)`` are defined once, in :mod:`exo_bench.models.aggregates` (derivation there).
+``Pi = g sum_k nu_k (w_k . up)`` are defined once, in :mod:`exo_bench.models.mechanism.aggregates` (derivation there).
 Every matrix element of eqs. (5) and (17) is ``c_ij = mu_ij s_i s_j`` times a geometric factor of
 links i and j (:mod:`exo_bench.matrix_method.closed_forms.planar`), so the sign products of a branched model ("reversed
 links contribute sign products") live in ``c`` alone; this module adds them.
@@ -20,8 +20,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from exo_bench.models.aggregates import aggregates, coupling_entries, link_aggregates
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.aggregates import aggregates, coupling_entries, link_aggregates
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 # ----------------------------------------------------------------- numeric
@@ -74,7 +74,7 @@ def recurrence_increments(mech: Mechanism, k: int) -> tuple[np.ndarray, np.ndarr
 # ------------------------------------------------------------- any arithmetic
 def generic_aggregates(params):
     """Eq. (6), definitions, in any arithmetic (sympy, ring elements): ``zeta, eta, theta`` per link
-    from ``params = [(m0, m1, m2, n), ...]`` (:func:`exo_bench.models.aggregates.aggregates`)."""
+    from ``params = [(m0, m1, m2, n), ...]`` (:func:`exo_bench.models.mechanism.aggregates.aggregates`)."""
     per_link = [aggregates(*p) for p in params]
     return [a[0] for a in per_link], [a[1] for a in per_link], [a[2] for a in per_link]
 
@@ -82,7 +82,7 @@ def generic_aggregates(params):
 def generic_coupling(mech: Mechanism, params, zero=0):
     """``(c, nu_s)`` in any arithmetic: nested lists ``c_ij = mu_ij s_i s_j`` (``zero`` for links on
     different branches) and ``nu_i s_i``; the generic twin of :func:`signed_coupling`, built on
-    :func:`exo_bench.models.aggregates.coupling_entries`."""
+    :func:`exo_bench.models.mechanism.aggregates.coupling_entries`."""
     zeta, eta, theta = generic_aggregates(params)
     return signed_coupling_entries(mech, zeta, eta, theta, zero=zero)
 
@@ -90,7 +90,7 @@ def generic_coupling(mech: Mechanism, params, zero=0):
 def signed_coupling_entries(mech: Mechanism, zeta, eta, theta, zero=0):
     """``(c, nu_s)`` from the per-link aggregates of eq. (6), in any arithmetic (symbols for the
     aggregates themselves: the LaTeX export): the branch signs added to
-    :func:`exo_bench.models.aggregates.coupling_entries`."""
+    :func:`exo_bench.models.mechanism.aggregates.coupling_entries`."""
     n = mech.nlinks
     mu, nu = coupling_entries(mech, zeta, eta, theta, zero=zero)
     s = mech.sign

@@ -2,7 +2,7 @@
 
 The formulas are those of ``coefficients`` (eq. (6) and the branch signs, written once in any
 arithmetic); this module only supplies their sympy inputs, the shared mass symbols of
-:func:`exo_bench.models.symbols.symbols_for` or exact Rationals of the mechanism's floats. Kept apart
+:func:`exo_bench.models.mechanism.symbols.symbols_for` or exact Rationals of the mechanism's floats. Kept apart
 so that the numeric path (the kernels' coefficients) never imports sympy.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 import sympy as sp
 
 from exo_bench.matrix_method.closed_forms.coefficients import generic_aggregates, generic_coupling
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import Symbols
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import Symbols
 
 
 def parameters(mech: Mechanism, S: Symbols, symbolic_parameters: bool):

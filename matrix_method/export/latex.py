@@ -2,7 +2,7 @@
 
 Each element of eq. (5)/(17) is ``c_ij`` times a geometric factor of links ``i`` and ``j``
 (:mod:`exo_bench.matrix_method.closed_forms.planar`, :mod:`exo_bench.matrix_method.closed_forms.transitions`: the closed forms are linear in ``c``),
-with ``c_ij = s_i s_j mu_ij`` (:mod:`exo_bench.matrix_method.closed_forms.coefficients`, :mod:`exo_bench.models.aggregates`), and each
+with ``c_ij = s_i s_j mu_ij`` (:mod:`exo_bench.matrix_method.closed_forms.coefficients`, :mod:`exo_bench.models.mechanism.aggregates`), and each
 gravity element ``P_i`` is ``nu_i s_i`` times one. :func:`element_parts` builds the geometric factors
 with ``c = 1`` on related links, so an element prints as
 
@@ -36,10 +36,10 @@ from exo_bench.matrix_method.symbolic.compose import (
 )
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries
 from exo_bench.matrix_method.closed_forms.symbolic_coefficients import symbolic_aggregates
-from exo_bench.models.aggregates import aggregates
-from exo_bench.models.equation_form import RATES, blocks, matrix_names
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.mechanism.aggregates import aggregates
+from exo_bench.models.states.equation_form import RATES, blocks, matrix_names
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import symbols_for
 
 #: LaTeX of each matrix's elements (lower case, as the paper writes them) and of each block.
 LETTER = {"A": "a", "B": "b", "Lambda": r"\lambda", "D": "d", "E": "e", "G": "g", "H": "h", "K": "k", "P": "p"}

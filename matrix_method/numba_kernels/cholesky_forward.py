@@ -2,7 +2,7 @@
 ``cholesky-forward`` kernel object (:data:`exo_bench.matrix_method.kernels.MATRIX_FACTORED_KERNELS`).
 
 The batched route forms ``M`` and ``h`` from the factored inverse dynamics and solves ``M qdd = tau - h``
-by Cholesky (``mass_matrix_and_bias``, :func:`exo_bench.models.derived_terms.cholesky_solve`): about
+by Cholesky (``mass_matrix_and_bias``, :func:`exo_bench.models.runtime.derived_terms.cholesky_solve`): about
 200 us for one exo5-3d sample in numpy calls. Here, in one compiled call and without forming ``M``:
 
 * ``h = tau(q, qd, 0)``: the per-sample kernel of :mod:`~exo_bench.matrix_method.numba_kernels.factored`
@@ -20,7 +20,7 @@ by Cholesky (``mass_matrix_and_bias``, :func:`exo_bench.models.derived_terms.cho
 ``M`` is singular exactly where a ``D_i`` is (a rod vertical or of length zero) or ``C`` is (the
 mechanism is refused): :func:`forward_sample` answers False there, having written nothing into
 ``o`` (and where a length is not finite); its caller then takes the numpy route, which names why.
-:func:`checked_forward` fuses it with the common-case checks of :mod:`exo_bench.models.forward_check`
+:func:`checked_forward` fuses it with the common-case checks of :mod:`exo_bench.models.runtime.forward_check`
 (``_row_clear`` before, ``_finite`` after), answering :data:`DONE`, :data:`EXACT` (nothing computed:
 the exact checks decide) or :data:`NOT_FINITE`. The result agrees with the batched route's to
 rounding, not to the bit (tests/test_cholesky_forward.py).
@@ -38,8 +38,8 @@ from numba import types
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.numba_kernels.factored import _sample_2d, _sample_3d
-from exo_bench.models.forward_check import DONE, EXACT, NOT_FINITE, _finite, _row_clear
-from exo_bench.models.numba_runtime import jit_disabled
+from exo_bench.models.runtime.forward_check import DONE, EXACT, NOT_FINITE, _finite, _row_clear
+from exo_bench.models.machine.numba_runtime import jit_disabled
 
 __all__ = ["DONE", "EXACT", "NOT_FINITE", "checked_forward", "entries", "forward_sample"]
 
@@ -124,7 +124,7 @@ def forward_sample(p, lc, x, xd, tau, o):
 @njit(**JIT)
 def checked_forward(p, lc, plan, x, xd, tau, o):
     """One validated sample: :data:`EXACT` unless ``x`` clears the bounds of ``plan``
-    (:func:`exo_bench.models.forward_check.plan`) and ``M`` is positive definite, else forward
+    (:func:`exo_bench.models.runtime.forward_check.plan`) and ``M`` is positive definite, else forward
     dynamics into ``o`` and :data:`DONE`, or :data:`NOT_FINITE` where an entry of ``o`` is not finite."""
     if not _row_clear(x, 0, x.shape[0], p.shape[0], plan):
         return EXACT

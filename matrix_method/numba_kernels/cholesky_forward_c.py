@@ -1,9 +1,9 @@
 """``cholesky-forward``'s checked forward dynamics of one sample as a C function (numba ``cfunc``), for
-the compiled wrapper models/_lean_call.c (:func:`exo_bench.models.lean_call.c_call` with ``forward``):
+the compiled wrapper models/runtime/_lean_call.c (:func:`exo_bench.models.runtime.lean_call.c_call` with ``forward``):
 ``int64 f(double *packed, double *q, double *qd, double *tau, double *out, int64 n)`` runs
 :func:`~exo_bench.matrix_method.numba_kernels.cholesky_forward.checked_forward` on raw pointers (the
 wrapper has checked every array and, with ``check=True``, validated the states) and answers its code
-(:data:`~exo_bench.models.forward_check.DONE` is 0). ``packed`` is :func:`packed`: the kernel's
+(:data:`~exo_bench.models.runtime.forward_check.DONE` is 0). ``packed`` is :func:`packed`: the kernel's
 ``(n, n + 2)`` parameters, the Cholesky factor of the coupling and the checks' plan in one array.
 Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
 
@@ -13,7 +13,7 @@ import numpy as np
 from numba import carray, cfunc, types
 
 from exo_bench.matrix_method.numba_kernels.cholesky_forward import checked_forward
-from exo_bench.models.forward_check import PLAN_SIZE
+from exo_bench.models.runtime.forward_check import PLAN_SIZE
 
 _P = types.CPointer(types.float64)
 SIGNATURE = types.int64(_P, _P, _P, _P, _P, types.int64)

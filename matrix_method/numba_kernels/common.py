@@ -6,7 +6,7 @@ The kernels themselves, one algorithm per file:
   form, no matrix formed (the derivation is in :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`);
 * :mod:`exo_bench.matrix_method.numba_kernels.matrix` (method ``matrix``): every matrix of eq. (5)/(17) formed
   from the closed forms of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions`, then the
-  products with the rates of :data:`exo_bench.models.equation_form.RATES`;
+  products with the rates of :data:`exo_bench.models.states.equation_form.RATES`;
 * :mod:`exo_bench.matrix_method.numba_kernels.recurrence` (method ``recurrence``): the planar matrices grown link
   by link by eqs. (22)-(26), then the same transitions and products.
 
@@ -38,7 +38,7 @@ only on the kernel's own file (:mod:`exo_bench.matrix_method.numba_kernels.cache
 closed form recompiles the kernels that use it.
 
 **Threads.** (``matrix-factored``'s batches run :mod:`exo_bench.matrix_method.numba_kernels.simd` instead, on a
-Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, chosen by :func:`exo_bench.models.numba_runtime.ensure` unless
+Python thread pool that never enters numba's threading layer.) The parallel drivers run on numba's ``workqueue`` threading layer, chosen by :func:`exo_bench.models.machine.numba_runtime.ensure` unless
 the user chose one (``NUMBA_THREADING_LAYER``) or numba already started its threads: numba would
 otherwise take OpenMP where libgomp is loaded (Pinocchio brings it), and on the shared 2-core
 machine OpenMP's statically scheduled, spin-waiting threads made the parallel driver 4 to 150 times
@@ -60,8 +60,8 @@ from numba import njit  # noqa: F401 - re-exported for the kernel modules
 
 from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
 from exo_bench.matrix_method.numba_kernels.cache import inline
-from exo_bench.models import equation_form
-from exo_bench.models.numba_runtime import (  # noqa: F401 - shared with models.newton_euler, re-exported
+from exo_bench.models.states import equation_form
+from exo_bench.models.machine.numba_runtime import (  # noqa: F401 - shared with models.newton_euler, re-exported
     JIT,
     PARALLEL_MIN_SAMPLES,
     SAMPLES_PER_TASK,
@@ -69,7 +69,7 @@ from exo_bench.models.numba_runtime import (  # noqa: F401 - shared with models.
     run,
 )
 
-ensure()  # numba's runtime set-up (models/numba_runtime.py), before any kernel of this folder is defined
+ensure()  # numba's runtime set-up (models/machine/numba_runtime.py), before any kernel of this folder is defined
 
 inline(f for fns in planar.PAIRS.values() for f in fns.values())
 inline(f for fns in spatial.PAIRS.values() for f in fns.values())
@@ -134,8 +134,8 @@ Transition = _namedtuple("Transition", (*PLANAR_FIELDS, *spatial.QUOTIENTS, "li"
 
 
 def _rate_table(dim: int) -> np.ndarray:
-    """:data:`exo_bench.models.equation_form.RATES` as numbers for the compiled products: one row per matrix
-    of :func:`exo_bench.models.equation_form.matrix_names` (in that order), ``(factor, first block, second block)``
+    """:data:`exo_bench.models.states.equation_form.RATES` as numbers for the compiled products: one row per matrix
+    of :func:`exo_bench.models.states.equation_form.matrix_names` (in that order), ``(factor, first block, second block)``
     with blocks numbered in the order of ``q`` and ``-1`` where a matrix multiplies a second
     derivative (one block)."""
     bl = equation_form.blocks(dim)

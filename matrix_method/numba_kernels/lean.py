@@ -6,7 +6,7 @@ A call of a numba kernel through its dispatcher types every argument and looks t
 sample on 1-D arrays, bound once per prepared model and held by the kernel's entries (nothing is
 rebound on the model):
 
-* **compiled** (:func:`c_call`, where setup.py built models/_lean_call.c): a small C callable
+* **compiled** (:func:`c_call`, where setup.py built models/runtime/_lean_call.c): a small C callable
   that checks what memory safety needs (ndarray, one dimension of ``dof``, stride 8, float64, ``out``
   writable and apart from the inputs) and calls the kernel's numba ``cfunc``
   (matrix_method/numba_kernels/lean_c.py) with the raw pointers; every other form of the call goes to
@@ -74,19 +74,19 @@ def entry(dim: int, params: np.ndarray):
 
 
 def c_call(dim: int, params: np.ndarray, fallback, dof: int, plan: np.ndarray | None = None):
-    """The compiled wrapper (models/_lean_call.c, :func:`exo_bench.models.lean_call.c_call`) around the
+    """The compiled wrapper (models/runtime/_lean_call.c, :func:`exo_bench.models.runtime.lean_call.c_call`) around the
     kernel's cfunc (:mod:`exo_bench.matrix_method.numba_kernels.lean_c`): a callable with the arguments
     ``(q, qd, qdd, check, out)`` that runs one sample with ``check=False`` and ``out`` in C and passes
     every other call to ``fallback`` unchanged (``check=True`` too, given the mechanism's validation
     ``plan``); None where the extension was not built or ``params`` is not the ``(n, n + 2)`` table of
     the kernel."""
-    from exo_bench.models.lean_call import c_call as wrap
+    from exo_bench.models.runtime.lean_call import c_call as wrap
 
     n = params.shape[0] if params.ndim == 2 else -1
     if params.shape != (n, n + 2):
         return None
     try:
-        from exo_bench.models import _lean_call  # type: ignore[attr-defined]  # noqa: F401  # C, setup.py
+        from exo_bench.models.runtime import _lean_call  # type: ignore[attr-defined]  # noqa: F401  # C, setup.py
     except ImportError:  # before the cfunc compiles
         return None
     from exo_bench.matrix_method.numba_kernels import lean_c as compiled_lean_c

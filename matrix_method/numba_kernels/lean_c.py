@@ -1,8 +1,8 @@
 """The kernels of the lean one-sample call as C functions (numba ``cfunc``), for the compiled wrapper
-models/_lean_call.c (:mod:`exo_bench.models.lean_call`): ``void f(double *params, double *q, double *qd,
+models/runtime/_lean_call.c (:mod:`exo_bench.models.runtime.lean_call`): ``void f(double *params, double *q, double *qd,
 double *qdd, double *out, int64 n)``, the per-sample kernel of
 :mod:`exo_bench.matrix_method.numba_kernels.factored` on raw pointers (the wrapper has checked every
-array). ``params`` is :func:`exo_bench.models.lean_call.block`: the kernel's ``(n, n + 2)`` parameters,
+array). ``params`` is :func:`exo_bench.models.runtime.lean_call.block`: the kernel's ``(n, n + 2)`` parameters,
 then its ``(rows, n)`` scratch (:data:`SCRATCH_ROWS`), so a call allocates nothing; the same
 per-sample function as the batch kernel's, so the forces are bit-identical. Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
 

@@ -31,7 +31,7 @@ from exo_bench.matrix_method.numba_kernels.common import (
     drivers,
 )
 from exo_bench.matrix_method.numba_kernels.matrix import products, spatial_matrices
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def tables(mech: Mechanism) -> tuple[np.ndarray, np.ndarray]:

@@ -7,7 +7,7 @@ samples at once, each step a loop over the samples that LLVM turns into SIMD ins
 1. **transpose in**: a block of the user's ``(samples, dof)`` states (flat, C-ordered: they go in
    unchanged) into per-link rows of :data:`LANES` samples, ``W[(j * ROWS + r) * LANES + s]``: a whole
    block in tiles of 8 samples x 8 columns through SIMD registers, a partial block one row of ``W`` at
-   a time (:func:`exo_bench.models.simd_blocks.block_transposes`). exo5-3d, 10,000 samples, one
+   a time (:func:`exo_bench.models.machine.simd_blocks.block_transposes`). exo5-3d, 10,000 samples, one
    thread, the whole kernel: 44.3 ns per sample against 51.7 with the loops alone (whose column
    reads LLVM makes gathers), the quiet machine, one run each;
 2. **per link j**: ``sin``/``cos`` of its angles in branch-free arithmetic
@@ -30,16 +30,16 @@ running the benchmark sweep). The last, partial block runs with ``m`` at run tim
 
 The physics is the element functions the other kernels call; this file only arranges the loops,
 once for both dimensions (:func:`build`: ``dim`` and the element steps are constants of its
-closures), step 2 with ``newton-euler``'s kernel (:mod:`exo_bench.models.simd_angles`).
+closures), step 2 with ``newton-euler``'s kernel (:mod:`exo_bench.models.machine.simd_angles`).
 The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
 so LLVM proves that a loop's stores do not overlap its loads without being told (no ``prange``
 needed for the no-aliasing knowledge); steps 3 and 4 read one scratch array and write another,
 which LLVM checks once per loop at run time. Unit stride everywhere but in the two transposes.
 
-Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at most :data:`~exo_bench.models.fast_trig.ULPS` ulp
+Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at most :data:`~exo_bench.models.machine.fast_trig.ULPS` ulp
 each, :mod:`exo_bench.matrix_method.numba_kernels.fast_trig`): the same operations in the same order otherwise.
 
-**Threads.** :func:`run` splits a batch of at least :data:`exo_bench.models.simd_blocks.PARALLEL_MIN_ELEMENTS` state elements
+**Threads.** :func:`run` splits a batch of at least :data:`exo_bench.models.machine.simd_blocks.PARALLEL_MIN_ELEMENTS` state elements
 (samples x dof) over ``numba.get_num_threads()`` threads (the caller's and a pool's), which pull shares of it and
 call the serial kernel on each (it releases the GIL): numba's threading layer is never entered, so the batch path runs
 at the same speed whichever layer numba picked or the user started first (OpenMP's spinning
@@ -47,7 +47,7 @@ threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started 
 
 numba's on-disk cache of these kernels is keyed on their folder, the files of the functions they
 inline (the element functions) and the shared ``simd_angles.py``, ``fast_trig.py``, ``simd_blocks.py``
-and ``numba_runtime.py`` (:mod:`exo_bench.models.numba_cache`): an edit to any of them recompiles them.
+and ``numba_runtime.py`` (:mod:`exo_bench.models.machine.numba_cache`): an edit to any of them recompiles them.
 """
 
 from __future__ import annotations
@@ -58,9 +58,9 @@ from numba.extending import register_jitable
 
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.matrix_method.numba_kernels.common import JIT, njit
-from exo_bench.models import simd_angles
-from exo_bench.models.simd_angles import states_2d, states_3d
-from exo_bench.models.simd_blocks import (
+from exo_bench.models.machine import simd_angles
+from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import (
     CF,
     CP,
     F0,
@@ -80,13 +80,13 @@ from exo_bench.models.simd_blocks import (
     SF,
     SP,
 )
-from exo_bench.models.simd_blocks import _block_rows_in, _block_rows_out, _block_scratch
-from exo_bench.models.simd_blocks import _rows_in, _rows_out, run  # noqa: F401 - re-exported
+from exo_bench.models.machine.simd_blocks import _block_rows_in, _block_rows_out, _block_scratch
+from exo_bench.models.machine.simd_blocks import _rows_in, _rows_out, run  # noqa: F401 - re-exported
 
 
 @register_jitable
 def _kappa_3d(W, at, B, x, cf, sf, cp, sp):
-    """2. ``kappa_j`` of sample ``at`` of a spatial link (the ``link`` of :func:`exo_bench.models.simd_angles.link_pass`)."""
+    """2. ``kappa_j`` of sample ``at`` of a spatial link (the ``link`` of :func:`exo_bench.models.machine.simd_angles.link_pass`)."""
     l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
     W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)
 
@@ -117,7 +117,7 @@ def _forces_2d(W, F, at, f, B, gnu):
 def _jit(dim: int):
     """``njit(**JIT)`` under a qualified name that carries ``dim`` (``build.<locals>.simd`` becomes
     ``..._3d``): two closures that share a symbol in numba's cache then have the same code
-    (:func:`exo_bench.models.numba_runtime.jit_for` says why)."""
+    (:func:`exo_bench.models.machine.numba_runtime.jit_for` says why)."""
 
     def decorate(fn):
         fn.__qualname__ = f"{fn.__qualname__}_{dim}d"
@@ -166,7 +166,7 @@ def build(dim: int) -> SimpleNamespace:
     def simd(p, q, qd, qdd, o, start, stop, S=None):
         """Samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into ``o``, :data:`LANES`
         at a time; ``S``: the scratch of ``_block_scratch(n, dim)`` (kept per thread,
-        :class:`exo_bench.models.simd_blocks.ThreadScratch`), or None to allocate it here."""
+        :class:`exo_bench.models.machine.simd_blocks.ThreadScratch`), or None to allocate it here."""
         n = p.shape[0]
         if S is None:
             W, F, T = _block_scratch(n, dim)

@@ -26,8 +26,8 @@ import numpy as np
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.models import equation_form
-from exo_bench.models.mechanism import Mechanism, as_states, split
+from exo_bench.models.states import equation_form
+from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
 
 
 def blocks(mech: Mechanism) -> tuple[str, ...]:
@@ -124,7 +124,7 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
 
 def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
     """Eq. (5) / (17): the mass matrix ``(S, dof, dof)`` assembled from the matrices multiplying the
-    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.equation_form.ACCELERATION`)."""
+    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.states.equation_form.ACCELERATION`)."""
     bl = blocks(mech)
     return np.concatenate(
         [np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2) for r in bl], axis=1

@@ -7,7 +7,7 @@
   the paper composes "bypassing Lagrange's equations" (its timing table), equal to
   :func:`exo_bench.lagrange.derive`'s (tested with :func:`exo_bench.lagrange.canonical_form`).
 
-Expressions use the shared symbols of :func:`exo_bench.models.symbols.symbols_for`. With
+Expressions use the shared symbols of :func:`exo_bench.models.mechanism.symbols.symbols_for`. With
 ``symbolic_parameters=True`` masses, fractions and ``g`` stay symbols (each coefficient is one
 factor, e.g. ``(m2_0 + m2_1 + m2_2 + m1_1*n1**2 + m1_2)*l1**2*ddphi1``); otherwise they are the
 mechanism's values as exact Rationals equal to the floats, as :mod:`lagrange` does, so the two
@@ -25,10 +25,10 @@ import sympy as sp
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling
 from exo_bench.matrix_method.symbolic.polynomials import Element, Generators, generators
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import symbols_for
 
-from exo_bench.models.equation_form import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
+from exo_bench.models.states.equation_form import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
 
 #: ``block -> name -> {(i, j): element}``: the elements of every matrix, zeros left out.
 Entries = dict[str, dict[str, dict[tuple[int, int], Element]]]
@@ -123,7 +123,7 @@ def matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, di
 
 def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
     """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j, from the rate
-    table :data:`exo_bench.models.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
+    table :data:`exo_bench.models.states.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
 
     def rate(name: str, j: int):
         factor, r = RATES[name]

@@ -29,8 +29,8 @@ from sympy.core.add import Add
 from sympy.core.basic import Basic, ordering_of_classes
 from sympy.core.mul import Mul
 
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.symbols import symbols_for
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.symbols import symbols_for
 
 
 # ------------------------------------------------------------------ sympy's canonical order
@@ -339,7 +339,7 @@ class Generators:
 
 @lru_cache(maxsize=64)
 def generators(nlinks: int, dim: int, symbolic_parameters: bool) -> Generators:
-    """The generators of a model size (cached, like :func:`exo_bench.models.symbols.symbols_for`)."""
+    """The generators of a model size (cached, like :func:`exo_bench.models.mechanism.symbols.symbols_for`)."""
     return Generators(nlinks, dim, symbolic_parameters)
 
 

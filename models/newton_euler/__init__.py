@@ -1,6 +1,6 @@
 """Method ``newton-euler``: linear-time, chart-free dynamics from ``M(q) = J^T M_r J``.
 
-One algorithm per file: the rod elements, :mod:`exo_bench.models.rod_elements` (one rod's ``q_i -> r_i`` and its derivatives, shared by
+One algorithm per file: the rod elements, :mod:`exo_bench.models.mechanism.rod_elements` (one rod's ``q_i -> r_i`` and its derivatives, shared by
 both kernels), :mod:`.tree` (the per-link mass sums and ``M_r`` factored once), :mod:`.passes`
 (the numpy reference: the two passes, forward dynamics, the mass matrix), :mod:`.compiled` (the
 numba kernels), :mod:`.prepared` (the prepared model), :mod:`.chart_free` (simulation in the rod

@@ -10,7 +10,7 @@ the singularity of the absolute angles at ``cos psi = 0``.
 vectors (``tau_i = J_i^T f_i`` wherever the chart is regular). From a motion they are the backward
 pass of inverse dynamics, ``f = M_r r'' + g_r`` (:func:`rod_loads`, O(n)). Physically (and
 independently, from the point masses, :func:`rod_loads_from_joint_loads`): with the net joint
-moments ``M_k`` of :func:`exo_bench.models.joint_loads.net_joint_loads` and the rod's axial force
+moments ``M_k`` of :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads` and the rod's axial force
 ``F_l,k = tau_l,k``,
 
     f_k = s_k u_k F_l,k + ((M_k - sum_{children c} M_c) x r_k) / l_k^2,
@@ -32,11 +32,11 @@ from typing import overload
 import numpy as np
 from numpy.typing import ArrayLike
 
-from exo_bench.models.kinematics import _rod_vectors, place_down_the_tree
-from exo_bench.models.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.kinematics import _rod_vectors, place_down_the_tree
+from exo_bench.models.mechanism.mechanism import Mechanism, as_states
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.tree import Tree, prepare_tree, singular_mass_reason, solve_coupling
-from exo_bench.models.singularity import COS_VERTICAL
+from exo_bench.models.mechanism.singularity import COS_VERTICAL
 
 
 @overload
@@ -59,7 +59,7 @@ def rod_loads(mech: Mechanism, q, qd, qdd, tree: Tree | None = None) -> np.ndarr
 
 def rod_loads_from_joint_loads(mech: Mechanism, q, joint_moments: np.ndarray, axial: np.ndarray) -> np.ndarray:
     """``f (S, n, dim)`` from net joint moments ``M`` (``(S, n, 3)`` in 3D, ``(S, n)`` in 2D, as
-    :func:`exo_bench.models.joint_loads.net_joint_loads` gives them) and the rods' axial forces ``(S, n)``
+    :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads` gives them) and the rods' axial forces ``(S, n)``
     (module docstring). Needs ``l > 0``."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     r, _ = rod_vectors(mech, q)
@@ -87,7 +87,7 @@ def paper_coordinates(
     of a rod outside the chart are NaN and its mask entry False.
 
     ``u = s r / l``; ``phi = atan2(u_y, u_x)``, ``psi = atan2(u_z, |u_xy|)`` (3D); rates by ``J^-1 v``
-    (:func:`exo_bench.models.rod_elements.rates_3d`). The chart has two branches in 3D, ``(phi, psi)`` and
+    (:func:`exo_bench.models.mechanism.rod_elements.rates_3d`). The chart has two branches in 3D, ``(phi, psi)`` and
     ``(phi + pi, pi - psi)`` (the same ``u``), and ``phi`` is defined modulo ``2 pi``: without ``near``
     ``psi`` is in ``[-pi/2, pi/2]`` and ``phi`` in ``(-pi, pi]``; with ``near`` (``(S, dof)``, e.g. the
     previous step or a reference motion) each rod takes the branch and the turn closest to it."""
@@ -217,8 +217,8 @@ def gait_round_trip(
     """Eq. (26) with the trunk exactly vertical (``psi_5 = pi/2``): the loads ``f(t) = M_r r'' + g_r``
     along the gait (inverse dynamics), then the chart-free simulation from the gait's initial
     ``(r, r')`` over one period; the point masses' positions against the gait's."""
-    from exo_bench.models.motion import GaitParams, gait
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.gait.motion import GaitParams, gait
+    from exo_bench.models.mechanism.presets import exo5
 
     mech = exo5(3) if mech is None else mech
     tree = prepare_tree(mech)

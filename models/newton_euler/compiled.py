@@ -1,12 +1,12 @@
 """The Newton-Euler method, compiled (numba): the same passes as :mod:`exo_bench.models.newton_euler.passes`,
 as loops over the links of one sample.
 
-Per sample the kernels call the very element functions of :mod:`exo_bench.models.rod_elements`
-(registered with numba once, by :func:`exo_bench.models.numba_cache.inline`), so nothing physical is
+Per sample the kernels call the very element functions of :mod:`exo_bench.models.mechanism.rod_elements`
+(registered with numba once, by :func:`exo_bench.models.machine.numba_cache.inline`), so nothing physical is
 written twice; tests/test_newton_euler.py holds them to the numpy reference. The layout follows the matrix family
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
-driver, and a parallel driver over blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` samples for large
-batches (:func:`exo_bench.models.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
+driver, and a parallel driver over blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` samples for large
+batches (:func:`exo_bench.models.machine.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
 (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) and ``g``.
 
 Per sample: ``2n`` (2D) or ``4n`` (3D) sines and cosines and O(n) arithmetic, for inverse and
@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.models import numba_cache
-from exo_bench.models import rod_elements as el
-from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+from exo_bench.models.machine import numba_cache
+from exo_bench.models.mechanism import rod_elements as el
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 
-ensure()  # numba's runtime set-up (models/numba_runtime.py), before the kernels below are defined
+ensure()  # numba's runtime set-up (models/machine/numba_runtime.py), before the kernels below are defined
 
 numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
@@ -201,7 +201,7 @@ def newton_euler(t, g, dim, forward, x, xd, y, o):
 
 @njit(parallel=True, **JIT)
 def newton_euler_parallel(t, g, dim, forward, x, xd, y, o):
-    """:func:`newton_euler` with blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` samples over numba's threads."""
+    """:func:`newton_euler` with blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` samples over numba's threads."""
     S = x.shape[0] // (dim * t.shape[1])
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(t, g, dim, x, xd, y, o, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK), forward)

@@ -1,4 +1,4 @@
-"""Derivatives of the rod elements (:mod:`exo_bench.models.rod_elements`) with respect to one
+"""Derivatives of the rod elements (:mod:`exo_bench.models.mechanism.rod_elements`) with respect to one
 rod's own coordinates: what the analytic derivatives of inverse dynamics need per rod
 (:mod:`exo_bench.models.newton_euler.derivatives`).
 
@@ -27,7 +27,7 @@ Vectors come as flat tuples: ``(x, y)`` per column in 2D, ``(x, y, z)`` in 3D, c
 
 from __future__ import annotations
 
-from exo_bench.models.rod_elements import (
+from exo_bench.models.mechanism.rod_elements import (
     project_2d,
     project_3d,
     rod_acceleration_2d,
@@ -76,7 +76,7 @@ def acceleration_by_rates_2d(cf, sf, l, w, ld):
 
 def acceleration_by_rates_3d(cf, sf, cp, sp, l, w, v, ld):
     """``d (l u)'' / d(phi', psi', l')`` of a spatial rod, the brackets of
-    :func:`exo_bench.models.rod_elements.rod_acceleration_3d` differentiated (``horizontal``
+    :func:`exo_bench.models.mechanism.rod_elements.rod_acceleration_3d` differentiated (``horizontal``
     along ``(cos phi, sin phi, 0)``, ``azimuthal`` along ``e_phi``, ``vertical`` along ``z``)."""
     # d/dphi': horizontal -2 l phi' cos psi, azimuthal 2 (l' cos psi - l psi' sin psi), vertical 0
     h, az = -2.0 * l * w * cp, 2.0 * (ld * cp - l * v * sp)

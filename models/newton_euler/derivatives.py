@@ -20,7 +20,7 @@ kernel for one sample and the batched one otherwise.
 
 **The derivation.** Coordinates are absolute: rod ``i`` has its own ``q_i`` (``(phi, l)`` or ``(phi,
 psi, l)``) and ``r_i = s_i l_i u_i(q_i)`` depends on ``q_i`` only. With the constant coupling ``mu``
-(:func:`exo_bench.models.aggregates.coupling`) ``T = 1/2 sum_ij mu_ij r_i'.r_j'``, so the rod force that
+(:func:`exo_bench.models.mechanism.aggregates.coupling`) ``T = 1/2 sum_ij mu_ij r_i'.r_j'``, so the rod force that
 the backward pass accumulates is ``F_i = sum_j mu_ij a_j + nu_i g up`` with ``a_j = r_j'' = J_j qdd_j +
 J_j' qd_j`` (a function of ``q_j, qd_j, qdd_j`` only) and ``tau_i = J_i(q_i)^T F_i``. Differentiating::
 
@@ -30,7 +30,7 @@ J_j' qd_j`` (a function of ``q_j, qd_j, qdd_j`` only) and ``tau_i = J_i(q_i)^T F
 the signs ``s_i s_j`` inside ``J`` and ``a``. Per rod, the ``dim x dim`` blocks ``da_j/dq_j``,
 ``da_j/dqd_j``, ``J_j`` and ``d(J_i^T F)/dq_i`` come from the rod elements
 (:mod:`exo_bench.models.newton_euler.derivative_elements`, which reuses
-:mod:`exo_bench.models.rod_elements`); ``F_i`` from the two passes; every output block is then
+:mod:`exo_bench.models.mechanism.rod_elements`); ``F_i`` from the two passes; every output block is then
 ``mu_ij J_i^T Y_j``, ``3 dim^2`` dot products of length ``dim``. ``mu_ij = 0`` unless ``i`` and ``j`` lie
 on one root path: a branched tree's blocks off those paths are zero.
 
@@ -56,11 +56,11 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.newton_euler import derivatives_numpy
 from exo_bench.models.newton_euler.tree import prepare_tree
-from exo_bench.models.result_pool import ResultPool
+from exo_bench.models.runtime.result_pool import ResultPool
 
 #: The kernels ``InverseDerivatives.__call__`` takes (``kernel=``), each the name of the method of
 #: :class:`InverseDerivatives` that runs a batch (a table: no branch on a kernel's name).
@@ -157,7 +157,7 @@ class InverseDerivatives:
         #: The shapes of one sample's states and outputs, ``(dof,)`` and ``(dof, dof)``.
         self._shapes = ((self.dof,), (self.dof, self.dof))
         self._simd_scratch: Any = None  # the SIMD kernel's driver, kernel, parameters and scratch (_simd_prepare)
-        #: New batched results, recycled once dropped (:mod:`exo_bench.models.result_pool`): a fresh
+        #: New batched results, recycled once dropped (:mod:`exo_bench.models.runtime.result_pool`): a fresh
         #: ``(S, dof, dof)`` array may be a new mapping whose pages the OS zeroes on first touch; chain 100
         #: 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``; exo5-3d, 256 samples
         #: (460 kB each): 3.6 us against 1.6 (193 page faults a call), so from :data:`RECYCLE_MIN_BYTES`.
@@ -255,8 +255,8 @@ class InverseDerivatives:
         """The SIMD kernel's driver, kernel, parameters and ThreadScratch, made at its first call (the
         imports and the tuple once, not per call: a few us of a batch's fixed cost)."""
         from exo_bench.models.newton_euler import derivatives_simd as ds
-        from exo_bench.models.simd_blocks import ThreadScratch
-        from exo_bench.models.simd_blocks import run as run_simd
+        from exo_bench.models.machine.simd_blocks import ThreadScratch
+        from exo_bench.models.machine.simd_blocks import run as run_simd
 
         scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
         self._simd_scratch = (run_simd, ds.simd_derivatives, (self.table, self.mu, self.g, self.dim), scratch)
@@ -265,7 +265,7 @@ class InverseDerivatives:
     def _numba(self, q, qd, qdd, out) -> None:
         from exo_bench.models.newton_euler import derivatives_compiled as dc
         from exo_bench.models.newton_euler.derivatives_streaming import streams
-        from exo_bench.models.numba_runtime import run
+        from exo_bench.models.machine.numba_runtime import run
 
         args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out, streams(out, self.dof))
         run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))

@@ -8,7 +8,7 @@ Per sample:
    (:func:`exo_bench.models.newton_euler.compiled._inverse_sample`, into a scratch ``tau``): each link's row
    of ``W`` then holds its cosines and sines, ``kappa``, ``A`` (with ``g up``) and the finished subtree sum
    ``D``, from which ``F_k = eta A_k + zeta kappa_k + D_k``
-   (:func:`exo_bench.models.rod_elements.rod_force`) is recomputed bit for bit;
+   (:func:`exo_bench.models.mechanism.rod_elements.rod_force`) is recomputed bit for bit;
 2. **per rod** the signed columns of :mod:`.derivative_elements` into ``Y``, laid out like a row of the
    output: row ``kind dim + e``, column ``d n + j`` holds component ``e`` of column ``d`` of ``s_j J_j``
    (kind 0), ``s_j da_j/dq_j`` (1) or ``s_j da_j/dqd_j`` (2); ``s_i d(J_i^T F_i)/dq_i`` into ``P``;
@@ -29,7 +29,7 @@ take :func:`_streamed_blocks`, the same rows streamed past the caches (:mod:`.de
 the mechanism's numbers in one packed array (:func:`workspace`): each array argument of a compiled
 entry costs its unboxing (about 0.1 us), so 7 arrays instead of 14.
 
-numba's on-disk cache keys these kernels on every module of this folder (:mod:`exo_bench.models.numba_cache`).
+numba's on-disk cache keys these kernels on every module of this folder (:mod:`exo_bench.models.machine.numba_cache`).
 """
 
 from __future__ import annotations
@@ -38,12 +38,12 @@ import numpy as np
 from numba import njit, prange
 
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
 from exo_bench.models.newton_euler.derivatives_rows import rows_2d, rows_3d
 from exo_bench.models.newton_euler.derivatives_streaming import store_fence, stream_row
-from exo_bench.models.numba_cache import inline
-from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+from exo_bench.models.machine.numba_cache import inline
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 
 ensure()  # numba's runtime set-up, before the kernels below are defined
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -242,7 +242,7 @@ def derivatives_serial(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream=False):
 
 @njit(parallel=True, **JIT)
 def derivatives_parallel(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream=False):
-    """:func:`derivatives_serial` in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK`
+    """:func:`derivatives_serial` in blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK`
     samples over numba's threads."""
     S = q.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):

@@ -29,7 +29,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from exo_bench.models.numba_runtime import jit_disabled
+from exo_bench.models.machine.numba_runtime import jit_disabled
 
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
 _V4 = ir.VectorType(ir.DoubleType(), 4)

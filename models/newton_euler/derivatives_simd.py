@@ -1,17 +1,17 @@
 """The analytic derivatives of inverse dynamics, compiled to vectorise across samples: blocks of
-:data:`~exo_bench.models.simd_blocks.LANES` samples, each step a loop over the samples of a block that
+:data:`~exo_bench.models.machine.simd_blocks.LANES` samples, each step a loop over the samples of a block that
 LLVM turns into SIMD instructions (the algorithm: :mod:`exo_bench.models.newton_euler.derivatives`; the
 per-sample kernel: :mod:`.derivatives_compiled`).
 
 Per block, one driver for 2D and 3D (``dim`` chooses the forward pass):
 
 1. **the passes** of newton-euler's batched kernel (:mod:`exo_bench.models.newton_euler.simd`, its
-   blocks of :data:`~exo_bench.models.simd_blocks.LANES`): the transpose in, the forward pass (its
+   blocks of :data:`~exo_bench.models.machine.simd_blocks.LANES`): the transpose in, the forward pass (its
    branch-free ``sin``/``cos``, libm beyond their range), and, after the start points' accelerations
    ``A`` are copied aside (the backward pass writes ``tau`` over them), the backward pass, which leaves
    the finished subtree sums ``D`` in the rows ``F0..F2``;
 2. **per rod**, each sample a lane: ``F_k = eta A_k + zeta kappa_k + D_k`` recomputed bit for bit
-   (:func:`exo_bench.models.rod_elements.rod_force`) and the signed columns of
+   (:func:`exo_bench.models.mechanism.rod_elements.rod_force`) and the signed columns of
    :mod:`.derivative_elements` into ``Y`` (row ``r`` of link ``k`` at ``(r n + k) B``: the rows of
    :mod:`.derivatives_compiled`, one lane per sample) and ``P``;
 3. **the blocks**, sample by sample: its lane of ``Y`` and ``P`` gathered (O(n)) into the layout of
@@ -22,7 +22,7 @@ Per block, one driver for 2D and 3D (``dim`` chooses the forward pass):
    still, 3.6 us.)
 
 Its sines and cosines are newton-euler's batched kernel's: it differs from the per-sample kernel
-(libm's) by those only (:data:`~exo_bench.models.fast_trig.ULPS` ulp each). Scratch per thread
+(libm's) by those only (:data:`~exo_bench.models.machine.fast_trig.ULPS` ulp each). Scratch per thread
 (:func:`scratch`): the passes' ``(W, F, T)``, ``A (3 n B)``, ``Y (27 n B)``, ``P (9 n B)``,
 ``G (3 dof^2 B)``, of which step 3 uses ``39 n`` entries (173 kB at exo5-3d: the kernel is for small mechanisms; ``kernel="auto"`` takes the
 per-sample kernel from :data:`exo_bench.models.newton_euler.derivatives.SIMD_BELOW_LINKS` links on).
@@ -35,12 +35,12 @@ from numba import njit
 
 from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler.derivatives_compiled import _blocks as _row_blocks
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import simd
-from exo_bench.models.numba_cache import inline
-from exo_bench.models.numba_runtime import JIT, ensure
-from exo_bench.models.simd_angles import states_2d, states_3d
-from exo_bench.models.simd_blocks import CF, CP, F0, FROWS, K0, LANES, O0, ROWS, SF, SP, block_transposes
+from exo_bench.models.machine.numba_cache import inline
+from exo_bench.models.machine.numba_runtime import JIT, ensure
+from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import CF, CP, F0, FROWS, K0, LANES, O0, ROWS, SF, SP, block_transposes
 
 ensure()
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -150,7 +150,7 @@ def _block(t, mu, g, dim, q, qd, qdd, oq, oqd, om, s0, m, S):
 def simd_derivatives(p, q, qd, qdd, o, start, stop, S):
     """Samples ``start .. stop - 1`` of the flat ``(samples * dof,)`` states into the ``(samples, dof,
     dof)`` outputs ``o = (dtau_dq, dtau_dqd, M)``, :data:`B` at a time; ``p = (table, mu, g, dim)``;
-    ``S`` from :func:`scratch` (the signature of :func:`exo_bench.models.simd_blocks.run`'s kernels)."""
+    ``S`` from :func:`scratch` (the signature of :func:`exo_bench.models.machine.simd_blocks.run`'s kernels)."""
     t, mu, g, dim = p
     oq, oqd, om = o
     for s0 in range(start, stop, B):

@@ -28,7 +28,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from exo_bench.models.numba_runtime import JIT, ensure
+from exo_bench.models.machine.numba_runtime import JIT, ensure
 
 ensure()  # numba's runtime set-up, before the kernels below are defined
 
@@ -90,7 +90,7 @@ def streams(outs: tuple[np.ndarray, ...], dof: int) -> bool:
     """Whether a call writing ``outs`` (C-contiguous float64, rows of ``dof``) streams its rows: at least
     :data:`STREAM_MIN_BYTES` of output, every row 16-byte aligned (even ``dof``, aligned bases), and
     compiled kernels (an intrinsic has no Python form under ``NUMBA_DISABLE_JIT``)."""
-    from exo_bench.models.numba_runtime import jit_disabled
+    from exo_bench.models.machine.numba_runtime import jit_disabled
 
     if dof % 2 or sum(o.nbytes for o in outs) < STREAM_MIN_BYTES or jit_disabled():
         return False

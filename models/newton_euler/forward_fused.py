@@ -1,6 +1,6 @@
 """Forward dynamics of one sample checked in one compiled call: the ``tree-forward`` kernel's
 (:mod:`exo_bench.models.newton_euler.kernels`). :func:`checked_forward` runs the common-case check of
-:mod:`exo_bench.models.forward_check` (``clear``), newton-euler's forward passes
+:mod:`exo_bench.models.runtime.forward_check` (``clear``), newton-euler's forward passes
 (:mod:`exo_bench.models.newton_euler.compiled`) and ``finite``, answering :data:`DONE`, :data:`EXACT`
 (nothing computed: the exact checks decide) or :data:`NOT_FINITE`."""
 
@@ -11,13 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.numba_runtime import JIT, ensure, jit_disabled
+from exo_bench.models.machine.numba_runtime import JIT, ensure, jit_disabled
 
-ensure()  # numba's runtime set-up (models/numba_runtime.py), before the first kernel is defined
+ensure()  # numba's runtime set-up (models/machine/numba_runtime.py), before the first kernel is defined
 
 from numba import njit, types  # noqa: E402
 
-from exo_bench.models.forward_check import _DIM, _G, DONE, EXACT, NOT_FINITE, _finite, _row_clear  # noqa: E402
+from exo_bench.models.runtime.forward_check import _DIM, _G, DONE, EXACT, NOT_FINITE, _finite, _row_clear  # noqa: E402
 from exo_bench.models.newton_euler.compiled import WIDTH, _forward_sample  # noqa: E402
 
 __all__ = ["DONE", "EXACT", "NOT_FINITE", "checked_forward", "entry"]

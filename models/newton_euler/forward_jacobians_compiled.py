@@ -16,8 +16,8 @@ from numba import njit, prange
 
 from exo_bench.models.newton_euler import derivatives_compiled  # noqa: F401 - registers the derivative elements
 from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models import rod_elements as el
-from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK
+from exo_bench.models.mechanism import rod_elements as el
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK
 
 
 @njit(**JIT)
@@ -89,7 +89,7 @@ def forward_jacobians(dim, X, Xd, Xdd, T, Minv, DQ, DQD):
 
 @njit(parallel=True, **JIT)
 def forward_jacobians_parallel(dim, X, Xd, Xdd, T, Minv, DQ, DQD):
-    """:func:`forward_jacobians` over numba's threads, in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK`."""
+    """:func:`forward_jacobians` over numba's threads, in blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK`."""
     S = X.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(dim, X, Xd, Xdd, T, Minv, DQ, DQD, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK))

@@ -1,9 +1,9 @@
 """``tree-forward``'s checked forward dynamics of one sample as a C function (numba ``cfunc``), for the
-compiled wrapper models/_lean_call.c (:func:`exo_bench.models.lean_call.c_call` with ``forward``):
+compiled wrapper models/runtime/_lean_call.c (:func:`exo_bench.models.runtime.lean_call.c_call` with ``forward``):
 ``int64 f(double *packed, double *q, double *qd, double *tau, double *out, int64 n)`` runs
 :func:`~exo_bench.models.newton_euler.forward_fused.checked_forward` on raw pointers (the wrapper has
 checked every array and, with ``check=True``, validated the states) and answers its code
-(:data:`~exo_bench.models.forward_check.DONE` is 0). ``packed`` is :func:`packed`: the model's
+(:data:`~exo_bench.models.runtime.forward_check.DONE` is 0). ``packed`` is :func:`packed`: the model's
 ``(8, n)`` table and the checks' plan in one array. Imported on first use (compiling on a fresh
 machine, loading from numba's on-disk cache after)."""
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import carray, cfunc, types
 
-from exo_bench.models.forward_check import PLAN_SIZE
+from exo_bench.models.runtime.forward_check import PLAN_SIZE
 from exo_bench.models.newton_euler.forward_fused import checked_forward
 
 _P = types.CPointer(types.float64)

@@ -1,11 +1,11 @@
 """``M(q)^-1 B`` column by column with the O(n) forward dynamics: no mass matrix, no dense LU.
 
 ``M = J^T (mu (x) I) J`` with ``J = blockdiag(s_i J_i(q_i))`` and the constant coupling ``mu`` factored
-once (:mod:`exo_bench.models.mass_factor`), so ``M^-1 b = J^-1 mu^-1 J^-T b``: per column the loads
-``J_i^-T b_i`` (:func:`exo_bench.models.rod_elements.unproject_3d`), the tree solve with ``mu``
-(three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.rod_elements.rates_3d`):
+once (:mod:`exo_bench.models.mechanism.mass_factor`), so ``M^-1 b = J^-1 mu^-1 J^-T b``: per column the loads
+``J_i^-T b_i`` (:func:`exo_bench.models.mechanism.rod_elements.unproject_3d`), the tree solve with ``mu``
+(three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.mechanism.rod_elements.rates_3d`):
 O(n) per column, O(n k) for ``k`` columns, O(n^2) for the ``(dof, dof)`` Jacobians of forward dynamics
-(:mod:`exo_bench.models.derivatives`). It is forward dynamics at ``qd = 0`` and ``g = 0``, where the
+(:mod:`exo_bench.models.derivatives.derivatives`). It is forward dynamics at ``qd = 0`` and ``g = 0``, where the
 bias ``J' q'`` and the weight vanish exactly.
 
 * :func:`numpy_columns`: the numpy reference, :func:`exo_bench.models.newton_euler.passes.forward_dynamics`
@@ -15,7 +15,7 @@ bias ``J' q'`` and the weight vanish exactly.
   ``out`` may be ``B`` itself: a sample's columns are read into scratch before any is written.
 
 Singular at ``l_i = 0`` and (3D) ``cos psi_i = 0``, where ``J_i`` is; the callers refuse those states
-first (:mod:`exo_bench.models.singularity`).
+first (:mod:`exo_bench.models.mechanism.singularity`).
 """
 
 from __future__ import annotations
@@ -25,11 +25,11 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.compiled import _MULT, _PARENT, _PIVOT, _SIGN  # also registers the elements
 from exo_bench.models.newton_euler.tree import Tree
-from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK
 
 
 def numpy_columns(tree: Tree, dim: int, q: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -102,7 +102,7 @@ def columns(t, dim, X, B, O):
 
 @njit(parallel=True, **JIT)
 def columns_parallel(t, dim, X, B, O):
-    """:func:`columns` over numba's threads, in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK`."""
+    """:func:`columns` over numba's threads, in blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK`."""
     S = X.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(t, dim, X, B, O, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK))

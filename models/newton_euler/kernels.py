@@ -1,4 +1,4 @@
-"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.kernels.Kernel`):
+"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.runtime.kernels.Kernel`):
 :data:`NEWTON_EULER_KERNELS` is what its MethodSpec and :class:`~exo_bench.models.newton_euler.prepared.NewtonEuler`
 list. Each ``load`` binds a kernel to one prepared model (its ``table``, ``kernel_args``,
 ``batch_kernel``), importing the compiled code only then: importing this module imports no numba.
@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
-from exo_bench.models.lean_call import lean_kernel
+from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.lean_call import lean_kernel
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 
@@ -20,8 +20,8 @@ def _passes(model: Any, forward: bool, simd_from: int | None):
     """A batch of the compiled passes into ``out`` (or a new array): the SIMD kernel from
     ``simd_from`` samples on (inverse dynamics), else the per-sample drivers on numba's threads."""
     from exo_bench.models.newton_euler import compiled
-    from exo_bench.models.numba_runtime import run
-    from exo_bench.models.simd_blocks import run as run_simd
+    from exo_bench.models.machine.numba_runtime import run
+    from exo_bench.models.machine.simd_blocks import run as run_simd
 
     args = (model.table, model._g, model._dim, forward)
 
@@ -81,10 +81,10 @@ def _tree_forward(model: Any) -> Entries:
     """Newton-euler's checked forward dynamics of one sample: the compiled common-case checks and its
     serial forward passes in one call (:mod:`exo_bench.models.newton_euler.forward_fused`); near a
     bound the model's exact ``check_regular`` decides and names why, then the same passes run."""
-    from exo_bench.models.forward_check import checked_entry
+    from exo_bench.models.runtime.forward_check import checked_entry
     from exo_bench.models.newton_euler.forward_fused import entry
 
-    from exo_bench.models.forward_check import lean_entry
+    from exo_bench.models.runtime.forward_check import lean_entry
     from exo_bench.models.newton_euler import forward_lean as c
 
     forward_one = _forward_one(model, _serial_entry(model))

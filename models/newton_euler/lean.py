@@ -1,11 +1,11 @@
 """newton-euler's lean one-sample call: the per-sample inverse pass of
 :mod:`exo_bench.models.newton_euler.compiled` as numba ``cfunc`` s (one per dimension) behind the C
-wrapper of :mod:`exo_bench.models.lean_call`, the code of the ``lean`` kernel object of
+wrapper of :mod:`exo_bench.models.runtime.lean_call`, the code of the ``lean`` kernel object of
 :data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`.
 
 ``void f(double *p, double *q, double *qd, double *qdd, double *out, int64 n)``: ``p`` is the model's
 ``(8, n)`` table followed by ``g`` (:func:`params`) and the pass's ``(n, WIDTH)`` scratch (zeroed at
-each call, as ``np.zeros`` did, in :func:`exo_bench.models.lean_call.block`: a call allocates
+each call, as ``np.zeros`` did, in :func:`exo_bench.models.runtime.lean_call.block`: a call allocates
 nothing), ``n`` the number of links; the wrapper has checked every array. The same function as the serial kernel's, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
 on the same scratch row width, so the forces are bit-identical to it (tests/test_newton_euler_lean.py).
 Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 from numba import carray, cfunc, njit, types
 
-from exo_bench.models.kernels import Entries
+from exo_bench.models.runtime.kernels import Entries
 from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
-from exo_bench.models.numba_runtime import JIT
+from exo_bench.models.machine.numba_runtime import JIT
 
 _P = types.CPointer(types.float64)
 SIGNATURE = types.void(_P, _P, _P, _P, _P, types.int64)
@@ -61,10 +61,10 @@ def _declined(*args: Any, **kw: Any) -> None:
 def entries(model: Any) -> Entries:
     """The lean call bound to ``model`` (its ``table``, ``g`` and dimension), or no entry where the C
     wrapper was not built (the per-sample kernel's entry then runs)."""
-    from exo_bench.models.lean_call import c_call
+    from exo_bench.models.runtime.lean_call import c_call
 
     address = getattr(CFUNCS[model.mechanism.dim], "address", None)  # None: NUMBA_DISABLE_JIT
-    from exo_bench.models.states import validation_plan
+    from exo_bench.models.states.states import validation_plan
 
     plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
     n = int(model.table.shape[1])

@@ -1,7 +1,7 @@
 """The Newton-Euler method, numpy reference: two passes over the tree, vectorised over samples.
 
 **Inverse dynamics (forward pass, backward pass).** Per rod ``kappa_i = r_i'' = J_i q_i'' + J_i' q_i'``
-(:func:`exo_bench.models.rod_elements.rod_acceleration_3d`, times the sign). Going down the tree, a rod's start point
+(:func:`exo_bench.models.mechanism.rod_elements.rod_acceleration_3d`, times the sign). Going down the tree, a rod's start point
 accelerates with ``A_k = A_parent + kappa_parent`` (a root's start is the support O, ``A = 0``).
 Going up, ``D_k`` collects ``m (a + g up)`` of every point mass below link ``k``; link ``k``'s own
 masses at fractions ``0, n_k, 1`` accelerate with ``A_k + f kappa_k``, so the force conjugate to
@@ -10,7 +10,7 @@ masses at fractions ``0, n_k, 1`` accelerate with ``A_k + f kappa_k``, so the fo
     F_k = sum_b m_kb f_b (A_k + f_b kappa_k + g up) + D_k = eta_k (A_k + g up) + zeta_k kappa_k + D_k,
     D_parent += theta_k (A_k + g up) + eta_k kappa_k + D_k,
 
-and ``tau_k = J_k^T F_k`` (:func:`exo_bench.models.rod_elements.project_3d`). O(n) per sample, no matrix.
+and ``tau_k = J_k^T F_k`` (:func:`exo_bench.models.mechanism.rod_elements.project_3d`). O(n) per sample, no matrix.
 
 **Forward dynamics.** ``tau = J^T (M_r r'' + g_r)`` with ``g_r = g nu (x) up``: ``r'' = mu^-1 (J^-T tau -
 g_r)`` by the tree solve (:func:`exo_bench.models.newton_euler.tree.solve_coupling`, ``M_r`` factored at prepare time), then
@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler.tree import Tree, solve_coupling
 
 
@@ -73,7 +73,7 @@ def rod_forces(tree: Tree, dim: int, g: float, kappa: np.ndarray) -> np.ndarray:
 
 def _per_rod(tree, dim, trig, l, V, planar, spatial) -> np.ndarray:
     """``s_k * element(trig_k, l_k, V_k)`` of every rod as ``(S, dof)`` in block order, with the
-    element function ``planar`` or ``spatial`` of :mod:`exo_bench.models.rod_elements` (``V``: ``(n, dim, S)``)."""
+    element function ``planar`` or ``spatial`` of :mod:`exo_bench.models.mechanism.rod_elements` (``V``: ``(n, dim, S)``)."""
     cf, sf, cp, sp = trig
     s = tree.sign[:, None]
     if dim == 2:

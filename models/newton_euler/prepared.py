@@ -17,16 +17,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.conditioning import check_conditioning
-from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.kernels import select
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.runtime.conditioning import check_conditioning
+from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.runtime.kernels import select
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
-from exo_bench.models.prepared import PreparedModel
-from exo_bench.models.simd_blocks import ThreadScratch
-from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, vertical_reason, zero_length_reason
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.machine.simd_blocks import ThreadScratch
+from exo_bench.models.mechanism.singularity import (
+    COS_VERTICAL,
+    SingularConfigurationError,
+    vertical_reason,
+    zero_length_reason,
+)
 
 
 class NewtonEuler(PreparedModel):
@@ -88,8 +93,8 @@ class NewtonEuler(PreparedModel):
 
     def check_regular(self, q: np.ndarray) -> None:
         """O(n) per sample: ``M_r`` singular (found at prepare time), a rod of length zero, or (3D) a
-        vertical rod, in the words of :mod:`exo_bench.models.singularity`; then the conditioning test
-        that every method shares (:func:`exo_bench.models.conditioning.check_conditioning`, O(n) per
+        vertical rod, in the words of :mod:`exo_bench.models.mechanism.singularity`; then the conditioning test
+        that every method shares (:func:`exo_bench.models.runtime.conditioning.check_conditioning`, O(n) per
         sample: the cosines computed here, the mechanism's part once)."""
         mech = self._mechanism
         reasons = [] if self.singular_mass is None else [self.singular_mass]

@@ -8,7 +8,7 @@ Per sample, O(n) and no ``n x n`` array:
    rod elements' derivatives: nothing physical written twice);
 2. per rod the change of its acceleration (JVP: ``A^q dq + A^r dqd + J dqdd``) or ``J w`` (VJP);
 3. the gravity-free passes on it (:func:`_passes`: the forward pass of start-point accelerations and the
-   backward pass of subtree sums, :func:`exo_bench.models.rod_elements.rod_force` and ``subtree_share``,
+   backward pass of subtree sums, :func:`exo_bench.models.mechanism.rod_elements.rod_force` and ``subtree_share``,
    as :func:`exo_bench.models.newton_euler.passes.rod_forces` at ``g = 0``): ``(mu (x) I)`` applied in O(n);
 4. per rod ``J^T dF + P dq`` (JVP) or ``(A^q)^T v + P^T w``, ``(A^r)^T v``, ``J^T v`` (VJP).
 
@@ -20,11 +20,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler.compiled import _ETA, _PARENT, _THETA, _ZETA, WIDTH, _inverse_sample
 from exo_bench.models.newton_euler import products
 from exo_bench.models.newton_euler.derivatives_compiled import _columns
-from exo_bench.models.numba_runtime import JIT, SAMPLES_PER_TASK, run
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, run
 
 _J, _AQ, _AR = 0, 1, 2  # kinds of the rows of Y (derivatives_compiled's layout)
 
@@ -133,7 +133,7 @@ def products_serial(t, g, dim, q, qd, qdd, u, v, z, o, p, r, reverse):
 
 @njit(parallel=True, **JIT)
 def products_parallel(t, g, dim, q, qd, qdd, u, v, z, o, p, r, reverse):
-    """:func:`products_serial` in blocks of :data:`exo_bench.models.numba_runtime.SAMPLES_PER_TASK` over numba's threads."""
+    """:func:`products_serial` in blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` over numba's threads."""
     S = q.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         stop = min(S, (b + 1) * SAMPLES_PER_TASK)

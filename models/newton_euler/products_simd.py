@@ -1,5 +1,5 @@
 """Directional derivatives of inverse dynamics, compiled to vectorise across samples: the JVP and VJP of
-:mod:`exo_bench.models.newton_euler.products` in blocks of :data:`~exo_bench.models.simd_blocks.LANES`
+:mod:`exo_bench.models.newton_euler.products` in blocks of :data:`~exo_bench.models.machine.simd_blocks.LANES`
 samples, each step a loop over the samples of a block that LLVM turns into SIMD instructions (the layout and
 the passes of newton-euler's batched inverse dynamics, :mod:`exo_bench.models.newton_euler.simd`).
 
@@ -8,8 +8,8 @@ Per block, O(n) per sample and no ``n x n`` array:
 1. **the primal passes, once**: the transposes in of the states and of the directions (``U``, the layout
    of ``W``), newton-euler's batched forward pass (its branch-free ``sin``/``cos``, libm beyond their
    range: each rod's ``kappa_k`` and its start point's acceleration ``A_k``), and the subtree sums ``D_k``
-   alone (:func:`_subtree_sums`, :func:`exo_bench.models.rod_elements.subtree_share`: the first half of
-   its backward pass; the forces ``F_k`` are then :func:`exo_bench.models.rod_elements.rod_force` per rod);
+   alone (:func:`_subtree_sums`, :func:`exo_bench.models.mechanism.rod_elements.subtree_share`: the first half of
+   its backward pass; the forces ``F_k`` are then :func:`exo_bench.models.mechanism.rod_elements.rod_force` per rod);
 2. **per rod, each sample a lane**, the signed per-rod columns of :mod:`.derivative_elements` (``J_k``,
    ``A^q_k``, ``A^r_k``, ``P_k``) contracted at once with the directions, never stored:
 
@@ -21,14 +21,14 @@ Per block, O(n) per sample and no ``n x n`` array:
    ``g = 0``, then for the JVP its backward pass, which leaves ``J^T dF`` where it leaves ``tau``; for the VJP
    the subtree sums again, so that the forces ``v = (mu (x) I) J w`` are ``rod_force`` per rod);
 4. JVP: ``J^T dF + P dq`` transposed out. VJP, per rod: ``(A^q)^T v + P^T w``, ``(A^r)^T v`` and ``J^T v``
-   (:func:`exo_bench.models.rod_elements.project_3d` of ``v``), transposed out into the three results.
+   (:func:`exo_bench.models.mechanism.rod_elements.project_3d` of ``v``), transposed out into the three results.
 
 Work per sample: one inverse dynamics (its trig once), one gravity-free pass without trig, and the per-rod
-elements. Its sines and cosines are the batched inverse dynamics' (:mod:`exo_bench.models.fast_trig`): it
+elements. Its sines and cosines are the batched inverse dynamics' (:mod:`exo_bench.models.machine.fast_trig`): it
 differs from the per-sample kernel (:mod:`.products_compiled`, libm's) by those and by the order of its
 sums (tests/test_products_simd.py). A sample's result does not depend on the batch around it. numba's
 on-disk cache of these kernels is keyed on newton_euler's folder, which holds this file and the elements'
-derivatives, and on the rod elements (:data:`exo_bench.models.numba_cache.KERNEL_SOURCES`).
+derivatives, and on the rod elements (:data:`exo_bench.models.machine.numba_cache.KERNEL_SOURCES`).
 """
 
 from __future__ import annotations
@@ -36,14 +36,28 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from exo_bench.models import rod_elements as el
+from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler import simd
-from exo_bench.models.numba_cache import inline
-from exo_bench.models.numba_runtime import JIT, ensure
-from exo_bench.models.simd_angles import states_2d, states_3d
-from exo_bench.models.simd_blocks import CF, CP, F0, FROWS, K0, LANES, LEN, LEN2, O0, ROWS, SF, SP, block_transposes
-from exo_bench.models.simd_blocks import parallel_min_samples, run
+from exo_bench.models.machine.numba_cache import inline
+from exo_bench.models.machine.numba_runtime import JIT, ensure
+from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import (
+    CF,
+    CP,
+    F0,
+    FROWS,
+    K0,
+    LANES,
+    LEN,
+    LEN2,
+    O0,
+    ROWS,
+    SF,
+    SP,
+    block_transposes,
+)
+from exo_bench.models.machine.simd_blocks import parallel_min_samples, run
 
 ensure()
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -112,7 +126,7 @@ def _link(t, k, W, F, U, X):
 
 @njit(**JIT)
 def _forces(Fk, Wk, zeta, eta, s):
-    """``F_k`` of lane ``s`` (:func:`exo_bench.models.rod_elements.rod_force`) from the link's rows."""
+    """``F_k`` of lane ``s`` (:func:`exo_bench.models.mechanism.rod_elements.rod_force`) from the link's rows."""
     return (
         el.rod_force(zeta, eta, Fk[O0 * B + s], Wk[K0 * B + s], Fk[F0 * B + s]),
         el.rod_force(zeta, eta, Fk[(O0 + 1) * B + s], Wk[(K0 + 1) * B + s], Fk[(F0 + 1) * B + s]),
@@ -203,7 +217,7 @@ def _jvp_block(t, g, dim, q, qd, qdd, dq, dqd, dqdd, o, s0, m, S):
 def simd_jvp(p, q, qd, qdd, o, start, stop, S):
     """``dtau`` of samples ``start .. stop - 1`` of the flat ``(samples * dof,)`` states along the directions
     of ``p = (table, g, dim, dq, dqd, dqdd)`` into ``o``, :data:`B` at a time; ``S`` from :func:`scratch`
-    (the signature of :func:`exo_bench.models.simd_blocks.run`'s kernels)."""
+    (the signature of :func:`exo_bench.models.machine.simd_blocks.run`'s kernels)."""
     t, g, dim, dq, dqd, dqdd = p
     for s0 in range(start, stop, B):
         if stop - s0 >= B:  # a whole block: constant trip counts where LLVM inlines it (simd.py)
@@ -299,7 +313,7 @@ def jvp_whole(t, g, dim, q, qd, qdd, dq, dqd, dqdd, o, start, W, F, T, U, X, G, 
     """:func:`simd_jvp` of the samples from ``start`` of a ``(S, dof)`` batch in the calling thread, every
     argument an array or a number: numba's dispatcher types those in C (a tuple argument it types in Python,
     a few us a call). ``start`` comes from the caller (0): a constant here would be typed as a literal and
-    compile :func:`simd_jvp` a second time, apart from the signature :func:`exo_bench.models.simd_blocks.run` calls."""
+    compile :func:`simd_jvp` a second time, apart from the signature :func:`exo_bench.models.machine.simd_blocks.run` calls."""
     p = (t, g, dim, dq.reshape(dq.size), dqd.reshape(dqd.size), dqdd.reshape(dqdd.size))
     S = (W, F, T, U, X, G, H)
     simd_jvp(p, q.reshape(q.size), qd.reshape(qd.size), qdd.reshape(qdd.size), o.reshape(o.size), start, q.shape[0], S)
@@ -321,7 +335,7 @@ def _flat(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
 def jvp(table, dim: int, g: float, q, qd, qdd, dq, dqd, dqdd, scratch) -> np.ndarray:
     """``dtau (S, dof)`` of C-contiguous float64 ``(S, dof)`` arrays (the provider checks them), ``g`` a
     float and ``dim`` an int: :func:`jvp_whole` in the calling thread, or a large batch over threads by
-    :func:`exo_bench.models.simd_blocks.run`; ``scratch`` a :class:`exo_bench.models.simd_blocks.ThreadScratch`
+    :func:`exo_bench.models.machine.simd_blocks.run`; ``scratch`` a :class:`exo_bench.models.machine.simd_blocks.ThreadScratch`
     of :func:`scratch`."""
     o = np.empty(q.shape)
     if q.shape[0] < parallel_min_samples(q.shape[1]):

@@ -3,30 +3,30 @@
 The per-sample kernel (:mod:`exo_bench.models.newton_euler.compiled`) computes each sample whole,
 with libm's ``sin`` and ``cos`` per angle (four calls per 3D rod, most of its time): nothing is
 vectorised. This kernel computes :data:`LANES` samples at once, each step a loop over the samples
-that LLVM turns into SIMD instructions, in the layout of :mod:`exo_bench.models.simd_blocks` (shared
+that LLVM turns into SIMD instructions, in the layout of :mod:`exo_bench.models.machine.simd_blocks` (shared
 with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
 
 1. **transpose in** a block of the user's flat ``(samples, dof)`` states into per-link rows of ``W``
-   (:func:`exo_bench.models.simd_blocks.block_transposes`: tiles of 8 x 8 through SIMD registers for a
+   (:func:`exo_bench.models.machine.simd_blocks.block_transposes`: tiles of 8 x 8 through SIMD registers for a
    whole block; 3D chains of n = 5, 100, 1000, one thread, the quiet machine: 68, 1548 and 16,800 ns
    per sample against 88, 1778 and 20,300 with the loops alone);
 2. **forward pass, roots first**, one loop over the samples per link ``k``: ``sin``/``cos`` of its
-   angles in branch-free arithmetic (:func:`exo_bench.models.fast_trig.sincos_reduced`), the rod's
-   ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.rod_elements.rod_acceleration_3d`), its
+   angles in branch-free arithmetic (:func:`exo_bench.models.machine.fast_trig.sincos_reduced`), the rod's
+   ``kappa_k = s_k (l u)''`` (:func:`exo_bench.models.mechanism.rod_elements.rod_acceleration_3d`), its
    start point's acceleration with gravity ``A_k = A_p + kappa_p`` (``g up`` at a root) and ``D_k =
    0``. The angles of link ``k`` beyond the arithmetic's range (and NaN) are then redone with libm
    by a scalar loop that only they enter, before any child reads ``kappa_k``. The trig loops are
-   ``matrix-factored``'s too (:mod:`exo_bench.models.simd_angles`); one source serves 2D and 3D
+   ``matrix-factored``'s too (:mod:`exo_bench.models.machine.simd_angles`); one source serves 2D and 3D
    (``forward_for(dim)`` in :func:`build`, ``dim`` a constant of its closure);
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
-   kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.rod_elements.project_3d`),
+   kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.mechanism.rod_elements.project_3d`),
    written over ``A_k`` (no longer read);
 4. **transpose out** into the user's ``(samples, dof)`` result (the same tiles, the other way).
 
 Rows of ``F`` per link: ``D`` in ``F0..F2``, ``A`` and then ``tau`` in ``O0..O2``. The physics is the
 element functions the per-sample kernel calls, with the same operations in the same order: the
-result differs from that kernel's only by the ``sin``/``cos`` (within :data:`~exo_bench.models.fast_trig.ULPS` ulp each,
-:mod:`exo_bench.models.fast_trig`); where an angle falls back to libm the two are identical.
+result differs from that kernel's only by the ``sin``/``cos`` (within :data:`~exo_bench.models.machine.fast_trig.ULPS` ulp each,
+:mod:`exo_bench.models.machine.fast_trig`); where an angle falls back to libm the two are identical.
 
 Reading each link's states straight from the user's arrays inside the forward pass (strided
 loads, no transpose in) was tried and measured 0.79-0.87x as fast at 3D n = 5, 20, 100 and 1.12x at
@@ -47,14 +47,14 @@ run time.
 and link block), which the hardware prefetchers do not follow far enough: a batch larger than L2
 (2 MiB here) took 23 ns per link and sample at n = 100 against 13 in cache. During its forward
 pass each block asks for the next block's lines, one share per link
-(:func:`exo_bench.models.simd_blocks.prefetch_share`, LLVM's ``llvm.prefetch``): n = 100, 1024
+(:func:`exo_bench.models.machine.simd_blocks.prefetch_share`, LLVM's ``llvm.prefetch``): n = 100, 1024
 samples (9.8 MB) 23.1 -> 15.3 ns, 4096 (39 MB) 23.9 -> 20.4, n = 1000, 256 samples 28.8 -> 20.5;
 in cache 12.9 -> 13.1 (same conditions).
 
 One sample as 1-D arrays runs the per-sample kernel (with ``check=True`` too); every batch (:data:`MIN_SAMPLES`) runs this
-kernel through :func:`exo_bench.models.simd_blocks.run` (threads without numba's threading layer).
+kernel through :func:`exo_bench.models.machine.simd_blocks.run` (threads without numba's threading layer).
 numba's on-disk cache of these kernels is keyed on their folder, the element functions' files and
-the shared ``fast_trig.py``, ``simd_*.py`` and ``numba_runtime.py`` (:mod:`exo_bench.models.numba_cache`):
+the shared ``fast_trig.py``, ``simd_*.py`` and ``numba_runtime.py`` (:mod:`exo_bench.models.machine.numba_cache`):
 an edit to any of them recompiles them.
 """
 
@@ -65,13 +65,13 @@ from types import SimpleNamespace
 
 from numba.extending import register_jitable
 
-from exo_bench.models import simd_angles
-from exo_bench.models import numba_cache
-from exo_bench.models import rod_elements as el
-from exo_bench.models.numba_runtime import jit_for
-from exo_bench.models.simd_angles import states_2d, states_3d
-from exo_bench.models.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
-from exo_bench.models.simd_blocks import ROWS, SF, SP, block_transposes, prefetch_share
+from exo_bench.models.machine import simd_angles
+from exo_bench.models.machine import numba_cache
+from exo_bench.models.mechanism import rod_elements as el
+from exo_bench.models.machine.numba_runtime import jit_for
+from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
+from exo_bench.models.machine.simd_blocks import ROWS, SF, SP, block_transposes, prefetch_share
 
 numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
@@ -94,7 +94,7 @@ MIN_SAMPLES = 1
 @register_jitable
 def _rod_3d(W, at, B, s_k, cf, sf, cp, sp):
     """2. ``kappa_k = s_k (l u)''`` of sample ``at`` of a spatial rod (the ``link`` of
-    :func:`exo_bench.models.simd_angles.link_pass`)."""
+    :func:`exo_bench.models.machine.simd_angles.link_pass`)."""
     l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
     a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, w, v, ld, wdd, vdd, ldd)
     W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = s_k * a0, s_k * a1, s_k * a2
@@ -109,7 +109,7 @@ def _rod_2d(W, at, B, s_k, cf, sf, cp, sp):
 
 
 def _jit(lanes: int, dim: int):
-    """:func:`exo_bench.models.numba_runtime.jit_for` for a closure built for ``dim`` too: its qualified
+    """:func:`exo_bench.models.machine.numba_runtime.jit_for` for a closure built for ``dim`` too: its qualified
     name carries both (``..._forward_3d_32lanes``), for the reason given there."""
 
     def decorate(fn):
@@ -217,7 +217,7 @@ def build(lanes: int) -> SimpleNamespace:
     def simd_inverse(p, q, qd, qdd, o, start, stop, S=None):
         """Inverse dynamics of samples ``start .. stop - 1`` of the flat ``(samples, dof)`` states into
         ``o``, :data:`LANES` (or ``lanes``) at a time; ``p = (table, g, dim)``; ``S``: the scratch
-        ``(W, F, T)`` of ``scratch(n, dim)`` (:class:`exo_bench.models.simd_blocks.ThreadScratch`), or
+        ``(W, F, T)`` of ``scratch(n, dim)`` (:class:`exo_bench.models.machine.simd_blocks.ThreadScratch`), or
         None to allocate it here."""
         t, g, dim = p
         n = t.shape[1]

@@ -2,7 +2,7 @@
 
 **The constant mass matrix.** A point mass ``m`` of link ``k`` at fraction ``f`` in ``{0, n_k, 1}``
 sits at ``P = sum_{a in anc(k)} r_a + f r_k``, so ``T = 1/2 sum_ij mu_ij r_i' . r_j'`` with the
-constant mass coupling ``mu`` of :func:`exo_bench.models.aggregates.coupling`: ``M_r = mu (x) I_d``
+constant mass coupling ``mu`` of :func:`exo_bench.models.mechanism.aggregates.coupling`: ``M_r = mu (x) I_d``
 (independent of the configuration; the signs are inside ``r_i = s_i l_i u_i``).
 
 **O(n) solves with M_r.** Put ``e = T r``, the rods' end points: ``T`` sums the rod vectors down
@@ -18,7 +18,7 @@ have larger indices than their parents), ``M_e = L D L^T`` has no fill-in: one p
 one multiplier ``l_k`` per link. Then ``mu^-1 b = T^-1 M_e^-1 T^-T b`` costs three passes over
 the tree (:func:`solve_coupling`). :func:`factor_end_point_mass` factors it once, at prepare
 time; a pivot that vanishes means that ``M_r`` is singular, and :func:`singular_mass_reason`
-names the link. The factor and the solve live in :mod:`exo_bench.models.mass_factor`, below every
+names the link. The factor and the solve live in :mod:`exo_bench.models.mechanism.mass_factor`, below every
 method, so that the conditioning test of every method's forward dynamics uses them too.
 """
 
@@ -28,15 +28,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exo_bench.models.aggregates import link_aggregates
-from exo_bench.models.conditioning import singular_mass_reason  # noqa: F401 - re-exported: defined here first
-from exo_bench.models.mass_factor import (  # noqa: F401 - re-exported: defined here first
+from exo_bench.models.mechanism.aggregates import link_aggregates
+from exo_bench.models.runtime.conditioning import singular_mass_reason  # noqa: F401 - re-exported: defined here first
+from exo_bench.models.mechanism.mass_factor import (  # noqa: F401 - re-exported: defined here first
     PIVOT_RTOL,
     end_point_mass,
     factor_end_point_mass,
     solve_mu,
 )
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class Tree:
 
 def prepare_tree(mech: Mechanism) -> Tree:
     """All per-mechanism numbers of the Newton-Euler method, O(n) time and memory (no ``n x n``
-    array: ``nu_k = eta_k + Theta(k)`` of :mod:`exo_bench.models.aggregates` with the descendant masses
+    array: ``nu_k = eta_k + Theta(k)`` of :mod:`exo_bench.models.mechanism.aggregates` with the descendant masses
     ``Theta`` summed leaves first)."""
     zeta, eta, theta = link_aggregates(mech)
     below = np.zeros(mech.nlinks)  # Theta(k): the mass of k's strict descendants
@@ -105,5 +105,5 @@ def prepare_tree(mech: Mechanism) -> Tree:
 
 def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
     """``mu^-1 b`` for ``b`` of shape ``(n, ...)`` (any trailing axes: components, samples), O(n), by
-    the tree's factor (:func:`exo_bench.models.mass_factor.solve_mu`). ``tree.singular`` must be -1."""
+    the tree's factor (:func:`exo_bench.models.mechanism.mass_factor.solve_mu`). ``tree.singular`` must be -1."""
     return solve_mu(tree.parent, tree.pivot, tree.multiplier, b)

@@ -2,7 +2,7 @@
 in panels grouped by scale. The joint moments figure (Fig. 7) is :mod:`.net_moments` (net joint moments).
 
 **Which moments** the differences compare: those of the joint coordinates, ``tau_joint = G^-T tau``
-(:mod:`exo_bench.models.joint_coordinates`), per method; not the generalised forces of the absolute
+(:mod:`exo_bench.models.engines.joint_coordinates`), per method; not the generalised forces of the absolute
 angles, and not the net joint moments (which depend on the motion alone). Every figure says in its
 title which it shows, with units and signs.
 """
@@ -19,8 +19,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from exo_bench.bench.output.figures.palette import LINK_COLORS, TEXT_PT, TITLE_PT, link_color, method_color
-from exo_bench.models.joint_coordinates import force_labels, joint_basis, moments_and_forces
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.engines.joint_coordinates import force_labels, joint_basis, moments_and_forces
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study

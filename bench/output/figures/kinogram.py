@@ -15,9 +15,9 @@ from matplotlib.lines import Line2D
 from exo_bench.bench.output.figures.curves import _check_ok, _header, curve_colors
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color
 from exo_bench.bench.output.figures.net_moments import draw_net_moments, net_moment_curves
-from exo_bench.models.joint_coordinates import force_labels, joint_quantities, moments_and_forces
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.engines.joint_coordinates import force_labels, joint_quantities, moments_and_forces
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study

@@ -2,14 +2,14 @@
 
 A study's ``tau`` are generalised forces of the absolute angles; ``tau_joint = G^-T tau`` are those of
 the joint coordinates, whose elevation rows are, for a link with children, its joint's moment minus its
-children's (:mod:`exo_bench.models.joint_loads`). Neither is the moment in a joint. The **net joint
+children's (:mod:`exo_bench.models.mechanism.joint_loads`). Neither is the moment in a joint. The **net joint
 moment** at the start of link k is the moment the parent side exerts on everything beyond the joint,
-about the joint: :func:`exo_bench.models.joint_loads.net_joint_loads`, from the motion's point masses,
+about the joint: :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads`, from the motion's point masses,
 the computation the report's Plausibility table reads (issue 38: the figure read 8.8 N·m/kg at the
 stance ankle where the report said 15.95). It depends on the motion alone; how far each method's
 ``tau`` is from the others is the differences figure's.
 
-Every panel is one component (:func:`exo_bench.models.joint_loads.moment_components`) with its sign
+Every panel is one component (:func:`exo_bench.models.mechanism.joint_loads.moment_components`) with its sign
 convention in its title, in N·m per kg of the model's mass, as the report gives them.
 """
 
@@ -30,7 +30,7 @@ from exo_bench.bench.output.figures.curves import (
     nonfinite_notes,
 )
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
-from exo_bench.models.joint_loads import moment_components, net_joint_loads
+from exo_bench.models.mechanism.joint_loads import moment_components, net_joint_loads
 
 if TYPE_CHECKING:
     from exo_bench.bench.studies.study import Study
@@ -73,7 +73,7 @@ def moments_figure(study: Study, ratio: float | None = None) -> Figure:
     labels = joint_labels(study)
     mech = study.mechanism
     notes = [
-        f"per kg of the model's {mech.total_mass:.4g} kg; from the motion's point masses (models/joint_loads.py), "
+        f"per kg of the model's {mech.total_mass:.4g} kg; from the motion's point masses (models/mechanism/joint_loads.py), "
         "the numbers of the scene report's Plausibility table; the methods' differences: the differences figure"
     ] + (["not run: " + _not_run_line(study)] if _not_run_line(study) else [])
     notes = _wrap_notes(notes + nonfinite_notes(study))

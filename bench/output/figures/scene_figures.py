@@ -11,7 +11,7 @@ angles (eq. 4 has ``M1 - M2`` on ``phi_1``). The moments figure shows the NET jo
 moment the parent side exerts on everything beyond a joint, about it: :mod:`.net_moments`), the
 numbers of the scene report's Plausibility table. The differences compare the methods in the joint
 coordinates, ``tau_joint = G^-T tau`` with ``G`` the constant map ``q_joint = G q`` of
-:func:`exo_bench.models.pinocchio_backend.build_model`, whose elevation rows of a link with children
+:func:`exo_bench.models.engines.pinocchio_backend.build_model`, whose elevation rows of a link with children
 are its joint's moment minus its children's. The rod forces ``F_k`` are the same in both sets,
 because the column of ``G`` of ``l_k`` is a unit vector, so ``F_k = tau_joint[len_k] = tau[l_k]``.
 Every figure says in its title which it shows, with units and sign conventions.
@@ -54,7 +54,7 @@ from exo_bench.bench.output.figures.kinogram import (  # noqa: F401
 from exo_bench.bench.output.figures.net_moments import joint_labels, moments_figure, net_moment_curves  # noqa: F401
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color, method_color  # noqa: F401
 from exo_bench.bench.output.provenance import save_figure  # noqa: F401 (re-exported: the scene figures' writer)
-from exo_bench.models.joint_coordinates import (  # noqa: F401
+from exo_bench.models.engines.joint_coordinates import (  # noqa: F401
     JointBasis,
     force_labels,
     generalised_moment_labels,

@@ -33,10 +33,10 @@ the same process with the same arrays, switching every second or so (steal time 
 processes whose every address was the same (``setarch -R``, one ``PYTHONHASHSEED``). So the machine
 (its host), not memory layout, sets the speed; but ``pin.rnea`` slows by only 1.2x where the public
 call slows by 1.4-1.7x, so a ratio measured in a slow phase is 1.4x larger. The goals hold in both
-phases once the call costs less: no allocation per call (models/lean_call.py ``block``), dropped
-results reused (models/_lean_call.c), ``self._entries`` specialised by Python (models/prepared.py), and
+phases once the call costs less: no allocation per call (models/runtime/lean_call.py ``block``), dropped
+results reused (models/runtime/_lean_call.c), ``self._entries`` specialised by Python (models/runtime/prepared.py), and
 no Python frame in a one-sample call (the public call is the extension's ``PublicCall``, which offers
-it to the lean entry in C: models/lean_call.py ``public_call``). Measured before that last step (load
+it to the lean entry in C: models/runtime/lean_call.py ``public_call``). Measured before that last step (load
 1.1, 16:18 UTC, 2026-11-27): ``check=False, out=`` 0.704 us, 0.104x (not met), the Python frame of
 the public call about 130 ns of it; after, in four processes at load 7-9 (17:00 UTC), the same call
 0.34-0.35 us, 0.059-0.061x, and in the one slow-phase process 0.62 us, 0.082x.
@@ -150,7 +150,7 @@ def calls(samples: int) -> tuple[dict[str, Call], dict]:
     try:
         import pinocchio as pin
 
-        from exo_bench.models.pinocchio_backend import build_model
+        from exo_bench.models.engines.pinocchio_backend import build_model
 
         pm = build_model(mech)
         qj, vj, aj = (np.ascontiguousarray(pm.G @ x) for x in one)

@@ -51,8 +51,8 @@ GOAL_SAMPLES = 10_000
 
 
 def _states(samples: int):
-    from exo_bench.models.motion import smooth_random_motion
-    from exo_bench.models.presets import exo5
+    from exo_bench.models.gait.motion import smooth_random_motion
+    from exo_bench.models.mechanism.presets import exo5
 
     mech = exo5(3)
     mo = smooth_random_motion(mech, np.linspace(0.0, 10.0, samples), seed=5)

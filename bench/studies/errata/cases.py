@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from exo_bench.models.mechanism import Mechanism, split
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
+from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
 
 SAMPLES = 12
 SEED = 20240

@@ -21,10 +21,10 @@ from exo_bench.bench.studies.errata.witnesses import (
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import printed
 from exo_bench.matrix_method.printed import Printed
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import gait, random_states
-from exo_bench.models.presets import exo5, fig5, random_tree
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import gait, random_states
+from exo_bench.models.mechanism.presets import exo5, fig5, random_tree
 
 #: A formula holds when its largest error relative to the witness's largest magnitude is at most
 #: this, for both witnesses on every model.

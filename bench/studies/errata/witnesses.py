@@ -8,9 +8,9 @@ import numpy as np
 import sympy as sp
 
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
-from exo_bench.models import pinocchio_backend as pb
-from exo_bench.models import equation_form
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.engines import pinocchio_backend as pb
+from exo_bench.models.states import equation_form
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def _blocks(mech: Mechanism) -> tuple[str, ...]:

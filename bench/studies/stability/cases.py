@@ -11,14 +11,14 @@ import math
 import numpy as np
 
 from exo_bench.bench.studies.study import StabilityWarning
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import GaitParams
-from exo_bench.models.motion import gait
-from exo_bench.models.motion import planar_gait
-from exo_bench.models.motion import random_states
-from exo_bench.models.presets import chain
-from exo_bench.models.presets import exo5
-from exo_bench.models.presets import random_tree
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import GaitParams
+from exo_bench.models.gait.motion import gait
+from exo_bench.models.gait.motion import planar_gait
+from exo_bench.models.gait.motion import random_states
+from exo_bench.models.mechanism.presets import chain
+from exo_bench.models.mechanism.presets import exo5
+from exo_bench.models.mechanism.presets import random_tree
 
 
 EPS = float(np.finfo(float).eps)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.bench.studies.stability.evaluation import FamilyResult
-from exo_bench.models.aggregates import coupling
+from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.newton_euler.chart_free import RoundTrip, gait_round_trip
 
 

@@ -25,10 +25,10 @@ from exo_bench.bench.studies.stability.cases import (
 )
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.runtime.prepared import PreparedModel
 
 
 def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
@@ -55,7 +55,7 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
         why = why or one_line(e)
     except Exception as e:  # noqa: BLE001
         why = getattr(e, "skip_reason", None) or one_line(e)
-    from exo_bench.models.pinocchio_backend import inverse_dynamics
+    from exo_bench.models.engines.pinocchio_backend import inverse_dynamics
 
     return inverse_dynamics(mech, q, qd, qdd), f"pinocchio (float64 stand-in: {why})"
 
@@ -191,7 +191,7 @@ def evaluate_case(
 
 def equilibrated_mu_condition(mech: Mechanism) -> float:
     """``cond(D^-1/2 mu D^-1/2)``, ``D = diag(mu)``: the equilibrated condition number of M at every
-    configuration where M is regular (see :func:`exo_bench.models.forward_dynamics.condition_numbers`)."""
+    configuration where M is regular (see :func:`exo_bench.models.simulation.forward_dynamics.condition_numbers`)."""
     mu = coupling(mech)
     dg = np.diag(mu)
     if (dg <= 0).any():

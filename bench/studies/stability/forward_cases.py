@@ -11,16 +11,16 @@ import math
 import numpy as np
 
 from exo_bench.api import PreparedSet
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.kinematics import total_energy
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.motion import Motion
-from exo_bench.models.motion import planar_gait
-from exo_bench.models.motion import smooth_random_motion
-from exo_bench.models.presets import chain
-from exo_bench.models.presets import exo5
-from exo_bench.models.presets import random_tree
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.mechanism.kinematics import total_energy
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.motion import Motion
+from exo_bench.models.gait.motion import planar_gait
+from exo_bench.models.gait.motion import smooth_random_motion
+from exo_bench.models.mechanism.presets import chain
+from exo_bench.models.mechanism.presets import exo5
+from exo_bench.models.mechanism.presets import random_tree
 
 
 EPS = np.finfo(float).eps

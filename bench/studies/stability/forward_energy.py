@@ -11,9 +11,9 @@ import numpy as np
 
 from exo_bench.api import PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, SpringCase, _models
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.aggregates import coupling
-from exo_bench.models.kinematics import kinetic_energy
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.aggregates import coupling
+from exo_bench.models.mechanism.kinematics import kinetic_energy
 
 
 def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndarray:

@@ -25,8 +25,8 @@ from exo_bench.bench.studies.stability.forward_cases import (
 )
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.presets import exo5
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.presets import exo5
 from exo_bench.bench.studies.stability.forward_energy import EnergyRun, StiffRun, energy_drift, stiff_run
 from exo_bench.bench.studies.stability.forward_round_trip import RoundTrip, round_trip, round_trip_run, variational
 from exo_bench.bench.studies.stability.forward_terms import SingularDemo, TermsRow, singular_demos, terms_agreement
@@ -115,7 +115,7 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     """Every forward-dynamics experiment of the report, at the profile's sizes."""
     import time
 
-    from exo_bench.models.motion import gait
+    from exo_bench.models.gait.motion import gait
 
     t_start = time.perf_counter()
     log("forward dynamics: mass matrices and bias forces per method")

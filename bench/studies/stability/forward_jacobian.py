@@ -4,11 +4,11 @@ finite differences, the report section.
 Radau and BDF need ``df/dy`` of the right-hand side ``f = [qd, qdd]``. scipy estimates it by finite
 differences of the vectorised right-hand side: ``2 dof`` more evaluations per Jacobian (counted in
 ``RHS evals``, which counts columns). The analytic Jacobian
-(:func:`exo_bench.models.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
+(:func:`exo_bench.models.simulation.forward_dynamics.make_jacobian`) comes from the forward-dynamics derivatives of
 ``model.derivatives`` (the analytic derivatives of the Newton-Euler passes,
-:mod:`exo_bench.models.derivatives`; issue 36, before it CasADi's differentiation of the factored closed
+:mod:`exo_bench.models.derivatives.derivatives`; issue 36, before it CasADi's differentiation of the factored closed
 forms) and the controls' own derivatives, and costs no right-hand-side
-evaluation, so it is re-evaluated after every accepted step (:mod:`exo_bench.models.implicit_integrators`).
+evaluation, so it is re-evaluated after every accepted step (:mod:`exo_bench.models.simulation.implicit_integrators`).
 Each analytic run is paired with the finite-difference run of the same case,
 integrator and tolerance (:func:`pairs`), and the report says whether it reached the same
 tolerance in fewer evaluations (:func:`verdict`).
@@ -24,7 +24,7 @@ from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
 
 if TYPE_CHECKING:
-    from exo_bench.models.simulate import Simulation
+    from exo_bench.models.simulation.simulate import Simulation
 
 
 @dataclass
@@ -134,9 +134,9 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
         "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
         "from `model.derivatives` (the analytic derivatives of the Newton-Euler passes with the implicit-function "
-        "theorem, `models/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
+        "theorem, `models/derivatives/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
-        "re-evaluated after every accepted step (`models/implicit_integrators.py`; scipy's own rule, made for "
+        "re-evaluated after every accepted step (`models/simulation/implicit_integrators.py`; scipy's own rule, made for "
         "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
         "Newton iterations, at tight tolerances more than the finite-difference Jacobians cost). Same case, "
         "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "

@@ -8,7 +8,7 @@ from exo_bench.bench.output.provenance import sci
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, ROUND_TRIP_RULE, TIGHTER
 from exo_bench.bench.studies.stability.forward_evaluation import ForwardResults
 from exo_bench.bench.studies.stability.forward_jacobian import jacobian_markdown
-from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.simulation import forward_dynamics as fd
 
 
 _e = sci  # one formatter for every report cell (bench.reporting.sci)

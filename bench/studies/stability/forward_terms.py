@@ -12,9 +12,9 @@ import numpy as np
 from exo_bench.api import METHODS, PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import _models
 from exo_bench.bench.studies.study import one_line
-from exo_bench.models import forward_dynamics as fd
-from exo_bench.models.presets import exo5
-from exo_bench.models.presets import random_tree
+from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.presets import exo5
+from exo_bench.models.mechanism.presets import random_tree
 
 
 @dataclass
@@ -33,7 +33,7 @@ def terms_agreement(methods: list[str], samples: int = 4, models: PreparedSet | 
     ``nonLinearEffects``; Pinocchio itself also through its inverse dynamics (the linearity identity)."""
     import time
 
-    from exo_bench.models.motion import random_states
+    from exo_bench.models.gait.motion import random_states
 
     models = _models(models)
     rows = []
@@ -81,7 +81,7 @@ class SingularDemo:
 
 def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
     """Forward dynamics at genuinely singular configurations: refused, with the link named."""
-    from exo_bench.models.motion import gait, random_states
+    from exo_bench.models.gait.motion import gait, random_states
 
     models = _models(models)
 

@@ -26,8 +26,8 @@ from exo_bench.bench.studies.stability.cases import (
 from exo_bench.bench.studies.stability.evaluation import FamilyResult, MethodRow, evaluate_families, method_options
 from exo_bench.bench.studies.stability.figures import conditioning_figure, families_figure
 from exo_bench.bench.studies.study import StabilityWarning
-from exo_bench.models import conditioning as cond
-from exo_bench.models import forward_dynamics as fd
+from exo_bench.models.runtime import conditioning as cond
+from exo_bench.models.simulation import forward_dynamics as fd
 
 
 # ----------------------------------------------------------------------------- report: families

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def angle_rows(mech: Mechanism) -> np.ndarray:

@@ -17,7 +17,7 @@ from exo_bench.bench.output.figures.kinogram import projections
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
 from exo_bench.bench.studies.step.data import WalkingMotion
 from exo_bench.bench.studies.study import Study
-from exo_bench.models.kinematics import point_mass_positions
+from exo_bench.models.mechanism.kinematics import point_mass_positions
 
 #: Frames per step in the kinogram.
 FRAMES_PER_STEP = 7

@@ -15,7 +15,7 @@ import hashlib
 import json
 from typing import Any
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 #: How to get a step for a mechanism that has none: the one line every refusal ends with.
 HOW_TO_SOLVE = (
@@ -79,7 +79,7 @@ def _solved_for(meta: dict[str, Any], source: str) -> dict[str, Any]:
                 f"{str(meta['mechanism_digest'])[:12]}..., got one that does not match it"
             )
         return definition
-    from exo_bench.models.presets import PRESETS
+    from exo_bench.models.mechanism.presets import PRESETS
 
     name = meta.get("mechanism")
     if not isinstance(name, str) or name not in PRESETS or not name.startswith("exo5-"):

@@ -5,7 +5,7 @@ is the stance ankle, actuated like every other joint, and every rod is actuated 
 system is therefore fully actuated: every trajectory is dynamically possible, and the loads along it are
 its inverse dynamics. The optimiser chooses the trajectory; the loads are ``tau = ID(q, qd, qdd)`` from the
 equations' CasADi export (:func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`) and the net joint loads
-of :mod:`exo_bench.models.joint_loads` (:func:`exo_bench.bench.studies.step.symbolic.net_loads_function`). Like OpenSim Moco's
+of :mod:`exo_bench.models.mechanism.joint_loads` (:func:`exo_bench.bench.studies.step.symbolic.net_loads_function`). Like OpenSim Moco's
 example2DWalking, opty's gait2d and Ackermann & van den Bogert (2010), it solves for one step with
 left/right swap periodicity, a prescribed average speed and an effort objective.
 
@@ -44,7 +44,7 @@ import numpy as np
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.studies.solve_failed import SolveFailed
 from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 DEG = math.pi / 180
 
@@ -54,7 +54,7 @@ class StepSettings:
     """The step problem's settings (SI units, angles in radians). Every value is stored with the solution.
 
     * ``speed``: the prescribed average speed, the step length over the step's duration (Winter's walk:
-      1.41 m/s; :mod:`exo_bench.models.normative`).
+      1.41 m/s; :mod:`exo_bench.models.gait.normative`).
     * ``duration``: the range of the free duration of one step (Winter's step, half his 0.987 s stride, is
       0.49 s; his single support is 0.37 s of it).
     * ``clearance``: the lowest swing-leg point mass stays at least this high between lift-off and
@@ -63,7 +63,7 @@ class StepSettings:
       step (10 % of 0.49 s is 49 ms, less than each of Winter's double supports, 107 ms), where it only
       stays above the floor.
     * ``rest_lengths``: shin, thigh and trunk rods (Winter's anthropometric fractions of a 1.75 m
-      stature, as :class:`exo_bench.models.motion.GaitParams` states); ``stroke``: each rod may change its length
+      stature, as :class:`exo_bench.models.gait.motion.GaitParams` states); ``stroke``: each rod may change its length
       by at most this much either way.
     * ``knee``: knee flexion, thigh angle minus shin angle, both legs: 0 means straight, and no
       hyperextension. ``hip``: thigh angle minus trunk angle (positive flexes the hip). ``segment``:

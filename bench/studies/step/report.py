@@ -16,8 +16,8 @@ import numpy as np
 from exo_bench.bench.studies.plausibility import ROLES, Plausibility, plausibility
 from exo_bench.bench.studies.step import data
 from exo_bench.bench.studies.study import Study
-from exo_bench.models.joint_loads import net_joint_loads, point_mass_accelerations
-from exo_bench.models.normative import SHORT_SOURCE, SOURCE, WINTER, G as WINTER_G
+from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations
+from exo_bench.models.gait.normative import SHORT_SOURCE, SOURCE, WINTER, G as WINTER_G
 
 #: A peak within this factor of Winter's, either way, is "comparable".
 FACTOR = 2.0
@@ -115,7 +115,7 @@ def _joint_reason(al: _Along, k: int, name: str, ratio: float) -> str:
 
 def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
     s = int(np.argmax(al.Fn[:, k]))
-    from exo_bench.models.joint_loads import subtree
+    from exo_bench.models.mechanism.joint_loads import subtree
 
     links = list(subtree(al.mech, k))
     acc = float(al.A[s, links].max())
@@ -211,7 +211,7 @@ def _settings_lines(st: data.StoredStep) -> list[str]:
         f"- **objective** (per second, Simpson): {s.w_moment:g} × Σ_joints |net joint moment|² in (N·m/kg)² + "
         f"{s.w_force:g} × Σ_rods (rod force / BW)² + {s.w_accel:g} × Σ qdd² (regulariser); the loads are the "
         "inverse dynamics of the equations' CasADi export (matrix_method/export/casadi_functions.py) and the net joint "
-        "loads of models/joint_loads.py in CasADi (bench/studies/step/symbolic.py)",
+        "loads of models/mechanism/joint_loads.py in CasADi (bench/studies/step/symbolic.py)",
     ]
 
 
@@ -226,7 +226,7 @@ def markdown(scene, study: Study) -> str:
     K = len(stored.t)
     lo, hi = int(round(stored.settings.window * (K - 1))), int(round((1 - stored.settings.window) * (K - 1)))
     low = data.lowest_swing_mass(stored, mech)
-    from exo_bench.models.kinematics import point_mass_velocities
+    from exo_bench.models.mechanism.kinematics import point_mass_velocities
 
     hipv = point_mass_velocities(mech, stored.q, stored.qd)[:, 1, 2, 0]
     lines = [
@@ -246,8 +246,8 @@ def markdown(scene, study: Study) -> str:
         f"(on a shared 2-core host; CasADi {sv.get('casadi')}), objective {sv.get('objective', float('nan')):.6g}, "
         f"largest constraint violation as CasADi evaluates it {sv.get('constraint_violation', float('nan')):.1e}.",
         "",
-        "**Every constraint re-evaluated** in numpy from the stored arrays with models/kinematics.py and "
-        "models/joint_loads.py (largest violation; 0 = met with margin):",
+        "**Every constraint re-evaluated** in numpy from the stored arrays with models/mechanism/kinematics.py and "
+        "models/mechanism/joint_loads.py (largest violation; 0 = met with margin):",
         "",
         "| constraint | largest violation |",
         "|---|---|",
@@ -286,7 +286,7 @@ def markdown(scene, study: Study) -> str:
         "## Plausibility: the loads beside level walking",
         "",
         f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, about the joint; "
-        f"`models/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
+        f"`models/mechanism/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
         f"in body weights (BW = {p.weight:.0f} N), beside the normative peak of the joint each plays in level "
         f"walking ({SHORT_SOURCE}). `comparable?` says yes within a factor of {FACTOR:g} either way, and otherwise "
         "gives the reason computed from the step.",

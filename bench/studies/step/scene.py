@@ -22,7 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from exo_bench.bench.studies.step import data
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def load_motion(path: Path, m: dict, mech: Mechanism) -> dict:

@@ -5,14 +5,14 @@
   Everything else here is kinematics.
 * :func:`kinematics_function` - the point masses' positions, velocities and accelerations by CasADi's
   forward differentiation of the positions ``p(q)`` of eq. (7) (no dynamics).
-* :func:`net_loads_function` - the net joint moments and forces of :mod:`exo_bench.models.joint_loads`
+* :func:`net_loads_function` - the net joint moments and forces of :mod:`exo_bench.models.mechanism.joint_loads`
   (Newton-Euler on each subtree, the gait-analysis definition) from those point-mass accelerations, so
   that the objective weighs the same quantities the plausibility table reports. ``tests/test_step.py``
-  checks them against :func:`exo_bench.models.joint_loads.net_joint_loads`.
+  checks them against :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads`.
 
 Layout of the outputs (column vectors, one sample per call; map over samples with ``Function.map``):
 positions ``p`` are ``(n * 3 * dim,)`` in the order link, mass (start, middle, end), axis, like
-:func:`exo_bench.models.kinematics.point_mass_positions` flattened; moments ``M`` are ``(n * 3,)`` in 3D (world
+:func:`exo_bench.models.mechanism.kinematics.point_mass_positions` flattened; moments ``M`` are ``(n * 3,)`` in 3D (world
 axes) and ``(n,)`` in 2D; forces ``F`` are ``(n * dim,)``.
 """
 
@@ -21,7 +21,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 def inverse_dynamics_function(mech: Mechanism) -> ca.Function:
@@ -97,8 +97,8 @@ def _cross(a, b):
 
 def net_loads_function(mech: Mechanism) -> ca.Function:
     """``(M, F) = L(q, qd, qdd)``: the net joint moment and force at the start of every link, exerted by
-    the parent side on the link's subtree (:mod:`exo_bench.models.joint_loads`)."""
-    from exo_bench.models.joint_loads import subtree
+    the parent side on the link's subtree (:mod:`exo_bench.models.mechanism.joint_loads`)."""
+    from exo_bench.models.mechanism.joint_loads import subtree
 
     q, qd, qdd = (ca.SX.sym(s, mech.dof) for s in ("q", "qd", "qdd"))
     p, _, a = _kinematics(mech, q, qd, qdd)

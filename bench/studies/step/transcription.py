@@ -59,7 +59,7 @@ import casadi as ca
 import numpy as np
 
 from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 #: Threads of the mapped Jacobian and Hessian (most of the evaluation time; the host has 2 cores).

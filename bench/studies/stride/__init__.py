@@ -2,7 +2,7 @@
 separate from the paper's step (:mod:`exo_bench.bench.studies.step`).
 
 * :mod:`~exo_bench.bench.studies.stride.actuators` splits the generalised forces of
-  :func:`exo_bench.models.presets.human` into its actuators (joint motors at hips, knees, ankles and
+  :func:`exo_bench.models.mechanism.presets.human` into its actuators (joint motors at hips, knees, ankles and
   arches, and the telescopic rods), their powers, and the work and effort terms;
 * :mod:`~exo_bench.bench.studies.stride.coordinates` - the stride's free coordinates, the left/right
   mirror and the full stride from the solved half;

@@ -26,7 +26,7 @@ from exo_bench.bench.studies.stride.cycle import (
     rms,
     winter_series,
 )
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.bench.studies.stride.evidence import (
     CONTACT_THRESHOLD,
     WINTER_DOUBLE_SUPPORT,

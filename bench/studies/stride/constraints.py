@@ -1,7 +1,7 @@
 """The stride's constraints re-evaluated from a stored stride with numpy and the project's own models.
 
-Nothing of the optimiser is reused: the contact forces are :func:`exo_bench.models.posture.ground_reaction`'s,
-the dynamics newton-euler's numpy inverse dynamics with ``f_ext`` (:mod:`exo_bench.models.external_forces`),
+Nothing of the optimiser is reused: the contact forces are :func:`exo_bench.models.simulation.posture.ground_reaction`'s,
+the dynamics newton-euler's numpy inverse dynamics with ``f_ext`` (:mod:`exo_bench.models.runtime.external_forces`),
 the split :func:`exo_bench.bench.studies.stride.actuators.actuators`. So a wrong store or a wrong CasADi
 model shows up here.
 
@@ -22,9 +22,9 @@ import numpy as np
 from exo_bench.bench.studies.stride.actuators import actuators, join_pairs
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, free_map, mirror_matrix
 from exo_bench.bench.studies.stride.data import StoredStride, contact_forces, contact_of
-from exo_bench.models.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.posture import balanced_standing, ground_reaction
+from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.simulation.posture import balanced_standing, ground_reaction
 
 
 def _excess(x, lo, hi) -> float:

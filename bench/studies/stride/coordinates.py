@@ -1,6 +1,6 @@
 """The stride's coordinates: which of the 2D human's are free, the left/right mirror, and the full stride.
 
-**Free coordinates.** Of the 20 coordinates of :func:`exo_bench.models.presets.human` (10 angles, 10
+**Free coordinates.** Of the 20 coordinates of :func:`exo_bench.models.mechanism.presets.human` (10 angles, 10
 lengths), 13 are the optimiser's: the root's angle and length (where the hips are), HAT's angle, the
 thigh, leg and foot angles of both legs, and the four telescopic rods' lengths (thighs and legs). The
 rest are fixed: HAT's, the feet's and the heels' lengths at the anthropometric ones, and each heel's
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 SIDES = ("right", "left")
 LEG_PARTS = ("thigh", "leg", "foot", "heel")

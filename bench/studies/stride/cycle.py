@@ -17,7 +17,7 @@ in +x. That is Winter's Table A.5 moment on the distal segment at its proximal j
 curves are compared as they are, with no relabelling. The powers are ``moment x (omega_link -
 omega_reference)`` on both sides (:func:`exo_bench.bench.studies.stride.actuators.powers`,
 :func:`.winter.joint_powers`). The model's angles are Winter's segment angles by construction
-(:func:`exo_bench.models.presets.human`: the vector from the distal to the proximal joint).
+(:func:`exo_bench.models.mechanism.presets.human`: the vector from the distal to the proximal joint).
 
 **Scale.** Each curve's RMS error is set beside Winter's own RMS over the cycle (a segment angle's about
 its mean, so the scale is the angle's swing, not its offset from +x): the transcription is one subject,
@@ -33,8 +33,8 @@ import numpy as np
 from exo_bench.bench.studies.stride import winter
 from exo_bench.bench.studies.stride.actuators import Actuators, actuators, powers
 from exo_bench.bench.studies.stride.evidence import CONTACT_THRESHOLD
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.normative import G
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.normative import G
 
 BINS = 100
 #: A lift of the foot shorter than this fraction of the cycle (5 %: 49 ms in Winter's stride) is a bounce

@@ -1,8 +1,8 @@
 """The stored stride: writing and reading it (``.npz`` + JSON metadata, no pickle), and what it holds.
 
 A stored stride is ``bench/studies/stride/data/<file_stem(mechanism)>-<variant>-v<speed in cm/s>.npz``
-(:func:`path_of`; the key is encoded by :func:`exo_bench.models.names.file_stem`, never used as a path):
-one **full** stride of the 2D human (:func:`exo_bench.models.presets.human`), from a right heel strike
+(:func:`path_of`; the key is encoded by :func:`exo_bench.models.files.names.file_stem`, never used as a path):
+one **full** stride of the 2D human (:func:`exo_bench.models.mechanism.presets.human`), from a right heel strike
 to the next, sampled at the collocation nodes. The optimiser solves half of it (right heel strike to
 left heel strike) with a left/right symmetry constraint; the second half stored here is the first
 mirrored (right and left links exchanged, the hips one half stride further on), so every consumer
@@ -12,7 +12,7 @@ Arrays (``K`` nodes, ``dof = 20``; SI units; forces in world axes ``(x forward, 
 
 * ``t (K,)`` s, from 0 to the period; ``q, qd, qdd (K, dof)`` the model's coordinates;
 * ``tau (K, dof)``: the actuators' generalised forces the optimiser found, ``ID(q, qd, qdd) - Q(q,
-  f_contact)`` (:mod:`exo_bench.models.external_forces`);
+  f_contact)`` (:mod:`exo_bench.models.runtime.external_forces`);
 * ``moments (K, joints)`` N·m, the joint moments named by ``meta["joint_names"]`` (hips, knees,
   ankles, arches: :func:`exo_bench.bench.studies.stride.actuators.actuators`; the arch moment is what
   holds the foot's fixed arch, not an actuator);
@@ -23,7 +23,7 @@ Arrays (``K`` nodes, ``dof = 20``; SI units; forces in world axes ``(x forward, 
   tolerance (nothing but the actuators and the floor moves the body);
 * ``contact (K, points, 2)`` N: the floor's force at each contact point named by
   ``meta["contact_names"]`` (right heel, right toe, left heel, left toe: the end masses of the heel
-  and foot rods), as :func:`exo_bench.models.posture.ground_reaction` computes it from ``q, qd``;
+  and foot rods), as :func:`exo_bench.models.simulation.posture.ground_reaction` computes it from ``q, qd``;
 * ``grf (K, 2, 2)`` N: the ground reaction per foot (``meta["feet"]``: right, left), heel plus toe.
 
 ``meta`` (JSON): ``variant`` ("human" or "exo"), ``speed`` (m/s), ``period`` (s), ``stride_length``
@@ -48,10 +48,10 @@ import numpy as np
 from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.data import read_stored
 from exo_bench.bench.studies.stride.passive import check_passive, check_spring
-from exo_bench.models.contact import DEFAULT_CONTACT, ContactParameters
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.names import file_stem
-from exo_bench.models.validation import _finite, _is_number
+from exo_bench.models.simulation.contact import DEFAULT_CONTACT, ContactParameters
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.files.names import file_stem
+from exo_bench.models.states.validation import _finite, _is_number
 
 DATA = Path(__file__).resolve().parent / "data"
 VARIANTS = ("human", "exo")
@@ -136,9 +136,9 @@ def contact_mask_order(mech: Mechanism) -> list[int]:
 
 def contact_of(settings: Any, where: str = "stride: field 'settings.contact'") -> ContactParameters:
     """The floor's contact parameters of a stride problem (its settings, or their stored dict):
-    :data:`~exo_bench.models.contact.DEFAULT_CONTACT` with the fields of its ``contact`` changed (a stride
+    :data:`~exo_bench.models.simulation.contact.DEFAULT_CONTACT` with the fields of its ``contact`` changed (a stride
     stored without the field has the defaults); a one-line ValueError ``where: ...`` naming a bad field
-    (unknown, or a value :class:`~exo_bench.models.contact.ContactParameters` refuses)."""
+    (unknown, or a value :class:`~exo_bench.models.simulation.contact.ContactParameters` refuses)."""
     over = settings.get("contact", {}) if isinstance(settings, dict) else settings.contact
     names = [f.name for f in fields(ContactParameters)]
     unknown = [k for k in over if k not in names] if isinstance(over, dict) else [over]
@@ -175,8 +175,8 @@ def check_settings(s: Any, source: str = "stride", prefix: str = "") -> None:
 
 def contact_forces(mech: Mechanism, q: np.ndarray, qd: np.ndarray, params=None) -> np.ndarray:
     """``(K, 4, 2)``: the floor's force at each contact point of :data:`CONTACTS` from ``q, qd``
-    (:func:`exo_bench.models.posture.ground_reaction`, the default contact parameters unless given)."""
-    from exo_bench.models.posture import ground_reaction
+    (:func:`exo_bench.models.simulation.posture.ground_reaction`, the default contact parameters unless given)."""
+    from exo_bench.models.simulation.posture import ground_reaction
 
     f = ground_reaction(mech, np.atleast_2d(q), np.atleast_2d(qd), params or DEFAULT_CONTACT)
     return f[:, contact_mask_order(mech), 2, :]
@@ -288,7 +288,7 @@ def load(variant: str, speed: float, mech: Mechanism | None = None, folder: Path
     """The stored stride of ``variant`` at ``speed`` for ``mech`` (the 2D human preset by default); a
     one-line ValueError when there is none, it cannot be read, or it was solved for another mechanism."""
     if mech is None:
-        from exo_bench.models.presets import human
+        from exo_bench.models.mechanism.presets import human
 
         mech = human(2)
     p = path_of(mech.name, variant, speed, folder)
@@ -304,7 +304,7 @@ def load(variant: str, speed: float, mech: Mechanism | None = None, folder: Path
 
 def stored(folder: Path | None = None) -> list[tuple[str, float]]:
     """``(variant, speed)`` of every stride stored for the 2D human in ``folder``, sorted."""
-    from exo_bench.models.presets import human
+    from exo_bench.models.mechanism.presets import human
 
     name = file_stem(human(2).name)
     out = []

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, SINGLE_SUPPORT, TOE_OFF
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, SINGLE_SUPPORT, TOE_OFF
 
 #: A foot is on the ground while its vertical force exceeds this many body weights.
 CONTACT_THRESHOLD = 0.02
 #: Winter's double support, % of the stride: frames 28-36 and 62-70 of 28-97 (his left-foot events are
-#: estimated by symmetry, :data:`exo_bench.models.normative.SINGLE_SUPPORT`).
+#: estimated by symmetry, :data:`exo_bench.models.gait.normative.SINGLE_SUPPORT`).
 WINTER_DOUBLE_SUPPORT = (
     100.0 * ((SINGLE_SUPPORT[0] - HEEL_CONTACT) + (TOE_OFF - SINGLE_SUPPORT[1])) / (NEXT_HEEL_CONTACT - HEEL_CONTACT)
 )
@@ -50,7 +50,7 @@ def floor_work(mech: Mechanism, stride) -> float:
     returns what it stores over a periodic stride, so what is left is the contact's damping and friction:
     energy the body loses at the floor and the objective does not price."""
     from exo_bench.bench.studies.stride.data import contact_mask_order
-    from exo_bench.models.kinematics import point_mass_velocities
+    from exo_bench.models.mechanism.kinematics import point_mass_velocities
 
     v = point_mass_velocities(mech, stride.q, stride.qd)[:, contact_mask_order(mech), 2, :]
     return float(np.trapezoid(np.einsum("kpd,kpd->k", stride.contact, v), stride.t))

@@ -13,9 +13,9 @@ from matplotlib.lines import Line2D
 
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
 from exo_bench.bench.studies.stride.comparison import BINS, Comparison
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.normative import SHORT_SOURCE
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.gait.normative import SHORT_SOURCE
 
 #: Panel order (rows of three) and each quantity's axis label (unit and sign convention).
 PANELS = (

@@ -29,8 +29,8 @@ from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.actuators import actuators, powers
 from exo_bench.bench.studies.stride.constraints import load_jump
-from exo_bench.models.encoders import markdown_text as md
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.files.encoders import markdown_text as md
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 #: The name of a stored stride's own row.
 STORED = "(the stored stride)"

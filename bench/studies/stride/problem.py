@@ -4,7 +4,7 @@
 symmetry constraint (the end is the start mirrored, the hips half a stride on): the full stride is the
 half and its mirror image (:func:`exo_bench.bench.studies.stride.coordinates.full_stride`), which is what
 is stored. Contact-implicit: the heels and toes meet the floor through the smooth contact of
-:mod:`exo_bench.models.contact` at every node, with no mode schedule, so double support, heel strike and
+:mod:`exo_bench.models.simulation.contact` at every node, with no mode schedule, so double support, heel strike and
 push-off are whatever the optimum makes of the feet. Prescribed average speed ``v``: the hips advance
 ``v T`` in the half stride's duration ``T`` (free within :attr:`StrideSettings.period`). Dynamics: the
 model's inverse dynamics with the contact forces equal the actuators' forces, with zero residuals on
@@ -73,8 +73,8 @@ from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.studies.solve_failed import SolveFailed
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
-from exo_bench.models.kinematics import point_mass_positions
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.kinematics import point_mass_positions
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 DEG = math.pi / 180
 #: The exo variant's telescopic-rod stroke (m, either way about the anthropometric length): a compact
@@ -103,7 +103,7 @@ JOIN_LOADS = (("human", False), ("exo", True))
 #: 5e-12 leaves a factor of 2. At 1e-10 (the strides stored before it, :class:`StrideSettings`'s default) the exo
 #: stride with continuous loads left 1.5e-8 N·m at a mirrored node; at 5e-12, 1.5e-9 N·m (33 more iterations).
 CONSTR_VIOL_TOL = 5e-12
-#: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.normative.WINTER`).
+#: Winter's stride at his 1.41 m/s (s, :data:`exo_bench.models.gait.normative.WINTER`).
 WINTER_PERIOD, WINTER_SPEED = 0.987, 1.41
 
 
@@ -161,8 +161,8 @@ class StrideSettings:
 
 def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> StrideSettings:
     """Settings of ``variant`` ("human" or "exo") at ``speed``: the rest lengths and the standing ankle
-    taken from :func:`exo_bench.models.posture.balanced_standing`."""
-    from exo_bench.models.posture import balanced_standing
+    taken from :func:`exo_bench.models.simulation.posture.balanced_standing`."""
+    from exo_bench.models.simulation.posture import balanced_standing
 
     data.check_variant(variant)
     data.speed_key(speed)
@@ -200,7 +200,7 @@ def initial_guess(mech: Mechanism, fm: FreeMap, s: StrideSettings, T: float):
     """A walk on flat feet: the hips at constant speed 3 cm below standing height, the right foot flat
     where its heel touched at t = 0, the left foot flat behind for the first fifth, then swung on a 5 cm
     arch to land a half stride ahead; legs by two-link inverse kinematics, trunk upright. ``(t, z, zd, zdd)``."""
-    from exo_bench.models.posture import balanced_standing
+    from exo_bench.models.simulation.posture import balanced_standing
 
     N = s.intervals
     t = np.linspace(0.0, T, N + 1)
@@ -234,7 +234,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
     import casadi as ca
 
     from exo_bench.bench.studies.stride import transcription
-    from exo_bench.models.posture import balanced_standing
+    from exo_bench.models.simulation.posture import balanced_standing
 
     fm = free_map(mech, balanced_standing(mech))
     nlp, node, rows = transcription.build(mech, fm, s)
@@ -296,7 +296,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
 
 def half_of(stride: data.StoredStride, mech: Mechanism):
     """``(T, z, zd, zdd)`` of the solved half of a stored stride (a start for :func:`solve`)."""
-    from exo_bench.models.posture import balanced_standing
+    from exo_bench.models.simulation.posture import balanced_standing
 
     fm = free_map(mech, balanced_standing(mech))
     N = (len(stride.t) - 1) // 2
@@ -333,7 +333,7 @@ def solve_from(
     problem as set. The stored human stride at 1.41 m/s is solved so from the one at 1.0 m/s: from the
     initial guess the stages found an optimum of objective 0.442 (the right foot touching down again in
     late swing, stance 48 %), from the 1.0 m/s stride one of 0.305 (stance 56 %)."""
-    from exo_bench.models.posture import balanced_standing
+    from exo_bench.models.simulation.posture import balanced_standing
 
     from exo_bench.bench.studies.stride.coordinates import TELESCOPIC
 

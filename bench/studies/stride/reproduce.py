@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.bench.studies.stride.data import StoredStride
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 REPRODUCE_TOL = 1e-5
 

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from exo_bench.bench.studies.stride import data
-from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.names import file_stem
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.files.names import file_stem
 
 #: The extra figure of a stride scene: our curves against Winter's.
 WINTER_FIGURE = "winter"
@@ -58,7 +58,7 @@ def label(motion: dict) -> str:
 
 
 def build(motion: dict, mech: Mechanism):
-    from exo_bench.models.motion import from_arrays
+    from exo_bench.models.gait.motion import from_arrays
 
     st = motion["stored"]
     return from_arrays(mech, st.t, st.q, st.qd, st.qdd, source=f"stored stride {Path(st.path).name}")

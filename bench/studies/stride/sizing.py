@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.bench.studies.stride.actuators import actuators, powers, work_terms
-from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 
 @dataclass(frozen=True)

@@ -18,13 +18,13 @@ from pathlib import Path
 from typing import Any
 
 from exo_bench.bench.studies.stride import data, problem
-from exo_bench.models.names import check_name
+from exo_bench.models.files.names import check_name
 
 
 def trial_folder(name: str, root: Path | None = None) -> Path:
     """The folder of trial ``name`` (a checked name, never a path)."""
     check_name(name, "trial")
-    from exo_bench.models.names import file_stem
+    from exo_bench.models.files.names import file_stem
 
     return Path(data.DATA / "trials" if root is None else root) / file_stem(name)
 
@@ -32,7 +32,7 @@ def trial_folder(name: str, root: Path | None = None) -> Path:
 def run(name: str, overrides: dict[str, Any], variant: str = "human", speed: float = 1.41, root=None) -> Path:
     """Solve the stored problem of ``variant`` at ``speed`` with ``overrides`` from its stored stride; store it."""
     from exo_bench.bench.output.provenance import _git_commit  # git with a timeout (issue 34: no unbounded wait)
-    from exo_bench.models.presets import human
+    from exo_bench.models.mechanism.presets import human
 
     mech = human(2)
     source = data.load(variant, speed, mech)
@@ -59,7 +59,7 @@ def store_all(keys=STORED + STORED_EXO) -> list[str]:
     from the stride named (the human at 1.41 m/s first, so the others start from the new one), and store
     it; one line per stride."""
     from exo_bench.bench.output.provenance import _git_commit  # bounded wait; says when the tree differs
-    from exo_bench.models.presets import human
+    from exo_bench.models.mechanism.presets import human
 
     mech = human(2)
     commit = _git_commit()

@@ -1,8 +1,8 @@
 """Winter's Appendix A stride as curves over the whole cycle, for :mod:`.comparison`.
 
-:mod:`exo_bench.models.normative` keeps the peaks and the thigh and leg angles; this module keeps the
+:mod:`exo_bench.models.gait.normative` keeps the peaks and the thigh and leg angles; this module keeps the
 curves the stride is compared with, per frame from the right heel contact (frame 28) to the next (frame
-97), read from the same Excel transcription (:data:`exo_bench.models.normative.SOURCE`) by
+97), read from the same Excel transcription (:data:`exo_bench.models.gait.normative.SOURCE`) by
 :func:`from_workbook` (``python -m exo_bench.bench.studies.stride.winter Winter_Appendix_data.xlsx``
 prints :data:`TABLE` again and says whether it matches):
 
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from exo_bench.models.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, SUBJECT_MASS
+from exo_bench.models.gait.normative import HEEL_CONTACT, NEXT_HEEL_CONTACT, SUBJECT_MASS
 
 COLUMNS = (
     "frame",
@@ -158,7 +158,7 @@ TABLE = """\
 
 def from_workbook(path: str | Path) -> str:
     """:data:`TABLE` recomputed from the Excel transcription of Winter's Appendix A."""
-    from exo_bench.models.normative import _by_frame, _sheets
+    from exo_bench.models.gait.normative import _by_frame, _sheets
 
     sheets = _sheets(Path(path))
     by_sheet = {}

@@ -1,0 +1,159 @@
+"""The one encoder per output format: every string a user names (a mechanism, a link, a scene) that
+reaches a generated file goes through the function here for that file's language, and nowhere else.
+
+A name is data, never code. What a name may hold is decided once, by :mod:`exo_bench.models.files.names`
+(:func:`~exo_bench.models.files.names.check_name`): printable characters, the metacharacters of every
+format included. Each encoder below takes such a name and writes it so that the format reads it back
+as the same text, with no way to end the element, comment, string or group it sits in:
+
+* XML (MJCF, URDF): :func:`xml_attr` (a quoted attribute value), :func:`xml_comment` (comment text);
+* LaTeX: :func:`latex_text` (text mode: every special character as its text command);
+* Markdown: :func:`markdown_text` (prose, headings, table cells), :func:`markdown_code` (a code span);
+* C: :func:`c_comment` (inside ``/* */``), :func:`c_identifier` (function prefix and file stem);
+* Python: :func:`python_string` (a literal), :func:`python_docstring` (text inside ``\"\"\"``),
+  :func:`python_module_name` (the module and its file stem).
+
+File names: :func:`exo_bench.models.files.names.file_stem`. Identifiers and module names are built on it,
+so they are ASCII, and they never shadow what the generated code imports: a C prefix is never a
+standard header's name (``math`` -> ``m_math``, not ``math.h``), a Python module never a standard
+module's or ``numpy`` (``numpy`` -> ``m_numpy``, not ``numpy.py``, which would import itself).
+"""
+
+from __future__ import annotations
+
+import json
+import keyword
+import re
+import sys
+
+from exo_bench.models.files.names import file_stem
+
+# ------------------------------------------------------------------------------------------- XML
+_XML_ATTR = {"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&apos;"}
+
+
+def xml_attr(value: str) -> str:
+    """``value`` as a double-quoted XML attribute value, quotes included: ``& < > " '`` as entities."""
+    return '"' + "".join(_XML_ATTR.get(ch, ch) for ch in value) + '"'
+
+
+def xml_comment(value: str) -> str:
+    """``value`` as text inside an XML comment: its JSON string literal (quotes included), with
+    every ``-`` that another ``-`` follows written ``\\u002d``. A comment has no character
+    references and may neither hold ``--`` nor end with ``-``; this text does neither, and
+    ``json.loads`` of it gives ``value`` back."""
+    return re.sub(r"-(?=-)", r"\\u002d", json.dumps(value, ensure_ascii=False))
+
+
+# ----------------------------------------------------------------------------------------- LaTeX
+#: Every character with a meaning in LaTeX's text mode, and the text it is written as.
+LATEX_ESCAPES = {
+    "\\": r"\textbackslash{}",
+    "{": r"\{",
+    "}": r"\}",
+    "$": r"\$",
+    "&": r"\&",
+    "%": r"\%",
+    "#": r"\#",
+    "_": r"\_",
+    "^": r"\textasciicircum{}",
+    "~": r"\textasciitilde{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "|": r"\textbar{}",
+    "-": "-{}",  # no en or em dash ligature: "--" stays two hyphens
+}
+
+
+def latex_text(value: str) -> str:
+    """``value`` as LaTeX text-mode material: every special character as its escape
+    (:data:`LATEX_ESCAPES`), so no control sequence, group, math shift, comment or alignment tab
+    comes from it. Other characters are written as they are (UTF-8): pdfLaTeX sets accented Latin
+    letters, and refuses, with an error and nothing run, a character it has no glyph for (CJK, emoji),
+    which XeLaTeX and LuaLaTeX set from the font."""
+    return "".join(LATEX_ESCAPES.get(ch, ch) for ch in value)
+
+
+# -------------------------------------------------------------------------------------- Markdown
+_MD_PUNCTUATION = re.compile(r"([!-/:-@\[-`{-~])")
+
+
+def markdown_text(value: str) -> str:
+    """``value`` as Markdown text (prose, a heading, a table cell): every ASCII punctuation
+    character backslash-escaped, so it renders as itself and opens no link, emphasis, HTML tag,
+    code span or cell."""
+    return _MD_PUNCTUATION.sub(r"\\\1", value)
+
+
+def markdown_code(value: str) -> str:
+    """``value`` as a Markdown code span (shown verbatim): fenced by one backtick more than its
+    longest run of backticks, padded by a space where it starts or ends with one. Not for a table
+    cell (a ``|`` would still split the cell there): :func:`markdown_text` is."""
+    runs = [len(r) for r in re.findall(r"`+", value)]
+    fence = "`" * (max(runs, default=0) + 1)
+    pad = " " if value.startswith("`") or value.endswith("`") else ""
+    return f"{fence}{pad}{value}{pad}{fence}"
+
+
+# --------------------------------------------------------------------------------------------- C
+def c_comment(value: str) -> str:
+    """``value`` as text inside a C block comment: ``\\`` doubled, and ``*/`` (the comment's end),
+    ``/*`` (gcc's -Wcomment) and ``??`` (a trigraph, read in C99) broken by a backslash."""
+    text = value.replace("\\", "\\\\")
+    text = text.replace("*/", "*\\/").replace("/*", "/\\*")
+    return re.sub(r"\?(?=\?)", r"?\\", text)  # "???/" -> "?\?\?/": no two "?" in a row
+
+
+#: The headers of the C standard library (C99 to C23): no generated header takes one of their names.
+C_STANDARD_HEADERS = frozenset(
+    "assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal stdalign "
+    "stdarg stdatomic stdbit stdbool stdckdint stddef stdint stdio stdlib stdnoreturn string tgmath "
+    "threads time uchar wchar wctype".split()
+)
+#: C's keywords (C23 included): no prefix is one.
+C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for goto if inline int "
+    "long register restrict return short signed sizeof static struct switch typedef union unsigned void "
+    "volatile while alignas alignof bool constexpr false nullptr static_assert thread_local true typeof "
+    "typeof_unqual".split()
+)
+
+
+def _ascii_identifier(value: str) -> str:
+    """The file stem of ``value`` as an ASCII identifier: ``-`` as ``_``, no leading ``_`` (names
+    starting so are reserved in C), ``m_`` before a leading digit."""
+    s = file_stem(value).replace("-", "_").lstrip("_") or "mechanism"
+    return "m_" + s if s[0].isdigit() else s
+
+
+def c_identifier(value: str) -> str:
+    """A C identifier (the prefix of the generated functions and the stem of the ``.h``/``.c``
+    files) from a name: ``exo5-3d`` -> ``exo5_3d``; ``m_`` before a keyword or the name of a
+    standard header (``math`` -> ``m_math``)."""
+    s = _ascii_identifier(value)
+    return "m_" + s if s.lower() in C_STANDARD_HEADERS or s in C_KEYWORDS else s
+
+
+# ---------------------------------------------------------------------------------------- Python
+#: What a generated Python module imports, besides the standard library.
+PYTHON_IMPORTS = frozenset({"numpy"})
+
+
+def python_module_name(value: str) -> str:
+    """The module name (and file stem) of a generated Python module from a name: an ASCII
+    identifier; ``m_`` before a keyword, a standard module's name or one the module imports
+    (:data:`PYTHON_IMPORTS`), so that it never shadows them (``numpy`` -> ``m_numpy``)."""
+    s = _ascii_identifier(value)
+    taken = sys.stdlib_module_names | set(sys.builtin_module_names) | PYTHON_IMPORTS
+    return "m_" + s if keyword.iskeyword(s) or s in taken or s.lower() in taken else s
+
+
+def python_string(value: str) -> str:
+    """``value`` as a Python string literal (its ``repr``: quotes and backslashes escaped)."""
+    return repr(str(value))
+
+
+def python_docstring(text: str) -> str:
+    """``text`` inside a ``\"\"\"`` docstring: ``\\`` doubled and every ``\"`` escaped, so it can
+    neither end the string nor start an escape."""
+    return text.replace("\\", "\\\\").replace('"', '\\"')
