@@ -5,7 +5,8 @@ starting with ``$ ``; the other lines are the output shown). Each block runs in 
 commands in order, as a user would type them from the checkout (``.venv/bin/...`` is this test's own
 environment): every command must exit 0, and where a ``console`` block shows output, the real output has its
 shape (as many lines, each starting with the shown line's first word). Inputs are shipped (presets) or made by
-a command shown before (``exo-bench states PRESET -o FILE``).
+a command shown before (``exo-bench states PRESET -o FILE``). The README's blocks write only into
+``scratch/``, which .gitignore lists (issue 48): a file left beside it fails.
 
 The commands that take minutes, need a display or install packages are exempt, each named in
 :data:`EXEMPT` with the reason, and nothing else is: an exemption that matches no shown command fails.
@@ -113,6 +114,12 @@ def test_the_docs_show_commands_and_every_exemption_is_used():
     assert not unused, f"exemptions that match no shown command: {unused}"
 
 
+def test_the_readme_examples_scratch_folder_is_ignored_by_git():
+    """The README's command-line examples write into scratch/, which .gitignore lists."""
+    assert "scratch/" in (ROOT / ".gitignore").read_text().splitlines()
+    assert any("scratch/" in b[3] for b in BLOCKS if b[0] == "README.md")
+
+
 def test_every_block_with_a_command_is_run_once():
     """Running a repeated block once drops no block: each block with a runnable command is named by a run."""
     named = " ".join(f"{b[0]}:{b[1]}" for b in RUNNABLE)
@@ -149,6 +156,9 @@ def test_a_shown_block_runs_as_written(where, line, language, block, tmp_path):
         )
         assert r.returncode == 0, f"{where}:{line}: `{command}` exited {r.returncode}: {r.stderr[-2000:]}"
         outputs.extend(r.stdout.splitlines())
+    if where.startswith("README.md"):  # the README's examples write into scratch/ (in .gitignore), nothing else
+        left = sorted(p.name for p in tmp_path.iterdir() if p.name != "scratch")
+        assert not left, f"{where}:{line}: files left beside scratch/: {left}"
     if shown:
         assert len(outputs) == len(shown), f"{where}:{line}: shown {len(shown)} lines, got {outputs}"
         for got, expected in zip(outputs, shown):

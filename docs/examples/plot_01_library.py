@@ -9,10 +9,7 @@ prepared model's calls are cheap. Arrays are batch-first, ``(samples, dof)``, in
 
 import numpy as np
 
-from exo_bench import prepare, presets
-from exo_bench.models.mechanism.joint_loads import net_joint_loads
-from exo_bench.models.gait.motion import random_states
-from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques
+from exo_bench import joint_torques, net_joint_loads, pinocchio_model, prepare, presets, random_states
 
 mech = presets.exo5(dim=3)  # the paper's five-link 3D exoskeleton: 15 coordinates
 model = prepare(mech, "matrix-factored")
@@ -52,13 +49,13 @@ assert np.allclose(tau, reference, rtol=0, atol=1e-12 * np.abs(reference).max())
 # %%
 # ``tau`` holds the generalised forces of the *absolute* angles, not joint moments. The joint torques of
 # Pinocchio's relative joints are ``G^-T tau``; the net joint moments of gait analysis come from the point
-# masses directly (``models.joint_loads``). In 2D the two agree on every joint:
+# masses directly (``net_joint_loads``). In 2D the two agree on every joint:
 planar = presets.exo5(dim=2)
 q2, qd2, qdd2 = random_states(planar, 1, seed=1)
 tau2 = prepare(planar, "matrix-factored").inverse_dynamics(q2, qd2, qdd2)
 moments, forces = net_joint_loads(planar, q2, qd2, qdd2)
 torques = joint_torques(planar, q2, qd2, qdd2)  # rows in Pinocchio's joint order: L1_phi, L1_len, L2_phi...
-angle_rows = [i for i, name in enumerate(build_model(planar).joint_names) if name.endswith("_phi")]
+angle_rows = [i for i, name in enumerate(pinocchio_model(planar).joint_names) if name.endswith("_phi")]
 n = planar.nlinks
 print("tau (absolute angles):", np.round(tau2[0, :n], 2))
 print("net joint moments:    ", np.round(moments[0], 2))

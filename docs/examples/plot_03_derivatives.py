@@ -11,8 +11,7 @@ saves them as ``.casadi`` files.
 
 import numpy as np
 
-from exo_bench import prepare, presets
-from exo_bench.models.gait.motion import random_states
+from exo_bench import casadi_functions, prepare, presets, random_states
 
 mech = presets.exo5(dim=3)
 model = prepare(mech, "matrix-factored")
@@ -46,8 +45,6 @@ except ImportError:
     ca = None
     print("skipped: casadi is not installed (pip install -e '.[casadi]')")
 if ca is not None:
-    from exo_bench.matrix_method.export.casadi_functions import casadi_functions
-
     eqs = casadi_functions(mech)  # inverse_dynamics, mass_matrix, bias_forces, forward_dynamics, ...
     x = ca.SX.sym("q", mech.dof)
     J = ca.Function("J", [x], [ca.jacobian(eqs.inverse_dynamics(x, qd[0], qdd[0]), x)])

@@ -11,22 +11,20 @@ must reproduce the prescribed motion: a check of forward against inverse dynamic
 import matplotlib.pyplot as plt
 import numpy as np
 
-from exo_bench import prepare, presets
-from exo_bench.models.simulation.forward_dynamics import prescribed_controls, simulate
-from exo_bench.models.gait.motion import planar_gait as gait
+from exo_bench import planar_gait, prepare, prescribed_controls, presets, simulate
 
 mech = presets.exo5(dim=2)
 model = prepare(mech, "newton-euler")  # O(n) forward dynamics per sample
-controls = prescribed_controls(model, lambda t: gait(mech, t))
+controls = prescribed_controls(model, lambda t: planar_gait(mech, t))
 
-start = gait(mech, np.array([0.0]))
+start = planar_gait(mech, np.array([0.0]))
 run = simulate(model, start.q[0], start.qd[0], (0.0, 0.3), controls, integrator="DOP853", rtol=1e-9)
 print(run.status, f"{run.steps} steps, {run.nfev} right-hand-side evaluations")
 
 # %%
 # The simulated angles against the prescribed ones at the accepted steps.
 n = mech.nlinks
-prescribed = gait(mech, run.t).q
+prescribed = planar_gait(mech, run.t).q
 error = np.abs(run.q(mech.dof) - prescribed).max()
 print(f"largest deviation from the prescribed motion: {error:.1e} rad or m")
 assert run.ok and error < 1e-5

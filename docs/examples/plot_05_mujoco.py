@@ -2,7 +2,7 @@
 MuJoCo: the exported MJCF and the ``mujoco`` method
 ===================================================
 
-``exo-bench mjcf exo5-3d -o exo5.xml`` (or ``exo_bench.models.engines.mjcf.to_mjcf``) writes a mechanism as MuJoCo's
+``exo-bench mjcf exo5-3d -o exo5.xml`` (or ``exo_bench.to_mjcf``) writes a mechanism as MuJoCo's
 XML: each rod a body with its hinges and slides, point masses with their exact masses. The method ``mujoco``
 runs MuJoCo's recursive Newton-Euler (``mj_rne``) on it and maps the joints to the paper's coordinates. MuJoCo is
 optional (``pip install -e '.[peers]'``); without it this example says so and stops.
@@ -10,9 +10,7 @@ optional (``pip install -e '.[peers]'``); without it this example says so and st
 
 import numpy as np
 
-from exo_bench import prepare, presets
-from exo_bench.models.engines.mjcf import to_mjcf
-from exo_bench.models.gait.motion import random_states
+from exo_bench import prepare, presets, random_states, to_mjcf
 
 try:
     import mujoco

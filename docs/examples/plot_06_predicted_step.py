@@ -11,11 +11,10 @@ CasADi; ``exo-bench gait --dim 2`` describes it and ``exo-bench gait --dim 2 --s
 import matplotlib.pyplot as plt
 import numpy as np
 
-from exo_bench import prepare, presets
-from exo_bench.bench.studies.step.data import load, violations
+from exo_bench import load_step, prepare, presets, step_violations
 
 mech = presets.exo5(dim=2)
-step = load(mech)  # bench/studies/step/data/exo5-2d-step.npz, reused only for an equal mechanism
+step = load_step(mech)  # stored with the package (exo5-2d-step.npz), reused only for an equal mechanism
 print(f"{step.file_name}: {len(step.t)} points, {step.duration:.3f} s, step length {step.step_length:.3f} m")
 solver = step.meta["solver"]
 print(
@@ -24,7 +23,7 @@ print(
 
 # %%
 # Every constraint re-evaluated in numpy from the stored arrays (nothing of the optimiser is reused).
-worst = max(violations(step, mech).items(), key=lambda kv: kv[1])
+worst = max(step_violations(step, mech).items(), key=lambda kv: kv[1])
 print(f"largest constraint violation: {worst[1]:.1e} ({worst[0]})")
 assert worst[1] < 1e-6
 

@@ -3,12 +3,12 @@ A sweep on a Dask cluster
 =========================
 
 ``exo-bench bench --full`` and ``exo-bench stability --full`` run their work as tasks on Dask distributed: a
-local cluster of single-threaded worker processes by default (``exo_bench.bench.cluster.cluster.cluster``), or a
-running one (``--scheduler ADDRESS``). Your own sweep is a function submitted once per task. Here: two local
-workers check, on seeded random trees of 2 to 40 links, that ``newton-euler`` and ``matrix-factored`` agree,
-one tree per task. The workers are threads of this process (``processes=False``), so the example starts
-quickly inside the docs build; with worker processes (``processes=True``, what the project's sweeps use), a
-script needs the ``if __name__ == "__main__":`` guard, as each worker imports the main module again.
+local cluster of single-threaded worker processes by default, or a running one (``--scheduler ADDRESS``). Your
+own sweep is a function submitted once per task. Here: two local workers check, on seeded random trees of 2 to
+40 links, that ``newton-euler`` and ``matrix-factored`` agree, one tree per task. The workers are threads of
+this process (``processes=False``), so the example starts quickly inside the docs build; with worker processes
+(``processes=True``, what the project's sweeps use), a script needs the ``if __name__ == "__main__":`` guard,
+as each worker imports the main module again.
 """
 
 
@@ -16,8 +16,7 @@ def agreement(nlinks: int, seed: int) -> tuple[int, float]:
     """One task: the largest relative difference of the two methods' forces on a random 3D tree."""
     import numpy as np
 
-    from exo_bench import prepare, presets
-    from exo_bench.models.gait.motion import random_states
+    from exo_bench import prepare, presets, random_states
 
     mech = presets.random_tree(nlinks, dim=3, seed=seed)
     q, qd, qdd = random_states(mech, 200, seed=seed)
