@@ -47,7 +47,9 @@ def subcommand(
     return s
 
 
-def add_reports(s: argparse.ArgumentParser, help: str = "output folder (default: ./reports in the current directory)"):
+def add_reports(
+    s: argparse.ArgumentParser, help: str = "output folder (default: ./reports in the current directory)"
+) -> None:
     """``--reports DIR`` (default None: ./reports; read by :func:`reports_folder`)."""
     s.add_argument("--reports", default=None, help=help)
 
