@@ -77,29 +77,39 @@ def data_memory() -> None:
     )
 
 
-URDF = """<?xml version="1.0"?>
-<robot name="mimic_crba">
-  <link name="base"/>
-  <joint name="a" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0"/>
-    <axis xyz="0 -1 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
-  <link name="l1"/>
-  <joint name="b" type="prismatic"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0"/>
-    <axis xyz="1 0 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
-  <link name="l2"><inertial><origin xyz="0 0 0"/><mass value="1"/>
-    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-  <joint name="undo" type="revolute"><parent link="l2"/><child link="l3"/><origin xyz="0 0 0"/>
-    <axis xyz="0 -1 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/>
-    <mimic joint="a" multiplier="-1" offset="0"/></joint>
-  <link name="l3"/>
-  <joint name="c" type="revolute"><parent link="l3"/><child link="l4"/><origin xyz="0 0 0"/>
-    <axis xyz="0 0 1"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
-  <link name="l4"/>
-  <joint name="d" type="prismatic"><parent link="l4"/><child link="l5"/><origin xyz="0 0 0"/>
-    <axis xyz="1 0 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
-  <link name="l5"><inertial><origin xyz="0 0 0"/><mass value="1"/>
-    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-</robot>
-"""
+def _joint(name: str, kind: str, parent: str, child: str, axis: str, mimic: str = "") -> str:
+    """A URDF joint at the parent's origin, about or along ``axis``; ``mimic``: the joint it copies, negated."""
+    copies = f'\n    <mimic joint="{mimic}" multiplier="-1" offset="0"/>' if mimic else ""
+    return (
+        f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/><origin xyz="0 0 0"/>\n'
+        f'    <axis xyz="{axis}"/><limit effort="1" velocity="1" lower="-3" upper="3"/>{copies}</joint>\n'
+    )
+
+
+def _mass(name: str) -> str:
+    """A URDF link with a point mass of 1 kg at its origin."""
+    return (
+        f'  <link name="{name}"><inertial><origin xyz="0 0 0"/><mass value="1"/>\n'
+        '    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>\n'
+    )
+
+
+#: Two rods, each a revolute then a prismatic joint with a point mass at its end; between them the
+#: mimic joint ``undo`` turns back the first rod's angle.
+URDF = (
+    '<?xml version="1.0"?>\n<robot name="mimic_crba">\n  <link name="base"/>\n'
+    + _joint("a", "revolute", "base", "l1", "0 -1 0")
+    + '  <link name="l1"/>\n'
+    + _joint("b", "prismatic", "l1", "l2", "1 0 0")
+    + _mass("l2")
+    + _joint("undo", "revolute", "l2", "l3", "0 -1 0", mimic="a")
+    + '  <link name="l3"/>\n'
+    + _joint("c", "revolute", "l3", "l4", "0 0 1")
+    + '  <link name="l4"/>\n'
+    + _joint("d", "prismatic", "l4", "l5", "1 0 0")
+    + _mass("l5")
+    + "</robot>\n"
+)
 
 
 def crba_with_mimic() -> None:

@@ -303,6 +303,26 @@ def rel():
     return rel_err
 
 
+def uniform_states(mech, samples: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Seeded ``q, qd, qdd``, ``(samples, dof)``, away from any motion: angles uniform on the whole circle,
+    rod lengths uniform in [0.2, 1.2], rates standard normal (the states of the compiled kernels' tests,
+    whose error model assumes angles and rates O(1) and lengths in [0.2, 1.2])."""
+    rng = np.random.default_rng(seed)
+    n = mech.nlinks
+    q = rng.uniform(-np.pi, np.pi, (samples, mech.dof))
+    q[:, -n:] = rng.uniform(0.2, 1.2, (samples, n))
+    return q, rng.normal(size=q.shape), rng.normal(size=q.shape)
+
+
+def smooth_states(mech, samples: int, seed: int) -> list[np.ndarray]:
+    """``q, qd, qdd`` (C-ordered, ``(samples, dof)``) of a seeded smooth motion of ``mech`` over 2 s
+    (:func:`exo_bench.models.gait.motion.smooth_random_motion`)."""
+    from exo_bench.models.gait.motion import smooth_random_motion
+
+    mo = smooth_random_motion(mech, np.linspace(0.0, 2.0, samples), seed=seed)
+    return [np.ascontiguousarray(a) for a in (mo.q, mo.qd, mo.qdd)]
+
+
 #: Power balance against the sixth-order difference of the energy (``h = 1e-3``): truncation
 #: ``O(h^6) = 1e-18`` times the seventh derivative of the energy (smooth motions of a few
 #: harmonics), plus the rounding of the stencil, ``eps * |T + Pi| / h ~ 2e-13 |T + Pi|``, relative

@@ -18,6 +18,9 @@ import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
+
+import numpy as np
+
 from exo_bench.models.machine.numba_cache import INSTALLED_CACHE_SUFFIX
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -88,3 +91,45 @@ def warm_package(folder: Path) -> Path:
     pkg, run = package_copy_prober(folder, WARM_UP)
     run()
     return pkg
+
+
+def edit_probe(method: str, imports: str, edited: str, kernel: str) -> str:
+    """A probe (a script for :func:`package_copy_prober`) that prints exo5-3d's forces at one sample by
+    ``method``'s compiled kernel and by its numpy kernel, the compiled kernel's numba cache hits and misses
+    (``kernel``: an expression of the kernel, in which ``m`` is the prepared model) and, as ``"file"``,
+    the file of ``edited`` (a module the test edits); ``imports``: the lines that import what they name."""
+    return f"""
+import json
+
+import numpy as np
+from exo_bench import prepare, presets
+{imports}
+m = prepare(presets.exo5(dim=3), {method!r})
+q = np.linspace(0.1, 0.9, m.dof)
+tau = m.inverse_dynamics(q, q, q, check=False)
+ref = prepare(presets.exo5(dim=3), {method!r}, kernel="numpy").inverse_dynamics(q, q, q)
+k = {kernel}
+print(json.dumps({{"file": {edited}.__file__, "tau": tau.tolist(), "numpy": ref.tolist(),
+                  "hits": int(sum(k.stats.cache_hits.values())), "misses": int(sum(k.stats.cache_misses.values()))}}))
+"""
+
+
+def assert_edit_recompiles(tmp_path: Path, template: Path, probe: str, source: str, old: str, new: str) -> None:
+    """In a copy of ``template`` (:func:`warm_package`): run ``probe`` (:func:`edit_probe`), whose kernel
+    loads from the copy's cache; replace the one ``old`` of the copy's ``source`` (a path inside the
+    package) by ``new``; run it again. The kernel recompiles (a cache miss, not the stale machine code),
+    its forces move by more than 1e-3 of their size, and they are the edited numpy kernel's, to 1e-12 of
+    their size, as the unedited ones are."""
+    pkg, run = package_copy_prober(tmp_path, probe, template=template)
+    before = run()  # loads from the copy's cache
+    assert before["hits"] >= 1 and before["misses"] == 0, before
+    path = pkg / source
+    text = path.read_text()
+    assert text.count(old) == 1
+    path.write_text(text.replace(old, new))
+    after = run()
+    assert after["misses"] >= 1, after  # recompiled, not served from the stale cache
+    tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
+    assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
+    # the compiled kernel agrees with the edited numpy kernel as it does with the unedited one
+    assert np.abs(tau_after - edited).max() <= 1e-12 * np.abs(edited).max()

@@ -26,20 +26,13 @@ import numpy as np
 import pytest
 
 import issue34
+from cli_runs import run_cli
 from exo_bench.bench.cli import app as cli
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import chain, exo5
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "errors.md"
-
-
-def run_cli(argv: list[str]) -> tuple[int, str, str]:
-    """``exo-bench argv`` in this process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = cli.main([str(a) for a in argv])
-    return rc, out.getvalue(), err.getvalue()
 
 
 # ------------------------------------------------------------------------------ files for the cases
@@ -81,6 +74,11 @@ def _motion_file(d: Path, t, samples=3) -> Path:
 def _chain_file(d: Path, n: int, dim: int) -> Path:
     (d / "c.json").write_text(chain(n, dim).to_json(indent=None))
     return d / "c.json"
+
+
+def _on_chain(n: int, dim: int, samples: int, *options: str) -> Callable[[Path], list]:
+    """The command line ``exo-bench inverse`` of an ``n``-link chain's file and ``samples`` states, then ``options``."""
+    return lambda d: ["inverse", _chain_file(d, n, dim), _states(chain(n, dim), samples, path=d / "s.json"), *options]
 
 
 def _npz(d: Path, **arrays) -> Path:
@@ -149,6 +147,28 @@ def _pin_bad_alloc(mp):
 
 
 MF = ["--method", "matrix-factored"]
+
+
+def _output_folder(command: str) -> Case:
+    """``command -o`` (urdf, mjcf: one file) naming a folder."""
+    return Case(
+        f"{command}-output-folder",
+        f"{command} -o naming a folder",
+        lambda d: [command, "fig1-2d", "-o", d],
+        "<dir>: expected a file to write, got a folder",
+    )
+
+
+def _output_fifo(command: str, kind: str, *options: str) -> Case:
+    """``command -o`` (urdf, mjcf: one file) naming a FIFO, which is never replaced."""
+    return Case(
+        f"{command}-output-fifo",
+        kind,
+        lambda d: [command, "fig1-2d", *options, "-o", _fifo(d)],
+        f"{command} -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced",
+        issue="26: destroyed files",
+    )
+
 
 CASES = [
     # ---------------------------------------------------------------- the mechanism
@@ -333,15 +353,7 @@ CASES = [
     Case(
         "chain300-3d-default",
         "a 300-link 3D chain with method pinocchio (the default before issue 26)",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 300, 3),
-            _states(chain(300, 3), 1, path=d / "s.json"),
-            "--max-memory",
-            "2G",
-            "--method",
-            "pinocchio",
-        ],
+        _on_chain(300, 3, 1, "--max-memory", "2G", "--method", "pinocchio"),
         "method 'pinocchio' on 'chain300-3d' (n=300 links, dim=3, 1 sample(s)) needs about 23.7 GB",
         issue="300-link 3D chain",
         example="exo-bench inverse chain300-3d.json s.json --max-memory 2G --method pinocchio",
@@ -349,30 +361,14 @@ CASES = [
     Case(
         "chain300-2d-default",
         "a 300-link 2D chain with method pinocchio",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 300, 2),
-            _states(chain(300, 2), 1, path=d / "s.json"),
-            "--max-memory",
-            "2G",
-            "--method",
-            "pinocchio",
-        ],
+        _on_chain(300, 2, 1, "--max-memory", "2G", "--method", "pinocchio"),
         "matrix-factored fits",
         issue="300-link 3D chain",
     ),
     Case(
         "lagrange-50",
         "method lagrange on a 50-link chain",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 50, 2),
-            _states(chain(50, 2), 2, path=d / "s.json"),
-            "--method",
-            "lagrange",
-            "--max-memory",
-            "1000G",
-        ],
+        _on_chain(50, 2, 2, "--method", "lagrange", "--max-memory", "1000G"),
         "its derivation alone over the budget of 120 s (raise it with --budget SECONDS",
         issue="lagrange",
     ),
@@ -395,17 +391,7 @@ CASES = [
     Case(
         "max-time",
         "a method over --max-time",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 300, 3),
-            _states(chain(300, 3), 1, path=d / "s.json"),
-            "--method",
-            "recurrence",
-            "--max-time",
-            "0.05",
-            "--max-memory",
-            "2G",
-        ],
+        _on_chain(300, 3, 1, "--method", "recurrence", "--max-time", "0.05", "--max-memory", "2G"),
         "over the time limit of 50 ms (--max-time)",
     ),
     Case(
@@ -450,13 +436,7 @@ CASES = [
     Case(
         "pinocchio-data",
         "a Pinocchio Data larger than the memory a run may use",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 40, 3),
-            _states(chain(40, 3), 1, path=d / "s.json"),
-            "--method",
-            "pinocchio",
-        ],
+        _on_chain(40, 3, 1, "--method", "pinocchio"),
         "(3D, 40 links, nv = 120) needs 65.3 MB, more than the 50.0 MB of memory it may use",
         patch=_pin_data_too_large,
     ),
@@ -547,12 +527,7 @@ CASES = [
         lambda d: ["stability", "--full", "--scheduler", "tcp://[bad", "--reports", d / "rep"],
         "no Dask scheduler reachable there",
     ),
-    Case(
-        "urdf-output-folder",
-        "urdf -o naming a folder",
-        lambda d: ["urdf", "fig1-2d", "-o", d],
-        "<dir>: expected a file to write, got a folder",
-    ),
+    _output_folder("urdf"),
     Case(
         "urdf-output-under-file",
         "urdf -o under a file",
@@ -565,12 +540,7 @@ CASES = [
         lambda d: ["mjcf", "exo7-3d", "-o", d / "m.xml"],
         "mechanism 'exo7-3d': not a preset",
     ),
-    Case(
-        "mjcf-output-folder",
-        "mjcf -o naming a folder",
-        lambda d: ["mjcf", "fig1-2d", "-o", d],
-        "<dir>: expected a file to write, got a folder",
-    ),
+    _output_folder("mjcf"),
     Case(
         "mjcf-output-under-file",
         "mjcf -o under a file",
@@ -666,13 +636,7 @@ CASES = [
         "expected an object with keys ['q', 'qd', 'tau']",
     ),
     # ---------------------------------------------------------------- issue 26: files that are not regular files
-    Case(
-        "urdf-output-fifo",
-        "urdf -o naming a FIFO (never replaced)",
-        lambda d: ["urdf", "fig1-2d", "-o", _fifo(d)],
-        "urdf -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced",
-        issue="26: destroyed files",
-    ),
+    _output_fifo("urdf", "urdf -o naming a FIFO (never replaced)"),
     Case(
         "urdf-output-link-to-fifo",
         "urdf -o naming a symlink to a FIFO",
@@ -687,13 +651,7 @@ CASES = [
         "which does not exist; refusing to write through a dangling",
         issue="26: destroyed files",
     ),
-    Case(
-        "mjcf-output-fifo",
-        "mjcf -o naming a FIFO",
-        lambda d: ["mjcf", "fig1-2d", "--no-check", "-o", _fifo(d)],
-        "mjcf -o '<dir>/fifo': is a FIFO; only a regular file or nothing is ever replaced",
-        issue="26: destroyed files",
-    ),
+    _output_fifo("mjcf", "mjcf -o naming a FIFO", "--no-check"),
     Case(
         "equations-output-fifo",
         "equations: a FIFO where an output file goes",
@@ -729,15 +687,7 @@ CASES = [
     Case(
         "recurrence-1000-2d",
         "recurrence on a 1000-link 2D chain under --max-memory 1G",
-        lambda d: [
-            "inverse",
-            _chain_file(d, 1000, 2),
-            _states(chain(1000, 2), 1, path=d / "s.json"),
-            "--method",
-            "recurrence",
-            "--max-memory",
-            "1G",
-        ],
+        _on_chain(1000, 2, 1, "--method", "recurrence", "--max-memory", "1G"),
         "method 'recurrence' on 'chain1000-2d' (n=1000 links, dim=2, 1 sample(s)) needs about 3.5 GB",
         issue="26: estimates",
     ),

@@ -135,30 +135,19 @@ def test_every_layout_and_dtype_agrees_with_the_c_ordered_float64_call(
     if out is not None:
         assert tau is out
     s = (lambda a: a[None]) if single else (lambda a: a)
+
+    def agrees(got, what: str) -> None:
+        """``got`` (a sample or a batch) gives the forces of the C-ordered float64 call (when they are finite)."""
+        if not np.isnan(expected).any():
+            assert_forces_agree(s(got), s(expected), mech, *(s(np.asarray(a)) for a in ref_args), what=what)
+
     assert tau.dtype == np.float64 and tau.shape == expected.shape and tau.flags.c_contiguous
-    if not np.isnan(expected).any():
-        assert_forces_agree(
-            s(tau),
-            s(expected),
-            mech,
-            s(np.asarray(ref_args[0])),
-            s(np.asarray(ref_args[1])),
-            s(np.asarray(ref_args[2])),
-            what=f"{method} {layouts} {dtype}",
-        )
+    agrees(tau, f"{method} {layouts} {dtype}")
     c_float = dtype == "float64" and all(a.flags.c_contiguous for a in args)
     if c_float:
-        fast = _call(model, *args, check=False, out=None if out is None else np.empty_like(out))
-        if not np.isnan(expected).any():
-            assert_forces_agree(
-                s(fast),
-                s(expected),
-                mech,
-                s(np.asarray(ref_args[0])),
-                s(np.asarray(ref_args[1])),
-                s(np.asarray(ref_args[2])),
-                what=f"{method} check=False",
-            )
+        agrees(
+            _call(model, *args, check=False, out=None if out is None else np.empty_like(out)), f"{method} check=False"
+        )
     else:
         with pytest.raises(ValueError, match=r"field '(q|qd|qdd)': expected C-ordered float64"):
             _call(model, *args, check=False)

@@ -3,6 +3,7 @@
 import numpy as np
 import pandas as pd
 
+from benchmark_rows import exo5_3d_row
 from exo_bench.bench.perf.reports.benchmark_reports import (
     PAPER_TABLE,
     README_END,
@@ -53,63 +54,14 @@ def test_readme_table_is_replaced_between_markers_only():
 
 def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float, err: float):
     """exo5-3d rows of one run: matrix-factored (numba) batched and per call, Pinocchio's paths, PyDy."""
-    base = dict(
-        mechanism="exo5-3d",
-        n=5,
-        dim=3,
-        topology="exo5",
-        iqr=0.0,
-        reference="ref",
-        nonfinite=0,
-        max_abs_err=err,
-        max_rel_err=err,
-    )
     rows = [
-        dict(
-            base,
-            group="inverse-batched-3d",
-            method="matrix-factored (numba)",
-            batched=True,
-            samples=10_000,
-            median=fast_us * 1e-6 * 10_000,
-            threads="",
+        exo5_3d_row("inverse-batched-3d", "matrix-factored (numba)", True, 10_000, fast_us * 1e-6 * 10_000, err=err),
+        exo5_3d_row(
+            "inverse-batched-3d", "pinocchio-parallel", True, 10_000, pin_us * 1e-6 * 10_000, err=err, threads=2
         ),
-        dict(
-            base,
-            group="inverse-batched-3d",
-            method="pinocchio-parallel",
-            batched=True,
-            samples=10_000,
-            median=pin_us * 1e-6 * 10_000,
-            threads=2,
-        ),
-        dict(
-            base,
-            group="inverse-per-call-3d",
-            method="matrix-factored (numba)",
-            batched=False,
-            samples=1,
-            median=fast_us * 5e-6,
-            threads="",
-        ),
-        dict(
-            base,
-            group="inverse-per-call-3d",
-            method="pin.rnea (bare)",
-            batched=False,
-            samples=1,
-            median=bare_us * 1e-6,
-            threads="",
-        ),
-        dict(
-            base,
-            group="inverse-per-call-3d",
-            method="pydy-cython",
-            batched=False,
-            samples=1,
-            median=pydy_us * 1e-6,
-            threads="",
-        ),
+        exo5_3d_row("inverse-per-call-3d", "matrix-factored (numba)", False, 1, fast_us * 5e-6, err=err),
+        exo5_3d_row("inverse-per-call-3d", "pin.rnea (bare)", False, 1, bare_us * 1e-6, err=err),
+        exo5_3d_row("inverse-per-call-3d", "pydy-cython", False, 1, pydy_us * 1e-6, err=err),
     ]
     return pd.DataFrame(rows)
 

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_bad_inputs import run_cli
+from cli_runs import run_cli
 
 from conftest import EPS, K, assert_close, assert_forces_agree, assert_mass_matrices_agree, term_scale
 from exo_bench import prepare, presets

@@ -8,18 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import smooth_states
 from exo_bench.api import prepare
-from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.mechanism.presets import exo5
 
 MECH = exo5(3)
 #: The methods whose kernels supply a whole-batch entry (inverse_whole) by default.
 WHOLE = ("matrix-factored", "newton-euler")
-
-
-def _states(samples: int, seed: int):
-    mo = smooth_random_motion(MECH, np.linspace(0.0, 2.0, samples), seed=seed)
-    return mo.q, mo.qd, mo.qdd
 
 
 def _counting(model, **entries):
@@ -47,7 +42,7 @@ def test_a_checked_batch_runs_the_unchecked_route(method, with_out):
     model = prepare(MECH, method)
     assert model._entries.inverse_whole is not None
     model.chunk_samples = 7
-    q, qd, qdd = _states(50, 3)
+    q, qd, qdd = smooth_states(MECH, 50, 3)
     calls = _counting(model._entries, whole="inverse_whole", chunk="inverse_chunk")
     outs = [np.empty_like(q), np.empty_like(q)] if with_out else [None, None]
     checked = model.inverse_dynamics(q, qd, qdd, out=outs[0])
@@ -64,7 +59,7 @@ def test_a_checked_out_that_overlaps_an_input_still_gets_the_result(method):
     """check=True converts and copies as needed: an ``out`` that is an input (in place) gets the
     forces of the states as they were, the numbers of check=False on separate arrays."""
     model = prepare(MECH, method)
-    q, qd, qdd = _states(20, 4)
+    q, qd, qdd = smooth_states(MECH, 20, 4)
     want = model.inverse_dynamics(q, qd, qdd, check=False)
     qdd = qdd.copy()
     got = model.inverse_dynamics(q, qd, qdd, out=qdd)
@@ -80,7 +75,7 @@ def test_a_checked_sample_runs_the_lean_entry_of_check_false(method):
     if model._entries.lean is None:
         pytest.skip("no lean entry here (the C wrapper was not built): the per-sample entry runs")
     calls = _counting(model._entries, lean="lean", one="inverse_one")
-    q, qd, qdd = (np.ascontiguousarray(a[0]) for a in _states(3, 5))
+    q, qd, qdd = (np.ascontiguousarray(a[0]) for a in smooth_states(MECH, 3, 5))
     checked = model.inverse_dynamics(q, qd, qdd)
     assert calls == {"lean": 1, "one": 0}
     unchecked = model.inverse_dynamics(q, qd, qdd, check=False)

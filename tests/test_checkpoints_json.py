@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_bad_inputs import run_cli
+from cli_runs import run_cli
 
 from exo_bench.bench.output.provenance import REPO
 

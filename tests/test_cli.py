@@ -1,25 +1,14 @@
 """The command line: inverse dynamics for presets and user files; one-line errors with exit code 2."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from cli_runs import cli_process
 
 from exo_bench.models.engines import pinocchio_backend as pb
 from exo_bench.models.gait.motion import gait, random_states
 from exo_bench.models.mechanism.presets import exo5, random_tree
-
-
-def _cli(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=600,  # a safety net: never decides a pass
-    )
 
 
 def _states_file(path, q, qd, qdd):
@@ -30,7 +19,9 @@ def _states_file(path, q, qd, qdd):
 def test_inverse_exo5_3d_prints_the_backends_tau(tmp_path):
     m = exo5(3)
     mo = gait(m, np.linspace(0, 1.1, 7))
-    r = _cli("inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "pinocchio")
+    r = cli_process(
+        "inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "pinocchio"
+    )
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["method"] == "pinocchio"
@@ -41,7 +32,7 @@ def test_inverse_accepts_a_users_own_mechanism_file(tmp_path):
     m = random_tree(4, 3, 5)
     (tmp_path / "mine.json").write_text(m.to_json())
     q, qd, qdd = random_states(m, 3, 1)
-    r = _cli("inverse", tmp_path / "mine.json", _states_file(tmp_path / "s.json", q, qd, qdd))
+    r = cli_process("inverse", tmp_path / "mine.json", _states_file(tmp_path / "s.json", q, qd, qdd))
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert out["method"] == "matrix-factored"  # the default, as prepare()'s (issue 26)
@@ -59,7 +50,7 @@ def test_inverse_accepts_a_users_own_mechanism_file(tmp_path):
 
 
 def test_presets_lists_every_paper_model():
-    r = _cli("presets")
+    r = cli_process("presets")
     assert r.returncode == 0
     for key in ("fig1-2d", "fig2a-3d", "fig2b-2d", "fig5-3d", "exo5-3d"):
         assert key in r.stdout
@@ -103,7 +94,7 @@ def _bad_cases(tmp_path):
 )
 def test_bad_input_gives_one_line_and_exit_code_2(case, tmp_path):
     args, needle = _bad_cases(tmp_path)[case]
-    r = _cli(*args)
+    r = cli_process(*args)
     assert r.returncode == 2
     assert r.stdout == ""
     lines = r.stderr.strip().splitlines()
@@ -115,7 +106,9 @@ def test_nan_from_a_method_is_null_in_json_and_announced(tmp_path):
     """matrix-paper divides 0/0 at sin(phi_i) = 0 (eq. 18 as printed): the output stays valid JSON."""
     m = exo5(3)
     mo = gait(m, np.array([0.0, 0.3]))  # phi_1 = phi_4 = 0 at t = 0
-    r = _cli("inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "matrix-paper")
+    r = cli_process(
+        "inverse", "exo5-3d", _states_file(tmp_path / "s.json", mo.q, mo.qd, mo.qdd), "--method", "matrix-paper"
+    )
     assert r.returncode == 0
     tau = json.loads(r.stdout)["tau"]
     assert any(x is None for x in tau[0]) and all(x is not None for x in tau[1])

@@ -5,10 +5,9 @@ the API's with ``f_ext`` to the last bit, and a bad ``f_ext`` is one line and ex
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
+from cli_runs import cli_process
 from test_external_forces import _case
 
 from exo_bench import prepare
@@ -17,24 +16,18 @@ from exo_bench.models.mechanism.presets import exo5
 MECH = exo5(2)
 
 
-def _cli(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=600
-    )
-
-
 def test_inverse_and_forward_take_f_ext(tmp_path):
     q, qd, qdd, f = _case(MECH, 3, 2)
     model = prepare(MECH, "newton-euler")
     tau = model.inverse_dynamics(q, qd, qdd, f_ext=f)
     path = tmp_path / "s.json"
     path.write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist(), "f_ext": f.tolist()}))
-    r = _cli("inverse", "exo5-2d", path, "--method", "newton-euler")
+    r = cli_process("inverse", "exo5-2d", path, "--method", "newton-euler")
     assert r.returncode == 0, r.stderr
     assert np.array_equal(np.array(json.loads(r.stdout)["tau"]), tau)
     npz = tmp_path / "s.npz"
     np.savez(npz, q=q, qd=qd, tau=tau, f_ext=f)
-    r = _cli("forward", "exo5-2d", npz, "--method", "newton-euler")
+    r = cli_process("forward", "exo5-2d", npz, "--method", "newton-euler")
     assert r.returncode == 0, r.stderr
     assert np.array_equal(np.array(json.loads(r.stdout)["qdd"]), model.forward_dynamics(q, qd, tau, f_ext=f))
 
@@ -44,17 +37,17 @@ def test_a_bad_f_ext_is_one_line(tmp_path):
     f[1, 4, 2, 0] = np.inf
     path = tmp_path / "s.npz"
     np.savez(path, q=q, qd=qd, qdd=qdd, f_ext=f)
-    r = _cli("inverse", "exo5-2d", path)
+    r = cli_process("inverse", "exo5-2d", path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert f"sample 1, link 5 ({MECH.names[4]!r}), point 'end', component x" in r.stderr
     np.savez(path, q=q, qd=qd, qdd=qdd, f_ext=f[:, :3])
-    r = _cli("inverse", "exo5-2d", path)
+    r = cli_process("inverse", "exo5-2d", path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "field 'f_ext'" in r.stderr and "(2, 3, 3, 2)" in r.stderr
     bad = tmp_path / "b.json"
     bad.write_text(
         json.dumps({"q": q.tolist(), "qd": qd.tolist(), "qdd": qdd.tolist(), "f_ext": [[[["x"] * 2] * 3] * 5] * 2})
     )
-    r = _cli("inverse", "exo5-2d", bad)
+    r = cli_process("inverse", "exo5-2d", bad)
     assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
     assert "field 'f_ext': expected forces in newtons (numbers)" in r.stderr

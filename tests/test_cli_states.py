@@ -11,25 +11,16 @@ bounded here by ``K eps cond(M) * (max |qdd| + max term scale * |M^-1|)`` per sa
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 
 import numpy as np
 import pytest
 
-from exo_bench.bench.cli import app as cli
+from cli_runs import run_cli
 from exo_bench.models.mechanism.presets import PRESETS
 
 from conftest import EPS, K, assert_forces_agree, term_scale
-
-
-def _run(*argv: str) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
 
 
 @pytest.mark.parametrize("preset", sorted(PRESETS))
@@ -38,7 +29,7 @@ def test_states_of_every_preset_run_through_inverse_and_forward(preset, tmp_path
     from exo_bench.models.mechanism.loading import load_mechanism
 
     path = tmp_path / "s.json"
-    code, _, err = _run("states", preset, "-o", path, "--samples", "3", "--seed", "7")
+    code, _, err = run_cli(["states", preset, "-o", path, "--samples", "3", "--seed", "7"])
     assert code == 0, err
     data = json.loads(path.read_text())
     mech = load_mechanism(preset)
@@ -46,10 +37,10 @@ def test_states_of_every_preset_run_through_inverse_and_forward(preset, tmp_path
     for a in (q, qd, qdd, tau):
         assert a.shape == (3, mech.dof)
     prepare(mech, "newton-euler").check_regular(q)  # away from singular and ill-conditioned M
-    code, out, err = _run("inverse", preset, path, "--method", "newton-euler")
+    code, out, err = run_cli(["inverse", preset, path, "--method", "newton-euler"])
     assert code == 0, err
     assert_forces_agree(np.asarray(json.loads(out)["tau"]), tau, mech, q, qd, qdd, what=f"{preset} states' tau")
-    code, out, err = _run("forward", preset, path)
+    code, out, err = run_cli(["forward", preset, path])
     assert code == 0, err
     got = np.asarray(json.loads(out)["qdd"])
     model = prepare(mech, "newton-euler")
@@ -67,13 +58,13 @@ def test_states_of_every_preset_run_through_inverse_and_forward(preset, tmp_path
 def test_states_npz_and_the_same_seed_gives_the_same_file(tmp_path):
     a, b = tmp_path / "a.npz", tmp_path / "b.npz"
     for p in (a, b):
-        code, _, err = _run("states", "exo5-3d", "-o", p, "--samples", "4", "--seed", "1")
+        code, _, err = run_cli(["states", "exo5-3d", "-o", p, "--samples", "4", "--seed", "1"])
         assert code == 0, err
     with np.load(a) as x, np.load(b) as y:
         assert set(x.files) == {"q", "qd", "qdd", "tau"}
         for k in x.files:
             assert x[k].shape == (4, 15) and np.array_equal(x[k], y[k])
-    code, out, err = _run("inverse", "exo5-3d", a)
+    code, out, err = run_cli(["inverse", "exo5-3d", a])
     assert code == 0, err
     assert np.asarray(json.loads(out)["tau"]).shape == (4, 15)
 
@@ -83,16 +74,16 @@ def test_states_never_writes_through_a_link_nor_leaves_a_temporary(tmp_path):
     target.write_text("keep")
     link = tmp_path / "s.json"
     os.symlink(target, link)
-    code, _, err = _run("states", "exo5-2d", "-o", link)
+    code, _, err = run_cli(["states", "exo5-2d", "-o", link])
     assert code == 2 and "symlink" in err and len(err.strip().splitlines()) == 1
     assert target.read_text() == "keep"
-    code, _, err = _run("states", "no-such-preset", "-o", tmp_path / "x.json")
+    code, _, err = run_cli(["states", "no-such-preset", "-o", tmp_path / "x.json"])
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["precious.json", "s.json"]  # nothing half-written
 
 
 @pytest.mark.parametrize("argv", [["--samples", "0"], ["--samples", "x"], ["--seed", "-1"], ["--samples", str(10**15)]])
 def test_states_bad_counts_are_one_line(argv, tmp_path):
-    code, _, err = _run("states", "exo5-2d", "-o", tmp_path / "s.json", *argv)
+    code, _, err = run_cli(["states", "exo5-2d", "-o", tmp_path / "s.json", *argv])
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "s.json").exists()

@@ -27,7 +27,8 @@ import sys
 import numpy as np
 import pytest
 
-from package_copy import package_copy_prober
+from conftest import uniform_states
+from package_copy import assert_edit_recompiles, edit_probe
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import common as compiled
 from exo_bench.models.mechanism.presets import chain, exo5, random_tree
@@ -45,14 +46,6 @@ def _mechanisms():
 
 
 MECHS = _mechanisms()
-
-
-def _states(mech, samples: int, seed: int):
-    rng = np.random.default_rng(seed)
-    n = mech.nlinks
-    q = rng.uniform(-np.pi, np.pi, (samples, mech.dof))
-    q[:, -n:] = rng.uniform(0.2, 1.2, (samples, n))
-    return q, rng.normal(size=q.shape), rng.normal(size=q.shape)
 
 
 def test_the_random_trees_are_branched_and_have_negative_signs():
@@ -77,7 +70,7 @@ def test_compiled_kernel_equals_numpy_reference(method, mech):
         compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3,
     )
     for k, S in enumerate(sizes):
-        q, qd, qdd = _states(mech, S, seed=10 * k + mech.nlinks)
+        q, qd, qdd = uniform_states(mech, S, seed=10 * k + mech.nlinks)
         want = ref.inverse_dynamics(q, qd, qdd)
         scale = np.abs(want).max()
         for check in (True, False):
@@ -92,7 +85,7 @@ def test_compiled_kernel_equals_numpy_reference(method, mech):
 def test_one_sample_in_one_sample_out(method):
     mech = random_tree(5, 3, seed=2)
     fast, ref = prepare(mech, method), prepare(mech, method, kernel="numpy")
-    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=3))
+    q, qd, qdd = (x[0].copy() for x in uniform_states(mech, 1, seed=3))
     want = ref.inverse_dynamics(q, qd, qdd)
     for check in (True, False):
         got = fast.inverse_dynamics(q, qd, qdd, check=check)
@@ -166,7 +159,7 @@ def test_out_receives_the_forces(method):
     mech = exo5(3)
     model = prepare(mech, method)
     for S in (None, 5):
-        q, qd, qdd = _states(mech, 1 if S is None else S, seed=4)
+        q, qd, qdd = uniform_states(mech, 1 if S is None else S, seed=4)
         if S is None:
             q, qd, qdd = q[0].copy(), qd[0].copy(), qdd[0].copy()
         want = model.inverse_dynamics(q, qd, qdd)
@@ -180,21 +173,9 @@ def test_out_receives_the_forces(method):
         model.inverse_dynamics(q[0], qd[0], qdd[0], out=np.empty(15, np.float32))
 
 
-_EDIT_PROBE = """
-import json
-from pathlib import Path
-
-import numpy as np
-from exo_bench import prepare, presets
-from exo_bench.matrix_method.closed_forms import planar
-m = prepare(presets.exo5(dim=3), "matrix")
-q = np.linspace(0.1, 0.9, m.dof)
-tau = m.inverse_dynamics(q, q, q, check=False)
-ref = prepare(presets.exo5(dim=3), "matrix", kernel="numpy").inverse_dynamics(q, q, q)
-k = m.serial_kernel
-print(json.dumps({"file": planar.__file__, "tau": tau.tolist(), "numpy": ref.tolist(),
-                  "hits": int(sum(k.stats.cache_hits.values())), "misses": int(sum(k.stats.cache_misses.values()))}))
-"""
+_EDIT_PROBE = edit_probe(
+    "matrix", "from exo_bench.matrix_method.closed_forms import planar", "planar", "m.serial_kernel"
+)
 
 
 def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path, warm_package):
@@ -206,16 +187,6 @@ def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path, 
     NUMBA_CACHE_LOCATOR_CLASSES=InTreeCacheLocator in the probes' environment, the second run loads
     the stale kernel: a hit, no miss, and this test fails.) The copy starts from the session's warm
     template, its kernels already in the copy's cache (tests/package_copy.py)."""
-    pkg, probe = package_copy_prober(tmp_path, _EDIT_PROBE, template=warm_package)
-    before = probe()  # loads from the copy's cache
-    assert before["hits"] >= 1 and before["misses"] == 0, before
-    planar_py = pkg / "matrix_method" / "closed_forms" / "planar.py"
-    text = planar_py.read_text()
-    assert text.count("    return nu_s * sin_i\n") == 1
-    planar_py.write_text(text.replace("    return nu_s * sin_i\n", "    return 2.0 * nu_s * sin_i\n"))
-    after = probe()
-    assert after["misses"] >= 1, after  # recompiled, not served from the stale cache
-    tau_before, tau_after, edited = map(np.asarray, (before["tau"], after["tau"], after["numpy"]))
-    assert np.abs(tau_after - tau_before).max() > 1e-3 * np.abs(tau_before).max()
-    # the compiled kernel agrees with the edited numpy kernel as it does with the unedited one
-    assert np.abs(tau_after - edited).max() <= 1e-12 * np.abs(edited).max()
+    source = "matrix_method/closed_forms/planar.py"
+    edit = ("    return nu_s * sin_i\n", "    return 2.0 * nu_s * sin_i\n")
+    assert_edit_recompiles(tmp_path, warm_package, _EDIT_PROBE, source, *edit)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import uniform_states
 from exo_bench import prepare
 from exo_bench.matrix_method.numba_kernels import simd as compiled_simd, fast_trig
 from exo_bench.models.mechanism.presets import chain, exo5, random_tree
@@ -37,14 +38,6 @@ def _sizes(mech):
     return tuple(sorted({1, L - 1, L, L + 1, 2 * L + 5, P - 1, P, P + L + 3} - {0}))
 
 
-def _states(mech, samples: int, seed: int):
-    rng = np.random.default_rng(seed)
-    n = mech.nlinks
-    q = rng.uniform(-np.pi, np.pi, (samples, mech.dof))
-    q[:, -n:] = rng.uniform(0.2, 1.2, (samples, n))
-    return q, rng.normal(size=q.shape), rng.normal(size=q.shape)
-
-
 def _close(got, want, what):
     scale = np.abs(want).max()
     err = np.abs(got - want).max()
@@ -57,7 +50,7 @@ def test_simd_batches_equal_the_numpy_reference(mech):
     fast, ref = prepare(mech, "matrix-factored"), prepare(mech, "matrix-factored", kernel="numpy")
     assert fast.batch_kernel is compiled_simd.KERNELS[mech.dim]  # what runs, by name
     for k, S in enumerate(_sizes(mech)):
-        q, qd, qdd = _states(mech, S, seed=k)
+        q, qd, qdd = uniform_states(mech, S, seed=k)
         want = ref.inverse_dynamics(q, qd, qdd)
         for check in (True, False):
             _close(fast.inverse_dynamics(q, qd, qdd, check=check), want, f"{mech.name} S={S} check={check}")
@@ -75,7 +68,7 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(mech, threads):
     p = model.kernel_args[0]
     P = parallel_min_samples(mech.dof)
     for S in (P - 1, P, P + 2 * L + 7):
-        q, qd, qdd = _states(mech, S, seed=S)
+        q, qd, qdd = uniform_states(mech, S, seed=S)
         one, many = np.empty(q.shape), np.full(q.shape, np.nan)
         compiled_simd.run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), one.ravel(), S, threads=1)
         compiled_simd.run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S, threads=threads)
@@ -86,7 +79,7 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(mech, threads):
 def test_simd_equals_the_per_sample_kernel(mech):
     model = prepare(mech, "matrix-factored")
     p = model.kernel_args[0]
-    q, qd, qdd = _states(mech, 3 * L + 1, seed=7)
+    q, qd, qdd = uniform_states(mech, 3 * L + 1, seed=7)
     want = np.empty(q.size)
     model.serial_kernel(p, q.ravel(), qd.ravel(), qdd.ravel(), want)
     _close(model.inverse_dynamics(q, qd, qdd, check=False).ravel(), want, "simd vs per-sample")
@@ -99,7 +92,7 @@ def test_angles_beyond_the_fast_range_and_nan_take_libm(mech):
     model); a NaN angle gives NaN forces in its sample only."""
     model = prepare(mech, "matrix-factored")
     p = model.kernel_args[0]
-    q, qd, qdd = _states(mech, 2 * L + 3, seed=8)
+    q, qd, qdd = uniform_states(mech, 2 * L + 3, seed=8)
     far = [0, L - 1, L, 2 * L + 2]  # every angle of these samples beyond the range
     angles = (mech.dim - 1) * mech.nlinks
     rng = np.random.default_rng(1)
@@ -124,7 +117,7 @@ def test_angles_beyond_the_fast_range_and_nan_take_libm(mech):
 def test_lean_one_sample_path_equals_the_kernel_and_allocates_nothing():
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")
-    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=9))
+    q, qd, qdd = (x[0].copy() for x in uniform_states(mech, 1, seed=9))
     out = np.full(mech.dof, np.nan)
     assert model.inverse_dynamics(q, qd, qdd, check=False, out=out) is out
     want = np.empty(mech.dof)
@@ -186,7 +179,7 @@ def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_a
 
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")
-    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=11))
+    q, qd, qdd = (x[0].copy() for x in uniform_states(mech, 1, seed=11))
     want = model.inverse_dynamics(q, qd, qdd)
     out = np.empty(mech.dof)
     model.inverse_dynamics(q, qd, qdd, check=False, out=out)
@@ -236,7 +229,7 @@ def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")
     assert compiled_lean.c_call(3, model.kernel_args[0], print, mech.dof) is None
-    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=12))
+    q, qd, qdd = (x[0].copy() for x in uniform_states(mech, 1, seed=12))
     out = np.empty(mech.dof)
     model.inverse_dynamics(q, qd, qdd, check=False, out=out)
     assert "inverse_dynamics" not in vars(model)

@@ -197,7 +197,7 @@ def test_c_compiles_warning_free_and_agrees(key, tmp_path):
 def test_the_cli_writes_c_for_exo5_that_agrees_with_exo_bench_inverse(tmp_path):
     """Issue 15, done when: `exo-bench equations exo5-3d --format c -o out/` compiles warning-free
     and agrees with `exo-bench inverse exo5-3d` on the test states."""
-    from test_bad_inputs import run_cli
+    from cli_runs import run_cli
 
     rc, out, err = run_cli(["equations", "exo5-3d", "--format", "c", "-o", tmp_path / "out"])
     assert rc == 0 and err == "" and sorted(p.name for p in (tmp_path / "out").iterdir()) == ["exo5_3d.c", "exo5_3d.h"]

@@ -3,19 +3,9 @@ is refused in one line (never made), and a sweep's checkpoints live inside the `
 
 from __future__ import annotations
 
-import contextlib
-import io
-
 import pytest
 
-from exo_bench.bench.cli import app as cli
-
-
-def _run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli.main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
+from cli_runs import run_cli
 
 
 def _tree(root) -> list[str]:
@@ -32,7 +22,7 @@ def _tree(root) -> list[str]:
 )
 def test_a_file_output_in_a_missing_folder_is_refused_and_no_folder_is_made(argv, tmp_path):
     target = tmp_path / "nonexistent" / "dir" / "x.out"
-    code, out, err = _run(*argv, target)
+    code, out, err = run_cli([*argv, target])
     assert code == 2, (out, err)
     assert len(err.strip().splitlines()) == 1 and "does not exist" in err and "nonexistent" in err, err
     assert _tree(tmp_path) == []
@@ -40,13 +30,13 @@ def test_a_file_output_in_a_missing_folder_is_refused_and_no_folder_is_made(argv
 
 def test_a_file_output_under_a_file_is_refused_in_one_line(tmp_path):
     (tmp_path / "f").write_text("keep")
-    code, _, err = _run("urdf", "fig1-2d", "-o", tmp_path / "f" / "x.urdf")
+    code, _, err = run_cli(["urdf", "fig1-2d", "-o", tmp_path / "f" / "x.urdf"])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "cannot make its folder" in err, err
     assert (tmp_path / "f").read_text() == "keep"
 
 
 def test_a_file_output_in_an_existing_folder_is_written(tmp_path):
-    code, _, err = _run("urdf", "fig1-2d", "-o", tmp_path / "x.urdf")
+    code, _, err = run_cli(["urdf", "fig1-2d", "-o", tmp_path / "x.urdf"])
     assert code == 0, err
     assert (tmp_path / "x.urdf").read_text().lstrip().startswith("<")
 
@@ -74,7 +64,7 @@ def test_bench_reports_keeps_its_checkpoints_inside_the_folder_named(tmp_path, m
     reports = parent / "X"
     reports.mkdir(parents=True)
     before = _tree(parent)
-    code, out, err = _run("bench", "--reports", reports, "--workers", "1")
+    code, out, err = run_cli(["bench", "--reports", reports, "--workers", "1"])
     assert code == 0, err
     assert given and given[0].resolve().is_relative_to(reports.resolve()), given
     outside = [p for p in _tree(parent) if not p.startswith("X")]

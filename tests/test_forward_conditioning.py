@@ -19,11 +19,10 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from cli_runs import cli_process
 from conftest import EPS, K, installed_methods, mass_coupling_oracle, mass_matrix_scale, term_scale
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -130,12 +129,6 @@ def test_an_answer_that_overflows_is_refused_naming_sample_and_coordinate():
         assert "sample 0: field 'qdd' coordinate" in str(e.value) and "not finite" in str(e.value), (name, str(e))
 
 
-def _cli(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=600
-    )
-
-
 @pytest.mark.case("W2", "W3")
 def _refused_state(mech, seed: int, what: str):
     """``_state`` with sample 0 made singular as ``what`` says: ``"l5=1e-300"`` (rod 5 of 1e-300 m) or
@@ -158,7 +151,7 @@ def test_cli_forward_refuses_in_one_line_with_exit_2(tmp_path, what):
     q, qd, tau = _refused_state(mech, 5, what)
     f = tmp_path / "s.json"
     f.write_text(json.dumps({"q": q.tolist(), "qd": qd.tolist(), "tau": tau.tolist()}))
-    r = _cli("forward", "exo5-3d", f)
+    r = cli_process("forward", "exo5-3d", f)
     assert r.returncode == 2, (r.stdout[-300:], r.stderr[-300:])
     assert r.stdout == ""
     lines = r.stderr.strip().splitlines()

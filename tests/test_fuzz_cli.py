@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_bad_inputs import run_cli
+from cli_runs import cli_process, run_cli
 
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import chain, exo5, fig1
@@ -482,9 +482,7 @@ def test_in_a_subprocess_too(args, needle, tmp_path):
     argv = [str(sub.get(a, a)) for a in args] + (
         ["--max-memory", "2G", "--method", "pinocchio"] if args[1] == "CHAIN300" else []
     )
-    r = subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *argv], capture_output=True, text=True, timeout=600, cwd=tmp_path
-    )
+    r = cli_process(*argv, cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert needle in r.stderr and "Traceback" not in r.stderr
 

@@ -80,7 +80,7 @@ def test_names_the_name_check_refuses_are_refused_naming_the_field(bad):
 def test_the_cli_refuses_a_bad_mechanism_name_in_one_line(bad, command, tmp_path):
     """The CLI refuses a mechanism name that the name check refuses in one line, exit 2, naming the
     file and the field (a surrogate gave 'internal error: TypeError' in mjcf)."""
-    from test_bad_inputs import run_cli
+    from cli_runs import run_cli
 
     path = tmp_path / "m.json"
     path.write_text(json.dumps({**fig2a(2).to_dict(), "name": bad}))  # ensure_ascii: a lone surrogate as \ud800

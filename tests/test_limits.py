@@ -16,6 +16,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from cli_runs import cli_process
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,17 +29,6 @@ def _python(code: str, env: dict | None = None, timeout: float = 600) -> subproc
     full = {**os.environ, **(env or {})}
     return subprocess.run(
         [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=timeout, env=full
-    )
-
-
-def _cli(*args, env: dict | None = None) -> subprocess.CompletedProcess:
-    full = {**os.environ, **(env or {})}
-    return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        env=full,
     )
 
 
@@ -225,7 +215,7 @@ def test_numba_variables_are_refused_naming_the_variable(var, value, method):
 
         if importlib.util.find_spec("tbb") is not None:
             pytest.skip("Intel TBB is installed here: the tbb layer loads")
-    r = _python(_BATCH.format(method=method), env={var: value})
+    r = _python(_BATCH.format(method=method), env={**os.environ, var: value})
     assert r.returncode == 0, r.stderr[-2000:]
     line = r.stdout.strip().splitlines()[-1]
     assert line.startswith("ValueError |") and f"{var}={value!r}" in line and "expected" in line, line
@@ -238,7 +228,7 @@ def test_numba_variables_give_one_cli_line(var, value, tmp_path):
     states = tmp_path / "s.npz"
     z = np.full((20000, 15), 0.3)
     np.savez(states, q=z, qd=z, qdd=z)
-    r = _cli("inverse", "exo5-3d", states, "--method", "matrix-factored", env={var: value})
+    r = cli_process("inverse", "exo5-3d", states, "--method", "matrix-factored", env={**os.environ, var: value})
     err = r.stderr.strip()
     assert r.returncode == 2 and len(err.splitlines()) == 1, err
     assert f"{var}={value!r}" in err and "internal error" not in err, err
@@ -252,7 +242,7 @@ def test_numba_disable_jit_refuses_the_compiled_kernels_in_one_line(method, tmp_
     states = tmp_path / "s.npz"
     z = np.full((200, 15), 0.3)
     np.savez(states, q=z, qd=z, qdd=z)
-    r = _cli("inverse", "exo5-3d", states, "--method", method, env={"NUMBA_DISABLE_JIT": "1"})
+    r = cli_process("inverse", "exo5-3d", states, "--method", method, env={**os.environ, "NUMBA_DISABLE_JIT": "1"})
     err = r.stderr.strip()
     assert r.returncode == 2 and len(err.splitlines()) == 1, err
     assert "NUMBA_DISABLE_JIT" in err and "kernel" in err and "internal error" not in err, err
@@ -267,7 +257,7 @@ def test_numba_disable_jit_refuses_the_compiled_kernels_in_one_line(method, tmp_
     b = prepare(mech, "pinocchio").inverse_dynamics(q, q, q)
     np.savez({str(out)!r}, a=a, b=b)
     """
-    r = _python(code, env={"NUMBA_DISABLE_JIT": "1"})
+    r = _python(code, env={**os.environ, "NUMBA_DISABLE_JIT": "1"})
     assert r.returncode == 0, r.stderr[-2000:]
     with np.load(out) as f:
         assert_forces_agree(f["a"], f["b"], exo5(3), z, z, z, what=f"{method} (numpy) under NUMBA_DISABLE_JIT")

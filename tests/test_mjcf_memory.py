@@ -12,7 +12,7 @@ from __future__ import annotations
 import tracemalloc
 
 import pytest
-from test_bad_inputs import run_cli
+from cli_runs import run_cli
 
 from exo_bench.models.engines import mjcf
 from exo_bench.models.mechanism.mechanism import Mechanism

@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 import pytest
+from cli_runs import cli_process
 from conftest import assert_forces_agree, assert_mass_matrices_agree
 
 from exo_bench.api import prepare
@@ -377,11 +378,7 @@ def test_the_mjcf_command_refuses_a_tree_too_deep_for_mujoco_in_one_line(tmp_pat
 
     path = tmp_path / "deep.json"
     path.write_text(chain(249, 3).to_json())
-    r = subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", "mjcf", str(path), "-o", str(tmp_path / "deep.xml")],
-        capture_output=True,
-        text=True,
-    )
+    r = cli_process("mjcf", path, "-o", tmp_path / "deep.xml")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
     assert "nests 501 elements deep" in r.stderr and not (tmp_path / "deep.xml").exists()
 

@@ -12,11 +12,10 @@ from __future__ import annotations
 import contextlib
 import os
 import socket
-import subprocess
-import sys
 import threading
 
 import pytest
+from cli_runs import cli_process
 
 from exo_bench.bench.cluster import cluster as cluster_mod
 
@@ -110,10 +109,12 @@ def test_the_cli_takes_the_timeout_from_dasks_connect_setting(tmp_path):
     """``exo-bench bench --scheduler`` at a silent peer ends after ``distributed.comm.timeouts.connect``
     (here 0.5 s, from the environment), in one line naming the address, exit 2."""
     with peer(None) as address:
-        r = subprocess.run(
-            [sys.executable, "-m", "exo_bench.bench.cli", "bench", "--scheduler", address, "--reports", tmp_path],
-            capture_output=True,
-            text=True,
+        r = cli_process(
+            "bench",
+            "--scheduler",
+            address,
+            "--reports",
+            tmp_path,
             timeout=1800,
             env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "0.5"},
         )

@@ -4,23 +4,12 @@ exactly when a run has that method's rows (another branch adds it)."""
 import numpy as np
 import pandas as pd
 
+from benchmark_rows import exo5_3d_row
 from exo_bench.bench.perf.reports.benchmark_reports import error_vs_runtime, scaling
 from exo_bench.bench.perf.peer_ratios import engine_section, ratios
 
 
 def _rows(with_newton: bool):
-    base = dict(
-        mechanism="exo5-3d",
-        n=5,
-        dim=3,
-        topology="exo5",
-        iqr=0.0,
-        reference="ref",
-        nonfinite=0,
-        max_abs_err=1e-15,
-        max_rel_err=1e-16,
-        threads="",
-    )
     us = {
         "matrix-factored (numba)": 0.2,
         "matrix-factored (numpy)": 3.0,
@@ -32,9 +21,9 @@ def _rows(with_newton: bool):
         us["newton-euler (numba)"] = 0.5
     rows = []
     for m, t in us.items():
-        rows.append(dict(base, group="inverse-batched-3d", method=m, batched=True, samples=1000, median=t * 1e-3))
-        rows.append(dict(base, group="inverse-per-call-3d", method=m, batched=False, samples=1, median=2 * t * 1e-6))
-    rows.append(dict(base, group="inverse-per-call-3d", method="mj_rne (bare)", batched=False, samples=1, median=30e-6))
+        rows.append(exo5_3d_row("inverse-batched-3d", m, True, 1000, t * 1e-3, rel_err=1e-16))
+        rows.append(exo5_3d_row("inverse-per-call-3d", m, False, 1, 2 * t * 1e-6, rel_err=1e-16))
+    rows.append(exo5_3d_row("inverse-per-call-3d", "mj_rne (bare)", False, 1, 30e-6, rel_err=1e-16))
     df = pd.DataFrame(rows)
     df["us_per_sample"] = df["median"] / df["samples"] * 1e6
     return df

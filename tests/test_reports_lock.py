@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_runs import EXO_BENCH
 
 #: The cheapest scene: a two-link planar preset, one method (Pinocchio, no compilation), 8 samples,
 #: the table only (about a second per process, most of it imports).
@@ -49,7 +50,7 @@ def _assert_nothing_lost(rep: Path, names: list[str]) -> None:
 
 def _start_run(scene: Path, rep: Path) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "exo_bench.bench.cli", "run", str(scene), "--reports", str(rep)],
+        [*EXO_BENCH, "run", str(scene), "--reports", str(rep)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -257,7 +258,7 @@ def test_a_planted_lock_file_is_refused_in_one_line_before_any_work(tmp_path, mo
 
     import exo_bench.bench.cli.run as runner
     from exo_bench.bench.studies.options import RunOptions
-    from test_bad_inputs import run_cli
+    from cli_runs import run_cli
 
     rep = tmp_path / "rep"
     rep.mkdir()

@@ -10,10 +10,9 @@ import shutil
 from pathlib import Path
 
 import pytest
+from cli_runs import main_job
 
-import exo_bench.bench.cli.run as runner
 import exo_bench.bench.output.publish as publishing
-from exo_bench.bench.studies.options import RunOptions
 from exo_bench.bench.output.provenance import run_id_of
 from exo_bench.models.mechanism.presets import random_tree
 
@@ -37,10 +36,6 @@ def _scene(tmp_path, name, outputs='["table"]'):
     return p
 
 
-def _run(rep, *scenes):
-    return runner.run_main_job(RunOptions(scenes=[str(s) for s in scenes], reports=str(rep)))
-
-
 def _rows(summary: str) -> dict[str, list[str]]:
     """scene -> the run of each of its rows in the summary table."""
     out: dict[str, list[str]] = {}
@@ -58,9 +53,9 @@ def _runs(rep) -> dict:
 def test_running_one_scene_keeps_every_other_scenes_rows(tmp_path):
     a, b = _scene(tmp_path, "a"), _scene(tmp_path, "b")
     rep = tmp_path / "rep"
-    assert _run(rep, a, b) == 0
+    assert main_job(rep, a, b) == 0
     first = _runs(rep)["files"]["a.md"]["run"]
-    assert _run(rep, b) == 0
+    assert main_job(rep, b) == 0
     second = _runs(rep)["files"]["b.md"]["run"]
     assert first != second
     rows = _rows((rep / "summary.md").read_text())
@@ -80,7 +75,7 @@ def test_a_folder_from_before_run_identifiers_keeps_its_rows(tmp_path):
     (rep / "summary.md").write_text(old)
     before = {k: len(v) for k, v in _old_rows(old).items()}
     assert sum(before.values()) == 25 and before["fig2a-2d"] == 5  # the issue's "26 rows": 25 and the header
-    assert _run(rep, _scene(tmp_path, "fig2a-2d")) == 0
+    assert main_job(rep, _scene(tmp_path, "fig2a-2d")) == 0
     after = _rows((rep / "summary.md").read_text())
     assert {k: len(v) for k, v in after.items()} == {**before, "fig2a-2d": 2}
     assert all(r == "unknown (before run identifiers)" for k, v in after.items() if k != "fig2a-2d" for r in v)
@@ -97,7 +92,7 @@ def _old_rows(text):
 
 def test_every_report_carries_its_run(tmp_path):
     rep = tmp_path / "rep"
-    assert _run(rep, _scene(tmp_path, "a", '["table", "moments"]')) == 0
+    assert main_job(rep, _scene(tmp_path, "a", '["table", "moments"]')) == 0
     run = _runs(rep)["files"]["a.md"]["run"]
     assert re.fullmatch(r"[0-9]{8}T[0-9]{6}Z-[0-9a-f]{4}", run)
     assert run_id_of(rep / "a.md") == run and run_id_of(rep / "a-moments.png") == run
@@ -112,7 +107,7 @@ class _Killed(BaseException):
 def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_path, monkeypatch):
     a = _scene(tmp_path, "a", '["table", "moments"]')
     rep = tmp_path / "rep"
-    assert _run(rep, a) == 0
+    assert main_job(rep, a) == 0
     old = _runs(rep)["files"]["a.md"]["run"]
     real = publishing.publish
 
@@ -122,7 +117,7 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
 
     monkeypatch.setattr(publishing, "publish", die_after_one)
     with pytest.raises(_Killed):
-        _run(rep, a)
+        main_job(rep, a)
     manifest = _runs(rep)
     new = next(r for r, v in manifest["runs"].items() if v["status"] == "publishing")
     text = (rep / "summary.md").read_text()
@@ -141,7 +136,7 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
         ), f
     # the next whole run completes the folder and no longer announces an interruption of files it replaced
     monkeypatch.setattr(publishing, "publish", real)
-    assert _run(rep, a) == 0
+    assert main_job(rep, a) == 0
     text = (rep / "summary.md").read_text()
     assert "was interrupted" not in text
     assert len({run_id_of(rep / f) for f in files}) == 1
@@ -150,10 +145,10 @@ def test_a_run_killed_while_publishing_is_announced_and_each_file_marked(tmp_pat
 def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
     """exo-bench errata on its own: its file is marked with its run in runs.json and summary.md, and
     the scenes' rows stay."""
-    from test_bad_inputs import run_cli
+    from cli_runs import run_cli
 
     rep = tmp_path / "rep"
-    assert _run(rep, _scene(tmp_path, "a")) == 0
+    assert main_job(rep, _scene(tmp_path, "a")) == 0
 
     def fake_errata(args):
         from exo_bench.bench.output.provenance import atomic_write, provenance
@@ -201,7 +196,7 @@ def test_a_run_without_an_engine_goes_beside_the_reports_that_measured_it(tmp_pa
 
     a = _scene(tmp_path, "a", outputs='["table", "overview"]')
     rep = tmp_path / "rep"
-    assert _run(rep, a) == 0
+    assert main_job(rep, a) == 0
     first = _runs(rep)["files"]["a.md"]["run"]
     table = (rep / "a.md").read_text()
     real = study.prepare
@@ -213,7 +208,7 @@ def test_a_run_without_an_engine_goes_beside_the_reports_that_measured_it(tmp_pa
 
     monkeypatch.setattr(study, "prepare", no_engine)
     capsys.readouterr()
-    assert _run(rep, a) == 0
+    assert main_job(rep, a) == 0
     out = capsys.readouterr().out
     assert "have rows of matrix-factored, not installed here" in out and "a-quick.md" in out
     assert (rep / "a.md").read_text() == table  # the wider report, untouched
@@ -225,8 +220,8 @@ def test_a_run_without_an_engine_goes_beside_the_reports_that_measured_it(tmp_pa
     assert _rows((rep / "summary.md").read_text()) == {"a": [first, first]}
 
     b = _scene(tmp_path, "b")  # never measured with the engine: nothing wider to keep
-    assert _run(rep, b) == 0 and not (rep / "b-quick.md").exists()
+    assert main_job(rep, b) == 0 and not (rep / "b-quick.md").exists()
     monkeypatch.setattr(study, "prepare", real)
-    assert _run(rep, a) == 0
+    assert main_job(rep, a) == 0
     third = _runs(rep)["files"]["a.md"]["run"]
     assert third not in (first, second) and _rows((rep / "summary.md").read_text())["a"] == [third, third]

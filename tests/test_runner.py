@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from cli_runs import EXO_BENCH, cli_process
 
 import exo_bench.bench.cli.run as runner
 from exo_bench.bench.studies.options import RunOptions
@@ -33,15 +34,9 @@ def _user_scene(tmp_path, name="mine", methods='["pinocchio"]'):
     return p
 
 
-def _cli(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "exo_bench.bench.cli", *map(str, args)], capture_output=True, text=True, timeout=1800
-    )
-
-
 def test_users_own_scene_file_runs_and_reports_power_balance(tmp_path):
     p = _user_scene(tmp_path)
-    r = _cli("run", p, "--reports", tmp_path / "rep")
+    r = cli_process("run", p, "--reports", tmp_path / "rep", timeout=1800)
     assert r.returncode == 0, r.stderr
     table = (tmp_path / "rep" / "mine.md").read_text()
     row = next(line for line in table.splitlines() if line.startswith("| pinocchio |"))
@@ -57,7 +52,7 @@ def test_users_own_scene_file_runs_and_reports_power_balance(tmp_path):
 def test_unknown_or_malformed_scene_is_one_line_and_exit_2(args, needle, tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('mechanism = "fig1-2d"\nmethods = ["pinocchio"]\n[motion]\nkind = "jog"\n')
-    r = _cli(*[str(bad) if a == "BAD" else a for a in args], "--reports", tmp_path / "rep")
+    r = cli_process(*[str(bad) if a == "BAD" else a for a in args], "--reports", tmp_path / "rep", timeout=1800)
     assert r.returncode == 2 and r.stdout == ""
     assert len(r.stderr.strip().splitlines()) == 1 and needle in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "rep").exists() or not any((tmp_path / "rep").iterdir())
@@ -163,7 +158,7 @@ def test_sigterm_leaves_no_staging_folder(tmp_path):
         'mechanism = "exo5-3d"\nmethods = ["pinocchio"]\n[motion]\nkind = "gait"\nsamples_per_period = 100000\n'
     )
     proc = subprocess.Popen(
-        [sys.executable, "-m", "exo_bench.bench.cli", "run", str(p), "--reports", str(tmp_path / "rep")],
+        [*EXO_BENCH, "run", str(p), "--reports", str(tmp_path / "rep")],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

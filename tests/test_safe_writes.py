@@ -14,15 +14,14 @@ import os
 import resource
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from test_bad_inputs import run_cli
+from cli_runs import EXO_BENCH, cli_process, run_cli
 
 from exo_bench.models.mechanism.presets import fig1
 
-EXO = [sys.executable, "-m", "exo_bench.bench.cli"]
+EXO = EXO_BENCH
 
 
 def _mech_file(d: Path, name: str = "m.json", mech_name: str | None = None) -> Path:
@@ -171,10 +170,6 @@ def test_the_atomic_writers_refuse_a_link_in_the_api(tmp_path):
 
 
 # ------------------------------------------------------------------------------ stdout is a stream
-def _sub(argv, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=1800, **kw)
-
-
 @pytest.mark.case("D6")
 @pytest.mark.parametrize("command", sorted(ONE_FILE))
 def test_o_dev_stdout_appends_to_a_log_and_never_replaces_it(tmp_path, command):
@@ -195,10 +190,10 @@ def test_o_dev_stdout_appends_to_a_log_and_never_replaces_it(tmp_path, command):
 @pytest.mark.parametrize("command", sorted(ONE_FILE))
 def test_o_dash_is_stdout_and_creates_no_file(tmp_path, command):
     """``-o -`` writes stdout (no file named ``-``), as does ``-o /dev/stdout`` into a pipe."""
-    p = _sub(ONE_FILE[command]("-"), cwd=tmp_path)
+    p = cli_process(*ONE_FILE[command]("-"), timeout=1800, cwd=tmp_path)
     assert p.returncode == 0 and p.stdout.startswith("<"), p.stderr
     assert not (tmp_path / "-").exists()
-    q = _sub(ONE_FILE[command]("/dev/stdout"), cwd=tmp_path)
+    q = cli_process(*ONE_FILE[command]("/dev/stdout"), timeout=1800, cwd=tmp_path)
     assert q.returncode == 0 and q.stdout == p.stdout, q.stderr
 
 
@@ -272,7 +267,7 @@ def test_a_write_error_names_the_file(tmp_path, command):
         argv, target = ONE_FILE[command](tmp_path / "out.xml"), tmp_path / "out.xml"
     else:
         argv, target = FOLDER[command][0](tmp_path), tmp_path / FOLDER[command][1]
-    p = subprocess.run([*EXO, *map(str, argv)], capture_output=True, text=True, timeout=1800, preexec_fn=_small_files)
+    p = cli_process(*argv, timeout=1800, preexec_fn=_small_files)
     assert p.returncode == 2, p.stderr
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "File too large" in lines[0], p.stderr

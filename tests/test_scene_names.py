@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import pytest
+from cli_runs import main_job
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -50,10 +51,6 @@ def no_work(monkeypatch):
     monkeypatch.setattr(runner, "run_scene", ran)
 
 
-def _run(rep: Path, *scenes: Path) -> int:
-    return runner.run_main_job(RunOptions(scenes=tuple(str(s) for s in scenes), reports=str(rep)))
-
-
 #: Scene names that are (in any case) the name of a file the suite writes into the reports folder.
 SUITE_NAMES = [
     "summary",
@@ -81,7 +78,7 @@ def test_a_scene_named_like_a_suite_report_is_refused_before_any_work(tmp_path, 
     in one line naming the scene file, its field 'name' and the report."""
     rep = tmp_path / "rep"
     with pytest.raises(ValueError, match=r"field 'name': .*the suite's own report") as e:
-        _run(rep, _scene(tmp_path, name))
+        main_job(rep, _scene(tmp_path, name))
     assert "\n" not in str(e.value) and repr(name) in str(e.value)
     assert not rep.exists() or not list(rep.iterdir())
 
@@ -96,13 +93,13 @@ def test_every_report_the_suite_writes_is_reserved(tmp_path, no_work):
     assert {"summary.md", "runs.json", "errata.md", "stability.md", "scaling.md", "paper_table-quick.md"} <= names
     for n in names:
         with pytest.raises(ValueError, match="the suite's own report"):
-            _run(tmp_path / "rep", _scene(tmp_path, Path(n).stem))
+            main_job(tmp_path / "rep", _scene(tmp_path, Path(n).stem))
 
 
 @pytest.mark.case("D3")
 def test_a_scene_named_errata_leaves_the_errata_report_alone(tmp_path):
     """`exo-bench run` of a scene named errata exits 2 with one line and errata.md stays byte for byte."""
-    from test_bad_inputs import run_cli
+    from cli_runs import run_cli
 
     rep = tmp_path / "rep"
     rep.mkdir()
@@ -131,7 +128,7 @@ def test_two_scenes_with_one_file_name_in_one_run_are_refused(tmp_path, no_work,
     a = _scene(tmp_path / "one", first, outputs='["table", "equations"]')
     b = _scene(tmp_path / "two", second)
     with pytest.raises(ValueError, match="in this run") as e:
-        _run(tmp_path / "rep", a, b)
+        main_job(tmp_path / "rep", a, b)
     assert str(a) in str(e.value) and str(b) in str(e.value) and "\n" not in str(e.value)
 
 
@@ -141,7 +138,7 @@ def test_a_scene_named_like_another_scenes_pages_is_refused(tmp_path, no_work, n
     """A scene named like the equations page of another scene (equations-x.md is scene x's) or
     like a narrower run's page of another (x-quick.md) is refused before any work, in one line."""
     with pytest.raises(ValueError, match="field 'name': .*other scenes'") as e:
-        _run(tmp_path / "rep", _scene(tmp_path, name))
+        main_job(tmp_path / "rep", _scene(tmp_path, name))
     assert "\n" not in str(e.value)
 
 
@@ -150,7 +147,7 @@ def test_one_scene_named_twice_on_the_command_line_is_refused(tmp_path, no_work)
     """A scene named twice in one run (one file, or a shipped name twice) is refused before any
     work, in one line saying so."""
     with pytest.raises(ValueError, match="named twice in this run"):
-        _run(tmp_path / "rep", _scene(tmp_path, "x", file="x.toml"), tmp_path / "x.toml")
+        main_job(tmp_path / "rep", _scene(tmp_path, "x", file="x.toml"), tmp_path / "x.toml")
     with pytest.raises(ValueError, match="exo5-2d.toml: named twice in this run"):
         runner.run_main_job(RunOptions(scenes=("exo5-2d", "exo5-2d"), reports=str(tmp_path / "rep")))
 

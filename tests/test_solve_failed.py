@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("casadi")
 
-from test_bad_inputs import run_cli  # noqa: E402
+from cli_runs import run_cli  # noqa: E402
 
 from exo_bench.bench.studies.solve_failed import SolveFailed  # noqa: E402
 from exo_bench.models.mechanism.presets import exo5, human  # noqa: E402

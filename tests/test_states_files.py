@@ -7,7 +7,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from test_bad_inputs import run_cli
+from cli_runs import run_cli
 from conftest import K, assert_forces_agree
 
 from exo_bench.bench.cli import inverse as inverse_cli

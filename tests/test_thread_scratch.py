@@ -9,15 +9,10 @@ import threading
 import numpy as np
 import pytest
 
+from conftest import smooth_states
 from exo_bench import prepare
 from exo_bench.models.machine import simd_blocks
-from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.mechanism.presets import chain, exo5, random_tree
-
-
-def _states(mech, samples, seed):
-    mo = smooth_random_motion(mech, np.linspace(0.0, 2.0, samples), seed=seed)
-    return [np.ascontiguousarray(a) for a in (mo.q, mo.qd, mo.qdd)]
 
 
 @pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
@@ -28,7 +23,7 @@ def test_a_reused_scratch_gives_the_bits_of_a_fresh_one(method, mech):
     model = prepare(mech, method)
     p = model.batch_args if method == "newton-euler" else model.kernel_args[0]
     for samples, threads, seed in ((77, 2, 1), (5, 1, 2), (300, 2, 3), (33, 1, 4)):
-        q, qd, qdd = _states(mech, samples, seed)
+        q, qd, qdd = smooth_states(mech, samples, seed)
         fresh, kept = np.empty_like(q), np.empty_like(q)
         flat = (q.reshape(-1), qd.reshape(-1), qdd.reshape(-1))
         simd_blocks.run(model.batch_kernel, p, *flat, fresh.reshape(-1), samples, threads=1)

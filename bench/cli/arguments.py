@@ -17,16 +17,46 @@ MAX_MEMORY_HELP = (
 )
 
 
-def described(summary: str, *examples: str) -> dict:
-    """The keywords of ``sub.add_parser`` for a subcommand whose ``--help`` says in one line what it
-    does (``summary``, also its line in ``exo-bench --help``) and shows ``examples``, each one
-    ``exo-bench ...`` command line, kept as written (tests/test_cli_help.py parses each)."""
-    return {
-        "help": summary,
-        "description": summary,
-        "epilog": "examples:\n" + "\n".join(f"  {e}" for e in examples),
-        "formatter_class": argparse.RawDescriptionHelpFormatter,
-    }
+#: The help of the argument that names a mechanism.
+MECHANISM_HELP = "a preset name (exo-bench presets) or a mechanism JSON file"
+
+
+def subcommand(
+    sub: argparse._SubParsersAction,
+    name: str,
+    func: Callable[[argparse.Namespace], int],
+    summary: str,
+    *examples: str,
+    mechanism: bool | str = False,
+) -> argparse.ArgumentParser:
+    """Register ``exo-bench name``, which runs ``func(args)``. Its ``--help`` says in one line what it does
+    (``summary``, also its line in ``exo-bench --help``) and shows ``examples``, each one ``exo-bench ...``
+    command line, kept as written (tests/test_cli_help.py parses each). ``mechanism``: a first argument
+    names a mechanism (a string: its ``nargs``, ``"?"`` for an optional one). The subcommand's own
+    arguments go on the parser returned."""
+    s = sub.add_parser(
+        name,
+        help=summary,
+        description=summary,
+        epilog="examples:\n" + "\n".join(f"  {e}" for e in examples),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    s.set_defaults(func=func)
+    if mechanism:
+        s.add_argument("mechanism", nargs=None if mechanism is True else mechanism, help=MECHANISM_HELP)
+    return s
+
+
+def add_reports(
+    s: argparse.ArgumentParser, help: str = "output folder (default: ./reports in the current directory)"
+) -> None:
+    """``--reports DIR`` (default None: ./reports; read by :func:`reports_folder`)."""
+    s.add_argument("--reports", default=None, help=help)
+
+
+def add_max_memory(s: argparse.ArgumentParser, help: str = MAX_MEMORY_HELP) -> None:
+    """``--max-memory SIZE`` (:func:`size_arg`; default None: the usable memory)."""
+    s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=help)
 
 
 def reports_folder(value: str | None) -> Path | None:

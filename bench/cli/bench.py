@@ -7,11 +7,12 @@ import argparse
 
 from exo_bench.bench.cli.arguments import (
     add_cluster_args,
+    add_reports,
     budget_arg,
     cluster_options,
-    described,
     report_job,
     reports_folder,
+    subcommand,
 )
 from exo_bench.bench.perf.options import BenchOptions
 
@@ -28,13 +29,13 @@ def full_help() -> str:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "bench",
-        **described(
-            "run the benchmark suite and write paper_table, error_vs_runtime, scaling, derivatives",
-            "exo-bench bench --reports my-reports",
-            "exo-bench bench --full --workers 2",
-        ),
+        cmd_bench,
+        "run the benchmark suite and write paper_table, error_vs_runtime, scaling, derivatives",
+        "exo-bench bench --reports my-reports",
+        "exo-bench bench --full --workers 2",
     )
     s.add_argument("--full", action="store_true", help=full_help())
     s.add_argument(
@@ -42,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also replace the paper table and issue 23's figures in the checkout's reports/full/highlights.md, which the README links (only then is it changed)",
     )
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    add_reports(s)
     s.add_argument(
         "--rows",
         action="append",
@@ -60,7 +61,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="stop the serial suite after SECONDS (default: the profile's predicted time x 10)",
     )
     add_cluster_args(s)
-    s.set_defaults(func=cmd_bench)
 
 
 def options(args: argparse.Namespace) -> BenchOptions:

@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from exo_bench.bench.cli.arguments import budget_arg, described, report_job
+from exo_bench.bench.cli.arguments import add_reports, budget_arg, report_job, subcommand
 from exo_bench.models.files.names import file_stem
 from exo_bench.bench.studies.options import ReportOptions
 
@@ -45,16 +45,16 @@ FORMATS = ("latex", "python", "c", "casadi")
 # ------------------------------------------------------------------------------ the command
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Register ``exo-bench equations`` on the CLI's subparsers."""
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "equations",
-        **described(
-            "write a mechanism's equations of motion as LaTeX, a standalone Python module or C99 source "
-            "(eq. (5)/(17) composed by the matrix method)",
-            "exo-bench equations fig2a-2d --format latex -o equations",
-            "exo-bench equations exo5-3d --format c -o generated",
-        ),
+        cmd_equations,
+        "write a mechanism's equations of motion as LaTeX, a standalone Python module or C99 source "
+        "(eq. (5)/(17) composed by the matrix method)",
+        "exo-bench equations fig2a-2d --format latex -o equations",
+        "exo-bench equations exo5-3d --format c -o generated",
+        mechanism="?",
     )
-    s.add_argument("mechanism", nargs="?", help="a preset name or a mechanism JSON file")
     s.add_argument(
         "--format",
         choices=None,
@@ -84,8 +84,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "trees and write equations_size.md into --reports",
     )
     s.add_argument("--full", action="store_true", help="with --size-report: n = 1..20 (default 1..4)")
-    s.add_argument("--reports", default=None, help="with --size-report: output folder (default: ./reports)")
-    s.set_defaults(func=cmd_equations)
+    add_reports(s, "with --size-report: output folder (default: ./reports)")
 
 
 def cmd_equations(args: argparse.Namespace) -> int:

@@ -5,20 +5,19 @@ from __future__ import annotations
 
 import argparse
 
-from exo_bench.bench.cli.arguments import described, report_job, reports_folder
+from exo_bench.bench.cli.arguments import add_reports, report_job, reports_folder, subcommand
 from exo_bench.bench.studies.options import ReportOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "errata",
-        **described(
-            "check every printed formula of the paper against Lagrange and Pinocchio; write errata.md",
-            "exo-bench errata --reports my-reports",
-        ),
+        cmd_errata,
+        "check every printed formula of the paper against Lagrange and Pinocchio; write errata.md",
+        "exo-bench errata --reports my-reports",
     )
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
-    s.set_defaults(func=cmd_errata)
+    add_reports(s)
 
 
 def cmd_errata(args: argparse.Namespace) -> int:

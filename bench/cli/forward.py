@@ -23,17 +23,17 @@ from exo_bench.bench.cli.inverse import (
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from exo_bench.api import method_names
 
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import subcommand
 
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "forward",
-        **described(
-            "forward dynamics: accelerations for given states and forces, printed as JSON on stdout",
-            "exo-bench states exo5-3d -o states.json",
-            "exo-bench forward exo5-3d states.json",
-        ),
+        cmd_forward,
+        "forward dynamics: accelerations for given states and forces, printed as JSON on stdout",
+        "exo-bench states exo5-3d -o states.json",
+        "exo-bench forward exo5-3d states.json",
+        mechanism=True,
     )
-    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument(
         "states",
         help='a JSON file {"q": [[...]], "qd": [[...]], "tau": [[...]]} (or .npz), '
@@ -42,7 +42,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     s.add_argument("--method", default="newton-euler", help=f"one of: {', '.join(method_names())}")
     add_limit_args(s)
-    s.set_defaults(func=cmd_forward)
 
 
 def cmd_forward(args: argparse.Namespace) -> int:

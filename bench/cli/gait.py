@@ -20,16 +20,16 @@ from exo_bench.bench.studies.step import data
 
 def add_parser(sub) -> None:
     """Register ``exo-bench gait`` on the CLI's subparsers."""
-    from exo_bench.bench.cli.arguments import described, whole
+    from exo_bench.bench.cli.arguments import subcommand, whole
 
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "gait",
-        **described(
-            "the predicted walking step of exo5 (direct collocation): describe the stored step, or --solve it "
-            "again and compare",
-            "exo-bench gait --dim 3",
-            "exo-bench gait --dim 2 --solve",
-        ),
+        cmd_gait,
+        "the predicted walking step of exo5 (direct collocation): describe the stored step, or --solve it "
+        "again and compare",
+        "exo-bench gait --dim 3",
+        "exo-bench gait --dim 2 --solve",
     )
     s.add_argument("--dim", type=whole, choices=(2, 3), default=3, help="exo5-2d or exo5-3d (default 3)")
     s.add_argument(
@@ -39,7 +39,6 @@ def add_parser(sub) -> None:
     )
     s.add_argument("--store", action="store_true", help="with --solve: write the new solution as the stored step")
     s.add_argument("--verbose", action="store_true", help="with --solve: IPOPT's iteration log")
-    s.set_defaults(func=cmd_gait)
 
 
 def _mech(dim: int):

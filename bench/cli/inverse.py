@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
-from exo_bench.bench.cli.arguments import MAX_MEMORY_HELP, budget_arg, seconds_arg, size_arg
+from exo_bench.bench.cli.arguments import add_max_memory, budget_arg, seconds_arg
 
 if TYPE_CHECKING:
     from exo_bench.api.cost_model import Limits
@@ -18,17 +18,17 @@ if TYPE_CHECKING:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from exo_bench.api import method_names
 
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import subcommand
 
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "inverse",
-        **described(
-            "inverse dynamics: generalised forces for given states, printed as JSON on stdout",
-            "exo-bench states exo5-3d -o states.json",
-            "exo-bench inverse exo5-3d states.json",
-        ),
+        cmd_inverse,
+        "inverse dynamics: generalised forces for given states, printed as JSON on stdout",
+        "exo-bench states exo5-3d -o states.json",
+        "exo-bench inverse exo5-3d states.json",
+        mechanism=True,
     )
-    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument(
         "states",
         help='a JSON file {"q": [[...]], "qd": [[...]], "qdd": [[...]]}, '
@@ -43,7 +43,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "design, kept to expose the paper's misprints; its results carry a warning on stderr)",
     )
     add_limit_args(s)
-    s.set_defaults(func=cmd_inverse)
 
 
 def _default_method() -> str:
@@ -64,7 +63,7 @@ def add_limit_args(s: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="seconds for lagrange's symbolic derivation (default 120; refused with any other method)",
     )
-    s.add_argument("--max-memory", type=size_arg, default=None, metavar="SIZE", help=MAX_MEMORY_HELP)
+    add_max_memory(s)
     s.add_argument(
         "--max-time",
         type=seconds_arg,

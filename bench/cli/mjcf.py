@@ -9,31 +9,26 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from exo_bench.bench.cli.arguments import described, size_arg
+from exo_bench.bench.cli.arguments import add_max_memory, subcommand
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "mjcf",
-        **described(
-            "print (or write) the MJCF (MuJoCo XML) of a mechanism, checked by compiling it with MuJoCo (extra [peers])",
-            "exo-bench mjcf exo5-3d -o exo5-3d.xml",
-            "exo-bench mjcf exo5-2d --no-check",
-        ),
+        cmd_mjcf,
+        "print (or write) the MJCF (MuJoCo XML) of a mechanism, checked by compiling it with MuJoCo (extra [peers])",
+        "exo-bench mjcf exo5-3d -o exo5-3d.xml",
+        "exo-bench mjcf exo5-2d --no-check",
+        mechanism=True,
     )
-    s.add_argument("mechanism", help="a preset name or a mechanism JSON file")
     s.add_argument("-o", "--output", help="the .xml file to write (default, or -: stdout)")
     s.add_argument(
         "--no-check", action="store_true", help="write it without compiling it in MuJoCo (MuJoCo not needed)"
     )
-    s.add_argument(
-        "--max-memory",
-        type=size_arg,
-        default=None,
-        metavar="SIZE",
-        help="memory MuJoCo may use to compile the file, predicted before (default: 80%% of the available memory)",
+    add_max_memory(
+        s, "memory MuJoCo may use to compile the file, predicted before (default: 80%% of the available memory)"
     )
-    s.set_defaults(func=cmd_mjcf)
 
 
 def cmd_mjcf(args: argparse.Namespace) -> int:

@@ -6,10 +6,9 @@ import argparse
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import subcommand
 
-    s = sub.add_parser("presets", **described("list the preset mechanisms", "exo-bench presets"))
-    s.set_defaults(func=cmd_presets)
+    subcommand(sub, "presets", cmd_presets, "list the preset mechanisms", "exo-bench presets")
 
 
 def cmd_presets(args: argparse.Namespace) -> int:

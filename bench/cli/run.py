@@ -16,7 +16,7 @@ from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Any, TextIO
 
-from exo_bench.bench.cli.arguments import reports_folder, size_arg
+from exo_bench.bench.cli.arguments import add_max_memory, add_reports, reports_folder, subcommand
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import new_run_id, set_run_id
 from exo_bench.bench.output.publish import publish_run, staging_dir
@@ -29,16 +29,14 @@ from exo_bench.bench.studies.study import one_line
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from exo_bench.bench.cli.arguments import described
-
     shipped = shipped_scene_names()  # as the loader finds them (bench/studies/scenes/*.toml), never typed
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "run",
-        **described(
-            "the main job: run every scene and write the reports",
-            "exo-bench run",
-            f"exo-bench run {shipped[0]} --reports my-reports" if shipped else "exo-bench run --reports my-reports",
-        ),
+        cmd_run,
+        "the main job: run every scene and write the reports",
+        "exo-bench run",
+        f"exo-bench run {shipped[0]} --reports my-reports" if shipped else "exo-bench run --reports my-reports",
     )
     s.epilog = f"{s.epilog}\n\nshipped scenes:\n" + "\n".join(f"  {n}" for n in shipped)
     s.add_argument(
@@ -46,17 +44,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         nargs="*",
         help=f"shipped scene names ({', '.join(shipped)}) or scene TOML files (default: every shipped scene)",
     )
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    add_reports(s)
     s.add_argument("--full", action="store_true", help="the whole sweep in the benchmark and stability reports")
-    s.add_argument(
-        "--max-memory",
-        type=size_arg,
-        default=None,
-        metavar="SIZE",
-        help="skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
+    add_max_memory(
+        s,
+        "skip (with the reason in the reports) a scene's method whose estimated memory exceeds SIZE "
         "(default: 80%% of the machine's available memory)",
     )
-    s.set_defaults(func=cmd_run)
 
 
 def cmd_run(args: argparse.Namespace) -> int:

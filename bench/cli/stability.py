@@ -6,24 +6,30 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from exo_bench.bench.cli.arguments import add_cluster_args, cluster_options, described, report_job, reports_folder
+from exo_bench.bench.cli.arguments import (
+    add_cluster_args,
+    add_reports,
+    cluster_options,
+    report_job,
+    reports_folder,
+    subcommand,
+)
 from exo_bench.bench.studies.options import StabilityOptions
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "stability",
-        **described(
-            "where each method breaks (extreme cases vs the 50-digit reference) and the "
-            "forward-dynamics round trip; write stability.md and its plots",
-            "exo-bench stability --reports my-reports",
-            "exo-bench stability --full --workers 2",
-        ),
+        cmd_stability,
+        "where each method breaks (extreme cases vs the 50-digit reference) and the "
+        "forward-dynamics round trip; write stability.md and its plots",
+        "exo-bench stability --reports my-reports",
+        "exo-bench stability --full --workers 2",
     )
     s.add_argument("--full", action="store_true", help="the whole sweep (finer distances, n = 100, more tolerances)")
-    s.add_argument("--reports", default=None, help="output folder (default: ./reports in the current directory)")
+    add_reports(s)
     add_cluster_args(s)
-    s.set_defaults(func=cmd_stability)
 
 
 def cmd_stability(args: argparse.Namespace) -> int:

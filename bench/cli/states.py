@@ -15,7 +15,7 @@ import argparse
 
 import numpy as np
 
-from exo_bench.bench.cli.arguments import at_least_one, described, whole
+from exo_bench.bench.cli.arguments import at_least_one, subcommand, whole
 
 #: Example states are for reading and copying: a default that prints in a screen.
 DEFAULT_SAMPLES = 10
@@ -27,15 +27,15 @@ NPZ_BYTES_PER_NUMBER = 8 + 8
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "states",
-        **described(
-            "write example states (q, qd, qdd and their tau) of a mechanism for inverse and forward",
-            "exo-bench states exo5-3d -o states.json",
-            "exo-bench states fig2a-2d -o states.npz --samples 100 --seed 3",
-        ),
+        cmd_states,
+        "write example states (q, qd, qdd and their tau) of a mechanism for inverse and forward",
+        "exo-bench states exo5-3d -o states.json",
+        "exo-bench states fig2a-2d -o states.npz --samples 100 --seed 3",
+        mechanism=True,
     )
-    s.add_argument("mechanism", help="a preset name (exo-bench presets) or a mechanism JSON file")
     s.add_argument(
         "-o", "--output", required=True, help="the file to write: .npz for NumPy arrays, else JSON (-: stdout)"
     )
@@ -43,7 +43,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--samples", type=_count, default=DEFAULT_SAMPLES, help=f"rows of states (default {DEFAULT_SAMPLES})"
     )
     s.add_argument("--seed", type=_seed, default=0, help="the random seed (default 0): the same seed, the same file")
-    s.set_defaults(func=cmd_states)
 
 
 def _count(text: str) -> int:

@@ -23,23 +23,22 @@ def _speed(v: float) -> float:
 
 def add_parser(sub) -> None:
     """Register ``exo-bench stride`` on the CLI's subparsers."""
-    from exo_bench.bench.cli.arguments import decimal, described
+    from exo_bench.bench.cli.arguments import decimal, subcommand
 
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "stride",
-        **described(
-            "the predicted stride of the 2D human with feet (contact-implicit collocation): describe the "
-            "stored stride, or --solve it again and compare",
-            "exo-bench stride --variant human --speed 1.41",
-            "exo-bench stride --solve --speed 1.41 --variant exo",
-        ),
+        cmd_stride,
+        "the predicted stride of the 2D human with feet (contact-implicit collocation): describe the "
+        "stored stride, or --solve it again and compare",
+        "exo-bench stride --variant human --speed 1.41",
+        "exo-bench stride --solve --speed 1.41 --variant exo",
     )
     s.add_argument("--variant", choices=("human", "exo"), default="human", help="leg rods held (human) or free")
     s.add_argument("--speed", type=decimal, default=1.41, help="the prescribed average speed, m/s (default 1.41)")
     s.add_argument("--solve", action="store_true", help="solve again (needs the extra 'casadi') and compare")
     s.add_argument("--store", action="store_true", help="with --solve: write the new solution as the stored one")
     s.add_argument("--verbose", action="store_true", help="with --solve: IPOPT's iteration log")
-    s.set_defaults(func=cmd_stride)
 
 
 def cmd_stride(args) -> int:

@@ -6,19 +6,18 @@ import argparse
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from exo_bench.bench.cli.arguments import described
+    from exo_bench.bench.cli.arguments import subcommand
 
-    s = sub.add_parser(
+    s = subcommand(
+        sub,
         "urdf",
-        **described(
-            "print (or write) the generated URDF of a mechanism",
-            "exo-bench urdf exo5-3d -o exo5-3d.urdf",
-            "exo-bench urdf fig2a-2d",
-        ),
+        cmd_urdf,
+        "print (or write) the generated URDF of a mechanism",
+        "exo-bench urdf exo5-3d -o exo5-3d.urdf",
+        "exo-bench urdf fig2a-2d",
+        mechanism=True,
     )
-    s.add_argument("mechanism", help="a preset name (exo-bench presets) or a mechanism JSON file")
     s.add_argument("-o", "--output", help="the .urdf file to write (default, or -: stdout)")
-    s.set_defaults(func=cmd_urdf)
 
 
 def cmd_urdf(args: argparse.Namespace) -> int:

@@ -14,6 +14,7 @@ numbers of the scene's motion (:func:`limitations`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,6 +138,54 @@ def _ratio(value: float, norm: Normative | None) -> str:
     return f"{value / norm.value:.1f}×"
 
 
+def _row(name: str, peak: float, second: float, normative: Normative | None, ratio: str, comparable: str) -> str:
+    norm = f"{normative.value:.2f} ({normative.where})" if normative else "—"
+    return f"| {name} | {peak:.2f} | {second:.2f} | {norm} | {ratio} | {comparable} |"
+
+
+def tables(
+    p: Plausibility,
+    joint_cells: Callable[[JointRow], tuple[str, str]],
+    rod_cells: Callable[[RodRow], tuple[str, str]],
+) -> list[str]:
+    """The joints' and the rods' tables (Markdown lines); ``joint_cells(row)`` and ``rod_cells(row)`` give
+    each row's last two cells, the model over the normative peak and whether they are comparable."""
+    lines = [
+        "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
+        "| model / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [_row(r.joint, r.sagittal, r.magnitude, r.normative, *joint_cells(r)) for r in p.joints]
+    lines += [
+        "",
+        "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
+        "force (BW) | net joint force / normative | comparable? |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [_row(rod.rod, rod.force, rod.joint_force, rod.normative, *rod_cells(rod)) for rod in p.rods]
+    return lines
+
+
+def bullets(p: Plausibility, ratio: Callable[[float, Normative], str]) -> list[str]:
+    """The compact text's lines, one a joint and one a rod, each beside walking where it has a normative
+    value (``ratio(value, normative)``: the model over the normative peak)."""
+    lines = []
+    for r in p.joints:
+        norm = f", walking {r.normative.value:.2f} ({ratio(r.sagittal, r.normative)})" if r.normative else ""
+        lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
+    for rod in p.rods:
+        norm = (
+            (
+                f"; net joint force {rod.joint_force:.2f} BW, walking {rod.normative.value:.2f} "
+                f"({ratio(rod.joint_force, rod.normative)})"
+            )
+            if rod.normative
+            else ""
+        )
+        lines.append(f"- {rod.rod}: {rod.force:.2f} BW along the rod{norm}")
+    return lines
+
+
 def limitations(p: Plausibility) -> list[str]:
     """Where this model cannot match a real gait, and why (with the scene's numbers)."""
     travel = f"{p.hip_travel:.2f} m" if p.hip_travel is not None else "far"
@@ -169,28 +218,12 @@ def markdown(p: Plausibility) -> str:
         f"peak rod forces ({p.reference}) in body weights (BW = {p.weight:.0f} N), beside the "
         f"normative peak of the joint each plays in level walking ({SHORT_SOURCE}).",
         "",
-        "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
-        "| model / normative | comparable? |",
-        "|---|---|---|---|---|---|",
     ]
-    for r in p.joints:
-        norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
-        lines.append(
-            f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | {_ratio(r.sagittal, r.normative)} "
-            f"| {r.meaning or '—'} |"
-        )
-    lines += [
-        "",
-        "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
-        "force (BW) | net joint force / normative | comparable? |",
-        "|---|---|---|---|---|---|",
-    ]
-    for rod in p.rods:
-        norm = f"{rod.normative.value:.2f} ({rod.normative.where})" if rod.normative else "—"
-        lines.append(
-            f"| {rod.rod} | {rod.force:.2f} | {rod.joint_force:.2f} | {norm} | {_ratio(rod.joint_force, rod.normative)} "
-            f"| {rod.meaning or '—'} |"
-        )
+    lines += tables(
+        p,
+        lambda r: (_ratio(r.sagittal, r.normative), r.meaning or "—"),
+        lambda rod: (_ratio(rod.joint_force, rod.normative), rod.meaning or "—"),
+    )
     lines += [
         "",
         "The rod force is the actuator's force along the rod; the net joint force is the whole force the "
@@ -215,19 +248,7 @@ def text(p: Plausibility) -> str:
         + (f" beside level walking ({SHORT_SOURCE}):" if p.walker else ":"),
         "",
     ]
-    for r in p.joints:
-        norm = f", walking {r.normative.value:.2f} ({_ratio(r.sagittal, r.normative)})" if r.normative else ""
-        lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
-    for rod in p.rods:
-        norm = (
-            (
-                f"; net joint force {rod.joint_force:.2f} BW, walking {rod.normative.value:.2f} "
-                f"({_ratio(rod.joint_force, rod.normative)})"
-            )
-            if rod.normative
-            else ""
-        )
-        lines.append(f"- {rod.rod}: {rod.force:.2f} BW along the rod{norm}")
+    lines += bullets(p, _ratio)
     if p.walker:
         lines += [
             "",
@@ -238,4 +259,4 @@ def text(p: Plausibility) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["JointRow", "Plausibility", "RodRow", "limitations", "markdown", "plausibility", "text"]
+__all__ = ["JointRow", "Plausibility", "RodRow", "bullets", "limitations", "markdown", "plausibility", "tables", "text"]

@@ -22,51 +22,15 @@ Memory is rounded up (an estimate that is too high refuses a run that would fit;
 a run be killed). Times are indicative, the same machine's; Lagrange's derivation time is not
 rounded up, so that a refusal for its budget is a real one.
 
-Measured against estimated by :func:`exo_bench.bench.perf.calibration.calibration_table` (the estimate without :data:`BASE_BYTES`;
-afterwards ``matrix`` in 3D went from 40 to 44 n^2 floats per sample)::
-
-    | method | dim | n | samples | measured MB | estimated MB | measured s | estimated s |
-    |---|---|---|---|---|---|---|---|
-    | matrix-factored | 2 | 5 | 2000 | 2.2 | 6.2 | 0.00679 | 0.00108 |
-    | matrix-factored | 2 | 25 | 2000 | 6.1 | 26.7 | 0.0105 | 0.00527 |
-    | matrix-factored | 2 | 100 | 200 | 5.5 | 11.9 | 0.0346 | 0.0162 |
-    | matrix-factored | 3 | 5 | 2000 | 2.7 | 7.1 | 0.00675 | 0.00108 |
-    | matrix-factored | 3 | 25 | 2000 | 9.2 | 31.5 | 0.0153 | 0.00527 |
-    | matrix-factored | 3 | 100 | 200 | 7.1 | 13.8 | 0.0811 | 0.0162 |
-    | matrix | 2 | 5 | 2000 | 3.6 | 14.5 | 0.0233 | 0.00713 |
-    | matrix | 2 | 25 | 2000 | 31.6 | 71.4 | 0.218 | 0.128 |
-    | matrix | 2 | 100 | 200 | 32.5 | 69.3 | 0.313 | 0.211 |
-    | matrix | 3 | 5 | 2000 | 9.7 | 21.2 | 0.0549 | 0.0171 |
-    | matrix | 3 | 25 | 2000 | 68.9 | 72.9 | 0.823 | 0.378 |
-    | matrix | 3 | 100 | 200 | 70.7 | 68.2 | 1.14 | 0.611 |
-    | matrix-paper | 2 | 5 | 2000 | 7.3 | 16.1 | 0.0361 | 0.00713 |
-    | matrix-paper | 2 | 25 | 2000 | 31.3 | 71.3 | 0.23 | 0.128 |
-    | matrix-paper | 2 | 100 | 200 | 33.3 | 69.9 | 0.336 | 0.211 |
-    | matrix-paper | 3 | 5 | 2000 | 17.7 | 26.0 | 0.0417 | 0.0171 |
-    | matrix-paper | 3 | 25 | 2000 | 51.3 | 72.9 | 0.4 | 0.378 |
-    | matrix-paper | 3 | 100 | 200 | 54.9 | 69.7 | 0.692 | 0.611 |
-    | recurrence | 2 | 5 | 2000 | 5.5 | 22.5 | 0.0177 | 0.0249 |
-    | recurrence | 2 | 25 | 2000 | 32.5 | 71.3 | 0.799 | 1.21 |
-    | recurrence | 2 | 100 | 200 | 32.9 | 67.9 | 4.34 | 3.96 |
-    | recurrence | 3 | 5 | 2000 | 16.1 | 38.8 | 0.0426 | 0.0247 |
-    | recurrence | 3 | 25 | 2000 | 59.4 | 72.6 | 1.85 | 1.93 |
-    | recurrence | 3 | 100 | 200 | 63.6 | 68.1 | 10.2 | 9.62 |
-    | pinocchio | 2 | 5 | 2000 | 4.7 | 6.0 | 0.0152 | 0.0328 |
-    | pinocchio | 2 | 25 | 2000 | 12.9 | 25.7 | 0.114 | 0.161 |
-    | pinocchio | 2 | 100 | 200 | 281.2 | 305.4 | 0.201 | 0.224 |
-    | pinocchio | 3 | 5 | 2000 | 4.9 | 7.7 | 0.0172 | 0.0581 |
-    | pinocchio | 3 | 25 | 2000 | 26.7 | 44.8 | 0.117 | 0.293 |
-    | pinocchio | 3 | 100 | 200 | 916.6 | 945.5 | 0.428 | 0.593 |
-    | lagrange | 2 | 5 | 200 | 18.9 | 20.8 | 0.651 | 0.871 |
-    | lagrange | 2 | 10 | 200 | 71.1 | 82.8 | 4.18 | 4.15 |
-    | lagrange | 3 | 5 | 200 | 38.2 | 42.0 | 2.3 | 2.79 |
-    | lagrange | 3 | 8 | 200 | 123.2 | 134.6 | 9.23 | 8.37 |
+Measured against estimated by :func:`exo_bench.bench.perf.calibration.calibration_table`: the table in
+docs/cost-model.md (the estimate without :data:`BASE_BYTES`; afterwards ``matrix`` in 3D went from 40 to
+44 n^2 floats per sample).
 
 Since 2026-11-24: the times of ``recurrence``, ``pinocchio`` and ``matrix-factored`` are recalibrated
 (:mod:`exo_bench.api.cost_formulas`: the quiet machine's times :data:`~exo_bench.api.cost_formulas.LOADED`,
-and a large batch no faster than :data:`~exo_bench.api.cost_formulas.ARRAY_BANDWIDTH`); the table above had
+and a large batch no faster than :data:`~exo_bench.api.cost_formulas.ARRAY_BANDWIDTH`); that table had
 them 3-17x too slow per sample (the compiled and SIMD kernels came after it), so that the timing goal (bench/test_estimate_timing.py)
-found the quiet machine 0.17x the estimates. The other methods keep the figures above.
+found the quiet machine 0.17x the estimates. The other methods keep its figures.
 
 Since issue 26: ``recurrence``'s setup counts its increment tables (:func:`~exo_bench.api.cost_formulas.recurrence_table_floats`:
 sum over links of m^2, m = the link and its ancestors; n^3 / 3 for a chain, written once into one array:

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from exo_bench.bench.studies.plausibility import ROLES, Plausibility, plausibility
+from exo_bench.bench.studies.plausibility import ROLES, Plausibility, bullets, plausibility, tables
 from exo_bench.bench.studies.step import data
 from exo_bench.bench.studies.study import Study
 from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations
@@ -137,46 +137,20 @@ def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
 
 def plausibility_tables(p: Plausibility, al: _Along) -> list[str]:
     """The two tables of :func:`exo_bench.bench.studies.plausibility.markdown` with computed reasons in the last column."""
-    lines = [
-        "| joint | peak sagittal moment (N·m/kg) | peak moment, all axes (N·m/kg) | normative peak (N·m/kg) "
-        "| model / normative | comparable? |",
-        "|---|---|---|---|---|---|",
-    ]
-    for r in p.joints:
-        name = al.mech.names[r.link]
-        ratio = _ratio(r.sagittal, r.normative)
-        norm = f"{r.normative.value:.2f} ({r.normative.where})" if r.normative else "—"
+
+    def cells(value: float, normative, missing: str, link: int, reason) -> tuple[str, str]:
+        ratio = _ratio(value, normative)
         if ratio is None:
-            why = "—"
-        elif 1 / FACTOR <= ratio <= FACTOR:
-            why = f"yes: within {FACTOR:g}× of Winter's"
-        else:
-            why = _joint_reason(al, r.link, name, ratio)
-        lines.append(
-            f"| {r.joint} | {r.sagittal:.2f} | {r.magnitude:.2f} | {norm} | "
-            f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |"
-        )
-    lines += [
-        "",
-        "| rod | peak rod force, axial (BW) | peak net joint force at its start (BW) | normative peak joint "
-        "force (BW) | net joint force / normative | comparable? |",
-        "|---|---|---|---|---|---|",
-    ]
-    for rod in p.rods:
-        name = al.mech.names[rod.link]
-        ratio = _ratio(rod.joint_force, rod.normative)
-        norm = f"{rod.normative.value:.2f} ({rod.normative.where})" if rod.normative else "—"
-        if ratio is None:
-            why = "no counterpart in Winter's tables"
-        elif 1 / FACTOR <= ratio <= FACTOR:
-            why = f"yes: within {FACTOR:g}× of Winter's"
-        else:
-            why = _rod_reason(al, rod.link, name, ratio)
-        lines.append(
-            f"| {rod.rod} | {rod.force:.2f} | {rod.joint_force:.2f} | {norm} | "
-            f"{'' if ratio is None else f'{ratio:.2f}×'} | {why} |"
-        )
-    return lines
+            return "", missing
+        if 1 / FACTOR <= ratio <= FACTOR:
+            return f"{ratio:.2f}×", f"yes: within {FACTOR:g}× of Winter's"
+        return f"{ratio:.2f}×", reason(al, link, al.mech.names[link], ratio)
+
+    return tables(
+        p,
+        lambda r: cells(r.sagittal, r.normative, "—", r.link, _joint_reason),
+        lambda rod: cells(rod.joint_force, rod.normative, "no counterpart in Winter's tables", rod.link, _rod_reason),
+    )
 
 
 def _settings_lines(st: data.StoredStep) -> list[str]:
@@ -321,19 +295,7 @@ def text(study: Study) -> str:
         f"peak outside {FACTOR:g}× of Winter's:",
         "",
     ]
-    for r in p.joints:
-        norm = f", walking {r.normative.value:.2f} ({r.sagittal / r.normative.value:.2f}×)" if r.normative else ""
-        lines.append(f"- {r.joint}: {r.sagittal:.2f} N·m/kg sagittal{norm}")
-    for rod in p.rods:
-        norm = (
-            (
-                f"; net joint force {rod.joint_force:.2f} BW, walking {rod.normative.value:.2f} "
-                f"({rod.joint_force / rod.normative.value:.2f}×)"
-            )
-            if rod.normative
-            else ""
-        )
-        lines.append(f"- {rod.rod}: {rod.force:.2f} BW along the rod{norm}")
+    lines += bullets(p, lambda value, norm: f"{value / norm.value:.2f}×")
     return "\n".join(lines)
 
 
