@@ -10,7 +10,7 @@ from package_copy import assert_edit_recompiles, edit_probe, package_copy_prober
 
 _PROBE = edit_probe(
     "newton-euler",
-    "from exo_bench.models import rod_elements as elements\nfrom exo_bench.models.newton_euler import compiled",
+    "from exo_bench.models.mechanism import rod_elements as elements\nfrom exo_bench.models.newton_euler import compiled",
     "elements",
     "compiled.newton_euler",
 )
@@ -57,7 +57,7 @@ def test_an_edit_to_the_shared_sin_cos_recompiles_the_simd_kernel(tmp_path, warm
     before = probe()
     methods = ("newton-euler",)
     assert all(before[m + " misses"] == 0 for m in methods), before
-    trig_py = pkg / "models" / "fast_trig.py"
+    trig_py = pkg / "models" / "machine" / "fast_trig.py"
     text = trig_py.read_text()
     old = "S1 = -1.66666666666666324348e-01"
     assert text.count(old) == 1

@@ -34,7 +34,7 @@ LIBRARY = sorted(
         _package_dir("exo_bench") / "__init__.py",
     }
 )
-RUNTIME = _package_dir("exo_bench.models") / "numba_runtime.py"
+RUNTIME = _package_dir("exo_bench.models") / "machine" / "numba_runtime.py"
 #: Calls that change a container in place.
 MUTATORS = {"append", "extend", "insert", "update", "setdefault", "pop", "popitem", "clear", "add", "discard", "remove"}
 
@@ -168,7 +168,7 @@ def test_no_kernel_module_keeps_mutable_module_state():
 def test_importing_the_runtime_module_imports_no_numba():
     """Its import checks nothing and patches nothing: numba is not even imported."""
     code = (
-        "import json, sys\nfrom exo_bench.models import numba_runtime\n"
+        "import json, sys\nfrom exo_bench.models.machine import numba_runtime\n"
         "print(json.dumps(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules)))"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
