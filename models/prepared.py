@@ -325,9 +325,7 @@ class PreparedModel:
                 if not fast(q, qd, tau, o := _empty(self._dof), check):
                     return o
             elif type(out) is _ND and out.ndim == 1 and out.dtype is _F8 and out.flags.writeable:
-                o = _empty(self._dof)  # the kernel writes o even where it answers "not done": out stays as it was
-                if not fast(q, qd, tau, o, check):
-                    out[...] = o
+                if not fast(q, qd, tau, out, check):  # out written only when done
                     return out
         return self._dynamics(True, q, qd, tau, check, out, f_ext)
 

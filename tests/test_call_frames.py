@@ -34,9 +34,10 @@ from exo_bench.models.presets import exo5
 #: The most of the project's functions one public call may run (issue 47's goal).
 LIMIT = 8
 FOLDERS = tuple(
-    str(Path(p).resolve()) + "/"
+    str(f) + "/"
     for m in (exo_bench, exo_bench.models, exo_bench.matrix_method, exo_bench.lagrange, exo_bench.bench)
     for p in m.__path__
+    for f in {Path(p), Path(p).resolve()}
 )
 METHODS = ("matrix-factored", "newton-euler")
 #: Modules whose functions are kernels written in numpy (newton-euler's analytic mass matrix, O(n^2)).

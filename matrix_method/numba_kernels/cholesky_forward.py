@@ -148,23 +148,27 @@ def forward_entry(p, lc, fplan, plan, x, xd, tau, o, check):
     of ``check=True`` (:func:`exo_bench.models.validation_pass.one_sample`), then :func:`checked_forward`'s
     work with its scratch on the stack: :data:`DONE` (0) with the accelerations in ``o``, or a code
     (a layout or value problem, a state near a bound of the regularity checks, ``M`` singular, an answer
-    that is not finite), having written nothing the caller keeps: its Python path then decides and names
-    it. With ``check=False`` the regularity checks' common case runs too: where it does not clear, the
+    that is not finite), having written nothing into ``o``: its Python path then decides and names it. With ``check=False`` the regularity checks' common case runs too: where it does not clear, the
     Python path names a singular state as before."""
     code = one_sample(x, xd, tau, o, plan, check)
     if code != OK:
         return code
     n, d = p.shape[0], x.shape[0]
-    if 7 * n + 2 * d > STACK_DOUBLES:
+    if 7 * n + 3 * d > STACK_DOUBLES:
         return LARGE
     if not _row_clear(x, 0, d, n, fplan):
         return EXACT
     work = stack_matrix(2, d)
     for i in range(d):
         work[0, i] = 0.0
-    if not _forward_into(p, lc, x, xd, tau, o, stack_matrix(7, n), work):
+    res = stack_matrix(1, d)[0]  # the answer, copied into o only when done
+    if not _forward_into(p, lc, x, xd, tau, res, stack_matrix(7, n), work):
         return EXACT
-    return DONE if not check or _finite(o) else NOT_FINITE
+    if check and not _finite(res):
+        return NOT_FINITE
+    for i in range(d):  # o is written only when done
+        o[i] = res[i]
+    return DONE
 
 
 @njit(**JIT)

@@ -67,24 +67,30 @@ def forward_entry(t, p, plan, x, xd, tau, o, check):
     """The compiled validate-and-compute entry of one sample (the ``tree-forward`` kernel's, called by the
     public call through :func:`lean_entry`): the layout of the four arrays and, with ``check``, the checks
     of ``check=True`` (:func:`exo_bench.models.validation_pass.one_sample`), then :func:`checked_forward`'s
-    work on a zeroed scratch on the stack: :data:`DONE` (0) or a code, having written nothing the caller
-    keeps (its Python path then decides and names it). With ``check=False`` the regularity checks'
+    work on a zeroed scratch on the stack: :data:`DONE` (0) or a code, having written nothing into ``o``
+    (its Python path then decides and names it). With ``check=False`` the regularity checks'
     common case runs too (a state it does not clear would divide by zero in the passes: the Python path
     names it)."""
     code = one_sample(x, xd, tau, o, plan, check)
     if code != OK:
         return code
     n = t.shape[1]
-    if n * WIDTH > STACK_DOUBLES:
+    if n * WIDTH + x.shape[0] > STACK_DOUBLES:
         return LARGE
     if not _row_clear(x, 0, x.shape[0], n, p):
         return EXACT
+    d = x.shape[0]
     W = stack_matrix(n, WIDTH)
     for k in range(n):
         for j in range(WIDTH):
             W[k, j] = 0.0
-    _forward_sample(t, p[_G], int(p[_DIM]), x, xd, tau, o, 0, W)
-    return DONE if not check or _finite(o) else NOT_FINITE
+    res = stack_matrix(1, d)[0]  # the answer, copied into o only when done
+    _forward_sample(t, p[_G], int(p[_DIM]), x, xd, tau, res, 0, W)
+    if check and not _finite(res):
+        return NOT_FINITE
+    for i in range(d):
+        o[i] = res[i]
+    return DONE
 
 
 def lean_entry(table: np.ndarray) -> Any:
