@@ -185,8 +185,8 @@ def as_out(
     shape = tuple(shape)
     if not (is_plain(out) and out.shape == shape and out.flags.writeable):
         raise ValueError(
-            f"{where}: field 'out': expected a writable C-ordered float64 array of shape {shape} (a numpy.ndarray, "
-            f"not a subclass), got {describe(out)}"
+            f"{where}: field 'out': expected a writable C-ordered float64 array of shape {shape}, got {describe(out)} "
+            "(out is a numpy.ndarray itself, not a subclass, and is never converted)"
         )
     for name, a in zip(names or [f"input {i}" for i in range(len(inputs))], inputs):
         if isinstance(a, ND) and _may_overlap(out, a):
