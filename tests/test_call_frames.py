@@ -50,7 +50,8 @@ def _kernels() -> set:
     numpy kernel modules (:data:`NUMPY_KERNELS`)."""
     from numba.core.dispatcher import Dispatcher
 
-    codes = {id(d.py_func.__code__) for d in gc.get_objects() if isinstance(d, Dispatcher)}
+    # by type(), not isinstance: a dead weak proxy among the objects raises on its __class__
+    codes = {id(d.py_func.__code__) for d in gc.get_objects() if issubclass(type(d), Dispatcher)}
     for module in NUMPY_KERNELS:
         codes |= {id(f.__code__) for f in vars(module).values() if inspect.isfunction(f)}
     return codes
