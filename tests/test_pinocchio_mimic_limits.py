@@ -95,7 +95,9 @@ def test_the_library_calls_no_function_refused_or_wrong_on_mimic_models():
         for p in files
     }
     assert {k: v for k, v in hits.items() if v} == {}
-    assert "rnea" in _pinocchio_attributes(ROOT / "models" / "engines" / "pinocchio_backend.py")  # the scan sees real uses
+    assert "rnea" in _pinocchio_attributes(
+        ROOT / "models" / "engines" / "pinocchio_backend.py"
+    )  # the scan sees real uses
 
 
 def test_the_pinocchio_method_and_forward_dynamics_run_with_the_forbidden_functions_raising(monkeypatch):

@@ -74,7 +74,7 @@ def sample_bytes(mech: Mechanism, method: str) -> float:
 
 def chunk_samples(mech: Mechanism, method: str) -> int:
     """Samples per chunk of ``method`` on ``mech``: the chunk its prepared model uses (one chunk's
-    temporaries near :data:`~exo_bench.models.runtime.prepared.CHUNK_BYTES`)."""
+    temporaries near :data:`~exo_bench.models.machine.memory.CHUNK_BYTES`)."""
     return default_chunk_samples(mech.dof, sample_bytes(mech, method))
 
 

@@ -32,8 +32,8 @@ import pinocchio as pin
 
 from exo_bench.models.mechanism.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism.mechanism import Mechanism, as_states
-from exo_bench.models.machine.memory import USABLE_SHARE, usable_memory
 from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.machine.memory import USABLE_SHARE, usable_memory
 from exo_bench.models.machine.resource_counts import check_count, check_thread_room, usable_cpus
 from exo_bench.models.engines.urdf import (
     DATA_BYTES_PER_JOINT,  # noqa: F401
@@ -114,7 +114,7 @@ def _gb(x: float) -> str:
 
 def check_data_fits(mech: Mechanism, count: int = 1, limit: int | None = None) -> int:
     """Raise :class:`PinocchioDataTooLarge` unless ``count`` Data of the mechanism fit in ``limit``
-    bytes (default: :func:`exo_bench.models.runtime.prepared.usable_memory`, a share of the available memory); return
+    bytes (default: :func:`exo_bench.models.machine.memory.usable_memory`, a share of the available memory); return
     the bytes of one Data."""
     need = mechanism_data_bytes(mech)
     limit = usable_memory() if limit is None else limit

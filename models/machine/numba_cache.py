@@ -99,7 +99,13 @@ def _register(f: Callable[..., Any], always: bool) -> None:
 #: functions are imported by name into the kernel files, not registered through :func:`inline`, and an
 #: edit to ``sincos_reduced`` once left the cached SIMD kernels of both families on the old sin/cos.
 SHARED_SOURCES = tuple(
-    sorted({*_HERE.glob("simd_*.py"), *(_HERE / f for f in ("fast_trig.py", "numba_runtime.py", "numba_cache.py"))})
+    sorted(
+        {
+            *_HERE.glob("simd_*.py"),
+            *(_HERE / f for f in ("fast_trig.py", "numba_runtime.py", "numba_cache.py")),
+            _MODELS / "states" / "validation_pass.py",
+        }
+    )
 )
 
 

@@ -41,7 +41,7 @@ def read_text(path: str | Path, what: str) -> str:
     """The UTF-8 text of ``path``; ``what`` names the file's role in messages (``"states 'x.json'"``).
 
     Only regular files are read (a FIFO or a device such as /dev/zero would block or never end),
-    and only when reading fits in the memory a run may use (:func:`exo_bench.models.runtime.prepared.usable_memory`)."""
+    and only when reading fits in the memory a run may use (:func:`exo_bench.models.machine.memory.usable_memory`)."""
     from exo_bench.models.machine.memory import usable_memory
 
     p = regular_file(path, what)

@@ -32,14 +32,13 @@ fastest rounds are stated beside them (on a shared machine, the least disturbed 
 the same process with the same arrays, switching every second or so (steal time 1-6 %), and in
 processes whose every address was the same (``setarch -R``, one ``PYTHONHASHSEED``). So the machine
 (its host), not memory layout, sets the speed; but ``pin.rnea`` slows by only 1.2x where the public
-call slows by 1.4-1.7x, so a ratio measured in a slow phase is 1.4x larger. The goals hold in both
-phases once the call costs less: no allocation per call (models/runtime/lean_call.py ``block``), dropped
-results reused (models/runtime/_lean_call.c), ``self._entries`` specialised by Python (models/runtime/prepared.py), and
-no Python frame in a one-sample call (the public call is the extension's ``PublicCall``, which offers
-it to the lean entry in C: models/runtime/lean_call.py ``public_call``). Measured before that last step (load
-1.1, 16:18 UTC, 2026-11-27): ``check=False, out=`` 0.704 us, 0.104x (not met), the Python frame of
-the public call about 130 ns of it; after, in four processes at load 7-9 (17:00 UTC), the same call
-0.34-0.35 us, 0.059-0.061x, and in the one slow-phase process 0.62 us, 0.082x.
+call slows by 1.4-1.7x, so a ratio measured in a slow phase is 1.4x larger.
+
+**Without C (issue 47).** Until issue 47 a one-sample call ran in a hand-written C extension
+(models/runtime/_lean_call.c, about 0.3 us); it is gone. A one-sample call is now the public call's Python frame,
+the checks numba's unboxing trusts (type, dimension count, dtype: about 25 ns an array) and one call of
+the kernel's compiled validate-and-compute entry (about 40 ns an array to unbox, the checks and the
+kernel in compiled code, scratch on the stack, an int answer).
 """
 
 from __future__ import annotations
