@@ -53,8 +53,9 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
             _HERE / "forward_check.py",
         ),
         # its kernels inline the rod elements (rod_elements.py, below every method: external_forces.py
-        # projects with them too); forward_fused.py calls the compiled checks of forward_check.py
-        _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py"),
+        # projects with them too); forward_fused.py calls the compiled checks of forward_check.py, and the
+        # checked one-sample entry of the derivatives (derivatives_compiled.py) those and the states' pass
+        _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py", _HERE / "validation_pass.py"),
         # one kernel file of its own (a key may be a file: its kernels are keyed on it and these, not on
         # the rest of models/): f_ext's pass projects with the rod elements
         _HERE / "external_forces_kernel.py": (_HERE / "rod_elements.py",),
