@@ -126,9 +126,7 @@ def test_unchecked_products_take_plain_arrays_only_with_the_same_numbers(provide
         D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w, check=False)
     for a, b in zip(D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w), refs):
         np.testing.assert_array_equal(a, b)
-    with pytest.raises(
-        ValueError, match=r"field 'w': expected .* of shape \(samples, 14\).*got float64 array of shape \(5, 4\)"
-    ):
+    with pytest.raises(ValueError, match=r"field 'w': expected shape \(samples, 14\), got \(5, 4\)"):
         D.inverse_dynamics_vjp(q, qd, qdd, w[:, :4], check=False)
 
 
