@@ -7,17 +7,16 @@ prepared-model class list. Each ``load`` binds a kernel to one prepared model of
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
-from exo_bench.models.unchecked import _may_overlap
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
 #: from it (matrix-factored, :func:`exo_bench.models.prepared.terms_from_inverse_dynamics`).
 _DERIVED = ("inverse_dynamics", "bias_forces", "mass_matrix", "mass_matrix_and_bias", "forward_dynamics")
-_F8 = np.dtype(np.float64)
 
 
 def _one_sample(model: Any) -> Entries:
@@ -59,61 +58,27 @@ def _simd(model: Any) -> Entries:
     return Entries(inverse_whole=whole, inverse_chunk=whole)
 
 
-def _declined(*args: Any, **kw: Any) -> None:
-    """The compiled lean call's fallback: the call is not one it takes (the base class goes on)."""
-    return None
-
-
 def _lean(model: Any) -> Entries:
     """matrix-factored's one sample, nothing else around the arithmetic
-    (:mod:`exo_bench.matrix_method.numba_kernels.lean`): the compiled wrapper where setup.py built it,
-    else the kernel's compiled entry point behind the checks unboxing trusts; the per-sample kernel
-    through numba's dispatcher where neither takes the arrays (the same arithmetic)."""
+    (:mod:`exo_bench.matrix_method.numba_kernels.lean`): its compiled validate-and-compute entry, bound to
+    the model's parameters and validation plan, and the per-sample kernel behind it (a mechanism too large
+    for the entry's stack scratch; the same arithmetic)."""
     from exo_bench.matrix_method.numba_kernels import lean
+    from exo_bench.models.numba_runtime import jit_disabled
     from exo_bench.models.states import validation_plan
 
-    dim, params = model.mechanism.dim, model.kernel_args[0]
-    if not hasattr(lean.KERNELS[dim], "compile"):  # NUMBA_DISABLE_JIT: no entry point to resolve
+    if jit_disabled():  # NUMBA_DISABLE_JIT: no entry point to resolve, the checked path runs
         return _one_sample(model)
-    plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
-    fast = lean.c_call(dim, params, _declined, model.dof, plan) or _python_lean(lean.entry(dim, params), params)
+    dim, params = model.mechanism.dim, model.kernel_args[0]
+    fast = partial(lean.entry(dim, params), params, validation_plan(model.mechanism))
     serial = model.serial_kernel
 
     def one(q, qd, qdd, out):
-        if fast(q, qd, qdd, False, out) is None:
+        if fast(q, qd, qdd, out, False):
             serial(params, q, qd, qdd, out)
         return out
 
-    return Entries(lean=fast, inverse_one=one)
-
-
-def _python_lean(entry: Any, params: np.ndarray) -> Any:
-    """The lean call in Python around the kernel's compiled entry point, ``check=False`` only: what
-    unboxing trusts (dimensions, dtype, a writable ``out`` apart from the inputs) checked here, the rest
-    in compiled code."""
-
-    def call(q, qd, qdd, check, out):
-        try:
-            if (
-                check is False  # check=True: declined (the checked path validates first)
-                and q.ndim == 1
-                and qd.ndim == 1
-                and qdd.ndim == 1
-                and out.ndim == 1
-                and q.dtype is _F8
-                and qd.dtype is _F8
-                and qdd.dtype is _F8
-                and out.dtype is _F8
-                and out.flags.writeable
-                and not (_may_overlap(out, q) or _may_overlap(out, qd) or _may_overlap(out, qdd))
-                and entry(params, q, qd, qdd, out)
-            ):
-                return out
-        except AttributeError:
-            pass
-        return None
-
-    return call
+    return Entries(inverse_fast=fast, inverse_one=one)
 
 
 def _cholesky_forward(model: Any) -> Entries:
@@ -122,9 +87,10 @@ def _cholesky_forward(model: Any) -> Entries:
     coupling, computed here once per model); where that declines (``M`` singular), the model's
     ``check_regular`` names why, else the numpy route (``mass_matrix_and_bias``, ``cholesky_solve``)
     decides. Nothing where the coupling itself is not positive definite (the checks refuse the mechanism)."""
-    from exo_bench.matrix_method.numba_kernels import cholesky_forward_c as c
-    from exo_bench.matrix_method.numba_kernels.cholesky_forward import entries
-    from exo_bench.models.forward_check import checked_entry, lean_entry
+    from exo_bench.matrix_method.numba_kernels.cholesky_forward import entries, entry
+    from exo_bench.models.forward_check import checked_entry
+    from exo_bench.models.numba_runtime import jit_disabled
+    from exo_bench.models.states import validation_plan
 
     try:
         lc = np.ascontiguousarray(np.linalg.cholesky(model.coupling))
@@ -139,8 +105,19 @@ def _cholesky_forward(model: Any) -> Entries:
         return out
 
     fused = checked_entry(model, e.checked_forward, (params, lc), forward_one)
-    lean = lean_entry(model, c.checked_forward_c, lambda plan: c.packed(params, lc, plan))
-    return Entries(forward_one=forward_one, forward_checked=fused, forward_lean=lean)
+    model._forward_checks or model._resolve_forward_checks()  # the checks' plan, once per model
+    plan, batch = model.forward_plan, e.forward_batch
+
+    def whole(q, qd, tau, out, check):
+        """A batch, sample by sample in one compiled call (with ``check`` the checks' common case too);
+        None where a sample is not done (the checked path, the numpy route, then decides and names it)."""
+        o = model._results.empty(q.shape) if out is None else out
+        return o if batch(params, lc, plan, q, qd, tau, o, check) < 0 else None
+
+    if jit_disabled():
+        return Entries(forward_one=forward_one, forward_checked=fused, forward_whole=whole)
+    fast = partial(entry(params, lc), params, lc, plan, validation_plan(model.mechanism))
+    return Entries(forward_one=forward_one, forward_checked=fused, forward_fast=fast, forward_whole=whole)
 
 
 def _numpy_tiles(model: Any) -> Entries:
@@ -210,8 +187,8 @@ MATRIX_FACTORED_KERNELS = (
         ("inverse_dynamics",),
         (ONE_SAMPLE,),
         "one thread: the calling one",
-        "below MATRIX_FACTORED's call_seconds: one sample's arithmetic and a few checks in C (the per-sample "
-        "kernel of numba_kernels.factored as a cfunc)",
+        "below MATRIX_FACTORED's call_seconds: one sample's checks and arithmetic in one compiled call (the "
+        "per-sample kernel of numba_kernels.factored behind numba_kernels.lean's entry)",
         compile_seconds=4.0,
         runtime_bytes=NUMBA_BYTES,
         load=_lean,

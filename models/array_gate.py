@@ -118,9 +118,9 @@ def as_input(a: Any, name: str, shape: Sequence[int | None], where: str, check: 
         return a
     if not check:
         raise ValueError(
-            f"{where}: field '{name}': expected a C-contiguous float64 numpy.ndarray (not a subclass) of shape "
-            f"{_shape_text(shape)} (check=False converts nothing; check=True converts any layout and dtype), "
-            f"got {describe(a)}"
+            f"{where}: field '{name}': expected a C-ordered float64 array of shape {_shape_text(shape)} (a "
+            "numpy.ndarray, not a subclass; check=False converts nothing, check=True converts any layout and "
+            f"dtype), got {describe(a)}"
         )
     b = _real(a, name, where)
     if not _fits(b.shape, shape):
@@ -132,30 +132,46 @@ def as_input(a: Any, name: str, shape: Sequence[int | None], where: str, check: 
 
 
 def as_states(arrays: Sequence[Any], names: Sequence[str], dof: int, where: str, check: bool) -> tuple:
-    """State arrays of one shape, ``(dof,)`` or ``(samples, dof)`` (the first decides), each through
-    :func:`as_input`; None entries stay None. With ``check=True`` the values are not checked here: that is
-    the caller's (finiteness, lengths, the force bound, models/states.py)."""
-    first = next((a for a in arrays if a is not None), None)
+    """State arrays of one shape, ``(dof,)`` or ``(samples, dof)`` (the first decides), each plain or, with
+    ``check``, converted (:func:`as_input`); None entries stay None. With ``check=True`` the values are not
+    checked here: that is the caller's (finiteness, lengths, the force bound: models/states.py)."""
+    first = arrays[0]
+    if type(first) is ND and ((nd := first.ndim) == 1 or nd == 2) and first.shape[-1] == dof:  # one frame
+        s = first.shape
+        for a in arrays:
+            if a is not None and not (
+                type(a) is ND and a.shape == s and a.dtype == F8 and a.flags.c_contiguous and a.flags.aligned
+            ):
+                break
+        else:
+            return tuple(arrays)
     try:
         nd = first.ndim if isinstance(first, ND) else np.ndim(first)
     except ValueError:  # ragged rows
         nd = -1
-    if nd not in (1, 2):
-        raise ValueError(
-            f"{where}: field '{names[0]}': expected shape ({dof},) or (samples, {dof}), got {describe(first)}"
-            + ("" if isinstance(first, ND) or nd < 0 else f" of shape {np.shape(first)}")
-        )
-    out: list[Any] = []
     shape: tuple[int | None, ...] = (dof,) if nd == 1 else (None, dof)
+    out: list[Any] = []
+    ref: tuple | None = None
     for a, name in zip(arrays, names):
         if a is None:
             out.append(None)
             continue
-        b = as_input(a, name, shape, where, check)
-        if out and (ref := next((x for x in out if x is not None), None)) is not None and b.shape != ref.shape:
+        fits = nd in (1, 2) and (check or (is_plain(a) and _fits(a.shape, shape)))
+        b = as_input(a, name, shape, where, check) if fits else None
+        if b is None or (ref is not None and b.shape != ref):
             raise ValueError(
-                f"{where}: field '{name}': expected the shape of '{names[0]}' {ref.shape}, got {describe(a)}"
+                f"{where}: field '{name}': expected C-ordered float64 arrays (numpy.ndarray, not a subclass) of one "
+                f"shape, ({dof},) or (samples, {dof})"
+                + (
+                    ""
+                    if check
+                    else " (check=False checks memory safety only; check=True converts any layout and dtype)"
+                )
+                + f", got {describe(a)}"
+                + ("" if isinstance(a, ND) else f" of shape {np.shape(a) if nd >= 0 else 'ragged'}")
+                + ("" if ref is None else f" ({names[0]}: {ref})")
             )
+        ref = b.shape if ref is None else ref
         out.append(b)
     return tuple(out)
 
@@ -169,8 +185,8 @@ def as_out(
     shape = tuple(shape)
     if not (is_plain(out) and out.shape == shape and out.flags.writeable):
         raise ValueError(
-            f"{where}: field 'out': expected a writable C-contiguous float64 numpy.ndarray (not a subclass) "
-            f"of shape {shape}, got {describe(out)}"
+            f"{where}: field 'out': expected a writable C-ordered float64 array of shape {shape} (a numpy.ndarray, "
+            f"not a subclass), got {describe(out)}"
         )
     for name, a in zip(names or [f"input {i}" for i in range(len(inputs))], inputs):
         if isinstance(a, ND) and _may_overlap(out, a):

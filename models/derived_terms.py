@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from exo_bench.models.memory import chunks
 from exo_bench.models.singularity import SingularConfigurationError
 
 
@@ -20,30 +19,27 @@ def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: n
     every coordinate ``k``; then ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``. The subtraction costs at
     most ``eps * |gravity forces| / |M e_k|`` relative, which the tests bound against CRBA.
     """
-    S, d = q.shape
-    k = dof + 2
-    Q = np.repeat(q, k, axis=0)  # (S*k, d): each sample's q, k times
-    QD = np.zeros_like(Q)
-    QD[::k] = qd  # first row of each block: the real rates
-    QDD = np.zeros_like(Q)
-    rows = np.arange(S)[:, None] * k + 2 + np.arange(d)[None, :]
-    QDD[rows.ravel(), np.tile(np.arange(d), S)] = 1.0
-    tau = inverse_dynamics(Q, QD, QDD).reshape(S, k, d)
-    h = tau[:, 0]
-    M = np.swapaxes(tau[:, 2:] - tau[:, 1:2], 1, 2)  # column k of M is ID(q, 0, e_k) - ID(q, 0, 0)
-    return M, h
+    return terms_in_chunks(inverse_dynamics, dof, q, qd, (q.shape[0] + 1) * (dof + 2))
 
 
 def terms_in_chunks(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray, chunk_samples: int):
     """:func:`terms_from_inverse_dynamics` over the rows of ``q, qd`` in chunks of fewer samples, so that
     their ``dof + 2`` inverse-dynamics rows per sample keep the working set of ``chunk_samples`` rows
     (one call where the batch fits)."""
-    size, S = max(1, chunk_samples // (dof + 2)), q.shape[0]
-    if S <= size:
-        return terms_from_inverse_dynamics(inverse_dynamics, dof, q, qd)
+    size, S, k = max(1, chunk_samples // (dof + 2)), q.shape[0], dof + 2
     M, h = np.empty((S, dof, dof)), np.empty((S, dof))
-    for c in chunks(S, size):
-        M[c], h[c] = terms_from_inverse_dynamics(inverse_dynamics, dof, q[c], qd[c])
+    for s0 in range(0, S, size):  # one batched call per chunk (no helper: one frame, issue 47)
+        c = slice(s0, min(S, s0 + size))
+        qc, n = q[c], min(S, s0 + size) - s0
+        Q = np.repeat(qc, k, axis=0)  # (n*k, d): each sample's q, k times
+        QD = np.zeros_like(Q)
+        QD[::k] = qd[c]  # first row of each block: the real rates
+        QDD = np.zeros_like(Q)
+        rows = np.arange(n)[:, None] * k + 2 + np.arange(dof)[None, :]
+        QDD[rows.ravel(), np.tile(np.arange(dof), n)] = 1.0
+        tau = inverse_dynamics(Q, QD, QDD).reshape(n, k, dof)
+        h[c] = tau[:, 0]
+        M[c] = np.swapaxes(tau[:, 2:] - tau[:, 1:2], 1, 2)  # column k of M is ID(q, 0, e_k) - ID(q, 0, 0)
     return M, h
 
 

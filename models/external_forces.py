@@ -49,7 +49,8 @@ from exo_bench.models.memory import check_batch
 from exo_bench.models.rod_elements import project_2d, project_3d
 from exo_bench.models.state_conversion import converted, real_numbers_problem
 from exo_bench.models.states import as_states, coordinate_names
-from exo_bench.models.unchecked import check_out, unchecked_forward
+from exo_bench.models.array_gate import as_out, is_plain
+from exo_bench.models.array_gate import as_states as gate_states
 
 #: The points of every link, in the order of ``f_ext``'s third axis.
 POINTS = ("start", "middle", "end")
@@ -252,7 +253,7 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
         refuse_overflow(model.mechanism, model.method, f, tau, "tau - Q")
     if out is None:
         return tau
-    check_out(out, tau.shape, model.method)
+    as_out(out, tau.shape, model.method)
     out[...] = tau
     return out
 
@@ -260,12 +261,7 @@ def inverse_dynamics(model: Any, q, qd, qdd, f_ext, check: bool, out) -> np.ndar
 def _forces(model: Any, b: xc.Bound, f_ext: Any, shape: tuple, check: bool) -> np.ndarray:
     """``f_ext`` flat and C-ordered float64 for states of ``shape``: its shape checked (always); its
     values by :func:`check_f_ext` unless it is such an array already (then the kernel checks them)."""
-    if (
-        type(f_ext) is np.ndarray
-        and f_ext.dtype is xc.F8
-        and f_ext.flags.c_contiguous
-        and f_ext.shape == (b.forces if len(shape) == 1 else (*shape[:-1], *b.forces))
-    ):
+    if is_plain(f_ext) and f_ext.shape == (b.forces if len(shape) == 1 else (*shape[:-1], *b.forces)):
         return f_ext.reshape(-1)
     return check_f_ext(model.mechanism, f_ext, shape, check, model.method).reshape(-1)
 
@@ -317,7 +313,9 @@ def forward_dynamics(model: Any, q, qd, tau, f_ext, check: bool, out) -> np.ndar
                 f"got {None if t is None else t.shape}"
             )
     else:
-        unchecked_forward(model.method, model.dof, q, qd, tau, out)
+        q, qd, tau = gate_states((q, qd, tau), ("q", "qd", "tau"), model.dof, model.method, False)
+        if out is not None:
+            as_out(out, q.shape, model.method, (q, qd, tau), ("q", "qd", "tau"))
         shape, q2, t = q.shape, q.reshape(-1, model.dof), tau
     f = check_f_ext(mech, f_ext, shape, check, model.method)
     total = t + model._external_forces(q2, f).reshape(shape)

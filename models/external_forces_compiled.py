@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from exo_bench.models.array_gate import is_plain
 from exo_bench.models.mechanism import Mechanism
 
 #: The kernel's status: done, or the arrays' sizes disagree with the parameters (nothing touched).
@@ -70,9 +71,10 @@ def kernel() -> Callable[..., int]:
 
 
 def flat(a: Any) -> np.ndarray:
-    """``a`` as a flat C-ordered float64 array (a view where it is one already)."""
-    if type(a) is not np.ndarray or a.dtype is not F8 or not a.flags.c_contiguous:
-        a = np.ascontiguousarray(a, dtype=float)
+    """``a`` as a flat plain float64 array (:func:`exo_bench.models.array_gate.is_plain`: a view where it
+    is one already, else a fresh base-class copy)."""
+    if not is_plain(a):
+        a = np.array(a, dtype=F8, order="C", subok=False)
     return a.reshape(-1)
 
 

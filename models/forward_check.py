@@ -191,23 +191,3 @@ def checked_entry(model: Any, fused: Any, lead: tuple, forward_one: Any) -> Any:
         return qdd
 
     return forward_checked
-
-
-def lean_entry(model: Any, cfunc: Any, packed: Any) -> Any:
-    """``forward_lean(q, qd, tau, check, out)`` of a kernel whose checked forward dynamics of one sample
-    is the numba ``cfunc`` (answering :data:`DONE`, :data:`EXACT` or :data:`NOT_FINITE` as the fused call
-    of :func:`checked_entry` does) with the parameters ``packed(plan)`` (``plan``: the model's, computed
-    here): the C wrapper of :mod:`exo_bench.models.lean_call`, which validates one sample with
-    ``check=True`` and takes the result only where the cfunc answers :data:`DONE`; every other call
-    (and every call where the wrapper was not built, or under ``NUMBA_DISABLE_JIT``) goes on to
-    PreparedModel's path, which runs :func:`checked_entry` and names any refusal. None where there is no
-    such wrapper."""
-    from exo_bench.models.lean_call import c_call, declined
-    from exo_bench.models.states import validation_plan
-
-    address = getattr(cfunc, "address", None)  # None: NUMBA_DISABLE_JIT
-    if address is None:
-        return None
-    mech = model.mechanism
-    params = packed(plan_of(mech, model.coupling_condition))
-    return c_call(address, params, declined, model.dof, mech.nlinks, validation_plan(mech), forward=True)

@@ -45,7 +45,8 @@ from numpy.typing import ArrayLike
 
 from exo_bench.models.conditioning import check_finite
 from exo_bench.models.mechanism import Mechanism, as_states, split
-from exo_bench.models.prepared import PreparedModel, terms_from_inverse_dynamics
+from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.derived_terms import terms_from_inverse_dynamics
 from exo_bench.models.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
 
 if TYPE_CHECKING:  # what type checkers see; at run time these load on first use (__getattr__ below)

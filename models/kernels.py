@@ -33,21 +33,26 @@ class Entries:
     """What the kernels of one option supply to a prepared model (None: not supplied, the base
     class's generic path runs). Arrays are float64, C-ordered; ``out`` is written and returned.
 
-    * ``lean(q, qd, qdd, check, out) -> out``: one sample of inverse dynamics, called first with the
-      public call's arguments (``out`` may be None: a new result); None (having touched nothing) where
-      it does not take the call (models/lean_call.py).
-    * ``forward_lean(q, qd, tau, check, out)``: the same for forward dynamics, with ``check=True`` the
-      checks of ``forward_checked`` in the same call, declining every state they do not clear.
+    * ``inverse_fast(q, qd, qdd, out, check) -> int``, ``forward_fast(q, qd, tau, out, check) -> int``: one
+      sample in one compiled call, the public call's first try (models/prepared.py): given 1-D float64
+      base-class ndarrays (what numba's unboxing trusts, checked by the caller), it checks their layout
+      (``dof`` entries, 8 bytes apart, aligned, ``out`` apart from the inputs) and, with ``check``, the
+      values as ``check=True`` does, then computes into ``out``: 0 when done; any other answer (a code)
+      leaves the call to the checked path, which names the problem. Bound once per model (the kernel's
+      compiled entry point with the model's parameters, ``functools.partial``).
     * ``inverse_one(q, qd, qdd, out)``, ``forward_one(q, qd, tau, out)``: one sample, 1-D arrays.
     * ``forward_checked(q, qd, tau) -> qdd``: one validated sample with ``check=True``: the model's
       ``check_regular`` and ``check_finite`` refusals, the common case decided in compiled code
       (models/newton_euler/forward_fused.py).
-    * ``inverse_whole(q, qd, qdd, out_or_None)``, ``forward_whole``: any batch, unchunked (O(n) scratch).
+    * ``inverse_whole(q, qd, qdd, out_or_None)``: any batch, unchunked (O(n) scratch);
+      ``forward_whole(q, qd, tau, out_or_None, check)``: the same, with ``check`` the regularity checks'
+      common case and the answer's finiteness in the same compiled call, None where it does not take a
+      sample (the checked path, ``check_regular`` then ``forward_chunk``, decides and names it).
     * ``inverse_chunk(q, qd, qdd)``, ``forward_chunk``: a batch of at most ``chunk_samples`` samples.
     """
 
-    lean: Callable[..., Any] | None = None
-    forward_lean: Callable[..., Any] | None = None
+    inverse_fast: Callable[..., Any] | None = None
+    forward_fast: Callable[..., Any] | None = None
     inverse_one: Callable[..., Any] | None = None
     forward_one: Callable[..., Any] | None = None
     forward_checked: Callable[..., Any] | None = None

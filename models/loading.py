@@ -42,7 +42,7 @@ def read_text(path: str | Path, what: str) -> str:
 
     Only regular files are read (a FIFO or a device such as /dev/zero would block or never end),
     and only when reading fits in the memory a run may use (:func:`exo_bench.models.prepared.usable_memory`)."""
-    from exo_bench.models.prepared import usable_memory
+    from exo_bench.models.memory import usable_memory
 
     p = regular_file(path, what)
     size = p.stat().st_size

@@ -101,6 +101,7 @@ def check_batch(source: str, q, dof: int, per_sample: int) -> None:
     """Refuse, before the states are converted, a batch ``q`` whose ``per_sample`` float64 entries per
     sample (the converted states, the result and the work, at most one chunk's) exceed
     :func:`usable_memory`: a few integer multiplications, nothing for one sample."""
-    samples = batch_samples(q)
-    if samples:
+    shape = getattr(q, "shape", None)  # batch_samples, inline: one call fewer on every public call
+    if isinstance(shape, tuple) and len(shape) == 2 and 8.0 * int(shape[0]) * per_sample > CHUNK_BYTES:
+        samples = int(shape[0])
         check_call(source, samples, dof, 8.0 * samples * per_sample, "the states, the result and the work")

@@ -53,9 +53,9 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
             _HERE / "forward_check.py",
         ),
         # its kernels inline the rod elements (rod_elements.py, below every method: external_forces.py
-        # projects with them too); forward_fused.py calls the compiled checks of forward_check.py, and the
-        # checked one-sample entry of the derivatives (derivatives_compiled.py) those and the states' pass
-        _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py", _HERE / "validation_pass.py"),
+        # projects with them too); forward_fused.py and the derivatives' one-sample entry (derivatives_simd.py)
+        # call the compiled checks of forward_check.py (and the states' pass: a shared source)
+        _HERE / "newton_euler": (_HERE / "rod_elements.py", _HERE / "forward_check.py"),
         # one kernel file of its own (a key may be a file: its kernels are keyed on it and these, not on
         # the rest of models/): f_ext's pass projects with the rod elements
         _HERE / "external_forces_kernel.py": (_HERE / "rod_elements.py",),
@@ -99,7 +99,12 @@ def _register(f: Callable[..., Any], always: bool) -> None:
 #: functions are imported by name into the kernel files, not registered through :func:`inline`, and an
 #: edit to ``sincos_reduced`` once left the cached SIMD kernels of both families on the old sin/cos.
 SHARED_SOURCES = tuple(
-    sorted({*_HERE.glob("simd_*.py"), *(_HERE / f for f in ("fast_trig.py", "numba_runtime.py", "numba_cache.py"))})
+    sorted(
+        {
+            *_HERE.glob("simd_*.py"),
+            *(_HERE / f for f in ("fast_trig.py", "numba_runtime.py", "numba_cache.py", "validation_pass.py")),
+        }
+    )
 )
 
 

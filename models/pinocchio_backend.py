@@ -32,7 +32,8 @@ import pinocchio as pin
 
 from exo_bench.models.coordinate_maps import rowwise_product
 from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.prepared import USABLE_SHARE, PreparedModel, usable_memory
+from exo_bench.models.prepared import PreparedModel
+from exo_bench.models.memory import USABLE_SHARE, usable_memory
 from exo_bench.models.resource_counts import check_count, check_thread_room, usable_cpus
 from exo_bench.models.urdf import (
     DATA_BYTES_PER_JOINT,  # noqa: F401

@@ -2,79 +2,86 @@
 
 Like Pinocchio's ``Model``/``Data`` split, :class:`PreparedModel` holds what is fixed for a
 mechanism (aggregates, coupling signs, index arrays, lambdified functions, the Pinocchio model);
-its calls take states and return forces, with no lookup, no cache and no validation left in the
-hot path when ``check=False``.
+its calls take states and return forces.
 
-The public calls are defined here once; a method supplies kernels (objects of
-:mod:`exo_bench.models.kernels`, listed in its MethodSpec, whose entries the calls run) or implements
-:meth:`PreparedModel._inverse_dynamics` on validated ``(samples, dof)`` float arrays. :meth:`PreparedModel.mass_matrix` and :meth:`PreparedModel.bias_forces` are native
-where a method overrides ``_mass_matrix``/``_bias_forces`` (``native_terms`` says which) and are
-otherwise derived from inverse dynamics, which is linear in ``qdd``: ``h = ID(q, qd, 0)`` and
-``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)`` (:func:`terms_from_inverse_dynamics`).
+**One way through each public call.** The public calls are defined here once; a method supplies
+kernels (objects of :mod:`exo_bench.models.kernels`, listed in its MethodSpec, whose entries the calls
+run) or implements :meth:`PreparedModel._inverse_dynamics` on validated ``(samples, dof)`` float arrays; it
+never overrides a public call. A call validates once, at the edge, then runs the method's kernel:
 
-**Validation.** The mechanism is validated when it is built (:class:`~exo_bench.models.mechanism.Mechanism`
-is frozen and checks itself). ``check=True`` (the default) validates the states with
-:func:`~exo_bench.models.mechanism.as_states`: shapes, finiteness, non-negative lengths, each with a
-message that names the array, the sample and the coordinate. ``check=False`` is the fast path
-for trusted hot loops (an ODE right-hand side, a controller): it checks no value, only what
-memory safety needs (:func:`unchecked_states`: C-ordered float64 arrays of one shape ``(dof,)``
-or ``(samples, dof)``, and ``out`` of that shape), so a wrong layout is a ValueError, never a
-read or write past an array.
+1. the array gate (:mod:`exo_bench.models.array_gate`): every input and ``out`` that reaches a compiled
+   kernel is a base-class, C-ordered, aligned float64 ndarray of exactly the shape the kernel indexes;
+   with ``check=True`` any other input is converted, with ``check=False`` it is refused, and an ``out``
+   that is not exactly right is refused with a ValueError naming ``out`` either way (``check=False``
+   skips the values, never memory safety);
+2. with ``check=True`` the values: finiteness, rod lengths >= 0, the force bound (one compiled pass,
+   :func:`~exo_bench.models.states.checked_states`), and for forward dynamics the refusal of singular
+   configurations (:meth:`PreparedModel.check_regular`);
+3. the kernel.
+
+**One sample, fast.** A kernel may supply a compiled validate-and-compute entry of one sample
+(:class:`~exo_bench.models.kernels.Entries` ``inverse_fast``, ``forward_fast``: steps 1 to 3 in one numba
+call that answers 0 or a problem's code). The public call checks in Python only what numba's unboxing
+trusts (the arrays are base-class ndarrays, 1-D, float64; ``out`` writable) and calls it; any other
+answer runs the path above, which names the problem.
+
+:meth:`PreparedModel.mass_matrix` and :meth:`PreparedModel.bias_forces` are native where a method
+overrides ``_mass_matrix``/``_bias_forces`` (``native_terms`` says which) and are otherwise derived
+from inverse dynamics, which is linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) -
+ID(q, 0, 0)`` (:func:`~exo_bench.models.derived_terms.terms_from_inverse_dynamics`).
 
 **Chunks.** A batch is evaluated :attr:`PreparedModel.chunk_samples` samples at a time into a
-preallocated result, so that a batch of any length needs a fixed working set
-(:mod:`exo_bench.models.chunked_calls`, the base class that holds the chunks).
+preallocated result, so that a batch of any length needs the inputs, the result and a fixed working
+set (one chunk's temporaries): 10^6 samples take no more scratch memory than one chunk
+(bench/test_memory.py). A result of 4 MiB or more reuses the memory of one returned before, once nothing
+refers to that one any more (:mod:`exo_bench.models.result_pool`).
 
-**Threads and processes.** A prepared model holds no mutable state shared between calls other
-than per-thread scratch space, so one model can serve several threads. It pickles by
-reconstruction: the pickle holds the mechanism, the method's name and its options, and
-unpickling prepares the model again in the receiving process (for ``lagrange`` that derives the
-equations again, within the same budget).
+**Threads and processes.** A prepared model holds no mutable state shared between calls (a one-sample
+entry's scratch is on the stack of its call), so one model can serve several threads. It pickles by
+reconstruction: the pickle holds the mechanism, the method's name and its options, and unpickling
+prepares the model again in the receiving process (for ``lagrange`` that derives the equations again,
+within the same budget).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
+from exo_bench.models import external_forces
+from exo_bench.models.array_gate import apart, as_out
+from exo_bench.models.array_gate import as_states as gate_states
+from exo_bench.models.conditioning import CouplingCondition, check_conditioning, check_finite, coupling_condition
+from exo_bench.models.derived_terms import cholesky_solve, terms_in_chunks
 from exo_bench.models.kernels import Entries, Kernel, select
 from exo_bench.models.kernels import load as load_kernels
-from exo_bench.models.lean_call import public_call
-from exo_bench.models.mechanism import Mechanism, as_states
-from exo_bench.models.memory import (
-    CHUNK_BYTES,
-    MAX_CHUNK,
-    USABLE_SHARE,
-    available_memory,
-    check_batch,
-    default_chunk_samples,
-    usable_memory,
-)
-from exo_bench.models.derived_terms import cholesky_solve, terms_from_inverse_dynamics, terms_in_chunks
-from exo_bench.models import external_forces
-from exo_bench.models.chunked_calls import ChunkedCalls
-from exo_bench.models.conditioning import check_finite
-from exo_bench.models.regularity import Regular
-from exo_bench.models.unchecked import apart, check_out, require_rates, unchecked_forward, unchecked_states
+from exo_bench.models.mechanism import Mechanism
+from exo_bench.models.memory import CHUNK_BYTES, check_batch, chunks, default_chunk_samples
+from exo_bench.models.result_pool import ResultPool
+from exo_bench.models.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.states import checked_states, is_one_sample
 
-#: Re-exported: the memory helpers (models/memory.py) and the ``check=False`` checks (models/unchecked.py)
-#: were defined here first and are imported from here.
-__all__ = [
-    "PreparedModel",
-    "MissingExtra",
-    "terms_from_inverse_dynamics",
-    "cholesky_solve",
-    "CHUNK_BYTES",
-    "MAX_CHUNK",
-    "USABLE_SHARE",
-    "available_memory",
-    "default_chunk_samples",
-    "usable_memory",
-    "unchecked_states",
-    "unchecked_forward",
-]
+__all__ = ["PreparedModel", "MissingExtra"]
+
+_ND = np.ndarray
+_F8 = np.dtype(np.float64)
+_empty = np.empty
+#: The names of the state arrays of inverse and of forward dynamics.
+_INVERSE_NAMES = ("q", "qd", "qdd")
+_FORWARD_NAMES = ("q", "qd", "tau")
+_RATES = ("q", "qd")
+
+
+def _require(method: str, names: Sequence[str], arrays: Sequence[Any]) -> None:
+    """The rates a call needs are given: None is not "zero"; a ValueError naming the field."""
+    for name, a in zip(names, arrays):
+        if a is None:
+            raise ValueError(
+                f"{method}: field '{name}': expected an array of shape (dof,) or (samples, dof), "
+                "got None (pass zeros for a state at rest)"
+            )
 
 
 class MissingExtra(ValueError):
@@ -91,11 +98,11 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
     return cls(mechanism, **options)
 
 
-class PreparedModel(ChunkedCalls, Regular):
+class PreparedModel:
     """A mechanism prepared for one method. Subclasses set :attr:`method` and either list their
     :attr:`kernels` (and call :meth:`_use_kernels`) or implement :meth:`_inverse_dynamics`; they may
-    override ``_mass_matrix``, ``_bias_forces`` and ``check_regular`` (forward dynamics' refusal of
-    singular configurations, :class:`~exo_bench.models.regularity.Regular`), never a public call."""
+    override ``_mass_matrix``, ``_bias_forces``, ``sample_bytes`` and ``check_regular`` (forward dynamics'
+    refusal of singular configurations), never a public call."""
 
     #: The registry name of the method; the algorithm timed under it.
     method: ClassVar[str] = ""
@@ -113,10 +120,16 @@ class PreparedModel(ChunkedCalls, Regular):
     #: The entries of the chosen kernels (:class:`~exo_bench.models.kernels.Entries`, bound by
     #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run. Set on the
     #: instance only: a class-level default (an instance of a mutable class) kept Python 3.11 from
-    #: specialising ``self._entries`` in the calls, about 65 ns of a 0.45 us one-sample call. A slot: the
-    #: public call reads it in C at its offset (models/_lean_call.c ``slot_read``; by name it cost 60 ns).
+    #: specialising ``self._entries`` in the calls, about 65 ns of a 0.45 us one-sample call.
     _entries: Entries
-    __slots__ = ("_entries",)  # subclasses keep a __dict__ (Regular has one)
+    __slots__ = ("_entries", "__dict__")
+    _chunk: int
+    _results: ResultPool
+    _mechanism: Mechanism
+    #: forward dynamics' compiled checks ``(clear, finite)`` (models/forward_check.py), resolved on first use
+    _forward_checks: tuple[Callable[..., bool], Callable[..., bool]] | None = None
+    #: their plan (:func:`exo_bench.models.forward_check.plan_of`), with them
+    forward_plan: Any = None
 
     def __init__(self, mechanism: Mechanism, **options: Any):
         if not isinstance(mechanism, Mechanism):
@@ -127,7 +140,8 @@ class PreparedModel(ChunkedCalls, Regular):
         self._mechanism = mechanism
         self._options = dict(options)
         self._dof = mechanism.dof
-        self._start_chunks(mechanism.dof, mechanism.nlinks, mechanism.dim)  # models/chunked_calls.py
+        self._chunk = default_chunk_samples(mechanism.dof, self.sample_bytes(mechanism.nlinks, mechanism.dim))
+        self._results = ResultPool()  # new batched results, recycled once dropped (models/result_pool.py)
         self._entries = Entries()  # no kernel's entries until _use_kernels
 
     # ------------------------------------------------------------------ what it is
@@ -184,109 +198,106 @@ class PreparedModel(ChunkedCalls, Regular):
         self.kernel = self._options["kernel"] = chosen[0].option
         return self.kernel
 
+    # ------------------------------------------------------------------ chunks
+    @classmethod
+    def sample_bytes(cls, nlinks: int, dim: int) -> float | None:
+        """Bytes of one sample's temporaries in a batch, measured (the cost model's figure, which
+        sizes the chunks); None: the bound of :func:`~exo_bench.models.memory.default_chunk_samples`."""
+        return None
+
+    @property
+    def chunk_samples(self) -> int:
+        """Samples evaluated at a time: batches longer than this are split into chunks written
+        into one preallocated result (the working set stays that of one chunk)."""
+        return self._chunk
+
+    @chunk_samples.setter
+    def chunk_samples(self, value: int) -> None:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"{self.method}: chunk_samples: expected an integer >= 1, got {value!r}")
+        self._chunk = int(value)
+
+    def _chunked(
+        self, fn: Callable[..., np.ndarray], arrays: Sequence[np.ndarray], out_shape: tuple[int, ...]
+    ) -> np.ndarray:
+        """``fn(*chunks)`` over the rows of ``arrays`` in chunks of :attr:`chunk_samples`, into one
+        result of shape ``(S, *out_shape)``; one call when the batch fits in a chunk."""
+        S = arrays[0].shape[0]
+        if S <= self._chunk:
+            return fn(*arrays)
+        out = self._results.empty((S, *out_shape))
+        for c in chunks(S, self._chunk):
+            out[c] = fn(*(a[c] for a in arrays))
+        return out
+
+    # ------------------------------------------------------------------ regularity
+    def check_regular(self, q: np.ndarray) -> None:
+        """Raise :class:`~exo_bench.models.singularity.SingularConfigurationError` where ``M(q)`` is exactly
+        singular (a rod of length zero or, 3D, vertical, or the mechanism's mass coupling:
+        :func:`exo_bench.models.singularity.singular_reasons`), then where it is singular to working
+        precision: the conditioning test that every method shares, O(n) per sample
+        (:func:`exo_bench.models.conditioning.check_conditioning`). The common case, a state clear of every
+        bound, is decided by one compiled pass (:mod:`exo_bench.models.forward_check`); near a bound the
+        exact checks decide and name the sample, the link and the reason. A method may override it with
+        its own O(n) test (newton-euler does)."""
+        if (self._forward_checks or self._resolve_forward_checks())[0](q):  # compiled: the common case
+            return
+        q = q if q.ndim == 2 else q.reshape(1, -1)
+        reasons = [f"sample {s}: {r}" for s, rs in enumerate(singular_reasons(self._mechanism, q)) for r in rs]
+        if reasons:
+            raise SingularConfigurationError(reasons)
+        check_conditioning(self._mechanism, q, self.coupling_condition)
+
+    def _resolve_forward_checks(self) -> tuple[Callable[..., bool], Callable[..., bool]]:
+        """``(clear, finite)`` (models/forward_check.py :func:`checks`) and their plan, kept."""
+        from exo_bench.models.forward_check import checks, plan_of
+
+        self.forward_plan = plan_of(self._mechanism, self.coupling_condition)
+        self._forward_checks = checks(self._mechanism.nlinks, self.forward_plan)
+        return self._forward_checks
+
+    @property
+    def coupling_condition(self) -> CouplingCondition:
+        """The mechanism's part of the condition of ``M`` (:func:`exo_bench.models.conditioning.coupling_condition`),
+        O(n), estimated on first use."""
+        c = getattr(self, "_coupling_condition", None)
+        if c is None:
+            c = self._coupling_condition = coupling_condition(self._mechanism)
+        return c
+
     # ------------------------------------------------------------------ calls
-    @public_call("lean")  # one sample offered to the lean entry in C first (models/lean_call.py)
     def inverse_dynamics(self, q, qd, qdd, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Generalised forces ``tau = [M_phi..., M_psi..., F...]`` of the paper's absolute
         coordinates for states in block order ``[phi..., psi..., l...]``: ``(dof,)`` in gives
         ``(dof,)`` out, ``(samples, dof)`` gives ``(samples, dof)``. ``out``: a preallocated
-        C-ordered float64 array of the result's shape, written and returned (a loop of calls then
+        C-ordered float64 ndarray of the result's shape, written and returned (a loop of calls then
         allocates nothing: the compiled kernels write into it directly). Without ``out``, a result of
         4 MiB or more reuses the memory of one this model returned before, once nothing refers to that
         one any more (:mod:`exo_bench.models.result_pool`: at most two stay allocated after the caller
         dropped them). ``f_ext``: forces at the point masses, ``(samples, links, 3, dim)`` or ``(links, 3,
         dim)`` (:mod:`exo_bench.models.external_forces`): ``tau = ID - Q(q, f_ext)``."""
-        if f_ext is not None:
-            return external_forces.inverse_dynamics(self, q, qd, qdd, f_ext, check, out)
-        e = self._entries
-        # one sample, checked (validated first) or not, in C; None (having touched nothing) where it does not take it
-        if (lean := e.lean) is not None and (tau := lean(q, qd, qdd, check, out)) is not None:
-            return tau
-        check_batch("inverse dynamics", q, self._dof, 4 * self._dof)  # a batch: before the states are copied
-        if not check:
-            unchecked_states(self.method, self._dof, (q, qd, qdd), out)
-            if q.ndim == 1:
-                if e.inverse_one is not None:
-                    return e.inverse_one(q, qd, qdd, np.empty(self._dof) if out is None else out)
-                tau = self._inverse_dynamics(q[None], qd[None], qdd[None])[0]
-            elif e.inverse_whole is not None:
-                return e.inverse_whole(q, qd, qdd, out)
-            else:
-                tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
-        else:
-            if qd is None or qdd is None:
-                require_rates(self.method, qd, qdd)
-            single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
-            q, qd, qdd = checked_states(self._mechanism, q, qd, qdd)  # one C-ordered float64 sample stays 1-D
-            if out is not None:
-                check_out(out, q.shape[-1:] if single else q.shape, self.method)
-            if not single and e.inverse_whole is not None:  # the route of check=False: same numbers
-                into = None if out is None or not apart(out, (q, qd, qdd)) else out  # overlap: a copy below
-                if (tau := e.inverse_whole(q, qd, qdd, into)) is out:
+        # one sample: the kernel's compiled entry checks the rest (layout, values) and answers 0 when done
+        if (
+            (fast := self._entries.inverse_fast) is not None
+            and type(q) is _ND
+            and type(qd) is _ND
+            and type(qdd) is _ND
+            and q.ndim == 1
+            and qd.ndim == 1
+            and qdd.ndim == 1
+            and q.dtype is _F8
+            and qd.dtype is _F8
+            and qdd.dtype is _F8
+            and f_ext is None
+        ):
+            if out is None:
+                if not fast(q, qd, qdd, o := _empty(self._dof), check):
+                    return o
+            elif type(out) is _ND and out.ndim == 1 and out.dtype is _F8 and out.flags.writeable:
+                if not fast(q, qd, qdd, out, check):
                     return out
-            elif not single:
-                tau = self._chunked(self._inverse_dynamics, (q, qd, qdd), (self._dof,))
-            elif e.inverse_one is not None:  # the kernel of check=False: check never changes the result
-                if q.ndim == 2:
-                    q, qd, qdd = q[0], qd[0], qdd[0]
-                tau = np.empty(self._dof)  # the route of check=False: lean, else one
-                if lean is None or lean(q, qd, qdd, False, tau) is None:
-                    tau = e.inverse_one(q, qd, qdd, tau)
-            else:
-                tau = self._inverse_dynamics(q.reshape(1, -1), qd.reshape(1, -1), qdd.reshape(1, -1))[0]
-        if out is None:
-            return tau
-        out[...] = tau
-        return out
+        return self._dynamics(False, q, qd, qdd, check, out, f_ext)
 
-    def mass_matrix(self, q, check: bool = True) -> np.ndarray:
-        """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
-        single = is_one_sample(q)
-        check_batch("mass matrix", q, self._dof, self._dof * (self._dof + 1))
-        if check:
-            q, _, _ = as_states(self._mechanism, q)
-        else:
-            unchecked_states(self.method, self._dof, (q,))
-            if single:
-                q = q[None]
-        d = self._dof
-        M = self._chunked(self._mass_matrix, (q,), (d, d))
-        return M[0] if single else M
-
-    def bias_forces(self, q, qd, check: bool = True) -> np.ndarray:
-        """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
-        single = is_one_sample(q)
-        check_batch("bias forces", q, self._dof, 3 * self._dof)
-        if check:
-            require_rates(self.method, qd)
-            q, qd, _ = as_states(self._mechanism, q, qd)
-        else:
-            unchecked_states(self.method, self._dof, (q, qd))
-            if single:
-                q, qd = q[None], qd[None]
-        h = self._chunked(self._bias_forces, (q, qd), (self._dof,))
-        return h[0] if single else h
-
-    def mass_matrix_and_bias(self, q, qd, check: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """Both terms of ``M qdd + h = tau`` at once, ``(S, dof, dof)`` and ``(S, dof)`` (batch only):
-        one batched inverse-dynamics call where the terms are derived."""
-        check_batch("mass_matrix_and_bias", q, self._dof, self._dof * (self._dof + 4))
-        if check:
-            require_rates(self.method, qd)
-            q, qd, _ = as_states(self._mechanism, q, qd)
-        else:
-            unchecked_states(self.method, self._dof, (q, qd))
-        if q.ndim != 2:
-            raise ValueError(
-                f"{self.method}: mass_matrix_and_bias takes a batch: expected q of shape (samples, "
-                f"{self._dof}), got {q.shape}"
-            )
-        d = self._dof
-        if self.native_terms:
-            return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
-        return terms_in_chunks(self._inverse_dynamics, d, q, qd, self._chunk)
-
-    @public_call("forward_lean")
     def forward_dynamics(self, q, qd, tau, check: bool = True, out=None, f_ext=None) -> np.ndarray:
         """Forward dynamics: the accelerations ``qdd`` with ``M(q) qdd + h(q, qd) = tau``, same shapes
         and ``out`` as :meth:`inverse_dynamics`. With ``check`` (the default) the states are
@@ -297,50 +308,153 @@ class PreparedModel(ChunkedCalls, Regular):
         dynamics (newton-euler's O(n) passes; its checked one sample: ``tree-forward``, checks and passes
         in one compiled call, models/forward_check.py). ``f_ext``: forces at the point masses, as in
         :meth:`inverse_dynamics`: ``qdd = FD(q, qd, tau + Q(q, f_ext))``."""
+        if (
+            (fast := self._entries.forward_fast) is not None
+            and type(q) is _ND
+            and type(qd) is _ND
+            and type(tau) is _ND
+            and q.ndim == 1
+            and qd.ndim == 1
+            and tau.ndim == 1
+            and q.dtype is _F8
+            and qd.dtype is _F8
+            and tau.dtype is _F8
+            and f_ext is None
+        ):
+            if out is None:
+                if not fast(q, qd, tau, o := _empty(self._dof), check):
+                    return o
+            elif type(out) is _ND and out.ndim == 1 and out.dtype is _F8 and out.flags.writeable:
+                if not fast(q, qd, tau, out, check):  # out written only when done
+                    return out
+        return self._dynamics(True, q, qd, tau, check, out, f_ext)
+
+    def _dynamics(self, forward: bool, q, qd, y, check: bool, out, f_ext) -> np.ndarray:
+        """The path of :meth:`inverse_dynamics` (``y = qdd``) and :meth:`forward_dynamics` (``forward``,
+        ``y = tau``) for every call the one-sample entry does not take: the gate, the checks, the kernel."""
+        method, dof, e = self.method, self._dof, self._entries
         if f_ext is not None:
-            return external_forces.forward_dynamics(self, q, qd, tau, f_ext, check, out)
-        e = self._entries
-        # one sample in C, checked (states validated, the checks' common case) or not; None where it does not take it
-        if (lean := e.forward_lean) is not None and (qdd := lean(q, qd, tau, check, out)) is not None:
-            return qdd
-        check_batch("forward dynamics", q, self._dof, 4 * self._dof)  # a batch: before the states are copied
-        single = q.ndim == 1 if type(q) is np.ndarray else is_one_sample(q)
-        if check:
-            if qd is None or tau is None:
-                require_rates(self.method, qd, tau)
+            run = external_forces.forward_dynamics if forward else external_forces.inverse_dynamics
+            return run(self, q, qd, y, f_ext, check, out)
+        names = _FORWARD_NAMES if forward else _INVERSE_NAMES
+        if (s := getattr(q, "shape", None)) is not None and len(s) == 2 and 32.0 * dof * s[0] > CHUNK_BYTES:
+            check_batch("forward dynamics" if forward else "inverse dynamics", q, dof, 4 * dof)  # before any copy
+        if qd is None or y is None:
+            _require(method, names[1:], (qd, y))
+        single = q.ndim == 1 if type(q) is _ND else is_one_sample(q)
+        if not check:
+            q, qd, y = gate_states((q, qd, y), names, dof, method, False)
+        elif not forward:
+            q, qd, y = checked_states(self._mechanism, q, qd, y)  # plain; one plain sample stays 1-D
+        else:
             try:
-                q, qd, tau = checked_states(self._mechanism, q, qd, tau, source="forward dynamics")
-            except ValueError as err:  # the third array of as_states is called qdd: here it is tau
+                q, qd, y = checked_states(self._mechanism, q, qd, y, source="forward dynamics")
+            except ValueError as err:  # the third array of the states' check is called qdd: here it is tau
                 raise ValueError(
                     str(err).replace("field 'qdd'", "field 'tau'").replace("qdd must", "tau must")
                 ) from None
-            if out is not None:
-                check_out(out, q.shape[-1:] if single else q.shape, self.method)
-            if single and (checked := e.forward_checked) is not None:  # checks and passes compiled
-                qdd = checked(q, qd, tau) if q.ndim == 1 else checked(q[0], qd[0], tau[0])
-                if out is None:
-                    return qdd
-                out[...] = qdd
-                return out
-            if q.ndim == 1:
-                q, qd, tau = q[None], qd[None], tau[None]
-            self.check_regular(q)
-        else:
-            unchecked_forward(self.method, self._dof, q, qd, tau, out)
-            if single and e.forward_one is not None:
-                return e.forward_one(q, qd, tau, np.empty(self._dof) if out is None else out)
-            if not single and e.forward_whole is not None:
-                return e.forward_whole(q, qd, tau, out)
-            if single:
-                q, qd, tau = q[None], qd[None], tau[None]
-        qdd = self._chunked(self._forward_dynamics, (q, qd, tau), (self._dof,))
-        if check and not (self._forward_checks or self._resolve_forward_checks())[1](qdd):
-            check_finite(self._mechanism, qdd)  # never NaN or inf (forces too large for float64): named
-        qdd = qdd[0] if single else qdd
-        if out is None:
-            return qdd
-        out[...] = qdd
+        if out is not None:  # check=True: an out that overlaps an input is written through a copy
+            out = as_out(out, (dof,) if single else q.shape, method, () if check else (q, qd, y), names)
+        into = out if out is None or not check or apart(out, (q, qd, y)) else None
+        if single:
+            if q.ndim == 2:
+                q, qd, y = q[0], qd[0], y[0]
+            r = self._one(forward, q, qd, y, check, into)
+        elif not forward:
+            r = (
+                self._chunked(self._inverse_dynamics, (q, qd, y), (dof,))
+                if e.inverse_whole is None
+                else (e.inverse_whole(q, qd, y, into))
+            )
+        elif e.forward_whole is None or (r := e.forward_whole(q, qd, y, None if check else into, check)) is None:
+            if check:
+                self.check_regular(q)
+            r = self._chunked(self._forward_dynamics, (q, qd, y), (dof,))
+            if check and not (self._forward_checks or self._resolve_forward_checks())[1](r):
+                check_finite(self._mechanism, r)  # never NaN or inf (forces too large for float64): named
+        if out is None or r is out:
+            return r
+        out[...] = r
         return out
+
+    def _one(self, forward: bool, q, qd, y, check: bool, out) -> np.ndarray:
+        """One gated (and, with ``check``, validated) sample, 1-D: the kernel's one-sample entries, else the
+        batch path on a batch of one."""
+        e, dof = self._entries, self._dof
+        if forward:
+            if check and (checked := e.forward_checked) is not None:  # checks and passes compiled
+                return checked(q, qd, y)
+            if not check and e.forward_one is not None:
+                return e.forward_one(q, qd, y, _empty(dof) if out is None else out)
+            q2 = q[None]
+            if check:
+                self.check_regular(q2)
+            r = self._forward_dynamics(q2, qd[None], y[None])
+            if check and not (self._forward_checks or self._resolve_forward_checks())[1](r):
+                check_finite(self._mechanism, r)
+            return r[0]
+        if e.inverse_one is not None:
+            return e.inverse_one(q, qd, y, _empty(dof) if out is None else out)
+        return self._inverse_dynamics(q[None], qd[None], y[None])[0]
+
+    def mass_matrix(self, q, check: bool = True) -> np.ndarray:
+        """The mass matrix ``M(q) = d tau / d qdd``, ``(dof, dof)`` or ``(samples, dof, dof)``."""
+        d = self._dof
+        single = q.ndim == 1 if type(q) is _ND else is_one_sample(q)
+        if (s := getattr(q, "shape", None)) is not None and len(s) == 2 and 8.0 * d * (d + 1) * s[0] > CHUNK_BYTES:
+            check_batch("mass matrix", q, d, d * (d + 1))
+        (q,) = checked_states(self._mechanism, q)[:1] if check else gate_states((q,), ("q",), d, self.method, False)
+        if q.ndim == 1:
+            q = q[None]
+        if type(self)._mass_matrix is PreparedModel._mass_matrix:  # derived from inverse dynamics
+            inverse = self._entries.inverse_chunk or self._inverse_dynamics
+            M = terms_in_chunks(inverse, d, q, np.zeros_like(q), self._chunk)[0]
+        else:
+            M = self._chunked(self._mass_matrix, (q,), (d, d))
+        return M[0] if single else M
+
+    def bias_forces(self, q, qd, check: bool = True) -> np.ndarray:
+        """``h(q, qd) = tau(q, qd, 0)``: Coriolis, centrifugal and gravity forces."""
+        d = self._dof
+        single = q.ndim == 1 if type(q) is _ND else is_one_sample(q)
+        if (s := getattr(q, "shape", None)) is not None and len(s) == 2 and 24.0 * d * s[0] > CHUNK_BYTES:
+            check_batch("bias forces", q, d, 3 * d)
+        if qd is None:
+            _require(self.method, ("qd",), (qd,))
+        q, qd = (
+            checked_states(self._mechanism, q, qd)[:2] if check else gate_states((q, qd), _RATES, d, self.method, False)
+        )
+        if q.ndim == 1:
+            q, qd = q[None], qd[None]
+        if type(self)._bias_forces is PreparedModel._bias_forces and (whole := self._entries.inverse_whole):
+            h = whole(q, qd, np.zeros_like(q), None)  # the kernel of any batch, with qdd = 0
+        else:
+            h = self._chunked(self._bias_forces, (q, qd), (d,))
+        return h[0] if single else h
+
+    def mass_matrix_and_bias(self, q, qd, check: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Both terms of ``M qdd + h = tau`` at once, ``(S, dof, dof)`` and ``(S, dof)`` (batch only):
+        one batched inverse-dynamics call where the terms are derived."""
+        d = self._dof
+        check_batch("mass_matrix_and_bias", q, d, d * (d + 4))
+        if qd is None:
+            _require(self.method, ("qd",), (qd,))
+        if (q.ndim if type(q) is _ND else np.ndim(q)) != 2:
+            raise ValueError(
+                f"{self.method}: mass_matrix_and_bias takes a batch: expected q of shape (samples, "
+                f"{d}), got {np.shape(q)}"
+            )
+        q, qd = (
+            checked_states(self._mechanism, q, qd)[:2] if check else gate_states((q, qd), _RATES, d, self.method, False)
+        )
+        return self._terms(q, qd)
+
+    def _terms(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``M`` and ``h`` of a validated batch: the method's own, or derived from its inverse dynamics."""
+        d = self._dof
+        if self.native_terms:
+            return (self._chunked(self._mass_matrix, (q,), (d, d)), self._chunked(self._bias_forces, (q, qd), (d,)))
+        return terms_in_chunks(self._entries.inverse_chunk or self._inverse_dynamics, d, q, qd, self._chunk)
 
     # ------------------------------------------------------------------ per method
     def _inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
@@ -366,5 +480,5 @@ class PreparedModel(ChunkedCalls, Regular):
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         if (chunk := self._entries.forward_chunk) is not None:
             return chunk(q, qd, tau)
-        M, h = self.mass_matrix_and_bias(q, qd, check=False)
+        M, h = self._terms(q, qd)
         return cholesky_solve(M, tau - h)

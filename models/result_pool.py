@@ -21,7 +21,6 @@ free-threaded build (deferred counts), so there every call allocates (:data:`REC
 
 from __future__ import annotations
 
-import math
 import sys
 import threading
 
@@ -71,7 +70,10 @@ class ResultPool:
 
     def empty(self, shape: tuple[int, ...]) -> np.ndarray:
         """An uninitialised C-ordered float64 array of ``shape`` that no one else refers to."""
-        if not RECYCLES or 8 * math.prod(int(d) for d in shape) < self._min_bytes:  # not np.prod: 3-15 us a call
+        size = 8
+        for d in shape:  # not np.prod (3-15 us a call), nor a generator (a frame per step)
+            size *= int(d)
+        if not RECYCLES or size < self._min_bytes:
             return np.empty(shape)
         shape = tuple(int(d) for d in shape)
         with self._lock:
@@ -87,7 +89,10 @@ class ResultPool:
         """``count`` arrays of :meth:`empty` at once, distinct, in one Python call (no generator: the
         derivative calls count the Python functions they run)."""
         out: list[np.ndarray] = []
-        if not RECYCLES or 8 * math.prod(shape) < self._min_bytes:
+        size = 8
+        for d in shape:  # as empty: not np.prod, nor a generator
+            size *= int(d)
+        if not RECYCLES or size < self._min_bytes:
             for _ in range(count):
                 out.append(np.empty(shape))
             return out

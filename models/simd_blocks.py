@@ -306,11 +306,14 @@ def run(
     ``wait_limit`` seconds (default: :data:`WAIT_ALLOWANCE` times the calling thread's longest share, at
     least :data:`WAIT_FLOOR`); beyond it no further share starts and a TimeoutError names the batch and
     the limit (``o`` is then incomplete, as after any error of the kernel)."""
-    small = samples < parallel_min_samples(q.shape[0] // samples if samples else 1)
+    small = samples == 0 or q.shape[0] < PARALLEL_MIN_ELEMENTS  # parallel_min_samples, inline (issue 47)
     if threads is None:
         threads = 1 if small else numba.get_num_threads()
     if threads <= 1 or small:
-        kernel(params, q, qd, qdd, o, 0, samples, *(() if scratch is None else (scratch(),)))
+        if scratch is None:
+            kernel(params, q, qd, qdd, o, 0, samples)
+        else:  # ThreadScratch's own, without its call where this thread has it
+            kernel(params, q, qd, qdd, o, 0, samples, getattr(scratch._local, "scratch", None) or scratch())
         return
     size = -(-samples // (threads * SHARES_PER_THREAD * LANES)) * LANES
     starts = iter(range(0, samples, size))
@@ -320,7 +323,7 @@ def run(
     longest = [0.0]  # the calling thread's longest share, seconds
 
     def work(timed: bool = False):
-        mine = () if scratch is None else (scratch(),)
+        mine = () if scratch is None else (getattr(scratch._local, "scratch", None) or scratch(),)
         while True:
             with cond:
                 s0 = next(starts, None)

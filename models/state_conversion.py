@@ -147,8 +147,8 @@ def converted(arr: Any, label: str, source: str, names: list[str]) -> np.ndarray
             raise ValueError(f"{source}: field '{label}': expected numbers, got {where[0]!r} (a boolean) at {where[1]}")
     if a.ndim == 1:
         a = a[None, :]
-    if a.ndim == 2 and not a.flags.c_contiguous:
-        a = np.ascontiguousarray(a)  # a DataFrame's values, a transpose, an .npz of asfortranarray
+    if a.ndim == 2 and not (a.flags.c_contiguous and a.flags.aligned):
+        a = np.array(a, order="C")  # a DataFrame's values, a transpose, an .npz of asfortranarray, an offset
     if a.ndim != 2 or a.shape[1] != len(names):
         raise ValueError(
             f"{source}: field '{label}': expected shape (samples, {len(names)}) in the order "

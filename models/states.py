@@ -94,7 +94,7 @@ def state_check(mech: Mechanism) -> StateCheck:
 
 def validation_plan(mech: Mechanism) -> np.ndarray:
     """The compiled pass's plan of ``mech`` (:attr:`StateCheck.plan`, resolving it on first use): what the
-    lean call's wrapper validates one sample with (models/lean_call.py)."""
+    kernels' one-sample entries validate one sample with (:func:`exo_bench.models.validation_pass.one_sample`)."""
     chk = state_check(mech)
     if chk.plan is None:
         chk.resolve()

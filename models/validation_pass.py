@@ -43,7 +43,7 @@ from exo_bench.models.validation import force_scale_from
 ensure()  # numba's runtime set-up (models/numba_runtime.py), before the first kernel is defined
 
 from llvmlite import ir  # noqa: E402 - numba's environment is checked before numba is imported
-from numba import carray, cfunc, njit, types  # noqa: E402
+from numba import njit, types  # noqa: E402
 from numba.extending import intrinsic  # noqa: E402
 from numba.np.arrayobj import populate_array  # noqa: E402
 
@@ -104,11 +104,73 @@ _LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
 
 @njit(**_LEAN)
 def _c_ordered(a, dof):
-    """``a`` has ``dof`` columns and its entries lie in C order at 8 bytes apart (an empty array's
-    strides do not matter)."""
-    return a.shape[-1] == dof and (
-        a.size == 0 or (a.strides[-1] == 8 and (a.ndim == 1 or a.shape[0] == 1 or a.strides[0] == 8 * dof))
+    """``a`` has ``dof`` columns, its entries lie in C order at 8 bytes apart (an empty array's
+    strides do not matter) and its data is aligned to 8 bytes."""
+    return (
+        a.shape[-1] == dof
+        and a.ctypes.data % 8 == 0
+        and (a.size == 0 or (a.strides[-1] == 8 and (a.ndim == 1 or a.shape[0] == 1 or a.strides[0] == 8 * dof)))
     )
+
+
+@intrinsic
+def stack_matrix(typingctx, rows, cols):
+    """A ``(rows, cols)`` C-ordered float64 array on the stack of the calling function (``alloca``,
+    uninitialised): scratch that no other call or thread shares and that allocates nothing (numba's
+    ``np.empty`` costs about 90 ns and needs its reference-counted runtime in the call). The callers
+    bound its size by :data:`STACK_DOUBLES`."""
+    view = types.Array(types.float64, 2, "C")
+    sig = view(types.intp, types.intp)
+
+    def codegen(context, builder, signature, args):
+        r, c = args
+        data = builder.alloca(ir.DoubleType(), size=builder.mul(r, c))
+        out = context.make_array(view)(context, builder)
+        eight = context.get_constant(types.intp, 8)
+        populate_array(
+            out, data=data, shape=[r, c], strides=[builder.mul(c, eight), eight], itemsize=eight, meminfo=None
+        )
+        return out._getvalue()
+
+    return sig, codegen
+
+
+#: The most doubles of :func:`stack_matrix` scratch a one-sample entry takes (64 KiB of stack); a larger
+#: mechanism's one sample answers :data:`LARGE` and runs the serial kernel instead.
+STACK_DOUBLES = 8192
+#: The answer of a one-sample entry whose scratch would not fit :data:`STACK_DOUBLES`.
+LARGE = 5
+
+
+@njit(**_LEAN)
+def _vector(a, dof):
+    """A 1-D float64 array (typed so) of ``dof`` entries, 8 bytes apart, aligned: what a one-sample
+    kernel indexes."""
+    return a.shape[0] == dof and a.strides[0] == 8 and a.ctypes.data % 8 == 0
+
+
+@njit(**_LEAN)
+def _apart(o, a, dof):
+    """The ``dof`` doubles of ``o`` and of ``a`` do not overlap."""
+    lo, hi = o.ctypes.data, a.ctypes.data
+    return lo + 8 * dof <= hi or hi + 8 * dof <= lo
+
+
+@njit(**_LEAN)
+def one_sample(q, qd, y, o, plan, check):
+    """The gate and the checks of one sample in compiled code, for the one-sample entries of the
+    kernels: :data:`CONVERT` unless ``q, qd, y`` and ``o`` (1-D float64 arrays: the caller checked the
+    type, the dimension count and the dtype, which unboxing trusts) each have ``plan[0]`` entries 8
+    bytes apart, aligned, and ``o`` overlaps none of the others; then, with ``check``, :func:`status`
+    of the three. :data:`OK` or the problem's code: the caller's Python path then names it."""
+    dof = plan[0]
+    if not (_vector(q, dof) and _vector(qd, dof) and _vector(y, dof) and _vector(o, dof)):
+        return CONVERT
+    if not (_apart(o, q, dof) and _apart(o, qd, dof) and _apart(o, y, dof)):
+        return CONVERT
+    if check:
+        return status(q, qd, y, QD | QDD, plan)
+    return OK
 
 
 @njit(**_LEAN)
@@ -216,8 +278,10 @@ def locate(q, qd, qdd, present, dof, n):
 
 # --------------------------------------------------------------------------- the numpy reference
 def _reference_c_ordered(a: np.ndarray, dof: int) -> bool:
-    return a.shape[-1] == dof and (
-        a.size == 0 or (a.strides[-1] == 8 and (a.ndim == 1 or a.shape[0] == 1 or a.strides[0] == 8 * dof))
+    return (
+        a.shape[-1] == dof
+        and a.ctypes.data % 8 == 0
+        and (a.size == 0 or (a.strides[-1] == 8 and (a.ndim == 1 or a.shape[0] == 1 or a.strides[0] == 8 * dof)))
     )
 
 
@@ -292,33 +356,6 @@ def entries() -> Entries:
         status.compile((two, two, two, types.int64, plans)),
         locate.compile((two, two, two, *_CONSTANTS)),
     )
-
-
-_P8, _PI = types.CPointer(types.float64), types.CPointer(types.int64)
-
-
-def _status_c(q, qd, qdd, p):
-    """:func:`status` of one sample of ``q, qd, qdd`` (``dof`` doubles each, all given) as a C function
-    for the lean call's wrapper (models/_lean_call.c), which has checked the arrays' layout."""
-    dof = p[0]
-    plan = carray(p, (HEAD + ROWS * dof,))
-    return status(carray(q, (dof,)), carray(qd, (dof,)), carray(qdd, (dof,)), QD | QDD, plan)
-
-
-def status_address() -> int | None:
-    """The address of :func:`status` for one sample as a C function (``int64 f(double *q, double *qd,
-    double *qdd, int64 *plan)``, all three rates given; :func:`plan` of the mechanism), compiled or
-    loaded from numba's cache on first use; None under ``NUMBA_DISABLE_JIT``."""
-    address: Any = None if jit_disabled() else _status_cfunc().address  # Any: numba's stubs: int | None
-    return None if address is None else int(address)
-
-
-@functools.cache
-def _status_cfunc() -> Any:
-    """:func:`_status_c` as a cfunc, built on first use: a ``@cfunc`` decorator compiles at import (it
-    ignores ``NUMBA_DISABLE_JIT``), so importing this module under ``NUMBA_DISABLE_JIT`` with no cached
-    copy failed (tests/test_validation_pass.py, on a fresh clone whose cache lay elsewhere)."""
-    return cfunc(types.int64(_P8, _P8, _P8, _PI), cache=True)(_status_c)
 
 
 _F8 = np.dtype(np.float64)

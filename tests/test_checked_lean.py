@@ -1,7 +1,6 @@
-"""The default one-sample call (``check=True``) validated and computed in the C wrapper of the lean call
-(models/_lean_call.c, models/lean_call.py): the validation pass of one sample through its C address
-(models/validation_pass.py ``status_address``), then the kernel; whatever it refuses or does not take
-goes to PreparedModel's Python path, which names the problem. No wall clock: the tests assert which
+"""The default one-sample call (``check=True``) validated and computed in one compiled call, the kernel's
+validate-and-compute entry (``inverse_fast``: models/validation_pass.py ``one_sample``, then the kernel);
+whatever it refuses or does not take goes to PreparedModel's checked path, which names the problem. No wall clock: the tests assert which
 path ran (by refusing the Python path's check), the same bits as ``check=False``, and the messages.
 """
 
@@ -13,8 +12,6 @@ import pytest
 from exo_bench import prepare
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5
-
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
 
 METHODS = ("matrix-factored", "newton-euler")
 
@@ -30,7 +27,7 @@ def _sample(model, seed=3):
 
 
 def test_a_valid_sample_never_reaches_the_python_check(model, monkeypatch):
-    """A valid C-ordered float64 sample is validated and computed in C: the Python path's check is never
+    """A valid C-ordered float64 sample is validated and computed in one compiled call: the Python check is never
     called (it would raise), with or without ``out``, and the answer is ``check=False``'s bit for bit
     (seen failing before: the checked call ran checked_states)."""
     from exo_bench.models import prepared
@@ -78,7 +75,7 @@ class _Sub(np.ndarray):
 
 
 @pytest.mark.parametrize("form", ["subclass", "strided", "float32", "read-only out", "overlapping out"])
-def test_what_the_wrapper_does_not_take_goes_to_the_python_check(model, monkeypatch, form):
+def test_what_the_entry_does_not_take_goes_to_the_python_check(model, monkeypatch, form):
     """Subclasses, other layouts and dtypes, an ``out`` it cannot write apart from the inputs: the Python
     path runs (its check is called once) and answers as ``check=False`` on the converted sample."""
     from exo_bench.models import prepared

@@ -73,13 +73,12 @@ def test_a_checked_out_that_overlaps_an_input_still_gets_the_result(method):
 
 
 @pytest.mark.parametrize("method", WHOLE)
-def test_a_checked_sample_runs_the_lean_entry_of_check_false(method):
-    """One sample, check=True: after the validation pass, the lean entry (in C where it was built)
-    as check=False runs it, the per-sample entry only where the lean one declines; the same bits."""
+def test_a_checked_sample_runs_the_entry_of_check_false(method):
+    """One sample, check=True: the compiled one-sample entry of check=False runs it (validating first),
+    the per-sample entry only where that one declines; the same bits."""
     model = prepare(MECH, method)
-    if model._entries.lean is None:
-        pytest.skip("no lean entry here (the C wrapper was not built): the per-sample entry runs")
-    calls = _counting(model._entries, lean="lean", one="inverse_one")
+    assert model._entries.inverse_fast is not None
+    calls = _counting(model._entries, lean="inverse_fast", one="inverse_one")
     q, qd, qdd = (np.ascontiguousarray(a[0]) for a in _states(3, 5))
     checked = model.inverse_dynamics(q, qd, qdd)
     assert calls == {"lean": 1, "one": 0}

@@ -165,30 +165,17 @@ def test_lean_path_refuses_what_is_not_memory_safe():
     assert np.isfinite(model.inverse_dynamics(q, q, q, check=False, out=good)).all()
 
 
-def _c_wrapper_built() -> bool:
-    try:
-        from exo_bench.models import _lean_call  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_agrees():
-    """Where setup.py built models/_lean_call.c, the lean kernel object holds the compiled
-    wrapper (model.inverse_dynamics stays the class's method: nothing is rebound, issue 35); it computes
-    one sample itself and declines every other form, which the method then runs; each form gives the
-    same forces, and misuse the same errors."""
-    if not _c_wrapper_built():
-        pytest.skip("models/_lean_call.c was not built here (no C compiler at install): the Python lean path runs")
-    from exo_bench.models import _lean_call
-
+def test_the_lean_kernel_holds_the_compiled_entry_and_every_form_of_the_call_agrees():
+    """The lean kernel object holds the compiled validate-and-compute entry of one sample
+    (model.inverse_dynamics stays the class's method: nothing is rebound, issue 35); each form of the call
+    gives the same forces (the one-sample entry's or the checked path's), and misuse the same errors."""
     mech = exo5(3)
     model = prepare(mech, "matrix-factored")
     q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=11))
     want = model.inverse_dynamics(q, qd, qdd)
     out = np.empty(mech.dof)
     model.inverse_dynamics(q, qd, qdd, check=False, out=out)
-    assert isinstance(model._entries.lean, _lean_call.LeanCall)
+    assert model._entries.inverse_fast is not None
     assert "inverse_dynamics" not in vars(model)
     forms = [
         ((q, qd, qdd), {"check": False, "out": out}),
@@ -214,33 +201,9 @@ def test_the_lean_kernel_holds_the_compiled_wrapper_and_every_form_of_the_call_a
         model.inverse_dynamics(q, qd, qdd, check=False, out=np.empty(mech.dof + 1))
     twin = __import__("pickle").loads(__import__("pickle").dumps(model))  # pickles by reconstruction
     assert np.array_equal(twin.inverse_dynamics(q, qd, qdd), want)
-
-
-def test_without_the_compiled_wrapper_the_python_lean_path_runs(monkeypatch):
-    """A machine without a C compiler at install has no _lean_call: c_call says None and the model
-    keeps its Python method (the entry-point path), with the same forces."""
-    import builtins
-
-    from exo_bench.matrix_method.numba_kernels import lean as compiled_lean
-
-    real = builtins.__import__
-
-    def no_extension(name, globals=None, locals=None, fromlist=(), level=0):
-        if fromlist and "_lean_call" in fromlist:
-            raise ImportError("no _lean_call here")
-        return real(name, globals, locals, fromlist, level)
-
-    monkeypatch.setattr(builtins, "__import__", no_extension)
-    mech = exo5(3)
-    model = prepare(mech, "matrix-factored")
-    assert compiled_lean.c_call(3, model.kernel_args[0], print, mech.dof) is None
-    q, qd, qdd = (x[0].copy() for x in _states(mech, 1, seed=12))
-    out = np.empty(mech.dof)
-    model.inverse_dynamics(q, qd, qdd, check=False, out=out)
-    assert "inverse_dynamics" not in vars(model)
-    want = np.empty(mech.dof)
-    model.serial_kernel(model.kernel_args[0], q, qd, qdd, want)
-    assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), want)
+    serial = np.empty(mech.dof)
+    model.serial_kernel(model.kernel_args[0], q, qd, qdd, serial)
+    assert np.array_equal(model.inverse_dynamics(q, qd, qdd, check=False, out=out), serial)
 
 
 @pytest.mark.parametrize("dof", [2, 15, 3000])

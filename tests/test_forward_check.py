@@ -146,7 +146,7 @@ def test_one_sample_refuses_what_its_batch_refuses_with_the_same_message(what, m
 @pytest.mark.parametrize("method", ["newton-euler", "matrix-factored"])
 def test_a_clear_one_sample_runs_no_exact_check(monkeypatch, method):
     """The common case costs one compiled call: the exact checks are not called (they would raise)."""
-    from exo_bench.models import prepared, regularity
+    from exo_bench.models import prepared
 
     mech = exo5(3)
     model = prepare(mech, method)
@@ -155,8 +155,8 @@ def test_a_clear_one_sample_runs_no_exact_check(monkeypatch, method):
     def refuse(*args, **kw):
         raise AssertionError("the exact check ran")
 
-    monkeypatch.setattr(regularity, "singular_reasons", refuse)  # PreparedModel.check_regular's (models/regularity.py)
-    monkeypatch.setattr(regularity, "check_conditioning", refuse)
+    monkeypatch.setattr(prepared, "singular_reasons", refuse)  # PreparedModel.check_regular's
+    monkeypatch.setattr(prepared, "check_conditioning", refuse)
     monkeypatch.setattr(prepared, "check_finite", refuse)
     assert np.isfinite(model.forward_dynamics(q[0], qd[0], qdd[0])).all()
     assert np.isfinite(model.forward_dynamics(q, qd, qdd)).all()  # the batch's checks too

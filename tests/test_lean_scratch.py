@@ -1,12 +1,12 @@
-"""The lean one-sample calls allocate nothing per call (issue 35): their kernels' scratch is part of the
-one 64-byte-aligned block that holds their parameters (:func:`exo_bench.models.lean_call.block`), made
-once per prepared model, so a call makes no numba runtime (NRT) allocation. Counted, not timed: numba's
-own allocation counters (``memsys_enable_stats``) over calls of every form the C wrapper takes.
+"""The one-sample calls allocate nothing in numba per call (issue 35): their compiled entries
+(matrix_method/numba_kernels/lean.py, models/newton_euler/lean.py) take their kernels' scratch on the
+stack of the call (:func:`exo_bench.models.validation_pass.stack_matrix`) and are compiled without numba's
+reference-counted runtime, so a call makes no NRT allocation. Counted, not timed: numba's own allocation
+counters (``memsys_enable_stats``) over calls of every form.
 
-Before the block, matrix-factored's kernel made a ``(7, n)`` array and newton-euler's a zeroed
-``(n, 16)`` one on every call: about 90 ns of a 0.3 us call on exo5-3d. Since the scratch is
-shared by the calls of one model, the wrapper holds the GIL through the kernel: threads calling one
-model get the same numbers as one thread."""
+Before, matrix-factored's kernel made a ``(7, n)`` array and newton-euler's a zeroed ``(n, 16)`` one on
+every call: about 90 ns of a 0.3 us call on exo5-3d. The scratch is the call's own, so threads calling
+one model get the same numbers as one thread."""
 
 from __future__ import annotations
 
@@ -19,8 +19,6 @@ from exo_bench import prepare
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import exo5
 
-pytest.importorskip("exo_bench.models._lean_call", reason="the C wrapper is optional (setup.py)")
-
 #: (method, kernel option or None, dimension): every lean one-sample call.
 CALLS = [("matrix-factored", 2), ("matrix-factored", 3), ("newton-euler", 2), ("newton-euler", 3)]
 
@@ -30,9 +28,7 @@ def case(request):
     method, dim = request.param
     mech = exo5(dim)
     model = prepare(mech, method)
-    from exo_bench.models import _lean_call
-
-    assert isinstance(model._entries.lean, _lean_call.LeanCall)
+    assert model._entries.inverse_fast is not None
     q, qd, qdd = (np.ascontiguousarray(a) for a in random_states(mech, 4, seed=7))
     one = model._entries.inverse_one  # the per-sample kernel: the same arithmetic, bit for bit
     want = np.array([one(*(np.ascontiguousarray(a[s]) for a in (q, qd, qdd)), np.empty(mech.dof)) for s in range(4)])
@@ -67,14 +63,14 @@ def test_a_one_sample_call_allocates_nothing_in_numba(case):
             model.inverse_dynamics(*one, check=False)
             model.inverse_dynamics(*one)
 
-    calls()  # first use: compiles or loads the cfuncs
+    calls()  # first use: compiles or loads the entries
     assert _nrt_allocations(calls) == 0
     np.testing.assert_array_equal(model.inverse_dynamics(*one, check=False), want[0])
 
 
 def test_the_counter_sees_an_allocation_in_compiled_code():
-    """The oracle can fail: an ``np.empty`` in compiled code is counted (before the block, the lean
-    calls counted 2 per call: 30 over the 15 calls above)."""
+    """The oracle can fail: an ``np.empty`` in compiled code is counted (with the scratch from
+    ``np.empty``, the one-sample calls counted 2 per call: 30 over the 15 calls above)."""
     import numba
 
     empty = numba.njit(lambda n: np.empty(n).size)

@@ -3,8 +3,8 @@ refused (issue 34, W5).
 
 The kernels write ``out`` while they read ``q``, ``qd`` and ``qdd`` (or ``tau``): an ``out`` that
 overlapped an input by even one element gave errors of 1e7 to 1e277 and NaN, with no word; only an
-exact alias was caught. The test is numpy's bounds test (O(1)), in Python (models/unchecked.py) and in
-the compiled one-sample wrapper (models/_lean_call.c)."""
+exact alias was caught. The test is numpy's bounds test (O(1)), in Python (models/array_gate.py), and a
+comparison of the data pointers in the kernels' compiled one-sample entries (models/validation_pass.py)."""
 
 import numpy as np
 import pytest

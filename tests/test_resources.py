@@ -13,7 +13,7 @@ from conftest import installed_methods
 from exo_bench.api import cost_model as resources
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import Limits, ResourceLimit, check, estimate, parse_size
-from exo_bench.models.prepared import CHUNK_BYTES
+from exo_bench.models.memory import CHUNK_BYTES
 from exo_bench.models import pinocchio_backend as pb
 from exo_bench.models.motion import random_states
 from exo_bench.models.presets import chain, exo5, random_tree

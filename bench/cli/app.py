@@ -142,7 +142,7 @@ def _solve_failed(e: BaseException) -> bool:
 
 
 def _available() -> str:
-    from exo_bench.models.prepared import available_memory
+    from exo_bench.models.memory import available_memory
 
     a = available_memory()
     return "memory" if a is None else f"{a / 1e9:.1f} GB of memory"

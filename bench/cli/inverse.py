@@ -124,7 +124,7 @@ def _read_npz(path: str, what: str) -> dict:
     import zipfile
 
     from exo_bench.models.loading import regular_file
-    from exo_bench.models.prepared import usable_memory
+    from exo_bench.models.memory import usable_memory
 
     p = regular_file(path, what)  # the same checks and messages as every other file we read
     try:

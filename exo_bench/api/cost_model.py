@@ -99,7 +99,7 @@ from dataclasses import dataclass, field
 from exo_bench.api.cost_formulas import ARRAY_BANDWIDTH, BASE_BYTES, F8, LOADED, _loglog, _seconds, _size, kernel_note
 from exo_bench.api.methods import METHODS, method_class, preference
 from exo_bench.models.mechanism import Mechanism
-from exo_bench.models.prepared import USABLE_SHARE, default_chunk_samples, usable_memory
+from exo_bench.models.memory import USABLE_SHARE, default_chunk_samples, usable_memory
 
 
 def sample_bytes(mech: Mechanism, method: str) -> float:

@@ -40,8 +40,7 @@ from exo_bench.matrix_method.numba_kernels.common import JIT, njit
 from exo_bench.matrix_method.numba_kernels.factored import _sample_2d, _sample_3d
 from exo_bench.models.forward_check import DONE, EXACT, NOT_FINITE, _finite, _row_clear
 from exo_bench.models.numba_runtime import jit_disabled
-
-__all__ = ["DONE", "EXACT", "NOT_FINITE", "checked_forward", "entries", "forward_sample"]
+from exo_bench.models.validation_pass import LARGE, OK, STACK_DOUBLES, one_sample, stack_matrix
 
 
 @njit(**JIT)
@@ -107,8 +106,14 @@ def forward_sample(p, lc, x, xd, tau, o):
     coupling) into ``o``; False, ``o`` untouched, where ``M`` is singular (a rod vertical or of
     length zero) or a length is not finite."""
     n, d = p.shape[0], x.shape[0]
-    k, work = np.empty((7, n)), np.zeros(2 * d)
-    zero, b = work[:d], work[d:]
+    return _forward_into(p, lc, x, xd, tau, o, np.empty((7, n)), np.zeros((2, d)))
+
+
+@njit(**JIT)
+def _forward_into(p, lc, x, xd, tau, o, k, work):
+    """:func:`forward_sample` with its scratch given: ``k`` ``(7, n)``, ``work`` ``(2, d)`` of zeros."""
+    n, d = p.shape[0], x.shape[0]
+    zero, b = work[0], work[1]
     if d == 2 * n:
         _sample_2d(p, x, xd, zero, b, 0, k)
     else:
@@ -133,21 +138,89 @@ def checked_forward(p, lc, plan, x, xd, tau, o):
     return DONE if _finite(o) else NOT_FINITE
 
 
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
+
+
+@njit(**_LEAN)
+def forward_entry(p, lc, fplan, plan, x, xd, tau, o, check):
+    """The compiled validate-and-compute entry of one sample (the ``cholesky-forward`` kernel's, called by
+    the public call through :func:`entry`): the layout of the four arrays and, with ``check``, the checks
+    of ``check=True`` (:func:`exo_bench.models.validation_pass.one_sample`), then :func:`checked_forward`'s
+    work with its scratch on the stack: :data:`DONE` (0) with the accelerations in ``o``, or a code
+    (a layout or value problem, a state near a bound of the regularity checks, ``M`` singular, an answer
+    that is not finite), having written nothing into ``o``: its Python path then decides and names it. With ``check=False`` the regularity checks' common case runs too: where it does not clear, the
+    Python path names a singular state as before."""
+    code = one_sample(x, xd, tau, o, plan, check)
+    if code != OK:
+        return code
+    n, d = p.shape[0], x.shape[0]
+    if 7 * n + 3 * d > STACK_DOUBLES:
+        return LARGE
+    if not _row_clear(x, 0, d, n, fplan):
+        return EXACT
+    work = stack_matrix(2, d)
+    for i in range(d):
+        work[0, i] = 0.0
+    res = stack_matrix(1, d)[0]  # the answer, copied into o only when done
+    if not _forward_into(p, lc, x, xd, tau, res, stack_matrix(7, n), work):
+        return EXACT
+    if check and not _finite(res):
+        return NOT_FINITE
+    for i in range(d):  # o is written only when done
+        o[i] = res[i]
+    return DONE
+
+
+@njit(**JIT)
+def forward_batch(p, lc, fplan, x, xd, tau, o, check):
+    """Forward dynamics of every sample of the C-ordered ``(samples, d)`` arrays into ``o``, one after
+    another (:func:`forward_sample`'s arithmetic, its scratch made once); with ``check`` each sample first
+    clears the bounds of ``fplan`` (:func:`exo_bench.models.forward_check.plan`) and its answer is finite.
+    -1 when every sample is done, else the first sample that is not (``M`` singular, a bound, an answer
+    that is not finite): the caller's checked path then decides and names it."""
+    n, S, d = p.shape[0], x.shape[0], x.shape[1]
+    k, work = np.empty((7, n)), np.empty((2, d))
+    for s in range(S):
+        if check and not _row_clear(x[s], 0, d, n, fplan):
+            return s
+        work[0, :] = 0.0
+        if not _forward_into(p, lc, x[s], xd[s], tau[s], o[s], k, work):
+            return s
+        if check and not _finite(o[s]):
+            return s
+    return -1
+
+
+def entry(p: np.ndarray, lc: np.ndarray) -> Any:
+    """The compiled entry point of :func:`forward_entry` for the model's ``p`` and ``lc`` (or the function
+    itself under ``NUMBA_DISABLE_JIT``)."""
+    if jit_disabled():
+        return forward_entry
+    import numba
+
+    one, vector = types.Array(types.float64, 1, "C"), types.Array(types.float64, 1, "A")
+    plan = types.Array(types.int64, 1, "C")
+    sig = (numba.typeof(p), numba.typeof(lc), one, plan, vector, vector, vector, vector, types.boolean)
+    return forward_entry.compile(sig)
+
+
 class Entries(NamedTuple):
     """The compiled entry points (or the functions run by Python under ``NUMBA_DISABLE_JIT``)."""
 
     forward_sample: Any
     checked_forward: Any
+    forward_batch: Any
 
 
 @functools.cache
 def entries() -> Entries:
     """Resolved (compiled, or loaded from numba's on-disk cache) on the first call in a process."""
     if jit_disabled():
-        return Entries(forward_sample, checked_forward)
+        return Entries(forward_sample, checked_forward, forward_batch)
     one, two = types.Array(types.float64, 1, "C"), types.Array(types.float64, 2, "C")
     p = types.Array(types.float64, 2, "C", readonly=True)  # the (n, n + 2) table of common.params
     return Entries(
         forward_sample.compile((p, two, one, one, one, one)),
         checked_forward.compile((p, two, one, one, one, one, one)),
+        forward_batch.compile((p, two, one, two, two, two, two, types.boolean)),
     )

@@ -6,12 +6,12 @@ list. Each ``load`` binds a kernel to one prepared model (its ``table``, ``kerne
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from exo_bench.models.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
-from exo_bench.models.lean_call import lean_kernel
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 
@@ -48,9 +48,7 @@ def _per_sample(model: Any) -> Entries:
         return out
 
     batch = _passes(model, True, None)
-    return Entries(
-        inverse_one=inverse_one, forward_one=_forward_one(model, kernel), forward_whole=batch, forward_chunk=batch
-    )
+    return Entries(inverse_one=inverse_one, forward_one=_forward_one(model, kernel), forward_chunk=batch)
 
 
 def _serial_entry(model: Any) -> Any:
@@ -80,17 +78,31 @@ def _forward_one(model: Any, kernel: Any) -> Any:
 def _tree_forward(model: Any) -> Entries:
     """Newton-euler's checked forward dynamics of one sample: the compiled common-case checks and its
     serial forward passes in one call (:mod:`exo_bench.models.newton_euler.forward_fused`); near a
-    bound the model's exact ``check_regular`` decides and names why, then the same passes run."""
+    bound the model's exact ``check_regular`` decides and names why, then the same passes run. Its
+    ``forward_fast``: the same in the public call's one compiled call, the states' checks included."""
     from exo_bench.models.forward_check import checked_entry
-    from exo_bench.models.newton_euler.forward_fused import entry
+    from exo_bench.models.newton_euler.forward_fused import batch_entry, entry, lean_entry
+    from exo_bench.models.states import validation_plan
 
-    from exo_bench.models.forward_check import lean_entry
-    from exo_bench.models.newton_euler import forward_lean as c
+    forward_one = _forward_one(model, _serial_entry(model))  # the per-sample kernel's (the same passes)
+    fused = checked_entry(model, entry(), (model.table,), forward_one)
+    passes, checked = _passes(model, True, None), batch_entry()
+    model._forward_checks or model._resolve_forward_checks()  # the checks' plan, once per model
+    table, plan = model.table, model.forward_plan
 
-    forward_one = _forward_one(model, _serial_entry(model))
-    # forward_one: the per-sample kernel's (the same passes); forward_lean: the same fused call in C
-    lean = lean_entry(model, c.checked_forward_c, lambda plan: c.packed(model.table, plan))
-    return Entries(forward_checked=checked_entry(model, entry(), (model.table,), forward_one), forward_lean=lean)
+    def whole(q, qd, tau, out, check):
+        """A batch: with ``check`` the checks' common case and the passes sample by sample in one compiled
+        call (None where a sample does not clear them: the checked path decides), else the passes."""
+        if not check:
+            return passes(q, qd, tau, out)
+        o = model._results.empty(q.shape) if out is None else out
+        return o if checked(table, plan, q, qd, tau, o) < 0 else None
+
+    compiled = lean_entry(model.table)
+    if compiled is None:  # NUMBA_DISABLE_JIT
+        return Entries(forward_checked=fused, forward_whole=whole)
+    fast = partial(compiled, table, plan, validation_plan(model.mechanism))
+    return Entries(forward_checked=fused, forward_fast=fast, forward_whole=whole)
 
 
 def _simd(model: Any) -> Entries:
@@ -102,10 +114,14 @@ def _simd(model: Any) -> Entries:
 
 
 def _lean(model: Any) -> Entries:
-    """One sample with ``check=False`` in C (:mod:`exo_bench.models.newton_euler.lean`)."""
+    """One sample in one compiled call, checks included (:mod:`exo_bench.models.newton_euler.lean`)."""
     from exo_bench.models.newton_euler import lean
+    from exo_bench.models.states import validation_plan
 
-    return lean.entries(model)
+    compiled = lean.entry(model.table)
+    if compiled is None:  # NUMBA_DISABLE_JIT
+        return Entries()
+    return Entries(inverse_fast=partial(compiled, model.table, float(model._g), validation_plan(model.mechanism)))
 
 
 def _numpy(model: Any) -> Entries:
@@ -159,12 +175,18 @@ NEWTON_EULER_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_simd,
     ),
-    lean_kernel(
-        "below NEWTON_EULER's call_seconds: one sample's passes and a few checks in C (the per-sample "
-        "inverse pass of compiled.py as a cfunc, models/newton_euler/lean.py)",
-        15.0,
-        _lean,
+    Kernel(
+        "lean",
+        "numba",
+        ("inverse_dynamics",),
+        (ONE_SAMPLE,),
+        "one thread: the calling one",
+        "below NEWTON_EULER's call_seconds: one sample's checks and passes in one compiled call (the "
+        "per-sample inverse pass of compiled.py behind models/newton_euler/lean.py's entry)",
         speed=0.12,
+        compile_seconds=15.0,
+        runtime_bytes=NUMBA_BYTES,
+        load=_lean,
     ),
     Kernel(
         "numpy",

@@ -1,72 +1,56 @@
-"""newton-euler's lean one-sample call: the per-sample inverse pass of
-:mod:`exo_bench.models.newton_euler.compiled` as numba ``cfunc`` s (one per dimension) behind the C
-wrapper of :mod:`exo_bench.models.lean_call`, the code of the ``lean`` kernel object of
-:data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`.
+"""newton-euler's one sample with nothing but the arithmetic around it: the code of the ``lean`` kernel
+object of :data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`.
 
-``void f(double *p, double *q, double *qd, double *qdd, double *out, int64 n)``: ``p`` is the model's
-``(8, n)`` table followed by ``g`` (:func:`params`) and the pass's ``(n, WIDTH)`` scratch (zeroed at
-each call, as ``np.zeros`` did, in :func:`exo_bench.models.lean_call.block`: a call allocates
-nothing), ``n`` the number of links; the wrapper has checked every array. The same function as the serial kernel's, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
-on the same scratch row width, so the forces are bit-identical to it (tests/test_newton_euler_lean.py).
-Imported on first use (compiling on a fresh machine, loading from numba's on-disk cache after)."""
+:func:`inverse_entry` is the compiled validate-and-compute entry of inverse dynamics of one sample: the
+layout of the four arrays and, with ``check``, the checks of ``check=True``
+(:func:`exo_bench.models.validation_pass.one_sample`), then the per-sample inverse pass of
+:mod:`exo_bench.models.newton_euler.compiled`, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
+on a zeroed ``(n, WIDTH)`` scratch on the stack (as the serial kernel's ``np.zeros``): the forces are
+bit-identical to the serial kernel's (tests/test_newton_euler_lean.py). It answers 0 (done) or the
+problem's code, having written nothing; the public call then takes its Python path, which names it.
+Compiled without numba's reference-counted runtime (unboxing an array allocates nothing).
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
-from numba import carray, cfunc, njit, types
+from numba import njit, types
 
-from exo_bench.models.kernels import Entries
 from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
-from exo_bench.models.numba_runtime import JIT
+from exo_bench.models.numba_runtime import JIT, jit_disabled
+from exo_bench.models.validation_pass import LARGE, OK, STACK_DOUBLES, one_sample, stack_matrix
 
-_P = types.CPointer(types.float64)
-SIGNATURE = types.void(_P, _P, _P, _P, _P, types.int64)
-
-
-@njit(inline="always", **JIT)  # in each cfunc's own code
-def _sample(p, q, qd, qdd, o, n, dim):
-    whole, d = carray(p, (8 * n + 1 + n * WIDTH,)), dim * n
-    g, W = whole[8 * n], whole[8 * n + 1 :].reshape((n, WIDTH))
-    W[:] = 0.0
-    _inverse_sample(
-        carray(p, (8, n)), g, dim, carray(q, (d,)), carray(qd, (d,)), carray(qdd, (d,)), carray(o, (d,)), 0, W
-    )
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
 
 
-@cfunc(SIGNATURE, cache=True)  # a cfunc is always compiled in nopython mode
-def lean_c_2d(p, q, qd, qdd, o, n):
-    _sample(p, q, qd, qdd, o, n, 2)
+@njit(**_LEAN)
+def inverse_entry(t, g, plan, q, qd, qdd, o, check):
+    """One sample into ``o`` (module docstring): 0, or the code of what the caller names."""
+    code = one_sample(q, qd, qdd, o, plan, check)
+    if code != OK:
+        return code
+    n = t.shape[1]
+    if n * WIDTH > STACK_DOUBLES:
+        return LARGE
+    W = stack_matrix(n, WIDTH)
+    for k in range(n):
+        for j in range(WIDTH):
+            W[k, j] = 0.0
+    _inverse_sample(t, g, q.shape[0] // n, q, qd, qdd, o, 0, W)
+    return OK
 
 
-@cfunc(SIGNATURE, cache=True)
-def lean_c_3d(p, q, qd, qdd, o, n):
-    _sample(p, q, qd, qdd, o, n, 3)
+_VECTOR = types.Array(types.float64, 1, "A")
+_PLAN = types.Array(types.int64, 1, "C")
 
 
-CFUNCS = {2: lean_c_2d, 3: lean_c_3d}
-
-
-def params(table: np.ndarray, g: float) -> np.ndarray:
-    """The cfunc's ``p``: the C-ordered ``(8, n)`` table, then ``g``."""
-    return np.concatenate([np.ascontiguousarray(table, dtype=np.float64).reshape(-1), [float(g)]])
-
-
-def _declined(*args: Any, **kw: Any) -> None:
-    """The wrapper's fallback: the call is not one it takes (the base class goes on)."""
-    return None
-
-
-def entries(model: Any) -> Entries:
-    """The lean call bound to ``model`` (its ``table``, ``g`` and dimension), or no entry where the C
-    wrapper was not built (the per-sample kernel's entry then runs)."""
-    from exo_bench.models.lean_call import c_call
-
-    address = getattr(CFUNCS[model.mechanism.dim], "address", None)  # None: NUMBA_DISABLE_JIT
-    from exo_bench.models.states import validation_plan
-
-    plan = validation_plan(model.mechanism)  # the C wrapper takes check=True too, validating first
-    n = int(model.table.shape[1])
-    call = c_call(address, params(model.table, model._g), _declined, model.dof, n, plan, scratch=n * WIDTH)
-    return Entries() if call is None else Entries(lean=call)
+def entry(table: np.ndarray) -> Any:
+    """The compiled entry point of :func:`inverse_entry` for the model's ``(8, n)`` table (None under
+    ``NUMBA_DISABLE_JIT``: the public call's Python path runs)."""
+    if jit_disabled():
+        return None
+    sig = (numba.typeof(table), types.float64, _PLAN, _VECTOR, _VECTOR, _VECTOR, _VECTOR, types.boolean)
+    return inverse_entry.compile(sig)

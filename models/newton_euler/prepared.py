@@ -82,7 +82,9 @@ class NewtonEuler(PreparedModel):
         return passes.forward_dynamics(self.tree, self._dim, self._g, q, qd, tau)
 
     def _mass_matrix(self, q):
-        return passes.mass_matrix(self.tree, self._dim, coupling(self._mechanism), q)  # n x n: the output's order
+        if (c := self.__dict__.get("_coupling")) is None:  # once per model: one call fewer per call
+            c = self.__dict__["_coupling"] = coupling(self._mechanism)
+        return passes.mass_matrix(self.tree, self._dim, c, q)  # n x n: the output's order
 
     def _bias_forces(self, q, qd):
         return self._inverse_dynamics(q, qd, np.zeros_like(q))
