@@ -160,12 +160,12 @@ def test_the_one_sample_entry_refuses_what_the_edge_refuses(exo):
     with pytest.raises(ValueError, match=r"field 'qd': expected shape \(15,\), got \(14,\)"):
         D.inverse_dynamics(x, xd[:14], xdd, check=False)
     strided = np.repeat(x, 2)[::2]
-    with pytest.raises(ValueError, match=r"field 'q': expected a C-contiguous float64.*not C-contiguous"):
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*not C-contiguous"):
         D.inverse_dynamics(strided, xd, xdd, check=False)
     want = D.inverse_dynamics(x, xd, xdd)
     for a, b in zip(D.inverse_dynamics(strided, xd, xdd), want):  # check=True converts it: the same numbers
         np.testing.assert_array_equal(a, b)
-    with pytest.raises(ValueError, match=r"field 'qdd': expected a C-contiguous float64.*float32"):
+    with pytest.raises(ValueError, match=r"field 'qdd': expected .*float64.*float32"):
         D.inverse_dynamics(x, xd, xdd.astype(np.float32), check=False)
 
 
@@ -177,9 +177,7 @@ def test_a_matrix_never_reaches_a_kernel(exo):
     want = D.inverse_dynamics(x, xd, xdd)
     for a, b in zip(D.inverse_dynamics(np.asmatrix(x), xd, xdd), want):
         np.testing.assert_array_equal(np.asarray(a), b)
-    with pytest.raises(
-        ValueError, match=r"field 'q': expected a C-contiguous float64 numpy.ndarray \(not a subclass\)"
-    ):
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*not a subclass"):
         D.inverse_dynamics(np.asmatrix(x), xd, xdd, check=False)
     with pytest.raises(ValueError, match=r"field 'w': .*not a subclass"):
         D.inverse_dynamics_vjp(x, xd, xdd, np.asmatrix(xd), check=False)

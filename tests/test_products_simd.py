@@ -116,13 +116,11 @@ def test_unchecked_products_take_plain_arrays_only_with_the_same_numbers(provide
     )
     fortran = np.asfortranarray(dq)
     np.testing.assert_array_equal(D.inverse_dynamics_jvp(q, qd, qdd, fortran, dqd, dqdd), ref)
-    with pytest.raises(
-        ValueError, match=r"field 'dq': expected a C-contiguous float64 numpy.ndarray.*not C-contiguous"
-    ):
+    with pytest.raises(ValueError, match=r"field 'dq': expected .*float64.*not C-contiguous"):
         D.inverse_dynamics_jvp(q, qd, qdd, fortran, dqd, dqdd, check=False)
-    with pytest.raises(ValueError, match=r"field 'q': expected a C-contiguous float64 numpy.ndarray.*float32"):
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*float32"):
         D.inverse_dynamics_jvp(q.astype(np.float32), qd, qdd, dq, dqd, dqdd, check=False)
-    with pytest.raises(ValueError, match=r"field 'q': expected a C-contiguous float64 numpy.ndarray.*got list"):
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*got list"):
         D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w, check=False)
     for a, b in zip(D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w), refs):
         np.testing.assert_array_equal(a, b)
