@@ -418,8 +418,9 @@ class Derivatives:
                     f"{source}: field '{name}': expected {counts[0]} sample{'s' * (counts[0] != 1)} "
                     f"(as {names[0]}), got {c}"
                 )
+        shaped: list[Any]
         if not check:
-            shaped = array_gate.as_states(arrays, names, d, source, False)  # converts nothing: refuses, naming
+            shaped = list(array_gate.as_states(arrays, names, d, source, False))  # converts nothing: refuses, naming
         else:
             shaped = list(arrays)
             for k in range(states, len(arrays)):  # a direction or weight: through the gate (converted), then finite
@@ -592,8 +593,8 @@ class Derivatives:
         (q, qd, qdd), single = self._edge(_INVERSE, (q, qd, qdd), check)
         if not q.shape[0]:
             return tuple(np.zeros((0, self._dof, self._dof)) for _ in range(3))
-        out = self._inverse(q, qd, qdd)
-        return (out[0][0], out[1][0], out[2][0]) if single else out
+        jacobians = self._inverse(q, qd, qdd)
+        return (jacobians[0][0], jacobians[1][0], jacobians[2][0]) if single else jacobians
 
     def forward_dynamics(self, q, qd, tau, check: bool = True):
         """``(qdd, dqdd_dq, dqdd_dqd, Minv)`` at the states and forces: ``qdd (S, dof)``, the rest
