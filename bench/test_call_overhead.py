@@ -2,8 +2,9 @@
 
 * ``test_issue35_goals``: one row that times every call of the goals interleaved in this process
   (bench/perf/reports/goals_call_overhead.py :func:`measure`), the ratios the report judges
-  (reports/scaling.md, "Issue 35"). The agreement of every timed result is asserted (one-sample
-  inverse dynamics against the 50-digit reference, forward dynamics' backward error); the speed
+  (reports/scaling.md, "Issue 35"), with issue 47's two rows of the public ``model.derivatives.inverse_dynamics``
+  of one sample. The agreement of every timed result is asserted (one-sample inverse dynamics against the
+  50-digit reference, forward dynamics' backward error, the derivatives' ``M`` against the mass matrix); the speed
   goals are reported, never asserted: timing goals belong to a quiet machine, not to a test.
 * ``test_call[...]``: each of the same calls alone as a pytest-benchmark row (group
   ``overhead-exo5-3d``), for ``py.test-benchmark compare`` across commits.
@@ -40,6 +41,7 @@ def test_issue35_goals(benchmark, sweep):
     assert all(e <= r["err_bound"] for e in r["inverse_err"].values()), r["inverse_err"]
     assert all(e <= b for e, b in r["forward_backward_err"].values()), r["forward_backward_err"]
     assert r["inverse_batch_diff"] <= r["err_bound"], r["inverse_batch_diff"]
+    assert all(e <= 1e-12 for e in r["derivatives_mass_err"].values()), r["derivatives_mass_err"]  # relative
     benchmark.extra_info.update(
         method="(issue 35 goals)", mechanism=r["mechanism"], samples=r["samples"], n=5, dim=3, call_overhead=r
     )

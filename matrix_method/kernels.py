@@ -207,3 +207,7 @@ MATRIX_FACTORED_KERNELS = (
     ),
     _numpy("MATRIX_FACTORED", _DERIVED),
 )
+
+#: Why matrix-paper's results are known to be wrong, in one line: its prepared-model class's ``known_wrong``
+#: and its MethodSpec's (here, beside the kernels both list, so that the method table imports no numba).
+PRINTED_EQ18_WRONG = "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"

@@ -18,7 +18,7 @@ from test_jvp import _directions, _mv, _vm
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
 from exo_bench.models.derivatives.derivatives import Derivatives
-from exo_bench.models.derivatives.derivatives_products import PRODUCTS_SIMD_BELOW_LINKS
+from exo_bench.models.derivatives.derivatives import PRODUCTS_SIMD_BELOW_LINKS
 from exo_bench.models.newton_euler import products
 from exo_bench.models.mechanism.presets import random_tree
 from exo_bench.models.machine.simd_blocks import LANES
@@ -97,43 +97,40 @@ def test_a_batch_equals_its_samples_one_by_one(providers):
             np.testing.assert_array_equal(a, b[s])
 
 
-def test_unchecked_products_take_the_lean_route_with_the_same_numbers(providers, monkeypatch):
-    """``check=False`` on C-contiguous float64 arrays of one shape goes straight to the kernel (no
-    conversion), with the numbers of ``check=True``, to the bit; anything else (a Fortran-ordered view,
-    float32, a list, a wrong length) takes the general path, which converts or refuses naming the field."""
+def test_unchecked_products_take_plain_arrays_only_with_the_same_numbers(providers):
+    """``check=False`` on C-contiguous float64 arrays of one shape goes straight to the kernel, with the
+    numbers of ``check=True``, to the bit, batch and one sample; anything else (a Fortran-ordered view,
+    float32, a list, a wrong length) is refused by the array gate (models/states/array_gate.py) naming the field:
+    ``check=False`` converts nothing (``check=True`` converts it, with the same numbers)."""
     mech = TREES[0]
     D = providers[mech.name]
     q, qd, qdd = states(mech, 5, 67)
     dq, dqd, dqdd, w = _directions(mech, 5, 68)
     ref = D.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd)
     refs = D.inverse_dynamics_vjp(q, qd, qdd, w)
-    seen = []
-    lean = D._lean_products
-    monkeypatch.setattr(D, "_lean_products", lambda *a: seen.append(r := lean(*a)) or r)
     np.testing.assert_array_equal(D.inverse_dynamics_jvp(q, qd, qdd, dq, dqd, dqdd, check=False), ref)
     for a, b in zip(D.inverse_dynamics_vjp(q, qd, qdd, w, check=False), refs):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(
         D.inverse_dynamics_jvp(q[2], qd[2], qdd[2], dq[2], dqd[2], dqdd[2], check=False), ref[2]
     )
-    assert all(r is not None for r in seen)
-    seen.clear()
     fortran = np.asfortranarray(dq)
-    np.testing.assert_array_equal(D.inverse_dynamics_jvp(q, qd, qdd, fortran, dqd, dqdd, check=False), ref)
-    low = D.inverse_dynamics_jvp(q.astype(np.float32), qd, qdd, dq, dqd, dqdd, check=False)
-    np.testing.assert_array_equal(
-        low, D.inverse_dynamics_jvp(q.astype(np.float32).astype(float), qd, qdd, dq, dqd, dqdd)
-    )
-    for a, b in zip(D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w, check=False), refs):
+    np.testing.assert_array_equal(D.inverse_dynamics_jvp(q, qd, qdd, fortran, dqd, dqdd), ref)
+    with pytest.raises(ValueError, match=r"field 'dq': expected .*float64.*not C-contiguous"):
+        D.inverse_dynamics_jvp(q, qd, qdd, fortran, dqd, dqdd, check=False)
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*float32"):
+        D.inverse_dynamics_jvp(q.astype(np.float32), qd, qdd, dq, dqd, dqdd, check=False)
+    with pytest.raises(ValueError, match=r"field 'q': expected .*float64.*got list"):
+        D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w, check=False)
+    for a, b in zip(D.inverse_dynamics_vjp(q.tolist(), qd, qdd, w), refs):
         np.testing.assert_array_equal(a, b)
-    assert seen == [None, None, None]
     with pytest.raises(ValueError, match=r"field 'w': expected shape \(samples, 14\), got \(5, 4\)"):
         D.inverse_dynamics_vjp(q, qd, qdd, w[:, :4], check=False)
 
 
 def test_unchecked_products_estimate_their_memory_first(providers, monkeypatch):
-    """The lean route refuses a batch over the usable memory before any work (CallTooLarge), as the general
-    path does (tests/test_call_memory_estimate.py holds that path on broadcast views)."""
+    """``check=False`` refuses a batch over the usable memory before any work (CallTooLarge), as ``check=True``
+    does (tests/test_call_memory_estimate.py holds that path on broadcast views)."""
     from exo_bench.models.machine import memory
 
     mech = TREES[0]

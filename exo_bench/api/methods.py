@@ -18,7 +18,12 @@ from dataclasses import dataclass
 
 from exo_bench.api import cost_formulas as cost
 from exo_bench.api.cost_formulas import CostModel
-from exo_bench.matrix_method.kernels import MATRIX_FACTORED_KERNELS, MATRIX_KERNELS, RECURRENCE_KERNELS
+from exo_bench.matrix_method.kernels import (
+    MATRIX_FACTORED_KERNELS,
+    MATRIX_KERNELS,
+    PRINTED_EQ18_WRONG,
+    RECURRENCE_KERNELS,
+)
 from exo_bench.models.runtime.kernels import Kernel, kernel_options
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.runtime.prepared import PreparedModel
@@ -42,7 +47,8 @@ class MethodSpec:
     #: Its kernels (:mod:`exo_bench.models.runtime.kernels`), the tuple its prepared-model class lists; the
     #: option ``kernel`` chooses among them by their ``option`` (empty: no such option).
     kernels: tuple[Kernel, ...] = ()
-    #: Why its results are known to be wrong (None: they are not), in one line.
+    #: Why its results are known to be wrong (None: they are not), in one line: the prepared-model class's
+    #: ``known_wrong`` (the same constant; listed here too so that a report needs no class imported).
     known_wrong: str | None = None
     #: The longer reason a report gives where it disagrees with the other methods.
     why_it_disagrees: str | None = None
@@ -52,10 +58,6 @@ class MethodSpec:
     #: Its symbolic composition stays far inside the budget at every n of the sweep (3D n = 50 in
     #: about a minute): a benchmark row that composes only such methods needs no chain.
     composes_within_budget: bool = False
-    #: Its ``derivatives`` (the analytic derivatives of the Newton-Euler passes, exo_bench.models.derivatives.derivatives)
-    #: differentiate the very passes it evaluates (newton-euler), not merely equations it agrees with to
-    #: rounding.
-    derivatives_are_its_own: bool = False
     #: Its preparation derives the equations within a time budget: its option ``budget`` (``--budget``,
     #: ``Limits.budget``), estimated and refused before the derivation starts.
     derivation_budget: bool = False
@@ -104,8 +106,6 @@ class MethodSpec:
             importlib.import_module("exo_bench.models.machine.numba_runtime").ensure()
         return getattr(importlib.import_module(self.module), self.cls)
 
-
-_WRONG_18 = "eq. (18) as printed has misprints: 3D results are wrong by design (reports/errata.md)"
 
 #: Every method, by name, in the order reports list them.
 METHODS: dict[str, MethodSpec] = {
@@ -169,7 +169,7 @@ METHODS: dict[str, MethodSpec] = {
             "the matrix method with eq. (18) exactly as printed: WRONG in 3D by design (misprints, 0/0)",
             colour="#e7298a",
             cost=cost.MATRIX_PAPER,
-            known_wrong=_WRONG_18,
+            known_wrong=PRINTED_EQ18_WRONG,
             why_it_disagrees="it evaluates eq. (18) exactly as printed, misprints included: see "
             "reports/errata.md (3D g^l and k^l) and reports/stability.md",
         ),
@@ -196,7 +196,6 @@ METHODS: dict[str, MethodSpec] = {
             kernels=NEWTON_EULER_KERNELS,
             fit_rank=1,
             own_forward_dynamics=True,
-            derivatives_are_its_own=True,
         ),
         MethodSpec(
             "mujoco",

@@ -13,27 +13,8 @@ from __future__ import annotations
 from typing import Any
 
 from exo_bench.api.methods import method_class, spec
-from exo_bench.models.runtime import prepared
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.runtime.prepared import PreparedModel
-
-
-def _derivatives(mechanism: Mechanism, method: str) -> Any:
-    """The analytic derivatives (:mod:`exo_bench.models.derivatives.derivatives`) for every method, no CasADi; CasADi's
-    stay reachable as ``exo_bench.matrix_method.derivatives.derivatives_of(mechanism, method)``."""
-    from exo_bench.api.methods import METHODS
-    from exo_bench.models.derivatives.derivatives import derivatives_of, source_text
-
-    method_spec = METHODS.get(method)
-    source = source_text(
-        method,
-        own=method_spec is not None and method_spec.derivatives_are_its_own,
-        known_wrong=method_spec is not None and method_spec.known_wrong is not None,
-    )
-    return derivatives_of(mechanism, method, source)
-
-
-prepared.derivative_provider = _derivatives  # every prepared model's .derivatives (models.prepared)
 
 
 def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: Any) -> PreparedModel:

@@ -54,7 +54,8 @@ KERNEL_SOURCES: Mapping[Path, tuple[Path, ...]] = MappingProxyType(
             _MODELS / "runtime" / "forward_check.py",
         ),
         # its kernels inline the rod elements (rod_elements.py, below every method: external_forces.py
-        # projects with them too); forward_fused.py calls the compiled checks of forward_check.py
+        # projects with them too); forward_fused.py and the derivatives' one-sample entry (derivatives_simd.py)
+        # call the compiled checks of forward_check.py (and the states' pass: a shared source)
         _MODELS / "newton_euler": (_MODELS / "mechanism" / "rod_elements.py", _MODELS / "runtime" / "forward_check.py"),
         # one kernel file of its own (a key may be a file: its kernels are keyed on it and these, not on
         # the rest of models/): f_ext's pass projects with the rod elements

@@ -271,7 +271,14 @@ class InverseDerivatives:
         run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))
 
     def _auto(self, q, qd, qdd, out) -> None:
-        (self._simd if self.nlinks < SIMD_BELOW_LINKS else self._numba)(q, qd, qdd, out)
+        (self._simd if self.auto_simd() is not None else self._numba)(q, qd, qdd, out)
+
+    def auto_simd(self) -> tuple | None:
+        """The SIMD kernel's driver, kernel, parameters and scratch (:meth:`_simd_prepare`) where
+        ``kernel="auto"`` runs it on a batch (fewer than :data:`SIMD_BELOW_LINKS` links), else None."""
+        if self.nlinks >= SIMD_BELOW_LINKS:
+            return None
+        return self._simd_scratch or self._simd_prepare()
 
     def _parallel_samples(self, samples: int) -> int:
         """``samples`` in units of numba_runtime's threshold: the batch runs on threads from

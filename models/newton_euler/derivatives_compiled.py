@@ -198,11 +198,9 @@ def _overlap(a, b):
 
 
 @njit(**JIT)
-def derivatives_one(ws, n, g, dim, x, xd, xdd, oq, oqd, om):
-    """:func:`derivatives_sample` on a :func:`workspace` ``ws``, behind a check of memory safety that
-    costs nanoseconds: 0, or ``k + 1`` where output ``k`` is not ``(dof, dof)`` or overlaps a state or
-    an earlier output (then nothing is written; the caller names it), or 4 where a state is not
-    ``(dof,)``. The one-sample entry of :class:`exo_bench.models.newton_euler.derivatives.InverseDerivatives`."""
+def _unsafe(n, dim, x, xd, xdd, oq, oqd, om):
+    """The check of memory safety of the one-sample entries, nanoseconds: 0, or ``k + 1`` where output
+    ``k`` is not ``(dof, dof)`` or overlaps a state or an earlier output, or 4 where a state is not ``(dof,)``."""
     dof = dim * n
     if x.shape[0] != dof or xd.shape[0] != dof or xdd.shape[0] != dof:
         return 4
@@ -216,9 +214,26 @@ def derivatives_one(ws, n, g, dim, x, xd, xdd, oq, oqd, om):
         for j in range(k):
             if _overlap(o, outs[j]):
                 return k + 1
+    return 0
+
+
+@njit(**JIT)
+def derivatives_one(ws, n, g, dim, x, xd, xdd, oq, oqd, om):
+    """:func:`derivatives_sample` on a :func:`workspace` ``ws``, behind :func:`_unsafe` (nothing is
+    written where it answers, and the caller names why). The one-sample entry of
+    :class:`exo_bench.models.newton_euler.derivatives.InverseDerivatives`."""
+    code = _unsafe(n, dim, x, xd, xdd, oq, oqd, om)
+    if code:
+        return code
     t, mu, W, Y, P, tau, m = _unpack(ws, n, dim)
     derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, tau, m, m, False)  # not streamed: in cache
     return 0
+
+
+@njit(**JIT)
+def _plain(a):
+    """A one-dimensional array (typed C-ordered by the caller's entry point) whose entries lie 8 bytes apart, aligned."""
+    return a.strides[0] == 8 and a.ctypes.data % 8 == 0
 
 
 @njit(**JIT)

@@ -30,17 +30,23 @@ per-sample kernel from :data:`exo_bench.models.newton_euler.derivatives.SIMD_BEL
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
 from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler import derivatives_compiled as dc
 from exo_bench.models.newton_euler.derivatives_compiled import _blocks as _row_blocks
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import simd
+from exo_bench.models.newton_euler.compiled import WIDTH
 from exo_bench.models.machine.numba_cache import inline
 from exo_bench.models.machine.numba_runtime import JIT, ensure
 from exo_bench.models.machine.simd_angles import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import CF, CP, F0, FROWS, K0, LANES, O0, ROWS, SF, SP, block_transposes
+from exo_bench.models.runtime.forward_check import _row_clear
+from exo_bench.models.states.validation_pass import OK, QD, QDD, status
 
 ensure()
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -158,3 +164,70 @@ def simd_derivatives(p, q, qd, qdd, o, start, stop, S):
             _block(t, mu, g, dim, q, qd, qdd, oq, oqd, om, s0, B, S)
         else:
             _block(t, mu, g, dim, q, qd, qdd, oq, oqd, om, s0, stop - s0, S)
+
+
+# ---------------------------------------------------------------------- one sample of the public call
+#: :func:`checked_one`'s answers where it wrote nothing (beside those of
+#: :func:`exo_bench.models.newton_euler.derivatives_compiled._unsafe`, 1-4): a state not plain (strides other
+#: than 8 bytes, or not aligned), or a check of ``check=True`` that did not clear the state. The caller's
+#: exact path then refuses naming why, or decides (:class:`exo_bench.models.derivatives.derivatives.Derivatives`).
+NOT_PLAIN, EXACT = 5, 6
+#: Floats of the head of :func:`one_workspace`: the ends of its parts.
+_HEAD = 16
+
+
+def one_workspace(table: np.ndarray, mu: np.ndarray, dim: int, fplan: np.ndarray, vplan: np.ndarray, simd: bool):
+    """The packed first argument of :func:`checked_one`, one per thread: a head of the parts' ends, the table,
+    ``mu``, the plans of the checks (``fplan``: :mod:`exo_bench.models.runtime.forward_check`'s; ``vplan``:
+    :mod:`exo_bench.models.states.validation_pass`'s int64, as float64 bits) and the scratch of the kernel that
+    runs (``simd``: :func:`scratch`'s, else :func:`exo_bench.models.newton_euler.derivatives_compiled.scratch`'s),
+    each flat: each array argument of a compiled entry costs its unboxing (~40 ns)."""
+    n = table.shape[1]
+    kernel = scratch(n, dim) if simd else dc.scratch(n, dim)
+    parts = [table, mu, fplan, vplan.view(np.float64), *(a.view(np.float64) for a in kernel)]
+    ends = np.cumsum([a.size for a in parts]) + _HEAD
+    head = np.zeros(_HEAD)
+    head[: len(ends)] = ends
+    return np.concatenate([head, *(a.reshape(-1) for a in parts)])
+
+
+#: The entry's options: :data:`JIT` without numba's reference-counted memory, so that unboxing an array
+#: allocates nothing (as :mod:`exo_bench.models.states.validation_pass`'s entries: about half the cost of a call's
+#: seven arrays); nothing it runs allocates.
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
+
+
+@njit(**_LEAN)
+def checked_one(ws, n, g, dim, simd, check, x, xd, xdd, oq, oqd, om):
+    """The compiled per-sample entry of ``model.derivatives.inverse_dynamics`` on a :func:`one_workspace`:
+    the states plain (else :data:`NOT_PLAIN`) and their and the outputs' shapes and overlaps
+    (:func:`exo_bench.models.newton_euler.derivatives_compiled._unsafe`), then with ``check`` the states'
+    validation pass (:func:`exo_bench.models.states.validation_pass.status`) and the clearance of the singular
+    states (:func:`exo_bench.models.runtime.forward_check._row_clear`) (else :data:`EXACT`), then the kernel that a
+    batch of this mechanism runs (``simd``: :func:`_block` on one lane, else the per-sample
+    :func:`exo_bench.models.newton_euler.derivatives_compiled.derivatives_sample`), so that one sample has the
+    bits of its row in a batch: 0 when written. One call, an int back (an array returned would cost its
+    boxing, ~0.4 us)."""
+    if not (dc._plain(x) and dc._plain(xd) and dc._plain(xdd)):
+        return NOT_PLAIN
+    code = dc._unsafe(n, dim, x, xd, xdd, oq, oqd, om)
+    if code:
+        return code
+    dof = dim * n
+    e0, e1, e2, e3, e4, e5 = int(ws[0]), int(ws[1]), int(ws[2]), int(ws[3]), int(ws[4]), int(ws[5])
+    e6, e7, e8, e9, e10 = int(ws[6]), int(ws[7]), int(ws[8]), int(ws[9]), int(ws[10])  # the parts' ends
+    if check:
+        if status(x, xd, xdd, QD | QDD, ws[e2:e3].view(np.int64)) != OK:
+            return EXACT
+        if not _row_clear(x, 0, dof, n, ws[e1:e2]):
+            return EXACT
+    t, mu = ws[_HEAD:e0].reshape((8, n)), ws[e0:e1].reshape((n, n))
+    if simd:
+        S = (ws[e3:e4], ws[e4:e5], ws[e5:e6].view(np.int64), ws[e6:e7], ws[e7:e8], ws[e8:e9], ws[e9:e10])
+        one = (1, dof, dof)
+        _block(t, mu, g, dim, x, xd, xdd, oq.reshape(one), oqd.reshape(one), om.reshape(one), 0, 1, S)
+    else:
+        W, Y, P = ws[e3:e4].reshape((n, WIDTH)), ws[e4:e5].reshape((9, 3 * n)), ws[e5:e6].reshape((9, n))
+        m = ws[e7:e8]
+        dc.derivatives_sample(t, mu, g, dim, x, xd, xdd, oq, oqd, om, W, Y, P, ws[e6:e7], m, m, False)
+    return 0

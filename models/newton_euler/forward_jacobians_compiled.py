@@ -16,6 +16,8 @@ from numba import njit, prange
 
 from exo_bench.models.newton_euler import derivatives_compiled  # noqa: F401 - registers the derivative elements
 from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler.compiled import newton_euler, newton_euler_parallel
+from exo_bench.models.newton_euler.inverse_mass import columns, columns_parallel
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK
 
@@ -93,3 +95,36 @@ def forward_jacobians_parallel(dim, X, Xd, Xdd, T, Minv, DQ, DQD):
     S = X.shape[0]
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(dim, X, Xd, Xdd, T, Minv, DQ, DQD, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK))
+
+
+@njit(**JIT)
+def _eye(Minv):
+    """``Minv[s] = I`` for every sample: the right-hand sides of ``M^-1 I``, solved in place."""
+    for s in range(Minv.shape[0]):
+        for i in range(Minv.shape[1]):
+            for j in range(Minv.shape[2]):
+                Minv[s, i, j] = 1.0 if i == j else 0.0
+
+
+@njit(**JIT)
+def forward_derivatives(t, g, dim, X, Xd, T, Xdd, Minv, DQ, DQD):
+    """The kernels of ``model.derivatives.forward_dynamics`` in one compiled call, each sample in turn:
+    ``Xdd = FD(X, Xd, T)`` (newton-euler's passes, :func:`exo_bench.models.newton_euler.compiled.newton_euler`),
+    ``Minv = M^-1`` by ``dof`` columns of the O(n) forward dynamics
+    (:func:`exo_bench.models.newton_euler.inverse_mass.columns`), then :func:`forward_jacobians`: the same
+    calls, in the same order, as one after another from Python."""
+    newton_euler(t, g, dim, True, X.reshape(X.size), Xd.reshape(Xd.size), T.reshape(T.size), Xdd.reshape(Xdd.size))
+    _eye(Minv)
+    columns(t, dim, X, Minv, Minv)
+    forward_jacobians(dim, X, Xd, Xdd, T, Minv, DQ, DQD)
+
+
+@njit(**JIT)
+def forward_derivatives_parallel(t, g, dim, X, Xd, T, Xdd, Minv, DQ, DQD):
+    """:func:`forward_derivatives` with each kernel over numba's threads (their ``_parallel`` drivers)."""
+    newton_euler_parallel(
+        t, g, dim, True, X.reshape(X.size), Xd.reshape(Xd.size), T.reshape(T.size), Xdd.reshape(Xdd.size)
+    )
+    _eye(Minv)
+    columns_parallel(t, dim, X, Minv, Minv)
+    forward_jacobians_parallel(dim, X, Xd, Xdd, T, Minv, DQ, DQD)

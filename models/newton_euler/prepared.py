@@ -41,6 +41,7 @@ class NewtonEuler(PreparedModel):
 
     method = "newton-euler"
     kernels = NEWTON_EULER_KERNELS
+    derivatives_are_its_own = True  # its derivatives differentiate these very passes
 
     @classmethod
     def sample_bytes(cls, nlinks: int, dim: int) -> float:

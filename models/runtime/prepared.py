@@ -103,12 +103,6 @@ def _rebuild(cls, mechanism: Mechanism, options: dict):
     return cls(mechanism, **options)
 
 
-#: Builds the derivatives of a prepared model's equations, ``provider(mechanism, method)``: registered
-#: by ``exo_bench.api.preparation`` (``models.derivatives.derivatives_of``, with the method table's facts
-#: for its source text, which this layer cannot import). None until then.
-derivative_provider: Callable[[Mechanism, str], Any] | None = None
-
-
 class PreparedModel:
     """A mechanism prepared for one method. Subclasses set :attr:`method` and either list their
     :attr:`kernels` (and call :meth:`_use_kernels`) or implement :meth:`_inverse_dynamics`; they may
@@ -122,6 +116,12 @@ class PreparedModel:
     kernels: ClassVar[tuple[Kernel, ...]] = ()
     #: The option ``kernel`` this model runs ("" for a method without the option).
     kernel: str = ""
+    #: Its :attr:`derivatives` differentiate the very passes it evaluates (newton-euler), not merely
+    #: equations it agrees with to rounding (their ``source`` says which).
+    derivatives_are_its_own: ClassVar[bool] = False
+    #: Why its results are known to be wrong (None: they are not), in one line; its MethodSpec lists the
+    #: same line (exo_bench.api.methods), and its :attr:`derivatives` are then those of the correct equations.
+    known_wrong: ClassVar[str | None] = None
     #: The entries of the chosen kernels (:class:`~exo_bench.models.runtime.kernels.Entries`, bound by
     #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run. Set on the
     #: instance only: a class-level default (an instance of a mutable class) kept Python 3.11 from
@@ -183,14 +183,14 @@ class PreparedModel:
         -> (qdd, dqdd_dq, dqdd_dqd, Minv)``, batch-first, their directional derivatives (``*_jvp``,
         ``*_vjp``) and ``.source`` (which physics computes them): the analytic derivatives of the
         Newton-Euler passes for every method, :mod:`exo_bench.models.derivatives` (CasADi's stay in
-        :mod:`exo_bench.matrix_method.derivatives`)."""
+        :mod:`exo_bench.matrix_method.derivatives`), their ``source`` from this class's facts
+        (:attr:`derivatives_are_its_own`, :attr:`known_wrong`)."""
         if getattr(self, "_derivatives", None) is None:
-            if derivative_provider is None:
-                raise ValueError(
-                    f"{self.method}: derivatives: prepare the model with exo_bench.prepare "
-                    "(it registers the derivative provider)"
-                )
-            self._derivatives = derivative_provider(self._mechanism, self.method)
+            from exo_bench.models.derivatives.derivatives import Derivatives, source_text
+
+            cls = type(self)
+            source = source_text(self.method, cls.derivatives_are_its_own, cls.known_wrong is not None)
+            self._derivatives = Derivatives(self._mechanism, self.method, source)
         return self._derivatives
 
     # ------------------------------------------------------------------ kernels

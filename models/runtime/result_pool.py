@@ -44,9 +44,18 @@ def _own_refs() -> int:
     return _refs([np.empty(1)], 0)
 
 
+def _own_bound_refs() -> int:
+    """The reference count :meth:`ResultPool.empties` reads of an array that only its list refers to,
+    bound to a loop variable as there (measured, as :func:`_own_refs`)."""
+    for a in [np.empty(1)]:
+        return sys.getrefcount(a)
+    raise AssertionError
+
+
 #: False where reference counts are deferred (free-threaded builds): then nothing is recycled.
 RECYCLES = bool(getattr(sys, "_is_gil_enabled", lambda: True)())
 _OWN = _own_refs()
+_OWN_BOUND = _own_bound_refs()
 
 
 class ResultPool:
@@ -75,6 +84,29 @@ class ResultPool:
             new = np.empty(shape)
             self._arrays = [new, *arrays][: self._keep]
             return new
+
+    def empties(self, shape: tuple[int, ...], count: int) -> list[np.ndarray]:
+        """``count`` arrays of :meth:`empty` at once, distinct, in one Python call (no generator: the
+        derivative calls count the Python functions they run)."""
+        out: list[np.ndarray] = []
+        size = 8
+        for d in shape:  # as empty: not np.prod, nor a generator
+            size *= int(d)
+        if not RECYCLES or size < self._min_bytes:
+            for _ in range(count):
+                out.append(np.empty(shape))
+            return out
+        shape = tuple(map(int, shape))
+        with self._lock:
+            for a in self._arrays:  # a result handed out in this call is referred to by out: never again
+                if len(out) < count and a.shape == shape and sys.getrefcount(a) == _OWN_BOUND:
+                    out.append(a)
+            new = []
+            while len(out) < count:
+                new.append(np.empty(shape))
+                out.append(new[-1])
+            self._arrays = [*new, *self._arrays][: self._keep]
+        return out
 
     def release(self) -> None:
         """Drop the kept results (their memory is freed once their callers drop them too)."""

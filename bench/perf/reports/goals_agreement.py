@@ -22,8 +22,14 @@ def agreement(st: dict, results: dict, one_sample: tuple[str, ...]) -> dict:
     res["inverse_err"] = {
         key: float(np.abs(np.asarray(results[key]) - want[0]).max())
         for key in one_sample
-        if key in results and "forward" not in key and key != "rnea"
+        if key in results and "forward" not in key and "derivatives" not in key and key != "rnea"
     }
+    if "derivatives_checked" in results:  # M = dtau/dqdd of the derivatives against the model's mass matrix
+        M = mf.mass_matrix(q[0])
+        res["derivatives_mass_err"] = {
+            key: float(np.abs(np.asarray(results[key])[2] - M).max()) / float(np.abs(M).max())
+            for key in ("derivatives_checked", "derivatives_unchecked")
+        }
     if "rnea" in results:
         res["inverse_err"]["rnea"] = float(np.abs(np.asarray(results["rnea"]) @ st["rnea_to_paper"] - want[0]).max())
     idx = np.unique(np.linspace(0, q.shape[0] - 1, min(q.shape[0], 64)).round().astype(int))

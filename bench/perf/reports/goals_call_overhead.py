@@ -15,7 +15,10 @@ only the public API: ``exo_bench.prepare`` and the prepared model's calls):
   with ``check=False, out=``; ``newton-euler``'s the same three ways; ``forward_dynamics``
   checked and unchecked, and newton-euler's checked;
 * a batch of ``samples`` states: ``inverse_dynamics`` and ``forward_dynamics`` with and without
-  ``check`` (no ``out``, the call as the README shows it).
+  ``check`` (no ``out``, the call as the README shows it);
+* issue 47's goals: the public ``model.derivatives.inverse_dynamics`` of one sample, checked and with
+  ``check=False`` (``(dtau_dq, dtau_dqd, M)``, three new ``(dof, dof)`` arrays a call), against the same
+  bare ``pin.rnea``: the call a user makes, not the kernel that reports/derivatives.md times.
 
 Every time is the median over ``rounds`` rounds interleaved across the candidates (a load that
 comes and goes falls on all of them alike); a one-sample round is ``timeit`` of up to 2,000
@@ -77,6 +80,9 @@ GOALS = (
     Goal("`forward_dynamics`, one sample, checked", "forward_checked", "rnea", 0.5),
     Goal("inverse batch, checked against unchecked", "inverse_batch_checked", "inverse_batch_unchecked", 1.25),
     Goal("forward batch, checked against unchecked", "forward_batch_checked", "forward_batch_unchecked", 1.25),
+    # issue 47: the public derivative call a user makes, not its kernel (reports/derivatives.md times that)
+    Goal("`model.derivatives.inverse_dynamics`, one sample, `check=False`", "derivatives_unchecked", "rnea", 1.0),
+    Goal("`model.derivatives.inverse_dynamics`, one sample, checked", "derivatives_checked", "rnea", 1.5),
 )
 #: Timed beside the goals and reported, no goal of their own.
 ALSO = (
@@ -96,6 +102,8 @@ ONE_SAMPLE = (
     "forward_checked",
     "forward_unchecked",
     "newton_euler_forward_checked",
+    "derivatives_checked",
+    "derivatives_unchecked",
 )
 BATCH = ("inverse_batch_checked", "inverse_batch_unchecked", "forward_batch_checked", "forward_batch_unchecked")
 
@@ -144,6 +152,8 @@ def calls(samples: int) -> tuple[dict[str, Call], dict]:
         "inverse_batch_unchecked": Call(mf.inverse_dynamics, (q, qd, qdd), unchecked),
         "forward_batch_checked": Call(mf.forward_dynamics, (q, qd, tau), {}),
         "forward_batch_unchecked": Call(mf.forward_dynamics, (q, qd, tau), unchecked),
+        "derivatives_checked": Call(mf.derivatives.inverse_dynamics, one, {}),
+        "derivatives_unchecked": Call(mf.derivatives.inverse_dynamics, one, unchecked),
     }
     states: dict[str, Any] = {"mech": mech, "q": q, "qd": qd, "qdd": qdd, "tau": tau, "mf": mf}
     try:
