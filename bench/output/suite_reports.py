@@ -19,7 +19,7 @@ FULL_FOLDER = "full"
 #: The main job's raw output (pytest-benchmark's tables, the stability study's log), kept out of the
 #: console and published with the reports.
 MAIN_JOB_LOG = "main-job.log"
-#: ``exo-bench errata`` (bench/studies/errata/report.py).
+#: ``exo-bench errata`` (bench/studies/errata.py).
 ERRATA = "errata.md"
 #: ``exo-bench bench`` (bench/perf/reports/benchmark_reports.py), and its rows per sweep.
 BENCHMARK_REPORTS = (
