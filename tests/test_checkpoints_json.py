@@ -113,22 +113,22 @@ def _family():
 
 
 def _forward():
-    from exo_bench.bench.studies.stability import cases, forward_energy, forward_evaluation as fe
-    from exo_bench.bench.studies.stability import forward_round_trip as frt, forward_terms as ft
+    from exo_bench.bench.studies.stability import cases, forward_evaluation as fe
+    from exo_bench.bench.studies.stability import forward_round_trip as frt
     from exo_bench.models.simulation.forward_dynamics import Simulation
 
     sim = Simulation("DOP853", 1e-6, 1e-9, np.array([0.0, 0.5]), np.ones((2, 4)), nfev=10, status="ok")
     sim.solution = lambda t: t  # a dense output: never kept
     return fe.ForwardResults(
         cases.QUICK,
-        [ft.TermsRow("exo5-3d", "pinocchio", "exposed", m_rel=1e-15)],
-        [ft.SingularDemo("l2 = 0", "finite", "refused: link 2")],
+        [fe.TermsRow("exo5-3d", "pinocchio", "exposed", m_rel=1e-15)],
+        [fe.SingularDemo("l2 = 0", "finite", "refused: link 2")],
         {"gait": 1.5},
         [frt.RoundTrip("gait", "pinocchio", "DOP853", 1e-6, sim, error=1e-7)],
         [],
         [("gait", "over budget")],
-        [forward_energy.EnergyRun("spring", "Radau", 1e-6, sim, drift=math.nan)],
-        [forward_energy.StiffRun("stiff", "BDF", 1e-3, sim, 1e3, cond=-math.inf)],
+        [fe.EnergyRun("spring", "Radau", 1e-6, sim, drift=math.nan)],
+        [fe.StiffRun("stiff", "BDF", 1e-3, sim, 1e3, cond=-math.inf)],
         [],
         {"gait": "a gait"},
         2.0,

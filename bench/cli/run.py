@@ -89,7 +89,8 @@ def _suite_jobs() -> list[tuple[str, Callable[[Path, Path, bool], int]]]:
     Every suite job is part of the main job: a missing module is an installation error, raised
     here, never a report that silently goes missing."""
     from exo_bench.bench.perf.reports import benchmark_reports
-    from exo_bench.bench.studies import errata, stability
+    from exo_bench.bench.studies import errata
+    from exo_bench.bench.studies.stability import report as stability
 
     return [
         (

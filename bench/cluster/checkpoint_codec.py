@@ -34,7 +34,7 @@ DROPPED = {"Simulation": ("solution",)}
 def registry() -> dict[str, type]:
     """The dataclasses a checkpoint may hold, by class name."""
     from exo_bench.bench.studies.stability import cases, evaluation, forward_evaluation
-    from exo_bench.bench.studies.stability import forward_energy, forward_round_trip, forward_terms
+    from exo_bench.bench.studies.stability import forward_round_trip
     from exo_bench.models.simulation.forward_dynamics import Simulation
 
     classes = (
@@ -44,11 +44,11 @@ def registry() -> dict[str, type]:
         evaluation.CaseResult,
         evaluation.FamilyResult,
         forward_evaluation.ForwardResults,
-        forward_terms.TermsRow,
-        forward_terms.SingularDemo,
+        forward_evaluation.TermsRow,
+        forward_evaluation.SingularDemo,
         forward_round_trip.RoundTrip,
-        forward_energy.EnergyRun,
-        forward_energy.StiffRun,
+        forward_evaluation.EnergyRun,
+        forward_evaluation.StiffRun,
         Simulation,
     )
     return {c.__name__: c for c in classes}
