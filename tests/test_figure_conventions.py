@@ -42,7 +42,7 @@ def step():
     """The predicted step's scene (the stored step: no solve), with two methods."""
     sc = load_scene("exo5-3d-step")
     study = run_methods(sc.name, sc.mechanism, sc.build_motion(), sc.motion_label(), METHODS)
-    from exo_bench.bench.studies.step.figures import walking_kinogram
+    from exo_bench.bench.studies.step.scene import walking_kinogram
 
     figs = {k: plots.scene_figure(study, k) for k in FIGURES if k != "kinogram"}
     figs["kinogram"] = walking_kinogram(study)

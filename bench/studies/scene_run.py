@@ -317,7 +317,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         for kind in figures:
             fig: Figure | None
             if kind == "kinogram" and getattr(study.motion, "origin", None) is not None:  # a walking motion
-                from exo_bench.bench.studies.step.figures import walking_kinogram
+                from exo_bench.bench.studies.step.scene import walking_kinogram
 
                 fig = walking_kinogram(study)
             elif kind == "kinogram" and scene.motion["kind"] == "stride":  # the stride walks from O
