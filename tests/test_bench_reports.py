@@ -3,15 +3,14 @@
 import numpy as np
 import pandas as pd
 
-from exo_bench.bench.perf.reports.benchmark_reports import (
+from exo_bench.bench.perf.reports.paper_table import (
     PAPER_TABLE,
     README_END,
     README_START,
-    crossover,
-    fit_exponent,
     paper_table,
     readme_with_table,
 )
+from exo_bench.bench.perf.reports.scaling import crossover, fit_exponent
 
 
 def test_growth_exponent_of_a_power_law_is_recovered():
@@ -115,7 +114,8 @@ def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float
 
 
 def test_speed_goals_are_judged_from_the_rows_of_one_run():
-    from exo_bench.bench.perf.reports.benchmark_reports import _inverse, speed_goals
+    from exo_bench.bench.perf.reports.loading import _inverse
+    from exo_bench.bench.perf.reports.scaling import speed_goals
 
     good = "\n".join(speed_goals(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
     # per call 0.5 us against bare 3 us (0.17x) and PyDy 1 us; batched 0.1 us, 50x faster than Pinocchio
@@ -150,7 +150,7 @@ def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
     import numpy as np
     import pandas as pd
 
-    from exo_bench.bench.perf.reports.benchmark_reports import _verdict
+    from exo_bench.bench.perf.reports.paper_table import _verdict
 
     idx = pd.MultiIndex.from_tuples(
         [(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"]

@@ -4,7 +4,8 @@ exactly when a run has that method's rows (another branch adds it)."""
 import numpy as np
 import pandas as pd
 
-from exo_bench.bench.perf.reports.benchmark_reports import error_vs_runtime, scaling
+from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
+from exo_bench.bench.perf.reports.scaling import scaling
 from exo_bench.bench.perf.peer_ratios import engine_section, ratios
 
 

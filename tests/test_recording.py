@@ -18,7 +18,8 @@ import rerun as rr
 from rerun.chunk import RrdReader
 
 from exo_bench.bench.output import recording
-from exo_bench.bench.output.figures.scene_figures import SCALE_RATIO, force_labels, moment_labels
+from exo_bench.bench.output.figures.curves import SCALE_RATIO
+from exo_bench.models.engines.joint_coordinates import force_labels, moment_labels
 from exo_bench.bench.output.recording import (
     TRAIL_SECONDS,
     rerun_executable,

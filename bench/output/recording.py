@@ -31,17 +31,18 @@ import numpy as np
 import rerun as rr
 from matplotlib.colors import to_rgb
 
-from exo_bench.bench.output.figures.scene_figures import (
-    trail_points,
-    curve_colors,
+from exo_bench.bench.output.figures.curves import curve_colors, nonfinite_notes, reference_method
+
+from exo_bench.bench.output.figures.palette import link_color
+
+from exo_bench.bench.output.figures.scene_figures import trail_points
+
+from exo_bench.models.engines.joint_coordinates import (
     force_labels,
     generalised_moment_labels,
     generalised_moments,
-    link_color,
     moment_labels,
     moments_and_forces,
-    nonfinite_notes,
-    reference_method,
 )
 from exo_bench.bench.output.provenance import machine_info
 from exo_bench.bench.output.recording_layout import (

@@ -13,13 +13,9 @@ import re
 import numpy as np
 import rerun.blueprint as rrb
 
-from exo_bench.bench.output.figures.scene_figures import (
-    SCALE_RATIO,
-    group_by_scale,
-    moments_and_forces,
-    reference_method,
-    scale_caption,
-)
+from exo_bench.bench.output.figures.curves import SCALE_RATIO, group_by_scale, reference_method, scale_caption
+
+from exo_bench.models.engines.joint_coordinates import moments_and_forces
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.files.names import file_stem

@@ -310,9 +310,9 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         o.files.append(p)
     figures = [k for k in FIGURES if scene.wants(k)]
     if figures and study.ok_methods():
-        from exo_bench.bench.output.figures import (
-            scene_figures as plots,
-        )  # matplotlib only for scenes that ask for figures
+        # matplotlib only for scenes that ask for figures
+        from exo_bench.bench.output.figures import scene_figures as plots
+        from exo_bench.bench.output.provenance import save_figure
 
         for kind in figures:
             fig: Figure | None
@@ -329,7 +329,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
-            o.files.append(plots.save_figure(fig, staging / scene_file(scene, kind)))
+            o.files.append(save_figure(fig, staging / scene_file(scene, kind)))
     if scene.motion["kind"] == "stride":
         from exo_bench.bench.studies.stride.scene import write_figures
 

@@ -228,7 +228,9 @@ def derivatives_report(
 def _plot(d: pd.DataFrame, png: Path) -> None:
     from matplotlib.figure import Figure
 
-    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, save_figure
+    from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT
+
+    from exo_bench.bench.output.provenance import save_figure
 
     floor = 1e-17
     fig = Figure(figsize=(15, 6.5), layout="constrained")

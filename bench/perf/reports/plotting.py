@@ -16,7 +16,9 @@ def _log_log_by_dim(
     from matplotlib.figure import Figure
     from matplotlib.layout_engine import ConstrainedLayoutEngine
 
-    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, save_figure
+    from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT
+
+    from exo_bench.bench.output.provenance import save_figure
 
     layout = ConstrainedLayoutEngine()
     fig = Figure(figsize=(15, 6.5), layout=layout)
@@ -45,7 +47,7 @@ def _log_log_by_dim(
 def _style(method: str, methods) -> dict:
     """Colour from the base method (the same as in every scene figure), line style from the kernel:
     ``matrix (numba)`` solid, ``matrix (numpy)`` dashed; other rows (pin.rnea, PyDy) dash-dot."""
-    from exo_bench.bench.output.figures.scene_figures import method_color
+    from exo_bench.bench.output.figures.palette import method_color
 
     bases = sorted({_base(m) for m in methods})
     return {

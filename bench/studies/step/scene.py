@@ -29,7 +29,7 @@ from matplotlib.lines import Line2D
 from exo_bench.bench.studies.step import data
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.bench.output.figures.curves import _header
-from exo_bench.bench.output.figures.kinogram import projections
+from exo_bench.bench.output.figures.scene_figures import projections
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
 from exo_bench.bench.studies.step.data import WalkingMotion
 from exo_bench.bench.studies.study import Study
