@@ -153,7 +153,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
 
     from exo_bench.bench.output import publish as publishing
     from exo_bench.bench.output.provenance import atomic_write
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     _publish_one(rep, "a")
@@ -189,7 +189,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
 def test_the_lock_of_a_killed_holder_is_free_at_once(tmp_path):
     """A run killed (SIGKILL) while holding the reports folder's lock does not make the next run
     wait: the kernel releases the lock with the process. While it lives, the lock is taken."""
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     rep.mkdir()
@@ -197,7 +197,7 @@ def test_the_lock_of_a_killed_holder_is_free_at_once(tmp_path):
         [
             sys.executable,
             "-c",
-            "import sys, time\nfrom exo_bench.bench.output.reports_lock import reports_lock\n"
+            "import sys, time\nfrom exo_bench.bench.output.publish import reports_lock\n"
             f"with reports_lock({str(rep)!r}, 'a run killed while publishing'):\n"
             "    print('held', flush=True)\n    time.sleep(600)\n",
         ],
@@ -225,7 +225,7 @@ def test_a_waiting_run_says_so_once_naming_the_holder(tmp_path):
     injected clock: one second per try), naming the holder's process and command."""
     import os
 
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     rep.mkdir()

@@ -302,7 +302,7 @@ def test_the_recording_logs_the_actuators_and_the_ground_force(mech, stored, tmp
 
     import rerun as rr
 
-    from exo_bench.bench.output.rerun_viewer import rerun_executable
+    from exo_bench.bench.output.recording import rerun_executable
     from exo_bench.bench.studies.scenes import load_scene
     from exo_bench.bench.studies.stride import data
     from exo_bench.bench.studies.stride.scene import log_stride

@@ -20,7 +20,7 @@ from exo_bench.bench.cli.arguments import reports_folder, size_arg
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import new_run_id, set_run_id
 from exo_bench.bench.output.publish import publish_run, staging_dir
-from exo_bench.bench.output.reports_lock import check_lock_file
+from exo_bench.bench.output.publish import check_lock_file
 from exo_bench.bench.perf.options import BenchOptions
 from exo_bench.bench.studies.options import ReportOptions, RunOptions, StabilityOptions
 from exo_bench.bench.studies.scene_run import SceneOutcome, check_scene_files, run_scene, scene_files, scene_rows
