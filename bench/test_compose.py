@@ -13,7 +13,7 @@ import random
 import pytest
 import sympy as sp
 
-from exo_bench.bench.perf.compose_cost import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
+from exo_bench.bench.perf.profiles import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
 from exo_bench.bench.perf.rows import OVER_BUDGET
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.mechanism.mechanism import Mechanism
@@ -109,7 +109,7 @@ def test_compose(benchmark, sweep, compose_case, request):
     method, n, dim, topo = compose_case
     mech = model(n, dim, topo)
     benchmark.group = f"compose-{dim}d"
-    # which rows run is predicted from the row's size (bench/perf/compose_cost.py), never timed: the
+    # which rows run is predicted from the row's size (bench/perf/profiles.py), never timed: the
     # same rows run on every machine; a row that runs gets LOAD_ALLOWANCE times the budget as its limit
     reason = predicted_skip(method, n, dim, sweep.compose_budget)
     if reason:

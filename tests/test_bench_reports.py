@@ -199,7 +199,7 @@ def test_newton_euler_goals_are_judged_against_matrix_factoreds_fastest_kernel()
     the 20x goal is judged against the faster of the two, named in the line."""
     import pandas as pd
 
-    from exo_bench.bench.perf.reports.goals_newton_euler import newton_euler_goals
+    from exo_bench.bench.perf.reports.scaling import newton_euler_goals
 
     base = dict(group="inverse-batched-3d", dim=3, topology="chain", samples=1000, batched=True)
     us = {

@@ -25,7 +25,7 @@ CHOSEN = {
     ("bench/perf/reports/paper_table.py", ("lagrange", "matrix", "recurrence")),  # the paper table's columns
     ("bench/perf/reports/paper_table.py", ("matrix", "matrix-factored")),  # the exo5-3d ratio's rows
     ("bench/studies/errata.py", ("lagrange", "pinocchio")),  # the errata study's witnesses
-    ("bench/perf/peer_ratios.py", ("matrix-factored", "newton-euler")),  # the denominators of the engines' ratios
+    ("bench/perf/peers.py", ("matrix-factored", "newton-euler")),  # the denominators of the engines' ratios
     ("bench/test_external_forces.py", ("matrix-factored", "newton-euler")),  # the f_ext rows' two one-sample paths
 }
 

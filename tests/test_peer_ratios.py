@@ -6,7 +6,7 @@ import pandas as pd
 
 from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
 from exo_bench.bench.perf.reports.scaling import scaling
-from exo_bench.bench.perf.peer_ratios import engine_section, ratios
+from exo_bench.bench.perf.peers import engine_section, ratios
 
 
 def _rows(with_newton: bool):
