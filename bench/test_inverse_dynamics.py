@@ -61,7 +61,7 @@ import pytest
 from exo_bench.bench.perf import roofline as limit, peers
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import ResourceLimit
-from exo_bench.bench.studies.reference_forces import reference
+from exo_bench.bench.studies.study import reference
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.runtime.prepared import PreparedModel

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from exo_bench.bench.output.provenance import atomic_write, provenance
-from exo_bench.bench.studies.scene_forces import note as forces_note
+from exo_bench.bench.studies.scene_motion import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
 from exo_bench.models.files.encoders import markdown_code
@@ -35,7 +35,7 @@ class SceneOutcome:
     notes: list[str] = field(default_factory=list)
     error: str | None = None
     seconds: float = 0.0
-    external: bool = False  # its methods were given the motion's external forces (bench/studies/scene_forces.py)
+    external: bool = False  # its methods were given the motion's external forces (bench/studies/scene_motion.py)
 
     def ran(self) -> Study:
         """The scene's study; a scene that failed before its methods ran has none (ValueError)."""
@@ -69,7 +69,7 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     """Largest absolute and relative error of each method against the 50-digit reference
     (``bench.reference``: Lagrange in mpmath, or d'Alembert in mpmath beyond sympy's reach) on an
     evenly spaced subsample."""
-    from exo_bench.bench.studies.reference_forces import reference
+    from exo_bench.bench.studies.study import reference
 
     mo = study.motion
     idx = np.unique(np.linspace(0, mo.q.shape[0] - 1, subsample).round().astype(int))

@@ -66,7 +66,7 @@ def agreement(st: dict, results: dict, one_sample: tuple[str, ...]) -> dict:
     50-digit reference, and the backward errors of the forward results (the same bound as
     bench/test_forward_dynamics.py); ``st`` holds the states and the model the results came from
     (:func:`exo_bench.bench.perf.reports.goals_call_overhead.calls`)."""
-    from exo_bench.bench.studies.reference_forces import reference
+    from exo_bench.bench.studies.study import reference
 
     mech, mf, eps, k = st["mech"], st["mf"], float(np.finfo(float).eps), 16
     q, qd, qdd, tau = st["q"], st["qd"], st["qdd"], st["tau"]

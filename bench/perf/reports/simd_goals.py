@@ -213,8 +213,8 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     res["pydy_missing"] = why
     ts = _interleaved(single, rounds)
     res.update({k: v / calls * 1e6 for k, v in ts.items()})  # us per call
-    # the errors, against the 50-digit reference (bench/studies/reference_forces.py), bound as the benchmark's
-    from exo_bench.bench.studies.reference_forces import reference
+    # the errors, against the 50-digit reference (bench/studies/study.py), bound as the benchmark's
+    from exo_bench.bench.studies.study import reference
 
     idx = np.unique(np.linspace(0, samples - 1, 12).round().astype(int))
     want, label = reference(mech, q[idx], qd[idx], qdd[idx])
