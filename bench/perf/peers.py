@@ -4,7 +4,7 @@
 What a sympy user would reach for to make equations of motion fast: PyDy's
 ``CythonMatrixGenerator`` turns sympy expressions into C (with common subexpressions eliminated),
 wraps it with Cython and compiles it. Here it gets the same composed equations as our methods,
-:func:`exo_bench.matrix_method.symbolic.compose.compose_equations` (eq. (5)/(17), the mechanism's
+:func:`exo_bench.matrix_method.symbolic.compose_equations` (eq. (5)/(17), the mechanism's
 parameters as exact rationals), as one column of ``dof`` expressions in the inputs ``q, qd, qdd``.
 
 Optional: ``pip install exo-bench[peers]`` (pydy, cython) and a C compiler.
@@ -63,7 +63,7 @@ def pydy_cython(mech: Mechanism) -> PydyFunction:
     import sympy as sp
     from pydy.codegen.cython_code import CythonMatrixGenerator
 
-    from exo_bench.matrix_method.symbolic.compose import compose_equations
+    from exo_bench.matrix_method.symbolic import compose_equations
     from exo_bench.models.mechanism.symbols import symbols_for
 
     t0 = time.perf_counter()

@@ -232,12 +232,13 @@ def _fma(a, b, c):
 def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the SIMD kernel on ``mech`` (module docstring), and the
     forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
-    from exo_bench.matrix_method.numba_kernels import common as compiled, simd as compiled_simd, fast_trig
+    from exo_bench.matrix_method.numba_kernels import common as compiled, simd as compiled_simd
+    from exo_bench.models.machine import fast_trig
     from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 
     trig = fast_trig.sincos_reduced
     counted_trig = rebind(trig, math=types.SimpleNamespace(floor=_floor), fma=_fma)
-    from exo_bench.models.machine import simd_angles
+    from exo_bench.models.machine import simd_angles, simd_blocks
 
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
     counted_compute = rebind(compute, link_pass=rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
@@ -249,9 +250,9 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
     W = np.empty(n * compiled_simd.ROWS * compiled_simd.LANES, dtype=object)
     F = np.empty(n * compiled_simd.FROWS * compiled_simd.LANES, dtype=object)
     Counted.tally = {"add": 0, "mul": 0, "trig": 0}
-    compiled_simd._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
+    simd_blocks._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
     counted_compute(p, 1, W, F)
-    compiled_simd._rows_out.py_func(o, 0, 1, n, mech.dim, F)
+    simd_blocks._rows_out.py_func(o, 0, 1, n, mech.dim, F)
     tally = dict(Counted.tally)
     tally["flops"] = tally["add"] + tally["mul"]
     tally["angles"] = (mech.dim - 1) * n
