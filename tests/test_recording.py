@@ -25,10 +25,10 @@ from exo_bench.bench.output.recording import (
     rerun_executable,
     trail_entity,
     trail_indices,
-    trail_points,
     verify_recording,
     write_recording,
 )
+from exo_bench.bench.output.figures.scene_figures import trail_points
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.gait.motion import GaitParams, gait, planar_gait

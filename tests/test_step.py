@@ -17,7 +17,8 @@ import pytest
 from conftest import EPS, K, assert_forces_agree
 from exo_bench.api.methods import method_names
 from exo_bench.bench.studies.step import data
-from exo_bench.bench.studies.step.problem import StepSettings, swap_matrix
+from exo_bench.bench.studies.step.coordinates import swap_matrix
+from exo_bench.bench.studies.step.problem import StepSettings
 from exo_bench.models.mechanism.kinematics import _rod_vectors, point_mass_positions
 from exo_bench.models.mechanism.presets import exo5
 

@@ -37,7 +37,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from exo_bench.bench.output import suite_reports
-from exo_bench.bench.output.provenance import atomic_write, current_run_id, provenance, run_id_of
+from exo_bench.bench.output.provenance import current_run_id, provenance, run_id_of
+from exo_bench.models.files.atomic_files import atomic_write
 
 
 # One lock per reports folder: runs that publish into one folder do it one after the other.

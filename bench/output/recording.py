@@ -242,7 +242,7 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
     ``size``."""
     from PIL import Image
 
-    from exo_bench.bench.output.provenance import atomic_write
+    from exo_bench.models.files.atomic_files import atomic_write
 
     exe = rerun_executable()
     if exe is None:
@@ -521,7 +521,7 @@ def write_recording(study: Study, path: str | Path, loads: str | None = None, ex
     is the Markdown of the loads beside level walking (:func:`exo_bench.bench.studies.plausibility.text`),
     its section of the description (none when None); ``extra(stream, times)``, when given, logs a
     scene's own series (the stride's actuators: :func:`exo_bench.bench.studies.stride.scene.log_stride`)."""
-    from exo_bench.bench.output.provenance import atomic_path
+    from exo_bench.models.files.atomic_files import atomic_path
 
     with atomic_path(path) as tmp:
         stream = rr.RecordingStream(APPLICATION_ID, send_properties=True)

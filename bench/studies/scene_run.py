@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from exo_bench.bench.output.provenance import atomic_write, provenance
+from exo_bench.bench.output.provenance import provenance
+from exo_bench.models.files.atomic_files import atomic_write
 from exo_bench.bench.studies.scene_motion import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods

@@ -30,7 +30,8 @@ from exo_bench.bench.studies.stride import data
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.files.names import file_stem
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
-from exo_bench.bench.studies.stride.comparison import BINS, Comparison
+from exo_bench.bench.studies.stride.comparison import Comparison
+from exo_bench.bench.studies.stride.cycle import BINS
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.gait.normative import SHORT_SOURCE
 
