@@ -13,7 +13,7 @@ from exo_bench.bench.cli.arguments import (
     report_job,
     reports_folder,
 )
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import BenchOptions
 
 
 def full_help() -> str:

@@ -1,6 +1,5 @@
 """What the suite writes and how: provenance and atomic writes (``provenance``), what a command may
 write over (``files``), the shape of every JSON read back (``json_shape``), publishing a run's reports
-under the reports folder's lock (``publish``, with the names the suite's reports take in
-``suite_reports``), interrupts while a command runs (``interrupts``), the equations pages
+under the reports folder's lock, with the names the suite's own reports take (``publish``), interrupts while a command runs (``interrupts``), the equations pages
 (``equation_pages``, ``latex_document``), rerun recordings (``recording``) and figures (``figures/``).
 Nothing here knows a study: the studies above call it."""

@@ -12,7 +12,7 @@ import sys
 import time
 from typing import TypedDict
 
-from exo_bench.bench.output.suite_reports import EQUATIONS_SIZE
+from exo_bench.bench.output.publish import EQUATIONS_SIZE
 from exo_bench.bench.studies.options import ReportOptions
 
 

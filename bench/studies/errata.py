@@ -43,7 +43,7 @@ from exo_bench.bench.studies.options import ReportOptions
 from exo_bench.bench.output import provenance as reporting
 from exo_bench.bench.output.provenance import provenance, sci
 from exo_bench.models.files.atomic_files import atomic_write
-from exo_bench.bench.output.suite_reports import ERRATA
+from exo_bench.bench.output.publish import ERRATA
 
 
 # The cases: which models and seeded states each printed formula is checked on.

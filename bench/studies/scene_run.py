@@ -225,13 +225,13 @@ def scene_files(scene: Scene) -> list[str]:
 
 def check_scene_files(scenes: list[Scene]) -> None:
     """Refuse, before any work, scenes whose reports would land on another's: a scene named like
-    one of the suite's own reports (bench/output/suite_reports.py: ``summary``, ``errata``, ...,
+    one of the suite's own reports (bench/output/publish.py: ``summary``, ``errata``, ...,
     with their ``-quick`` names), or like a file that other scenes write (their ``-quick`` and
     ``equations-`` pages), and two scenes of one run with one file name. Names are compared as
     the file-name encoder writes them, ignoring case (file systems may fold it)."""
     from exo_bench.bench.output.equation_pages import page_names
     from exo_bench.bench.output.files import quick_name
-    from exo_bench.bench.output.suite_reports import suite_files
+    from exo_bench.bench.output.publish import suite_files
 
     reserved = {Path(n).stem.casefold(): n for n in sorted(suite_files())}
     pages_prefix = Path(page_names("x")[0]).stem.removesuffix("x").casefold()  # "equations-"

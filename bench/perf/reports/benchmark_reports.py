@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 
 
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import BenchOptions
 
 from exo_bench.bench.output.provenance import REPO
 from exo_bench.models.files.atomic_files import atomic_write
@@ -42,7 +42,7 @@ from exo_bench.bench.perf.reports.paper_table import (
 )
 from exo_bench.bench.perf.reports.scaling import scaling, speed_goals
 from exo_bench.bench.output.publish import publish, staging_dir
-from exo_bench.bench.output.suite_reports import BENCHMARK_REPORTS, benchmark_json
+from exo_bench.bench.output.publish import BENCHMARK_REPORTS, benchmark_json
 
 
 def _strip_raw_timings(path: Path) -> None:
@@ -53,7 +53,7 @@ def _strip_raw_timings(path: Path) -> None:
     atomic_write(path, json.dumps(data, indent=1))
 
 
-REPORT_FILES = BENCHMARK_REPORTS  # the names: bench/output/suite_reports.py
+REPORT_FILES = BENCHMARK_REPORTS  # the names: bench/output/publish.py
 
 
 def report_names(out: Path, sweep: str) -> dict[str, str]:

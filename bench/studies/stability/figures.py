@@ -340,7 +340,7 @@ def forward_figures(res: ForwardResults) -> dict[str, object]:
     ]
     if st_series:
         panels.append((f"stiff: {res.stiff_wp[0].case}", "max |q(H) - q_ref(H)| (rad, m)", st_series))
-    from exo_bench.bench.output.suite_reports import STABILITY_FORWARD_FIGURES as NAMES
+    from exo_bench.bench.output.publish import STABILITY_FORWARD_FIGURES as NAMES
 
     return {
         NAMES[0]: work_precision_figure(panels),

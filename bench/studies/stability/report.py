@@ -331,17 +331,17 @@ def run(options: StabilityOptions) -> int:
         else:
             families = evaluate_families(profile, methods, log)
             forward = run_forward(profile, methods, log, PreparedSet(method_options(profile)))
-    from exo_bench.bench.output.suite_reports import STABILITY_FIGURES
+    from exo_bench.bench.output.publish import STABILITY_FIGURES
 
     figs = {
-        STABILITY_FIGURES[0]: families_figure(families, methods),  # the names: bench/output/suite_reports.py
+        STABILITY_FIGURES[0]: families_figure(families, methods),  # the names: bench/output/publish.py
         STABILITY_FIGURES[1]: conditioning_figure(families),
     }
     figs.update(forward_figures(forward))
     # a quick run never replaces a --full run's report, nor a run without casadi one with the analytic
     # Jacobian's runs (the main job on a machine without the extra): either writes stability-quick.md beside it
     from exo_bench.bench.output.files import announce_narrower, has_line, narrower_names
-    from exo_bench.bench.output.suite_reports import STABILITY_REPORT
+    from exo_bench.bench.output.publish import STABILITY_REPORT
     from exo_bench.bench.studies.stability.forward_report import TABLE_HEAD
 
     published = Path(options.published_to or out)

@@ -9,8 +9,8 @@ separate from the paper's step (:mod:`exo_bench.bench.studies.step`): one module
   mirror and the full stride from the solved half;
 * :mod:`~exo_bench.bench.studies.stride.transcription` and :mod:`~exo_bench.bench.studies.stride.problem` -
   the contact-implicit trapezoidal collocation of half a stride with a symmetry constraint (CasADi, IPOPT),
-  its settings, actuator specifications, initial guess and continuation;
-  :mod:`~exo_bench.bench.studies.stride.trials` - the problem with settings changed, solved and stored;
+  its settings, actuator specifications, initial guess and continuation, and its trials (the problem with
+  settings changed, solved and stored);
 * :mod:`~exo_bench.bench.studies.stride.data` - the stored strides (``data/*.npz`` + JSON, no pickle);
   :mod:`~exo_bench.bench.studies.stride.constraints` re-evaluates their constraints in numpy and measures the
   half-stride join, and :mod:`~exo_bench.bench.studies.stride.reproduce` says whether a re-solve reproduces
