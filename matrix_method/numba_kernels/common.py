@@ -63,7 +63,7 @@ from numba import njit
 from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
 from exo_bench.models.states import equation_form
 from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
-from exo_bench.models.machine.numba_runtime import run  # noqa: F401 - matrix_method/kernels.py (another session's file in this change) still imports run from here: to import it from numba_runtime
+from exo_bench.models.machine.numba_runtime import run  # noqa: F401 - re-exported only for matrix_method/kernels.py (another session's file in this change): it should import run from numba_runtime
 from exo_bench.models.machine import numba_cache
 
 
