@@ -41,8 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.bench.output.interrupts import check as check_interrupt
-from exo_bench.bench.studies.solve_failed import SolveFailed
+from exo_bench.bench.output.interrupts import SolveFailed, check as check_interrupt
 from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
 from exo_bench.models.mechanism.mechanism import Mechanism
 

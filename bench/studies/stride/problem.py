@@ -73,8 +73,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.bench.output.interrupts import check as check_interrupt
-from exo_bench.bench.studies.solve_failed import SolveFailed
+from exo_bench.bench.output.interrupts import SolveFailed, check as check_interrupt
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
 from exo_bench.models.mechanism.kinematics import point_mass_positions
