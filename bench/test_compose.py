@@ -13,7 +13,7 @@ import random
 import pytest
 import sympy as sp
 
-from exo_bench.bench.perf.compose_cost import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
+from exo_bench.bench.perf.profiles import LOAD_ALLOWANCE, predicted_seconds, predicted_skip
 from exo_bench.bench.perf.rows import OVER_BUDGET
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.mechanism.mechanism import Mechanism
@@ -45,7 +45,7 @@ def _composer(method: str, budget: float):
         kind = "lagrange" if method == "sympy-lagrangesmethod" else "kane"
         return lambda m: peer_equations(m, kind, symbolic_parameters=True, budget=budget)
     if method == "matrix":
-        from exo_bench.matrix_method.symbolic.compose import compose_equations
+        from exo_bench.matrix_method.symbolic import compose_equations
 
         return lambda m: compose_equations(m, symbolic_parameters=True)
     from exo_bench.matrix_method.recurrence import compose_equations
@@ -55,11 +55,11 @@ def _composer(method: str, budget: float):
 
 def _clear_caches():
     from exo_bench import lagrange
-    from exo_bench.matrix_method.symbolic import polynomials
+    from exo_bench.matrix_method import symbolic
 
     sp.core.cache.clear_cache()
     lagrange.clear_cache()
-    polynomials.clear_caches()
+    symbolic.clear_caches()
 
 
 def _values(eqs) -> dict:
@@ -71,7 +71,7 @@ def _values(eqs) -> dict:
 def _same_equations(mech: Mechanism, eqs) -> float:
     """Largest relative difference from the matrix method's equations at a random point."""
     if mech not in _REFERENCE:
-        from exo_bench.matrix_method.symbolic.compose import compose_equations
+        from exo_bench.matrix_method.symbolic import compose_equations
 
         ref = compose_equations(mech, symbolic_parameters=True)
         vals = _values(ref)
@@ -109,7 +109,7 @@ def test_compose(benchmark, sweep, compose_case, request):
     method, n, dim, topo = compose_case
     mech = model(n, dim, topo)
     benchmark.group = f"compose-{dim}d"
-    # which rows run is predicted from the row's size (bench/perf/compose_cost.py), never timed: the
+    # which rows run is predicted from the row's size (bench/perf/profiles.py), never timed: the
     # same rows run on every machine; a row that runs gets LOAD_ALLOWANCE times the budget as its limit
     reason = predicted_skip(method, n, dim, sweep.compose_budget)
     if reason:

@@ -61,7 +61,7 @@ import pytest
 from exo_bench.bench.perf import roofline as limit, peers
 from exo_bench.api import METHODS, prepare
 from exo_bench.api.cost_model import ResourceLimit
-from exo_bench.bench.studies.reference_forces import reference
+from exo_bench.bench.studies.study import reference
 from exo_bench.bench.perf.profiles import current
 from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.runtime.prepared import PreparedModel
@@ -418,12 +418,13 @@ t0 = time.perf_counter()
 import numpy as np
 from exo_bench import prepare, presets
 from exo_bench.matrix_method.numba_kernels import common as compiled
+from exo_bench.models.machine import numba_runtime
 t_import = time.perf_counter() - t0
 out = {"import_seconds": t_import}
 for method in sys.argv[1].split(","):
     m = prepare(presets.exo5(dim=3), method)
     q = np.full(m.dof, 0.5)
-    Q = np.full((compiled.PARALLEL_MIN_SAMPLES, m.dof), 0.5)
+    Q = np.full((numba_runtime.PARALLEL_MIN_SAMPLES, m.dof), 0.5)
     o, O = np.empty(m.dof), np.empty(Q.size)
     args = {"serial": (*m.kernel_args, q, q, q, o), "parallel": (*m.kernel_args, Q.ravel(), Q.ravel(), Q.ravel(), O)}
     out[method] = compiled.compile_times({"serial": m.serial_kernel, "parallel": m.parallel_kernel}, args)

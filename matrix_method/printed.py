@@ -1,6 +1,6 @@
 """The paper's formulas **exactly as printed**, each once, with its equation number.
 
-Nothing here is trusted: the errata study (``exo-bench errata``, ``bench/studies/errata``) evaluates every entry against Lagrange's
+Nothing here is trusted: the errata study (``exo-bench errata``, ``bench/studies/errata.py``) evaluates every entry against Lagrange's
 equations (and Pinocchio) and writes the verdicts to ``reports/errata.md``; the method
 ``matrix-paper`` evaluates :data:`TRANSITIONS` literally. Where an entry carries a ``corrected``
 form, that is a hypothesis the same report verifies.

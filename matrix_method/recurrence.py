@@ -34,8 +34,8 @@ from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
 if TYPE_CHECKING:  # the symbolic half imports sympy where it runs: the numeric method imports none
     import sympy as sp
 
-    from exo_bench.matrix_method.symbolic import compose as _symbolic
-    from exo_bench.matrix_method.symbolic.polynomials import Element, Generators
+    from exo_bench.matrix_method import symbolic as _symbolic
+    from exo_bench.matrix_method.symbolic import Element, Generators
 
 
 # ------------------------------------------------------------------ numeric
@@ -155,7 +155,7 @@ def _symbolic_planar(
 
 
 def _symbolic_form(mech: Mechanism, G: Generators) -> tuple[_symbolic.Entries, _symbolic.Gravity]:
-    from exo_bench.matrix_method.symbolic import compose as _symbolic
+    from exo_bench.matrix_method import symbolic as _symbolic
 
     now, gravity, nu_s = _symbolic_planar(mech, G, straight=False)
     if mech.dim == 2:
@@ -168,8 +168,8 @@ def _symbolic_form(mech: Mechanism, G: Generators) -> tuple[_symbolic.Entries, _
 
 def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, dict[str, sp.Matrix]]:
     """Every matrix by the recurrence, as sympy matrices (convention of :mod:`lagrange`)."""
-    from exo_bench.matrix_method.symbolic import compose as _symbolic
-    from exo_bench.matrix_method.symbolic.polynomials import generators
+    from exo_bench.matrix_method import symbolic as _symbolic
+    from exo_bench.matrix_method.symbolic import generators
 
     G = generators(mech.nlinks, mech.dim, symbolic_parameters)
     return _symbolic.to_matrices(G, mech.nlinks, *_symbolic_form(mech, G))
@@ -177,9 +177,9 @@ def symbolic_matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dic
 
 def compose_equations(mech: Mechanism, symbolic_parameters: bool = False) -> tuple[sp.Expr, ...]:
     """The equations of motion composed by the recurrence (23)-(26) and eq. (5)/(17); the same
-    expressions as :func:`exo_bench.matrix_method.symbolic.compose.compose_equations`."""
-    from exo_bench.matrix_method.symbolic import compose as _symbolic
-    from exo_bench.matrix_method.symbolic.polynomials import generators
+    expressions as :func:`exo_bench.matrix_method.symbolic.compose_equations`."""
+    from exo_bench.matrix_method import symbolic as _symbolic
+    from exo_bench.matrix_method.symbolic import generators
 
     G = generators(mech.nlinks, mech.dim, symbolic_parameters)
     return _symbolic.equations_from_entries(G, mech, *_symbolic_form(mech, G))

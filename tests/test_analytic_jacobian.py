@@ -92,7 +92,7 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
     right-hand-side evaluations, and the error against a tight reference is the finite-difference
     run's within the report's factor (forward_jacobian.SAME_ERROR: both runs pass scipy's error test
     at the same tolerance)."""
-    from exo_bench.bench.studies.stability.forward_jacobian import SAME_ERROR
+    from exo_bench.bench.studies.stability.forward_report import SAME_ERROR
 
     case = stiff_case(1e6)
     model = prepare(case.mechanism, "matrix-factored")
@@ -152,7 +152,7 @@ def test_fewer_evaluations_on_the_planar_gait_at_tight_tolerance(integ):
     test_the_analytic_jacobian_is_current_at_every_step's, and fewer evaluations at tight tolerance on
     this gait stay in the default run with BDF."""
     from exo_bench.bench.studies.stability.forward_cases import round_trip_cases
-    from exo_bench.bench.studies.stability.forward_jacobian import SAME_ERROR
+    from exo_bench.bench.studies.stability.forward_report import SAME_ERROR
     from exo_bench.bench.studies.stability.forward_round_trip import round_trip_run
 
     case = round_trip_cases()[0]

@@ -1099,7 +1099,7 @@ def test_a_stability_run_without_casadi_never_replaces_a_report_with_the_analyti
     from pathlib import Path
 
     from exo_bench.bench.output.files import has_line, narrower_names
-    from exo_bench.bench.studies.stability.forward_jacobian import TABLE_HEAD
+    from exo_bench.bench.studies.stability.forward_report import TABLE_HEAD
 
     names = ["stability-families.png", "stability.md"]
     same, quick = {n: n for n in names}, {n: n.replace(".", "-quick.") for n in names}

@@ -4,15 +4,14 @@ import numpy as np
 import pandas as pd
 
 from benchmark_rows import exo5_3d_row
-from exo_bench.bench.perf.reports.benchmark_reports import (
+from exo_bench.bench.perf.reports.paper_table import (
     PAPER_TABLE,
     README_END,
     README_START,
-    crossover,
-    fit_exponent,
     paper_table,
     readme_with_table,
 )
+from exo_bench.bench.perf.reports.scaling import crossover, fit_exponent
 
 
 def test_growth_exponent_of_a_power_law_is_recovered():
@@ -67,7 +66,8 @@ def _inverse_frame(fast_us: float, pin_us: float, bare_us: float, pydy_us: float
 
 
 def test_speed_goals_are_judged_from_the_rows_of_one_run():
-    from exo_bench.bench.perf.reports.benchmark_reports import _inverse, speed_goals
+    from exo_bench.bench.perf.reports.loading import _inverse
+    from exo_bench.bench.perf.reports.scaling import speed_goals
 
     good = "\n".join(speed_goals(_inverse(_inverse_frame(0.1, 5.0, 3.0, 1.0, 1e-15)), []))
     # per call 0.5 us against bare 3 us (0.17x) and PyDy 1 us; batched 0.1 us, 50x faster than Pinocchio
@@ -102,7 +102,7 @@ def test_the_verdict_judges_only_the_rows_where_a_peer_finished():
     import numpy as np
     import pandas as pd
 
-    from exo_bench.bench.perf.reports.benchmark_reports import _verdict
+    from exo_bench.bench.perf.reports.paper_table import _verdict
 
     idx = pd.MultiIndex.from_tuples(
         [(3, "chain", 2), (3, "chain", 5), (3, "chain", 50)], names=["dim", "topology", "n"]
@@ -151,7 +151,7 @@ def test_newton_euler_goals_are_judged_against_matrix_factoreds_fastest_kernel()
     the 20x goal is judged against the faster of the two, named in the line."""
     import pandas as pd
 
-    from exo_bench.bench.perf.reports.goals_newton_euler import newton_euler_goals
+    from exo_bench.bench.perf.reports.scaling import newton_euler_goals
 
     base = dict(group="inverse-batched-3d", dim=3, topology="chain", samples=1000, batched=True)
     us = {

@@ -1,7 +1,7 @@
 """Issue 34, S3, T3, D8: what the suite reads back from disk is data, checked before any work.
 
 Nothing read from disk is unpickled: the stability study's checkpoints are tagged JSON
-(bench/cluster/checkpoint_codec.py) that builds only the study's result types; a planted pickle is
+(bench/cluster/checkpoints.py) that builds only the study's result types; a planted pickle is
 never read. Every JSON file read back (a sweep's checkpoints, a reports folder's ``runs.json``) has
 its shape checked first, and anything else is one line naming the file and the field.
 """
@@ -113,22 +113,22 @@ def _family():
 
 
 def _forward():
-    from exo_bench.bench.studies.stability import cases, forward_energy, forward_evaluation as fe
-    from exo_bench.bench.studies.stability import forward_round_trip as frt, forward_terms as ft
+    from exo_bench.bench.studies.stability import cases, forward_evaluation as fe
+    from exo_bench.bench.studies.stability import forward_round_trip as frt
     from exo_bench.models.simulation.forward_dynamics import Simulation
 
     sim = Simulation("DOP853", 1e-6, 1e-9, np.array([0.0, 0.5]), np.ones((2, 4)), nfev=10, status="ok")
     sim.solution = lambda t: t  # a dense output: never kept
     return fe.ForwardResults(
         cases.QUICK,
-        [ft.TermsRow("exo5-3d", "pinocchio", "exposed", m_rel=1e-15)],
-        [ft.SingularDemo("l2 = 0", "finite", "refused: link 2")],
+        [fe.TermsRow("exo5-3d", "pinocchio", "exposed", m_rel=1e-15)],
+        [fe.SingularDemo("l2 = 0", "finite", "refused: link 2")],
         {"gait": 1.5},
         [frt.RoundTrip("gait", "pinocchio", "DOP853", 1e-6, sim, error=1e-7)],
         [],
         [("gait", "over budget")],
-        [forward_energy.EnergyRun("spring", "Radau", 1e-6, sim, drift=math.nan)],
-        [forward_energy.StiffRun("stiff", "BDF", 1e-3, sim, 1e3, cond=-math.inf)],
+        [fe.EnergyRun("spring", "Radau", 1e-6, sim, drift=math.nan)],
+        [fe.StiffRun("stiff", "BDF", 1e-3, sim, 1e3, cond=-math.inf)],
         [],
         {"gait": "a gait"},
         2.0,
@@ -177,7 +177,7 @@ def test_stability_checkpoints_are_json_and_a_planted_pickle_never_runs(tmp_path
 def test_a_result_round_trips_through_json_bit_for_bit():
     """Encoding a family's and the forward part's results and decoding them gives the same values:
     the same array bits, tuples as tuples, NaN and infinities, the same mechanism."""
-    from exo_bench.bench.cluster import checkpoint_codec as codec
+    from exo_bench.bench.cluster import checkpoints as codec
 
     for value in (_family(), _forward()):
         data = json.loads(json.dumps(codec.encode(value), allow_nan=False))
@@ -204,7 +204,7 @@ def test_a_result_round_trips_through_json_bit_for_bit():
 def test_a_part_of_another_shape_is_refused_naming_the_field(tmp_path, value, field):
     """A checkpointed part that is not one of the study's result types (another class, missing
     fields, an object array, any other object) is one ValueError naming the file and the field."""
-    from exo_bench.bench.cluster import checkpoint_codec as codec
+    from exo_bench.bench.cluster import checkpoints as codec
     from exo_bench.bench.cluster.checkpoints import load_part
 
     (tmp_path / "t.json").write_text(json.dumps({"format": codec.FORMAT, "key": "t", "value": value}))
@@ -216,7 +216,7 @@ def test_a_part_of_another_shape_is_refused_naming_the_field(tmp_path, value, fi
 def test_a_field_of_another_type_is_refused_naming_it(tmp_path):
     """A result's field of another type than its declaration (a string for a float) is refused,
     naming the field's path in the file."""
-    from exo_bench.bench.cluster import checkpoint_codec as codec
+    from exo_bench.bench.cluster import checkpoints as codec
     from exo_bench.bench.cluster.checkpoints import load_part
 
     data = json.loads(codec.part_text("t", (_family(), [])))

@@ -6,7 +6,7 @@ import sympy as sp
 from conftest import mass_coupling_oracle
 
 from exo_bench.matrix_method.closed_forms import coefficients as co
-from exo_bench.matrix_method.closed_forms import symbolic_coefficients as sco
+from exo_bench.matrix_method import symbolic as sco
 from exo_bench.models.mechanism import aggregates as ag
 from exo_bench.models.mechanism.kinematics import kinetic_energy, potential_energy, unit_vectors
 from exo_bench.models.mechanism.mechanism import split

@@ -30,7 +30,7 @@ import pytest
 from conftest import uniform_states
 from package_copy import assert_edit_recompiles, edit_probe
 from exo_bench import prepare
-from exo_bench.matrix_method.numba_kernels import common as compiled
+from exo_bench.models.machine import numba_runtime
 from exo_bench.models.mechanism.presets import chain, exo5, random_tree
 
 TOL = 1e-14
@@ -65,9 +65,9 @@ def test_compiled_kernel_equals_numpy_reference(method, mech):
     sizes = (
         1,
         7,
-        compiled.PARALLEL_MIN_SAMPLES - 1,
-        compiled.PARALLEL_MIN_SAMPLES,
-        compiled.PARALLEL_MIN_SAMPLES + compiled.SAMPLES_PER_TASK + 3,
+        numba_runtime.PARALLEL_MIN_SAMPLES - 1,
+        numba_runtime.PARALLEL_MIN_SAMPLES,
+        numba_runtime.PARALLEL_MIN_SAMPLES + numba_runtime.SAMPLES_PER_TASK + 3,
     )
     for k, S in enumerate(sizes):
         q, qd, qdd = uniform_states(mech, S, seed=10 * k + mech.nlinks)
@@ -180,7 +180,7 @@ _EDIT_PROBE = edit_probe(
 
 def test_an_edit_to_an_inlined_element_function_recompiles_the_kernel(tmp_path, warm_package):
     """numba keys its cache on the kernel's own file; ours also on every function a kernel inlines
-    (numba_kernels/cache.py). In a copy of the package: run the compiled ``matrix`` kernel (cached),
+    (numba_kernels/common.py, ``inline``). In a copy of the package: run the compiled ``matrix`` kernel (cached),
     edit the element function p_l of eq. (5) (closed_forms/planar.py, not a kernel file), run it
     again: the kernel recompiles (a cache miss) and gives the edited forces, those of the numpy
     kernel of the edited copy, not the stale machine code's. (With numba's own locator alone,

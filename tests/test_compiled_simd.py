@@ -3,7 +3,7 @@ one-sample entry (matrix_method/numba_kernels/lean.py) of ``matrix-factored (num
 
 **Error model** (that of tests/test_compiled.py): the SIMD kernel does the per-sample kernel's
 operations in the same order, except that its sines and cosines come from
-matrix_method/numba_kernels/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy reference takes them from
+models/machine/fast_trig.py (within fast_trig.ULPS, 2 ulp, of libm's); the numpy reference takes them from
 ``tan(x/2)`` (a few 1e-16 absolute) and sums ``c @ kappa`` in BLAS's order. Every force is a sum of
 O(dof) terms of at most a few ``max|tau|``, so the kernels differ by at most ``k * eps * dof *
 max|tau|``, below ``1e-14 * max|tau|`` for ``dof <= 24``: the bound asserted. Against the per-sample
@@ -11,7 +11,7 @@ compiled kernel the same bound holds (only the trig differs), and where the SIMD
 to libm (angles beyond ``fast_trig.RANGE``) the two are identical to the bit.
 
 Batch sizes: around the block (``LANES`` samples: a partial block, one, one more), around the
-threshold where :func:`compiled_simd.run` splits a batch over threads, with 1, 2 and 3 threads
+threshold where :func:`exo_bench.models.machine.simd_blocks.run` splits a batch over threads, with 1, 2 and 3 threads
 (uneven shares); 2D and 3D, chains and random trees with negative signs.
 """
 
@@ -22,10 +22,11 @@ import pytest
 
 from conftest import uniform_states
 from exo_bench import prepare
-from exo_bench.matrix_method.numba_kernels import simd as compiled_simd, fast_trig
+from exo_bench.matrix_method.numba_kernels import simd as compiled_simd
+from exo_bench.models.machine import fast_trig
 from exo_bench.models.mechanism.presets import chain, exo5, random_tree
 from exo_bench.models.machine import simd_blocks
-from exo_bench.models.machine.simd_blocks import parallel_min_samples
+from exo_bench.models.machine.simd_blocks import parallel_min_samples, run
 
 TOL = 1e-14
 MECHS = [chain(1, 2), random_tree(6, 2, seed=0), chain(1, 3), chain(4, 3), random_tree(8, 3, seed=1), exo5(3)]
@@ -70,8 +71,8 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(mech, threads):
     for S in (P - 1, P, P + 2 * L + 7):
         q, qd, qdd = uniform_states(mech, S, seed=S)
         one, many = np.empty(q.shape), np.full(q.shape, np.nan)
-        compiled_simd.run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), one.ravel(), S, threads=1)
-        compiled_simd.run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S, threads=threads)
+        run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), one.ravel(), S, threads=1)
+        run(model.batch_kernel, p, q.ravel(), qd.ravel(), qdd.ravel(), many.ravel(), S, threads=threads)
         assert np.array_equal(one, many), f"{threads} threads, S={S}"
 
 

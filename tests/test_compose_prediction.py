@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from exo_bench.bench.perf import compose_cost
+from exo_bench.bench.perf import profiles
 from exo_bench.bench.perf.profiles import SWEEPS
 
 
@@ -25,7 +25,7 @@ def _rows(sweep):
 
 
 def _methods(dim):
-    return [(m, d) for m, d in compose_cost.COMPOSE_POINTS if d == dim]
+    return [(m, d) for m, d in profiles.COMPOSE_POINTS if d == dim]
 
 
 @pytest.fixture
@@ -44,7 +44,7 @@ def test_the_decision_reads_no_clock_and_every_profile_row_fits(no_clock, profil
     """Every row of the quick and full profiles is predicted within its budget (they all ran in the
     reference run), decided with every clock of ``time`` raising."""
     sweep = SWEEPS[profile]
-    skipped = {r: compose_cost.predicted_skip(*r, sweep.compose_budget) for r in _rows(sweep)}
+    skipped = {r: profiles.predicted_skip(*r, sweep.compose_budget) for r in _rows(sweep)}
     assert not {r: why for r, why in skipped.items() if why}
     assert len(skipped) >= 20
 
@@ -52,27 +52,27 @@ def test_the_decision_reads_no_clock_and_every_profile_row_fits(no_clock, profil
 def test_a_row_over_the_budget_is_skipped_naming_the_prediction(no_clock):
     """sympy-lagrangesmethod grows like n^3.7 in 3D: at n=8 it is predicted near 870 s, over the full
     profile's 300 s; the reason names the prediction, the model's size and the budget."""
-    why = compose_cost.predicted_skip("sympy-lagrangesmethod", 8, 3, 300.0)
+    why = profiles.predicted_skip("sympy-lagrangesmethod", 8, 3, 300.0)
     assert why is not None
-    predicted = compose_cost.predicted_seconds("sympy-lagrangesmethod", 8, 3)
+    predicted = profiles.predicted_seconds("sympy-lagrangesmethod", 8, 3)
     assert 600 < predicted < 1200
     assert f"{predicted:.3g} s" in why and "n=8" in why and "dim=3" in why and "300 s" in why
-    assert compose_cost.predicted_skip("sympy-lagrangesmethod", 5, 3, 300.0) is None
+    assert profiles.predicted_skip("sympy-lagrangesmethod", 5, 3, 300.0) is None
 
 
-@pytest.mark.parametrize("key", sorted(compose_cost.COMPOSE_POINTS))
+@pytest.mark.parametrize("key", sorted(profiles.COMPOSE_POINTS))
 def test_the_prediction_grows_with_n_and_meets_its_points(key):
     """Monotone in n (a larger model never runs where a smaller one skipped) and equal to each measured point."""
     method, dim = key
-    series = [compose_cost.predicted_seconds(method, n, dim) for n in range(1, 120)]
+    series = [profiles.predicted_seconds(method, n, dim) for n in range(1, 120)]
     assert all(b >= a for a, b in zip(series, series[1:]))
-    for n, s in compose_cost.COMPOSE_POINTS[key]:
-        assert compose_cost.predicted_seconds(method, n, dim) == pytest.approx(s, rel=1e-12)
+    for n, s in profiles.COMPOSE_POINTS[key]:
+        assert profiles.predicted_seconds(method, n, dim) == pytest.approx(s, rel=1e-12)
 
 
 def test_an_unknown_method_is_named():
     with pytest.raises(ValueError, match=r"field 'method'.*'pydy'"):
-        compose_cost.predicted_seconds("pydy", 2, 3)
+        profiles.predicted_seconds("pydy", 2, 3)
 
 
 def test_the_benchmark_decides_by_the_prediction():

@@ -232,7 +232,7 @@ def test_every_ratio_of_the_reports_compares_timings_of_one_host(tmp_path):
     bad_merged = json.loads(json.dumps(merged))
     bad_merged["benchmarks"][3]["extra_info"]["host"] = "alpha"
     path.write_text(json.dumps(bad_merged))
-    from exo_bench.bench.perf.reports.benchmark_reports import load
+    from exo_bench.bench.perf.reports.loading import load
 
     with pytest.raises(rows.CrossHostRatio):
         load(path)

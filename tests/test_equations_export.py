@@ -371,7 +371,7 @@ def test_the_element_factors_recompose_the_matrices_exactly():
     """coefficient x geometry (the page's form) equals matrix_method.symbolic.matrices exactly."""
     import sympy as sp
 
-    from exo_bench.matrix_method.symbolic.compose import matrices
+    from exo_bench.matrix_method.symbolic import matrices
 
     mech = random_tree(4, 3, 9)
     parts = export_latex.element_parts(mech, False)

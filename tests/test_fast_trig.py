@@ -1,4 +1,4 @@
-"""The branch-free sin/cos of the SIMD kernel (matrix_method/numba_kernels/fast_trig.py) against numpy.
+"""The branch-free sin/cos of the SIMD kernel (models/machine/fast_trig.py) against numpy.
 
 **Error model.** fast_trig states at most :data:`fast_trig.ULPS` (2) ulp from numpy's float64
 ``sin``/``cos`` (glibc's, correctly rounded in practice, so 1.5 ulp from exact) on
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.matrix_method.numba_kernels import fast_trig
+from exo_bench.models.machine import fast_trig
 
 BOUND = fast_trig.ULPS
 

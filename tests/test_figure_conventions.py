@@ -15,6 +15,7 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from exo_bench.bench.output.figures import scene_figures as plots
+from exo_bench.bench.output.figures.curves import moments_figure
 from exo_bench.bench.studies.plausibility import plausibility
 from exo_bench.bench.studies.scene_run import FIGURES
 from exo_bench.bench.studies.scenes import load_scene
@@ -42,7 +43,7 @@ def step():
     """The predicted step's scene (the stored step: no solve), with two methods."""
     sc = load_scene("exo5-3d-step")
     study = run_methods(sc.name, sc.mechanism, sc.build_motion(), sc.motion_label(), METHODS)
-    from exo_bench.bench.studies.step.figures import walking_kinogram
+    from exo_bench.bench.studies.step.scene import walking_kinogram
 
     figs = {k: plots.scene_figure(study, k) for k in FIGURES if k != "kinogram"}
     figs["kinogram"] = walking_kinogram(study)
@@ -63,7 +64,7 @@ def test_the_moments_figure_draws_the_reports_net_joint_moments(studies, name):
     """The figure's peak per joint is the report's Plausibility number (same computation), sagittal and
     over all axes; and in 3D it is not the elevation row of tau_joint the figure drew before."""
     study = studies[name]
-    fig = plots.moments_figure(study)
+    fig = moments_figure(study)
     report = plausibility(study)
     assert report is not None
     sag = _panel_lines(fig, "sagittal")

@@ -21,7 +21,8 @@ from PIL import Image
 from exo_bench.bench.output.figures import scene_figures as plots
 from exo_bench.bench.studies import scene_run as runner
 from exo_bench.api import METHODS
-from exo_bench.bench.output.figures.scene_figures import FIGURES, TEXT_PT
+from exo_bench.bench.output.figures.palette import TEXT_PT, link_color
+from exo_bench.bench.output.figures.scene_figures import FIGURES
 from exo_bench.bench.output.provenance import PNG_DPI
 from exo_bench.bench.studies.scenes import load_scene, shipped_scene_names
 from exo_bench.bench.studies.study import run_methods
@@ -166,7 +167,7 @@ def test_each_method_has_its_colour_and_nothing_else_uses_a_method_colour(scenes
 
 
 def test_method_colours_are_not_link_colours_grey_or_black():
-    links = {plots.link_color(i) for i in range(10)}
+    links = {link_color(i) for i in range(10)}
     assert not set(METHOD_COLORS.values()) & (links | {"#000000", "#7f7f7f", "k", "0.45"})
     assert len(set(METHOD_COLORS.values())) == len(METHOD_COLORS)
 

@@ -440,7 +440,7 @@ def test_any_argument_list(argv):
     import exo_bench.bench.perf.reports.benchmark_reports as bench_reports
     import exo_bench.bench.studies.errata as errata
     import exo_bench.bench.cli.run as runner
-    import exo_bench.bench.studies.stability as stability
+    import exo_bench.bench.studies.stability.report as stability
 
     with workdir() as d, pytest.MonkeyPatch.context() as mp:
         for mod in (bench_reports, errata, stability):  # the heavy jobs: stubs

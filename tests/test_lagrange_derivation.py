@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 from exo_bench.lagrange import FormViolation, canonical_form, derive, extract_matrices, rebuild_equations
-from exo_bench.lagrange.energies import structure_of
+from exo_bench.lagrange.derivation import structure_of
 from exo_bench.lagrange.matrix_form import MATRIX_NAMES
 from exo_bench.models.mechanism.kinematics import kinetic_energy, potential_energy
 from exo_bench.models.gait.motion import random_states

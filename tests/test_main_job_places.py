@@ -24,7 +24,7 @@ import pytest
 
 from exo_bench.api.methods import METHODS
 from exo_bench.bench.cli import run as run_cli
-from exo_bench.bench.output.suite_reports import (
+from exo_bench.bench.output.publish import (
     BENCHMARK_REPORTS,
     ERRATA,
     FULL_FOLDER,

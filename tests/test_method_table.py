@@ -24,8 +24,8 @@ CHOSEN = {
     ("bench/studies/equations_size.py", ("lagrange", "matrix")),  # the size study's routes and their styles
     ("bench/perf/reports/paper_table.py", ("lagrange", "matrix", "recurrence")),  # the paper table's columns
     ("bench/perf/reports/paper_table.py", ("matrix", "matrix-factored")),  # the exo5-3d ratio's rows
-    ("bench/studies/errata/report.py", ("lagrange", "pinocchio")),  # the errata study's witnesses
-    ("bench/perf/peer_ratios.py", ("matrix-factored", "newton-euler")),  # the denominators of the engines' ratios
+    ("bench/studies/errata.py", ("lagrange", "pinocchio")),  # the errata study's witnesses
+    ("bench/perf/peers.py", ("matrix-factored", "newton-euler")),  # the denominators of the engines' ratios
     ("bench/test_external_forces.py", ("matrix-factored", "newton-euler")),  # the f_ext rows' two one-sample paths
 }
 

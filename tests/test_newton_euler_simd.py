@@ -134,10 +134,10 @@ def test_every_thread_count_gives_the_serial_result_to_the_bit(dim, threads):
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_the_counted_flops_are_the_kernel_s_and_grow_linearly(dim):
-    """bench/perf/roofline_newton_euler.py runs the kernel's own steps on counting numbers: its forces
+    """bench/perf/roofline.py runs the kernel's own steps on counting numbers: its forces
     equal the compiled kernel's to the bit (the same operations), and the count grows by the same
     number of flops per added link (O(n) per sample)."""
-    from exo_bench.bench.perf.roofline_newton_euler import count_newton_euler_simd
+    from exo_bench.bench.perf.roofline import count_newton_euler_simd
     from exo_bench.models.mechanism.presets import chain
 
     flops = []

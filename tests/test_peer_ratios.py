@@ -5,8 +5,9 @@ import numpy as np
 import pandas as pd
 
 from benchmark_rows import exo5_3d_row
-from exo_bench.bench.perf.reports.benchmark_reports import error_vs_runtime, scaling
-from exo_bench.bench.perf.peer_ratios import engine_section, ratios
+from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
+from exo_bench.bench.perf.reports.scaling import scaling
+from exo_bench.bench.perf.peers import engine_section, ratios
 
 
 def _rows(with_newton: bool):

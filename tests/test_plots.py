@@ -10,17 +10,16 @@ from matplotlib.collections import PathCollection
 from matplotlib.figure import Figure
 
 from exo_bench.bench.output.figures import scene_figures as plots
-from exo_bench.bench.output.figures.scene_figures import (
-    differences_figure,
-    forces_figure,
-    group_by_scale,
+from exo_bench.bench.output.figures.curves import differences_figure, forces_figure, group_by_scale, moments_figure
+from exo_bench.bench.output.figures.palette import method_color
+from exo_bench.bench.output.figures.scene_figures import kinogram_figure, write_plots
+from exo_bench.bench.output.provenance import save_figure
+from exo_bench.models.engines.joint_coordinates import (
+    force_labels,
     joint_basis,
     joint_quantities,
-    kinogram_figure,
+    moment_labels,
     moments_and_forces,
-    moments_figure,
-    save_figure,
-    write_plots,
 )
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.mechanism.kinematics import point_mass_positions
@@ -163,7 +162,7 @@ def test_each_curve_sits_in_the_panel_of_its_scale(kind, which, request):
     fig = (moments_figure if kind == "moments" else forces_figure)(study)
     mech = study.mechanism
     values = moments_and_forces(mech, study.results["pinocchio"].tau)[0 if kind == "moments" else 1]
-    labels = plots.moment_labels(mech) if kind == "moments" else plots.force_labels(mech)
+    labels = moment_labels(mech) if kind == "moments" else force_labels(mech)
     panels = _lines_by_panel(fig)
     seen = []
     for ax, lines in panels:
@@ -202,7 +201,7 @@ def test_titles_say_model_motion_methods_and_which_quantity(exo, planar):
 def test_every_method_is_drawn_and_a_failed_one_is_named(exo):
     fig = forces_figure(exo)
     gids = [ln.get_gid() for _, lines in _lines_by_panel(fig) for ln in lines]
-    labels = plots.force_labels(exo.mechanism)
+    labels = force_labels(exo.mechanism)
     n = len(labels) - len(_zero_named(fig, labels))
     assert sum(g.startswith("pinocchio:") for g in gids) == n
     assert sum(g.startswith("noisy:") for g in gids) == n
@@ -341,7 +340,7 @@ def test_two_methods_add_the_differences_figure(exo, tmp_path):
     assert names[-1] == "exo5-3d-differences.png" and len(names) == 4
     fig = differences_figure(exo)
     colours = {ln.get_gid(): ln.get_color() for ax in fig.axes for ln in ax.get_lines() if ln.get_gid()}
-    assert colours["diff:noisy"] == plots.method_color("noisy", ["pinocchio", "noisy"])
+    assert colours["diff:noisy"] == method_color("noisy", ["pinocchio", "noisy"])
 
 
 def test_a_method_returning_nan_is_reported_not_hidden(planar):

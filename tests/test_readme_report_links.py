@@ -15,7 +15,7 @@ from pathlib import Path
 
 from test_main_job_places import default_run_files
 
-from exo_bench.bench.output.suite_reports import FULL_FOLDER
+from exo_bench.bench.output.publish import FULL_FOLDER
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 LINK = re.compile(r"\]\(reports/([^)#\s]+)(?:#[^)\s]*)?\)")

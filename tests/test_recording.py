@@ -18,16 +18,17 @@ import rerun as rr
 from rerun.chunk import RrdReader
 
 from exo_bench.bench.output import recording
-from exo_bench.bench.output.figures.scene_figures import SCALE_RATIO, force_labels, moment_labels
+from exo_bench.bench.output.figures.curves import SCALE_RATIO
+from exo_bench.models.engines.joint_coordinates import force_labels, moment_labels
 from exo_bench.bench.output.recording import (
     TRAIL_SECONDS,
     rerun_executable,
     trail_entity,
     trail_indices,
-    trail_points,
     verify_recording,
     write_recording,
 )
+from exo_bench.bench.output.figures.scene_figures import trail_points
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.gait.motion import GaitParams, gait, planar_gait

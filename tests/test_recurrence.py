@@ -9,7 +9,7 @@ from exo_bench import prepare
 from exo_bench.lagrange import canonical_form, derive
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method import recurrence
-from exo_bench.matrix_method.symbolic import compose as symbolic
+from exo_bench.matrix_method import symbolic
 from exo_bench.bench.studies.errata import prefix, prefix_states
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import exo5, fig2b, random_tree

@@ -81,7 +81,7 @@ def test_four_concurrent_runs_into_one_folder_lose_nothing(tmp_path):
 PUBLISHER = """
 import sys, time
 from pathlib import Path
-from exo_bench.bench.output.provenance import atomic_write
+from exo_bench.models.files.atomic_files import atomic_write
 from exo_bench.bench.output.publish import publish_run, staging_dir
 
 rep, name, go = Path(sys.argv[1]), sys.argv[2], Path(sys.argv[3])
@@ -128,7 +128,8 @@ def test_four_concurrent_publications_repeated_lose_nothing(tmp_path):
 
 def _publish_one(rep: Path, name: str) -> list[Path]:
     """One run's publication of one scene page (a run of its own: a new run identifier)."""
-    from exo_bench.bench.output.provenance import atomic_write, new_run_id, set_run_id
+    from exo_bench.bench.output.provenance import new_run_id, set_run_id
+    from exo_bench.models.files.atomic_files import atomic_write
     from exo_bench.bench.output.publish import publish_run, staging_dir
 
     with staging_dir(rep) as st:
@@ -153,8 +154,8 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
     import time
 
     from exo_bench.bench.output import publish as publishing
-    from exo_bench.bench.output.provenance import atomic_write
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     _publish_one(rep, "a")
@@ -190,7 +191,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
 def test_the_lock_of_a_killed_holder_is_free_at_once(tmp_path):
     """A run killed (SIGKILL) while holding the reports folder's lock does not make the next run
     wait: the kernel releases the lock with the process. While it lives, the lock is taken."""
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     rep.mkdir()
@@ -198,7 +199,7 @@ def test_the_lock_of_a_killed_holder_is_free_at_once(tmp_path):
         [
             sys.executable,
             "-c",
-            "import sys, time\nfrom exo_bench.bench.output.reports_lock import reports_lock\n"
+            "import sys, time\nfrom exo_bench.bench.output.publish import reports_lock\n"
             f"with reports_lock({str(rep)!r}, 'a run killed while publishing'):\n"
             "    print('held', flush=True)\n    time.sleep(600)\n",
         ],
@@ -226,7 +227,7 @@ def test_a_waiting_run_says_so_once_naming_the_holder(tmp_path):
     injected clock: one second per try), naming the holder's process and command."""
     import os
 
-    from exo_bench.bench.output.reports_lock import reports_lock
+    from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"
     rep.mkdir()

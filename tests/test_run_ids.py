@@ -151,7 +151,8 @@ def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
     assert main_job(rep, _scene(tmp_path, "a")) == 0
 
     def fake_errata(args):
-        from exo_bench.bench.output.provenance import atomic_write, provenance
+        from exo_bench.bench.output.provenance import provenance
+        from exo_bench.models.files.atomic_files import atomic_write
 
         atomic_write(Path(args.reports) / "errata.md", "# Errata\n\n" + provenance("exo-bench errata"))
         return 0

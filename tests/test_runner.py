@@ -139,7 +139,7 @@ def test_every_declared_output_is_written_and_the_recording_verifies(tmp_path, m
             "gait.rrd",
             "summary.md",
             "runs.json",
-            ".exo-bench.lock",  # the folder's lock (bench/output/reports_lock.py)
+            ".exo-bench.lock",  # the folder's lock (bench/output/publish.py)
         ]
     )
     assert "1 file verified without error" in verify_recording(tmp_path / "rep" / "gait.rrd")

@@ -1,5 +1,5 @@
 """A scene's external forces (issue 37): the human-2d-stride scene supplies the stored stride's floor
-contact forces as ``f_ext`` per sample (bench/studies/scene_forces.py), so every method's inverse dynamics
+contact forces as ``f_ext`` per sample (bench/studies/scene_motion.py), so every method's inverse dynamics
 in its methods table includes the floor and equals the optimiser's loads; scenes of other motions supply
 none.
 

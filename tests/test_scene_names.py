@@ -85,9 +85,9 @@ def test_a_scene_named_like_a_suite_report_is_refused_before_any_work(tmp_path, 
 
 @pytest.mark.case("D2", "D3")
 def test_every_report_the_suite_writes_is_reserved(tmp_path, no_work):
-    """Every file name the suite's writers take (bench/output/suite_reports.py, where they take
+    """Every file name the suite's writers take (bench/output/publish.py, where they take
     them from) is refused as a scene name, by its stem."""
-    from exo_bench.bench.output.suite_reports import suite_files
+    from exo_bench.bench.output.publish import suite_files
 
     names = suite_files()
     assert {"summary.md", "runs.json", "errata.md", "stability.md", "scaling.md", "paper_table-quick.md"} <= names

@@ -15,7 +15,7 @@ pytest.importorskip("casadi")
 
 from cli_runs import run_cli  # noqa: E402
 
-from exo_bench.bench.studies.solve_failed import SolveFailed  # noqa: E402
+from exo_bench.bench.output.interrupts import SolveFailed  # noqa: E402
 from exo_bench.models.mechanism.presets import exo5, human  # noqa: E402
 
 COMMANDS = [["gait", "--solve", "--dim", "2"], ["stride", "--solve", "--speed", "1.41"]]

@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from exo_bench.bench.studies import stability as st
+from exo_bench.bench.studies import study
+from exo_bench.bench.studies.stability import cases as st_cases, evaluation as st_eval, report as st_report
 from exo_bench.api import METHODS, MethodSpec, method_names, prepare
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.engines import pinocchio_backend as pb
 
 TINY = dataclasses.replace(
-    st.QUICK,
+    st_cases.QUICK,
     name="test",
     samples=1,
     distances=(1e-6, 0.0),
@@ -51,10 +52,12 @@ def _case(cases, label):
 def test_at_a_removable_singularity_matrix_is_exact_and_the_printed_eq18_yields_nan():
     """sin phi_i = 0 exactly (phi_i = 0): eq. (18) as printed divides 0/0; the corrected closed forms
     have no division and stay at round-off from Pinocchio and the 50-digit reference."""
-    case = _case(st.family_removable(st.QUICK), "sin phi_i = 0, d = 0")
+    case = _case(st_cases.family_removable(st_cases.QUICK), "sin phi_i = 0, d = 0")
     assert (case.q[:, : case.mechanism.nlinks] == 0).all()
-    with pytest.warns(st.UnusableMethodWarning, match="matrix-paper"):
-        fam = st.evaluate_family("removable singularities of eq. (18)", [case], ["pinocchio", "matrix", "matrix-paper"])
+    with pytest.warns(study.UnusableMethodWarning, match="matrix-paper"):
+        fam = st_eval.evaluate_family(
+            "removable singularities of eq. (18)", [case], ["pinocchio", "matrix", "matrix-paper"]
+        )
     rows = fam.results[0].rows
     tau = prepare(case.mechanism, "matrix").inverse_dynamics(case.q, case.qd, case.qdd)
     assert np.isfinite(tau).all()
@@ -66,9 +69,9 @@ def test_at_a_removable_singularity_matrix_is_exact_and_the_printed_eq18_yields_
 
 
 def test_the_vertical_rod_is_detected_as_singular_for_forward_dynamics():
-    cases = st.family_near_vertical(TINY)
-    with pytest.warns(st.IllConditionedWarning, match="singular"):
-        fam = st.evaluate_family("near-vertical rods", cases, ["pinocchio"])
+    cases = st_cases.family_near_vertical(TINY)
+    with pytest.warns(st_cases.IllConditionedWarning, match="singular"):
+        fam = st_eval.evaluate_family("near-vertical rods", cases, ["pinocchio"])
     at, near = (next(cr for cr in fam.results if cr.case.x == x) for x in (0.0, 1e-6))
     assert at.fd_verdict == "singular" and "vertical rod" in at.singular[0]
     # 1e-6 from vertical M is regular, but cond(M) ~ 1/cos^2 psi: numerically singular
@@ -78,12 +81,12 @@ def test_the_vertical_rod_is_detected_as_singular_for_forward_dynamics():
 
 
 def test_large_mass_ratios_give_a_condition_number_that_is_flagged():
-    cases = [c for c in st.family_masses(TINY) if c.series != "special"]
-    with pytest.warns(st.IllConditionedWarning, match="ill-conditioned"):
-        fam = st.evaluate_family("mass ratios", cases, ["pinocchio"])
+    cases = [c for c in st_cases.family_masses(TINY) if c.series != "special"]
+    with pytest.warns(st_cases.IllConditionedWarning, match="ill-conditioned"):
+        fam = st_eval.evaluate_family("mass ratios", cases, ["pinocchio"])
     one, big = (next(cr for cr in fam.results if cr.case.x == r) for r in (1.0, 1e6))
-    assert one.fd_verdict == "ok" and one.cond_raw < st.COND_ILL
-    assert big.fd_verdict == "ill-conditioned" and big.cond_raw >= st.COND_ILL
+    assert one.fd_verdict == "ok" and one.cond_raw < st_cases.COND_ILL
+    assert big.fd_verdict == "ill-conditioned" and big.cond_raw >= st_cases.COND_ILL
     # the heavier swing leg spreads the inertias: cond grows by orders of magnitude with r
     assert big.cond_raw > 1e4 * one.cond_raw
     assert "mass ratios" in fam.mass_warning
@@ -116,8 +119,8 @@ def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatc
         monkeypatch.setitem(METHODS, f"fake-{name}", MethodSpec(f"fake-{name}", "fake_methods", name, "test"))
     monkeypatch.setitem(METHODS, "fake-missing", MethodSpec("fake-missing", "no_such_module_xyz", "f", "test"))
     names = ["pinocchio", "fake-over", "fake-boom", "fake-nan", "fake-missing"]
-    with pytest.warns(st.UnusableMethodWarning, match="fake-nan"):
-        fam = st.evaluate_family(st.BASELINE, st.family_baseline(TINY)[:2], names)
+    with pytest.warns(study.UnusableMethodWarning, match="fake-nan"):
+        fam = st_eval.evaluate_family(st_cases.BASELINE, st_cases.family_baseline(TINY)[:2], names)
     rows = fam.results[0].rows
     assert [rows[n].status for n in names] == ["ok", "skipped", "failed", "ok", "missing"]
     assert rows["fake-over"].reason.startswith("over its time budget")
@@ -126,9 +129,9 @@ def test_missing_over_budget_and_raising_methods_are_rows_not_crashes(monkeypatc
     # a skip is remembered for mechanisms of the same structure (same symbolic work) and not retried
     memo = {}
     case = fam.results[0].case
-    st.evaluate_case(case, ["fake-over"], memo)
+    st_eval.evaluate_case(case, ["fake-over"], memo)
     heavier = dataclasses.replace(case, mechanism=case.mechanism.replace(g=1.62))
-    assert "not retried" in st.evaluate_case(heavier, ["fake-over"], memo).rows["fake-over"].reason
+    assert "not retried" in st_eval.evaluate_case(heavier, ["fake-over"], memo).rows["fake-over"].reason
 
 
 PNGS = ("stability-families.png", "stability-conditioning.png", "stability-work-precision.png", "stability-stiff.png")
@@ -150,7 +153,7 @@ def tiny_run(tmp_path_factory):
         return real_save(fig, path, *args, **kwargs)
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(st.report, "QUICK", TINY)  # where `exo-bench stability` reads its profile
+        mp.setattr(st_report, "QUICK", TINY)  # where `exo-bench stability` reads its profile
         mp.setattr(reporting, "save_figure", capture)
         err = io.StringIO()
         with contextlib.redirect_stderr(err):
@@ -173,7 +176,7 @@ def test_the_report_has_rows_for_every_family_and_method(tiny_run):
         data = (out / png).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and f"({png})" in text
     summary = text.split("## Summary")[1].split("Mass matrix")[0]
-    for fam in st.FAMILIES:
+    for fam in st_cases.FAMILIES:
         for m in method_names():
             assert f"| {fam} | {m} |" in summary, (fam, m)
     assert "Generated by `exo-bench stability`" in text
@@ -182,7 +185,7 @@ def test_the_report_has_rows_for_every_family_and_method(tiny_run):
     assert not list(out.glob(".*.tmp"))  # nothing half-written
     chart_free = text.split("## Chart-free dynamics")[1]  # the gait at psi5 = pi/2, and cond(M) against cond(M_r)
     assert "**Verdict: met.**" in chart_free and "psi5 = 1.5707963267948966" in chart_free
-    for fam in st.FAMILIES:
+    for fam in st_cases.FAMILIES:
         assert f"| {fam} | " in chart_free.split("cond(M_r), per family")[1], fam
 
 
@@ -267,7 +270,11 @@ class _KnownError(PreparedModel):
 
 @pytest.mark.parametrize(
     "relative,verdict",
-    [(1e-3 * st.REL_DEGRADED, "ok"), (30 * st.REL_DEGRADED, "degraded"), (30 * st.REL_UNUSABLE, "unusable")],
+    [
+        (1e-3 * st_cases.REL_DEGRADED, "ok"),
+        (30 * st_cases.REL_DEGRADED, "degraded"),
+        (30 * st_cases.REL_UNUSABLE, "unusable"),
+    ],
 )
 def test_a_known_error_is_measured_against_the_reference_and_judged_by_the_thresholds(monkeypatch, relative, verdict):
     """A method off by a known relative error: the study measures that error against the 50-digit
@@ -278,14 +285,14 @@ def test_a_known_error_is_measured_against_the_reference_and_judged_by_the_thres
     monkeypatch.setitem(
         METHODS, "known-error", MethodSpec("known-error", __name__, "_Known", "pinocchio plus a known error")
     )
-    case = st.family_baseline(TINY)[1]  # exo5-2d, benign
+    case = st_cases.family_baseline(TINY)[1]  # exo5-2d, benign
     with warnings.catch_warnings():
-        warnings.simplefilter("error", st.UnusableMethodWarning)
+        warnings.simplefilter("error", study.UnusableMethodWarning)
         if verdict == "unusable":
-            with pytest.warns(st.UnusableMethodWarning, match="known-error"):
-                fam = st.evaluate_family(st.BASELINE, [case], ["known-error"])
+            with pytest.warns(study.UnusableMethodWarning, match="known-error"):
+                fam = st_eval.evaluate_family(st_cases.BASELINE, [case], ["known-error"])
         else:
-            fam = st.evaluate_family(st.BASELINE, [case], ["known-error"])
+            fam = st_eval.evaluate_family(st_cases.BASELINE, [case], ["known-error"])
     row = fam.results[0].rows["known-error"]
     # Pinocchio and the reference agree to a few ulps of the largest force (tests/conftest.py), so the
     # measured error is the injected one to 1e-13 of the largest force.

@@ -17,7 +17,8 @@ import pytest
 from conftest import EPS, K, assert_forces_agree
 from exo_bench.api.methods import method_names
 from exo_bench.bench.studies.step import data
-from exo_bench.bench.studies.step.problem import StepSettings, swap_matrix
+from exo_bench.bench.studies.step.coordinates import swap_matrix
+from exo_bench.bench.studies.step.problem import StepSettings
 from exo_bench.models.mechanism.kinematics import _rod_vectors, point_mass_positions
 from exo_bench.models.mechanism.presets import exo5
 
@@ -86,7 +87,7 @@ def test_every_method_equals_the_optimisers_loads(stored, method):
 
 
 def test_the_optimisers_net_joint_loads_are_those_of_joint_loads(stored):
-    """The stored moments and forces (CasADi, bench/studies/step/symbolic.py) against models/mechanism/joint_loads.py. Each is a
+    """The stored moments and forces (CasADi, bench/studies/step/transcription.py) against models/mechanism/joint_loads.py. Each is a
     sum over point masses of m (a - g) times an arm: the bound is K eps times the sum of |terms|, with each
     acceleration bounded by the sum of the magnitudes of its terms (l'' u, 2 l' u', l u'')."""
     from exo_bench.models.mechanism.joint_loads import net_joint_loads, subtree

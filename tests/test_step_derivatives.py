@@ -25,7 +25,7 @@ from exo_bench.models.mechanism.presets import exo5
 
 ca = pytest.importorskip("casadi")
 
-from exo_bench.bench.studies.step import problem, symbolic, transcription  # noqa: E402
+from exo_bench.bench.studies.step import problem, transcription  # noqa: E402
 
 #: Relative step of the differences, and the bound's factor (module docstring).
 STEP, FACTOR = 1e-4, 1e-9
@@ -35,7 +35,7 @@ STEP, FACTOR = 1e-4, 1e-9
 def nlp(request):
     mech = exo5(request.param)
     st = data.load(mech.name)
-    point = problem._point_function(mech, symbolic.inverse_dynamics_function(mech))
+    point = problem._point_function(mech, transcription.inverse_dynamics_function(mech))
     tr = transcription.build(mech, st.settings, point)
     x = tr.x0(st.duration, st.q, st.qd, st.qdd)
     return tr, x

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from exo_bench.bench.studies.stride import data, evidence
-from exo_bench.bench.studies.stride.comparison import Curve
+from exo_bench.bench.studies.stride.cycle import Curve
 from exo_bench.models.mechanism.presets import human
 
 M = human(2)

@@ -113,7 +113,7 @@ def folder(tmp_path_factory):
 
 
 def test_the_report_states_each_stored_strides_jump_at_the_join(folder):
-    from exo_bench.bench.studies.stride import join, report
+    from exo_bench.bench.studies.stride import constraints, report
     from exo_bench.models.files.encoders import markdown_text
 
     text = report.markdown(M, data.load("human", 1.41, M, folder), folder=folder)
@@ -125,9 +125,9 @@ def test_the_report_states_each_stored_strides_jump_at_the_join(folder):
         before = load_jump(
             M, *(lambda t: (t.moments, t.rod_forces))(data.load(variant, 1.41, M, folder / "trials" / trial))
         )
-        (group,) = [g for g in join.joins(M, [stride], folder / "trials")]
-        assert [j.name for j in group] == [join.STORED, trial]
-        said = join.sentence(group)
+        (group,) = [g for g in constraints.joins(M, [stride], folder / "trials")]
+        assert [j.name for j in group] == [constraints.STORED, trial]
+        said = constraints.sentence(group)
         assert markdown_text(said) in text
         if variant == "exo":
             assert said.startswith("The exo stride at 1.41 m/s is solved with its loads continuous across the join")
@@ -139,15 +139,15 @@ def test_the_report_states_each_stored_strides_jump_at_the_join(folder):
 
 
 def test_a_stride_asked_for_continuous_loads_that_jumps_is_reported_outside_the_tolerance(folder):
-    from exo_bench.bench.studies.stride import join
+    from exo_bench.bench.studies.stride import constraints
 
     stride = data.load("exo", 1.41, M, folder)
     moments = stride.moments.copy()
     moments[0, 1] += 1e-6  # the right knee at t = 0
     bad = data.StoredStride(**{**stride.__dict__, "moments": moments})
-    j = join.join_of(M, bad)
+    j = constraints.join_of(M, bad)
     assert j.moments == pytest.approx(1e-6, rel=1e-3) and j.moments > j.bound[0]
-    assert "**outside** the solver's constraint tolerance" in join.sentence([j])
+    assert "**outside** the solver's constraint tolerance" in constraints.sentence([j])
 
 
 def test_each_sizing_block_says_whether_its_loads_are_continuous_across_the_join(folder):

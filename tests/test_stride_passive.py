@@ -96,8 +96,7 @@ def test_a_strides_contact_is_the_default_with_its_fields_changed():
 
 def test_the_join_pairs_each_load_with_its_mirror_image():
     pytest.importorskip("casadi")
-    from exo_bench.bench.studies.stride.actuators import actuators
-    from exo_bench.bench.studies.stride.transcription import PRICED_JOINTS, join_pairs
+    from exo_bench.bench.studies.stride.actuators import PRICED_JOINTS, actuators, join_pairs
 
     eye = actuators(M, np.eye(M.dof))
     (ja, jb), (ra, rb) = join_pairs(M)

@@ -15,7 +15,7 @@ import pytest
 from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import winter
 from exo_bench.bench.studies.stride.data import StoredStride
-from exo_bench.bench.studies.stride.sizing import sizing
+from exo_bench.bench.studies.stride.actuators import sizing
 from exo_bench.models.gait.normative import G, WINTER
 from exo_bench.models.mechanism.presets import human, human_standing
 
@@ -238,7 +238,7 @@ def test_figures_are_written_with_legends_off_the_data(mech, tmp_path):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     from exo_bench.bench.output.provenance import save_figure
-    from exo_bench.bench.studies.stride.figures import PANELS, stride_kinogram, winter_figure
+    from exo_bench.bench.studies.stride.scene import PANELS, stride_kinogram, winter_figure
 
     s = winter_stride(mech)
     fig = winter_figure(cmp.compare(mech, s), "Winter through the model")
@@ -302,7 +302,7 @@ def test_the_recording_logs_the_actuators_and_the_ground_force(mech, stored, tmp
 
     import rerun as rr
 
-    from exo_bench.bench.output.rerun_viewer import rerun_executable
+    from exo_bench.bench.output.recording import rerun_executable
     from exo_bench.bench.studies.scenes import load_scene
     from exo_bench.bench.studies.stride import data
     from exo_bench.bench.studies.stride.scene import log_stride

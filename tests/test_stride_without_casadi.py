@@ -1,6 +1,6 @@
 """The human stride's scene runs from its stored strides with ``pip install -e .`` alone (the README's first
 command installs no casadi: casadi is the ``[test]``/solver extra). The join section (bench/studies/stride/
-join.py, its :func:`~exo_bench.bench.studies.stride.constraints.load_jump`) once imported the transcription,
+constraints.py, its :func:`~exo_bench.bench.studies.stride.constraints.load_jump`) once imported the transcription,
 which imports casadi, so the main job's ``human-2d-stride`` scene failed on a fresh clone with "No module named
 'casadi'" while every test passed (the test environment has casadi). Here casadi is made unimportable in a
 child process, and the report's section is built there for every stored stride."""
@@ -14,13 +14,13 @@ import sys
 SCRIPT = """
 import json, sys
 sys.modules["casadi"] = None  # import casadi -> ModuleNotFoundError, as without the extra
-from exo_bench.bench.studies.stride import data, join
+from exo_bench.bench.studies.stride import constraints, data
 from exo_bench.bench.studies.stride.report import TRIALS, _stored
 from exo_bench.models.mechanism.presets import human
 M = human(2)
-groups = join.joins(M, _stored(M), TRIALS)
+groups = constraints.joins(M, _stored(M), TRIALS)
 print(json.dumps({"casadi": sys.modules["casadi"] is None, "joins": [len(g) for g in groups],
-                  "section": "\\n".join(join.section(groups))}))
+                  "section": "\\n".join(constraints.section(groups))}))
 """
 
 

@@ -8,7 +8,7 @@ from conftest import assert_forces_agree
 from exo_bench import prepare
 from exo_bench.lagrange import canonical_form, derive
 from exo_bench.lagrange.peer import peer_equations
-from exo_bench.matrix_method.symbolic import compose as symbolic
+from exo_bench.matrix_method import symbolic
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import fig1, fig2a, fig2b, random_tree
 from exo_bench.models.mechanism.symbols import symbols_for

@@ -28,11 +28,12 @@ layer_before = numba.threading_layer()
 import json
 from exo_bench import prepare, presets
 from exo_bench.matrix_method.numba_kernels import common as compiled, simd as compiled_simd
+from exo_bench.models.machine import numba_runtime
 mech = presets.exo5(dim=3)
 fast, ref = prepare(mech, "matrix-factored"), prepare(mech, "matrix-factored", kernel="numpy")
 rng = np.random.default_rng(0)
 worst = 0.0
-for S in (compiled_simd.LANES + 1, compiled.PARALLEL_MIN_SAMPLES, 10_000):
+for S in (compiled_simd.LANES + 1, numba_runtime.PARALLEL_MIN_SAMPLES, 10_000):
     q = rng.uniform(-3, 3, (S, mech.dof)); q[:, -5:] = rng.uniform(0.2, 1.2, (S, 5))
     qd, qdd = rng.normal(size=q.shape), rng.normal(size=q.shape)
     want = ref.inverse_dynamics(q, qd, qdd)

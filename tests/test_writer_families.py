@@ -89,7 +89,7 @@ def _recording(folder: Path) -> None:
 
 
 def _checkpoint(folder: Path) -> None:
-    from exo_bench.bench.output.provenance import atomic_write
+    from exo_bench.models.files.atomic_files import atomic_write
 
     atomic_write(folder / "row.json", json.dumps({"key": "x" * 200}))
 

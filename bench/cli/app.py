@@ -136,7 +136,7 @@ def error_line(e: BaseException) -> str:
 
 def _solve_failed(e: BaseException) -> bool:
     """Whether ``e`` is a solve that ended without a solution (IPOPT): one line, never an internal error."""
-    from exo_bench.bench.studies.solve_failed import SolveFailed
+    from exo_bench.bench.output.interrupts import SolveFailed
 
     return isinstance(e, SolveFailed)
 

@@ -14,7 +14,7 @@ from exo_bench.bench.cli.arguments import (
     reports_folder,
     subcommand,
 )
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import BenchOptions
 
 
 def full_help() -> str:

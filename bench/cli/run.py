@@ -20,8 +20,8 @@ from exo_bench.bench.cli.arguments import add_max_memory, add_reports, reports_f
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import new_run_id, set_run_id
 from exo_bench.bench.output.publish import publish_run, staging_dir
-from exo_bench.bench.output.reports_lock import check_lock_file
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.output.publish import check_lock_file
+from exo_bench.bench.studies.options import BenchOptions
 from exo_bench.bench.studies.options import ReportOptions, RunOptions, StabilityOptions
 from exo_bench.bench.studies.scene_run import SceneOutcome, check_scene_files, run_scene, scene_files, scene_rows
 from exo_bench.bench.studies.scenes import Scene, load_scene, shipped_scene_names
@@ -83,7 +83,8 @@ def _suite_jobs() -> list[tuple[str, Callable[[Path, Path, bool], int]]]:
     Every suite job is part of the main job: a missing module is an installation error, raised
     here, never a report that silently goes missing."""
     from exo_bench.bench.perf.reports import benchmark_reports
-    from exo_bench.bench.studies import errata, stability
+    from exo_bench.bench.studies import errata
+    from exo_bench.bench.studies.stability import report as stability
 
     return [
         (
@@ -119,10 +120,10 @@ class _StagingPaths:
 
 def main_job_folder(options: RunOptions) -> Path:
     """Where the main job publishes: the reports folder itself for the default run, its ``full/``
-    folder for ``--full`` (:data:`~exo_bench.bench.output.suite_reports.FULL_FOLDER`). A wider run has
+    folder for ``--full`` (:data:`~exo_bench.bench.output.publish.FULL_FOLDER`). A wider run has
     its own place, so the default run on a fresh clone rewrites every committed report of the folder
     (a narrower run still never overwrites a wider one: :func:`_beside_wider`)."""
-    from exo_bench.bench.output.suite_reports import FULL_FOLDER
+    from exo_bench.bench.output.publish import FULL_FOLDER
 
     out = options.folder
     if not options.full:
@@ -189,7 +190,7 @@ def run_main_job(options: RunOptions) -> int:
     from exo_bench.api.cost_model import Limits
     from exo_bench.bench.output.files import output_target
     from exo_bench.bench.output.publish import MANIFEST, SUMMARY
-    from exo_bench.bench.output.suite_reports import MAIN_JOB_LOG
+    from exo_bench.bench.output.publish import MAIN_JOB_LOG
 
     full = options.full
     out = main_job_folder(options)
@@ -287,7 +288,7 @@ def run_main_job(options: RunOptions) -> int:
 
 def print_written(written: list[Path], out: Path, console: Any) -> None:
     """What the run wrote and where, in a few lines: the reports by name, the rest counted."""
-    from exo_bench.bench.output.suite_reports import MAIN_JOB_LOG, SUMMARY
+    from exo_bench.bench.output.publish import MAIN_JOB_LOG, SUMMARY
 
     reports = sorted(p.name for p in written if p.suffix == ".md" and p.name != SUMMARY)
     others = [p for p in written if p.suffix != ".md" and p.name != MAIN_JOB_LOG]

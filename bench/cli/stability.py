@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_stability(args: argparse.Namespace) -> int:
-    from exo_bench.bench.studies.stability import run
+    from exo_bench.bench.studies.stability.report import run
 
     opts = StabilityOptions(reports=reports_folder(args.reports), full=args.full, cluster=cluster_options(args))
     if opts.cluster is not None:

@@ -8,7 +8,7 @@ import uuid
 import warnings
 from pathlib import Path
 
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import BenchOptions
 from exo_bench.bench.studies.options import ClusterOptions, Evaluator, StabilityOptions
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO
@@ -87,7 +87,7 @@ def _write_reports(merged: dict, skips: list, out: Path, sweep: str, command: st
     them (:func:`exo_bench.bench.perf.reports.benchmark_reports.write_reports`), published into ``out`` together."""
     from exo_bench.bench.perf.reports import benchmark_reports as br
     from exo_bench.bench.output.publish import staging_dir
-    from exo_bench.bench.output.suite_reports import benchmark_json
+    from exo_bench.bench.output.publish import benchmark_json
 
     with staging_dir(out) as st:
         bjson, sjson = st / benchmark_json(sweep), st / "skips.json"

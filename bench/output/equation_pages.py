@@ -76,7 +76,8 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     with the aggregates as symbols (eq. (4) with both signs for a two-link planar model)."""
     import shlex
 
-    from exo_bench.bench.output.provenance import atomic_write, provenance
+    from exo_bench.bench.output.provenance import provenance
+    from exo_bench.models.files.atomic_files import atomic_write
     from exo_bench.matrix_method.export import latex as export_latex
     from exo_bench.bench.output import latex_document
     from exo_bench.models.files.names import file_stem

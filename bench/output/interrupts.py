@@ -1,4 +1,5 @@
-"""SIGINT and SIGTERM while a command runs: every interrupt is reported, none is lost.
+"""How a command's work ends early: SIGINT and SIGTERM while it runs (every interrupt is reported, none
+is lost), and a numerical solve that ends without a solution (:class:`SolveFailed`, one line, exit 2).
 
 The command line installs one :class:`Interrupts` handler for both signals (:func:`installed`). It
 records the signal, then raises ``KeyboardInterrupt`` as Python's own Ctrl-C handler does, so that
@@ -26,6 +27,7 @@ import sys
 import weakref
 from collections.abc import Iterator
 from types import FrameType
+
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -100,3 +102,16 @@ def installed() -> Iterator[Interrupts | None]:
         sys.unraisablehook = hook
         for s, h in previous.items():
             signal.signal(s, signal.SIG_DFL if h is None else h)  # None: a handler set from C
+
+
+# The one exception of a numerical solve that ends without a solution (IPOPT in the step's and the stride's
+# problems): the command line's one handler (bench/cli/app.py ``error_line``) prints it as one line, exit 2, and
+# nothing is written. A RuntimeError of any other cause stays an internal error.
+
+
+class SolveFailed(RuntimeError):
+    """A solver stopped without a solution; ``stats`` holds what it reported (status, iterations)."""
+
+    def __init__(self, message: str, stats: dict | None = None) -> None:
+        super().__init__(message)
+        self.stats = dict(stats or {})

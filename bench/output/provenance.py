@@ -18,8 +18,9 @@ from importlib import metadata
 from pathlib import Path
 
 # The one writer (models/files/atomic_files.py: never through a symlink, whole or not at all, a replaced file
-# keeps its mode, every error names the file), re-exported for the reports that import it from here.
-from exo_bench.models.files.atomic_files import atomic_path as atomic_path, atomic_write as atomic_write
+# keeps its mode, every error names the file). atomic_path is re-exported only for the stored step's and
+# stride's data.py (another session's files in this change): they should import it from models/files/atomic_files.py.
+from exo_bench.models.files.atomic_files import atomic_path as atomic_path, atomic_write
 
 #: The source checkout when exo-bench runs from one (editable install); for a regular install this
 #: is the installed package folder, which has no git metadata and no README.

@@ -1,4 +1,5 @@
-"""Publishing a run's reports: staging, atomic renames, ``runs.json`` and ``summary.md``.
+"""Publishing a run's reports: staging, atomic renames, ``runs.json`` and ``summary.md``, and the names the
+suite's own reports take in a reports folder (named once: the main job refuses a scene that would take one).
 
 **Nothing half-written, nothing mixed unannounced.** Every output of a run is written into a
 staging folder inside the reports folder (:func:`staging_dir`) and published only when the whole
@@ -16,15 +17,19 @@ every other scene's, and lists which run produced each report file. A report com
 own marks its files the same way (:func:`record_files`).
 
 **Concurrent runs lose nothing.** Both hold the reports folder's lock while they read, merge and
-write ``runs.json`` and ``summary.md`` and move their files in
-(:mod:`exo_bench.bench.output.reports_lock`); the work before runs unlocked, in parallel.
+write ``runs.json`` and ``summary.md`` and move their files in (one lock per reports folder,
+:func:`reports_lock`, here); the work before runs unlocked, in parallel.
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
+import os
 import shutil
 import signal
+import stat
 import sys
 import tempfile
 import time
@@ -32,9 +37,186 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from exo_bench.bench.output import suite_reports
-from exo_bench.bench.output.provenance import atomic_write, current_run_id, provenance, run_id_of
-from exo_bench.bench.output.reports_lock import reports_lock
+from exo_bench.bench.output.provenance import current_run_id, provenance, run_id_of
+from exo_bench.models.files.atomic_files import atomic_write
+
+
+# The files the suite's own reports take in a reports folder, named once.
+
+#: The main job's summary of every scene, and the manifest it is made from (bench/output/publish.py).
+SUMMARY = "summary.md"
+MANIFEST = "runs.json"
+#: The folder, inside the reports folder, of the wider runs: ``exo-bench run --full`` (the whole sweep
+#: and the methods of the optional extras, MuJoCo and Drake) publishes there, so the default run
+#: (``exo-bench run``, the README's first command) always rewrites the reports folder itself and
+#: never meets a wider run's files there (bench/cli/run.py).
+FULL_FOLDER = "full"
+#: The main job's raw output (pytest-benchmark's tables, the stability study's log), kept out of the
+#: console and published with the reports.
+MAIN_JOB_LOG = "main-job.log"
+#: ``exo-bench errata`` (bench/studies/errata.py).
+ERRATA = "errata.md"
+#: ``exo-bench bench`` (bench/perf/reports/benchmark_reports.py), and its rows per sweep.
+BENCHMARK_REPORTS = (
+    "paper_table.md",
+    "error_vs_runtime.md",
+    "error_vs_runtime.png",
+    "scaling.md",
+    "scaling.png",
+    "derivatives.md",  # issue 36's derivatives benchmark (bench/perf/reports/derivatives.py)
+    "derivatives.png",
+)
+SWEEPS = ("quick", "full")
+#: ``exo-bench stability`` (bench/studies/stability/report.py and forward_figures.py).
+STABILITY_REPORT = "stability.md"
+STABILITY_FIGURES = ("stability-families.png", "stability-conditioning.png")
+STABILITY_FORWARD_FIGURES = ("stability-work-precision.png", "stability-stiff.png")
+#: ``exo-bench equations --size-report`` (bench/studies/equations_size.py).
+EQUATIONS_SIZE = ("equations_size.md", "equations_size.png")
+
+
+def benchmark_json(sweep: str) -> str:
+    """The benchmark rows of a sweep (``quick`` or ``full``), published beside the reports."""
+    return f"benchmarks-{sweep}.json"
+
+
+def suite_files() -> frozenset[str]:
+    """Every file name the suite's reports may take in a reports folder, with the
+    ``<name>-quick.<ext>`` a narrower run writes beside a wider one's (bench/output/files.py)."""
+    from exo_bench.bench.output.files import quick_name
+
+    names = {
+        SUMMARY,
+        MANIFEST,
+        MAIN_JOB_LOG,
+        ERRATA,
+        *BENCHMARK_REPORTS,
+        *(benchmark_json(s) for s in SWEEPS),
+        STABILITY_REPORT,
+        *STABILITY_FIGURES,
+        *STABILITY_FORWARD_FIGURES,
+        *EQUATIONS_SIZE,
+    }
+    return frozenset(names | {quick_name(n) for n in names})
+
+
+# One lock per reports folder: runs that publish into one folder do it one after the other.
+
+#: The lock file in every reports folder (hidden: it is not a report).
+LOCK_NAME = ".exo-bench.lock"
+#: A run that has waited this long for the lock says so, once.
+NOTICE_AFTER_S = 5.0
+#: How often a waiting run tries the lock again.
+POLL_S = 0.05
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def _refused(path: Path, mode: int) -> ValueError:
+    from exo_bench.models.files.atomic_files import kind_of
+
+    if stat.S_ISLNK(mode):
+        return ValueError(
+            f"{path}: is a symlink (to {os.path.realpath(path)!r}); the reports folder's lock file is never "
+            "opened through a link (remove it)"
+        )
+    return ValueError(f"{path}: is {kind_of(mode)}; the reports folder's lock file must be a regular file (remove it)")
+
+
+def check_lock_file(folder: Path) -> None:
+    """Refuse, before any work, what :func:`open_lock_file` would refuse (without making the file)."""
+    path = Path(folder) / LOCK_NAME
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as e:
+        if e.errno == errno.ENOTDIR:  # the folder is made later, or refused as a folder
+            return
+        raise ValueError(f"{path}: cannot check the reports folder's lock file ({e.strerror or e})") from None
+    if not stat.S_ISREG(mode):
+        raise _refused(path, mode)
+
+
+def open_lock_file(folder: Path) -> int:
+    """The descriptor of ``folder``'s lock file, made if missing; never through a link, never a
+    FIFO, a device or a folder (a ValueError line names what is there)."""
+    path = Path(folder) / LOCK_NAME
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    try:
+        fd = os.open(path, flags, 0o666)
+    except OSError as e:
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            mode = stat.S_IFREG
+        if e.errno in (errno.ELOOP, errno.EISDIR) and not stat.S_ISREG(mode):
+            raise _refused(path, mode) from None
+        raise ValueError(f"{path}: cannot open the reports folder's lock file ({e.strerror or e})") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise _refused(path, mode)
+    return fd
+
+
+def _holder(fd: int) -> str:
+    """What the lock file says about its holder ("process 123 on host (exo-bench run a)"), or ""."""
+    try:
+        text = os.pread(fd, 4096, 0).decode("utf-8", errors="replace").strip()
+    except OSError:
+        return ""
+    return text.splitlines()[0] if text else ""
+
+
+def _mark_holder(fd: int, command: str) -> None:
+    import socket
+
+    line = f"process {os.getpid()} on {socket.gethostname()} ({command})\n".encode("utf-8", errors="replace")
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, line, 0)
+    except OSError:  # the mark is informative only; the lock is what counts
+        pass
+
+
+@contextmanager
+def reports_lock(
+    folder: Path,
+    command: str = "",
+    *,
+    notice_after: float = NOTICE_AFTER_S,
+    clock: Callable[[], float] = time.monotonic,
+    pause: Callable[[float], None] = time.sleep,
+    say: Callable[[str], None] = _stderr,
+) -> Iterator[None]:
+    """Hold ``folder``'s lock for the block. Waits while another process holds it (Ctrl-C and
+    SIGTERM still end the wait) and says so in one line once it has waited ``notice_after``
+    seconds of ``clock``; ``pause`` sleeps between tries. Not reentrant: a process takes it once."""
+    folder = Path(folder)
+    fd = open_lock_file(folder)
+    try:
+        start, told = clock(), False
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                pass
+            if not told and clock() - start >= notice_after:
+                holder = _holder(fd) or "another process"
+                say(
+                    f"exo-bench: waiting for {str(folder / LOCK_NAME)!r}: {holder} is publishing into the same "
+                    "reports folder; this run publishes when it is done"
+                )
+                told = True
+            pause(POLL_S)
+        _mark_holder(fd, command)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 @contextmanager
@@ -138,9 +320,6 @@ def summary_markdown(command: str, manifest: dict | None = None, folder: Path | 
     return "\n".join(lines) + "\n"
 
 
-SUMMARY, MANIFEST = suite_reports.SUMMARY, suite_reports.MANIFEST
-
-
 def _is_report(p: Path) -> bool:
     return p.is_file() and not p.name.startswith(".")
 
@@ -214,7 +393,7 @@ def publish_run(
     ``summary.md``: first both saying the run is being published, then the files (atomic renames),
     then the final ``runs.json`` and ``summary.md``; signals are held back meanwhile.
 
-    All of it under the folder's lock (:func:`exo_bench.bench.output.reports_lock.reports_lock`):
+    All of it under the folder's lock (:func:`exo_bench.bench.output.publish.reports_lock`):
     runs publishing into one folder at once go one after the other, and each reads ``runs.json``
     as the one before left it and merges its own rows and files into it, so none is lost.
     ``failed`` scenes keep their earlier rows; so do the scenes ``narrower(manifest)`` returns

@@ -1,4 +1,5 @@
-"""Where the limit is: the arithmetic of one sample of the factored kernel, and this CPU's speed at it.
+"""Where the limit is: the arithmetic of one sample of the factored kernel, and this CPU's speed at it; the
+same count for the kernels that vectorise across samples (the matrix family's and newton-euler's).
 
 **Counting** (:func:`count_factored`). The compiled kernel's per-sample function
 (:func:`exo_bench.matrix_method.numba_kernels.factored._sample_2d`/``_sample_3d``) is run as plain Python (its
@@ -209,3 +210,100 @@ def estimate(count: dict[str, int], rates: dict[str, float]) -> dict[str, float]
         "simd_s": count["flops"] / rates["simd_flops_per_s"] + trig,
         "trig_s": trig,
     }
+
+
+# Where the limit is for the kernel that vectorises across samples (matrix_method/numba_kernels/simd.py).
+
+
+def _floor(x):
+    Counted.tally["add"] += 1
+    return Counted(math.floor(float(x)))
+
+
+def _fma(a, b, c):
+    """A fused multiply-add (:func:`exo_bench.models.machine.fast_trig.fma`), counted as the multiply and the add it does."""
+    from exo_bench.models.machine.fast_trig import fma
+
+    Counted.tally["mul"] += 1
+    Counted.tally["add"] += 1
+    return Counted(fma(a, b, c))
+
+
+def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
+    """Flops of one sample ``(dof,)`` of the SIMD kernel on ``mech`` (module docstring), and the
+    forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
+    from exo_bench.matrix_method.numba_kernels import common as compiled, simd as compiled_simd
+    from exo_bench.models.machine import fast_trig
+    from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
+
+    trig = fast_trig.sincos_reduced
+    counted_trig = rebind(trig, math=types.SimpleNamespace(floor=_floor), fma=_fma)
+    from exo_bench.models.machine import simd_angles, simd_blocks
+
+    compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
+    counted_compute = rebind(compute, link_pass=rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
+    n = mech.nlinks
+    as_counted = np.vectorize(Counted, otypes=[object])
+    p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))
+    x, xd, xdd = (as_counted(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    o = np.empty(mech.dof, dtype=object)
+    W = np.empty(n * compiled_simd.ROWS * compiled_simd.LANES, dtype=object)
+    F = np.empty(n * compiled_simd.FROWS * compiled_simd.LANES, dtype=object)
+    Counted.tally = {"add": 0, "mul": 0, "trig": 0}
+    simd_blocks._rows_in.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
+    counted_compute(p, 1, W, F)
+    simd_blocks._rows_out.py_func(o, 0, 1, n, mech.dim, F)
+    tally = dict(Counted.tally)
+    tally["flops"] = tally["add"] + tally["mul"]
+    tally["angles"] = (mech.dim - 1) * n
+    return tally, o.astype(float)
+
+
+def estimate_simd(count: dict[str, int], rates: dict[str, float], threads: int = 1) -> float:
+    """Seconds per sample at the limit: the counted flops at the SIMD rate, on ``threads`` cores."""
+    return count["flops"] / rates["simd_flops_per_s"] / threads
+
+
+# Where the limit is for ``newton-euler``'s kernel that vectorises across samples (models/newton_euler/simd.py).
+
+
+def _no_prefetch(*args) -> None:
+    """The prefetches of the next block (no arithmetic, and no memory in this counting run)."""
+
+
+def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
+    """Flops of one sample ``(dof,)`` of the newton-euler SIMD kernel on ``mech`` (module docstring),
+    and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
+    from exo_bench.models.machine import fast_trig, simd_angles
+    from exo_bench.models.newton_euler import simd
+    from exo_bench.models.newton_euler.tree import prepare_tree
+    from exo_bench.models.machine.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
+
+    trig = rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
+    start = rebind(simd._start_points.py_func)
+    forward = rebind(
+        (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
+        link_pass=rebind(simd_angles.link_pass, sincos_reduced=trig),
+        _start_points=start,
+        prefetch_share=_no_prefetch,
+    )
+    backward = simd._backward.py_func
+    n = mech.nlinks
+    as_counted = np.vectorize(Counted, otypes=[object])
+    t = as_counted(prepare_tree(mech).table())
+    x, xd, xdd = (as_counted(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    o = np.empty(mech.dof, dtype=object)
+    W = np.empty(n * ROWS * LANES, dtype=object)
+    F = np.empty(n * FROWS * LANES, dtype=object)
+    Counted.tally = {"add": 0, "mul": 0, "trig": 0}
+    _rows_in_by_link.py_func(x, xd, xdd, 0, 1, n, mech.dim, W)  # moves only
+    forward(t, Counted(float(mech.g)), 1, W, F, x, xd, xdd, o, 0, 0)
+    backward(t, mech.dim, 1, W, F)
+    _rows_out_by_link.py_func(o, 0, 1, n, mech.dim, F)
+    tally = dict(Counted.tally)
+    tally["flops"] = tally["add"] + tally["mul"]
+    tally["angles"] = (mech.dim - 1) * n
+    return tally, o.astype(float)
+
+
+__all__ = ["count_newton_euler_simd", "estimate_simd"]

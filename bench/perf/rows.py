@@ -112,7 +112,7 @@ def select(config, items: list, profile: str) -> None:
     keys = [row_key(it, profile) for it in items]
     path = config.getoption("--rows-json")
     if path:
-        from exo_bench.bench.output.provenance import atomic_write
+        from exo_bench.models.files.atomic_files import atomic_write
 
         atomic_write(path, json.dumps(enumerate_rows(items, keys), indent=1))
     wanted = config.getoption("--row")

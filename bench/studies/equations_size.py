@@ -12,7 +12,7 @@ import sys
 import time
 from typing import TypedDict
 
-from exo_bench.bench.output.suite_reports import EQUATIONS_SIZE
+from exo_bench.bench.output.publish import EQUATIONS_SIZE
 from exo_bench.bench.studies.options import ReportOptions
 
 
@@ -54,7 +54,7 @@ def _size_point(mech, route: str, budget: float) -> SizePoint:
     S = symbols_for(mech.nlinks, mech.dim)
     t0 = time.perf_counter()
     if route == "matrix":
-        from exo_bench.matrix_method.symbolic.polynomials import clear_caches
+        from exo_bench.matrix_method.symbolic import clear_caches
 
         clear_caches()
         t0 = time.perf_counter()
@@ -85,7 +85,8 @@ def size_report(options: ReportOptions) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from exo_bench.bench.output.provenance import atomic_write, provenance, save_figure
+    from exo_bench.bench.output.provenance import provenance, save_figure
+    from exo_bench.models.files.atomic_files import atomic_write
     from exo_bench.models.mechanism.presets import chain, random_tree
 
     full = options.full

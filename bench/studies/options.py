@@ -1,5 +1,5 @@
-"""Typed options of the studies and report jobs. The command line (:mod:`exo_bench.bench.cli`) is
-the only user of argparse: it builds these from its arguments; code and tests build them directly.
+"""Typed options of the studies and report jobs, the benchmark job (``exo-bench bench``) among them. The
+command line (:mod:`exo_bench.bench.cli`) is the only user of argparse: it builds these from its arguments; code and tests build them directly.
 """
 
 from __future__ import annotations
@@ -67,3 +67,21 @@ class RunOptions:
     @property
     def folder(self) -> Path:
         return Path(self.reports) if self.reports is not None else REPORTS
+
+
+# Typed options of the benchmark job (``exo-bench bench``).
+
+
+@dataclass(frozen=True)
+class BenchOptions(ReportOptions):
+    """``exo-bench bench``: the benchmark suite and its reports."""
+
+    #: Also replace the paper table in the checkout's README.md.
+    update_readme: bool = False
+    #: Run the sweep as tasks on a Dask cluster (None: serial in this process).
+    cluster: ClusterOptions | None = None
+    #: Only the sweep's rows whose key matches one of these shell-style patterns (empty: every row).
+    rows: tuple[str, ...] = ()
+    #: Seconds the serial benchmark suite may run before it is stopped (None: the profile's predicted
+    #: time times an allowance, bench/perf/reports/benchmark_reports.py suite_timeout).
+    suite_timeout: float | None = None

@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from exo_bench.bench.output.provenance import atomic_write, provenance
-from exo_bench.bench.studies.scene_forces import note as forces_note
+from exo_bench.bench.output.provenance import provenance
+from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.bench.studies.scene_motion import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
 from exo_bench.models.files.encoders import markdown_code
@@ -35,7 +36,7 @@ class SceneOutcome:
     notes: list[str] = field(default_factory=list)
     error: str | None = None
     seconds: float = 0.0
-    external: bool = False  # its methods were given the motion's external forces (bench/studies/scene_forces.py)
+    external: bool = False  # its methods were given the motion's external forces (bench/studies/scene_motion.py)
 
     def ran(self) -> Study:
         """The scene's study; a scene that failed before its methods ran has none (ValueError)."""
@@ -69,7 +70,7 @@ def reference_errors(study: Study, subsample: int = REFERENCE_SUBSAMPLE) -> dict
     """Largest absolute and relative error of each method against the 50-digit reference
     (``bench.reference``: Lagrange in mpmath, or d'Alembert in mpmath beyond sympy's reach) on an
     evenly spaced subsample."""
-    from exo_bench.bench.studies.reference_forces import reference
+    from exo_bench.bench.studies.study import reference
 
     mo = study.motion
     idx = np.unique(np.linspace(0, mo.q.shape[0] - 1, subsample).round().astype(int))
@@ -224,13 +225,13 @@ def scene_files(scene: Scene) -> list[str]:
 
 def check_scene_files(scenes: list[Scene]) -> None:
     """Refuse, before any work, scenes whose reports would land on another's: a scene named like
-    one of the suite's own reports (bench/output/suite_reports.py: ``summary``, ``errata``, ...,
+    one of the suite's own reports (bench/output/publish.py: ``summary``, ``errata``, ...,
     with their ``-quick`` names), or like a file that other scenes write (their ``-quick`` and
     ``equations-`` pages), and two scenes of one run with one file name. Names are compared as
     the file-name encoder writes them, ignoring case (file systems may fold it)."""
     from exo_bench.bench.output.equation_pages import page_names
     from exo_bench.bench.output.files import quick_name
-    from exo_bench.bench.output.suite_reports import suite_files
+    from exo_bench.bench.output.publish import suite_files
 
     reserved = {Path(n).stem.casefold(): n for n in sorted(suite_files())}
     pages_prefix = Path(page_names("x")[0]).stem.removesuffix("x").casefold()  # "equations-"
@@ -310,14 +311,14 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
         o.files.append(p)
     figures = [k for k in FIGURES if scene.wants(k)]
     if figures and study.ok_methods():
-        from exo_bench.bench.output.figures import (
-            scene_figures as plots,
-        )  # matplotlib only for scenes that ask for figures
+        # matplotlib only for scenes that ask for figures
+        from exo_bench.bench.output.figures import scene_figures as plots
+        from exo_bench.bench.output.provenance import save_figure
 
         for kind in figures:
             fig: Figure | None
             if kind == "kinogram" and getattr(study.motion, "origin", None) is not None:  # a walking motion
-                from exo_bench.bench.studies.step.figures import walking_kinogram
+                from exo_bench.bench.studies.step.scene import walking_kinogram
 
                 fig = walking_kinogram(study)
             elif kind == "kinogram" and scene.motion["kind"] == "stride":  # the stride walks from O
@@ -329,7 +330,7 @@ def run_scene(scene: Scene, staging: Path, limits=None) -> SceneOutcome:
             if fig is None:  # differences need two methods that ran
                 o.notes.append(f"no {kind} figure: fewer than two methods ran")
                 continue
-            o.files.append(plots.save_figure(fig, staging / scene_file(scene, kind)))
+            o.files.append(save_figure(fig, staging / scene_file(scene, kind)))
     if scene.motion["kind"] == "stride":
         from exo_bench.bench.studies.stride.scene import write_figures
 

@@ -119,8 +119,8 @@ class Scene:
 
     def external_forces(self):
         """The forces from outside the mechanism along the motion, ``f_ext`` per sample, or None
-        (:func:`exo_bench.bench.studies.scene_forces.scene_forces`: the stride's floor contact)."""
-        from exo_bench.bench.studies.scene_forces import scene_forces
+        (:func:`exo_bench.bench.studies.scene_motion.scene_forces`: the stride's floor contact)."""
+        from exo_bench.bench.studies.scene_motion import scene_forces
 
         return scene_forces(self.motion, self.mechanism)
 

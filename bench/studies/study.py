@@ -1,4 +1,5 @@
-"""Running several inverse-dynamics methods along one motion, and comparing them.
+"""Running several inverse-dynamics methods along one motion, and comparing them with the 50-digit
+reference (:func:`reference`).
 
 A :class:`Study` is the plain result that scenes, plots, recordings and reports share: the
 mechanism, the motion, and per method either its tau or the reason it was skipped or failed.
@@ -111,7 +112,7 @@ def run_methods(
     estimated memory or time exceeds ``limits`` (:class:`exo_bench.api.cost_model.Limits`; default: a share
     of the available memory) is recorded as skipped with the estimate, before it runs. ``f_ext``: forces
     at the point masses along the motion, ``(samples, links, 3, dim)``, given to every method
-    (bench/studies/scene_forces.py)."""
+    (bench/studies/scene_motion.py)."""
     from exo_bench.api.cost_model import check
 
     study = Study(name, mech, motion, motion_label, reference=reference)
@@ -136,3 +137,28 @@ def run_methods(
             else:
                 study.results[m] = MethodResult(m, error=one_line(e))
     return study
+
+
+# The 50-digit reference used wherever the suite reports an error.
+
+DPS = 50
+LAGRANGE_MAX_LINKS = {2: 6, 3: 5}  # beyond these, deriving costs more than a report should wait
+
+
+def reference(mech: Mechanism, q, qd, qdd, budget: float = 30.0) -> tuple[np.ndarray, str]:
+    """``(tau, label)``: 50-digit generalised forces rounded once to float64, and which reference."""
+    if mech.nlinks <= LAGRANGE_MAX_LINKS[mech.dim]:
+        try:
+            from exo_bench.lagrange import high_precision as lref
+            from exo_bench.lagrange import derive
+
+            derive(mech, budget=budget)
+            return lref.inverse_dynamics(mech, q, qd, qdd, dps=DPS), "Lagrange, mpmath 50 digits"
+        except ImportError:
+            pass
+        except Exception as e:  # noqa: BLE001 - over budget: fall back, and say so in the label
+            if not getattr(e, "skip_reason", None):
+                raise
+    from exo_bench.models.mechanism import virtual_work
+
+    return virtual_work.inverse_dynamics(mech, q, qd, qdd, dps=DPS), "d'Alembert, mpmath 50 digits"

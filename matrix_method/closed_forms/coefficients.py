@@ -10,7 +10,7 @@ links contribute sign products") live in ``c`` alone; this module adds them.
 Each formula is written once, in any arithmetic (:func:`generic_aggregates`, :func:`signed_coupling_entries`,
 :func:`increments`); the numeric forms (floats from the mechanism, cached arrays) and the symbolic ones
 (ring elements, CasADi, and the sympy expressions of
-:mod:`exo_bench.matrix_method.closed_forms.symbolic_coefficients`) call it. This module imports no
+:mod:`exo_bench.matrix_method.symbolic`) call it. This module imports no
 sympy: the compiled and numpy kernels read their coefficients here (tests/test_numeric_imports.py).
 """
 

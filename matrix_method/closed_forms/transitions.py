@@ -14,7 +14,7 @@ which is the form of eq. (17), term by term (A, B, Lambda, D, E, G, H, K). With
 the dot products are, e.g., ``u_phi_i . u_phi_j = c_i c_j C``, ``u_psi_i . u_psi_j = s_i s_j C + c_i c_j``,
 ``u_i . u_psi_j = s_i c_j - c_i s_j C``, ``u_psi_i . u_phipsi_j = s_i s_j S``. Comparing each with the
 planar element that has the same ``phi``-structure gives the formulas below; every one is the
-printed (18) line after correction (the errata study, ``exo-bench errata`` in ``bench/studies/errata``, checks both the
+printed (18) line after correction (the errata study, ``exo-bench errata`` in ``bench/studies/errata.py``, checks both the
 printed and the corrected forms against Lagrange's equations).
 
 **Branch signs.** The planar elements of a model "of the same structure" carry the sign product

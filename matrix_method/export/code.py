@@ -1,7 +1,7 @@
 """Eq. (5) / (17) as code to take away: a standalone numpy module and C99 source, with CSE.
 
-The equations are the matrix method's own (:func:`exo_bench.matrix_method.symbolic.compose.compose_equations` and
-:func:`exo_bench.matrix_method.symbolic.compose.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
+The equations are the matrix method's own (:func:`exo_bench.matrix_method.symbolic.compose_equations` and
+:func:`exo_bench.matrix_method.symbolic.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
 block ``k``, column block ``c`` is the matrix multiplying the second derivatives of block ``c``,
 :data:`exo_bench.models.states.equation_form.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
 is one common-subexpression elimination (``sympy.cse``) of its outputs, printed
@@ -28,7 +28,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
-from exo_bench.matrix_method.symbolic.compose import compose_equations, matrices
+from exo_bench.matrix_method.symbolic import compose_equations, matrices
 from exo_bench.models.files.encoders import c_comment, c_identifier, python_docstring, python_module_name, python_string
 from exo_bench.models.states.equation_form import ACCELERATION, blocks
 from exo_bench.models.mechanism.mechanism import Mechanism, coordinate_names, force_names

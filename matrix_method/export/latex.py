@@ -26,16 +26,16 @@ from dataclasses import dataclass
 import sympy as sp
 from sympy.printing.latex import LatexPrinter
 
-from exo_bench.matrix_method.symbolic.polynomials import generators
-from exo_bench.matrix_method.symbolic.compose import (
+from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries
+from exo_bench.matrix_method.symbolic import (
+    generators,
     planar_entries,
     planar_gravity,
     spatial_entries,
     spatial_gravity,
+    symbolic_aggregates,
     to_matrices,
 )
-from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling_entries
-from exo_bench.matrix_method.closed_forms.symbolic_coefficients import symbolic_aggregates
 from exo_bench.models.mechanism.aggregates import aggregates
 from exo_bench.models.states.equation_form import RATES, blocks, matrix_names
 from exo_bench.models.mechanism.mechanism import Mechanism

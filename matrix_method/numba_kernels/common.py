@@ -18,8 +18,9 @@ that runs it over samples ``start .. stop - 1`` with its scratch allocated once,
 ``kernel(*args, q, qd, qdd, o)`` that write the forces into ``o``; states and forces are flat,
 C-ordered ``(samples * dof,)`` float64 arrays (a ``(dof,)`` sample is already one, a
 ``(samples, dof)`` batch is its ``reshape(-1)``, a view): one signature per kernel. The serial
-driver runs them all; for batches of at least :data:`PARALLEL_MIN_SAMPLES` samples the parallel
-driver runs tasks of :data:`SAMPLES_PER_TASK` samples over numba's threads (``prange``). Writing into a
+driver runs them all; for batches of at least
+:data:`exo_bench.models.machine.numba_runtime.PARALLEL_MIN_SAMPLES` samples the parallel driver runs tasks
+of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` samples over numba's threads (``prange``). Writing into a
 given ``o`` (no array returned) leaves a one-sample call with numba's dispatch and the arithmetic
 only (returning a new array cost about as much as the arithmetic of exo5-3d): the caller may
 preallocate it (``inverse_dynamics(..., out=)``).
@@ -34,7 +35,7 @@ sympy); the transitions take their namespace ``t`` as a namedtuple (:data:`Trans
 process loads it instead of compiling. The first call of each kernel in a fresh cache compiles it
 (1 to 10 s each on the 2-core machine, the ``compile`` table of reports/scaling.md, measured by
 :func:`compile_times`). The cache is keyed on the source of every function a kernel inlines, not
-only on the kernel's own file (:mod:`exo_bench.matrix_method.numba_kernels.cache`): an edit to a
+only on the kernel's own file (:func:`inline`, below): an edit to a
 closed form recompiles the kernels that use it.
 
 **Threads.** (``matrix-factored``'s batches run :mod:`exo_bench.matrix_method.numba_kernels.simd` instead, on a
@@ -45,29 +46,51 @@ machine OpenMP's statically scheduled, spin-waiting threads made the parallel dr
 slower than the serial one whenever another process (or Pinocchio's own ``rneaInParallel`` pool)
 held a core, while ``workqueue`` was never slower than serial. A parallel driver is entered by one
 Python thread at a time (``workqueue`` aborts the process on concurrent parallel launches); a
-model called from several threads at once runs the serial driver in the others (:func:`run`).
+model called from several threads at once runs the serial driver in the others (:func:`exo_bench.models.machine.numba_runtime.run`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from typing import Any
 from collections import namedtuple
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
-from numba import njit  # noqa: F401 - re-exported for the kernel modules
+from numba import njit
 
 from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
-from exo_bench.matrix_method.numba_kernels.cache import inline
 from exo_bench.models.states import equation_form
-from exo_bench.models.machine.numba_runtime import (  # noqa: F401 - shared with models.newton_euler, re-exported
-    JIT,
-    PARALLEL_MIN_SAMPLES,
-    SAMPLES_PER_TASK,
-    ensure,
-    run,
-)
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+from exo_bench.models.machine.numba_runtime import run  # noqa: F401 - re-exported only for matrix_method/kernels.py (another session's file in this change): it should import run from numba_runtime
+from exo_bench.models.machine import numba_cache
+
+
+# numba's on-disk cache for the matrix family's kernels, keyed on the source of every function a kernel inlines
+# (the locator is :mod:`exo_bench.models.machine.numba_cache`, which lists this folder and the files its kernels
+# inline in ``KERNEL_SOURCES``): an edit to a closed form in :mod:`exo_bench.matrix_method.closed_forms.planar`
+# or ``transitions``, which the kernels inline through ``register_jitable``, recompiles the kernels instead of
+# loading stale machine code. tests/test_compiled.py edits an element function in a copy of the package and sees
+# the new forces from the compiled kernel.
+
+#: Where the kernels live: a kernel defined in a file of this folder uses the locator.
+KERNELS_DIR = Path(__file__).resolve().parent
+
+
+def inline(functions: Iterable[Callable[..., Any]], always: bool = False) -> None:
+    """:func:`exo_bench.models.machine.numba_cache.inline` for the kernels of this folder."""
+    numba_cache.inline(functions, KERNELS_DIR, always)
+
+
+def inlined_sources() -> list[Path]:
+    """The source files the kernels of this folder depend on."""
+    return numba_cache.inlined_sources(KERNELS_DIR)
+
+
+def inlined_sources_hash() -> str:
+    return numba_cache.inlined_sources_hash(KERNELS_DIR)
+
 
 ensure()  # numba's runtime set-up (models/machine/numba_runtime.py), before any kernel of this folder is defined
 
@@ -88,7 +111,7 @@ SPATIAL_ELEMENTS = tuple(f for fns in spatial.PAIRS.values() for f in fns.values
 
 def _generate(name: str, params: str, lines: list[str], functions: dict[str, Any]) -> Any:
     """A function ``name(params)`` whose body is ``lines``, calling ``functions`` by name, registered
-    for the kernels (:func:`~exo_bench.matrix_method.numba_kernels.cache.inline`). Its code object
+    for the kernels (:func:`~exo_bench.matrix_method.numba_kernels.common.inline`). Its code object
     names this file, so numba's cache is keyed on it and on the modules of ``functions``."""
     src = f"def {name}({params}):\n" + "".join(f"    {line}\n" for line in lines)
     namespace = dict(functions)
@@ -204,7 +227,7 @@ def drivers(
     stop[, dim])``, the parallel one runs tasks of :data:`SAMPLES_PER_TASK` samples over numba's threads.
 
     The drivers are named ``<prefix>_<dim>d`` and ``<prefix>_<dim>d_parallel``, compiled with the
-    file name of ``module`` (so numba's cache, and its :mod:`~exo_bench.matrix_method.numba_kernels.cache`
+    file name of ``module`` (so numba's cache, and its :mod:`~exo_bench.matrix_method.numba_kernels.common`
     locator, key them on that kernel file) and set as attributes of it."""
     import sys
 

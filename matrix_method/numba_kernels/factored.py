@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit
 
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.matrix_method.numba_kernels.common import JIT, drivers
+from exo_bench.matrix_method.numba_kernels.common import drivers
+from exo_bench.models.machine.numba_runtime import JIT
 
 
 @njit(**JIT)

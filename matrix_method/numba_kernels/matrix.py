@@ -23,8 +23,8 @@ import numpy as np
 from numba import njit
 
 from exo_bench.matrix_method.closed_forms import transitions as spatial
+from exo_bench.models.machine.numba_runtime import JIT
 from exo_bench.matrix_method.numba_kernels.common import (
-    JIT,
     drivers,
     PLANAR_FIELDS,
     RATES_2D,

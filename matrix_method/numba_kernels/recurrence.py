@@ -22,8 +22,8 @@ import numpy as np
 from numba import njit
 
 from exo_bench.matrix_method.closed_forms.coefficients import recurrence_increments
+from exo_bench.models.machine.numba_runtime import JIT
 from exo_bench.matrix_method.numba_kernels.common import (
-    JIT,
     RATES_2D,
     RATES_3D,
     add_planar,

@@ -11,7 +11,7 @@ samples at once, each step a loop over the samples that LLVM turns into SIMD ins
    thread, the whole kernel: 44.3 ns per sample against 51.7 with the loops alone (whose column
    reads LLVM makes gathers), the quiet machine, one run each;
 2. **per link j**: ``sin``/``cos`` of its angles in branch-free arithmetic
-   (:func:`exo_bench.matrix_method.numba_kernels.fast_trig.sincos_reduced`; the angles beyond its range, and NaN, are
+   (:func:`exo_bench.models.machine.fast_trig.sincos_reduced`; the angles beyond its range, and NaN, are
    redone with libm by a scalar loop that only they enter) and ``kappa_j``
    (:func:`exo_bench.matrix_method.closed_forms.factored.kappa_3d`);
 3. ``f_i = sum_j c_ij kappa_j``: one multiply-add per sample per (i, j, axis), summed in the same
@@ -37,7 +37,7 @@ needed for the no-aliasing knowledge); steps 3 and 4 read one scratch array and 
 which LLVM checks once per loop at run time. Unit stride everywhere but in the two transposes.
 
 Against the per-sample kernel the result differs only by the ``sin``/``cos`` (at most :data:`~exo_bench.models.machine.fast_trig.ULPS` ulp
-each, :mod:`exo_bench.matrix_method.numba_kernels.fast_trig`): the same operations in the same order otherwise.
+each, :mod:`exo_bench.models.machine.fast_trig`): the same operations in the same order otherwise.
 
 **Threads.** :func:`run` splits a batch of at least :data:`exo_bench.models.machine.simd_blocks.PARALLEL_MIN_ELEMENTS` state elements
 (samples x dof) over ``numba.get_num_threads()`` threads (the caller's and a pool's), which pull shares of it and
@@ -54,10 +54,11 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+from numba import njit
 from numba.extending import register_jitable
 
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.matrix_method.numba_kernels.common import JIT, njit
+from exo_bench.models.machine.numba_runtime import JIT
 from exo_bench.models.machine import simd_angles
 from exo_bench.models.machine.simd_angles import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import (
@@ -81,7 +82,6 @@ from exo_bench.models.machine.simd_blocks import (
     SP,
 )
 from exo_bench.models.machine.simd_blocks import _block_rows_in, _block_rows_out, _block_scratch
-from exo_bench.models.machine.simd_blocks import _rows_in, _rows_out, run  # noqa: F401 - re-exported
 
 
 @register_jitable

@@ -26,27 +26,23 @@ import sys
 from pathlib import Path
 
 
-from exo_bench.bench.perf.options import BenchOptions
+from exo_bench.bench.studies.options import BenchOptions
 
 from exo_bench.bench.output.provenance import REPO
 from exo_bench.models.files.atomic_files import atomic_write
 
-# The reports, one module each (re-exported: the benchmark reports' interface).
+# The reports, one module each.
 from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime
 from exo_bench.bench.perf.reports.loading import _inverse, load
 from exo_bench.bench.perf.rows import check_rows_ran
-from exo_bench.bench.perf.reports.paper_table import (  # noqa: F401
-    PAPER_TABLE,
-    README_END,
-    README_START,
-    _verdict,
+from exo_bench.bench.perf.reports.paper_table import (
     goals,
     paper_table,
     readme_with_table,
 )
-from exo_bench.bench.perf.reports.scaling import crossover, fit_exponent, scaling, speed_goals  # noqa: F401
+from exo_bench.bench.perf.reports.scaling import scaling, speed_goals
 from exo_bench.bench.output.publish import publish, staging_dir
-from exo_bench.bench.output.suite_reports import BENCHMARK_REPORTS, benchmark_json
+from exo_bench.bench.output.publish import BENCHMARK_REPORTS, benchmark_json
 
 
 def _strip_raw_timings(path: Path) -> None:
@@ -57,7 +53,7 @@ def _strip_raw_timings(path: Path) -> None:
     atomic_write(path, json.dumps(data, indent=1))
 
 
-REPORT_FILES = BENCHMARK_REPORTS  # the names: bench/output/suite_reports.py
+REPORT_FILES = BENCHMARK_REPORTS  # the names: bench/output/publish.py
 
 
 def report_names(out: Path, sweep: str) -> dict[str, str]:

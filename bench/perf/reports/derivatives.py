@@ -228,7 +228,9 @@ def derivatives_report(
 def _plot(d: pd.DataFrame, png: Path) -> None:
     from matplotlib.figure import Figure
 
-    from exo_bench.bench.output.figures.scene_figures import TEXT_PT, TITLE_PT, save_figure
+    from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT
+
+    from exo_bench.bench.output.provenance import save_figure
 
     floor = 1e-17
     fig = Figure(figsize=(15, 6.5), layout="constrained")
@@ -262,7 +264,7 @@ def _plot(d: pd.DataFrame, png: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     from exo_bench.bench.output.files import quick_name
-    from exo_bench.bench.output.provenance import atomic_write
+    from exo_bench.models.files.atomic_files import atomic_write
     from exo_bench.bench.perf.reports.loading import load
 
     p = argparse.ArgumentParser(description="write derivatives.md and .png from bench/test_derivatives.py's JSON")

@@ -9,7 +9,7 @@ import pandas as pd
 
 from exo_bench.bench.output.provenance import provenance
 from exo_bench.bench.perf.reports.loading import _inverse, _kernel, _skips_md
-from exo_bench.bench.perf.reports.plotting import _log_log_by_dim, _style
+from exo_bench.bench.perf.reports.loading import _log_log_by_dim, _style
 
 
 # ----------------------------------------------------------------------------- error vs runtime
@@ -47,7 +47,7 @@ def error_vs_runtime(df: pd.DataFrame, skips: list[dict], command: str, png: Pat
                 f"| {r['dim']}D | {r['method']} | {r['mechanism']} | {r['median'] * 1e6:.3g} | "
                 f"{r['max_abs_err']:.1e} | {r['max_rel_err']:.1e} | {r['nonfinite']} | {r['reference']} |"
             )
-    from exo_bench.bench.perf.peer_ratios import engine_section  # the engines' rows and their ratios
+    from exo_bench.bench.perf.peers import engine_section  # the engines' rows and their ratios
 
     lines += [""] + engine_section(inv)
     lines += _skips_md(skips, "test_inverse_batched")

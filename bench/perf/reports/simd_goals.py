@@ -19,10 +19,10 @@ What is timed (exo5-3d, states along a smooth random motion):
 * ``pydy_per_call``: PyDy's Cython code of the same composed equations into ``out``;
 * ``trap``: the batch in a fresh process, normally and after a user's ``prange`` started numba's
   OpenMP threads first (the median of each, both in subprocesses alike);
-* the limit: the SIMD kernel's counted flops at this CPU's SIMD rate (bench/perf/roofline_simd.py).
+* the limit: the SIMD kernel's counted flops at this CPU's SIMD rate (bench/perf/roofline.py).
 * ``newton_euler_batched_1t``: ``newton-euler (numba)``'s public call on the same arrays (its kernel
   that vectorises across samples, models/newton_euler/simd.py), one thread, with its own counted
-  limit (bench/perf/roofline_newton_euler.py). The batched goal is judged on the faster of the two
+  limit (bench/perf/roofline.py). The batched goal is judged on the faster of the two
   methods' public calls, named in the line; ``matrix-factored``'s figures stay reported.
 """
 
@@ -142,7 +142,7 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     """Every figure of the goals (module docstring), in this process (the trap in two subprocesses)."""
     from exo_bench import prepare
     from exo_bench.api.cost_model import ResourceLimit
-    from exo_bench.bench.perf import roofline as limit, roofline_simd as limit_simd, peers
+    from exo_bench.bench.perf import peers, roofline as limit
     from exo_bench.matrix_method.prepared import MatrixFactored
 
     mech, q, qd, qdd = _states(samples)
@@ -213,8 +213,8 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     res["pydy_missing"] = why
     ts = _interleaved(single, rounds)
     res.update({k: v / calls * 1e6 for k, v in ts.items()})  # us per call
-    # the errors, against the 50-digit reference (bench/studies/reference_forces.py), bound as the benchmark's
-    from exo_bench.bench.studies.reference_forces import reference
+    # the errors, against the 50-digit reference (bench/studies/study.py), bound as the benchmark's
+    from exo_bench.bench.studies.study import reference
 
     idx = np.unique(np.linspace(0, samples - 1, 12).round().astype(int))
     want, label = reference(mech, q[idx], qd[idx], qdd[idx])
@@ -227,15 +227,15 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
     if "pydy_per_call" in single:
         res["pydy_err"] = float(np.abs(po - one[0]).max())
     # the limit
-    count, tau = limit_simd.count_simd(mech, q0, qd0, qdd0)
+    count, tau = limit.count_simd(mech, q0, qd0, qdd0)
     assert np.array_equal(tau, model.inverse_dynamics(q0[None], qd0[None], qdd0[None], check=False)[0]), (
         "the counted run is not what the SIMD kernel computes"
     )
     rates = limit.throughput()
     res["count"], res["rates"] = count, rates
-    res["limit_1t_us"] = limit_simd.estimate_simd(count, rates, 1) * 1e6
-    res["limit_2t_us"] = limit_simd.estimate_simd(count, rates, 2) * 1e6
-    from exo_bench.bench.perf.roofline_newton_euler import count_newton_euler_simd
+    res["limit_1t_us"] = limit.estimate_simd(count, rates, 1) * 1e6
+    res["limit_2t_us"] = limit.estimate_simd(count, rates, 2) * 1e6
+    from exo_bench.bench.perf.roofline import count_newton_euler_simd
 
     ne_count, ne_tau = count_newton_euler_simd(mech, q0, qd0, qdd0)
     from exo_bench.models.newton_euler.simd import MIN_SAMPLES
@@ -245,7 +245,7 @@ def measure(samples: int = 10_000, rounds: int = 30, calls: int = 2000, pydy: bo
         "the counted run is not what newton-euler's SIMD kernel computes"
     )
     res["newton_euler_count"] = ne_count
-    res["newton_euler_limit_1t_us"] = limit_simd.estimate_simd(ne_count, rates, 1) * 1e6
+    res["newton_euler_limit_1t_us"] = limit.estimate_simd(ne_count, rates, 1) * 1e6
     if trap:
         res["trap"] = _trap(samples, rounds)
     return res
@@ -390,12 +390,13 @@ def main(argv=None) -> int:
     command = " ".join(["python -m exo_bench.bench.perf.reports.simd_goals", *(sys.argv[1:] if argv is None else argv)])
     r = measure(a.samples, a.rounds)
     if a.json:
-        from exo_bench.bench.output.provenance import atomic_write
+        from exo_bench.models.files.atomic_files import atomic_write
 
         atomic_write(a.json, json.dumps(r, indent=1))  # the one writer: never through a link
     print("\n".join(goals_lines(r)))
     if a.markdown:
-        from exo_bench.bench.output.provenance import atomic_write, provenance
+        from exo_bench.bench.output.provenance import provenance
+        from exo_bench.models.files.atomic_files import atomic_write
 
         atomic_write(
             a.markdown,

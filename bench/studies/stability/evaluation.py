@@ -40,7 +40,7 @@ def reference_forces(mech: Mechanism, q, qd, qdd) -> tuple[np.ndarray, str]:
     """
     why = ""
     try:
-        from exo_bench.bench.studies.reference_forces import reference
+        from exo_bench.bench.studies.study import reference
 
         return reference(mech, q, qd, qdd)
     except ImportError as e:

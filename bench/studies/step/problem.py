@@ -4,8 +4,8 @@
 is the stance ankle, actuated like every other joint, and every rod is actuated along its length. The
 system is therefore fully actuated: every trajectory is dynamically possible, and the loads along it are
 its inverse dynamics. The optimiser chooses the trajectory; the loads are ``tau = ID(q, qd, qdd)`` from the
-equations' CasADi export (:func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`) and the net joint loads
-of :mod:`exo_bench.models.mechanism.joint_loads` (:func:`exo_bench.bench.studies.step.symbolic.net_loads_function`). Like OpenSim Moco's
+equations' CasADi export (:func:`exo_bench.bench.studies.step.transcription.inverse_dynamics_function`) and the net joint loads
+of :mod:`exo_bench.models.mechanism.joint_loads` (:func:`exo_bench.bench.studies.step.transcription.net_loads_function`). Like OpenSim Moco's
 example2DWalking, opty's gait2d and Ackermann & van den Bogert (2010), it solves for one step with
 left/right swap periodicity, a prescribed average speed and an effort objective.
 
@@ -41,8 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.bench.output.interrupts import check as check_interrupt
-from exo_bench.bench.studies.solve_failed import SolveFailed
+from exo_bench.bench.output.interrupts import SolveFailed, check as check_interrupt
 from exo_bench.bench.studies.step.coordinates import angle_rows, swap_matrix
 from exo_bench.models.mechanism.mechanism import Mechanism
 
@@ -189,16 +188,16 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
     """Build and solve the collocation problem; raise ``RuntimeError`` (one line) when IPOPT fails.
 
     ``inverse_dynamics``: a function ``mech -> casadi.Function tau = ID(q, qd, qdd)``, by default
-    :func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`. The NLP and its exact
+    :func:`exo_bench.bench.studies.step.transcription.inverse_dynamics_function`. The NLP and its exact
     derivatives, built per collocation point and mapped, are :mod:`exo_bench.bench.studies.step.transcription`;
     IPOPT's tolerances are the stored step's."""
     import casadi as ca
 
-    from exo_bench.bench.studies.step import symbolic, transcription
+    from exo_bench.bench.studies.step import transcription
 
     _check(mech, settings)
     s = settings
-    point = _point_function(mech, (inverse_dynamics or symbolic.inverse_dynamics_function)(mech))
+    point = _point_function(mech, (inverse_dynamics or transcription.inverse_dynamics_function)(mech))
     n, dim, K = mech.nlinks, mech.dim, 2 * s.intervals + 1
     nlp = transcription.build(mech, s, point)  # exact derivatives per collocation point, mapped
     t0, q0, qd0, qdd0 = initial_guess(mech, s)
@@ -256,14 +255,14 @@ def solve(mech: Mechanism, settings: StepSettings, inverse_dynamics=None, verbos
 
 def _point_function(mech: Mechanism, ID):
     """Everything the problem needs at one collocation point, as one SX function (one derivative for all):
-    ``(tau, M, F, p, v)`` (:mod:`exo_bench.bench.studies.step.symbolic`)."""
+    ``(tau, M, F, p, v)`` (:mod:`exo_bench.bench.studies.step.transcription`)."""
     import casadi as ca
 
-    from exo_bench.bench.studies.step import symbolic
+    from exo_bench.bench.studies.step import transcription
 
     q, qd, qdd = (ca.SX.sym(x, mech.dof) for x in ("q", "qd", "qdd"))
-    M, F = symbolic.net_loads_function(mech)(q, qd, qdd)
-    p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
+    M, F = transcription.net_loads_function(mech)(q, qd, qdd)
+    p, v, _ = transcription.kinematics_function(mech)(q, qd, qdd)
     return ca.Function("step_point", [q, qd, qdd], [ID(q, qd, qdd), M, F, p, v])
 
 

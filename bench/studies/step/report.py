@@ -185,7 +185,7 @@ def _settings_lines(st: data.StoredStep) -> list[str]:
         f"- **objective** (per second, Simpson): {s.w_moment:g} × Σ_joints |net joint moment|² in (N·m/kg)² + "
         f"{s.w_force:g} × Σ_rods (rod force / BW)² + {s.w_accel:g} × Σ qdd² (regulariser); the loads are the "
         "inverse dynamics of the equations' CasADi export (matrix_method/export/casadi_functions.py) and the net joint "
-        "loads of models/mechanism/joint_loads.py in CasADi (bench/studies/step/symbolic.py)",
+        "loads of models/mechanism/joint_loads.py in CasADi (bench/studies/step/transcription.py)",
     ]
 
 

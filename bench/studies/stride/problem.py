@@ -1,4 +1,5 @@
-"""The predicted stride of the 2D human with feet (issue 37): settings, initial guess, solve.
+"""The predicted stride of the 2D human with feet (issue 37): settings, initial guess, solve, and trials
+of the problem with settings changed (:func:`run_trial`).
 
 **What is solved.** Half a stride, from the right heel's touchdown to the left's, with a left/right
 symmetry constraint (the end is the start mirrored, the hips half a stride on): the full stride is the
@@ -49,7 +50,7 @@ trials (``w_floor`` 6, ankle 0.25 or 0.4) miss one peak each, so the margin is o
 spring stands for the ankle's parallel elasticity; its value is not from a checked source.
 
 **Trials** (data/trials/<name>/, tabled in the stride's report with what each changes; solved by
-:mod:`~exo_bench.bench.studies.stride.trials`): the problem with settings changed, each solved from the
+:func:`run_trial`, ``python -m exo_bench.bench.studies.stride.problem NAME KEY=VALUE ...``): the problem with settings changed, each solved from the
 human stride at 1.41 m/s stored before the floor was priced (kept as the trial ``floor-unpriced``): the
 rods priced 1x, negative work priced 0.2, strength-weighted effort, a free period, a 0.1 m/s rod rate
 bound, a joint-acceleration penalty, gait2d's contact damping and friction, a stiffer heel, Anderson and
@@ -62,19 +63,23 @@ strengths to state.
 
 from __future__ import annotations
 
+import ast
 import math
+import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from exo_bench.bench.output.interrupts import check as check_interrupt
-from exo_bench.bench.studies.solve_failed import SolveFailed
+from exo_bench.bench.output.interrupts import SolveFailed, check as check_interrupt
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.files.names import check_name
+
 
 DEG = math.pi / 180
 #: The exo variant's telescopic-rod stroke (m, either way about the anthropometric length): a compact
@@ -384,18 +389,99 @@ def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.Stored
     )
 
 
+# Trials of the stride problem: the stored problem with settings changed, solved from a stored stride and stored
+# beside it (data/trials/<name>/, tabled in the stride's report by :func:`~.report.trials_table`).
+
+
+def trial_folder(name: str, root: Path | None = None) -> Path:
+    """The folder of trial ``name`` (a checked name, never a path)."""
+    check_name(name, "trial")
+    from exo_bench.models.files.names import file_stem
+
+    return Path(data.DATA / "trials" if root is None else root) / file_stem(name)
+
+
+def run_trial(name: str, overrides: dict[str, Any], variant: str = "human", speed: float = 1.41, root=None) -> Path:
+    """Solve the stored problem of ``variant`` at ``speed`` with ``overrides`` from its stored stride; store it."""
+    from exo_bench.bench.output.provenance import _git_commit  # git with a timeout (issue 34: no unbounded wait)
+    from exo_bench.models.mechanism.presets import human
+
+    mech = human(2)
+    source = data.load(variant, speed, mech)
+    s = replace(settings_for(mech, variant, speed), **overrides)
+    st = solve_from(mech, s, source)
+    commit = _git_commit()
+    args = ", ".join(f"{k}={v!r}" for k, v in overrides.items())
+    st.meta["provenance"] = {
+        "command": f"trial: problem.solve_from(mech, replace(settings_for(mech, {variant!r}, {speed:g}), {args}), "
+        f"the stored {variant} stride at {speed:g} m/s of {commit})",
+        "commit": commit,
+        "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    }
+    return data.save(st, mech, trial_folder(name, root))
+
+
+#: The stored strides, in the order :func:`store_all` solves them: ``(variant, speed, the stride it starts from)``.
+STORED = (("human", 1.41, ("human", 1.41)), ("human", 1.0, ("human", 1.41)), ("human", 1.8, ("human", 1.41)))
+STORED_EXO = (("exo", 1.41, ("exo", 1.41)),)
+
+
+def store_all(keys=STORED + STORED_EXO) -> list[str]:
+    """Solve every stored stride again with the problem as :func:`settings_for` sets it now, each
+    from the stride named (the human at 1.41 m/s first, so the others start from the new one), and store
+    it; one line per stride."""
+    from exo_bench.bench.output.provenance import _git_commit  # bounded wait; says when the tree differs
+    from exo_bench.models.mechanism.presets import human
+
+    mech = human(2)
+    commit = _git_commit()
+    out = []
+    for variant, speed, (sv, ss) in keys:
+        st = solve_from(mech, settings_for(mech, variant, speed), data.load(sv, ss, mech))
+        st.meta["provenance"] = {
+            "commit": commit,
+            "date": time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime()),
+            "command": f"trials.store_all: problem.solve_from(mech, settings_for(mech, {variant!r}, {speed:g}), "
+            f"the stored {sv} stride at {ss:g} m/s)",
+        }
+        path = data.save(st, mech)
+        out.append(f"{path.name}: {st.solver['solve_seconds']:.1f} s, objective {st.solver['objective']:.6g}")
+        print(out[-1], flush=True)
+    return out
+
+
+def main(argv: list[str]) -> int:
+    if argv[:1] == ["--store-all"]:
+        store_all(STORED if argv[1:] == ["human"] else STORED_EXO if argv[1:] == ["exo"] else STORED + STORED_EXO)
+        return 0
+    name, *pairs = argv
+    overrides = {k: ast.literal_eval(v) for k, v in (p.split("=", 1) for p in pairs)}
+    variant = overrides.pop("variant", "human")  # the stored stride of this variant at 1.41 m/s is the start
+    path = run_trial(name, overrides, variant)
+    st = data.load(variant, 1.41, folder=path.parent)
+    print(path, st.solver["solve_seconds"], st.solver["objective"])
+    return 0
+
+
 __all__ = [
     "CONSTR_VIOL_TOL",
     "EXO_RATE",
     "EXO_STROKE",
     "FLOOR_PRICE",
-    "SPRING",
     "HUMAN_STROKE",
     "JOIN_LOADS",
+    "SPRING",
     "StrideSettings",
     "assemble",
     "initial_guess",
     "settings_for",
     "settings_from",
+    "run_trial",
     "solve",
+    "store_all",
+    "trial_folder",
 ]
+
+
+if __name__ == "__main__":  # pragma: no cover - a maintainer's command
+    sys.exit(main(sys.argv[1:]))

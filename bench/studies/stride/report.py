@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import data
-from exo_bench.bench.studies.stride.sizing import Sizing, sizing
+from exo_bench.bench.studies.stride.actuators import Sizing, sizing
 from exo_bench.models.files.encoders import markdown_text as md
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.normative import SOURCE
@@ -232,12 +232,12 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
     scene's reference method's generalised forces along the stride, to say what its methods table shows."""
     from pathlib import Path
 
-    from exo_bench.bench.studies.stride import join
+    from exo_bench.bench.studies.stride import constraints
 
     c = cmp.compare(mech, stride)
     cadence = 120.0 / stride.period
     strides = _stored(mech, folder)  # every stored stride: the join of each, then its sizing
-    groups = join.joins(mech, strides, TRIALS if folder is None else Path(folder) / "trials")
+    groups = constraints.joins(mech, strides, TRIALS if folder is None else Path(folder) / "trials")
     lines = [
         "## The stride against Winter's, over the whole gait cycle",
         "",
@@ -285,16 +285,16 @@ def markdown(mech: Mechanism, stride: data.StoredStride, figure: str | None = No
         "",
         *verdicts_by_stride(mech, folder),
         "",
-        *join.section(groups),
+        *constraints.section(groups),
         "### Actuator sizing",
         "",
         "Per joint motor (hips, knees, ankles) and telescopic rod, over one stride: peak and RMS torque (N·m) or "
         "force (N), peak positive and negative power, and positive and negative energy per stride "
-        "(bench/studies/stride/sizing.py). Solve times are wall time on the host that solved the stride.",
+        "(bench/studies/stride/actuators.py). Solve times are wall time on the host that solved the stride.",
         "",
     ]
     for st, g in zip(strides, groups):
-        lines += [*sizing_table(sizing(mech, st)), "", md(join.note(g[0])), ""]
+        lines += [*sizing_table(sizing(mech, st)), "", md(constraints.note(g[0])), ""]
     return "\n".join(lines).rstrip("\n") + "\n"
 
 

@@ -9,7 +9,7 @@ at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``
   :func:`exo_bench.models.simulation.contact_casadi.contact_force_expr`: no mode schedule; which points carry the
   body emerges), their generalised forces ``Q = J_c^T f_c`` (``J_c`` by CasADi's AD of the contact
   points' positions), and the actuators' generalised forces ``tau = ID(q, qd, qdd) - Q`` with ``ID``
-  the equations' CasADi export (:func:`exo_bench.bench.studies.step.symbolic.inverse_dynamics_function`);
+  the equations' CasADi export (:func:`exo_bench.bench.studies.step.transcription.inverse_dynamics_function`);
 * ``tau`` split into joint moments, rod forces and residuals by the linear map of
   :func:`exo_bench.bench.studies.stride.actuators.actuators` (taken from it on the identity, so the
   split is that function's); the residuals (HAT's angle, the root's angle and length: nothing holds the
@@ -35,7 +35,7 @@ the largest joint power 107.9 W, objective 0.4473 (0.4379 without). The human va
 does not have it: the human stride at 1.41 m/s solved with it (trial ``human-join-loads``) keeps its r
 (0.72/0.84/0.94) but has 15 of 17 peaks within 2x (knee power in swing 2.2x, ankle power in stance
 2.1x), where the stored one has 17; so the human strides' loads jump at the join (17.8 N·m and 150 N
-at 1.41 m/s), and the report says so, computed (:mod:`~.join`).
+at 1.41 m/s), and the report says so, computed (:mod:`~.constraints`).
 
 **Objective.** Work per metre over body weight, positive and negative parts priced separately: each
 power ``P`` is split exactly into ``U+ - U-`` with ``U+, U- >= 0`` (variables, in units of ``BW v``), whose
@@ -100,18 +100,18 @@ def strength_of(s: Any, joint: str) -> float:
 
 def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
     """``y(q, qd, qdd)``: every nonlinear quantity of one node (module docstring), and its :class:`Rows`."""
-    from exo_bench.bench.studies.step import symbolic
+    from exo_bench.bench.studies.step.transcription import inverse_dynamics_function, kinematics_function
 
     n, dof, dim = mech.nlinks, mech.dof, 2
     q, qd, qdd = (ca.SX.sym(x, dof) for x in ("q", "qd", "qdd"))
-    p, v, _ = symbolic.kinematics_function(mech)(q, qd, qdd)
+    p, v, _ = kinematics_function(mech)(q, qd, qdd)
     at = lambda x, link: x[(3 * link + 2) * dim : (3 * link + 3) * dim]  # noqa: E731  the link's end mass
     links = contact_mask_order(mech)
     params = contact_of(s)
     f = ca.vertcat(*[contact_force_expr(at(p, i), at(v, i), params) for i in links])
     pc = ca.vertcat(*[at(p, i) for i in links])
     floor = ca.dot(f, ca.vertcat(*[at(v, i) for i in links]))  # W: the floor's power on the body
-    tau = symbolic.inverse_dynamics_function(mech)(q, qd, qdd) - ca.mtimes(ca.jacobian(pc, q).T, f)
+    tau = inverse_dynamics_function(mech)(q, qd, qdd) - ca.mtimes(ca.jacobian(pc, q).T, f)
     eye = actuators(mech, np.eye(dof))  # the split is linear: its matrix, row i the split of e_i
     moments = ca.mtimes(ca.DM(eye.moments.T), tau)
     rods = ca.mtimes(ca.DM(eye.forces.T), tau)
