@@ -149,7 +149,7 @@ def ensure() -> str:
 
 def jit_disabled() -> bool:
     """``NUMBA_DISABLE_JIT`` is set: numba runs its functions as Python, and the kernels' SIMD tiles
-    (numba intrinsics: models/machine/simd_tiles.py) cannot run at all."""
+    (numba intrinsics: models/machine/simd_blocks.py) cannot run at all."""
     import numba
 
     return bool(getattr(numba.config, "DISABLE_JIT"))  # noqa: B009 - set at run time

@@ -43,7 +43,7 @@ from exo_bench.models.newton_euler import simd
 from exo_bench.models.newton_euler.compiled import WIDTH
 from exo_bench.models.machine.numba_cache import inline
 from exo_bench.models.machine.numba_runtime import JIT, ensure
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import CF, CP, F0, FROWS, K0, LANES, O0, ROWS, SF, SP, block_transposes
 from exo_bench.models.runtime.forward_check import _row_clear
 from exo_bench.models.states.validation_pass import OK, QD, QDD, status

@@ -41,7 +41,7 @@ from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler import simd
 from exo_bench.models.machine.numba_cache import inline
 from exo_bench.models.machine.numba_runtime import JIT, ensure
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import (
     CF,
     CP,
