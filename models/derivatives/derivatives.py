@@ -15,7 +15,7 @@
 * the directional derivatives, O(n) per sample, for users who need no full Jacobian
   (:mod:`exo_bench.models.newton_euler.products`, compiled across SIMD lanes in
   :mod:`exo_bench.models.newton_euler.products_simd` and per sample in
-  :mod:`exo_bench.models.newton_euler.products_compiled`; the option ``products`` and
+  :mod:`exo_bench.models.newton_euler.products`; the option ``products`` and
   :attr:`Derivatives.products_kernel` say which runs): :meth:`Derivatives.inverse_dynamics_jvp` ``(q,
   qd, qdd, dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
   w^T dtau/dqd, w^T M)``, and the same of forward dynamics (:meth:`Derivatives.forward_dynamics_jvp`,
@@ -83,7 +83,7 @@ REFERENCE = {"numba": False, "numpy": True}
 #: The option ``products``: the kernel of the directional derivatives (:attr:`Derivatives.products_kernel`),
 #: each the name of the method that runs it (a table: no branch on a kernel's name): ``"simd"``
 #: (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes), ``"numba"``
-#: (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the reference), or
+#: (:mod:`exo_bench.models.newton_euler.products`, per sample), ``"numpy"`` (the reference), or
 #: ``"auto"`` (:data:`AUTO`).
 PRODUCT_KERNELS = {"auto": "", "simd": "_simd_products", "numba": "_compiled_products", "numpy": "_reference_products"}
 #: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel. The SIMD
@@ -350,8 +350,8 @@ class Derivatives:
         return functools.partial(getattr(products_simd, which), self.table, dim, g, scratch=self.products_scratch)
 
     def _compiled_products(self, which: str, reference: bool = False):
-        """Per sample, compiled (:mod:`exo_bench.models.newton_euler.products_compiled`), or its numpy reference."""
-        from exo_bench.models.newton_euler import products_compiled as pc
+        """Per sample, compiled (:mod:`exo_bench.models.newton_euler.products`), or its numpy reference."""
+        from exo_bench.models.newton_euler import products as pc
 
         m = self.mechanism
         return functools.partial(getattr(pc, which), self.tree, self.table, m.dim, float(m.g), reference=reference)

@@ -58,19 +58,18 @@ samples compiles as if written out for its dimension (planar: no ``psi``, no tri
 
 from __future__ import annotations
 
+import math
 import threading
 import time
+
 import numba
 import numpy as np
+from exo_bench.models.machine.fast_trig import RANGE, sincos_reduced
+from exo_bench.models.machine.numba_runtime import JIT, RUNTIME, ensure, jit_for
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
-from numba.extending import intrinsic
-from exo_bench.models.machine.numba_runtime import JIT, RUNTIME, ensure, jit_for
-import math
-from numba.extending import register_jitable
-from exo_bench.models.machine.fast_trig import RANGE, sincos_reduced
-
+from numba.extending import intrinsic, register_jitable
 
 #: doubles per SIMD tile side
 TILE = 8

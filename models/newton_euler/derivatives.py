@@ -264,7 +264,7 @@ class InverseDerivatives:
 
     def _numba(self, q, qd, qdd, out) -> None:
         from exo_bench.models.newton_euler import derivatives_compiled as dc
-        from exo_bench.models.newton_euler.derivatives_streaming import streams
+        from exo_bench.models.newton_euler.derivatives_compiled import streams
         from exo_bench.models.machine.numba_runtime import run
 
         args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out, streams(out, self.dof))
