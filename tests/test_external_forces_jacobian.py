@@ -21,7 +21,7 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as ef
-from exo_bench.models.simulation import external_forces_controls as efc
+from exo_bench.models.simulation import simulate as efc
 from exo_bench.models.simulation.forward_dynamics import RodSpringDamper
 from exo_bench.models.mechanism.presets import random_tree
 from exo_bench.models.simulation.simulate import make_jacobian, simulate

@@ -14,7 +14,7 @@ of them (the same function the symbolic export uses).
 * ``bias_forces(q, qd) -> h``: ``tau(q, qd, 0)``;
 * ``forward_dynamics(q, qd, tau) -> qdd``: ``M^-1 (tau - h)`` by CasADi's ``solve`` with its sparse
   QR (an MX function; M is symmetric positive definite away from the singular configurations of
-  :func:`exo_bench.models.simulation.forward_dynamics.singular_reasons`, where the factorisation fails or the result is
+  :func:`exo_bench.models.mechanism.singularity.singular_reasons`, where the factorisation fails or the result is
   Inf/NaN, never hidden);
 * ``inverse_dynamics_derivatives(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: CasADi's algorithmic
   differentiation of the kernel;

@@ -603,7 +603,7 @@ class Derivatives:
 
         With ``check`` (the default) the states are validated and they answer or refuse exactly as
         ``forward_dynamics`` does: a singular mass matrix raises
-        :class:`exo_bench.models.simulation.forward_dynamics.SingularConfigurationError` naming the link, one beyond
+        :class:`exo_bench.models.mechanism.singularity.SingularConfigurationError` naming the link, one beyond
         the conditioning bound :class:`exo_bench.models.runtime.conditioning.NumericallySingularError` (the test
         every method shares), and an answer that is not finite is refused, never returned. Without
         ``check`` only the arrays are checked, and the mechanism itself: a link that moves no mass

@@ -1,4 +1,5 @@
-"""Smooth ground contact at a point: a Hunt-Crossley normal force with smoothed Coulomb friction.
+"""Smooth ground contact at a point: a Hunt-Crossley normal force with smoothed Coulomb friction, in numpy
+and as CasADi expressions (one model, two forms).
 
 The kind of contact Moco's ``SmoothSphereHalfSpaceForce`` (Serrancolí, Falisse et al. 2019; Simbody's
 ``SmoothSphereHalfSpaceForce``, whose documentation gives the units below) and gait2d (Ackermann and
@@ -41,15 +42,30 @@ point carries a quarter of 56.7 kg at 6 mm of penetration.
 
 Derivatives: :func:`contact_force_jacobians` returns ``df/dp`` and ``df/dv`` in closed form (tested
 against complex-step derivatives; every function here accepts complex arrays for that).
+
+**As CasADi expressions**, for collocation.
+
+:func:`contact_force_expr` builds the same force as :func:`contact_force` for
+one contact point from CasADi column vectors ``p`` and ``v`` (``SX`` or ``MX``, ``dim`` rows), so a
+transcription (bench/studies/step/ for the paper's step; the stride to come) can add the floor's forces
+at the heels and toes to its dynamics and let CasADi differentiate them; :func:`contact_function` wraps
+it as a ``casadi.Function`` ``(p, v) -> f``. The softplus and sigmoid take the branch whose exponent's
+argument is not positive, with ``if_else`` (both branches are evaluated; the unused one is discarded,
+not multiplied by zero, so its overflow never reaches the result). tests/test_contact_casadi.py holds
+it equal to the numpy form and its CasADi Jacobians equal to
+:func:`exo_bench.models.simulation.contact.contact_force_jacobians`.
+
+CasADi is an optional extra (``pip install 'exo-bench[casadi]'``): without it these functions raise a
+ValueError naming the extra.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
-
 from exo_bench.models.states.validation import _finite, _is_number
 
 #: Positions and velocities beyond this are refused: the force's powers of them overflow float64
@@ -219,3 +235,41 @@ def ground_forces(
     out = np.zeros(positions.shape)
     out[:, points] = contact_force(positions[:, points], velocities[:, points], params)
     return out
+
+
+def _casadi() -> Any:
+    try:
+        import casadi
+    except ImportError as e:  # pragma: no cover - CI installs the extra
+        raise ValueError("contact: CasADi expressions need the casadi extra: pip install 'exo-bench[casadi]'") from e
+    return casadi
+
+
+def _softplus(ca: Any, x: Any, width: float) -> Any:
+    z = x / width
+    return width * ca.if_else(z > 0, z + ca.log1p(ca.exp(-z)), ca.log1p(ca.exp(z)))
+
+
+def contact_force_expr(p: Any, v: Any, params: ContactParameters = DEFAULT_CONTACT) -> Any:
+    """The floor's force (N, world axes, ``dim x 1``) on a contact point at ``p`` moving at ``v``."""
+    ca = _casadi()
+    c = params
+    dim = p.shape[0]
+    d_s = _softplus(ca, -p[dim - 1], c.penetration_smoothing)
+    damp = _softplus(ca, 1 + 1.5 * c.dissipation * (-v[dim - 1]), c.dissipation_smoothing)
+    f_n = c.hertz * d_s**1.5 * damp
+    vt = v[: dim - 1]
+    s = ca.sqrt(ca.sumsqr(vt) + c.slip_smoothing**2)
+    x = s / c.transition_velocity
+    mu = c.dynamic_friction * ca.tanh(x) + (c.static_friction - c.dynamic_friction) * 2 * x / (1 + x * x)
+    mu = mu + c.viscous_friction * s
+    return ca.vertcat(-(f_n * mu / s) * vt, f_n)
+
+
+def contact_function(dim: int, params: ContactParameters = DEFAULT_CONTACT) -> Any:
+    """``casadi.Function('contact', [p, v], [f])`` for one point in ``dim`` (2 or 3) dimensions."""
+    if dim not in (2, 3):
+        raise ValueError(f"contact: field 'dim': expected 2 or 3, got {dim!r}")
+    ca = _casadi()
+    p, v = ca.SX.sym("p", dim), ca.SX.sym("v", dim)
+    return ca.Function("contact", [p, v], [contact_force_expr(p, v, params)], ["p", "v"], ["f"])

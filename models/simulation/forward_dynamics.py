@@ -20,25 +20,25 @@ matrix (:func:`exo_bench.models.mechanism.aggregates.coupling`). ``M`` is singul
 a link's columns are dependent: a rod of length zero (its angles move no mass) or, in 3D, a vertical rod
 (``cos psi_i = 0``: the azimuth column ``l_i cos psi_i (-sin phi_i, cos phi_i, 0)`` vanishes).
 Inverse dynamics is still defined there; forward dynamics is not, and
-:func:`accelerations` raises :class:`SingularConfigurationError` naming the link instead of
-returning NaN or garbage. :func:`singular_reasons` does the detection, exactly (no threshold on
+:func:`accelerations` raises :class:`~exo_bench.models.mechanism.singularity.SingularConfigurationError` naming the link instead of
+returning NaN or garbage. :func:`~exo_bench.models.mechanism.singularity.singular_reasons` does the detection, exactly (no threshold on
 a condition number), and :func:`condition_numbers` measures how close to singular ``M`` is. Near
 those states every method refuses alike where the error model cannot vouch for the answer: one
 conditioning test with its bound, :mod:`exo_bench.models.runtime.conditioning`.
 
-**Integration** (:func:`simulate`, in :mod:`exo_bench.models.simulation.simulate`) steps scipy's integrators on ``y = [q, qd]``, with
+**Integration** (:func:`~exo_bench.models.simulation.simulate.simulate`, in :mod:`exo_bench.models.simulation.simulate`) steps scipy's integrators on ``y = [q, qd]``, with
 explicit (RK45, DOP853) or implicit (Radau, BDF) integrators. The right-hand side is vectorised,
 so the implicit integrators' finite-difference Jacobian costs one batched call per column block;
 ``jacobian="analytic"`` gives them :func:`make_jacobian` instead (the forward-dynamics derivatives
 of ``model.derivatives`` and the controls' ``jacobian``), which costs no right-hand-side evaluation
-and is therefore re-evaluated after every accepted step (:mod:`exo_bench.models.simulation.implicit_integrators`).
+and is therefore re-evaluated after every accepted step (:mod:`exo_bench.models.simulation.simulate`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -47,18 +47,8 @@ from exo_bench.models.runtime.conditioning import check_finite
 from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
-from exo_bench.models.mechanism.singularity import COS_VERTICAL, SingularConfigurationError, singular_reasons  # noqa: F401 - re-exported
 
-if TYPE_CHECKING:  # what type checkers see; at run time these load on first use (__getattr__ below)
-    from exo_bench.models.simulation.simulate import (  # noqa: F401 - re-exported
-        IntegrationBudgetExceeded,
-        Simulation,
-        make_jacobian,
-        make_rhs,
-        simulate,
-    )
-    from exo_bench.models.simulation.simulate_arguments import DEFAULT_MAX_EVALUATIONS, JACOBIANS, RTOL_FLOOR  # noqa: F401
-
+if TYPE_CHECKING:
     from exo_bench.models.gait.motion import Motion  # only named in annotations
 
 #: The explicit and implicit integrators of ``scipy.integrate.solve_ivp`` that the suite uses.
@@ -131,7 +121,7 @@ def accelerations(model: PreparedModel, q, qd, tau, check: bool = True) -> np.nd
     """Forward dynamics ``qdd = M^-1 (tau - h)``, ``(S, dof)``, from a prepared model's ``M`` and ``h``.
 
     With ``check`` (the default) the states are validated and a singular configuration raises
-    :class:`SingularConfigurationError` (see :func:`singular_reasons`), one beyond the conditioning
+    :class:`~exo_bench.models.mechanism.singularity.SingularConfigurationError` (see :func:`~exo_bench.models.mechanism.singularity.singular_reasons`), one beyond the conditioning
     bound :class:`exo_bench.models.runtime.conditioning.NumericallySingularError`, rather than returning
     NaN or an answer the error model cannot vouch for. The integrator calls it with ``check=False``
     after checking the initial state.
@@ -212,26 +202,3 @@ def spring_energy(mech: Mechanism, q: np.ndarray, k, l_rest) -> np.ndarray:
     """``sum_i k_i/2 (l_i - l_i*)^2`` per sample: the potential of :func:`rod_spring_damper`."""
     _, _, l = split(mech, np.atleast_2d(q))
     return 0.5 * (np.asarray(k, dtype=float) * (l - np.asarray(l_rest, dtype=float)) ** 2).sum(-1)
-
-
-# --------------------------------------------------------------------------- integration
-#: :func:`simulate` and its parts live in :mod:`exo_bench.models.simulation.simulate` (arguments checked in
-#: :mod:`exo_bench.models.simulation.simulate_arguments`); importable from here as before, loaded on first use.
-_SIMULATE_NAMES = {
-    "DEFAULT_MAX_EVALUATIONS": "exo_bench.models.simulation.simulate_arguments",
-    "JACOBIANS": "exo_bench.models.simulation.simulate_arguments",
-    "RTOL_FLOOR": "exo_bench.models.simulation.simulate_arguments",
-    "IntegrationBudgetExceeded": "exo_bench.models.simulation.simulate",
-    "Simulation": "exo_bench.models.simulation.simulate",
-    "make_jacobian": "exo_bench.models.simulation.simulate",
-    "make_rhs": "exo_bench.models.simulation.simulate",
-    "simulate": "exo_bench.models.simulation.simulate",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _SIMULATE_NAMES:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib
-
-    return getattr(importlib.import_module(_SIMULATE_NAMES[name]), name)

@@ -1,19 +1,61 @@
-"""Integration of the forward dynamics: :func:`simulate` and its right-hand side, budget and result.
+"""Integration of the forward dynamics: :func:`simulate` with its checked arguments, right-hand side (with
+external forces), implicit integrators, budget and result.
 
 :func:`simulate` integrates ``M(q) qdd + h(q, qd) = controls(t, q, qd)`` (the accelerations of
 :mod:`exo_bench.models.simulation.forward_dynamics`) with one of scipy's ``OdeSolver`` classes, stepped here
 rather than through ``solve_ivp``, so that a run stopped by its budget keeps the steps it accepted.
 
-**Every argument is validated before any work** (:mod:`exo_bench.models.simulation.simulate_arguments`): a
+**Every argument is validated before any work** (:func:`check_simulate_arguments`): a
 ``ValueError`` names the argument, the expected and the actual value. **There is always a budget**:
 at most ``max_evaluations`` right-hand-side evaluations (:data:`DEFAULT_MAX_EVALUATIONS` when not
 given) and, optionally, ``max_seconds`` read from ``clock`` (``time.perf_counter`` unless another is
 injected, as tests do). Each step evaluates the right-hand side at least once, so the loop ends.
+
+**The arguments**, checked before any work. Each check raises ``ValueError("simulate: argument 'name': expected ..., got ...")``. What they rule
+out is every combination that made ``simulate`` hang or answer nonsense: a time span that is not two
+finite increasing numbers (``(0, nan)`` never ends), ``rtol`` of 0, NaN or below scipy's floor (scipy
+raises it to 100 eps with a warning, or loops on NaN), ``atol`` not finite and positive (an error
+scale of 0 or NaN), budgets that are not positive (``max_seconds=-1``), strings where numbers belong
+(``"1"``), and a ``first_step`` outside the span. ``max_evaluations=None`` is the default budget
+:data:`DEFAULT_MAX_EVALUATIONS`: no run is without one.
+
+**scipy's implicit integrators with an analytic Jacobian kept current.** scipy's ``Radau`` and ``BDF`` are tuned for a Jacobian estimated by finite differences, which costs
+``2 dof`` right-hand-side evaluations (vectorised: one call of ``2 dof`` columns) each time. They
+therefore hold a Jacobian as long as they can:
+
+* ``Radau`` re-evaluates it only after a step whose simplified Newton iteration needed more than 2
+  iterations with a last contraction rate above 1e-3, or after a Newton failure;
+* ``BDF`` only after a Newton failure.
+
+Between those events each Newton iteration works with a Jacobian from an older state: it converges
+more slowly (more stage evaluations per step), and Radau's error estimate, which passes through
+``(3.638/h I - J)^-1``, differs, so the steps differ too. The stability report measured this: at
+rtol 1e-12 on the planar gait, an analytic Jacobian under scipy's rule held a stale Jacobian from
+0.18 to 0.27 s and took 4% *more* evaluations than finite differences.
+
+An analytic Jacobian (:func:`make_jacobian`) costs no right-hand-side
+evaluation, so the rule that fits it is the opposite one: re-evaluate it at the new state after
+every accepted step (one Jacobian and, as after most step-size changes anyway, one new LU per step).
+:class:`RadauCurrentJacobian` and :class:`BDFCurrentJacobian` do exactly that and nothing else: they
+run scipy's own step (``_step_impl``, the extension point of ``scipy.integrate.OdeSolver``) and then
+replace the Jacobian held and drop the factorisation built from the old one. ``njev`` counts every
+evaluation, the refreshes included. :data:`CURRENT_JACOBIAN` maps the integrator names onto them;
+:func:`simulate` uses them for ``jacobian="analytic"``.
+
+The attributes replaced (``J``, ``current_jac``, ``LU_real``/``LU_complex`` of Radau, ``J``, ``LU`` of
+BDF) are those of scipy 1.11-1.17; ``tests/test_analytic_jacobian.py`` fails if a scipy release
+renames them (the count of Jacobians per step).
+
+**The right-hand side with external forces** ``f_ext(t, q, qd)`` (issue 37): the controls plus
+``Q(q, f_ext)`` (:class:`ControlsWithForces`), with the Jacobian of the sum for ``jacobian="analytic"``
+(:class:`ControlsWithForcesJacobian`); the forces themselves, their checks and ``Q`` are
+:mod:`exo_bench.models.runtime.external_forces`'.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import time
 import traceback
 from array import array
@@ -22,19 +64,235 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-
-from exo_bench.models.simulation.external_forces_controls import with_external_forces
-from exo_bench.models.simulation.forward_dynamics import Controls, mass_matrix_and_bias, solve_mass_matrix
-from exo_bench.models.simulation.implicit_integrators import CURRENT_JACOBIAN
-from exo_bench.models.mechanism.mechanism import as_states, split
-from exo_bench.models.simulation.simulate_arguments import (
-    DEFAULT_MAX_EVALUATIONS,
+from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.runtime.external_forces import check_f_ext, dQ_dq, generalized_forces, refuse_overflow
+from exo_bench.models.runtime.prepared import PreparedModel
+from exo_bench.models.simulation.forward_dynamics import (
     IMPLICIT,
-    JACOBIANS,
-    RTOL_FLOOR,
-    check_budget,
-    check_simulate_arguments,
+    INTEGRATORS,
+    Controls,
+    mass_matrix_and_bias,
+    solve_mass_matrix,
 )
+from scipy.integrate import BDF, Radau
+
+
+class ControlsWithForces:
+    """``controls(t, q, qd) + Q(q, f_ext(t, q, qd))``: what ``simulate`` integrates with ``f_ext``
+    (ground contact, interaction forces that depend on the state). ``f_ext`` is called as the controls
+    are, with ``q, qd`` of shape ``(k, dof)``, and returns forces ``(k, links, 3, dim)`` (``(links, 3,
+    dim)`` is taken for ``k = 1``); a force that is not finite is a ValueError naming the link and the
+    point."""
+
+    def __init__(self, model: Any, controls: Callable[..., Any], f_ext: Callable[..., Any]):
+        self.model, self.controls, self.f_ext = model, controls, f_ext
+
+    def __call__(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        f = self.forces(t, q, qd)
+        Q = self.model._external_forces(q, f)
+        refuse_overflow(self.model.mechanism, f"simulate at t = {t:.6g} s", f, Q, "Q")
+        return self.controls(t, q, qd) + Q
+
+    def forces(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """``f_ext(t, q, qd)``, checked, ``(k, links, 3, dim)``."""
+        f = self.f_ext(t, q, qd)  # read by check_f_ext: real numbers only, as the calls read f_ext
+        mech = self.model.mechanism
+        if q.shape[0] == 1 and _shape(f) == (mech.nlinks, 3, mech.dim):
+            f = np.asarray(f)[None]
+        return check_f_ext(mech, f, q.shape, True, f"simulate at t = {t:.6g} s")
+
+
+def _shape(a: Any) -> tuple | None:
+    try:
+        return np.shape(a)
+    except ValueError:  # ragged: check_f_ext names it
+        return None
+
+
+class ControlsWithForcesJacobian(ControlsWithForces):
+    """:class:`ControlsWithForces` whose controls and ``f_ext`` both have a ``jacobian(t, q, qd)``, with
+    the Jacobian of the sum for ``simulate(jacobian="analytic")``: ``dQ/dq = dQ/dq|_f + J^T df/dq`` (the
+    geometry, :func:`dQ_dq`, and the forces' own change, ``Q`` being linear in ``f``), ``dQ/dqd = J^T
+    df/dqd``. ``f_ext.jacobian`` returns ``(df/dq, df/dqd)``, each ``(k, links, 3, dim, dof)``."""
+
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        mech = self.model.mechanism
+        cq, cqd = self.controls.jacobian(t, q, qd)  # type: ignore[attr-defined]  # checked by with_external_forces
+        want = (q.shape[0], mech.nlinks, 3, mech.dim, mech.dof)
+        fq, fqd = (np.broadcast_to(np.asarray(a, dtype=float), want) for a in self.f_ext.jacobian(t, q, qd))  # type: ignore[attr-defined]
+        return cq + dQ_dq(mech, q, self.forces(t, q, qd)) + _through(mech, q, fq), cqd + _through(mech, q, fqd)
+
+
+def _through(mech: Mechanism, q: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """``J^T G``, ``(k, dof, dof)``: column ``j`` the generalised forces of the forces' derivative ``G[..., j]``."""
+    k, d = q.shape
+    cols = np.moveaxis(G, -1, 1).reshape(k * d, *G.shape[1:-1])
+    return generalized_forces(mech, np.repeat(q, d, axis=0), cols).reshape(k, d, d).transpose(0, 2, 1)
+
+
+def with_external_forces(model: Any, controls: Callable[..., Any], f_ext: Any, jacobian: str) -> ControlsWithForces:
+    """``simulate``'s controls with the external forces ``f_ext(t, q, qd)`` added (:class:`ControlsWithForces`),
+    after checking that ``f_ext`` is a function. The analytic Jacobian needs ``f_ext.jacobian(t, q, qd) ->
+    (df/dq, df/dqd)`` (:class:`ControlsWithForcesJacobian`, when the controls have theirs too); without it
+    it is refused by name."""
+    if not callable(f_ext):
+        raise ValueError(
+            f"simulate: field 'f_ext': expected a function (t, q, qd) -> forces (samples, links, 3, dim) in "
+            f"newtons, got {type(f_ext).__name__}"
+        )
+    if jacobian == "analytic" and not callable(getattr(f_ext, "jacobian", None)):
+        raise ValueError(
+            "simulate: field 'jacobian': expected 'finite-difference' with f_ext (the analytic Jacobian has no "
+            "derivative of f_ext(t, q, qd): give f_ext a jacobian(t, q, qd) -> (df/dq, df/dqd) attribute, each "
+            "(samples, links, 3, dim, dof)), got 'analytic'"
+        )
+    if jacobian == "analytic" and callable(getattr(controls, "jacobian", None)):
+        return ControlsWithForcesJacobian(model, controls, f_ext)
+    return ControlsWithForces(model, controls, f_ext)
+
+
+class RadauCurrentJacobian(Radau):
+    """scipy's Radau IIA (order 5), with the Jacobian re-evaluated at the new state after every
+    accepted step (scipy holds it until a Newton iteration converges slowly or fails)."""
+
+    def _step_impl(self):
+        accepted, message = super()._step_impl()
+        if accepted and not self.current_jac:
+            self.J = self.jac(self.t, self.y, self.f)
+            self.current_jac = True
+            self.LU_real = self.LU_complex = None
+        return accepted, message
+
+
+class BDFCurrentJacobian(BDF):
+    """scipy's variable-order BDF (NDF), with the Jacobian re-evaluated at the new state after every
+    accepted step (scipy holds it until a Newton iteration fails)."""
+
+    def _step_impl(self):
+        accepted, message = super()._step_impl()
+        if accepted:
+            self.J = self.jac(self.t, self.y)
+            self.LU = None
+        return accepted, message
+
+
+#: The ``solve_ivp`` method for each implicit integrator when the Jacobian is analytic.
+CURRENT_JACOBIAN = {"Radau": RadauCurrentJacobian, "BDF": BDFCurrentJacobian}
+
+#: The Jacobians an implicit integrator can use: scipy's finite differences of the vectorised
+#: right-hand side (``2 dof`` columns per Jacobian), or the analytic one of
+#: :func:`exo_bench.models.simulation.simulate.make_jacobian`.
+JACOBIANS = ("finite-difference", "analytic")
+#: The smallest rtol: 100 machine epsilons, scipy's own floor (it raises smaller values to it).
+RTOL_FLOOR = 100 * float(np.finfo(float).eps)
+#: The budget of a run that states none, in right-hand-side evaluations (columns): 90 times the
+#: largest run of the stability study (11,354 evaluations), seconds to minutes of work.
+DEFAULT_MAX_EVALUATIONS = 1_000_000
+
+
+@dataclass(frozen=True)
+class SimulateArguments:
+    """The checked arguments, as plain floats and ints, with the defaults filled in."""
+
+    t_span: tuple[float, float]
+    rtol: float
+    atol: float
+    max_evaluations: int
+    max_seconds: float | None
+    first_step: float | None
+
+
+def _bad(name: str, expected: str, got: Any) -> ValueError:
+    return ValueError(f"simulate: argument '{name}': expected {expected}, got {got!r}")
+
+
+def _is_real(x: Any) -> bool:
+    """A real number that is not a bool (nor a string, a Decimal, an array...)."""
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+def _real(name: str, x: Any, expected: str, ok: Callable[[float], bool]) -> float:
+    if not _is_real(x) or not ok(float(x)):
+        raise _bad(name, expected, x)
+    return float(x)
+
+
+def _positive(name: str, x: Any) -> float:
+    return _real(name, x, "a finite number > 0", lambda v: math.isfinite(v) and v > 0)
+
+
+def check_budget(max_evaluations: Any, max_seconds: Any, allow_none: bool = False) -> tuple[int | None, float | None]:
+    """``(max_evaluations, max_seconds)`` checked: an integer >= 1 and a finite number > 0; ``None``
+    is :data:`DEFAULT_MAX_EVALUATIONS` (``allow_none``: no limit) and no wall-time limit."""
+    if max_evaluations is None:
+        n = None if allow_none else DEFAULT_MAX_EVALUATIONS
+    elif isinstance(max_evaluations, numbers.Integral) and not isinstance(max_evaluations, (bool, np.bool_)):
+        n = int(max_evaluations)
+        if n < 1:
+            raise _bad("max_evaluations", "an integer >= 1 (or None for the default budget)", max_evaluations)
+    else:
+        raise _bad("max_evaluations", "an integer >= 1 (or None for the default budget)", max_evaluations)
+    seconds = None if max_seconds is None else _positive("max_seconds", max_seconds)
+    return n, seconds
+
+
+def _t_span(t_span: Any) -> tuple[float, float]:
+    expected = "two finite times (s), increasing: (t0, t1) with t0 < t1"
+    if isinstance(t_span, (str, bytes)) or not hasattr(t_span, "__len__") or len(t_span) != 2:
+        raise _bad("t_span", expected, t_span)
+    a, b = t_span[0], t_span[1]
+    if not (_is_real(a) and _is_real(b)) or not (math.isfinite(a) and math.isfinite(b) and float(a) < float(b)):
+        raise _bad("t_span", expected, t_span)
+    return float(a), float(b)
+
+
+def check_simulate_arguments(
+    model: Any,
+    t_span: Any,
+    controls: Any,
+    integrator: Any,
+    rtol: Any,
+    atol: Any,
+    max_evaluations: Any,
+    max_seconds: Any,
+    dense: Any,
+    first_step: Any,
+    jacobian: Any,
+    clock: Any,
+) -> SimulateArguments:
+    """Every argument of ``simulate`` but the states (those are checked by
+    :func:`exo_bench.models.mechanism.mechanism.as_states`), checked; the defaults filled in."""
+    if not isinstance(model, PreparedModel):
+        raise _bad("model", "a prepared model (exo_bench.prepare(mechanism, method))", type(model).__name__)
+    if integrator not in INTEGRATORS:
+        raise _bad("integrator", f"one of {', '.join(INTEGRATORS)}", integrator)
+    if jacobian not in JACOBIANS:
+        raise _bad("jacobian", f"one of {', '.join(JACOBIANS)}", jacobian)
+    if jacobian == "analytic" and integrator not in IMPLICIT:
+        raise _bad(
+            "jacobian",
+            f"'finite-difference' with {integrator} (only the implicit integrators, {', '.join(IMPLICIT)}, use one)",
+            jacobian,
+        )
+    span = _t_span(t_span)
+    if not callable(controls):
+        raise _bad("controls", "a function (t, q, qd) -> tau", controls)
+    if not callable(clock):
+        raise _bad("clock", "a function () -> seconds", clock)
+    if not isinstance(dense, (bool, np.bool_)):
+        raise _bad("dense", "True or False", dense)
+    rt = _real("rtol", rtol, f"a number >= {RTOL_FLOOR:.4g} (100 eps) and < 1", lambda v: RTOL_FLOOR <= v < 1.0)
+    at = rt * 1e-3 if atol is None else _positive("atol", atol)
+    n, seconds = check_budget(max_evaluations, max_seconds)
+    assert n is not None
+    first = None
+    if first_step is not None:
+        width = span[1] - span[0]
+        first = _real(
+            "first_step", first_step, f"None or a number in (0, {width:g}] (the span)", lambda v: 0 < v <= width
+        )
+    return SimulateArguments(span, rt, at, n, seconds, first)
+
 
 if TYPE_CHECKING:
     from exo_bench.models.runtime.prepared import PreparedModel
@@ -246,11 +504,11 @@ def simulate(
       measured on ``clock`` (a function returning seconds, ``time.perf_counter`` by default);
     * ``jacobian`` (implicit integrators): ``"finite-difference"`` (scipy's, from the vectorised
       right-hand side, counted in ``nfev``) or ``"analytic"`` (:func:`make_jacobian`, kept current:
-      re-evaluated after every accepted step, :mod:`exo_bench.models.simulation.implicit_integrators`);
+      re-evaluated after every accepted step, :mod:`exo_bench.models.simulation.simulate`);
     * ``first_step``: ``None`` (scipy chooses) or in ``(0, t_span[1] - t_span[0]]``; ``dense``: a bool.
     * ``f_ext``: external forces at the point masses, ``f_ext(t, q, qd) -> (samples, links, 3, dim)``
       called as the controls are (ground contact, interaction, loads): with it ``M qdd + h = controls + Q(q,
-      f_ext)`` (:class:`exo_bench.models.simulation.external_forces_controls.ControlsWithForces`, docs/external-forces.md);
+      f_ext)`` (:class:`exo_bench.models.simulation.simulate.ControlsWithForces`, docs/external-forces.md);
       ``jacobian="analytic"`` needs ``f_ext.jacobian(t, q, qd) -> (df/dq, df/dqd)``.
 
     Bad arguments raise ValueError before any work. The initial state is validated and checked for a
