@@ -17,7 +17,7 @@ from exo_bench.models.mechanism.singularity import SingularConfigurationError, s
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.engines import pinocchio_backend as pb
 from exo_bench.models.mechanism.kinematics import kinetic_energy, point_mass_velocities
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import exo5, fig1, random_tree
 

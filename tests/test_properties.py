@@ -32,7 +32,8 @@ from hypothesis import strategies as st
 
 from exo_bench import prepare
 from exo_bench.models.mechanism.singularity import singular_reasons
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 
 PROFILE = settings(
     max_examples=60,

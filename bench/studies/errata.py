@@ -30,7 +30,8 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric

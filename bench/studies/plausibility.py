@@ -22,7 +22,7 @@ import numpy as np
 from exo_bench.bench.studies.study import Study
 from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments
 from exo_bench.models.mechanism.kinematics import point_mass_positions
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.normative import SHORT_SOURCE, SOURCE, WINTER, Normative
 
 #: The joint at the start of a link of the exoskeleton, the normative key of its moment and of its

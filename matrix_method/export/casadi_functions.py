@@ -41,7 +41,8 @@ import numpy as np
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling, signed_coupling, signed_gravity
 from exo_bench.models.files.encoders import markdown_code, python_string
-from exo_bench.models.mechanism.mechanism import Mechanism, coordinate_names, force_names
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import coordinate_names, force_names
 from exo_bench.models.files.names import file_stem
 
 #: The optional extra that installs CasADi, named in every error about it.

@@ -31,7 +31,8 @@ from sympy.printing.numpy import NumPyPrinter
 from exo_bench.matrix_method.symbolic import compose_equations, matrices
 from exo_bench.models.files.encoders import c_comment, c_identifier, python_docstring, python_module_name, python_string
 from exo_bench.models.states.equation_form import ACCELERATION, blocks
-from exo_bench.models.mechanism.mechanism import Mechanism, coordinate_names, force_names
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import coordinate_names, force_names
 from exo_bench.models.mechanism.symbols import Symbols, symbols_for
 
 FUNCTIONS = ("inverse_dynamics", "mass_matrix", "bias_forces")

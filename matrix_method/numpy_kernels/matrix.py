@@ -27,7 +27,8 @@ from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.models.states import equation_form
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 
 
 def blocks(mech: Mechanism) -> tuple[str, ...]:

@@ -31,7 +31,8 @@ import numpy as np
 import pinocchio as pin
 
 from exo_bench.models.mechanism.coordinate_maps import rowwise_product
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.machine.memory import USABLE_SHARE, usable_memory
 from exo_bench.models.machine.resource_counts import check_count, check_thread_room, usable_cpus

@@ -30,7 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.models.mechanism.kinematics import place_down_the_tree, point_mass_positions, unit_vectors
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 
 
 def _rod_accelerations(mech: Mechanism, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:

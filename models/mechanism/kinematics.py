@@ -17,7 +17,8 @@ from typing import overload
 
 import numpy as np
 
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 
 
 def unit_vectors(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:

@@ -12,7 +12,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from exo_bench.models.mechanism.mechanism import DuplicateKey, Mechanism, loads  # noqa: F401 - loads: the JSON reader
+from exo_bench.models.mechanism.mechanism import Mechanism  # noqa: F401 - loads: the JSON reader
+from exo_bench.models.states.validation import DuplicateKey, loads
 
 
 #: Peak memory of reading a JSON file of numbers, per byte of text: measured 3.3 (200,000 samples

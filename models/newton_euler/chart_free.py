@@ -33,9 +33,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from exo_bench.models.mechanism.kinematics import _rod_vectors, place_down_the_tree
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 from exo_bench.models.newton_euler import passes
-from exo_bench.models.newton_euler.tree import Tree, prepare_tree, singular_mass_reason, solve_coupling
+from exo_bench.models.newton_euler.tree import Tree, prepare_tree, solve_coupling
+from exo_bench.models.runtime.conditioning import singular_mass_reason
 from exo_bench.models.mechanism.singularity import COS_VERTICAL
 
 

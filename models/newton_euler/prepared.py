@@ -19,11 +19,13 @@ import numpy as np
 
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import check_conditioning
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 from exo_bench.models.runtime.kernels import select
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
-from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
+from exo_bench.models.newton_euler.tree import prepare_tree
+from exo_bench.models.runtime.conditioning import singular_mass_reason
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.machine.simd_blocks import ThreadScratch
 from exo_bench.models.mechanism.singularity import (

@@ -29,13 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.models.mechanism.aggregates import link_aggregates
-from exo_bench.models.runtime.conditioning import singular_mass_reason  # noqa: F401 - re-exported: defined here first
-from exo_bench.models.mechanism.mass_factor import (  # noqa: F401 - re-exported: defined here first
-    PIVOT_RTOL,
-    end_point_mass,
-    factor_end_point_mass,
-    solve_mu,
-)
+from exo_bench.models.mechanism.mass_factor import factor_end_point_mass, solve_mu
 from exo_bench.models.mechanism.mechanism import Mechanism
 
 

@@ -46,7 +46,8 @@ import numpy as np
 
 from exo_bench.models.mechanism.aggregates import link_aggregates
 from exo_bench.models.mechanism.mass_factor import end_point_mass, factor_end_point_mass, multiply_mu, solve_mu
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 from exo_bench.models.mechanism.singularity import SingularConfigurationError, massless_reason
 from exo_bench.models.states.states import coordinate_names
 

@@ -41,9 +41,6 @@ from typing import Any
 import numpy as np
 
 from exo_bench.models.runtime import external_forces_compiled as xc
-from exo_bench.models.runtime.external_forces_compiled import (
-    generalized_forces_compiled as generalized_forces_compiled,
-)  # re-exported: PreparedModel._external_forces
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.machine.memory import check_batch
 from exo_bench.models.mechanism.rod_elements import project_2d, project_3d

@@ -478,9 +478,12 @@ class PreparedModel:
     def _external_forces(self, q: np.ndarray, f: np.ndarray) -> np.ndarray:
         """``Q = sum_k J_k^T f_k``, ``(S, dof)``, of forces ``f`` ``(S, links, 3, dim)`` at the point masses
         (:mod:`exo_bench.models.runtime.external_forces`); an engine overrides it with its own."""
-        from exo_bench.models.runtime.external_forces_compiled import bound  # the parameters, bound once on the model
+        from exo_bench.models.runtime.external_forces_compiled import (  # the parameters, bound once on the model
+            bound,
+            generalized_forces_compiled,
+        )
 
-        return external_forces.generalized_forces_compiled(self._mechanism, q, f, bound(self).params)
+        return generalized_forces_compiled(self._mechanism, q, f, bound(self).params)
 
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         if (chunk := self._entries.forward_chunk) is not None:

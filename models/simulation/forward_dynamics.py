@@ -44,7 +44,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from exo_bench.models.runtime.conditioning import check_finite
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
 

@@ -64,7 +64,8 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 from exo_bench.models.runtime.external_forces import check_f_ext, dQ_dq, generalized_forces, refuse_overflow
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.simulation.forward_dynamics import (
@@ -261,7 +262,7 @@ def check_simulate_arguments(
     clock: Any,
 ) -> SimulateArguments:
     """Every argument of ``simulate`` but the states (those are checked by
-    :func:`exo_bench.models.mechanism.mechanism.as_states`), checked; the defaults filled in."""
+    :func:`exo_bench.models.states.states.as_states`), checked; the defaults filled in."""
     if not isinstance(model, PreparedModel):
         raise _bad("model", "a prepared model (exo_bench.prepare(mechanism, method))", type(model).__name__)
     if integrator not in INTEGRATORS:
