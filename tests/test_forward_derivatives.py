@@ -35,7 +35,7 @@ from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import NumericallySingularError
 from exo_bench.models.derivatives.derivatives import Derivatives
 from exo_bench.models.newton_euler import inverse_mass, passes
-from exo_bench.models.newton_euler.tree import prepare_tree
+from exo_bench.models.newton_euler.passes import prepare_tree
 from exo_bench.models.mechanism.presets import random_tree
 from exo_bench.models.mechanism.singularity import SingularConfigurationError
 

@@ -276,7 +276,7 @@ def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int]
     and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
     from exo_bench.models.machine import fast_trig, simd_blocks
     from exo_bench.models.newton_euler import simd
-    from exo_bench.models.newton_euler.tree import prepare_tree
+    from exo_bench.models.newton_euler.passes import prepare_tree
     from exo_bench.models.machine.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
 
     trig = rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)

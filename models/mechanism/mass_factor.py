@@ -14,7 +14,7 @@ multiplier ``l_k`` per link. Then ``mu^-1 b = T^-1 M_e^-1 T^-T b`` costs three p
 (:func:`solve_mu`) and ``mu x`` three more (:func:`multiply_mu`). :func:`factor_end_point_mass`
 factors it once; a pivot that vanishes means that ``mu`` is singular.
 
-Used by the Newton-Euler method's forward dynamics (:mod:`exo_bench.models.newton_euler.tree`) and by the
+Used by the Newton-Euler method's forward dynamics (:mod:`exo_bench.models.newton_euler.passes`) and by the
 conditioning test that every method's forward dynamics shares (:mod:`exo_bench.models.runtime.conditioning`),
 which is why it sits here, below both.
 """

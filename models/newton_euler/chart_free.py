@@ -1,7 +1,7 @@
 """Chart-free simulation: the equations of motion in the rod vectors, ``M_r r'' = f - g_r``.
 
 In the rod vectors ``r_i = s_i l_i u_i`` (docs/paper.md section 6) the mass matrix ``M_r = mu (x) I``
-is constant and factored once (:mod:`exo_bench.models.newton_euler.tree`), there are no velocity-product
+is constant and factored once (:mod:`exo_bench.models.newton_euler.passes`), there are no velocity-product
 terms and gravity is the constant ``g_r = g nu (x) up``. The state ``(r, r')`` has no chart: a
 vertical rod or a rod through any direction is an ordinary state, so an integration never meets
 the singularity of the absolute angles at ``cos psi = 0``.
@@ -36,7 +36,7 @@ from exo_bench.models.mechanism.kinematics import _rod_vectors, place_down_the_t
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import as_states
 from exo_bench.models.newton_euler import passes
-from exo_bench.models.newton_euler.tree import Tree, prepare_tree, solve_coupling
+from exo_bench.models.newton_euler.passes import Tree, prepare_tree, solve_coupling
 from exo_bench.models.runtime.conditioning import singular_mass_reason
 from exo_bench.models.mechanism.singularity import COS_VERTICAL
 

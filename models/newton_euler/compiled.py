@@ -7,7 +7,7 @@ written twice; tests/test_newton_euler.py holds them to the numpy reference. The
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
 driver, and a parallel driver over blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` samples for large
 batches (:func:`exo_bench.models.machine.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
-(:meth:`exo_bench.models.newton_euler.tree.Tree.table`) and ``g``.
+(:meth:`exo_bench.models.newton_euler.passes.Tree.table`) and ``g``.
 
 Per sample: ``2n`` (2D) or ``4n`` (3D) sines and cosines and O(n) arithmetic, for inverse and
 forward dynamics alike.

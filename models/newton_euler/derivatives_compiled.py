@@ -1,6 +1,6 @@
 """The analytic derivatives of inverse dynamics, compiled (numba): per sample, and threads over samples for
-batches, with the explicit SIMD output rows and the streaming stores that write them (one kernel). The algorithm is :mod:`exo_bench.models.newton_euler.derivatives`'s; numpy's reference is
-:mod:`.derivatives_numpy`.
+batches, with the explicit SIMD output rows and the streaming stores that write them (one kernel).
+The algorithm and numpy's reference are :mod:`exo_bench.models.newton_euler.derivatives`'.
 
 Per sample:
 

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.models.newton_euler import passes
-from exo_bench.models.newton_euler.derivatives_numpy import rod_columns
-from exo_bench.models.newton_euler.tree import Tree
+from exo_bench.models.newton_euler.derivatives import rod_columns
+from exo_bench.models.newton_euler.passes import Tree
 
 
 def forward_jacobians(tree: Tree, dim: int, g: float, q, qd, qdd, Minv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -28,7 +28,7 @@ from numba import njit, prange
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.compiled import _MULT, _PARENT, _PIVOT, _SIGN  # also registers the elements
-from exo_bench.models.newton_euler.tree import Tree
+from exo_bench.models.newton_euler.passes import Tree
 from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK
 
 
@@ -96,7 +96,7 @@ def _block(t, dim, X, B, O, start, stop):
 @njit(**JIT)
 def columns(t, dim, X, B, O):
     """``O[s] = M(X[s])^-1 B[s]`` for every sample in turn: ``X (S, dof)``, ``B`` and ``O`` ``(S, dof, k)``,
-    C-ordered float64; ``t`` the tree's table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`)."""
+    C-ordered float64; ``t`` the tree's table (:meth:`exo_bench.models.newton_euler.passes.Tree.table`)."""
     _block(t, dim, X, B, O, 0, X.shape[0])
 
 

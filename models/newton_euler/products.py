@@ -3,7 +3,7 @@ the numpy reference and the per-sample compiled kernels of one algorithm (the SI
 
 ``tau = J^T F`` per rod (``J = blockdiag(s_i J_i(q_i))``) with the force ``F = (mu (x) I) kappa + g_r`` of
 the two passes and each rod's acceleration ``kappa_i = s_i (J_i qdd_i + J_i' qd_i)``. With the per-rod
-columns of :func:`exo_bench.models.newton_euler.derivatives_numpy.rod_columns` (``J_i``, ``A^q_i = d kappa_i
+columns of :func:`exo_bench.models.newton_euler.derivatives.rod_columns` (``J_i``, ``A^q_i = d kappa_i
 /d q_i``, ``A^r_i = d kappa_i/d qd_i``, ``P_i = s_i d(J_i^T F_i)/d q_i`` at fixed ``F``, each ``dim x
 dim``)::
 
@@ -43,8 +43,8 @@ from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.compiled import _ETA, _PARENT, _THETA, _ZETA, WIDTH, _inverse_sample
 from exo_bench.models.newton_euler.derivatives_compiled import _columns
-from exo_bench.models.newton_euler.derivatives_numpy import rod_columns
-from exo_bench.models.newton_euler.tree import Tree
+from exo_bench.models.newton_euler.derivatives import rod_columns
+from exo_bench.models.newton_euler.passes import Tree
 from numba import njit, prange
 
 

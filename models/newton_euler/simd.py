@@ -76,7 +76,7 @@ from exo_bench.models.machine.simd_blocks import ROWS, SF, SP, block_transposes,
 numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
 
-#: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
+#: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.passes.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 
 #: Batches of at least this many samples run this kernel: every ``(samples, dof)`` batch, as
