@@ -22,7 +22,7 @@ from exo_bench.matrix_method.export.latex import (
     eq4_rows,
     shortest,
 )
-from exo_bench.models.states.equation_form import blocks, matrix_names
+from exo_bench.models.states.states import blocks, matrix_names
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.mechanism.symbols import symbols_for
 

@@ -58,7 +58,7 @@ from exo_bench.models.engines.joint_coordinates import (
 from exo_bench.bench.output.provenance import machine_info
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files.encoders import file_stem
 
 
 # Where a scene's recording draws things: the point masses' world
@@ -96,7 +96,7 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
 
 def trail_entity(name: str) -> str:
     """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``):
-    the file-name encoder's stem (:func:`exo_bench.models.files.names.file_stem`), its runs of ``_`` as one."""
+    the file-name encoder's stem (:func:`exo_bench.models.files.encoders.file_stem`), its runs of ``_`` as one."""
     return re.sub(r"_+", "_", file_stem(name)).strip("_") or "unnamed"
 
 

@@ -164,7 +164,7 @@ def safe_name(key: str) -> str:
     """A file name for a row key (checkpoints): readable, and unique by a short hash."""
     import hashlib
 
-    from exo_bench.models.files.names import file_stem
+    from exo_bench.models.files.encoders import file_stem
 
     stem = file_stem(key)[-80:].lstrip("-")  # the one file-name encoder; the tail never an option
     return f"{stem}-{hashlib.sha256(key.encode()).hexdigest()[:10]}"

@@ -43,7 +43,7 @@ from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling, 
 from exo_bench.models.files.encoders import markdown_code, python_string
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import coordinate_names, force_names
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files.encoders import file_stem
 
 #: The optional extra that installs CasADi, named in every error about it.
 EXTRA = "casadi"

@@ -3,7 +3,7 @@
 The equations are the matrix method's own (:func:`exo_bench.matrix_method.symbolic.compose_equations` and
 :func:`exo_bench.matrix_method.symbolic.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
 block ``k``, column block ``c`` is the matrix multiplying the second derivatives of block ``c``,
-:data:`exo_bench.models.states.equation_form.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
+:data:`exo_bench.models.states.states.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
 is one common-subexpression elimination (``sympy.cse``) of its outputs, printed
 
 * :func:`python_module`: one module importing numpy only (its file: :func:`module_name`), ``inverse_dynamics(q, qd, qdd)``,
@@ -30,7 +30,7 @@ from sympy.printing.numpy import NumPyPrinter
 
 from exo_bench.matrix_method.symbolic import compose_equations, matrices
 from exo_bench.models.files.encoders import c_comment, c_identifier, python_docstring, python_module_name, python_string
-from exo_bench.models.states.equation_form import ACCELERATION, blocks
+from exo_bench.models.states.states import ACCELERATION, blocks
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import coordinate_names, force_names
 from exo_bench.models.mechanism.symbols import Symbols, symbols_for

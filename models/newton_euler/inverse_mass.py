@@ -1,7 +1,7 @@
 """``M(q)^-1 B`` column by column with the O(n) forward dynamics: no mass matrix, no dense LU.
 
 ``M = J^T (mu (x) I) J`` with ``J = blockdiag(s_i J_i(q_i))`` and the constant coupling ``mu`` factored
-once (:mod:`exo_bench.models.mechanism.mass_factor`), so ``M^-1 b = J^-1 mu^-1 J^-T b``: per column the loads
+once (:mod:`exo_bench.models.mechanism.aggregates`), so ``M^-1 b = J^-1 mu^-1 J^-T b``: per column the loads
 ``J_i^-T b_i`` (:func:`exo_bench.models.mechanism.rod_elements.unproject_3d`), the tree solve with ``mu``
 (three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.mechanism.rod_elements.rates_3d`):
 O(n) per column, O(n k) for ``k`` columns, O(n^2) for the ``(dof, dof)`` Jacobians of forward dynamics

@@ -40,7 +40,7 @@ have larger indices than their parents), ``M_e = L D L^T`` has no fill-in: one p
 one multiplier ``l_k`` per link. Then ``mu^-1 b = T^-1 M_e^-1 T^-T b`` costs three passes over
 the tree (:func:`solve_coupling`). :func:`factor_end_point_mass` factors it once, at prepare
 time; a pivot that vanishes means that ``M_r`` is singular, and :func:`singular_mass_reason`
-names the link. The factor and the solve live in :mod:`exo_bench.models.mechanism.mass_factor`, below every
+names the link. The factor and the solve live in :mod:`exo_bench.models.mechanism.aggregates`, below every
 method, so that the conditioning test of every method's forward dynamics uses them too.
 """
 
@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.mechanism.aggregates import link_aggregates
-from exo_bench.models.mechanism.mass_factor import factor_end_point_mass, solve_mu
+from exo_bench.models.mechanism.aggregates import factor_end_point_mass, solve_mu
 from exo_bench.models.mechanism.mechanism import Mechanism
 
 
@@ -121,7 +121,7 @@ def prepare_tree(mech: Mechanism) -> Tree:
 
 def solve_coupling(tree: Tree, b: np.ndarray) -> np.ndarray:
     """``mu^-1 b`` for ``b`` of shape ``(n, ...)`` (any trailing axes: components, samples), O(n), by
-    the tree's factor (:func:`exo_bench.models.mechanism.mass_factor.solve_mu`). ``tree.singular`` must be -1."""
+    the tree's factor (:func:`exo_bench.models.mechanism.aggregates.solve_mu`). ``tree.singular`` must be -1."""
     return solve_mu(tree.parent, tree.pivot, tree.multiplier, b)
 
 
