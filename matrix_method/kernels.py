@@ -15,7 +15,7 @@ import numpy as np
 from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
-#: from it (matrix-factored, :func:`exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`).
+#: from it (matrix-factored, :func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`).
 _DERIVED = ("inverse_dynamics", "bias_forces", "mass_matrix", "mass_matrix_and_bias", "forward_dynamics")
 
 

@@ -1,4 +1,4 @@
-"""Batched derivative calls without ``out=`` (models/newton_euler/derivatives.py, models/derivatives/derivatives.py): the
+"""Batched derivative calls without ``out=`` (models/newton_euler/derivatives.py, models/derivatives.py): the
 results of a loop that drops them are recycled, so a call pays for its arithmetic, not for new pages.
 
 A ``(S, dof, dof)`` result of 128 KiB or more is served by glibc from a fresh mapping whenever its heap has

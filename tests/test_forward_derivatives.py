@@ -33,7 +33,7 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare, presets
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import NumericallySingularError
-from exo_bench.models.derivatives.derivatives import Derivatives
+from exo_bench.models.derivatives import Derivatives
 from exo_bench.models.newton_euler import inverse_mass, passes
 from exo_bench.models.newton_euler.passes import prepare_tree
 from exo_bench.models.mechanism.presets import random_tree

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from exo_bench import prepare
-from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
+from exo_bench.models.runtime.prepared import terms_from_inverse_dynamics
 import pytest
 from conftest import assert_close, assert_forces_agree, mass_matrix_scale
 

@@ -17,7 +17,7 @@ from test_jvp import _directions, _mv, _vm
 
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
-from exo_bench.models.derivatives.derivatives import Derivatives
+from exo_bench.models.derivatives import Derivatives
 from exo_bench.models.newton_euler import products as pc
 from exo_bench.models.mechanism.presets import random_tree
 

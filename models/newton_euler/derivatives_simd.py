@@ -170,7 +170,7 @@ def simd_derivatives(p, q, qd, qdd, o, start, stop, S):
 #: :func:`checked_one`'s answers where it wrote nothing (beside those of
 #: :func:`exo_bench.models.newton_euler.derivatives_compiled._unsafe`, 1-4): a state not plain (strides other
 #: than 8 bytes, or not aligned), or a check of ``check=True`` that did not clear the state. The caller's
-#: exact path then refuses naming why, or decides (:class:`exo_bench.models.derivatives.derivatives.Derivatives`).
+#: exact path then refuses naming why, or decides (:class:`exo_bench.models.derivatives.Derivatives`).
 NOT_PLAIN, EXACT = 5, 6
 #: Floats of the head of :func:`one_workspace`: the ends of its parts.
 _HEAD = 16

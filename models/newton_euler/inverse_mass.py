@@ -5,7 +5,7 @@ once (:mod:`exo_bench.models.mechanism.aggregates`), so ``M^-1 b = J^-1 mu^-1 J^
 ``J_i^-T b_i`` (:func:`exo_bench.models.mechanism.rod_elements.unproject_3d`), the tree solve with ``mu``
 (three passes), and the rates ``J_i^-1`` (:func:`~exo_bench.models.mechanism.rod_elements.rates_3d`):
 O(n) per column, O(n k) for ``k`` columns, O(n^2) for the ``(dof, dof)`` Jacobians of forward dynamics
-(:mod:`exo_bench.models.derivatives.derivatives`). It is forward dynamics at ``qd = 0`` and ``g = 0``, where the
+(:mod:`exo_bench.models.derivatives`). It is forward dynamics at ``qd = 0`` and ``g = 0``, where the
 bias ``J' q'`` and the weight vanish exactly.
 
 * :func:`numpy_columns`: the numpy reference, :func:`exo_bench.models.newton_euler.passes.forward_dynamics`

@@ -10,7 +10,7 @@ Every function takes a prepared model (:func:`exo_bench.prepare`, :mod:`exo_benc
   solve.
 * **Any method** ``tau = ID(q, qd, qdd)`` gives them exactly, because inverse dynamics is
   linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``
-  (:func:`exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`, one batched call per evaluation); a
+  (:func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`, one batched call per evaluation); a
   prepared model uses its own terms where it has them (``native_terms``).
 
 **Singular configurations.** ``M = J^T (mu (x) I) J``, where ``J`` maps ``qd`` to the rod
@@ -47,7 +47,7 @@ from exo_bench.models.runtime.conditioning import check_finite
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import as_states, split
 from exo_bench.models.runtime.prepared import PreparedModel
-from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
+from exo_bench.models.runtime.prepared import terms_from_inverse_dynamics
 
 if TYPE_CHECKING:
     from exo_bench.models.gait.motion import Motion  # only named in annotations
@@ -67,7 +67,7 @@ def mass_matrix_and_bias(model: PreparedModel, q: np.ndarray, qd: np.ndarray, vi
     The model's own terms where it has them (``model.native_terms``: Pinocchio's CRBA and
     ``nonLinearEffects``, Lagrange's lambdified ``d tau / d qdd`` and ``tau(qdd = 0)``, the matrix
     method's ``A, B, Lambda`` blocks), else, or with ``via_inverse_dynamics=True``, from its inverse
-    dynamics (:func:`exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`, one batched call).
+    dynamics (:func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`, one batched call).
     """
     if via_inverse_dynamics:
         return terms_from_inverse_dynamics(

@@ -429,7 +429,7 @@ def make_rhs(
 def make_jacobian(model: PreparedModel, controls: Controls):
     """The analytic Jacobian ``df/dy`` of the right-hand side ``f = [qd, qdd]`` of :func:`make_rhs`:
     ``[[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]]`` with the forward-dynamics
-    derivatives of ``model.derivatives`` (:mod:`exo_bench.models.derivatives.derivatives`: the analytic derivatives of
+    derivatives of ``model.derivatives`` (:mod:`exo_bench.models.derivatives`: the analytic derivatives of
     the Newton-Euler passes and the implicit-function theorem, ``M^-1`` by the O(n) forward dynamics; no
     CasADi) and the controls' own ``controls.jacobian(t, q, qd) -> (dtau/dq, dtau/dqd)``
     (:func:`exo_bench.models.simulation.forward_dynamics.prescribed_controls` and

@@ -127,7 +127,7 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
         "(`models.simulation.simulate.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
         "from `model.derivatives` (the analytic derivatives of the Newton-Euler passes with the implicit-function "
-        "theorem, `models/derivatives/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
+        "theorem, `models/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
         "re-evaluated after every accepted step (`models/simulation/simulate.py`; scipy's own rule, made for "
         "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
