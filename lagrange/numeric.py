@@ -20,7 +20,7 @@ import sympy as sp
 
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
 from exo_bench.lagrange.derivation import Derivation, derive
-from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.machine.memory import BoundedCache
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import as_states
 
@@ -38,7 +38,7 @@ class Lambdified:
     seconds: float  # wall time of the lambdify call
 
 
-# Bounded memos (models/machine/bounded_cache.py): four functions per mechanism, of the latest eight or so.
+# Bounded memos (models/machine/memory.py): four functions per mechanism, of the latest eight or so.
 _CACHE: BoundedCache[tuple[Mechanism, str], Lambdified] = BoundedCache(32)
 _FAILED: BoundedCache[tuple[Mechanism, str], float] = BoundedCache(256)  # seconds an unfinished compilation ran
 

@@ -66,7 +66,7 @@ from exo_bench.models.runtime.conditioning import (
     coupling_reason,
 )
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.runtime.result_pool import ResultPool
+from exo_bench.models.runtime.prepared import ResultPool
 from exo_bench.models.mechanism.singularity import SingularConfigurationError, mechanism_reasons, singular_reasons
 from exo_bench.models.states.states import checked_states, coordinate_names
 
@@ -205,7 +205,7 @@ class Derivatives:
         #: bytes per sample of a call with and without full Jacobians (:func:`derivative_bytes`): the edge
         #: asks for the memory only above :data:`exo_bench.models.machine.memory.CHUNK_BYTES`
         self._bytes = {j: derivative_bytes(d, 1, j, self.kernel) for j in (0, 3)}
-        #: new batched results, recycled once dropped (models/runtime/result_pool.py): the four of two forward
+        #: new batched results, recycled once dropped (models/runtime/prepared.py): the four of two forward
         #: calls (a loop holds the previous ones during the next call), from the size the inverse
         #: derivatives recycle (:data:`exo_bench.models.newton_euler.derivatives.RECYCLE_MIN_BYTES`)
         self._results = ResultPool(keep=8, min_bytes=RECYCLE_MIN_BYTES)

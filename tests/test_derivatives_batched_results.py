@@ -18,7 +18,7 @@ import numpy as np
 from exo_bench.api import prepare
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import exo5
-from exo_bench.models.runtime.result_pool import RECYCLES
+from exo_bench.models.runtime.prepared import RECYCLES
 
 SAMPLES = 256  # three (256, 15, 15) results of 460 kB each: over 128 KiB, under result_pool's 4 MiB
 

@@ -72,7 +72,7 @@ from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.passes import Tree, prepare_tree
-from exo_bench.models.runtime.result_pool import ResultPool
+from exo_bench.models.runtime.prepared import ResultPool
 
 
 def _columns(parts, dim: int, sign: np.ndarray) -> np.ndarray:
@@ -221,7 +221,7 @@ class InverseDerivatives:
         #: The shapes of one sample's states and outputs, ``(dof,)`` and ``(dof, dof)``.
         self._shapes = ((self.dof,), (self.dof, self.dof))
         self._simd_scratch: Any = None  # the SIMD kernel's driver, kernel, parameters and scratch (_simd_prepare)
-        #: New batched results, recycled once dropped (:mod:`exo_bench.models.runtime.result_pool`): a fresh
+        #: New batched results, recycled once dropped (:mod:`exo_bench.models.runtime.prepared`): a fresh
         #: ``(S, dof, dof)`` array may be a new mapping whose pages the OS zeroes on first touch; chain 100
         #: 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``; exo5-3d, 256 samples
         #: (460 kB each): 3.6 us against 1.6 (193 page faults a call), so from :data:`RECYCLE_MIN_BYTES`.

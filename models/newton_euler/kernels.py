@@ -114,11 +114,11 @@ def _simd(model: Any) -> Entries:
 
 
 def _lean(model: Any) -> Entries:
-    """One sample in one compiled call, checks included (:mod:`exo_bench.models.newton_euler.lean`)."""
-    from exo_bench.models.newton_euler import lean
+    """One sample in one compiled call, checks included (:mod:`exo_bench.models.newton_euler.compiled`)."""
+    from exo_bench.models.newton_euler import compiled
     from exo_bench.models.states.states import validation_plan
 
-    compiled = lean.entry(model.table)
+    compiled = compiled.entry(model.table)
     if compiled is None:  # NUMBA_DISABLE_JIT
         return Entries()
     return Entries(inverse_fast=partial(compiled, model.table, float(model._g), validation_plan(model.mechanism)))
@@ -182,7 +182,7 @@ NEWTON_EULER_KERNELS = (
         (ONE_SAMPLE,),
         "one thread: the calling one",
         "below NEWTON_EULER's call_seconds: one sample's checks and passes in one compiled call (the "
-        "per-sample inverse pass of compiled.py behind models/newton_euler/lean.py's entry)",
+        "per-sample inverse pass of compiled.py behind models/newton_euler/compiled.py's entry)",
         speed=0.12,
         compile_seconds=15.0,
         runtime_bytes=NUMBA_BYTES,

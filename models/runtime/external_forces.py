@@ -44,7 +44,7 @@ from exo_bench.models.runtime import external_forces_compiled as xc
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.machine.memory import check_batch
 from exo_bench.models.mechanism.rod_elements import project_2d, project_3d
-from exo_bench.models.states.state_conversion import converted, real_numbers_problem
+from exo_bench.models.states.array_gate import converted, real_numbers_problem
 from exo_bench.models.states.states import as_states, coordinate_names
 from exo_bench.models.states.array_gate import as_out, is_plain
 from exo_bench.models.states.array_gate import as_states as gate_states
@@ -119,7 +119,7 @@ def check_f_ext(mech: Mechanism, f_ext: Any, q_shape: tuple, check: bool = True,
 
 
 def _tau(mech: Mechanism, tau: Any, shape: tuple, source: str) -> np.ndarray | None:
-    """``tau`` beside ``f_ext`` read as without it, by the states' converter (models/states/state_conversion.py:
+    """``tau`` beside ``f_ext`` read as without it, by the states' converter (models/states/array_gate.py:
     real numbers only, a ValueError naming 'tau'); one sample stays 1-D; None stays None."""
     if tau is None:
         return None

@@ -4,7 +4,7 @@
 Validation is one compiled pass (models/states/validation_pass.py). C-ordered float64 ndarrays, the arrays
 a controller or an ODE right-hand side passes, go straight to it: a few attribute tests, one call of
 compiled code, no copy, no name built. Anything else (lists, DataFrames, masked arrays, other dtypes
-or layouts) is converted at the edge first (models/states/state_conversion.py). Only on a problem does
+or layouts) is converted at the edge first (models/states/array_gate.py). Only on a problem does
 Python build the message, naming the array, the sample, the coordinate and the link.
 
 **The form of the equations of motion**, eq. (5) (2D) and eq. (17) (3D), defined once (the block order
@@ -29,7 +29,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from exo_bench.models.states.state_conversion import converted
+from exo_bench.models.states.array_gate import converted
 from exo_bench.models.states.validation import MAX_FORCE_SCALE, _where, force_scale_base, force_scale_log10
 
 if TYPE_CHECKING:
@@ -202,7 +202,7 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
 
 
 def _at_the_edge(mech: Mechanism, chk: StateCheck, arrays: tuple, source: str) -> tuple:
-    """Convert each array (models/states/state_conversion.py), then check them all with the compiled pass;
+    """Convert each array (models/states/array_gate.py), then check them all with the compiled pass;
     the messages come in the order the arrays are read: an array's non-finite entry is named before
     a later array's wrong form, and both before unequal sample counts and lengths."""
     from exo_bench.models.states.validation_pass import NONFINITE, OK, verdict

@@ -71,7 +71,7 @@ from exo_bench.bench.studies.stride.data import contact_mask_order, contact_of
 from exo_bench.bench.studies.stride.passive import passive_moment
 from exo_bench.models.simulation.contact import contact_force_expr
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.simulation.posture import joints
+from exo_bench.models.simulation.contact import joints
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
 def _active_moments(mech: Mechanism, s: Any, q: Any, moments: Any, priced: list[int]) -> list:
     """The priced joints' active moments: each net moment less its passive element's
     (:func:`~exo_bench.bench.studies.stride.passive.passive_moment`, about the standing posture)."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     q0 = balanced_standing(mech, s.stature)[0]
     js = joints(mech)
