@@ -547,8 +547,8 @@ class Derivatives:
     def _resolve_one(self) -> tuple:
         """The compiled per-sample entry of :meth:`inverse_dynamics`
         (:func:`exo_bench.models.newton_euler.derivatives_simd.checked_one`, its entry point for plain arrays
-        resolved once: :func:`exo_bench.models.runtime.kernels.entry_point`) and its fixed arguments."""
-        from exo_bench.models.runtime.kernels import entry_point
+        resolved once: :func:`exo_bench.models.runtime.prepared.entry_point`) and its fixed arguments."""
+        from exo_bench.models.runtime.prepared import entry_point
         from exo_bench.models.newton_euler import derivatives_simd as ds
 
         ids = self.inverse_derivatives

@@ -16,7 +16,7 @@ from conftest import EPS, K, assert_close, term_scale
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as xf
-from exo_bench.models.runtime import external_forces_compiled as xc
+from exo_bench.models.runtime import external_forces as xc
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.presets import fig1, random_tree
 

@@ -80,10 +80,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
+from exo_bench.models.engines.urdf import link_prefix
 from exo_bench.models.files.encoders import xml_attr, xml_comment
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.engines.urdf import link_prefix
 
 #: The compiler's ``boundmass`` and ``boundinertia`` (see the module docstring).
 BOUND = 1e-12

@@ -1,4 +1,4 @@
-"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.runtime.kernels.Kernel`):
+"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.runtime.prepared.Kernel`):
 :data:`NEWTON_EULER_KERNELS` is what its MethodSpec and :class:`~exo_bench.models.newton_euler.prepared.NewtonEuler`
 list. Each ``load`` binds a kernel to one prepared model (its ``table``, ``kernel_args``,
 ``batch_kernel``), importing the compiled code only then: importing this module imports no numba.
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 

@@ -21,7 +21,7 @@ from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import check_conditioning
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.states.states import split
-from exo_bench.models.runtime.kernels import select
+from exo_bench.models.runtime.prepared import select
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.newton_euler.passes import prepare_tree

@@ -91,7 +91,7 @@ def split(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None
 
 
 #: The old check ran this many rows at a time; the compiled pass needs no scratch memory at all. Kept
-#: for the code that imports the name (models/mechanism/mechanism.py re-exports it).
+#: for the code that imports the name.
 CHECK_ROWS = 65536
 
 LABELS = ("q", "qd", "qdd")
