@@ -18,7 +18,7 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, conservative_cases, stiff_case
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation.simulate import JACOBIANS, make_jacobian, simulate
+from exo_bench.models.simulation.forward_dynamics import JACOBIANS, make_jacobian, simulate
 
 pytest.importorskip("casadi")
 

@@ -115,7 +115,7 @@ def _family():
 def _forward():
     from exo_bench.bench.studies.stability import cases, forward_evaluation as fe
     from exo_bench.bench.studies.stability import forward_round_trip as frt
-    from exo_bench.models.simulation.simulate import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
     sim = Simulation("DOP853", 1e-6, 1e-9, np.array([0.0, 0.5]), np.ones((2, 4)), nfev=10, status="ok")
     sim.solution = lambda t: t  # a dense output: never kept

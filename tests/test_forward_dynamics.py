@@ -12,7 +12,7 @@ import pytest
 from conftest import assert_close, assert_forces_agree, mass_matrix_scale
 
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation.simulate import make_rhs, simulate
+from exo_bench.models.simulation.forward_dynamics import make_rhs, simulate
 from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.engines import pinocchio_backend as pb

@@ -23,7 +23,7 @@ from exo_bench import prepare
 from exo_bench.models.simulation.contact import ContactParameters
 from exo_bench.models.simulation.contact import balanced_standing, centre_of_mass, ground_reaction, hold
 from exo_bench.models.mechanism.presets import human
-from exo_bench.models.simulation.simulate import simulate
+from exo_bench.models.simulation.forward_dynamics import simulate
 
 C = ContactParameters()
 G = 9.81

@@ -1,5 +1,5 @@
 """The implicit integrators' Jacobian comes from the analytic derivatives of ``model.derivatives``
-(issue 36): models/simulation/simulate.py ``make_jacobian``, models/simulation/simulate.py.
+(issue 36): models/simulation/forward_dynamics.py ``make_jacobian``, models/simulation/forward_dynamics.py.
 
 Oracle: the provider's own *inverse*-dynamics derivatives ``(dID/dq, dID/dqd, M)`` at ``qdd = FD(q, qd,
 tau)``, through the implicit-function theorem with numpy's dense solve: ``dqdd/dy = M^-1 (dtau_ctrl/dy -
@@ -21,7 +21,7 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, stiff_case
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation.simulate import make_jacobian, simulate
+from exo_bench.models.simulation.forward_dynamics import make_jacobian, simulate
 
 METHODS = ("newton-euler", "matrix-factored", "recurrence")
 

@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 from exo_bench.models.mechanism.presets import fig1
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation import simulate
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -45,7 +44,7 @@ class Spy:
 
 def _run(model, controls, **kw):
     args = {"t_span": (0.0, 0.2), "integrator": "RK45", "rtol": 1e-6, "max_evaluations": 300, **kw}
-    return simulate.simulate(model, Q0, np.zeros_like(Q0), controls=controls, **args)
+    return fd.simulate(model, Q0, np.zeros_like(Q0), controls=controls, **args)
 
 
 _NAN, _INF = math.nan, math.inf
@@ -107,7 +106,7 @@ def test_a_model_that_is_not_prepared_is_refused(bad):
     """A model that is not a prepared model (None, a bare Mechanism, a method name) is refused with a
     ValueError naming the argument 'model', not an AttributeError from deep inside."""
     with pytest.raises(ValueError, match="argument 'model': expected a prepared model"):
-        simulate.simulate(bad, Q0, np.zeros_like(Q0), (0.0, 0.1), Spy(), max_evaluations=10)
+        fd.simulate(bad, Q0, np.zeros_like(Q0), (0.0, 0.1), Spy(), max_evaluations=10)
 
 
 @pytest.mark.case("H1", "U12")
@@ -154,13 +153,13 @@ def test_valid_edge_arguments_are_accepted(model, kw):
 @pytest.mark.case("H1")
 def test_a_run_without_a_budget_has_the_default_one(model, monkeypatch):
     """simulate() without a budget stops at the stated default count of right-hand-side evaluations
-    (exo_bench.models.simulation.simulate.DEFAULT_MAX_EVALUATIONS), recorded in the result."""
-    assert isinstance(simulate.DEFAULT_MAX_EVALUATIONS, int) and simulate.DEFAULT_MAX_EVALUATIONS >= 100_000
+    (exo_bench.models.simulation.forward_dynamics.DEFAULT_MAX_EVALUATIONS), recorded in the result."""
+    assert isinstance(fd.DEFAULT_MAX_EVALUATIONS, int) and fd.DEFAULT_MAX_EVALUATIONS >= 100_000
     short = _run(model, Spy(), max_evaluations=None)
-    assert short.ok and short.max_evaluations == simulate.DEFAULT_MAX_EVALUATIONS
-    monkeypatch.setattr(simulate, "DEFAULT_MAX_EVALUATIONS", 250)
+    assert short.ok and short.max_evaluations == fd.DEFAULT_MAX_EVALUATIONS
+    monkeypatch.setattr(fd, "DEFAULT_MAX_EVALUATIONS", 250)
     spy = Spy()
-    sim = simulate.simulate(model, Q0, np.zeros_like(Q0), (0.0, 10.0), spy, "RK45", 1e-10)
+    sim = fd.simulate(model, Q0, np.zeros_like(Q0), (0.0, 10.0), spy, "RK45", 1e-10)
     assert sim.status.startswith("budget exceeded") and "250 right-hand-side evaluations" in sim.status
     assert sim.max_evaluations == 250 and sim.nfev == 251 and spy.calls == 250  # the 251st is refused
 

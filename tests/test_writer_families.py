@@ -35,7 +35,7 @@ def _mechanism():
 
 
 def _save_mechanism(folder: Path) -> None:
-    from exo_bench.models.mechanism.loading import save_mechanism
+    from exo_bench.models.mechanism.presets import save_mechanism
 
     save_mechanism(_mechanism(), folder / "m.json")
 

@@ -88,7 +88,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_equations(args: argparse.Namespace) -> int:
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
 
     if args.size_report:
         from exo_bench.bench.studies.equations_size import size_report

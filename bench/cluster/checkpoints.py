@@ -139,7 +139,7 @@ def registry() -> dict[str, type]:
     """The dataclasses a checkpoint may hold, by class name."""
     from exo_bench.bench.studies.stability import cases, evaluation, forward_evaluation
     from exo_bench.bench.studies.stability import forward_round_trip
-    from exo_bench.models.simulation.simulate import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
     classes = (
         cases.Profile,

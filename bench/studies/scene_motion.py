@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from exo_bench.models.mechanism.loading import read_json
+from exo_bench.models.mechanism.presets import read_json
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import DEFAULT_GAIT, GAITS, GaitParams, from_arrays, gait, planar_gait
 

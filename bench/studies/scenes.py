@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from exo_bench.bench.studies.scene_motion import MIN_SAMPLES, MOTIONS, _err, _load_motion
-from exo_bench.models.mechanism.loading import load_mechanism, read_toml
+from exo_bench.models.mechanism.presets import load_mechanism, read_toml
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.files.encoders import check_name
 from exo_bench.models.gait.motion import Motion, from_arrays, gait, planar_gait, smooth_random_motion

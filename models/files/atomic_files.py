@@ -3,7 +3,7 @@
 The command line's ``-o`` and ``--reports`` (bench/output/files.py ``write_output``, the publisher's
 ``move_into``), the reports, figures, recordings and checkpoints (bench/output/provenance.py
 ``atomic_write``/``atomic_path``, which call this), the stored steps and strides, the library's
-:func:`exo_bench.models.mechanism.loading.save_mechanism` and the CasADi functions' ``save`` all write here
+:func:`exo_bench.models.mechanism.presets.save_mechanism` and the CasADi functions' ``save`` all write here
 (it lives in models so that every layer can use it; layers only go down).
 
 * :func:`output_target`: a file is written only where there is nothing or a regular file: a symlink

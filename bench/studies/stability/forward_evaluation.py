@@ -26,7 +26,7 @@ from exo_bench.bench.studies.stability.forward_cases import (
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation.simulate import Simulation, simulate
+from exo_bench.models.simulation.forward_dynamics import Simulation, simulate
 from exo_bench.models.mechanism.singularity import SingularConfigurationError
 from exo_bench.models.mechanism.presets import exo5
 from exo_bench.bench.studies.stability.forward_round_trip import RoundTrip, round_trip, round_trip_run, variational

@@ -17,7 +17,7 @@ from exo_bench.models.simulation import forward_dynamics as fd
 # differences, the report section.
 
 if TYPE_CHECKING:
-    from exo_bench.models.simulation.simulate import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
 
 @dataclass
@@ -129,7 +129,7 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "from `model.derivatives` (the analytic derivatives of the Newton-Euler passes with the implicit-function "
         "theorem, `models/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
-        "re-evaluated after every accepted step (`models/simulation/simulate.py`; scipy's own rule, made for "
+        "re-evaluated after every accepted step (`models/simulation/forward_dynamics.py`; scipy's own rule, made for "
         "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
         "Newton iterations, at tight tolerances more than the finite-difference Jacobians cost). Same case, "
         "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "

@@ -15,7 +15,7 @@ import numpy as np
 from exo_bench.api import PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripCase, TIGHTER, _models, _state0
 from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.simulation.simulate import Simulation, make_rhs, simulate
+from exo_bench.models.simulation.forward_dynamics import Simulation, make_rhs, simulate
 from exo_bench.models.mechanism.mechanism import Mechanism
 
 
@@ -143,7 +143,7 @@ def round_trip_run(
     """One integration of the round trip (dense output, so that it can serve as the tighter run
     of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
     dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
-    state; ``jacobian`` of the implicit integrators (:data:`exo_bench.models.simulation.simulate.JACOBIANS`)."""
+    state; ``jacobian`` of the implicit integrators (:data:`exo_bench.models.simulation.forward_dynamics.JACOBIANS`)."""
     mech = case.mechanism
     models = _models(models)
     ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
