@@ -41,7 +41,7 @@ if TYPE_CHECKING:  # what IDEs and type checkers see; at run time the names load
     from exo_bench.models.mechanism import presets
     from exo_bench.models.runtime.external_forces import forces_at
     from exo_bench.models.simulation.forward_dynamics import prescribed_controls, rod_spring_damper
-    from exo_bench.models.mechanism.joint_loads import net_joint_loads, sagittal_moments
+    from exo_bench.models.mechanism.kinematics import net_joint_loads, sagittal_moments
     from exo_bench.models.mechanism.presets import load_mechanism, save_mechanism
     from exo_bench.models.mechanism.mechanism import Mechanism
     from exo_bench.models.machine.memory import CallTooLarge
@@ -127,8 +127,8 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "Simulation": ("exo_bench.models.simulation.forward_dynamics", "Simulation"),
     "prescribed_controls": ("exo_bench.models.simulation.forward_dynamics", "prescribed_controls"),
     "rod_spring_damper": ("exo_bench.models.simulation.forward_dynamics", "rod_spring_damper"),
-    "net_joint_loads": ("exo_bench.models.mechanism.joint_loads", "net_joint_loads"),
-    "sagittal_moments": ("exo_bench.models.mechanism.joint_loads", "sagittal_moments"),
+    "net_joint_loads": ("exo_bench.models.mechanism.kinematics", "net_joint_loads"),
+    "sagittal_moments": ("exo_bench.models.mechanism.kinematics", "sagittal_moments"),
     "joint_torques": ("exo_bench.models.engines.pinocchio_backend", "joint_torques"),
     "pinocchio_model": ("exo_bench.models.engines.pinocchio_backend", "build_model"),
     "to_urdf": ("exo_bench.models.engines.urdf", "to_urdf"),

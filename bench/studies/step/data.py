@@ -10,7 +10,7 @@ mechanism it was solved for, with its digest: :func:`load` reuses it only for an
 (:mod:`exo_bench.bench.studies.step.identity`).
 
 :func:`violations` re-evaluates every constraint from the stored arrays with numpy and the project's own
-kinematics (:mod:`exo_bench.models.mechanism.kinematics`) and joint loads (:mod:`exo_bench.models.mechanism.joint_loads`): nothing of the
+kinematics (:mod:`exo_bench.models.mechanism.kinematics`) and joint loads (:mod:`exo_bench.models.mechanism.kinematics`): nothing of the
 optimiser is reused, so a wrong store or a wrong CasADi model shows up there.
 
 :func:`walking_motion` is one or more steps as a motion for a scene: each step after the first is the
@@ -29,7 +29,7 @@ import numpy as np
 
 from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.problem import DEG, StepSettings, angle_rows, swap_matrix  # noqa: F401
-from exo_bench.models.mechanism.joint_loads import net_joint_loads
+from exo_bench.models.mechanism.kinematics import net_joint_loads
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import Motion
