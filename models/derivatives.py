@@ -13,7 +13,7 @@ Derivatives of the equations of motion for a prepared model of any method, batch
 * :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
   implicit-function theorem on ``ID(q, qd, qdd) = tau`` at ``qdd = FD(q, qd, tau)``: ``dqdd/dq = -M^-1
   dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with ``M^-1`` as ``dof`` columns of the
-  O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.inverse_mass`, ``M^-1 = J^-1 (mu^-1 (x) I)
+  O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.forward_jacobians`, ``M^-1 = J^-1 (mu^-1 (x) I)
   J^-T``) and ``M^-1 dID`` from it and the per-rod columns
   (:mod:`exo_bench.models.newton_euler.forward_jacobians`): O(n^2) time and memory, the size of the
   output, and no dense LU;
@@ -77,7 +77,7 @@ _F8 = np.dtype(np.float64)
 SOURCE = (
     "analytic O(n) derivatives of the Newton-Euler passes (models/newton_euler/derivatives.py); "
     "forward dynamics by the implicit-function theorem, M^-1 applied column by column by the O(n) "
-    "forward dynamics (models/newton_euler/inverse_mass.py), no dense LU"
+    "forward dynamics (models/newton_euler/forward_jacobians.py), no dense LU"
 )
 #: Bytes per sample beyond the Jacobians: the states, ``qdd`` and the per-rod columns (``(n, dim, dim)``
 #: each, four of them, under 8 dof), in float64 entries per coordinate.
@@ -122,7 +122,7 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     """Estimated peak bytes of one derivative call: ``jacobians`` ``(samples, dof, dof)`` float64 arrays
     (the output), the inverse-dynamics Jacobians a forward call solves in place, O(n) per sample
     (:data:`PER_COORDINATE`), and with the numpy kernel the columns as samples (``(samples, dof, dof)``
-    twice more: :func:`exo_bench.models.newton_euler.inverse_mass.numpy_columns`)."""
+    twice more: :func:`exo_bench.models.newton_euler.forward_jacobians.numpy_columns`)."""
     square = float(samples) * dof * dof * 8.0
     extra = 3 * square if REFERENCE[kernel] and jacobians else 0.0  # the products solve no columns
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
@@ -262,10 +262,10 @@ class Derivatives:
 
     def _solve(self, q: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """``M(q)^-1 B`` for ``B (S, dof, k)``, into ``out`` (which may be ``B``) or a new array."""
-        from exo_bench.models.newton_euler import inverse_mass
+        from exo_bench.models.newton_euler import forward_jacobians
 
         if self.reference:
-            X = inverse_mass.numpy_columns(self.tree, self.mechanism.dim, q, B)
+            X = forward_jacobians.numpy_columns(self.tree, self.mechanism.dim, q, B)
             if out is None:
                 return X
             out[...] = X
@@ -274,7 +274,7 @@ class Derivatives:
 
         o = np.empty(B.shape) if out is None else out
         args = (self.table, self.mechanism.dim, q, np.ascontiguousarray(B), o)
-        run(inverse_mass.columns, inverse_mass.columns_parallel, args, q.shape[0])
+        run(forward_jacobians.columns, forward_jacobians.columns_parallel, args, q.shape[0])
         return o
 
     def _forward_jacobians(
