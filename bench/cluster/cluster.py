@@ -54,7 +54,7 @@ from exo_bench.models.machine.memory import check_count, check_workers, usable_c
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import REPO
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.cluster.waits import _first_line, probe_scheduler
 from exo_bench.bench.cluster.checkpoints import FINAL, checkpoint_dir, code_key, load_checkpoint
 from exo_bench.bench.cluster.tasks import TOPIC, failure_lines, run_row

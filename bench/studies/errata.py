@@ -42,7 +42,7 @@ from exo_bench.models.gait.motion import gait
 from exo_bench.bench.studies.options import ReportOptions
 from exo_bench.bench.output import provenance as reporting
 from exo_bench.bench.output.provenance import provenance, sci
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.output.publish import ERRATA
 
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.files.encoders import check_name
+from exo_bench.models.files import check_name
 from exo_bench.models.states.validation import (
     _NEGATIVE_G,
     DuplicateKey,

@@ -359,7 +359,7 @@ def load_mechanism(spec: str | Path) -> Mechanism:
 
 def save_mechanism(mech: Mechanism, path: str | Path) -> None:
     """``mech`` as JSON to ``path``, whole or not at all, never through a symlink planted there
-    (:func:`exo_bench.models.files.atomic_files.atomic_write`)."""
-    from exo_bench.models.files.atomic_files import atomic_write
+    (:func:`exo_bench.models.files.atomic_write`)."""
+    from exo_bench.models.files import atomic_write
 
     atomic_write(path, mech.to_json() + "\n")

@@ -316,7 +316,7 @@ def run(options: StabilityOptions) -> int:
     from exo_bench.bench.studies.stability.forward_evaluation import run_forward
     from exo_bench.api import method_names
     from exo_bench.bench.output.provenance import save_figure
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     profile = FULL if options.full else QUICK
     out = options.folder

@@ -33,7 +33,7 @@ from exo_bench.models.mechanism.kinematics import net_joint_loads
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import Motion
-from exo_bench.models.files.encoders import check_name, file_stem
+from exo_bench.models.files import check_name, file_stem
 
 DATA = Path(__file__).resolve().parent / "data"
 #: IPOPT's ``tol`` the stored steps are solved with (their ``settings.tol``), and so re-solved with by
@@ -105,8 +105,8 @@ class WalkingMotion(Motion):
 def path_of(name: str, folder: Path | None = None) -> Path:
     """Where the step of the mechanism named ``name`` is stored: ``<folder>/<file_stem(name)>-step.npz``,
     ``folder`` the package's data folder by default. The name is a key, never a path: it goes through
-    :func:`exo_bench.models.files.encoders.file_stem` (no separator, no ``..``, no leading dot), so the file is
-    always inside ``folder``; a name that is not an acceptable name (:func:`exo_bench.models.files.encoders.check_name`:
+    :func:`exo_bench.models.files.file_stem` (no separator, no ``..``, no leading dot), so the file is
+    always inside ``folder``; a name that is not an acceptable name (:func:`exo_bench.models.files.check_name`:
     NUL and other control characters, ...) is refused."""
     check_name(name, "step: field 'mechanism.name'")
     folder = DATA if folder is None else Path(folder)

@@ -32,7 +32,7 @@ from exo_bench.models.simulation.contact import balanced_standing, ground_reacti
 from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.actuators import powers
-from exo_bench.models.files.encoders import markdown_text as md
+from exo_bench.models.files import markdown_text as md
 
 
 def _excess(x, lo, hi) -> float:

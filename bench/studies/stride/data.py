@@ -1,7 +1,7 @@
 """The stored stride: writing and reading it (``.npz`` + JSON metadata, no pickle), and what it holds.
 
 A stored stride is ``bench/studies/stride/data/<file_stem(mechanism)>-<variant>-v<speed in cm/s>.npz``
-(:func:`path_of`; the key is encoded by :func:`exo_bench.models.files.encoders.file_stem`, never used as a path):
+(:func:`path_of`; the key is encoded by :func:`exo_bench.models.files.file_stem`, never used as a path):
 one **full** stride of the 2D human (:func:`exo_bench.models.mechanism.presets.human`), from a right heel strike
 to the next, sampled at the collocation nodes. The optimiser solves half of it (right heel strike to
 left heel strike) with a left/right symmetry constraint; the second half stored here is the first
@@ -50,7 +50,7 @@ from exo_bench.bench.studies.step.data import read_stored
 from exo_bench.bench.studies.stride.passive import check_passive, check_spring
 from exo_bench.models.simulation.contact import DEFAULT_CONTACT, ContactParameters
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.encoders import file_stem
+from exo_bench.models.files import file_stem
 from exo_bench.models.states.validation import _finite, _is_number
 
 DATA = Path(__file__).resolve().parent / "data"

@@ -78,7 +78,7 @@ from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.encoders import check_name
+from exo_bench.models.files import check_name
 
 
 DEG = math.pi / 180
@@ -396,7 +396,7 @@ def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.Stored
 def trial_folder(name: str, root: Path | None = None) -> Path:
     """The folder of trial ``name`` (a checked name, never a path)."""
     check_name(name, "trial")
-    from exo_bench.models.files.encoders import file_stem
+    from exo_bench.models.files import file_stem
 
     return Path(data.DATA / "trials" if root is None else root) / file_stem(name)
 
