@@ -47,6 +47,6 @@ def pytest_runtest_logreport(report):
 def pytest_sessionfinish(session, exitstatus):
     path = session.config.getoption("--skips-json")
     if path:
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(path, json.dumps(_SKIPS, indent=1))

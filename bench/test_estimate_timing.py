@@ -10,7 +10,7 @@ deterministic part (the memory estimate against counted allocations) is in
 tests/test_estimate_vs_measured.py.
 
 Each point runs in a fresh process: numba's machine code is loaded (from its disk cache, or
-compiled) before the measurement starts, so its one-time :data:`~exo_bench.api.cost_formulas.NUMBA_BYTES`
+compiled) before the measurement starts, so its one-time :data:`~exo_bench.models.runtime.prepared.NUMBA_BYTES`
 are left out of the estimate compared; the states are generated after the memory baseline (they
 count in the estimate's arrays) and before the clock starts (their generation is not the method's
 work). Memory is the growth of the peak resident set (``VmHWM`` after a reset through
@@ -41,7 +41,7 @@ import sys
 import pytest
 
 from exo_bench.api import METHODS
-from exo_bench.api.cost_formulas import NUMBA_BYTES
+from exo_bench.models.runtime.prepared import NUMBA_BYTES
 from exo_bench.api.cost_model import estimate
 from exo_bench.models.mechanism.presets import chain
 

@@ -2,7 +2,7 @@
 
 Users put ``f_ext`` in controllers and ODE right-hand sides, so a one-sample call with it should cost the
 call without it plus the generalised forces ``Q(q, f_ext)`` (an O(n) pass, compiled:
-models/runtime/external_forces_compiled.py). Each row times one public call (``model.inverse_dynamics(q, qd, qdd,
+models/runtime/external_forces.py). Each row times one public call (``model.inverse_dynamics(q, qd, qdd,
 check=..., f_ext=...)``) on exo5-3d and on the 10-link human (``human-2d``), matrix-factored and
 newton-euler, ``check`` True and False, without and with ``f_ext``: the rows of one mechanism are one
 group (``f_ext-<mechanism>``), timed in one process, so ``py.test-benchmark compare`` reads the cost of

@@ -41,8 +41,8 @@ if TYPE_CHECKING:  # what IDEs and type checkers see; at run time the names load
     from exo_bench.models.mechanism import presets
     from exo_bench.models.runtime.external_forces import forces_at
     from exo_bench.models.simulation.forward_dynamics import prescribed_controls, rod_spring_damper
-    from exo_bench.models.mechanism.joint_loads import net_joint_loads, sagittal_moments
-    from exo_bench.models.mechanism.loading import load_mechanism, save_mechanism
+    from exo_bench.models.mechanism.kinematics import net_joint_loads, sagittal_moments
+    from exo_bench.models.mechanism.presets import load_mechanism, save_mechanism
     from exo_bench.models.mechanism.mechanism import Mechanism
     from exo_bench.models.machine.memory import CallTooLarge
     from exo_bench.models.engines.mjcf import MjcfTooDeep, to_mjcf
@@ -50,7 +50,7 @@ if TYPE_CHECKING:  # what IDEs and type checkers see; at run time the names load
     from exo_bench.models.engines.pinocchio_backend import PinocchioDataTooLarge, joint_torques
     from exo_bench.models.engines.pinocchio_backend import build_model as pinocchio_model
     from exo_bench.models.runtime.prepared import MissingExtra, PreparedModel
-    from exo_bench.models.simulation.simulate import Simulation, simulate
+    from exo_bench.models.simulation.forward_dynamics import Simulation, simulate
     from exo_bench.models.mechanism.singularity import SingularConfigurationError
     from exo_bench.models.engines.urdf import to_urdf
 
@@ -114,8 +114,8 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "MethodSpec": ("exo_bench.api.methods", "MethodSpec"),
     "Mechanism": ("exo_bench.models.mechanism.mechanism", "Mechanism"),
     "presets": ("exo_bench.models.mechanism.presets", None),
-    "load_mechanism": ("exo_bench.models.mechanism.loading", "load_mechanism"),
-    "save_mechanism": ("exo_bench.models.mechanism.loading", "save_mechanism"),
+    "load_mechanism": ("exo_bench.models.mechanism.presets", "load_mechanism"),
+    "save_mechanism": ("exo_bench.models.mechanism.presets", "save_mechanism"),
     "random_states": ("exo_bench.models.gait.motion", "random_states"),
     "smooth_random_motion": ("exo_bench.models.gait.motion", "smooth_random_motion"),
     "gait": ("exo_bench.models.gait.motion", "gait"),
@@ -123,12 +123,12 @@ _LAZY: dict[str, tuple[str, str | None]] = {
     "Motion": ("exo_bench.models.gait.motion", "Motion"),
     "GaitParams": ("exo_bench.models.gait.motion", "GaitParams"),
     "forces_at": ("exo_bench.models.runtime.external_forces", "forces_at"),
-    "simulate": ("exo_bench.models.simulation.simulate", "simulate"),
-    "Simulation": ("exo_bench.models.simulation.simulate", "Simulation"),
+    "simulate": ("exo_bench.models.simulation.forward_dynamics", "simulate"),
+    "Simulation": ("exo_bench.models.simulation.forward_dynamics", "Simulation"),
     "prescribed_controls": ("exo_bench.models.simulation.forward_dynamics", "prescribed_controls"),
     "rod_spring_damper": ("exo_bench.models.simulation.forward_dynamics", "rod_spring_damper"),
-    "net_joint_loads": ("exo_bench.models.mechanism.joint_loads", "net_joint_loads"),
-    "sagittal_moments": ("exo_bench.models.mechanism.joint_loads", "sagittal_moments"),
+    "net_joint_loads": ("exo_bench.models.mechanism.kinematics", "net_joint_loads"),
+    "sagittal_moments": ("exo_bench.models.mechanism.kinematics", "sagittal_moments"),
     "joint_torques": ("exo_bench.models.engines.pinocchio_backend", "joint_torques"),
     "pinocchio_model": ("exo_bench.models.engines.pinocchio_backend", "build_model"),
     "to_urdf": ("exo_bench.models.engines.urdf", "to_urdf"),

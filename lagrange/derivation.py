@@ -34,7 +34,7 @@ from sympy.polys.rings import PolyElement
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, Deadline, time_budget
 from exo_bench.lagrange.matrix_form import BLOCKS, extract_ring, matrices_expr
 from exo_bench.lagrange.ring import TrigRing
-from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.machine.memory import BoundedCache
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.mechanism.symbols import Symbols, symbols_for
 
@@ -239,7 +239,7 @@ def _from_ring(
 
 
 # ------------------------------------------------------------------ entry point
-# Bounded memos (models/machine/bounded_cache.py): a process deriving many mechanisms keeps the latest few. A
+# Bounded memos (models/machine/memory.py): a process deriving many mechanisms keeps the latest few. A
 # symbolic derivation of a 30-link chain holds gigabytes, so few of each; failures are a float each.
 _SYMBOLIC: BoundedCache[tuple[Structure, str], Derivation] = BoundedCache(16)
 _NUMERIC: BoundedCache[tuple[Mechanism, str], Derivation] = BoundedCache(16)

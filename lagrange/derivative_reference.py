@@ -50,7 +50,8 @@ import mpmath
 import numpy as np
 from mpmath.libmp import dps_to_prec, from_man_exp
 
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 
 
 @dataclass(frozen=True)

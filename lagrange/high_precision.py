@@ -21,7 +21,8 @@ import numpy as np
 from exo_bench.lagrange.derivation import Derivation
 from exo_bench.lagrange.numeric import Lambdified, lambdify_within_budget
 from exo_bench.lagrange.numeric import clear_cache as numeric_clear_cache
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 
 
 def _equations(d: Derivation) -> tuple[list, list]:

@@ -14,11 +14,11 @@ from sympy import QQ
 
 from exo_bench.lagrange.budget import Deadline
 from exo_bench.lagrange.ring import TrigRing
-from exo_bench.models.states.equation_form import ACCELERATION, RATES, blocks, matrix_names
+from exo_bench.models.states.states import ACCELERATION, RATES, blocks, matrix_names
 from exo_bench.models.mechanism.symbols import Symbols
 
 #: blocks of coordinates (rows of the matrix form), in block order
-BLOCKS = {dim: blocks(dim) for dim in (2, 3)}  # models.equation_form: the block order, defined once
+BLOCKS = {dim: blocks(dim) for dim in (2, 3)}  # models.states.states: the block order, defined once
 #: names of the matrices of eq. (5) (2D) and eq. (17) (3D)
 MATRIX_NAMES = {dim: (*matrix_names(dim), "P") for dim in (2, 3)}
 
@@ -28,7 +28,7 @@ class FormViolation(ValueError):
 
 
 # which matrix holds a term, and the factor in front of it in the form (2G, 2H, 2K)
-# (all from the rate table of models.equation_form)
+# (all from the rate table of models.states.states)
 _ACCEL = ACCELERATION
 _SQUARE = {r[0]: name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] == r[1]}
 _PAIR = {frozenset(r): name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] != r[1]}

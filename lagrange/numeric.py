@@ -2,7 +2,7 @@
 elimination, batched over samples.
 
 Every function takes states as batch-first ``(samples, dof)`` arrays in block order (validated by
-:func:`exo_bench.models.mechanism.mechanism.as_states`) and a time ``budget`` in seconds for the symbolic work
+:func:`exo_bench.models.states.states.as_states`) and a time ``budget`` in seconds for the symbolic work
 (derivation plus ``lambdify``) the first time a mechanism is seen; the compiled functions are
 cached per mechanism. Over budget, :class:`exo_bench.lagrange.BudgetExceeded` carries a ``skip_reason``.
 ``budget=None`` means :data:`DEFAULT_BUDGET` (120 s). The prepared model
@@ -20,8 +20,9 @@ import sympy as sp
 
 from exo_bench.lagrange.budget import BudgetAlarm, BudgetExceeded, time_budget
 from exo_bench.lagrange.derivation import Derivation, derive
-from exo_bench.models.machine.bounded_cache import BoundedCache
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.machine.memory import BoundedCache
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 
 DEFAULT_BUDGET = 120.0
 
@@ -37,7 +38,7 @@ class Lambdified:
     seconds: float  # wall time of the lambdify call
 
 
-# Bounded memos (models/machine/bounded_cache.py): four functions per mechanism, of the latest eight or so.
+# Bounded memos (models/machine/memory.py): four functions per mechanism, of the latest eight or so.
 _CACHE: BoundedCache[tuple[Mechanism, str], Lambdified] = BoundedCache(32)
 _FAILED: BoundedCache[tuple[Mechanism, str], float] = BoundedCache(256)  # seconds an unfinished compilation ran
 

@@ -1,6 +1,6 @@
 """CasADi's derivatives of the equations of motion: for symbolic use, export and as a cross-check.
 
-``model.derivatives`` is the analytic provider (:mod:`exo_bench.models.derivatives.derivatives`: the Newton-Euler
+``model.derivatives`` is the analytic provider (:mod:`exo_bench.models.derivatives`: the Newton-Euler
 passes differentiated, forward dynamics without dense LU) for every method. This module keeps
 CasADi's algorithmic differentiation of the matrix method's factored closed forms of eq. (5)/(17)
 (:mod:`exo_bench.matrix_method.export.casadi_functions`) behind the same calls and checks: reach it with
@@ -13,7 +13,7 @@ without it):
   solve of ``M`` equilibrated by ``diag(M)`` (:func:`exo_bench.models.simulation.forward_dynamics.solve_mass_matrix`).
   The directional derivatives (JVP, VJP) run through these too.
 
-Arrays, refusals and one-sample calls are those of :class:`exo_bench.models.derivatives.derivatives.Derivatives`.
+Arrays, refusals and one-sample calls are those of :class:`exo_bench.models.derivatives.Derivatives`.
 For ``matrix-paper`` they are the derivatives of the correct equations, not of its printed misprints.
 """
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.matrix_method.export.casadi_functions import casadi_functions
-from exo_bench.models.derivatives import derivatives as analytic
+from exo_bench.models import derivatives as analytic
 from exo_bench.models.simulation import forward_dynamics as fd
 from exo_bench.models.mechanism.mechanism import Mechanism
 
@@ -34,7 +34,7 @@ SOURCE = (
 
 
 def source_text(method: str, evaluates_these: bool, known_wrong: bool) -> str:
-    """What computes CasADi's derivatives for ``method`` (:func:`exo_bench.models.derivatives.derivatives.source_text`)."""
+    """What computes CasADi's derivatives for ``method`` (:func:`exo_bench.models.derivatives.source_text`)."""
     return analytic.source_text(method, evaluates_these, known_wrong, SOURCE)
 
 
@@ -48,7 +48,7 @@ def solve_mass_matrix_columns(M: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 class Derivatives(analytic.Derivatives):
     """CasADi's derivatives of one mechanism's equations of motion (CasADi functions compiled once per
-    mechanism), with the checks of :class:`exo_bench.models.derivatives.derivatives.Derivatives`."""
+    mechanism), with the checks of :class:`exo_bench.models.derivatives.Derivatives`."""
 
     def __init__(self, mechanism: Mechanism, method: str = "matrix-factored", source: str | None = None):
         self.equations = casadi_functions(mechanism)  # a ValueError naming the extra without CasADi
@@ -80,5 +80,5 @@ class Derivatives(analytic.Derivatives):
 
 def derivatives_of(mechanism: Mechanism, method: str, source: str | None = None) -> Derivatives:
     """CasADi's derivatives for a prepared model of ``method`` (``model.derivatives`` is the analytic
-    provider, :func:`exo_bench.models.derivatives.derivatives.derivatives_of`)."""
+    provider, :func:`exo_bench.models.derivatives.derivatives_of`)."""
     return Derivatives(mechanism, method, source)

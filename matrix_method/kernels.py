@@ -1,5 +1,5 @@
 """The kernels of the matrix family (``matrix``, ``matrix-factored``, ``recurrence``), as objects
-(:class:`~exo_bench.models.runtime.kernels.Kernel`): the tuples below are what each method's MethodSpec and
+(:class:`~exo_bench.models.runtime.prepared.Kernel`): the tuples below are what each method's MethodSpec and
 prepared-model class list. Each ``load`` binds a kernel to one prepared model of
 :mod:`exo_bench.matrix_method.prepared` (its ``kernel_args``, ``serial_kernel``, ``parallel_kernel``,
 ``batch_kernel``), importing the compiled code only then: importing this module imports no numba.
@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
-#: from it (matrix-factored, :func:`exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`).
+#: from it (matrix-factored, :func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`).
 _DERIVED = ("inverse_dynamics", "bias_forces", "mass_matrix", "mass_matrix_and_bias", "forward_dynamics")
 
 

@@ -44,8 +44,9 @@ from exo_bench.matrix_method.kernels import (
     PRINTED_EQ18_WRONG,
     RECURRENCE_KERNELS,
 )
-from exo_bench.models.runtime.kernels import select
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.runtime.prepared import select
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 from exo_bench.models.runtime.prepared import PreparedModel
 
 

@@ -29,7 +29,8 @@ from collections.abc import Callable
 import numpy as np
 
 from exo_bench.models.mechanism.aggregates import link_aggregates
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,8 @@ import numpy as np
 from exo_bench.matrix_method.closed_forms import planar
 from exo_bench.matrix_method.numpy_kernels import matrix as _numeric
 from exo_bench.matrix_method.closed_forms.coefficients import generic_recurrence_increments, recurrence_increments
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 
 if TYPE_CHECKING:  # the symbolic half imports sympy where it runs: the numeric method imports none
     import sympy as sp

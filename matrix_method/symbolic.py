@@ -33,7 +33,7 @@ from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import generic_aggregates, generic_coupling
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.mechanism.symbols import Symbols, symbols_for
-from exo_bench.models.states.equation_form import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
+from exo_bench.models.states.states import PLANAR_NAMES, RATES, SPATIAL_NAMES, blocks, matrix_names
 
 
 # Fast construction of the symbolic equations: closed-form elements as small sparse polynomials.
@@ -455,7 +455,7 @@ def matrices(mech: Mechanism, symbolic_parameters: bool = False) -> dict[str, di
 
 def rate_vectors(G: Generators, dim: int, n: int) -> dict[str, list]:
     """The factor multiplying element ``(i, j)`` of each matrix in eq. (5)/(17), by j, from the rate
-    table :data:`exo_bench.models.states.equation_form.RATES` (second derivatives, or a factor times a product of rates)."""
+    table :data:`exo_bench.models.states.states.RATES` (second derivatives, or a factor times a product of rates)."""
 
     def rate(name: str, j: int):
         factor, r = RATES[name]

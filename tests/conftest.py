@@ -169,7 +169,7 @@ def mass_matrix_scale(mech, q, derived: bool = False) -> np.ndarray:
     the magnitude of the one term of each entry, times ``max(1, |angles|)``.
 
     ``derived``: ``M`` obtained from inverse dynamics as ``ID(q, 0, e_b) - ID(q, 0, 0)``
-    (:func:`exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`), whose column ``b`` also carries the
+    (:func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`), whose column ``b`` also carries the
     rounding of the gravity forces it subtracts: the term scale of ``ID(q, 0, e_b)`` is added."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     mu, _ = mass_coupling_oracle(mech)

@@ -1,4 +1,4 @@
-"""The implicit integrators' analytic Jacobian (models.forward_dynamics.make_jacobian, issue 24).
+"""The implicit integrators' analytic Jacobian (models.simulation.simulate.make_jacobian, issue 24).
 
 Oracle: a complex step (h = 1e-30) of the right-hand side ``f(y) = [qd, M^-1 (tau(q, qd) - h)]``
 evaluated with the numpy factored kernel and numpy's solve in complex arithmetic, with the rods'
@@ -18,6 +18,7 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, conservative_cases, stiff_case
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.simulation.forward_dynamics import JACOBIANS, make_jacobian, simulate
 
 pytest.importorskip("casadi")
 
@@ -44,7 +45,7 @@ def test_analytic_jacobian_against_complex_step(case):
     d = mech.dof
     model = prepare(mech, "matrix-factored")
     ctrl = case.controls
-    jac = fd.make_jacobian(model, ctrl)
+    jac = make_jacobian(model, ctrl)
     y = np.concatenate([case.q0, case.qd0 + 0.3])
     J = jac(0.0, y)
     cs = _complex_step_jacobian(mech, ctrl, 0.0, y)
@@ -75,7 +76,7 @@ def test_analytic_jacobian_along_the_planar_gait_round_trip(t):
     ctrl = fd.prescribed_controls(model, case.motion_of_t)
     m = case.motion_of_t(np.array([t]))
     y = np.concatenate([m.q[0], m.qd[0]])
-    J = fd.make_jacobian(model, ctrl)(t, y)
+    J = make_jacobian(model, ctrl)(t, y)
     cs = _complex_step_jacobian(mech, ctrl, t, y)
     np.testing.assert_array_equal(J[:d], cs[:d])
     M = model.mass_matrix(m.q)[0]
@@ -96,7 +97,7 @@ def test_analytic_jacobian_reaches_the_tolerance_in_fewer_evaluations():
 
     case = stiff_case(1e6)
     model = prepare(case.mechanism, "matrix-factored")
-    run = lambda integ, r, j: fd.simulate(
+    run = lambda integ, r, j: simulate(
         model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, r, ATOL_FACTOR * r, jacobian=j
     )
     ref = run("Radau", 1e-10, "analytic")
@@ -128,10 +129,10 @@ def test_the_analytic_jacobian_is_current_at_every_step():
     case = stiff_case(1e6)
     model = prepare(case.mechanism, "matrix-factored")
     for integ in fd.IMPLICIT:
-        a = fd.simulate(
+        a = simulate(
             model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, 1e-6, 1e-8, jacobian="analytic"
         )
-        f = fd.simulate(model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, 1e-6, 1e-8)
+        f = simulate(model, case.q0, case.qd0, (0.0, case.horizon), case.controls, integ, 1e-6, 1e-8)
         assert a.ok and f.ok and a.steps > 50
         if integ == "Radau":
             assert a.njev == a.steps + 1
@@ -157,7 +158,7 @@ def test_fewer_evaluations_on_the_planar_gait_at_tight_tolerance(integ):
 
     case = round_trip_cases()[0]
     d = case.mechanism.dof
-    f, a = (round_trip_run(case, integ, 1e-12, jacobian=j) for j in fd.JACOBIANS)
+    f, a = (round_trip_run(case, integ, 1e-12, jacobian=j) for j in JACOBIANS)
     assert f.ok and a.ok and a.nfev < f.nfev
     ef, ea = (np.abs(s.q(d) - case.motion_of_t(s.t).q).max() for s in (f, a))
     assert ea <= SAME_ERROR * ef and ef <= SAME_ERROR * ea
@@ -166,9 +167,7 @@ def test_fewer_evaluations_on_the_planar_gait_at_tight_tolerance(integ):
 def test_bad_jacobian_options():
     case = stiff_case(1e4)
     model = prepare(case.mechanism, "matrix-factored")
-    sim = lambda integ, j, ctrl=case.controls: fd.simulate(
-        model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ, jacobian=j
-    )
+    sim = lambda integ, j, ctrl=case.controls: simulate(model, case.q0, case.qd0, (0.0, 0.01), ctrl, integ, jacobian=j)
     with pytest.raises(ValueError, match="'jacobian': expected one of finite-difference, analytic"):
         sim("Radau", "exact")
     with pytest.raises(ValueError, match="only the implicit integrators"):

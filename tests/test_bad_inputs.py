@@ -1182,7 +1182,7 @@ def test_dashes_in_a_link_name_keep_the_urdf_valid(tmp_path):
     rc, out, err = run_cli(["urdf", _mech(tmp_path, link2_name="thigh--left-")])
     assert rc == 0 and err == ""
     ET.fromstring(out)  # parses: no "--" inside a comment
-    assert '"thigh\\u002d-left-",' in out  # models/files/encoders.py xml_comment: json.loads gives the name back
+    assert '"thigh\\u002d-left-",' in out  # models/files.py xml_comment: json.loads gives the name back
 
 
 # ------------------------------------------------------------------------------ docs/errors.md

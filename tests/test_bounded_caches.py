@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from exo_bench.lagrange import derivation, numeric
-from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.machine.memory import BoundedCache
 from exo_bench.models.mechanism.presets import chain
 
 

@@ -72,7 +72,7 @@ def test_a_batch_too_large_is_refused_before_its_states_are_copied(monkeypatch, 
 
 def test_the_derivatives_refusal_is_the_same_mechanism():
     """One mechanism, one limit: the full Jacobians' refusal is a CallTooLarge too."""
-    from exo_bench.models.derivatives.derivatives import DerivativesTooLarge
+    from exo_bench.models.derivatives import DerivativesTooLarge
     from exo_bench.models.machine.memory import CallTooLarge
 
     assert issubclass(DerivativesTooLarge, CallTooLarge)

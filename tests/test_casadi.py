@@ -321,7 +321,7 @@ def test_bad_input():
         model.derivatives.inverse_dynamics(q, qd[:, :3], qdd)
     q_bad = q.copy()
     q_bad[0, -1] = 0.0  # l5 = 0: M singular, forward dynamics undefined
-    from exo_bench.models.simulation.forward_dynamics import SingularConfigurationError
+    from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
     with pytest.raises(SingularConfigurationError, match="link 5"):
         model.derivatives.forward_dynamics(q_bad, qd, qdd)

@@ -10,7 +10,7 @@ import pytest
 from conftest import EPS, K
 
 from exo_bench import prepare
-from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations
+from exo_bench.models.mechanism.kinematics import net_joint_loads, point_mass_accelerations
 from exo_bench.models.gait.motion import gait, planar_gait, random_states
 from exo_bench.models.newton_euler import chart_free as cf
 from exo_bench.models.mechanism.presets import exo5, random_tree
@@ -43,7 +43,7 @@ def test_the_chart_cannot_start_the_same_gait():
 @pytest.mark.parametrize("dim", [2, 3])
 def test_rod_loads_are_the_joint_moments_carried_by_each_rod_and_its_axial_force(dim):
     """``f_k = s_k u_k F_l,k + ((M_k - sum_c M_c) x r_k) / l_k^2`` with the net joint moments of
-    models/mechanism/joint_loads.py (point masses, an independent sum): the passes' ``M_r r'' + g_r`` agree at
+    models/mechanism/kinematics.py (point masses, an independent sum): the passes' ``M_r r'' + g_r`` agree at
     the gait's vertical trunk. Error model: each side sums at most every point mass's
     ``m (|a| + g)`` with lever arms up to the sum ``L`` of the rod lengths, divided by ``l_k`` on the
     moment side: ``K eps W (1 + 2 L / l_k)``, ``W = sum m (|a| + g)``."""

@@ -26,7 +26,7 @@ from conftest import EPS, K, assert_forces_agree, term_scale
 @pytest.mark.parametrize("preset", sorted(PRESETS))
 def test_states_of_every_preset_run_through_inverse_and_forward(preset, tmp_path):
     from exo_bench.api import prepare
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
 
     path = tmp_path / "s.json"
     code, _, err = run_cli(["states", preset, "-o", path, "--samples", "3", "--seed", "7"])

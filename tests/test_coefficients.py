@@ -9,7 +9,7 @@ from exo_bench.matrix_method.closed_forms import coefficients as co
 from exo_bench.matrix_method import symbolic as sco
 from exo_bench.models.mechanism import aggregates as ag
 from exo_bench.models.mechanism.kinematics import kinetic_energy, potential_energy, unit_vectors
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import chain, fig5, random_tree
 from exo_bench.models.mechanism.symbols import symbols_for

@@ -1,4 +1,4 @@
-"""The CasADi form of the ground contact (models/simulation/contact_casadi.py) is the numpy form, and CasADi's
+"""The CasADi form of the ground contact (models/simulation/contact.py) is the numpy form, and CasADi's
 derivatives of it are the closed-form Jacobians (models/simulation/contact.py).
 
 Error model: the two forms evaluate the same operations in possibly different orders (CasADi's
@@ -14,7 +14,7 @@ from exo_bench.models.simulation.contact import ContactParameters, contact_force
 
 ca = pytest.importorskip("casadi")
 
-from exo_bench.models.simulation.contact_casadi import contact_function  # noqa: E402
+from exo_bench.models.simulation.contact import contact_function  # noqa: E402
 
 
 def _cases(dim: int, n: int = 40):

@@ -33,7 +33,7 @@ from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.newton_euler import passes
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
-from exo_bench.models.newton_euler.tree import prepare_tree
+from exo_bench.models.newton_euler.passes import prepare_tree
 
 H = 1e-30  # the complex step
 CASADI_RTOL = 1e-13  # the criterion: relative to the largest entry of the sample's matrix

@@ -1,4 +1,4 @@
-"""Batched derivative calls without ``out=`` (models/newton_euler/derivatives.py, models/derivatives/derivatives.py): the
+"""Batched derivative calls without ``out=`` (models/newton_euler/derivatives.py, models/derivatives.py): the
 results of a loop that drops them are recycled, so a call pays for its arithmetic, not for new pages.
 
 A ``(S, dof, dof)`` result of 128 KiB or more is served by glibc from a fresh mapping whenever its heap has
@@ -18,7 +18,7 @@ import numpy as np
 from exo_bench.api import prepare
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import exo5
-from exo_bench.models.runtime.result_pool import RECYCLES
+from exo_bench.models.runtime.prepared import RECYCLES
 
 SAMPLES = 256  # three (256, 15, 15) results of 460 kB each: over 128 KiB, under result_pool's 4 MiB
 

@@ -93,7 +93,7 @@ def test_the_memory_estimate_comes_before_the_states_are_copied(monkeypatch, cal
     import tracemalloc
 
     from exo_bench.models.machine import memory
-    from exo_bench.models.derivatives.derivatives import DerivativesTooLarge
+    from exo_bench.models.derivatives import DerivativesTooLarge
 
     d = _derivatives()
     states = np.broadcast_to(Q[0], (10**6, 2))  # 16 MB per copy; the estimate is ~400 MB

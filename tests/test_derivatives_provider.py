@@ -1,4 +1,4 @@
-"""``model.derivatives`` (issue 36): one analytic provider for every method (models/derivatives/derivatives.py), no CasADi.
+"""``model.derivatives`` (issue 36): one analytic provider for every method (models/derivatives.py), no CasADi.
 
 * Every installed method's ``prepare(mech, method).derivatives`` gives the same numbers (bit for bit: one
   provider, the mechanism's own equations of motion) and says its source.
@@ -19,7 +19,7 @@ from test_derivatives_analytic import states
 
 from conftest import installed_methods
 from exo_bench import prepare, presets
-from exo_bench.models.derivatives import derivatives as provider
+from exo_bench.models import derivatives as provider
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
 from exo_bench.models.mechanism.presets import random_tree
 

@@ -1,4 +1,4 @@
-"""The output rows of the analytic derivatives written 4 columns at a time (models/newton_euler/derivatives_rows.py,
+"""The output rows of the analytic derivatives written 4 columns at a time (models/newton_euler/derivatives_compiled.py,
 numba intrinsics) against the loops they replace (:func:`rows_python`, which also runs under
 ``NUMBA_DISABLE_JIT``): the same bits, for 2D and 3D, row lengths below 4, multiples of 4 and not (the last 4
 columns overlapping), and nothing written outside the link's ``dim`` rows."""
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from exo_bench.models.newton_euler import derivatives_rows as dr
+from exo_bench.models.newton_euler import derivatives_compiled as dr
 
 
 @njit

@@ -1,4 +1,4 @@
-"""The streamed output of the inverse-dynamics derivatives (models/newton_euler/derivatives_streaming.py):
+"""The streamed output of the inverse-dynamics derivatives (models/newton_euler/derivatives_compiled.py):
 large batches write their rows by non-temporal stores, from a scratch row computed by the same
 operations, so the streamed output is bit-identical to the ordinary one (the 50-digit agreement of
 tests/test_reference_to_n100.py and tests/test_derivatives_analytic.py then carries over), in 2D and
@@ -14,7 +14,7 @@ import pytest
 from exo_bench.models.mechanism import presets
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.newton_euler import derivatives_compiled as dc
-from exo_bench.models.newton_euler import derivatives_streaming as ds
+from exo_bench.models.newton_euler import derivatives_compiled as ds
 from exo_bench.models.newton_euler.derivatives import prepare_inverse_derivatives
 
 CASES = [

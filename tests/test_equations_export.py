@@ -310,7 +310,7 @@ def _evaluate(text: str, values: dict[str, float]) -> float:
 def test_latex_parses_back_to_the_equations_of_pinocchio(mech, symbolic):
     """Every element of every matrix, parsed back from the LaTeX and assembled into eq. (5)/(17),
     gives Pinocchio's and Lagrange's M and tau."""
-    from exo_bench.models.states.equation_form import ACCELERATION, RATES, blocks, matrix_names
+    from exo_bench.models.states.states import ACCELERATION, RATES, blocks, matrix_names
 
     els = export_latex.elements(mech, symbolic)
     q, qd, qdd = random_states(mech, 3, 21)

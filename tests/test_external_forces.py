@@ -16,6 +16,7 @@ from conftest import EPS, K, assert_close, term_scale
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as xf
+from exo_bench.models.runtime import external_forces as xc
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.presets import fig1, random_tree
 
@@ -137,4 +138,4 @@ def test_positions_move_as_q_says(mech):
 def test_compiled_equals_numpy():
     for mech in TREES:
         q, _, _, f = _case(mech, 4, 3)
-        assert np.array_equal(xf.generalized_forces(mech, q, f), xf.generalized_forces_compiled(mech, q, f))
+        assert np.array_equal(xf.generalized_forces(mech, q, f), xc.generalized_forces_compiled(mech, q, f))

@@ -1,5 +1,5 @@
 """The compiled call of ``f_ext`` (issue 37: one sample with ``f_ext`` at about the cost of the call without
-it, models/runtime/external_forces_compiled.py): the same numbers as the numpy ``Q`` to the last bit for one sample
+it, models/runtime/external_forces.py): the same numbers as the numpy ``Q`` to the last bit for one sample
 and a batch, with and without ``check``, for inverse and forward dynamics; the mechanism's parameters bound
 once per model (work counted, not timed: bench/test_external_forces.py times it); the kernel's own size
 checks (memory safety whatever it is given); a force that is not finite named, with ``out`` untouched;
@@ -16,7 +16,7 @@ from test_external_forces import _case
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as xf
-from exo_bench.models.runtime import external_forces_compiled as xc
+from exo_bench.models.runtime import external_forces as xc
 from exo_bench.models.mechanism.presets import exo5, human, human_standing, random_tree
 
 MECHS = [exo5(3), human(2), random_tree(4, 3, 5)]

@@ -15,7 +15,7 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as xf
-from exo_bench.models.simulation import external_forces_controls as xc
+from exo_bench.models.simulation import forward_dynamics as xc
 from exo_bench.models.mechanism.presets import fig1
 
 MECH = fig1(2)

@@ -21,10 +21,10 @@ import pytest
 
 from exo_bench import prepare
 from exo_bench.models.runtime import external_forces as ef
-from exo_bench.models.simulation import external_forces_controls as efc
+from exo_bench.models.simulation import forward_dynamics as efc
 from exo_bench.models.simulation.forward_dynamics import RodSpringDamper
 from exo_bench.models.mechanism.presets import random_tree
-from exo_bench.models.simulation.simulate import make_jacobian, simulate
+from exo_bench.models.simulation.forward_dynamics import make_jacobian, simulate
 
 MECH = random_tree(3, 3, 5)
 H = 1e-30

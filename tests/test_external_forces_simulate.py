@@ -11,7 +11,7 @@ import pytest
 from exo_bench import prepare
 from exo_bench.models.mechanism.kinematics import point_mass_positions, total_energy
 from exo_bench.models.mechanism.presets import random_tree
-from exo_bench.models.simulation.simulate import simulate
+from exo_bench.models.simulation.forward_dynamics import simulate
 
 MECH = random_tree(3, 3, 5)
 K_SPRING = 400.0

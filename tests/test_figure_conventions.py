@@ -21,7 +21,7 @@ from exo_bench.bench.studies.scene_run import FIGURES
 from exo_bench.bench.studies.scenes import load_scene
 from exo_bench.bench.studies.study import run_methods
 from exo_bench.models.engines.joint_coordinates import joint_quantities
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import GaitParams, gait, planar_gait
 from exo_bench.models.mechanism.presets import exo5, fig5
 

@@ -1,7 +1,7 @@
 """Forward-dynamics derivatives without dense LU (issue 36): ``model.derivatives.forward_dynamics``.
 
 ``dqdd/dq = -M^-1 dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1`` at ``qdd = FD(q, qd, tau)``,
-with ``M^-1`` applied column by column by the O(n) forward dynamics (models/newton_euler/inverse_mass.py).
+with ``M^-1`` applied column by column by the O(n) forward dynamics (models/newton_euler/forward_jacobians.py).
 
 Oracles and error models:
 
@@ -33,9 +33,9 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare, presets
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import NumericallySingularError
-from exo_bench.models.derivatives.derivatives import Derivatives
-from exo_bench.models.newton_euler import inverse_mass, passes
-from exo_bench.models.newton_euler.tree import prepare_tree
+from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.newton_euler import forward_jacobians, passes
+from exo_bench.models.newton_euler.passes import prepare_tree
 from exo_bench.models.mechanism.presets import random_tree
 from exo_bench.models.mechanism.singularity import SingularConfigurationError
 
@@ -156,15 +156,15 @@ def test_no_dense_solve_and_one_pass_per_column(monkeypatch):
     for name in ("solve", "inv", "lstsq", "cholesky"):
         monkeypatch.setattr(np.linalg, name, refuse)
     handed = []
-    real = inverse_mass.columns
+    real = forward_jacobians.columns
 
     class Counting:
         def __call__(self, t, dim, X, B, O):
             handed.append(B.shape)
             return real(t, dim, X, B, O)
 
-    monkeypatch.setattr(inverse_mass, "columns", Counting())
-    monkeypatch.setattr(inverse_mass, "columns_parallel", Counting())
+    monkeypatch.setattr(forward_jacobians, "columns", Counting())
+    monkeypatch.setattr(forward_jacobians, "columns_parallel", Counting())
     D.forward_dynamics(q, qd, tau)
     assert handed == [(3, mech.dof, mech.dof)]  # M^-1: dof columns, the rest O(n^2) products with blocks
 

@@ -7,15 +7,17 @@ import math
 import numpy as np
 
 from exo_bench import prepare
-from exo_bench.models.runtime.derived_terms import terms_from_inverse_dynamics
+from exo_bench.models.runtime.prepared import terms_from_inverse_dynamics
 import pytest
 from conftest import assert_close, assert_forces_agree, mass_matrix_scale
 
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.simulation.forward_dynamics import make_rhs, simulate
+from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.engines import pinocchio_backend as pb
 from exo_bench.models.mechanism.kinematics import kinetic_energy, point_mass_velocities
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import exo5, fig1, random_tree
 
@@ -101,9 +103,9 @@ def test_vertical_rod_is_singular_for_forward_dynamics_but_not_for_inverse_dynam
     M = pb.mass_matrix(mech, q)[0]
     # the azimuth column of link 3 vanishes: l_3 cos psi_3 (-sin phi_3, cos phi_3, 0) with cos psi_3 = 6e-17
     assert np.abs(M[:, 2]).max() < 1e-14 * np.abs(M).max()
-    reasons = fd.singular_reasons(mech, q)[0]
+    reasons = singular_reasons(mech, q)[0]
     assert len(reasons) == 1 and "link 3" in reasons[0] and "vertical" in reasons[0]
-    with pytest.raises(fd.SingularConfigurationError, match="link 3 .*vertical rod"):
+    with pytest.raises(SingularConfigurationError, match="link 3 .*vertical rod"):
         fd.accelerations(prepare(mech, "pinocchio"), q, qd, tau)
 
 
@@ -113,7 +115,7 @@ def test_near_vertical_rod_is_regular_and_its_condition_number_grows_like_1_over
     conds = []
     for d in (1e-2, 1e-3, 1e-4):
         q[0, 1] = math.pi / 2 - d
-        assert fd.singular_reasons(mech, q) == [[]]
+        assert singular_reasons(mech, q) == [[]]
         conds.append(fd.condition_numbers(pb.mass_matrix(mech, q))[0][0])
     # one link: M = diag(zeta l^2 cos^2 psi, zeta l^2, zeta), so cond grows by 100 per decade of d
     assert conds[1] / conds[0] == pytest.approx(100, rel=0.02)
@@ -124,12 +126,12 @@ def test_zero_length_rod_and_massless_link_are_singular():
     mech = exo5(3)
     q, qd, qdd = random_states(mech, 2, 8)
     q[1, 2 * mech.nlinks + 1] = 0.0  # l_2 = 0 in sample 1
-    reasons = fd.singular_reasons(mech, q)
+    reasons = singular_reasons(mech, q)
     assert reasons[0] == [] and "l2 = 0" in reasons[1][0]
     masses = list(mech.masses)
     masses[3] = (masses[3][0], 0.0, 0.0)  # swing shin: only the mass at its hinge
     massless = mech.replace(masses=tuple(masses))
-    r = fd.singular_reasons(massless, q[:1])[0]
+    r = singular_reasons(massless, q[:1])[0]
     assert len(r) == 1 and "link 4" in r[0] and "no mass" in r[0]
     assert np.isinf(fd.condition_numbers(pb.mass_matrix(massless, q[:1]))[1][0])
 
@@ -140,7 +142,7 @@ def test_a_chain_whose_last_mass_sits_mid_rod_only_is_singular():
     base = random_tree(2, 2, 3).replace(parent=(-1, 0), sign=(1, 1))
     m = base.replace(masses=((1.0, 0.0, 0.0), (0.0, 2.0, 0.0)))
     q, _, _ = random_states(m, 1, 9)
-    r = fd.singular_reasons(m, q)[0]
+    r = singular_reasons(m, q)[0]
     assert len(r) == 1 and "mass distribution" in r[0]
 
 
@@ -149,11 +151,9 @@ def test_budget_and_states_outside_the_domain_are_recorded_not_raised():
     q0 = np.array([[-1.0, 0.5]])
     ctrl = fd.rod_spring_damper(mech, 1e3, 0.0, 0.5)
     model = prepare(mech, "pinocchio")
-    sim = fd.simulate(
-        model, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10, max_evaluations=200
-    )
+    sim = simulate(model, q0, np.zeros_like(q0), (0.0, 10.0), ctrl, integrator="RK45", rtol=1e-10, max_evaluations=200)
     assert sim.status.startswith("budget exceeded") and not sim.ok and sim.nfev == 201
-    rhs, count = fd.make_rhs(model, ctrl)
+    rhs, count = make_rhs(model, ctrl)
     y = np.array([[-1.0, -1.0], [0.5, -0.1], [0.0, 0.0], [0.0, 0.0]])  # columns: l = 0.5 and l = -0.1
     f = rhs(0.0, y)
     assert np.isfinite(f[:, 0]).all() and np.isnan(f[2:, 1]).all() and count["rejected"] == 1
@@ -162,10 +162,8 @@ def test_budget_and_states_outside_the_domain_are_recorded_not_raised():
 def test_simulate_refuses_a_singular_initial_state():
     mech = fig1(3)
     q0 = np.array([[0.3, math.pi / 2, 0.4]])
-    with pytest.raises(fd.SingularConfigurationError, match="vertical"):
-        fd.simulate(
-            prepare(mech, "matrix"), q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4)
-        )
+    with pytest.raises(SingularConfigurationError, match="vertical"):
+        simulate(prepare(mech, "matrix"), q0, np.zeros_like(q0), (0.0, 1.0), fd.rod_spring_damper(mech, 1e3, 0.0, 0.4))
 
 
 def test_spring_damper_forces_act_on_the_rods_only():

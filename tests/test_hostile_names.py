@@ -2,11 +2,11 @@
 
 A hypothesis strategy draws names from the metacharacters of XML, LaTeX, C, Python and Markdown,
 ``--``, comment and string ends, surrogates, control and bidi characters. What
-:mod:`exo_bench.models.files.names` refuses is refused at the edge (a ValueError naming the field; the CLI
+:mod:`exo_bench.models.files` refuses is refused at the edge (a ValueError naming the field; the CLI
 one line, exit 2). Every other name goes into the MJCF and URDF (they parse, with exactly the
 bodies and joints of the mechanism, and Pinocchio's forces agree with matrix-factored's), the
 LaTeX (no control sequence comes from it), the C (compiles) and the Python module (imports and
-runs); the encoders of :mod:`exo_bench.models.files.encoders` give each name back exactly.
+runs); the encoders of :mod:`exo_bench.models.files` give each name back exactly.
 MuJoCo's forces on hostile names: tests/test_mujoco_drake.py (CI's engine step).
 """
 
@@ -31,11 +31,11 @@ from hypothesis import strategies as st
 from exo_bench.api import prepare
 from exo_bench.bench.cli import equations as beq
 from exo_bench.matrix_method.export import code as export_code
-from exo_bench.models.files import encoders as enc
+from exo_bench.models import files as enc
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.engines.mjcf import to_mjcf
 from exo_bench.models.gait.motion import random_states
-from exo_bench.models.files.names import name_problem
+from exo_bench.models.files import name_problem
 from exo_bench.models.mechanism.presets import fig2a
 from exo_bench.models.engines.urdf import to_urdf
 

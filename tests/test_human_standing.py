@@ -1,4 +1,4 @@
-"""The human model standing on its heels and toes (models/simulation/posture.py, models/simulation/contact.py through
+"""The human model standing on its heels and toes (models/simulation/contact.py, models/simulation/contact.py through
 ``simulate(..., f_ext=...)`` and models/runtime/external_forces.py): it comes to rest carrying its weight, and every method's
 inverse dynamics with the floor's ``f_ext`` returns the joint moments and rod forces that held it.
 
@@ -21,9 +21,9 @@ from test_external_forces import external_force_scale
 
 from exo_bench import prepare
 from exo_bench.models.simulation.contact import ContactParameters
-from exo_bench.models.simulation.posture import balanced_standing, centre_of_mass, ground_reaction, hold
+from exo_bench.models.simulation.contact import balanced_standing, centre_of_mass, ground_reaction, hold
 from exo_bench.models.mechanism.presets import human
-from exo_bench.models.simulation.simulate import simulate
+from exo_bench.models.simulation.forward_dynamics import simulate
 
 C = ContactParameters()
 G = 9.81
@@ -48,7 +48,7 @@ def test_the_balanced_pose_has_the_centre_of_mass_over_the_middle_of_the_feet():
     q = balanced_standing(m)
     x = centre_of_mass(m, q)[0, 0]
     from exo_bench.models.mechanism.kinematics import point_mass_positions
-    from exo_bench.models.simulation.posture import contact_points
+    from exo_bench.models.simulation.contact import contact_points
 
     feet = point_mass_positions(m, q)[0][contact_points(m)]
     assert abs(x - 0.5 * (feet[:, 0].min() + feet[:, 0].max())) < 1e-9

@@ -73,7 +73,7 @@ def test_an_installed_copys_cache_leaves_nothing_that_shadows_the_editable_insta
     site = tmp_path / "site-packages"
     package = site / "exo_bench"
     leftovers = [
-        _cache_file(package, "models/newton_euler/lean.py"),
+        _cache_file(package, "models/newton_euler/compiled.py"),
         _cache_file(package, "models/machine/fast_trig.py"),
     ]
     for f in leftovers:

@@ -1,5 +1,5 @@
 """The implicit integrators' Jacobian comes from the analytic derivatives of ``model.derivatives``
-(issue 36): models/simulation/simulate.py ``make_jacobian``, models/simulation/implicit_integrators.py.
+(issue 36): models/simulation/forward_dynamics.py ``make_jacobian``, models/simulation/forward_dynamics.py.
 
 Oracle: the provider's own *inverse*-dynamics derivatives ``(dID/dq, dID/dqd, M)`` at ``qdd = FD(q, qd,
 tau)``, through the implicit-function theorem with numpy's dense solve: ``dqdd/dy = M^-1 (dtau_ctrl/dy -
@@ -21,6 +21,7 @@ from conftest import EPS, K, term_scale
 from exo_bench import prepare
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, stiff_case
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.simulation.forward_dynamics import make_jacobian, simulate
 
 METHODS = ("newton-euler", "matrix-factored", "recurrence")
 
@@ -49,7 +50,7 @@ def test_integrators_jacobian_is_the_providers_derivatives(case, method, monkeyp
     monkeypatch.setitem(sys.modules, "casadi", None)  # any import of casadi now raises ImportError
     assert "analytic" in model.derivatives.source
     y = _states(case)
-    J = fd.make_jacobian(model, case.controls)(0.0, y)
+    J = make_jacobian(model, case.controls)(0.0, y)
     q, qd = y[None, :d], y[None, d:]
     tau = case.controls(0.0, q, qd)
     qdd = model.forward_dynamics(q, qd, tau)
@@ -83,7 +84,7 @@ def test_radau_and_bdf_take_the_providers_jacobians_and_fewer_evaluations(case):
     try:
         for integ in fd.IMPLICIT:
             calls["n"] = 0
-            run = lambda j: fd.simulate(
+            run = lambda j: simulate(
                 model, case.q0, case.qd0, (0.0, 0.2), case.controls, integ, 1e-4, ATOL_FACTOR * 1e-4, jacobian=j
             )
             f, a = run("finite-difference"), run("analytic")

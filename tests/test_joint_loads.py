@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments, subtree
+from exo_bench.models.mechanism.kinematics import net_joint_loads, point_mass_accelerations, sagittal_moments, subtree
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.gait.motion import random_states, smooth_random_motion
 from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques

@@ -19,12 +19,12 @@ from test_derivatives_analytic import derivative_scales, states
 
 from conftest import EPS, K, assert_close, mass_matrix_scale
 from exo_bench import prepare, presets
-from exo_bench.models.derivatives.derivatives import Derivatives
+from exo_bench.models.derivatives import Derivatives
 from exo_bench.models.mechanism.presets import random_tree
 
 TREES = [random_tree(6, 3, 21), random_tree(7, 2, 22), presets.exo5(dim=3), random_tree(9, 3, 23)]
 IDS = [m.name for m in TREES]
-#: The products kernels (models/derivatives/derivatives.py's option ``products``) held to the full Jacobians.
+#: The products kernels (models/derivatives.py's option ``products``) held to the full Jacobians.
 PRODUCT_KERNELS = ("auto", "numba", "numpy")
 
 

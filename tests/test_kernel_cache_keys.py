@@ -58,11 +58,11 @@ def test_the_kernels_of_both_families_simd_modules_are_among_them():
     """The SIMD kernels that call ``sincos_reduced`` (the stale-cache probe of the shared sin/cos runs one
     of them) are cached kernels of the files checked above."""
     from exo_bench.matrix_method.numba_kernels import simd as factored_simd
-    from exo_bench.models.machine import simd_angles
+    from exo_bench.models.machine import simd_blocks
     from exo_bench.models.newton_euler import simd as ne_simd
 
-    assert simd_angles.sincos_reduced is fast_trig.sincos_reduced  # the angles of both families' blocks
-    assert {Path(m.__file__).resolve() for m in (simd_angles, fast_trig)} <= set(numba_cache.SHARED_SOURCES)
+    assert simd_blocks.sincos_reduced is fast_trig.sincos_reduced  # the angles of both families' blocks
+    assert {Path(m.__file__).resolve() for m in (simd_blocks, fast_trig)} <= set(numba_cache.SHARED_SOURCES)
     assert {Path(m.__file__).resolve() for m in (factored_simd, ne_simd)} <= set(_kernel_files())
     for module in (factored_simd, ne_simd):
         assert _cached_kernels(module), module.__name__

@@ -1,5 +1,5 @@
 """The one-sample calls allocate nothing in numba per call (issue 35): their compiled entries
-(matrix_method/numba_kernels/lean.py, models/newton_euler/lean.py) take their kernels' scratch on the
+(matrix_method/numba_kernels/lean.py, models/newton_euler/compiled.py) take their kernels' scratch on the
 stack of the call (:func:`exo_bench.models.states.validation_pass.stack_matrix`) and are compiled without numba's
 reference-counted runtime, so a call makes no NRT allocation. Counted, not timed: numba's own allocation
 counters (``memsys_enable_stats``) over calls of every form.

@@ -2,7 +2,7 @@
 (issue 34: C1, L3); numba's environment variables are checked at the edge (U6, T4).
 
 Counts (pinocchio's ``threads``, ``--workers``, NUMBA_NUM_THREADS) are held to
-:func:`exo_bench.models.machine.resource_counts.max_count` (4 per usable CPU); within it, the threads' stacks
+:func:`exo_bench.models.machine.memory.max_count` (4 per usable CPU); within it, the threads' stacks
 and Data must fit in the address space left under ``ulimit -v``. The processes that test those
 limits set ``RLIMIT_AS`` themselves, in a fresh interpreter, so nothing here can exhaust the machine.
 """
@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import assert_forces_agree
-from exo_bench.models.machine import resource_counts
+from exo_bench.models.machine import memory
 from exo_bench.models.mechanism.presets import exo5
 
 
@@ -67,7 +67,7 @@ def test_a_thousand_pinocchio_threads_are_refused_naming_the_option(call):
     r = _python(_UNDER_ULIMIT.format(room=512 * 2**20, call=call))
     assert "libgomp" not in r.stderr and r.returncode == 0, r.stderr[-2000:]
     line = r.stdout.strip().splitlines()[-1]
-    bound = resource_counts.max_count()
+    bound = memory.max_count()
     assert line.startswith("ValueError |"), line
     assert "'threads'" in line and f"at most {bound}" in line and "1000" in line, line
 
@@ -76,8 +76,8 @@ def test_a_thousand_pinocchio_threads_are_refused_naming_the_option(call):
 def test_threads_within_the_bound_whose_stacks_do_not_fit_the_address_space_are_refused():
     """Threads within the bound whose stacks and Data exceed the address space left under ``ulimit -v``
     are refused beforehand, naming the option and how many fit."""
-    bound = resource_counts.max_count()
-    room = bound * resource_counts.thread_stack_bytes() // 2
+    bound = memory.max_count()
+    room = bound * memory.thread_stack_bytes() // 2
     r = _python(_UNDER_ULIMIT.format(room=room, call=f'prepare(mech, "pinocchio", threads={bound})'))
     assert "libgomp" not in r.stderr and r.returncode == 0, r.stderr[-2000:]
     line = r.stdout.strip().splitlines()[-1]
@@ -94,7 +94,7 @@ def test_pinocchio_threads_over_the_bound_are_refused_before_any_data(extra):
     from exo_bench.api.preparation import prepare
     from exo_bench.models.engines.pinocchio_backend import PinocchioRNEA
 
-    threads = resource_counts.max_count() + extra
+    threads = memory.max_count() + extra
     for make in (
         lambda: PinocchioRNEA(exo5(3), threads=threads),
         lambda: prepare(exo5(3), "pinocchio", threads=threads),
@@ -112,7 +112,7 @@ def test_a_data_per_thread_over_the_memory_is_refused_by_the_cost_model(monkeypa
     from exo_bench.api import cost_model
     from exo_bench.api.preparation import prepare
 
-    mech, bound = exo5(3), resource_counts.max_count()
+    mech, bound = exo5(3), memory.max_count()
     one = cost_model.estimate(mech, "pinocchio", 1, {"threads": 1}).memory
     many = cost_model.estimate(mech, "pinocchio", 1, {"threads": bound}).memory
     monkeypatch.setattr(cost_model, "usable_memory", lambda: int((one + many) / 2))
@@ -132,7 +132,7 @@ def test_pinocchio_threads_within_the_bound_agree_with_one_thread():
     rng = np.random.default_rng(1)
     q, qd, qdd = (rng.uniform(0.2, 1.0, (50, mech.dof)) for _ in range(3))
     one = prepare(mech, "pinocchio").inverse_dynamics(q, qd, qdd)
-    many = prepare(mech, "pinocchio", threads=resource_counts.max_count()).inverse_dynamics(q, qd, qdd)
+    many = prepare(mech, "pinocchio", threads=memory.max_count()).inverse_dynamics(q, qd, qdd)
     assert np.array_equal(one, many)
 
 
@@ -147,11 +147,11 @@ def test_workers_over_the_bound_are_refused_in_one_line(command, monkeypatch, ca
 
     monkeypatch.setattr(bench_cli, "cmd_bench", lambda args: 0)  # never a sweep, whatever happens
     monkeypatch.setattr(stability_cli, "cmd_stability", lambda args: 0)
-    n = resource_counts.max_count() + 1
+    n = memory.max_count() + 1
     code = app.main([command, "--workers", str(n), "--reports", str(tmp_path / "rep")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
-    assert "--workers" in err and f"at most {resource_counts.max_count()}" in err and f"got {n}" in err, err
+    assert "--workers" in err and f"at most {memory.max_count()}" in err and f"got {n}" in err, err
 
 
 @pytest.mark.case("L3")
@@ -167,14 +167,14 @@ def test_a_local_cluster_whose_workers_do_not_fit_in_memory_is_refused(monkeypat
         raise AssertionError("a LocalCluster was started")
 
     monkeypatch.setattr(distributed, "LocalCluster", no_cluster)
-    monkeypatch.setattr(memory, "usable_memory", lambda: int(1.5 * resource_counts.WORKER_BYTES))
+    monkeypatch.setattr(memory, "usable_memory", lambda: int(1.5 * memory.WORKER_BYTES))
     with pytest.raises(ValueError) as e:
         with cluster_mod.cluster(None, 2):
             pass
     msg = str(e.value)
     assert "--workers" in msg and "got 2" in msg and "at most 1" in msg and "memory" in msg, msg
     with pytest.raises(ValueError, match="--workers"):
-        with cluster_mod.cluster(None, resource_counts.max_count() + 1):
+        with cluster_mod.cluster(None, memory.max_count() + 1):
             pass
 
 

@@ -22,7 +22,7 @@ from exo_bench.models.mechanism import virtual_work as vw
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.newton_euler import passes
-from exo_bench.models.newton_euler.tree import prepare_tree, solve_coupling
+from exo_bench.models.newton_euler.passes import prepare_tree, solve_coupling
 from exo_bench.models.machine.numba_runtime import PARALLEL_MIN_SAMPLES, SAMPLES_PER_TASK
 from exo_bench.models.mechanism.presets import exo5, random_tree
 from exo_bench.models.mechanism.singularity import SingularConfigurationError

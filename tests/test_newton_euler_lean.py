@@ -1,5 +1,5 @@
 """newton-euler's one sample in one compiled call (issue 35): the per-sample inverse pass behind the
-compiled validate-and-compute entry (models/newton_euler/lean.py), held by the ``lean`` kernel object.
+compiled validate-and-compute entry (models/newton_euler/compiled.py), held by the ``lean`` kernel object.
 Its forces are bit-identical to the per-sample kernel's (and so to check=True's and to the batch
 of one), on 2D/3D chains and trees, NaN states included; it declines what it does not take."""
 

@@ -9,7 +9,7 @@ import resource
 
 import pytest
 
-from exo_bench.models.machine import resource_counts
+from exo_bench.models.machine import memory
 
 LIMIT, RUNNING = 40, 36  # four more threads or processes may start
 
@@ -24,14 +24,14 @@ def tight(monkeypatch):
 
     monkeypatch.setattr(resource, "getrlimit", getrlimit)
     monkeypatch.setattr(os, "getuid", lambda: 1000)
-    monkeypatch.setattr(resource_counts, "user_tasks", lambda uid: RUNNING)
-    monkeypatch.setattr(resource_counts, "usable_cpus", lambda: 4)  # the CPU bound (16) is not the one hit
+    monkeypatch.setattr(memory, "user_tasks", lambda uid: RUNNING)
+    monkeypatch.setattr(memory, "usable_cpus", lambda: 4)  # the CPU bound (16) is not the one hit
 
 
 def test_a_count_over_the_room_is_refused_naming_the_limit(tight):
-    assert resource_counts.check_count("threads", LIMIT - RUNNING) == 4
+    assert memory.check_count("threads", LIMIT - RUNNING) == 4
     with pytest.raises(ValueError) as e:
-        resource_counts.check_count("threads", 5)
+        memory.check_count("threads", 5)
     msg = str(e.value)
     assert msg.startswith("threads: expected at most 4 threads") and "RLIMIT_NPROC" in msg, msg
     assert "ulimit -u 40" in msg and "got 5" in msg, msg
@@ -64,23 +64,23 @@ def test_no_room_is_checked_when_unlimited_or_root(monkeypatch):
     real = resource.getrlimit
     monkeypatch.setattr(resource, "getrlimit", lambda w: (10, 10) if w == resource.RLIMIT_NPROC else real(w))
     monkeypatch.setattr(os, "getuid", lambda: 0)  # the kernel does not apply it to root
-    assert resource_counts.task_room() is None
+    assert memory.task_room() is None
     monkeypatch.setattr(os, "getuid", lambda: 1000)
     monkeypatch.setattr(resource, "getrlimit", lambda w: (resource.RLIM_INFINITY,) * 2)
-    assert resource_counts.task_room() is None
+    assert memory.task_room() is None
 
 
 def test_the_users_threads_are_counted():
     """This process's own threads are among its user's (the count read from /proc)."""
     with open("/proc/self/status") as f:
         mine = int(next(line for line in f if line.startswith("Threads:")).split()[1])
-    assert resource_counts.user_tasks(os.getuid()) >= mine >= 1
+    assert memory.user_tasks(os.getuid()) >= mine >= 1
 
 
 def test_local_workers_count_their_threads(tight, monkeypatch):
     """A local worker adds WORKER_TASKS threads and processes and the cluster CLUSTER_TASKS: with room for
     20, three workers (20) fit and four (24) are refused, naming how many fit."""
-    monkeypatch.setattr(resource_counts, "user_tasks", lambda uid: LIMIT - 20)
-    assert resource_counts.check_workers(3, None) == 3
+    monkeypatch.setattr(memory, "user_tasks", lambda uid: LIMIT - 20)
+    assert memory.check_workers(3, None) == 3
     with pytest.raises(ValueError, match=r"--workers: 4 local workers start about 24 .*RLIMIT_NPROC.*at most 3, got 4"):
-        resource_counts.check_workers(4, None)
+        memory.check_workers(4, None)

@@ -12,7 +12,7 @@ import pytest
 
 from exo_bench.api import prepare
 from exo_bench.api.methods import METHODS
-from exo_bench.models.runtime.kernels import Kernel
+from exo_bench.models.runtime.prepared import Kernel
 from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.mechanism.presets import exo5
@@ -23,7 +23,7 @@ PACKAGE = ("exo_bench", "models", "matrix_method", "lagrange", "bench")
 #: The table and the modules that define kernel objects: the only places that may name them.
 TABLE = {
     "exo_bench/api/methods.py",
-    "models/runtime/kernels.py",
+    "models/runtime/prepared.py",
     "matrix_method/kernels.py",
     "models/newton_euler/kernels.py",
 }

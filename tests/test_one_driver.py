@@ -2,7 +2,7 @@
 (matrix_method/numba_kernels/simd.py) and ``newton-euler`` (models/newton_euler/simd.py) build each
 dimension's compiled functions from one Python function (``dim`` a constant of its closure), and both
 families run step 2 (trig, libm for the angles beyond the fast range) through the one pass of
-models/machine/simd_angles.py. The numbers are held elsewhere: tests/test_compiled_simd.py and
+models/machine/simd_blocks.py. The numbers are held elsewhere: tests/test_compiled_simd.py and
 tests/test_newton_euler_simd.py (agreement, bit-identity across block sizes and threads).
 
 Each compiled closure carries its dimension in its qualified name (numba names its symbol after it:
@@ -15,7 +15,7 @@ from __future__ import annotations
 import pytest
 
 from exo_bench.matrix_method.numba_kernels import simd as factored_simd
-from exo_bench.models.machine import simd_angles
+from exo_bench.models.machine import simd_blocks
 from exo_bench.models.newton_euler import simd as ne_simd
 
 
@@ -45,8 +45,8 @@ def test_2d_and_3d_are_one_source_with_the_dimension_a_constant(planar, spatial)
 @pytest.mark.parametrize("step", [factored_simd._compute_3d, ne_simd._forward_3d, ne_simd._NARROW._forward_2d])
 def test_both_families_run_the_one_angle_pass(step):
     cells = _cells(step)
-    assert cells["link_pass"] is simd_angles.link_pass
-    assert cells["libm_pass"] is simd_angles.libm_pass
+    assert cells["link_pass"] is simd_blocks.link_pass
+    assert cells["libm_pass"] is simd_blocks.libm_pass
 
 
 def test_the_newton_euler_block_sizes_are_named_apart():

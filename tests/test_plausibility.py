@@ -8,7 +8,7 @@ import pytest
 
 from exo_bench.bench.studies.plausibility import markdown, plausibility, text
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import PAPER_ASSUMED_V1, GaitParams, gait, planar_gait
 from exo_bench.models.gait.normative import WINTER
 from exo_bench.models.engines.pinocchio_backend import build_model, joint_torques

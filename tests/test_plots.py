@@ -23,7 +23,7 @@ from exo_bench.models.engines.joint_coordinates import (
 )
 from exo_bench.bench.studies.study import MethodResult, Study, run_methods
 from exo_bench.models.mechanism.kinematics import point_mass_positions
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.motion import GaitParams, gait, planar_gait, random_states
 from exo_bench.models.engines.pinocchio_backend import build_model, inverse_dynamics, joint_torques
 from exo_bench.models.mechanism.presets import exo5, fig2b, fig5, random_tree

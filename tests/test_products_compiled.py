@@ -1,4 +1,4 @@
-"""The compiled directional derivatives (models/newton_euler/products_compiled.py, issue 36): the JVP and VJP of
+"""The compiled directional derivatives (models/newton_euler/products.py, issue 36): the JVP and VJP of
 inverse dynamics by the O(n) passes in numba, serial and over threads, against the numpy reference of the
 same formulas (models/newton_euler/products.py, which tests/test_jvp.py holds to the full Jacobians).
 
@@ -17,8 +17,8 @@ from test_jvp import _directions, _mv, _vm
 
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
-from exo_bench.models.derivatives.derivatives import Derivatives
-from exo_bench.models.newton_euler import products_compiled as pc
+from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.newton_euler import products as pc
 from exo_bench.models.mechanism.presets import random_tree
 
 TREES = [random_tree(7, 2, 22), random_tree(9, 3, 23), presets.exo5(dim=3)]

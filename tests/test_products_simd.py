@@ -17,8 +17,8 @@ from test_jvp import _directions, _mv, _vm
 
 from conftest import assert_close, mass_matrix_scale
 from exo_bench import presets
-from exo_bench.models.derivatives.derivatives import Derivatives
-from exo_bench.models.derivatives.derivatives import PRODUCTS_SIMD_BELOW_LINKS
+from exo_bench.models.derivatives import Derivatives
+from exo_bench.models.derivatives import PRODUCTS_SIMD_BELOW_LINKS
 from exo_bench.models.newton_euler import products
 from exo_bench.models.mechanism.presets import random_tree
 from exo_bench.models.machine.simd_blocks import LANES

@@ -13,7 +13,7 @@ Properties:
   point masses' velocities and accelerations computed here from the unit vectors' derivatives
   (no difference stencil);
 * **M**: symmetric; ``D^-1/2 M D^-1/2`` (``D = diag M``) has the eigenvalues of the equilibrated
-  mass coupling ``mu`` (each ``dim`` times) wherever :func:`exo_bench.models.simulation.forward_dynamics.singular_reasons`
+  mass coupling ``mu`` (each ``dim`` times) wherever :func:`exo_bench.models.mechanism.singularity.singular_reasons`
   finds nothing (positive definite, the null space empty), and where it names a link, the
   columns it names are zero (the null space is there).
 
@@ -31,8 +31,9 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.simulation.forward_dynamics import singular_reasons
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.singularity import singular_reasons
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 
 PROFILE = settings(
     max_examples=60,

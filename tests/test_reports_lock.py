@@ -81,7 +81,7 @@ def test_four_concurrent_runs_into_one_folder_lose_nothing(tmp_path):
 PUBLISHER = """
 import sys, time
 from pathlib import Path
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.output.publish import publish_run, staging_dir
 
 rep, name, go = Path(sys.argv[1]), sys.argv[2], Path(sys.argv[3])
@@ -129,7 +129,7 @@ def test_four_concurrent_publications_repeated_lose_nothing(tmp_path):
 def _publish_one(rep: Path, name: str) -> list[Path]:
     """One run's publication of one scene page (a run of its own: a new run identifier)."""
     from exo_bench.bench.output.provenance import new_run_id, set_run_id
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.bench.output.publish import publish_run, staging_dir
 
     with staging_dir(rep) as st:
@@ -154,7 +154,7 @@ def test_a_publisher_blocked_by_the_lock_proceeds_after_release_and_merges(tmp_p
     import time
 
     from exo_bench.bench.output import publish as publishing
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.bench.output.publish import reports_lock
 
     rep = tmp_path / "rep"

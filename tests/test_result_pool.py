@@ -1,4 +1,4 @@
-"""The recycled results (models/runtime/result_pool.py): a result is reused only once nothing outside the pool
+"""The recycled results (models/runtime/prepared.py): a result is reused only once nothing outside the pool
 refers to it, so a result the caller holds (or any view of it) is never written again."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from conftest import run_in_threads
 from exo_bench import prepare
 from exo_bench.models.gait.motion import smooth_random_motion
 from exo_bench.models.mechanism.presets import chain
-from exo_bench.models.runtime.result_pool import MIN_BYTES, RECYCLES, ResultPool
+from exo_bench.models.runtime.prepared import MIN_BYTES, RECYCLES, ResultPool
 
 pytestmark = pytest.mark.skipif(not RECYCLES, reason="free-threaded build: results are never recycled")
 

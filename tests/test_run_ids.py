@@ -152,7 +152,7 @@ def test_a_standalone_report_command_is_recorded(tmp_path, monkeypatch):
 
     def fake_errata(args):
         from exo_bench.bench.output.provenance import provenance
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(Path(args.reports) / "errata.md", "# Errata\n\n" + provenance("exo-bench errata"))
         return 0

@@ -130,7 +130,7 @@ def _staged(p: Path) -> Path:
 def test_a_replaced_file_keeps_its_mode(tmp_path, mode):
     """A file the suite replaces keeps its mode (0600 stays 0600), by every writer: ``-o``, the
     atomic writer, the publisher."""
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.bench.output.publish import publish
 
     for i, write in enumerate(
@@ -155,7 +155,7 @@ def test_a_replaced_file_keeps_its_mode(tmp_path, mode):
 def test_the_atomic_writers_refuse_a_link_in_the_api(tmp_path):
     """``atomic_write`` and ``atomic_path`` refuse a symlink at the file they replace (ValueError
     naming it), as the command line does."""
-    from exo_bench.models.files.atomic_files import atomic_path, atomic_write
+    from exo_bench.models.files import atomic_path, atomic_write
 
     victim = tmp_path / "victim.txt"
     victim.write_text("precious\n")

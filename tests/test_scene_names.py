@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import exo_bench.bench.cli.run as runner
 from exo_bench.bench.studies.options import RunOptions
 from exo_bench.bench.studies.scenes import load_scene
-from exo_bench.models.files.names import name_problem
+from exo_bench.models.files import name_problem
 
 CHEAP = """name = {name}
 mechanism = "fig1-2d"
@@ -171,7 +171,7 @@ def test_a_spoofing_scene_name_is_refused_at_load(tmp_path, name):
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(name=st.text(st.characters(exclude_categories=("Cs",)), min_size=1, max_size=12))
 def test_a_scene_name_is_refused_or_becomes_a_safe_file_name(tmp_path_factory, name):
-    """Any scene name is either refused at load (exactly when models/files/names.py refuses it, or it
+    """Any scene name is either refused at load (exactly when models/files.py refuses it, or it
     holds a path separator or starts with a dot) or every file the scene writes is named by the
     file-name encoder: ASCII letters, digits, '_' and '-', never a leading '-' or '.'."""
     from exo_bench.bench.studies.scene_run import scene_files

@@ -17,7 +17,7 @@ def test_every_shipped_scene_loads_and_builds_its_motion():
         mo = sc.build_motion()
         assert mo.q.shape[1] == sc.mechanism.dof
         if sc.mechanism.dim == 2:  # a 2D scene has no psi anywhere
-            from exo_bench.models.mechanism.mechanism import coordinate_names, force_names
+            from exo_bench.models.states.states import coordinate_names, force_names
 
             assert not any("psi" in c for c in coordinate_names(sc.mechanism) + force_names(sc.mechanism))
 

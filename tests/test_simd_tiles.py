@@ -1,4 +1,4 @@
-"""The 8 x 8 SIMD transposes (models/machine/simd_tiles.py) and the block transposes built on them
+"""The 8 x 8 SIMD transposes (models/machine/simd_blocks.py) and the block transposes built on them
 (models/machine/simd_blocks.py: block_transposes), against numpy's indexing: pure data movement, so the
 oracle is equality to the bit, with every column count of the last tile (1-8) and the masked
 lanes neither read past the end of the states nor written into the result."""
@@ -10,7 +10,7 @@ import pytest
 from numba import njit
 
 from exo_bench.models.machine.simd_blocks import ROWS, FROWS, O0, block_transposes
-from exo_bench.models.machine.simd_tiles import TILE, tile_in, tile_out
+from exo_bench.models.machine.simd_blocks import TILE, tile_in, tile_out
 
 
 @njit

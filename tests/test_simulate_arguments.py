@@ -12,12 +12,12 @@ import math
 
 import numpy as np
 import pytest
+from exo_bench.models.mechanism.presets import fig1
+from exo_bench.models.simulation import forward_dynamics as fd
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from exo_bench import prepare
-from exo_bench.models.simulation import forward_dynamics as fd
-from exo_bench.models.mechanism.presets import fig1
 
 MECH = fig1(2)
 Q0 = np.array([[-1.0, 0.5]])
@@ -153,14 +153,11 @@ def test_valid_edge_arguments_are_accepted(model, kw):
 @pytest.mark.case("H1")
 def test_a_run_without_a_budget_has_the_default_one(model, monkeypatch):
     """simulate() without a budget stops at the stated default count of right-hand-side evaluations
-    (exo_bench.models.simulation.simulate_arguments.DEFAULT_MAX_EVALUATIONS), recorded in the result."""
-    from exo_bench.models.simulation import simulate, simulate_arguments
-
+    (exo_bench.models.simulation.forward_dynamics.DEFAULT_MAX_EVALUATIONS), recorded in the result."""
     assert isinstance(fd.DEFAULT_MAX_EVALUATIONS, int) and fd.DEFAULT_MAX_EVALUATIONS >= 100_000
-    assert fd.simulate is simulate.simulate  # re-exported where it was imported
     short = _run(model, Spy(), max_evaluations=None)
     assert short.ok and short.max_evaluations == fd.DEFAULT_MAX_EVALUATIONS
-    monkeypatch.setattr(simulate_arguments, "DEFAULT_MAX_EVALUATIONS", 250)
+    monkeypatch.setattr(fd, "DEFAULT_MAX_EVALUATIONS", 250)
     spy = Spy()
     sim = fd.simulate(model, Q0, np.zeros_like(Q0), (0.0, 10.0), spy, "RK45", 1e-10)
     assert sim.status.startswith("budget exceeded") and "250 right-hand-side evaluations" in sim.status

@@ -87,10 +87,10 @@ def test_every_method_equals_the_optimisers_loads(stored, method):
 
 
 def test_the_optimisers_net_joint_loads_are_those_of_joint_loads(stored):
-    """The stored moments and forces (CasADi, bench/studies/step/transcription.py) against models/mechanism/joint_loads.py. Each is a
+    """The stored moments and forces (CasADi, bench/studies/step/transcription.py) against models/mechanism/kinematics.py. Each is a
     sum over point masses of m (a - g) times an arm: the bound is K eps times the sum of |terms|, with each
     acceleration bounded by the sum of the magnitudes of its terms (l'' u, 2 l' u', l u'')."""
-    from exo_bench.models.mechanism.joint_loads import net_joint_loads, subtree
+    from exo_bench.models.mechanism.kinematics import net_joint_loads, subtree
 
     mech, st = stored
     M, F = net_joint_loads(mech, st.q, st.qd, st.qdd)

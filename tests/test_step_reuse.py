@@ -1,7 +1,7 @@
 """Which stored step a step scene walks (issue 34: W7, S5).
 
 A stored step is found by a key, the mechanism's name through the one file-name encoder
-(:func:`exo_bench.models.files.names.file_stem`), inside the package's data folder, never by a path built
+(:func:`exo_bench.models.files.file_stem`), inside the package's data folder, never by a path built
 from a name; and it is reused only for the mechanism it was solved for, compared field by field
 (dim, g, tree, signs, masses, fractions, link names) by a digest stored with the step, or, for a
 step stored before the digest, against the preset it was solved for.
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from exo_bench.bench.studies.scenes import load_scene
 from exo_bench.bench.studies.step import data, identity
 from exo_bench.bench.studies.step.scene import load_motion
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import file_stem
 from exo_bench.models.mechanism.presets import exo5
 
 SCENE = Path("scene.toml")

@@ -28,7 +28,7 @@ from exo_bench.bench.studies.stride.actuators import actuators, powers
 from exo_bench.bench.studies.stride.constraints import optimiser_loads_by, violations
 from exo_bench.models.simulation.contact import contact_force_jacobians
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
-from exo_bench.models.simulation.posture import ground_reaction
+from exo_bench.models.simulation.contact import ground_reaction
 from exo_bench.models.mechanism.presets import human
 
 M = human(2)

@@ -16,7 +16,7 @@ from exo_bench import prepare
 from exo_bench.bench.studies.stride.actuators import actuators, powers, work_terms
 from exo_bench.models.mechanism.kinematics import energy_rate
 from exo_bench.models.gait.motion import smooth_random_motion
-from exo_bench.models.simulation.posture import joints
+from exo_bench.models.simulation.contact import joints
 from exo_bench.models.mechanism.presets import exo5, human
 
 M = human(2)

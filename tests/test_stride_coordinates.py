@@ -15,7 +15,7 @@ from exo_bench import prepare
 from exo_bench.bench.studies.stride.coordinates import free_map, mirror_matrix, shift_root
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.gait.motion import smooth_random_motion
-from exo_bench.models.simulation.posture import balanced_standing
+from exo_bench.models.simulation.contact import balanced_standing
 from exo_bench.models.mechanism.presets import human
 
 M = human(2)

@@ -57,7 +57,7 @@ def test_the_floors_absorbed_work_is_priced_at_w_floor():
     from exo_bench.bench.studies.stride import problem, transcription
     from exo_bench.bench.studies.stride.coordinates import free_map
     from exo_bench.models.mechanism.kinematics import point_mass_velocities
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     s = problem.settings_for(M, "human", 1.41, intervals=2, eps_power=10.0, w_floor=0.0)
     fm = free_map(M, balanced_standing(M))

@@ -114,7 +114,7 @@ def folder(tmp_path_factory):
 
 def test_the_report_states_each_stored_strides_jump_at_the_join(folder):
     from exo_bench.bench.studies.stride import constraints, report
-    from exo_bench.models.files.encoders import markdown_text
+    from exo_bench.models.files import markdown_text
 
     text = report.markdown(M, data.load("human", 1.41, M, folder), folder=folder)
     assert text.count("### The half-stride join") == 1
@@ -153,7 +153,7 @@ def test_a_stride_asked_for_continuous_loads_that_jumps_is_reported_outside_the_
 def test_each_sizing_block_says_whether_its_loads_are_continuous_across_the_join(folder):
     """Beside the numbers a motor is bought from: the exo's block says continuous, the human's the jump."""
     from exo_bench.bench.studies.stride import report
-    from exo_bench.models.files.encoders import markdown_text
+    from exo_bench.models.files import markdown_text
 
     text = report.markdown(M, data.load("human", 1.41, M, folder), folder=folder)
     sizing = text[text.index("### Actuator sizing") :]

@@ -25,7 +25,7 @@ def small():
     pytest.importorskip("casadi")
     from exo_bench.bench.studies.stride import problem
     from exo_bench.bench.studies.stride.coordinates import free_map
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     s = problem.settings_for(M, "human", 1.41, intervals=2)
     fm = free_map(M, balanced_standing(M))

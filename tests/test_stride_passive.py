@@ -51,7 +51,7 @@ def test_the_objective_prices_the_net_moment_less_the_passive_one():
     from exo_bench.bench.studies.stride import problem, transcription
     from exo_bench.bench.studies.stride.actuators import actuators
     from exo_bench.bench.studies.stride.coordinates import free_map
-    from exo_bench.models.simulation.posture import balanced_standing, joints
+    from exo_bench.models.simulation.contact import balanced_standing, joints
 
     s = problem.settings_for(
         M, "human", 1.41, intervals=2, eps_power=10.0, w_positive=0.0, w_negative=0.0, spring=(0.0, 0.0, 0.0)

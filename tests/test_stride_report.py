@@ -201,7 +201,7 @@ def stored(mech, tmp_path_factory):
 
 def test_the_report_states_every_verdict_and_the_sizing_of_every_stored_stride(mech, stored):
     from exo_bench.bench.studies.stride import data, report
-    from exo_bench.models.files.encoders import markdown_text
+    from exo_bench.models.files import markdown_text
 
     s = data.load("human", 1.41, mech, stored)
     text = report.markdown(mech, s, figure="x-winter.png", folder=stored)
@@ -351,7 +351,7 @@ def test_the_report_states_the_stored_strides_objective(mech, stored):
 
     from exo_bench.bench.studies.stride import data, report
     from exo_bench.bench.studies.stride.problem import settings_for
-    from exo_bench.models.files.encoders import markdown_text
+    from exo_bench.models.files import markdown_text
 
     s = data.load("human", 1.41, mech, stored)
     assert "the telescopic rods' work at 1x the joints'" in report.objective_line(s)  # none stored: defaults
@@ -364,7 +364,7 @@ def test_the_report_states_the_stored_strides_objective(mech, stored):
 
 def test_trials_are_tabled_beside_the_stored_stride_with_what_they_change(mech, stored, tmp_path):
     from exo_bench.bench.studies.stride import data, report
-    from exo_bench.models.files.encoders import markdown_text
+    from exo_bench.models.files import markdown_text
 
     s = data.load("human", 1.41, mech, stored)
     assert report.trials_table(mech, s, tmp_path / "none") == []  # no trials: no section

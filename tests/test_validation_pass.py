@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from exo_bench.models.states import validation_pass as vp
-from exo_bench.models.mechanism.mechanism import as_states, coordinate_names
+from exo_bench.models.states.states import as_states, coordinate_names
 from exo_bench.models.mechanism.presets import exo5, random_tree
 from exo_bench.models.states.states import checked_states, state_check
 from exo_bench.models.states.validation import MAX_FORCE_SCALE, _where, force_scale_log10

@@ -1,4 +1,4 @@
-"""Every family of writers the package has goes through the one writer (exo_bench/models/files/atomic_files.py):
+"""Every family of writers the package has goes through the one writer (exo_bench/models/files.py):
 "Nothing half-written is left behind" and "Writes do not follow links planted in output folders".
 
 The families: the library's ``save_mechanism``, the CasADi functions' ``save`` (one ``.casadi`` file
@@ -35,7 +35,7 @@ def _mechanism():
 
 
 def _save_mechanism(folder: Path) -> None:
-    from exo_bench.models.mechanism.loading import save_mechanism
+    from exo_bench.models.mechanism.presets import save_mechanism
 
     save_mechanism(_mechanism(), folder / "m.json")
 
@@ -89,7 +89,7 @@ def _recording(folder: Path) -> None:
 
 
 def _checkpoint(folder: Path) -> None:
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     atomic_write(folder / "row.json", json.dumps({"key": "x" * 200}))
 

@@ -39,7 +39,7 @@ def states(dof: int, samples: int | None) -> np.ndarray:
 
 def warm(method: str, dim: int) -> None:
     from exo_bench import prepare, presets
-    from exo_bench.models.derivatives.derivatives import Derivatives
+    from exo_bench.models.derivatives import Derivatives
 
     model = prepare(presets.exo5(dim=dim), method)
     for samples in (None, BATCH):

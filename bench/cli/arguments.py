@@ -160,7 +160,7 @@ def at_least_one(text: str, plural: str, singular: str) -> int:
 
 def workers_arg(text: str) -> int:
     value = at_least_one(text, "worker processes", "worker")
-    from exo_bench.models.machine.resource_counts import count_problem
+    from exo_bench.models.machine.memory import count_problem
 
     problem = count_problem(value, "worker processes")  # the bound of every count (issue 34, L3)
     if problem:

@@ -6,9 +6,9 @@
   writes ``equations-<name>.md`` and ``.tex`` (latex), ``<name>.py`` (python), ``<name>.h`` and
   ``<name>.c`` (c) or ``<name>_<function>.casadi`` and ``<name>_casadi.md`` (casadi: the
   ``casadi.Function`` files of :mod:`exo_bench.matrix_method.export.casadi_functions`, the optional
-  extra ``casadi``; ``<name>``: the file stem of the mechanism's name, :func:`exo_bench.models.files.names.file_stem`;
+  extra ``casadi``; ``<name>``: the file stem of the mechanism's name, :func:`exo_bench.models.files.file_stem`;
   the Python module and the C prefix never take a standard module's or header's name,
-  :mod:`exo_bench.models.files.encoders`) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
+  :mod:`exo_bench.models.files`) into ``DIR`` (default: the current folder), atomically (a failure leaves no file
   of the set half-written). The work is estimated first (:func:`exo_bench.api.cost_model.equations_estimate`)
   and refused in one line when it exceeds ``--budget`` (seconds, default :data:`DEFAULT_BUDGET`);
   the same budget is checked again between the phases.
@@ -27,7 +27,7 @@ import argparse
 from pathlib import Path
 
 from exo_bench.bench.cli.arguments import add_reports, budget_arg, report_job, subcommand
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import file_stem
 from exo_bench.bench.studies.options import ReportOptions
 
 from exo_bench.bench.output.equation_pages import (
@@ -88,7 +88,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_equations(args: argparse.Namespace) -> int:
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
 
     if args.size_report:
         from exo_bench.bench.studies.equations_size import size_report
@@ -129,7 +129,7 @@ def render(mech, fmt: str, symbolic_parameters: bool = False, budget: float = DE
     from exo_bench.bench.output import latex_document
 
     clock = _Clock(mech, fmt, budget)
-    stem = file_stem(mech.name)  # models/files/names.py: the one file-name encoder
+    stem = file_stem(mech.name)  # models/files.py: the one file-name encoder
     if fmt == "latex":
         parts = export_latex.element_parts(mech, symbolic_parameters)
         clock.check("composing")

@@ -50,7 +50,7 @@ def cmd_forward(args: argparse.Namespace) -> int:
     from exo_bench.api.cost_model import check
     from exo_bench.api.methods import known_wrong_warning, spec
     from exo_bench.models.runtime.conditioning import check_finite
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
 
     method_class(args.method)  # an unknown method fails before any file is read
     refuse_budget(args)

@@ -98,8 +98,8 @@ def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.nd
     forces ``f_ext`` ``(samples, links, 3, dim)`` of the same file, checked (None without them;
     docs/external-forces.md)."""
     from exo_bench.models.runtime.external_forces import check_f_ext
-    from exo_bench.models.mechanism.loading import read_json
-    from exo_bench.models.mechanism.mechanism import as_states
+    from exo_bench.models.mechanism.presets import read_json
+    from exo_bench.models.states.states import as_states
 
     what = f"states {path!r}"
     if str(path).endswith(".npz"):
@@ -122,7 +122,7 @@ def _load_states(path: str, mech, third: str = "qdd") -> tuple[np.ndarray, np.nd
 def _read_npz(path: str, what: str) -> dict:
     import zipfile
 
-    from exo_bench.models.mechanism.loading import regular_file
+    from exo_bench.models.mechanism.presets import regular_file
     from exo_bench.models.machine.memory import usable_memory
 
     p = regular_file(path, what)  # the same checks and messages as every other file we read
@@ -188,8 +188,8 @@ def cmd_inverse(args: argparse.Namespace) -> int:
     from exo_bench.api import method_class, prepare
     from exo_bench.api.methods import known_wrong_warning
     from exo_bench.api.cost_model import check
-    from exo_bench.models.mechanism.loading import load_mechanism
-    from exo_bench.models.mechanism.mechanism import force_names
+    from exo_bench.models.mechanism.presets import load_mechanism
+    from exo_bench.models.states.states import force_names
 
     method_class(args.method)  # an unknown method fails before any file is read
     refuse_budget(args)

@@ -34,7 +34,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_mjcf(args: argparse.Namespace) -> int:
     """The MJCF of a mechanism, compiled by MuJoCo before it is written (so that a file written loads
     in MuJoCo); ``--no-check`` writes it without MuJoCo."""
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
     from exo_bench.models.engines.mjcf import to_mjcf
 
     from exo_bench.bench.output.files import STDOUT, checked_output, stream_of, write_output

@@ -98,7 +98,7 @@ def encoded(arrays: dict[str, np.ndarray], npz: bool) -> str | bytes:
 
 def cmd_states(args: argparse.Namespace) -> int:
     from exo_bench.bench.output.files import checked_output, write_output
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
 
     checked_output(args.output, "states -o", [args.mechanism])  # before any work
     mech = load_mechanism(args.mechanism)

@@ -9,7 +9,7 @@
   whole estimate, is known before any array is decompressed (a 7 MB archive of zeros that inflates
   to 7 GB is refused in one line);
 * a JSON file is judged by its size: reading it peaks at about
-  :data:`exo_bench.models.mechanism.loading.READ_BYTES_PER_BYTE` times its bytes, at :data:`JSON_BYTES_PER_SECOND`;
+  :data:`exo_bench.models.mechanism.presets.READ_BYTES_PER_BYTE` times its bytes, at :data:`JSON_BYTES_PER_SECOND`;
   its samples are known only once it is parsed, so reading is checked alone first and the whole
   run again right after parsing, before the method is prepared;
 * writing tau as JSON costs :data:`WRITE_SECONDS_PER_NUMBER` per number (written in row blocks: no
@@ -95,7 +95,7 @@ def peek_states(path: str, dof: int, third: str = "qdd") -> StatesFile:
     """The cost of reading the states file ``path`` (of a mechanism with ``dof`` coordinates) and,
     for a ``.npz``, its number of samples, from its headers; the file is checked to be a regular
     file (models.loading.regular_file)."""
-    from exo_bench.models.mechanism.loading import READ_BYTES_PER_BYTE, regular_file
+    from exo_bench.models.mechanism.presets import READ_BYTES_PER_BYTE, regular_file
 
     what = f"states {path!r}"
     p = regular_file(path, what)

@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def cmd_urdf(args: argparse.Namespace) -> int:
     from exo_bench.bench.output.files import STDOUT, checked_output, write_output
-    from exo_bench.models.mechanism.loading import load_mechanism
+    from exo_bench.models.mechanism.presets import load_mechanism
     from exo_bench.models.engines.urdf import to_urdf
 
     out = STDOUT if args.output is None else args.output

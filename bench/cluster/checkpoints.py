@@ -121,7 +121,7 @@ def load_part(folder: Path, tag: str, result_type: str):
 
 def save_part(folder: Path, tag: str, part) -> Path:
     """Write the part ``(result, warnings)`` as JSON, atomically."""
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     return atomic_write(part_file(folder, tag), part_text(tag, part))
 

@@ -50,11 +50,11 @@ from pathlib import Path
 
 from exo_bench.api.methods import composes_within_budget
 from exo_bench.models.machine import memory
-from exo_bench.models.machine.resource_counts import check_count, check_workers, usable_cpus
+from exo_bench.models.machine.memory import check_count, check_workers, usable_cpus
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.interrupts import check as check_interrupt
 from exo_bench.bench.output.provenance import REPO
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.cluster.waits import _first_line, probe_scheduler
 from exo_bench.bench.cluster.checkpoints import FINAL, checkpoint_dir, code_key, load_checkpoint
 from exo_bench.bench.cluster.tasks import TOPIC, failure_lines, run_row
@@ -81,7 +81,7 @@ def cluster(scheduler: str | None = None, workers: int | None = None, timeout: f
 
     ``scheduler`` must answer Dask's handshake within ``timeout`` seconds (default
     :func:`scheduler_timeout`), else a ValueError names it (:func:`probe_scheduler`); ``workers`` is
-    bounded, and its processes must fit in memory (:func:`exo_bench.models.machine.resource_counts.check_workers`)."""
+    bounded, and its processes must fit in memory (:func:`exo_bench.models.machine.memory.check_workers`)."""
     from distributed import Client, LocalCluster
 
     if scheduler:

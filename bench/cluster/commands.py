@@ -12,7 +12,7 @@ from exo_bench.bench.studies.options import BenchOptions
 from exo_bench.bench.studies.options import ClusterOptions, Evaluator, StabilityOptions
 from exo_bench.bench.perf import rows as _rows
 from exo_bench.bench.output.provenance import REPO
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.cluster.checkpoints import (
     checkpoint_dir,
     code_key,

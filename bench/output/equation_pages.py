@@ -62,7 +62,7 @@ MD_ELEMENTS = 200
 
 
 def md_matrices(mech):
-    from exo_bench.models.states.equation_form import blocks, matrix_names
+    from exo_bench.models.states.states import blocks, matrix_names
 
     count = len(blocks(mech.dim)) * len(matrix_names(mech.dim)) * mech.nlinks**2
     if count <= MD_ELEMENTS:
@@ -77,10 +77,10 @@ def scene_pages(scene, staging: Path) -> list[Path]:
     import shlex
 
     from exo_bench.bench.output.provenance import provenance
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.matrix_method.export import latex as export_latex
     from exo_bench.bench.output import latex_document
-    from exo_bench.models.files.names import file_stem
+    from exo_bench.models.files import file_stem
 
     mech = scene.mechanism
     _Clock(mech, "latex", DEFAULT_BUDGET)
@@ -100,7 +100,7 @@ def scene_pages(scene, staging: Path) -> list[Path]:
 
 def page_names(stem: str) -> tuple[str, str]:
     """The files of a scene's ``equations`` output, for the scene's file stem (the file-name
-    encoder's: models/files/names.py ``file_stem``)."""
+    encoder's: models/files.py ``file_stem``)."""
     return f"equations-{stem}.md", f"equations-{stem}.tex"
 
 

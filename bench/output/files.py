@@ -1,8 +1,8 @@
 """What every command may write over, how it writes, and which name a narrower run writes under.
 
-* :func:`write_output` / :func:`replace_atomically` (:mod:`exo_bench.models.files.atomic_files`): the one
+* :func:`write_output` / :func:`replace_atomically` (:mod:`exo_bench.models.files`): the one
   writer behind every file the suite writes (``-o``, ``--reports``, the main job's publishing: :func:`move_into`;
-  :mod:`exo_bench.models.files.atomic_files`' ``atomic_write`` and ``atomic_path`` are the same writer). A file is
+  :mod:`exo_bench.models.files`' ``atomic_write`` and ``atomic_path`` are the same writer). A file is
   written only where there is nothing or a regular file (:func:`output_target`): a symlink (to
   anything), a FIFO, a device, a socket or a folder is refused in one line (a ValueError, exit 2
   from the CLI), and so is the command's own input. The write goes to a new temporary file in the
@@ -26,7 +26,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
-from exo_bench.models.files.atomic_files import (  # the one writer, in models so that every layer can use it
+from exo_bench.models.files import (  # the one writer, in models so that every layer can use it
     _named,
     atomic_write,
     output_target,

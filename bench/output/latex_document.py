@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from exo_bench.models.files.encoders import latex_text, markdown_code
+from exo_bench.models.files import latex_text, markdown_code
 from exo_bench.matrix_method.export.latex import (
     BLOCK,
     MATRIX,
@@ -22,7 +22,7 @@ from exo_bench.matrix_method.export.latex import (
     eq4_rows,
     shortest,
 )
-from exo_bench.models.states.equation_form import blocks, matrix_names
+from exo_bench.models.states.states import blocks, matrix_names
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.mechanism.symbols import symbols_for
 
@@ -30,8 +30,8 @@ from exo_bench.models.mechanism.symbols import symbols_for
 @dataclass(frozen=True)
 class Name:
     """A user's name (a mechanism's, a scene's) inside a page's prose: written by the page's encoder,
-    a Markdown code span (:func:`exo_bench.models.files.encoders.markdown_code`) or LaTeX text
-    (:func:`exo_bench.models.files.encoders.latex_text` in ``\\texttt``), never read as markup."""
+    a Markdown code span (:func:`exo_bench.models.files.markdown_code`) or LaTeX text
+    (:func:`exo_bench.models.files.latex_text` in ``\\texttt``), never read as markup."""
 
     value: str
 

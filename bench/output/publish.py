@@ -38,7 +38,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from exo_bench.bench.output.provenance import current_run_id, provenance, run_id_of
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 
 
 # The files the suite's own reports take in a reports folder, named once.
@@ -115,7 +115,7 @@ def _stderr(line: str) -> None:
 
 
 def _refused(path: Path, mode: int) -> ValueError:
-    from exo_bench.models.files.atomic_files import kind_of
+    from exo_bench.models.files import kind_of
 
     if stat.S_ISLNK(mode):
         return ValueError(

@@ -58,7 +58,7 @@ from exo_bench.models.engines.joint_coordinates import (
 from exo_bench.bench.output.provenance import machine_info
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import file_stem
 
 
 # Where a scene's recording draws things: the point masses' world
@@ -96,7 +96,7 @@ def trail_indices(t: np.ndarray, seconds: float = TRAIL_SECONDS, points: int = T
 
 def trail_entity(name: str) -> str:
     """The entity name of a trail point's name (``"stance_thigh end (hip)"`` -> ``stance_thigh_end_hip``):
-    the file-name encoder's stem (:func:`exo_bench.models.files.names.file_stem`), its runs of ``_`` as one."""
+    the file-name encoder's stem (:func:`exo_bench.models.files.file_stem`), its runs of ``_`` as one."""
     return re.sub(r"_+", "_", file_stem(name)).strip("_") or "unnamed"
 
 
@@ -242,7 +242,7 @@ def screenshot(path: str | Path, png: str | Path, size: str = "1600x900", timeou
     ``size``."""
     from PIL import Image
 
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     exe = rerun_executable()
     if exe is None:
@@ -320,7 +320,7 @@ def _lighter(color: str, k: int) -> tuple[int, int, int]:
 
 # ----------------------------------------------------------------------------- description
 def _describe(study: Study, loads: str | None = None) -> tuple[str, dict]:
-    from exo_bench.models.files.encoders import markdown_code, markdown_text
+    from exo_bench.models.files import markdown_code, markdown_text
 
     mech = study.mechanism
     ok = study.ok_methods()
@@ -521,7 +521,7 @@ def write_recording(study: Study, path: str | Path, loads: str | None = None, ex
     is the Markdown of the loads beside level walking (:func:`exo_bench.bench.studies.plausibility.text`),
     its section of the description (none when None); ``extra(stream, times)``, when given, logs a
     scene's own series (the stride's actuators: :func:`exo_bench.bench.studies.stride.scene.log_stride`)."""
-    from exo_bench.models.files.atomic_files import atomic_path
+    from exo_bench.models.files import atomic_path
 
     with atomic_path(path) as tmp:
         stream = rr.RecordingStream(APPLICATION_ID, send_properties=True)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from exo_bench.models.machine.bounded_cache import BoundedCache
+from exo_bench.models.machine.memory import BoundedCache
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.api import METHODS
 
@@ -50,7 +50,7 @@ class PydyFunction:
     compose_seconds: float
 
 
-#: PyDy's compiled functions of the latest mechanisms (bounded: models/machine/bounded_cache.py; a dropped one's
+#: PyDy's compiled functions of the latest mechanisms (bounded: models/machine/memory.py; a dropped one's
 #: extension module stays imported, as Python cannot unload it, but its generated sources are freed).
 _CACHE: BoundedCache[Mechanism, PydyFunction] = BoundedCache(16)
 

@@ -238,10 +238,10 @@ def count_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]
 
     trig = fast_trig.sincos_reduced
     counted_trig = rebind(trig, math=types.SimpleNamespace(floor=_floor), fma=_fma)
-    from exo_bench.models.machine import simd_angles, simd_blocks
+    from exo_bench.models.machine import simd_blocks
 
     compute = (compiled_simd._compute_2d if mech.dim == 2 else compiled_simd._compute_3d).py_func
-    counted_compute = rebind(compute, link_pass=rebind(simd_angles.link_pass, sincos_reduced=counted_trig))
+    counted_compute = rebind(compute, link_pass=rebind(simd_blocks.link_pass, sincos_reduced=counted_trig))
     n = mech.nlinks
     as_counted = np.vectorize(Counted, otypes=[object])
     p = as_counted(compiled.params(signed_coupling(mech), signed_gravity(mech), mech.g))
@@ -274,16 +274,16 @@ def _no_prefetch(*args) -> None:
 def count_newton_euler_simd(mech: Mechanism, q, qd, qdd) -> tuple[dict[str, int], np.ndarray]:
     """Flops of one sample ``(dof,)`` of the newton-euler SIMD kernel on ``mech`` (module docstring),
     and the forces that run computed (the compiled SIMD kernel's, to the bit: the same operations)."""
-    from exo_bench.models.machine import fast_trig, simd_angles
+    from exo_bench.models.machine import fast_trig, simd_blocks
     from exo_bench.models.newton_euler import simd
-    from exo_bench.models.newton_euler.tree import prepare_tree
+    from exo_bench.models.newton_euler.passes import prepare_tree
     from exo_bench.models.machine.simd_blocks import FROWS, LANES, ROWS, _rows_in_by_link, _rows_out_by_link
 
     trig = rebind(fast_trig.sincos_reduced, math=types.SimpleNamespace(floor=_floor), fma=_fma)
     start = rebind(simd._start_points.py_func)
     forward = rebind(
         (simd._forward_2d if mech.dim == 2 else simd._forward_3d).py_func,
-        link_pass=rebind(simd_angles.link_pass, sincos_reduced=trig),
+        link_pass=rebind(simd_blocks.link_pass, sincos_reduced=trig),
         _start_points=start,
         prefetch_share=_no_prefetch,
     )

@@ -112,7 +112,7 @@ def select(config, items: list, profile: str) -> None:
     keys = [row_key(it, profile) for it in items]
     path = config.getoption("--rows-json")
     if path:
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(path, json.dumps(enumerate_rows(items, keys), indent=1))
     wanted = config.getoption("--row")
@@ -164,7 +164,7 @@ def safe_name(key: str) -> str:
     """A file name for a row key (checkpoints): readable, and unique by a short hash."""
     import hashlib
 
-    from exo_bench.models.files.names import file_stem
+    from exo_bench.models.files import file_stem
 
     stem = file_stem(key)[-80:].lstrip("-")  # the one file-name encoder; the tail never an option
     return f"{stem}-{hashlib.sha256(key.encode()).hexdigest()[:10]}"

@@ -86,7 +86,7 @@ def size_report(options: ReportOptions) -> int:
     import matplotlib.pyplot as plt
 
     from exo_bench.bench.output.provenance import provenance, save_figure
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.models.mechanism.presets import chain, random_tree
 
     full = options.full

@@ -30,19 +30,19 @@ from functools import lru_cache
 import numpy as np
 import sympy as sp
 
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import RATES, blocks, split
 from exo_bench.models.gait.motion import random_states
 from exo_bench.models.mechanism.presets import chain, exo5, fig1, fig2a, fig2b, fig5, random_tree
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.models.engines import pinocchio_backend as pb
-from exo_bench.models.states import equation_form
 from exo_bench.matrix_method import printed
 from exo_bench.matrix_method.printed import Printed
 from exo_bench.models.gait.motion import gait
 from exo_bench.bench.studies.options import ReportOptions
 from exo_bench.bench.output import provenance as reporting
 from exo_bench.bench.output.provenance import provenance, sci
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.output.publish import ERRATA
 
 
@@ -148,13 +148,13 @@ def singular_configuration() -> tuple[Mechanism, np.ndarray]:
 
 
 def _blocks(mech: Mechanism) -> tuple[str, ...]:
-    return equation_form.blocks(mech.dim)
+    return blocks(mech.dim)
 
 
 #: The matrices multiplying a block's rate squared (D: phi'^2, E: psi'^2) and a product of two
-#: blocks' rates (G, H, K), from the form of the equations (equation_form.RATES).
-_SQUARED = {r[0]: name for name, (_, r) in equation_form.RATES.items() if len(r) == 2 and r[0] == r[1]}
-_MIXED = {r: name for name, (_, r) in equation_form.RATES.items() if len(r) == 2 and r[0] != r[1]}
+#: blocks' rates (G, H, K), from the form of the equations (RATES).
+_SQUARED = {r[0]: name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] == r[1]}
+_MIXED = {r: name for name, (_, r) in RATES.items() if len(r) == 2 and r[0] != r[1]}
 
 
 def pinocchio_matrices(mech: Mechanism, q: np.ndarray) -> dict[str, dict[str, np.ndarray]]:

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.bench.studies.study import Study
-from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations, sagittal_moments
+from exo_bench.models.mechanism.kinematics import net_joint_loads, point_mass_accelerations, sagittal_moments
 from exo_bench.models.mechanism.kinematics import point_mass_positions
-from exo_bench.models.mechanism.mechanism import split
+from exo_bench.models.states.states import split
 from exo_bench.models.gait.normative import SHORT_SOURCE, SOURCE, WINTER, Normative
 
 #: The joint at the start of a link of the exoskeleton, the normative key of its moment and of its
@@ -214,7 +214,7 @@ def markdown(p: Plausibility) -> str:
         "## Plausibility: the loads beside level walking",
         "",
         f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, "
-        f"about the joint; `models/mechanism/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and "
+        f"about the joint; `models/mechanism/kinematics.py`) per kg of the model's {p.body_mass:.4g} kg, and "
         f"peak rod forces ({p.reference}) in body weights (BW = {p.weight:.0f} N), beside the "
         f"normative peak of the joint each plays in level walking ({SHORT_SOURCE}).",
         "",

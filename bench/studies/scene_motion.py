@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from exo_bench.models.mechanism.loading import read_json
+from exo_bench.models.mechanism.presets import read_json
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import DEFAULT_GAIT, GAITS, GaitParams, from_arrays, gait, planar_gait
 
@@ -145,7 +145,7 @@ def _load_motion(path: Path, m: Any, mech: Mechanism) -> dict:
 def _probe_gait(path: Path, kind: str, mech: Mechanism, params, period_given: bool) -> None:
     """Refuse, before the run, a gait whose rates or accelerations are not finite float64 or whose
     forces would overflow (a period T of 1e-300 s): 16 samples of one period, numpy's warnings off."""
-    from exo_bench.models.mechanism.mechanism import as_states
+    from exo_bench.models.states.states import as_states
 
     fn = gait if kind == "gait" else planar_gait
     with np.errstate(all="ignore"):

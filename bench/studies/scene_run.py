@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from exo_bench.bench.output.provenance import provenance
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 from exo_bench.bench.studies.scene_motion import note as forces_note
 from exo_bench.bench.studies.scenes import Scene
 from exo_bench.bench.studies.study import Study, finite_max, one_line, run_methods
-from exo_bench.models.files.encoders import markdown_code
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import markdown_code
+from exo_bench.models.files import file_stem
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -199,7 +199,7 @@ FIGURES = ("moments", "forces", "kinogram", "differences", "overview")
 
 def scene_file(scene: Scene, output: str) -> str:
     """The file of one output of a scene (``table``, a figure, ``recording``), named by the
-    file-name encoder (models/files/names.py ``file_stem``) from the scene's name."""
+    file-name encoder (models/files.py ``file_stem``) from the scene's name."""
     stem = file_stem(scene.name)
     if output == "table":
         return f"{stem}.md"

@@ -4,8 +4,8 @@ Shipped scenes live in ``bench/studies/scenes/*.toml``; users pass their own fil
 Format (every key is checked; an error names the file and the field)::
 
     name = "my-gait"                      # optional; the file's stem by default. It names the scene's
-                                          # reports (models/files/names.py file_stem), so it is refused when
-                                          # models/files/names.py check_name refuses it, and by exo-bench run
+                                          # reports (models/files.py file_stem), so it is refused when
+                                          # models/files.py check_name refuses it, and by exo-bench run
                                           # when it is a suite report's name or another scene's of the run
     description = "the five-link exoskeleton along the gait of eq. (26)"
     mechanism = "exo5-3d"                 # a preset, or a JSON file relative to the scene file
@@ -46,9 +46,9 @@ from pathlib import Path
 import numpy as np
 
 from exo_bench.bench.studies.scene_motion import MIN_SAMPLES, MOTIONS, _err, _load_motion
-from exo_bench.models.mechanism.loading import load_mechanism, read_toml
+from exo_bench.models.mechanism.presets import load_mechanism, read_toml
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import check_name
+from exo_bench.models.files import check_name
 from exo_bench.models.gait.motion import Motion, from_arrays, gait, planar_gait, smooth_random_motion
 
 __all__ = ["MIN_SAMPLES", "MOTIONS", "OUTPUTS", "SHIPPED", "Scene", "load_scene", "shipped_scene_names"]

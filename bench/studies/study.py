@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from exo_bench.api import prepare
-from exo_bench.models.mechanism.mechanism import Mechanism, force_names
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import force_names
 from exo_bench.models.gait.motion import Motion
 from exo_bench.models.runtime.prepared import MissingExtra
 

@@ -11,12 +11,9 @@ import math
 from dataclasses import dataclass
 from collections.abc import Callable
 
-from exo_bench.models.runtime.kernels import NUMBA_BYTES, Kernel
+from exo_bench.models.runtime.prepared import Kernel
 from exo_bench.models.mechanism.mechanism import Mechanism
 
-__all__ = [
-    "NUMBA_BYTES"
-]  # re-exported: the memory of numba's runtime is the kernel objects' (models/runtime/kernels.py)
 
 F8 = 8  # bytes per float64
 
@@ -45,7 +42,7 @@ class CostModel:
     """Formulas in ``(n, dim)``: one-time setup (bytes, seconds), per-sample seconds, and a note on
     what dominates (the per-sample bytes are the prepared-model class's ``sample_bytes``). What a
     kernel adds (its speed against these figures, its compile time, its runtime's memory) is the
-    kernel object's (:class:`~exo_bench.models.runtime.kernels.Kernel`, :func:`kernel_note`)."""
+    kernel object's (:class:`~exo_bench.models.runtime.prepared.Kernel`, :func:`kernel_note`)."""
 
     setup_bytes: Callable[[Mechanism, dict], float]
     setup_seconds: Callable[[Mechanism, dict], float]

@@ -47,7 +47,7 @@ would copy it, twice the peak) plus its model (9 MB at 3D n = 100);
 the matrix family keeps ``n x n`` coefficient matrices, and its compiled kernels (option
 ``kernel="numba"``, the default of ``matrix``, ``matrix-factored``, ``recurrence``) add numba's
 runtime on first use and, when numba's on-disk cache lacks them, a one-time compile
-(the kernel objects' ``runtime_bytes``, :data:`~exo_bench.api.cost_formulas.NUMBA_BYTES`, and ``compile_seconds``, named in the note); per sample the compiled kernels need less
+(the kernel objects' ``runtime_bytes``, :data:`~exo_bench.models.runtime.prepared.NUMBA_BYTES`, and ``compile_seconds``, named in the note); per sample the compiled kernels need less
 time and memory (``threads x`` one sample's scratch) than the numpy kernels whose figures the
 model keeps, so those estimates are conservative for them; ``lagrange`` derives with sympy:
 2D n = 5: 0.9 s, 18 MB; n = 10: 4.2 s, 70 MB; n = 20: 43 s, 674 MB; n = 30: 175 s, 3.1 GB; 3D n = 5: 2.8 s, 37 MB; n = 10:

@@ -24,7 +24,7 @@ from exo_bench.matrix_method.kernels import (
     PRINTED_EQ18_WRONG,
     RECURRENCE_KERNELS,
 )
-from exo_bench.models.runtime.kernels import Kernel, kernel_options
+from exo_bench.models.runtime.prepared import Kernel, kernel_options
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
 from exo_bench.models.runtime.prepared import PreparedModel
 
@@ -44,7 +44,7 @@ class MethodSpec:
     colour: str = ""
     #: The cost formulas of :mod:`exo_bench.api.cost_formulas` (None: its arrays only).
     cost: CostModel | None = None
-    #: Its kernels (:mod:`exo_bench.models.runtime.kernels`), the tuple its prepared-model class lists; the
+    #: Its kernels (:mod:`exo_bench.models.runtime.prepared`), the tuple its prepared-model class lists; the
     #: option ``kernel`` chooses among them by their ``option`` (empty: no such option).
     kernels: tuple[Kernel, ...] = ()
     #: Why its results are known to be wrong (None: they are not), in one line: the prepared-model class's

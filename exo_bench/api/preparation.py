@@ -26,7 +26,7 @@ def prepare(mechanism: Mechanism, method: str = "matrix-factored", **options: An
     A lagrange derivation whose estimated time exceeds its ``budget`` (or whose memory exceeds what
     a run may use) is refused before it starts (:func:`exo_bench.api.cost_model.check`, a ValueError
     naming the estimate and the budget). Pinocchio's ``threads`` is a count from 1 to
-    :func:`exo_bench.models.machine.resource_counts.max_count`, and its Data per thread (and the pool's copy)
+    :func:`exo_bench.models.machine.memory.max_count`, and its Data per thread (and the pool's copy)
     are estimated by the same cost model and refused before any is made when they exceed the memory.
     """
     cls = method_class(method)
@@ -55,7 +55,7 @@ def _threads(method: str, options: dict[str, Any]) -> int:
     """The option ``threads`` (pinocchio's), checked against its bound (1 for other methods)."""
     if not spec(method).threads_option or "threads" not in options:
         return 1
-    from exo_bench.models.machine.resource_counts import check_count
+    from exo_bench.models.machine.memory import check_count
 
     return check_count(f"{method}: option 'threads'", options["threads"])
 

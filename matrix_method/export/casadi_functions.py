@@ -14,7 +14,7 @@ of them (the same function the symbolic export uses).
 * ``bias_forces(q, qd) -> h``: ``tau(q, qd, 0)``;
 * ``forward_dynamics(q, qd, tau) -> qdd``: ``M^-1 (tau - h)`` by CasADi's ``solve`` with its sparse
   QR (an MX function; M is symmetric positive definite away from the singular configurations of
-  :func:`exo_bench.models.simulation.forward_dynamics.singular_reasons`, where the factorisation fails or the result is
+  :func:`exo_bench.models.mechanism.singularity.singular_reasons`, where the factorisation fails or the result is
   Inf/NaN, never hidden);
 * ``inverse_dynamics_derivatives(q, qd, qdd) -> (dtau_dq, dtau_dqd, M)``: CasADi's algorithmic
   differentiation of the kernel;
@@ -40,9 +40,10 @@ import numpy as np
 
 from exo_bench.matrix_method.numpy_kernels import matrix as numeric
 from exo_bench.matrix_method.closed_forms.coefficients import generic_coupling, signed_coupling, signed_gravity
-from exo_bench.models.files.encoders import markdown_code, python_string
-from exo_bench.models.mechanism.mechanism import Mechanism, coordinate_names, force_names
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import markdown_code, python_string
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import coordinate_names, force_names
+from exo_bench.models.files import file_stem
 
 #: The optional extra that installs CasADi, named in every error about it.
 EXTRA = "casadi"
@@ -241,8 +242,8 @@ class CasadiEquations:
     def save(self, folder) -> list[Path]:
         """Every function into ``folder/<name>.casadi`` (``Function.save``); returns the paths. Each
         is written whole or not at all, never through a symlink planted there
-        (:func:`exo_bench.models.files.atomic_files.atomic_path`)."""
-        from exo_bench.models.files.atomic_files import atomic_path
+        (:func:`exo_bench.models.files.atomic_path`)."""
+        from exo_bench.models.files import atomic_path
 
         folder = Path(folder)
         paths = []

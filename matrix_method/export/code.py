@@ -3,7 +3,7 @@
 The equations are the matrix method's own (:func:`exo_bench.matrix_method.symbolic.compose_equations` and
 :func:`exo_bench.matrix_method.symbolic.matrices`): ``tau`` (inverse dynamics), the mass matrix ``M`` (row
 block ``k``, column block ``c`` is the matrix multiplying the second derivatives of block ``c``,
-:data:`exo_bench.models.states.equation_form.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
+:data:`exo_bench.models.states.states.ACCELERATION`) and the bias forces ``h = tau(qdd = 0)``. Each function
 is one common-subexpression elimination (``sympy.cse``) of its outputs, printed
 
 * :func:`python_module`: one module importing numpy only (its file: :func:`module_name`), ``inverse_dynamics(q, qd, qdd)``,
@@ -29,9 +29,10 @@ from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
 from exo_bench.matrix_method.symbolic import compose_equations, matrices
-from exo_bench.models.files.encoders import c_comment, c_identifier, python_docstring, python_module_name, python_string
-from exo_bench.models.states.equation_form import ACCELERATION, blocks
-from exo_bench.models.mechanism.mechanism import Mechanism, coordinate_names, force_names
+from exo_bench.models.files import c_comment, c_identifier, python_docstring, python_module_name, python_string
+from exo_bench.models.states.states import ACCELERATION, blocks
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import coordinate_names, force_names
 from exo_bench.models.mechanism.symbols import Symbols, symbols_for
 
 FUNCTIONS = ("inverse_dynamics", "mass_matrix", "bias_forces")
@@ -155,7 +156,7 @@ def _used(subs, reduced) -> set:
 def header_lines(es: EquationSet, version: str) -> list[str]:
     """What the generated code says about itself (mechanism, version, coordinate order): plain text,
     the mechanism's name as a Python literal; each language puts every line through its encoder
-    (:func:`exo_bench.models.files.encoders.c_comment`, :func:`exo_bench.models.files.encoders.python_docstring`)."""
+    (:func:`exo_bench.models.files.c_comment`, :func:`exo_bench.models.files.python_docstring`)."""
     m = es.mechanism
     lines = [
         f"Equations of motion of mechanism {python_string(m.name)} ({m.dim}D, {m.nlinks} link(s), parents "
@@ -181,7 +182,7 @@ def header_lines(es: EquationSet, version: str) -> list[str]:
 # ------------------------------------------------------------------------------ Python
 def module_name(es: EquationSet) -> str:
     """The generated module's name and file stem: never a standard module's or numpy's
-    (:func:`exo_bench.models.files.encoders.python_module_name`)."""
+    (:func:`exo_bench.models.files.python_module_name`)."""
     return python_module_name(es.mechanism.name)
 
 

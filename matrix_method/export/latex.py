@@ -37,7 +37,7 @@ from exo_bench.matrix_method.symbolic import (
     to_matrices,
 )
 from exo_bench.models.mechanism.aggregates import aggregates
-from exo_bench.models.states.equation_form import RATES, blocks, matrix_names
+from exo_bench.models.states.states import RATES, blocks, matrix_names
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.mechanism.symbols import symbols_for
 

@@ -2,7 +2,7 @@
 ``cholesky-forward`` kernel object (:data:`exo_bench.matrix_method.kernels.MATRIX_FACTORED_KERNELS`).
 
 The batched route forms ``M`` and ``h`` from the factored inverse dynamics and solves ``M qdd = tau - h``
-by Cholesky (``mass_matrix_and_bias``, :func:`exo_bench.models.runtime.derived_terms.cholesky_solve`): about
+by Cholesky (``mass_matrix_and_bias``, :func:`exo_bench.models.runtime.prepared.cholesky_solve`): about
 200 us for one exo5-3d sample in numpy calls. Here, in one compiled call and without forming ``M``:
 
 * ``h = tau(q, qd, 0)``: the per-sample kernel of :mod:`~exo_bench.matrix_method.numba_kernels.factored`

@@ -6,7 +6,7 @@ The kernels themselves, one algorithm per file:
   form, no matrix formed (the derivation is in :func:`exo_bench.matrix_method.numpy_kernels.matrix.inverse_dynamics`);
 * :mod:`exo_bench.matrix_method.numba_kernels.matrix` (method ``matrix``): every matrix of eq. (5)/(17) formed
   from the closed forms of :mod:`exo_bench.matrix_method.closed_forms.planar` and :mod:`exo_bench.matrix_method.closed_forms.transitions`, then the
-  products with the rates of :data:`exo_bench.models.states.equation_form.RATES`;
+  products with the rates of :data:`exo_bench.models.states.states.RATES`;
 * :mod:`exo_bench.matrix_method.numba_kernels.recurrence` (method ``recurrence``): the planar matrices grown link
   by link by eqs. (22)-(26), then the same transitions and products.
 
@@ -60,8 +60,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from exo_bench.models.states.states import RATES, blocks, matrix_names
 from exo_bench.matrix_method.closed_forms import factored, planar, transitions as spatial
-from exo_bench.models.states import equation_form
 from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
 from exo_bench.models.machine.numba_runtime import run  # noqa: F401 - re-exported only for matrix_method/kernels.py (another session's file in this change): it should import run from numba_runtime
 from exo_bench.models.machine import numba_cache
@@ -157,14 +157,14 @@ Transition = _namedtuple("Transition", (*PLANAR_FIELDS, *spatial.QUOTIENTS, "li"
 
 
 def _rate_table(dim: int) -> np.ndarray:
-    """:data:`exo_bench.models.states.equation_form.RATES` as numbers for the compiled products: one row per matrix
-    of :func:`exo_bench.models.states.equation_form.matrix_names` (in that order), ``(factor, first block, second block)``
+    """:data:`exo_bench.models.states.states.RATES` as numbers for the compiled products: one row per matrix
+    of :func:`exo_bench.models.states.states.matrix_names` (in that order), ``(factor, first block, second block)``
     with blocks numbered in the order of ``q`` and ``-1`` where a matrix multiplies a second
     derivative (one block)."""
-    bl = equation_form.blocks(dim)
+    bl = blocks(dim)
     rows = []
-    for name in equation_form.matrix_names(dim):
-        factor, r = equation_form.RATES[name]
+    for name in matrix_names(dim):
+        factor, r = RATES[name]
         rows.append((factor, bl.index(r[0]), bl.index(r[1]) if len(r) == 2 else -1))
     return np.array(rows, dtype=float)
 

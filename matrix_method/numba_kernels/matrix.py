@@ -8,7 +8,7 @@ Per sample, as :class:`exo_bench.matrix_method.prepared.MatrixProducts` does in 
    by the corrected transitions (18) of :mod:`exo_bench.matrix_method.closed_forms.transitions` (:func:`spatial_matrices`;
    nothing divides);
 3. eq. (5)/(17): ``tau_k,i = sum_X sum_j X_ij x^X_j + g P_k,i`` with the rate vectors ``x^X`` of
-   :data:`exo_bench.models.states.equation_form.RATES` (:func:`products`).
+   :data:`exo_bench.models.states.states.RATES` (:func:`products`).
 
 The closed forms are the functions of ``planar.py`` and ``spatial.py`` themselves
 (:mod:`exo_bench.matrix_method.numba_kernels.common` registers them with numba). Kernels: ``(params, q, qd, qdd)`` with

@@ -30,7 +30,7 @@ running the benchmark sweep). The last, partial block runs with ``m`` at run tim
 
 The physics is the element functions the other kernels call; this file only arranges the loops,
 once for both dimensions (:func:`build`: ``dim`` and the element steps are constants of its
-closures), step 2 with ``newton-euler``'s kernel (:mod:`exo_bench.models.machine.simd_angles`).
+closures), step 2 with ``newton-euler``'s kernel (:mod:`exo_bench.models.machine.simd_blocks`).
 The rows of one link sit at constant distances (multiples of :data:`LANES`) in one scratch array,
 so LLVM proves that a loop's stores do not overlap its loads without being told (no ``prange``
 needed for the no-aliasing knowledge); steps 3 and 4 read one scratch array and write another,
@@ -46,7 +46,7 @@ at the same speed whichever layer numba picked or the user started first (OpenMP
 threads cost 7-8 ms per call of a ``prange`` kernel after a user's code started them).
 
 numba's on-disk cache of these kernels is keyed on their folder, the files of the functions they
-inline (the element functions) and the shared ``simd_angles.py``, ``fast_trig.py``, ``simd_blocks.py``
+inline (the element functions) and the shared ``simd_blocks.py``, ``fast_trig.py``, ``simd_blocks.py``
 and ``numba_runtime.py`` (:mod:`exo_bench.models.machine.numba_cache`): an edit to any of them recompiles them.
 """
 
@@ -59,8 +59,8 @@ from numba.extending import register_jitable
 
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
 from exo_bench.models.machine.numba_runtime import JIT
-from exo_bench.models.machine import simd_angles
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine import simd_blocks
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import (
     CF,
     CP,
@@ -86,7 +86,7 @@ from exo_bench.models.machine.simd_blocks import _block_rows_in, _block_rows_out
 
 @register_jitable
 def _kappa_3d(W, at, B, x, cf, sf, cp, sp):
-    """2. ``kappa_j`` of sample ``at`` of a spatial link (the ``link`` of :func:`exo_bench.models.machine.simd_angles.link_pass`)."""
+    """2. ``kappa_j`` of sample ``at`` of a spatial link (the ``link`` of :func:`exo_bench.models.machine.simd_blocks.link_pass`)."""
     l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
     W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = kappa_3d(l, w, v, ld, wdd, vdd, ldd, cf, sf, cp, sp)
 
@@ -131,7 +131,7 @@ def build(dim: int) -> SimpleNamespace:
     ``simd`` (1-4 block by block). ``dim`` and the element steps are constants of the closures: numba
     compiles each dimension's loops as if written out for it (the branches on ``dim`` fold away)."""
     kappa, forces = (_kappa_3d, _forces_3d) if dim == 3 else (_kappa_2d, _forces_2d)
-    link_pass, libm_pass = simd_angles.link_pass, simd_angles.libm_pass
+    link_pass, libm_pass = simd_blocks.link_pass, simd_blocks.libm_pass
 
     @_jit(dim)
     def compute(p, m, W, F):

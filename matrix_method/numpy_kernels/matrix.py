@@ -26,12 +26,13 @@ import numpy as np
 from exo_bench.matrix_method.closed_forms import planar, transitions as spatial
 from exo_bench.matrix_method.closed_forms.coefficients import signed_coupling, signed_gravity
 from exo_bench.matrix_method.closed_forms.factored import forces_2d, forces_3d, kappa_2d, kappa_3d
-from exo_bench.models.states import equation_form
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import ACCELERATION, RATES, as_states, split
+from exo_bench.models.states.states import blocks as coordinate_blocks
 
 
 def blocks(mech: Mechanism) -> tuple[str, ...]:
-    return equation_form.blocks(mech.dim)
+    return coordinate_blocks(mech.dim)
 
 
 def _pair_geometry(phi: np.ndarray, l: np.ndarray):
@@ -115,7 +116,7 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
         for name, m in mats[block].items():
             if name == "P":
                 continue
-            factor, r = equation_form.RATES[name]
+            factor, r = RATES[name]
             x = second[r[0]] if len(r) == 1 else factor * first[r[0]] * first[r[1]]
             tau = tau + np.einsum("sij,sj->si", m, x)
         rows.append(tau)
@@ -124,11 +125,9 @@ def generalised_forces(mech: Mechanism, mats: dict, qd, qdd) -> np.ndarray:
 
 def mass_matrix_from_matrices(mech: Mechanism, mats: dict) -> np.ndarray:
     """Eq. (5) / (17): the mass matrix ``(S, dof, dof)`` assembled from the matrices multiplying the
-    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.states.equation_form.ACCELERATION`)."""
+    second derivatives (row block k: ``[A_k, B_k, Lambda_k]``, :data:`exo_bench.models.states.states.ACCELERATION`)."""
     bl = blocks(mech)
-    return np.concatenate(
-        [np.concatenate([mats[r][equation_form.ACCELERATION[c]] for c in bl], axis=2) for r in bl], axis=1
-    )
+    return np.concatenate([np.concatenate([mats[r][ACCELERATION[c]] for c in bl], axis=2) for r in bl], axis=1)
 
 
 def in_tiles(mech: Mechanism, build, q, qd, qdd, tile: int | None = None) -> np.ndarray:

@@ -48,8 +48,8 @@ compute with exactly the point masses of the paper. (MuJoCo's RNE never divides 
 its forward dynamics factorises ``M``, which zero masses can make singular.)
 
 **Names.** The file's elements are named by link number only (``L<k>``...). The mechanism's name is
-the ``model`` attribute (:func:`exo_bench.models.files.encoders.xml_attr`) and each link's name sits in
-a comment as a JSON string (:func:`exo_bench.models.files.encoders.xml_comment`): no name can end the
+the ``model`` attribute (:func:`exo_bench.models.files.xml_attr`) and each link's name sits in
+a comment as a JSON string (:func:`exo_bench.models.files.xml_comment`): no name can end the
 comment or the attribute, so none can add an element (a body, an ``<include>``) or break the XML.
 
 **Size.** The text, ``G``'s rows and the keyframe are built in O(n) (``G`` itself is ``nv x dof``:
@@ -80,10 +80,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from exo_bench.models.files.encoders import xml_attr, xml_comment
-from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.engines.urdf import link_prefix
+from exo_bench.models.files import xml_attr, xml_comment
+from exo_bench.models.mechanism.mechanism import Mechanism
 
 #: The compiler's ``boundmass`` and ``boundinertia`` (see the module docstring).
 BOUND = 1e-12

@@ -31,10 +31,11 @@ import numpy as np
 import pinocchio as pin
 
 from exo_bench.models.mechanism.coordinate_maps import rowwise_product
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.machine.memory import USABLE_SHARE, usable_memory
-from exo_bench.models.machine.resource_counts import check_count, check_thread_room, usable_cpus
+from exo_bench.models.machine.memory import check_count, check_thread_room, usable_cpus
 from exo_bench.models.engines.urdf import (
     DATA_BYTES_PER_JOINT,  # noqa: F401
     data_bytes,  # noqa: F401
@@ -45,7 +46,7 @@ from exo_bench.models.engines.urdf import (
 )
 
 
-#: How errors name the option ``threads`` (bounded by :func:`exo_bench.models.machine.resource_counts.max_count`).
+#: How errors name the option ``threads`` (bounded by :func:`exo_bench.models.machine.memory.max_count`).
 THREADS_OPTION = "pinocchio: option 'threads'"
 
 
@@ -286,7 +287,7 @@ class PinocchioRNEA(PreparedModel):
         return 8.0 * (10 * d * n)
 
     def __init__(self, mechanism: Mechanism, threads: int = 1):
-        threads = check_count(THREADS_OPTION, threads)  # 1 to 4 per CPU (models/machine/resource_counts.py)
+        threads = check_count(THREADS_OPTION, threads)  # 1 to 4 per CPU (models/machine/memory.py)
         super().__init__(mechanism, threads=threads)
         self.threads = threads
         # this thread's Data, and the pool's (its construction copies one more: threads + 1 at its peak)

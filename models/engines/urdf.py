@@ -23,7 +23,7 @@ mimic joint must come after the joint it mimics; ``len`` sorts before ``mid``.
 
 from __future__ import annotations
 
-from exo_bench.models.files.encoders import xml_attr, xml_comment
+from exo_bench.models.files import xml_attr, xml_comment
 from exo_bench.models.mechanism.mechanism import Mechanism
 
 _LIMIT = '<limit effort="1e6" velocity="1e6" lower="-1e3" upper="1e3"/>'

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypedDict
 
-from exo_bench.models.machine.resource_counts import count_problem
+from exo_bench.models.machine.memory import count_problem
 
 #: numba's threading layers (``NUMBA_THREADING_LAYER``) and the libraries that can serve each on Linux
 #: (numba/np/ufunc/parallel.py, ``_launch_threads``: "safe" is TBB, "threadsafe" TBB or OpenMP,
@@ -63,7 +63,7 @@ def environment_problem(environ: Mapping[str, str] = os.environ) -> str | None:
     value and what is expected (None: it can). Checked before numba is imported (numba itself fails
     on ``NUMBA_NUM_THREADS=0`` at import, and on an unknown or missing threading layer only at the
     first parallel launch, neither naming the variable): ``NUMBA_NUM_THREADS`` is a count like every
-    thread count (:func:`exo_bench.models.machine.resource_counts.max_count`), ``NUMBA_THREADING_LAYER`` one of
+    thread count (:func:`exo_bench.models.machine.memory.max_count`), ``NUMBA_THREADING_LAYER`` one of
     :data:`LAYERS` whose library loads here (not checked once numba's threads run: the layer is chosen)."""
     text = environ.get("NUMBA_NUM_THREADS")
     if text is not None:
@@ -149,7 +149,7 @@ def ensure() -> str:
 
 def jit_disabled() -> bool:
     """``NUMBA_DISABLE_JIT`` is set: numba runs its functions as Python, and the kernels' SIMD tiles
-    (numba intrinsics: models/machine/simd_tiles.py) cannot run at all."""
+    (numba intrinsics: models/machine/simd_blocks.py) cannot run at all."""
     import numba
 
     return bool(getattr(numba.config, "DISABLE_JIT"))  # noqa: B009 - set at run time

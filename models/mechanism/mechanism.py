@@ -27,36 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.files.names import check_name
-from exo_bench.models.states.states import CHECK_ROWS, as_states, coordinate_names, force_names, split
+from exo_bench.models.files import check_name
 from exo_bench.models.states.validation import (
     _NEGATIVE_G,
-    MAX_FORCE_SCALE,
     DuplicateKey,
     _finite,
     _is_number,
     _where,
-    force_scale_log10,
     loads,
-    unique_keys,
     validate,
 )
-
-#: Re-exported: the state helpers (models/states/states.py) and the validation (models/states/validation.py) were
-#: defined here first, and users import them from this module.
-__all__ = [
-    "Mechanism",
-    "as_states",
-    "coordinate_names",
-    "force_names",
-    "split",
-    "CHECK_ROWS",
-    "MAX_FORCE_SCALE",
-    "DuplicateKey",
-    "force_scale_log10",
-    "loads",
-    "unique_keys",
-]
 
 _LINK_KEYS = {"parent", "sign", "masses", "n"}
 _LINK_OPTIONAL = {"name"}

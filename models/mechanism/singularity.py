@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from exo_bench.models.mechanism.aggregates import coupling
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states, split
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states, split
 
 #: ``|cos psi|`` at or below which a rod counts as vertical to working precision. The float
 #: nearest pi/2 has ``cos = 6.1e-17``; angles within two units in the last place of pi/2

@@ -20,7 +20,8 @@ from __future__ import annotations
 import mpmath
 import numpy as np
 
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 
 
 def _unit(dim, phi, psi):

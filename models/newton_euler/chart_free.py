@@ -1,7 +1,7 @@
 """Chart-free simulation: the equations of motion in the rod vectors, ``M_r r'' = f - g_r``.
 
 In the rod vectors ``r_i = s_i l_i u_i`` (docs/paper.md section 6) the mass matrix ``M_r = mu (x) I``
-is constant and factored once (:mod:`exo_bench.models.newton_euler.tree`), there are no velocity-product
+is constant and factored once (:mod:`exo_bench.models.newton_euler.passes`), there are no velocity-product
 terms and gravity is the constant ``g_r = g nu (x) up``. The state ``(r, r')`` has no chart: a
 vertical rod or a rod through any direction is an ordinary state, so an integration never meets
 the singularity of the absolute angles at ``cos psi = 0``.
@@ -10,7 +10,7 @@ the singularity of the absolute angles at ``cos psi = 0``.
 vectors (``tau_i = J_i^T f_i`` wherever the chart is regular). From a motion they are the backward
 pass of inverse dynamics, ``f = M_r r'' + g_r`` (:func:`rod_loads`, O(n)). Physically (and
 independently, from the point masses, :func:`rod_loads_from_joint_loads`): with the net joint
-moments ``M_k`` of :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads` and the rod's axial force
+moments ``M_k`` of :func:`exo_bench.models.mechanism.kinematics.net_joint_loads` and the rod's axial force
 ``F_l,k = tau_l,k``,
 
     f_k = s_k u_k F_l,k + ((M_k - sum_{children c} M_c) x r_k) / l_k^2,
@@ -33,9 +33,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from exo_bench.models.mechanism.kinematics import _rod_vectors, place_down_the_tree
-from exo_bench.models.mechanism.mechanism import Mechanism, as_states
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import as_states
 from exo_bench.models.newton_euler import passes
-from exo_bench.models.newton_euler.tree import Tree, prepare_tree, singular_mass_reason, solve_coupling
+from exo_bench.models.newton_euler.passes import Tree, prepare_tree, solve_coupling
+from exo_bench.models.runtime.conditioning import singular_mass_reason
 from exo_bench.models.mechanism.singularity import COS_VERTICAL
 
 
@@ -59,7 +61,7 @@ def rod_loads(mech: Mechanism, q, qd, qdd, tree: Tree | None = None) -> np.ndarr
 
 def rod_loads_from_joint_loads(mech: Mechanism, q, joint_moments: np.ndarray, axial: np.ndarray) -> np.ndarray:
     """``f (S, n, dim)`` from net joint moments ``M`` (``(S, n, 3)`` in 3D, ``(S, n)`` in 2D, as
-    :func:`exo_bench.models.mechanism.joint_loads.net_joint_loads` gives them) and the rods' axial forces ``(S, n)``
+    :func:`exo_bench.models.mechanism.kinematics.net_joint_loads` gives them) and the rods' axial forces ``(S, n)``
     (module docstring). Needs ``l > 0``."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     r, _ = rod_vectors(mech, q)

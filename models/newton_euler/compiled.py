@@ -1,5 +1,5 @@
 """The Newton-Euler method, compiled (numba): the same passes as :mod:`exo_bench.models.newton_euler.passes`,
-as loops over the links of one sample.
+as loops over the links of one sample, and the lean one-sample entry of inverse dynamics around them.
 
 Per sample the kernels call the very element functions of :mod:`exo_bench.models.mechanism.rod_elements`
 (registered with numba once, by :func:`exo_bench.models.machine.numba_cache.inline`), so nothing physical is
@@ -7,23 +7,37 @@ written twice; tests/test_newton_euler.py holds them to the numpy reference. The
 (:mod:`exo_bench.matrix_method.numba_kernels.common`): flat C-ordered ``(samples * dof,)`` states and result, a serial
 driver, and a parallel driver over blocks of :data:`exo_bench.models.machine.numba_runtime.SAMPLES_PER_TASK` samples for large
 batches (:func:`exo_bench.models.machine.numba_runtime.run`). The per-mechanism numbers come as one ``(8, n)`` table
-(:meth:`exo_bench.models.newton_euler.tree.Tree.table`) and ``g``.
+(:meth:`exo_bench.models.newton_euler.passes.Tree.table`) and ``g``.
 
 Per sample: ``2n`` (2D) or ``4n`` (3D) sines and cosines and O(n) arithmetic, for inverse and
 forward dynamics alike.
+
+**The lean entry**: newton-euler's one sample with nothing but the arithmetic around it: the code of the ``lean`` kernel
+object of :data:`exo_bench.models.newton_euler.kernels.NEWTON_EULER_KERNELS`.
+
+:func:`inverse_entry` is the compiled validate-and-compute entry of inverse dynamics of one sample: the
+layout of the four arrays and, with ``check``, the checks of ``check=True``
+(:func:`exo_bench.models.states.validation_pass.one_sample`), then the per-sample inverse pass of
+:mod:`exo_bench.models.newton_euler.compiled`, :func:`~exo_bench.models.newton_euler.compiled._inverse_sample`,
+on a zeroed ``(n, WIDTH)`` scratch on the stack (as the serial kernel's ``np.zeros``): the forces are
+bit-identical to the serial kernel's (tests/test_newton_euler_lean.py). It answers 0 (done) or the
+problem's code, having written nothing; the public call then takes its Python path, which names it.
+Compiled without numba's reference-counted runtime (unboxing an array allocates nothing).
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
+import numba
 import numpy as np
-from numba import njit, prange
-
 from exo_bench.models.machine import numba_cache
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure, jit_disabled
 from exo_bench.models.mechanism import rod_elements as el
-from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+from exo_bench.models.states.validation_pass import LARGE, OK, STACK_DOUBLES, one_sample, stack_matrix
+from numba import njit, prange, types
 
 ensure()  # numba's runtime set-up (models/machine/numba_runtime.py), before the kernels below are defined
 
@@ -205,3 +219,36 @@ def newton_euler_parallel(t, g, dim, forward, x, xd, y, o):
     S = x.shape[0] // (dim * t.shape[1])
     for b in prange((S + SAMPLES_PER_TASK - 1) // SAMPLES_PER_TASK):
         _block(t, g, dim, x, xd, y, o, b * SAMPLES_PER_TASK, min(S, (b + 1) * SAMPLES_PER_TASK), forward)
+
+
+_LEAN: Any = {**JIT, "_nrt": False}  # Any: numba's stubs do not list _nrt
+
+
+@njit(**_LEAN)
+def inverse_entry(t, g, plan, q, qd, qdd, o, check):
+    """One sample into ``o`` (module docstring): 0, or the code of what the caller names."""
+    code = one_sample(q, qd, qdd, o, plan, check)
+    if code != OK:
+        return code
+    n = t.shape[1]
+    if n * WIDTH > STACK_DOUBLES:
+        return LARGE
+    W = stack_matrix(n, WIDTH)
+    for k in range(n):
+        for j in range(WIDTH):
+            W[k, j] = 0.0
+    _inverse_sample(t, g, q.shape[0] // n, q, qd, qdd, o, 0, W)
+    return OK
+
+
+_VECTOR = types.Array(types.float64, 1, "A")
+_PLAN = types.Array(types.int64, 1, "C")
+
+
+def entry(table: np.ndarray) -> Any:
+    """The compiled entry point of :func:`inverse_entry` for the model's ``(8, n)`` table (None under
+    ``NUMBA_DISABLE_JIT``: the public call's Python path runs)."""
+    if jit_disabled():
+        return None
+    sig = (numba.typeof(table), types.float64, _PLAN, _VECTOR, _VECTOR, _VECTOR, _VECTOR, types.boolean)
+    return inverse_entry.compile(sig)

@@ -44,9 +44,21 @@ direction), its inner loop over ``j`` reads contiguous per-link rows and vectori
 with it at ``1/3`` of the work. Forward mode through the passes would cost 2-3x the flops for the same
 output and carry a dual number through every element.
 
-The kernels: :mod:`.derivatives_numpy` (the reference, vectorised over samples; runs on complex
+The kernels: the numpy reference below (vectorised over samples; runs on complex
 arrays for complex-step checks), :mod:`.derivatives_compiled` (numba, per sample, and threads over
 samples for batches), :mod:`.derivatives_simd` (numba, blocks of samples across SIMD lanes).
+
+**The numpy reference**, vectorised over samples.
+
+The algorithm (its derivation and why it is structured this way: :mod:`exo_bench.models.newton_euler.derivatives`):
+per sample, the two passes give each rod's force ``F_i`` (:func:`exo_bench.models.newton_euler.passes.rod_forces`);
+per rod the signed columns ``Y_j = s_j [d a_j/d q_j, d a_j/d qd_j, J_j]`` and the diagonal term ``s_i
+d(J_i^T F)/d q_i`` (:mod:`exo_bench.models.newton_euler.derivative_elements`); then every block
+``mu_ij J_i^T Y_j`` at once by ``einsum``.
+
+Runs on complex arrays too (arithmetic, ``cos`` and ``sin`` only): tests/test_derivatives_analytic.py
+differentiates it by complex steps. Arrays are batch-first: ``(S, dof)`` in, ``(S, dof, dof)`` out in
+block order ``[phi..., psi..., l...]``.
 """
 
 from __future__ import annotations
@@ -55,12 +67,64 @@ import threading
 from typing import Any
 
 import numpy as np
-
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.newton_euler import derivatives_numpy
-from exo_bench.models.newton_euler.tree import prepare_tree
-from exo_bench.models.runtime.result_pool import ResultPool
+from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler import passes
+from exo_bench.models.newton_euler.passes import Tree, prepare_tree
+from exo_bench.models.runtime.prepared import ResultPool
+
+
+def _columns(parts, dim: int, sign: np.ndarray) -> np.ndarray:
+    """Flat per-rod columns (column-major tuples of :mod:`.derivative_elements`, each ``(n, S)``) as
+    ``(n, dim, dim, S)`` ``[link, component, column, sample]``, times the links' signs."""
+    n, S = sign.shape[0], np.shape(parts[0])[-1]
+    a = np.stack([np.broadcast_to(p, (n, S)) for p in parts]).reshape(dim, dim, n, S)
+    return np.transpose(a, (2, 1, 0, 3)) * sign[:, None, None, None]
+
+
+def rod_columns(tree: Tree, dim: int, g: float, q, qd, qdd):
+    """Per rod, signed, ``(n, dim, dim, S)`` each: ``J_j``, ``d a_j/d q_j``, ``d a_j/d qd_j`` (``a_j = r_j''``),
+    and ``s_i d(J_i^T F_i)/d q_i`` (``[link, row, column, sample]``), with ``F`` from the two passes."""
+    n = tree.parent.shape[0]
+    trig = passes._trig(dim, n, q)
+    F = passes.rod_forces(tree, dim, g, passes.rod_accelerations(tree, dim, q, qd, qdd, trig))
+    cf, sf, cp, sp = trig
+    X, Xd, Xdd = q.T, qd.T, qdd.T
+    l, s = X[(dim - 1) * n :], tree.sign
+    if dim == 2:
+        w, ld, wdd, ldd = Xd[:n], Xd[n:], Xdd[:n], Xdd[n:]
+        J = de.jacobian_2d(cf, sf, l)
+        Aq = de.acceleration_by_q_2d(cf, sf, l, w, ld, wdd, ldd)
+        Ar = de.acceleration_by_rates_2d(cf, sf, l, w, ld)
+        P = de.projection_by_q_2d(cf, sf, l, F[:, 0], F[:, 1])
+    else:
+        w, v, ld = Xd[:n], Xd[n : 2 * n], Xd[2 * n :]
+        J = de.jacobian_3d(cf, sf, cp, sp, l)
+        Aq = de.acceleration_by_q_3d(cf, sf, cp, sp, l, w, v, ld, Xdd[:n], Xdd[n : 2 * n], Xdd[2 * n :])
+        Ar = de.acceleration_by_rates_3d(cf, sf, cp, sp, l, w, v, ld)
+        P = de.projection_by_q_3d(cf, sf, cp, sp, l, F[:, 0], F[:, 1], F[:, 2])
+    return tuple(_columns(x, dim, s) for x in (J, Aq, Ar, P))
+
+
+def inverse_derivatives(tree: Tree, mu: np.ndarray, dim: int, g: float, q, qd, qdd):
+    """``(dtau_dq, dtau_dqd, M)``, ``(S, dof, dof)`` each, of inverse dynamics at ``(S, dof)`` states
+    (real or complex): ``dtau_i/dq_j = delta_ij s_i d(J_i^T F_i)/dq_i + mu_ij J_i^T s_j da_j/dq_j``,
+    ``dtau_i/dqd_j = mu_ij J_i^T s_j da_j/dqd_j``, ``M_ij = mu_ij J_i^T J_j``."""
+    n = tree.parent.shape[0]
+    S, dof = q.shape
+    J, Aq, Ar, P = rod_columns(tree, dim, g, q, qd, qdd)
+
+    def blocks(Y):
+        return np.einsum("ij,ieas,jebs->saibj", mu, J, Y).reshape(S, dof, dof)
+
+    dq = blocks(Aq)
+    link = np.arange(n)
+    for a in range(dim):
+        for b in range(dim):
+            dq[:, a * n + link, b * n + link] += P[:, a, b].T
+    return dq, blocks(Ar), blocks(J)
+
 
 #: The kernels ``InverseDerivatives.__call__`` takes (``kernel=``), each the name of the method of
 #: :class:`InverseDerivatives` that runs a batch (a table: no branch on a kernel's name).
@@ -142,7 +206,7 @@ def check_out(out, shape: tuple[int, ...], states: tuple[np.ndarray, ...]) -> tu
 
 class InverseDerivatives:
     """The derivatives of one mechanism's inverse dynamics (module docstring), prepared once: the
-    tree's numbers (:func:`exo_bench.models.newton_euler.tree.prepare_tree`), the coupling ``mu``,
+    tree's numbers (:func:`exo_bench.models.newton_euler.passes.prepare_tree`), the coupling ``mu``,
     ``g``, ``dim``, and each thread's scratch of the compiled kernels. Call it (``__call__``)."""
 
     def __init__(self, mechanism: Mechanism):
@@ -157,7 +221,7 @@ class InverseDerivatives:
         #: The shapes of one sample's states and outputs, ``(dof,)`` and ``(dof, dof)``.
         self._shapes = ((self.dof,), (self.dof, self.dof))
         self._simd_scratch: Any = None  # the SIMD kernel's driver, kernel, parameters and scratch (_simd_prepare)
-        #: New batched results, recycled once dropped (:mod:`exo_bench.models.runtime.result_pool`): a fresh
+        #: New batched results, recycled once dropped (:mod:`exo_bench.models.runtime.prepared`): a fresh
         #: ``(S, dof, dof)`` array may be a new mapping whose pages the OS zeroes on first touch; chain 100
         #: 3D, 27 samples: 0.69 ms per sample with new results, 0.37 with ``out=``; exo5-3d, 256 samples
         #: (460 kB each): 3.6 us against 1.6 (193 page faults a call), so from :data:`RECYCLE_MIN_BYTES`.
@@ -242,7 +306,7 @@ class InverseDerivatives:
 
     # ------------------------------------------------------------------ the kernels (KERNELS), on a batch
     def _numpy(self, q, qd, qdd, out) -> None:
-        res = derivatives_numpy.inverse_derivatives(self.tree, self.mu, self.dim, self.g, q, qd, qdd)
+        res = inverse_derivatives(self.tree, self.mu, self.dim, self.g, q, qd, qdd)
         for o, r in zip(out, res):
             o[...] = r
 
@@ -254,18 +318,18 @@ class InverseDerivatives:
     def _simd_prepare(self) -> tuple:
         """The SIMD kernel's driver, kernel, parameters and ThreadScratch, made at its first call (the
         imports and the tuple once, not per call: a few us of a batch's fixed cost)."""
-        from exo_bench.models.newton_euler import derivatives_simd as ds
         from exo_bench.models.machine.simd_blocks import ThreadScratch
         from exo_bench.models.machine.simd_blocks import run as run_simd
+        from exo_bench.models.newton_euler import derivatives_simd as ds
 
         scratch = ThreadScratch(ds.scratch, self.nlinks, self.dim)
         self._simd_scratch = (run_simd, ds.simd_derivatives, (self.table, self.mu, self.g, self.dim), scratch)
         return self._simd_scratch
 
     def _numba(self, q, qd, qdd, out) -> None:
-        from exo_bench.models.newton_euler import derivatives_compiled as dc
-        from exo_bench.models.newton_euler.derivatives_streaming import streams
         from exo_bench.models.machine.numba_runtime import run
+        from exo_bench.models.newton_euler import derivatives_compiled as dc
+        from exo_bench.models.newton_euler.derivatives_compiled import streams
 
         args = (self.table, self.mu, self.g, self.dim, q, qd, qdd, *out, streams(out, self.dof))
         run(dc.derivatives_serial, dc.derivatives_parallel, args, self._parallel_samples(q.shape[0]))

@@ -1,6 +1,6 @@
 """The analytic derivatives of inverse dynamics, compiled (numba): per sample, and threads over samples for
-batches. The algorithm is :mod:`exo_bench.models.newton_euler.derivatives`'s; numpy's reference is
-:mod:`.derivatives_numpy`.
+batches, with the explicit SIMD output rows and the streaming stores that write them (one kernel).
+The algorithm and numpy's reference are :mod:`exo_bench.models.newton_euler.derivatives`'.
 
 Per sample:
 
@@ -14,36 +14,233 @@ Per sample:
    (kind 0), ``s_j da_j/dq_j`` (1) or ``s_j da_j/dqd_j`` (2); ``s_i d(J_i^T F_i)/dq_i`` into ``P``;
 3. **the blocks**: for each row link ``i``, ``mu_i`` repeated ``dim`` times (``m[d n + j] = mu_ij``), then
    per kind the ``dim`` output rows ``out[c n + i, :] = m * ((J_i^T)[c, :] . Y_kind)`` in one loop over
-   the whole row, 4 columns at a time (:mod:`.derivatives_rows`): ``dim`` rows of ``Y`` read contiguously,
+   the whole row, 4 columns at a time (:func:`rows_3d`, :func:`rows_2d`): ``dim`` rows of ``Y`` read contiguously,
    contiguous rows written; then the diagonal blocks of ``dtau/dq`` gain ``P``. Whole rows, not ``dim``
    loops of ``n``: exo5-3d's blocks took 1.28 us of CPU per sample in ``dim`` loops of 5 (with a view per
-   loop), 0.50 us in one numba loop of 15 per row, 0.38 by :mod:`.derivatives_rows`; chain 100 3D 127 ->
+   loop), 0.50 us in one numba loop of 15 per row, 0.38 by the explicit rows; chain 100 3D 127 ->
    92-98 us (out in cache).
 
 Work per sample: ``3 dim^2 n^2`` entries of ``dim`` multiply-adds and one product, the size of the output;
 the passes and the per-rod columns are O(n). A large batch is bound by writing that output (chain 100 3D:
 2.16 MB per sample, 92-115 us of arithmetic in cache): over
-:data:`exo_bench.models.newton_euler.derivatives_streaming.STREAM_MIN_BYTES` of output the batched drivers
-take :func:`_streamed_blocks`, the same rows streamed past the caches (:mod:`.derivatives_streaming`). Scratch (per thread): ``W (n, 16)``, ``Y (9, 3n)``,
+:data:`STREAM_MIN_BYTES` of output the batched drivers
+take :func:`_streamed_blocks`, the same rows streamed past the caches (:func:`stream_row`). Scratch (per thread): ``W (n, 16)``, ``Y (9, 3n)``,
 ``P (9, n)``, ``tau (dof,)``, ``m (dof,)``; the one-sample entry (:func:`derivatives_one`) takes them and
 the mechanism's numbers in one packed array (:func:`workspace`): each array argument of a compiled
 entry costs its unboxing (about 0.1 us), so 7 arrays instead of 14.
 
 numba's on-disk cache keys these kernels on every module of this folder (:mod:`exo_bench.models.machine.numba_cache`).
+
+**The output rows** of one link, as explicit 4-wide SIMD code: numba intrinsics (LLVM IR written here)
+used by :func:`_blocks`.
+
+For row link ``i`` the ``dim`` rows ``r_c = c n + i`` (``c < dim``) of one output are ``o[r_c, k] = m[k] *
+(z_c0 Y[e, k] + z_c1 Y[e + 1, k] (+ z_c2 Y[e + 2, k]))`` (``z_cu``: component ``u`` of column ``c`` of ``s_i
+J_i``; ``m``: row ``i`` of ``mu`` repeated; ``Y[e..]``: the signed columns of one kind). :func:`rows_3d` and
+:func:`rows_2d` write them in one loop over 4 columns at a time, each load of ``m`` and ``Y`` shared by the
+``dim`` rows, the last 4 columns overlapping the previous ones when ``dof`` is not a multiple of 4 (the
+same values written twice; the outputs never overlap ``m`` or ``Y``, which are the kernel's scratch), and a
+loop of one column at a time when ``dof < 4``.
+
+**Why not a numba loop.** Written as ``for k in range(dof)`` per row, LLVM vectorises each row with a
+16-wide main body (4 vectors interleaved), a 4-wide remainder loop, scalar leftovers and a runtime
+check that the output row does not alias ``m`` and ``Y`` (numba cannot tell LLVM that arrays are apart):
+at exo5-3d's rows of 15 the main body never runs and the checks and leftovers cost more than the
+arithmetic. numba leaves LLVM's SLP vectoriser off, so four columns written out by hand stay scalar. Here:
+exo5-3d, 256 samples, one thread (CPU of the blocks alone, load 8): 0.54 us per sample by the numba
+loops, 0.38 by these rows.
+
+The same operations in the same order as the loops (``m * ((z0 y0 + z1 y1) + z2 y2)``, IEEE products and
+sums, no fused multiply-add): the same bits. Under ``NUMBA_DISABLE_JIT`` (an intrinsic has no Python form)
+:data:`rows_3d` and :data:`rows_2d` are those loops in Python (:func:`rows_python`).
+
+**Streaming stores** of the output rows: each row of ``dtau/dq``, ``dtau/dqd`` and ``M`` is
+written past the caches (non-temporal stores), for batches whose output is larger than the caches.
+
+**Why stream.** The per-sample kernel computes an output row from arrays that
+stay in L1 (``Y``, ``mu``), so a large batch is bound by writing its output: chain 100 in 3D writes
+2.16 MB per sample. An ordinary store first reads the cache line it writes (read for ownership): the
+memory carries every byte twice. A non-temporal store sends whole lines to memory without reading them.
+Measured on this 2-core host (load about 8, best of 10, a 134 MB batch of 300 x 300 rows computed as
+the kernel does): ordinary stores 0.20-0.30 ms per 720 kB, numpy's ``fill`` 0.12-0.18, these stores
+0.071. Results in cache are different: a later read of a streamed row comes from memory, so only
+batches of at least :data:`STREAM_MIN_BYTES` of output stream (:func:`streams`).
+
+**How it streams.** The kernel computes each output row as before, into a scratch row in L1 (the same loop, the
+same bits), and :func:`stream_row` copies it out. numba has no non-temporal store; :func:`stream_row` is
+an intrinsic (``numba.extending.intrinsic``, LLVM IR by llvmlite) that loads 4 (or 2) entries at a time and
+stores them with LLVM's ``!nontemporal`` hint (``movntpd`` on x86). The store is declared 16-byte aligned, so
+:func:`streams` admits only outputs whose rows all start 16-byte aligned (an even ``dof`` and
+16-aligned bases); anything else takes the ordinary loop. :func:`store_fence` (``fence seq_cst``,
+``mfence`` on x86) orders the streamed stores before the kernel returns: non-temporal stores are weakly
+ordered, and another thread may read the output next.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
-
-from exo_bench.models.newton_euler import derivative_elements as de
-from exo_bench.models.mechanism import rod_elements as el
-from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
-from exo_bench.models.newton_euler.derivatives_rows import rows_2d, rows_3d
-from exo_bench.models.newton_euler.derivatives_streaming import store_fence, stream_row
 from exo_bench.models.machine.numba_cache import inline
-from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure
+from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK, ensure, jit_disabled
+from exo_bench.models.mechanism import rod_elements as el
+from exo_bench.models.newton_euler import derivative_elements as de
+from exo_bench.models.newton_euler.compiled import WIDTH, _inverse_sample
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+ensure()  # numba's runtime set-up, before the kernels below are defined
+
+#: A call whose output takes at least this many bytes streams its rows: half of this host's 32 MiB
+#: L3; a smaller output stays in cache for the caller's next read (exo5-3d, 256 samples: 0.17 MB).
+STREAM_MIN_BYTES = 2**24
+_ALIGN = 16  # bytes: the alignment the vector store declares (two float64)
+
+
+def _vector_copy(context, builder, vty, src, dst, at):
+    """Lanes ``at ..`` of ``src`` stored non-temporally at ``dst``'s ``at ..`` (pointers to float64)."""
+    value = builder.load(builder.bitcast(builder.gep(src, [at]), vty.as_pointer()), align=8)
+    store = builder.store(value, builder.bitcast(builder.gep(dst, [at]), vty.as_pointer()), align=_ALIGN)
+    store.set_metadata("nontemporal", builder.module.add_metadata([ir.Constant(ir.IntType(32), 1)]))
+
+
+@intrinsic
+def stream_row(typingctx, out, start, a):
+    """``out.flat[start : start + len(a)] = a`` by streaming stores, in blocks of 4 and one of 2: ``out``
+    C-contiguous with that entry 16-byte aligned, ``len(a)`` even (:func:`streams`). One loop in LLVM IR,
+    no call: a call of a compiled function per row would count references to its array arguments by
+    atomic (locked) instructions, and a locked instruction drains the write-combining buffers, half a
+    cache line at a time (measured: 2.5 ms per sample instead of 0.95 on chain 100 3D)."""
+
+    def codegen(context, builder, signature, args):
+        oty, _, aty = signature.args
+        dst = builder.gep(context.make_array(oty)(context, builder, args[0]).data, [args[1]])
+        src_ary = context.make_array(aty)(context, builder, args[2])
+        n = cgutils.unpack_tuple(builder, src_ary.shape, 1)[0]
+        intp = n.type
+        blocks = builder.sdiv(n, ir.Constant(intp, 4))
+        v4, v2 = ir.VectorType(ir.DoubleType(), 4), ir.VectorType(ir.DoubleType(), 2)
+        with cgutils.for_range(builder, blocks) as loop:
+            _vector_copy(context, builder, v4, src_ary.data, dst, builder.mul(loop.index, ir.Constant(intp, 4)))
+        done = builder.mul(blocks, ir.Constant(intp, 4))
+        with builder.if_then(builder.icmp_signed("<", done, n)):
+            _vector_copy(context, builder, v2, src_ary.data, dst, done)
+        return context.get_dummy_value()
+
+    return types.void(out, types.intp, a), codegen
+
+
+@intrinsic
+def _fence(typingctx):
+    def codegen(context, builder, signature, args):
+        builder.fence("seq_cst")
+        return context.get_dummy_value()
+
+    return types.void(), codegen
+
+
+@njit(**JIT)
+def store_fence():
+    """Order every streamed store before what follows (module docstring)."""
+    _fence()
+
+
+def streams(outs: tuple[np.ndarray, ...], dof: int) -> bool:
+    """Whether a call writing ``outs`` (C-contiguous float64, rows of ``dof``) streams its rows: at least
+    :data:`STREAM_MIN_BYTES` of output, every row 16-byte aligned (even ``dof``, aligned bases), and
+    compiled kernels (an intrinsic has no Python form under ``NUMBA_DISABLE_JIT``)."""
+    from exo_bench.models.machine.numba_runtime import jit_disabled
+
+    if dof % 2 or sum(o.nbytes for o in outs) < STREAM_MIN_BYTES or jit_disabled():
+        return False
+    return all(o.ctypes.data % _ALIGN == 0 for o in outs)
+
+
+_I32, _I64 = ir.IntType(32), ir.IntType(64)
+_V4 = ir.VectorType(ir.DoubleType(), 4)
+_W = 4  # columns per step
+
+
+def _splat(b, x):
+    v = b.insert_element(ir.Constant(_V4, None), x, ir.Constant(_I32, 0))
+    return b.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, _W), [0] * _W))
+
+
+def _combine(b, mk, ys, zs):
+    """``mk * ((z0 y0 + z1 y1) + z2 y2)``, in the loops' order (scalars or vectors alike)."""
+    acc = b.fmul(zs[0], ys[0])
+    for y, z in zip(ys[1:], zs[1:]):
+        acc = b.fadd(acc, b.fmul(z, y))
+    return b.fmul(mk, acc)
+
+
+def _codegen(dim: int):
+    """The code of :func:`rows_3d` (``dim = 3``) or :func:`rows_2d`: arguments ``(o, i, m, Y, n, e, z...)``,
+    ``z[c dim + u]`` component ``u`` of column ``c``."""
+
+    def codegen(context, b, sig, args):
+        o, m, Y = (context.make_array(sig.args[k])(context, b, args[k]) for k in (0, 2, 3))
+        i, n, e, z = args[1], args[4], args[5], args[6 : 6 + dim * dim]
+        ncol = cgutils.unpack_tuple(b, o.shape, 2)[1]
+        ystride = cgutils.unpack_tuple(b, Y.shape, 2)[1]
+        const = lambda v: ir.Constant(_I64, v)  # noqa: E731
+        dsts = [b.gep(o.data, [b.mul(b.add(b.mul(const(c), n), i), ncol)]) for c in range(dim)]
+        rows = [b.gep(Y.data, [b.mul(b.add(e, const(u)), ystride)]) for u in range(dim)]
+
+        def step(k, load, zs):
+            ys = [load(p, k) for p in rows]
+            mk = load(m.data, k)
+            return [_combine(b, mk, ys, zs[c * dim : (c + 1) * dim]) for c in range(dim)]
+
+        def vector_at(p, k):
+            return b.bitcast(b.gep(p, [k]), _V4.as_pointer())
+
+        with b.if_else(b.icmp_signed(">=", ncol, const(_W))) as (wide, narrow):
+            with wide:
+                zv = [_splat(b, x) for x in z]
+                last = b.sub(ncol, const(_W))
+                with cgutils.for_range(b, b.sdiv(b.add(ncol, const(_W - 1)), const(_W))) as loop:
+                    k = b.mul(loop.index, const(_W))
+                    k = b.select(b.icmp_signed(">", k, last), last, k)
+                    for dst, v in zip(dsts, step(k, lambda p, k: b.load(vector_at(p, k), align=8), zv)):
+                        b.store(v, vector_at(dst, k), align=8)
+            with narrow:
+                with cgutils.for_range(b, ncol) as loop:
+                    k = loop.index
+                    for dst, v in zip(dsts, step(k, lambda p, k: b.load(b.gep(p, [k])), z)):
+                        b.store(v, b.gep(dst, [k]))
+        return context.get_dummy_value()
+
+    return codegen
+
+
+@intrinsic
+def _rows_3d(typingctx, o, i, m, Y, n, e, z00, z01, z02, z10, z11, z12, z20, z21, z22):
+    sig = types.void(o, i, m, Y, n, e, z00, z01, z02, z10, z11, z12, z20, z21, z22)
+    return sig, _codegen(3)
+
+
+@intrinsic
+def _rows_2d(typingctx, o, i, m, Y, n, e, z00, z01, z10, z11):
+    return types.void(o, i, m, Y, n, e, z00, z01, z10, z11), _codegen(2)
+
+
+def rows_python(o, i, m, Y, n, e, *z) -> None:
+    """The rows as the numba loops wrote them (module docstring), for ``NUMBA_DISABLE_JIT``."""
+    dim = 3 if len(z) == 9 else 2
+    for c in range(dim):
+        r = c * n + i
+        for k in range(o.shape[1]):
+            acc = z[c * dim] * Y[e, k] + z[c * dim + 1] * Y[e + 1, k]
+            if dim == 3:
+                acc = acc + z[c * dim + 2] * Y[e + 2, k]
+            o[r, k] = m[k] * acc
+
+
+#: ``rows_3d(o, i, m, Y, n, e, z00, z01, z02, z10, ..., z22)`` and ``rows_2d(o, i, m, Y, n, e, z00, z01,
+#: z10, z11)``: the intrinsics, or :func:`rows_python` under ``NUMBA_DISABLE_JIT`` (fixed at import).
+rows_3d = rows_python if jit_disabled() else _rows_3d
+rows_2d = rows_python if jit_disabled() else _rows_2d
 
 ensure()  # numba's runtime set-up, before the kernels below are defined
 inline(de.DERIVATIVE_ELEMENTS, de.__file__.rsplit("/", 1)[0])
@@ -120,10 +317,10 @@ def _columns(t, dim, x, xd, xdd, W, Y, P):
 def _blocks(mu, dim, Y, P, oq, oqd, om, m):
     """3. Every block ``mu_ij J_i^T Y_j`` into the three ``(dof, dof)`` outputs (module docstring; ``m``:
     ``(dof,)`` scratch), the ``dim`` rows of each row link written together, 4 columns at a time
-    (:mod:`.derivatives_rows`), then ``P`` on the diagonal. No view and no call of a compiled function
+    (:mod:`.derivatives_compiled`), then ``P`` on the diagonal. No view and no call of a compiled function
     inside: each would count references by an atomic instruction (exo5-3d: 0.91 us per sample with a view
     of each output row and of the rows of ``Y``, 0.54 with 2D indices, 0.38 with the rows of
-    :mod:`.derivatives_rows`; the same operations, the same bits)."""
+    :mod:`.derivatives_compiled`; the same operations, the same bits)."""
     n = mu.shape[0]
     for i in range(n):
         for d in range(dim):
@@ -151,7 +348,7 @@ def _blocks(mu, dim, Y, P, oq, oqd, om, m):
 def _streamed_blocks(mu, dim, Y, P, oq, oqd, om, m, row):
     """:func:`_blocks` for outputs larger than the caches: each row computed into the scratch ``row`` with
     the same operations (the same bits), ``P`` added on its diagonal, then streamed out
-    (:mod:`.derivatives_streaming`). One output at a time, its rows in order: the streamed lines are
+    (:mod:`.derivatives_compiled`). One output at a time, its rows in order: the streamed lines are
     written in sequence (a row of 300 float64 ends inside a cache line, which the next row completes)."""
     n = mu.shape[0]
     dof = dim * n
@@ -239,7 +436,7 @@ def _plain(a):
 @njit(**JIT)
 def _range(t, mu, g, dim, q, qd, qdd, oq, oqd, om, stream, start, stop):
     """Samples ``start .. stop - 1`` of ``(S, dof)`` states into ``(S, dof, dof)`` outputs (scratch once);
-    ``stream``: by streaming stores (:mod:`.derivatives_streaming`; :func:`streams` decides)."""
+    ``stream``: by streaming stores (:mod:`.derivatives_compiled`; :func:`streams` decides)."""
     n = t.shape[1]
     W, Y, P = np.zeros((n, WIDTH)), np.zeros((9, 3 * n)), np.zeros((9, n))
     tau, m, row = np.zeros(dim * n), np.zeros(dim * n), np.zeros(dim * n)

@@ -43,7 +43,7 @@ from exo_bench.models.newton_euler import simd
 from exo_bench.models.newton_euler.compiled import WIDTH
 from exo_bench.models.machine.numba_cache import inline
 from exo_bench.models.machine.numba_runtime import JIT, ensure
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import CF, CP, F0, FROWS, K0, LANES, O0, ROWS, SF, SP, block_transposes
 from exo_bench.models.runtime.forward_check import _row_clear
 from exo_bench.models.states.validation_pass import OK, QD, QDD, status
@@ -170,7 +170,7 @@ def simd_derivatives(p, q, qd, qdd, o, start, stop, S):
 #: :func:`checked_one`'s answers where it wrote nothing (beside those of
 #: :func:`exo_bench.models.newton_euler.derivatives_compiled._unsafe`, 1-4): a state not plain (strides other
 #: than 8 bytes, or not aligned), or a check of ``check=True`` that did not clear the state. The caller's
-#: exact path then refuses naming why, or decides (:class:`exo_bench.models.derivatives.derivatives.Derivatives`).
+#: exact path then refuses naming why, or decides (:class:`exo_bench.models.derivatives.Derivatives`).
 NOT_PLAIN, EXACT = 5, 6
 #: Floats of the head of :func:`one_workspace`: the ends of its parts.
 _HEAD = 16

@@ -17,7 +17,7 @@ from numba import njit, prange
 from exo_bench.models.newton_euler import derivatives_compiled  # noqa: F401 - registers the derivative elements
 from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler.compiled import newton_euler, newton_euler_parallel
-from exo_bench.models.newton_euler.inverse_mass import columns, columns_parallel
+from exo_bench.models.newton_euler.forward_jacobians import columns, columns_parallel
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.machine.numba_runtime import JIT, SAMPLES_PER_TASK
 
@@ -111,7 +111,7 @@ def forward_derivatives(t, g, dim, X, Xd, T, Xdd, Minv, DQ, DQD):
     """The kernels of ``model.derivatives.forward_dynamics`` in one compiled call, each sample in turn:
     ``Xdd = FD(X, Xd, T)`` (newton-euler's passes, :func:`exo_bench.models.newton_euler.compiled.newton_euler`),
     ``Minv = M^-1`` by ``dof`` columns of the O(n) forward dynamics
-    (:func:`exo_bench.models.newton_euler.inverse_mass.columns`), then :func:`forward_jacobians`: the same
+    (:func:`exo_bench.models.newton_euler.forward_jacobians.columns`), then :func:`forward_jacobians`: the same
     calls, in the same order, as one after another from Python."""
     newton_euler(t, g, dim, True, X.reshape(X.size), Xd.reshape(Xd.size), T.reshape(T.size), Xdd.reshape(Xdd.size))
     _eye(Minv)

@@ -1,4 +1,4 @@
-"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.runtime.kernels.Kernel`):
+"""The kernels of ``newton-euler``, as objects (:class:`~exo_bench.models.runtime.prepared.Kernel`):
 :data:`NEWTON_EULER_KERNELS` is what its MethodSpec and :class:`~exo_bench.models.newton_euler.prepared.NewtonEuler`
 list. Each ``load`` binds a kernel to one prepared model (its ``table``, ``kernel_args``,
 ``batch_kernel``), importing the compiled code only then: importing this module imports no numba.
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.runtime.kernels import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 
@@ -114,11 +114,11 @@ def _simd(model: Any) -> Entries:
 
 
 def _lean(model: Any) -> Entries:
-    """One sample in one compiled call, checks included (:mod:`exo_bench.models.newton_euler.lean`)."""
-    from exo_bench.models.newton_euler import lean
+    """One sample in one compiled call, checks included (:mod:`exo_bench.models.newton_euler.compiled`)."""
+    from exo_bench.models.newton_euler import compiled
     from exo_bench.models.states.states import validation_plan
 
-    compiled = lean.entry(model.table)
+    compiled = compiled.entry(model.table)
     if compiled is None:  # NUMBA_DISABLE_JIT
         return Entries()
     return Entries(inverse_fast=partial(compiled, model.table, float(model._g), validation_plan(model.mechanism)))
@@ -182,7 +182,7 @@ NEWTON_EULER_KERNELS = (
         (ONE_SAMPLE,),
         "one thread: the calling one",
         "below NEWTON_EULER's call_seconds: one sample's checks and passes in one compiled call (the "
-        "per-sample inverse pass of compiled.py behind models/newton_euler/lean.py's entry)",
+        "per-sample inverse pass of compiled.py behind models/newton_euler/compiled.py's entry)",
         speed=0.12,
         compile_seconds=15.0,
         runtime_bytes=NUMBA_BYTES,

@@ -2,7 +2,7 @@
 constant mass matrix of the rod vectors (``M(q) = J^T M_r J``, docs/paper.md).
 
 Prepare time computes the per-link mass sums and factors ``M_r`` once
-(:func:`exo_bench.models.newton_euler.tree.prepare_tree`); a singular ``M_r`` (a link and its subtree carry
+(:func:`exo_bench.models.newton_euler.passes.prepare_tree`); a singular ``M_r`` (a link and its subtree carry
 no mass where its end point moves) is found there and named by :meth:`forward_dynamics`, while
 inverse dynamics stays defined. The option ``kernel`` selects the compiled loops
 (``"numba"``, the default; :mod:`exo_bench.models.newton_euler.compiled`) or the numpy reference
@@ -19,11 +19,13 @@ import numpy as np
 
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.runtime.conditioning import check_conditioning
-from exo_bench.models.mechanism.mechanism import Mechanism, split
-from exo_bench.models.runtime.kernels import select
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
+from exo_bench.models.runtime.prepared import select
 from exo_bench.models.newton_euler import compiled, passes, simd
 from exo_bench.models.newton_euler.kernels import NEWTON_EULER_KERNELS
-from exo_bench.models.newton_euler.tree import prepare_tree, singular_mass_reason
+from exo_bench.models.newton_euler.passes import prepare_tree
+from exo_bench.models.runtime.conditioning import singular_mass_reason
 from exo_bench.models.runtime.prepared import PreparedModel
 from exo_bench.models.machine.simd_blocks import ThreadScratch
 from exo_bench.models.mechanism.singularity import (

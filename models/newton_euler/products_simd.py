@@ -25,7 +25,7 @@ Per block, O(n) per sample and no ``n x n`` array:
 
 Work per sample: one inverse dynamics (its trig once), one gravity-free pass without trig, and the per-rod
 elements. Its sines and cosines are the batched inverse dynamics' (:mod:`exo_bench.models.machine.fast_trig`): it
-differs from the per-sample kernel (:mod:`.products_compiled`, libm's) by those and by the order of its
+differs from the per-sample kernel (:mod:`.products`, libm's) by those and by the order of its
 sums (tests/test_products_simd.py). A sample's result does not depend on the batch around it. numba's
 on-disk cache of these kernels is keyed on newton_euler's folder, which holds this file and the elements'
 derivatives, and on the rod elements (:data:`exo_bench.models.machine.numba_cache.KERNEL_SOURCES`).
@@ -41,7 +41,7 @@ from exo_bench.models.newton_euler import derivative_elements as de
 from exo_bench.models.newton_euler import simd
 from exo_bench.models.machine.numba_cache import inline
 from exo_bench.models.machine.numba_runtime import JIT, ensure
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import (
     CF,
     CP,

@@ -16,7 +16,7 @@ with ``matrix-factored``'s :mod:`exo_bench.matrix_method.numba_kernels.simd`):
    start point's acceleration with gravity ``A_k = A_p + kappa_p`` (``g up`` at a root) and ``D_k =
    0``. The angles of link ``k`` beyond the arithmetic's range (and NaN) are then redone with libm
    by a scalar loop that only they enter, before any child reads ``kappa_k``. The trig loops are
-   ``matrix-factored``'s too (:mod:`exo_bench.models.machine.simd_angles`); one source serves 2D and 3D
+   ``matrix-factored``'s too (:mod:`exo_bench.models.machine.simd_blocks`); one source serves 2D and 3D
    (``forward_for(dim)`` in :func:`build`, ``dim`` a constant of its closure);
 3. **backward pass, leaves first**: ``f_k = eta A_k + zeta kappa_k + D_k``, ``D_p += theta A_k + eta
    kappa_k + D_k``, ``tau_k = s_k J_k^T f_k`` (:func:`exo_bench.models.mechanism.rod_elements.project_3d`),
@@ -65,18 +65,18 @@ from types import SimpleNamespace
 
 from numba.extending import register_jitable
 
-from exo_bench.models.machine import simd_angles
+from exo_bench.models.machine import simd_blocks
 from exo_bench.models.machine import numba_cache
 from exo_bench.models.mechanism import rod_elements as el
 from exo_bench.models.machine.numba_runtime import jit_for
-from exo_bench.models.machine.simd_angles import states_2d, states_3d
+from exo_bench.models.machine.simd_blocks import states_2d, states_3d
 from exo_bench.models.machine.simd_blocks import CF, CP, F0, F1, F2, FROWS, K0, K1, K2, LANES, LEN, LEN2, O0, O1, O2
 from exo_bench.models.machine.simd_blocks import ROWS, SF, SP, block_transposes, prefetch_share
 
 numba_cache.inline(el.ELEMENTS, Path(__file__).parent)  # registered once, keyed on rod_elements.py
 
 
-#: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.tree.Tree.table`) read here.
+#: Rows of the per-mechanism table (:meth:`exo_bench.models.newton_euler.passes.Tree.table`) read here.
 _PARENT, _SIGN, _ZETA, _ETA, _THETA = range(5)
 
 #: Batches of at least this many samples run this kernel: every ``(samples, dof)`` batch, as
@@ -94,7 +94,7 @@ MIN_SAMPLES = 1
 @register_jitable
 def _rod_3d(W, at, B, s_k, cf, sf, cp, sp):
     """2. ``kappa_k = s_k (l u)''`` of sample ``at`` of a spatial rod (the ``link`` of
-    :func:`exo_bench.models.machine.simd_angles.link_pass`)."""
+    :func:`exo_bench.models.machine.simd_blocks.link_pass`)."""
     l, w, v, ld, wdd, vdd, ldd = states_3d(W, at, B)
     a0, a1, a2 = el.rod_acceleration_3d(cf, sf, cp, sp, l, w, v, ld, wdd, vdd, ldd)
     W[at + K0 * B], W[at + K1 * B], W[at + K2 * B] = s_k * a0, s_k * a1, s_k * a2
@@ -180,7 +180,7 @@ def build(lanes: int) -> SimpleNamespace:
                     m0, m1 = el.project_2d(Wk[CF * B + s], Wk[SF * B + s], Wk[LEN2 * B + s], f0, f1)
                     Fk[O0 * B + s], Fk[O1 * B + s] = s_k * m0, s_k * m1
 
-    link_pass, libm_pass = simd_angles.link_pass, simd_angles.libm_pass
+    link_pass, libm_pass = simd_blocks.link_pass, simd_blocks.libm_pass
 
     def forward_for(dim):
         rod = _rod_3d if dim == 3 else _rod_2d

@@ -25,7 +25,7 @@ Within it, the answer of every method is the exact solution of a system within t
 (its backward error ``|M qdd + h - tau|`` stays within the row scale: tests/test_forward_conditioning.py),
 and the methods agree to ``K eps kappa``. ``cond(mu_s)`` is a property of the mechanism, estimated
 once in O(n) by Hager's 1-norm estimator with the tree factor of ``mu``
-(:mod:`exo_bench.models.mechanism.mass_factor`): no dense matrix, no SVD. The per-sample part is O(n) and
+(:mod:`exo_bench.models.mechanism.aggregates`): no dense matrix, no SVD. The per-sample part is O(n) and
 vectorised over the samples: one cosine per rod.
 
 **Tiny rods** are a genuine singularity, not a removable one: an angle's acceleration grows like
@@ -45,8 +45,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from exo_bench.models.mechanism.aggregates import link_aggregates
-from exo_bench.models.mechanism.mass_factor import end_point_mass, factor_end_point_mass, multiply_mu, solve_mu
-from exo_bench.models.mechanism.mechanism import Mechanism, split
+from exo_bench.models.mechanism.aggregates import end_point_mass, factor_end_point_mass, multiply_mu, solve_mu
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.states.states import split
 from exo_bench.models.mechanism.singularity import SingularConfigurationError, massless_reason
 from exo_bench.models.states.states import coordinate_names
 

@@ -1,7 +1,7 @@
 """The compiled pass of ``f_ext``: ``dest = tau - Q``, ``tau + Q`` or ``Q`` (:func:`apply`), with the
 generalised forces ``Q(q, f_ext) = sum_k J_k^T f_k`` of :func:`exo_bench.models.runtime.external_forces.generalized_forces`.
 
-Imported only by :func:`exo_bench.models.runtime.external_forces_compiled.kernel`, after numba's set-up. Each
+Imported only by :func:`exo_bench.models.runtime.external_forces.kernel`, after numba's set-up. Each
 rod's ``J^T F`` is the rod elements' own ``project_2d``/``project_3d`` (:mod:`exo_bench.models.mechanism.rod_elements`,
 the functions the numpy reference and newton-euler's kernels call): nothing physical is written twice,
 and the numbers are the numpy ones to the last bit (tests/test_external_forces.py and
@@ -24,7 +24,7 @@ numba_cache.inline((project_2d, project_3d), __file__)  # callable from the kern
 @njit(cache=True, nogil=True)
 def apply(params, q, f, tau, dest, mode, check):  # pragma: no cover - compiled
     """Status of ``dest = tau - Q`` (``mode < 0``), ``tau + Q`` (``> 0``) or ``Q`` (``0``, ``tau`` unread)
-    over flat C-ordered float64 arrays (models/runtime/external_forces_compiled.py: the layout, the statuses):
+    over flat C-ordered float64 arrays (models/runtime/external_forces.py: the layout, the statuses):
     -2 and nothing written where the sizes disagree with ``params``; with ``check`` the flat index of
     the first force that is not finite, nothing written; else -1, done."""
     n = (params.shape[0] - 1) // 3

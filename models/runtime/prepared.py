@@ -1,11 +1,11 @@
-"""The prepared model: a method's per-mechanism work done once, then cheap calls.
+"""The prepared model: a method's per-mechanism work done once, then cheap calls through its kernels.
 
 Like Pinocchio's ``Model``/``Data`` split, :class:`PreparedModel` holds what is fixed for a
 mechanism (aggregates, coupling signs, index arrays, lambdified functions, the Pinocchio model);
 its calls take states and return forces.
 
 **One way through each public call.** The public calls are defined here once; a method supplies
-kernels (objects of :mod:`exo_bench.models.runtime.kernels`, listed in its MethodSpec, whose entries the calls
+kernels (objects of :mod:`exo_bench.models.runtime.prepared`, listed in its MethodSpec, whose entries the calls
 run) or implements :meth:`PreparedModel._inverse_dynamics` on validated ``(samples, dof)`` float arrays; it
 never overrides a public call. A call validates once, at the edge, then runs the method's kernel:
 
@@ -20,7 +20,7 @@ never overrides a public call. A call validates once, at the edge, then runs the
 3. the kernel.
 
 **One sample, fast.** A kernel may supply a compiled validate-and-compute entry of one sample
-(:class:`~exo_bench.models.runtime.kernels.Entries` ``inverse_fast``, ``forward_fast``: steps 1 to 3 in one numba
+(:class:`~exo_bench.models.runtime.prepared.Entries` ``inverse_fast``, ``forward_fast``: steps 1 to 3 in one numba
 call that answers 0 or a problem's code). The public call checks in Python only what numba's unboxing
 trusts (the arrays are base-class ndarrays, 1-D, float64; ``out`` writable) and calls it; any other
 answer runs the path above, which names the problem.
@@ -28,45 +28,357 @@ answer runs the path above, which names the problem.
 :meth:`PreparedModel.mass_matrix` and :meth:`PreparedModel.bias_forces` are native where a method
 overrides ``_mass_matrix``/``_bias_forces`` (``native_terms`` says which) and are otherwise derived
 from inverse dynamics, which is linear in ``qdd``: ``h = ID(q, qd, 0)`` and ``M e_k = ID(q, 0, e_k) -
-ID(q, 0, 0)`` (:func:`~exo_bench.models.runtime.derived_terms.terms_from_inverse_dynamics`).
+ID(q, 0, 0)`` (:func:`~exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`).
 
 **Chunks.** A batch is evaluated :attr:`PreparedModel.chunk_samples` samples at a time into a
 preallocated result, so that a batch of any length needs the inputs, the result and a fixed working
 set (one chunk's temporaries): 10^6 samples take no more scratch memory than one chunk
 (bench/test_memory.py). A result of 4 MiB or more reuses the memory of one returned before, once nothing
-refers to that one any more (:mod:`exo_bench.models.runtime.result_pool`).
+refers to that one any more (:mod:`exo_bench.models.runtime.prepared`).
 
 **Threads and processes.** A prepared model holds no mutable state shared between calls (a one-sample
 entry's scratch is on the stack of its call), so one model can serve several threads. It pickles by
 reconstruction: the pickle holds the mechanism, the method's name and its options, and unpickling
 prepares the model again in the receiving process (for ``lagrange`` that derives the equations again,
 within the same budget).
+
+**Derived terms.** What every prepared model derives from its inverse dynamics: the mass matrix and the bias forces
+(:func:`terms_from_inverse_dynamics`, one batched call), and forward dynamics by an equilibrated Cholesky
+solve of ``M qdd = tau - h`` (:func:`cholesky_solve`, never NaN). Used by
+:class:`~exo_bench.models.runtime.prepared.PreparedModel` where a method has no terms of its own.
+
+**The result pool.** Result arrays recycled once their caller has dropped them: a prepared model's free list.
+
+A batched call without ``out=`` returns a new array. glibc serves a request above its mmap threshold
+(dynamic, at most 32 MiB) with a fresh mapping, which it unmaps again on ``free``, so every such call
+pays the OS for zeroing the result's pages on first touch, in the kernel's threads. Measured on
+``newton-euler``, 3D chain of 1000 links, 1398 samples (the full sweep's row: a 33.5 MB result), two
+threads: 19.2-24.0 ms per call with a new result (530 page faults each, ``getrusage``) against
+12.6-14.1 ms with ``out=``, the rest of the call unchanged. Whether glibc maps afresh or reuses its
+heap depends on what the process allocated before, so the same call measured 12.5 ms in another
+script: the cost was noise in the sweep as well as a cost.
+
+:class:`ResultPool` keeps the last :data:`KEEP` results of at least :data:`MIN_BYTES` that it handed
+out, and hands one out again when nothing outside the pool refers to it any more (its reference count
+is the pool's own, :func:`_refs`): the caller's result is never written after it was returned, and
+a view, a ``memoryview`` or a ``ctypes`` pointer object of it keeps it from reuse like the array itself.
+Two alternate in a loop ``tau = model.inverse_dynamics(...)``, which still holds the previous result
+while the next call runs. The cost is memory: up to :data:`KEEP` results stay allocated after the
+caller dropped them, until the model is released. Reference counts cannot tell this in a
+free-threaded build (deferred counts), so there every call allocates (:data:`RECYCLES`).
+
+**Kernels**: the code a method runs, each an object listed in the method's
+:class:`~exo_bench.api.methods.MethodSpec` (and its prepared-model class's ``kernels``).
+
+A :class:`Kernel` states what it computes (the public calls it serves), for which shapes (one sample,
+a batch), its cost (against the method's cost formulas, :mod:`exo_bench.api.cost_formulas`) and its
+threading; :attr:`Kernel.load` binds it to one prepared model (its coefficients, its compiled
+entry points), giving :class:`Entries`. The option ``kernel`` of a method names a group of its
+kernels (``kernel="numba"`` runs matrix-factored's per-sample, SIMD and lean kernels); the public
+calls are :class:`~exo_bench.models.runtime.prepared.PreparedModel`'s, which run the entries: a method never
+overrides them. Adding a kernel is one module (its code and a ``load``) and one entry in the tuple of
+its method's kernels (docs/add-a-kernel.md).
 """
 
 from __future__ import annotations
 
+import sys
+import threading
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 import numpy as np
-
+from exo_bench.models.machine.memory import CHUNK_BYTES, check_batch, chunks, default_chunk_samples
+from exo_bench.models.mechanism.mechanism import Mechanism
+from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
 from exo_bench.models.runtime import external_forces
-from exo_bench.models.states.array_gate import apart, as_out
-from exo_bench.models.states.array_gate import as_states as gate_states
 from exo_bench.models.runtime.conditioning import (
     CouplingCondition,
     check_conditioning,
     check_finite,
     coupling_condition,
 )
-from exo_bench.models.runtime.derived_terms import cholesky_solve, terms_in_chunks
-from exo_bench.models.runtime.kernels import Entries, Kernel, select
-from exo_bench.models.runtime.kernels import load as load_kernels
-from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.machine.memory import CHUNK_BYTES, check_batch, chunks, default_chunk_samples
-from exo_bench.models.runtime.result_pool import ResultPool
-from exo_bench.models.mechanism.singularity import SingularConfigurationError, singular_reasons
+from exo_bench.models.states.array_gate import apart, as_out
+from exo_bench.models.states.array_gate import as_states as gate_states
 from exo_bench.models.states.states import checked_states, is_one_sample
+
+#: The shapes a kernel takes: one sample given as 1-D arrays, or a batch ``(samples, dof)``.
+ONE_SAMPLE = "one sample"
+BATCH = "batch"
+
+#: numba's own memory on the first call (LLVM, the threading layer): the VmHWM growth of a first
+#: batched call on exo5-3d is 58 MB when the machine code loads from numba's on-disk cache and
+#: 121 MB when it compiles (an empty cache); the larger, rounded up, so that the estimate does not
+#: depend on the state of the cache. Counted once in the setup of a method whose kernels are compiled.
+NUMBA_BYTES = 128 * 2**20
+
+
+@dataclass(slots=True)
+class Entries:
+    """What the kernels of one option supply to a prepared model (None: not supplied, the base
+    class's generic path runs). Arrays are float64, C-ordered; ``out`` is written and returned.
+
+    * ``inverse_fast(q, qd, qdd, out, check) -> int``, ``forward_fast(q, qd, tau, out, check) -> int``: one
+      sample in one compiled call, the public call's first try (models/runtime/prepared.py): given 1-D float64
+      base-class ndarrays (what numba's unboxing trusts, checked by the caller), it checks their layout
+      (``dof`` entries, 8 bytes apart, aligned, ``out`` apart from the inputs) and, with ``check``, the
+      values as ``check=True`` does, then computes into ``out``: 0 when done; any other answer (a code)
+      leaves the call to the checked path, which names the problem. Bound once per model (the kernel's
+      compiled entry point with the model's parameters, ``functools.partial``).
+    * ``inverse_one(q, qd, qdd, out)``, ``forward_one(q, qd, tau, out)``: one sample, 1-D arrays.
+    * ``forward_checked(q, qd, tau) -> qdd``: one validated sample with ``check=True``: the model's
+      ``check_regular`` and ``check_finite`` refusals, the common case decided in compiled code
+      (models/newton_euler/forward_fused.py).
+    * ``inverse_whole(q, qd, qdd, out_or_None)``: any batch, unchunked (O(n) scratch);
+      ``forward_whole(q, qd, tau, out_or_None, check)``: the same, with ``check`` the regularity checks'
+      common case and the answer's finiteness in the same compiled call, None where it does not take a
+      sample (the checked path, ``check_regular`` then ``forward_chunk``, decides and names it).
+    * ``inverse_chunk(q, qd, qdd)``, ``forward_chunk``: a batch of at most ``chunk_samples`` samples.
+    """
+
+    inverse_fast: Callable[..., Any] | None = None
+    forward_fast: Callable[..., Any] | None = None
+    inverse_one: Callable[..., Any] | None = None
+    forward_one: Callable[..., Any] | None = None
+    forward_checked: Callable[..., Any] | None = None
+    inverse_whole: Callable[..., Any] | None = None
+    forward_whole: Callable[..., Any] | None = None
+    inverse_chunk: Callable[..., Any] | None = None
+    forward_chunk: Callable[..., Any] | None = None
+
+    def merged(self, other: Entries) -> Entries:
+        """Both kernels' entries; each entry is supplied by one kernel only."""
+        both = {}
+        for f in fields(self):
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if a is not None and b is not None:
+                raise ValueError(f"two kernels supply the entry {f.name}")
+            both[f.name] = a if a is not None else b
+        return Entries(**both)
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One kernel of a method: what it computes, for which shapes, its cost and its threading."""
+
+    #: Its name, unique among its method's kernels.
+    name: str
+    #: The value of the method's option ``kernel`` that runs it.
+    option: str
+    #: The public calls of :class:`~exo_bench.models.runtime.prepared.PreparedModel` it serves.
+    computes: tuple[str, ...]
+    #: :data:`ONE_SAMPLE`, :data:`BATCH`, or both.
+    shapes: tuple[str, ...]
+    #: How it uses threads.
+    threading: str
+    #: Its cost, in words: which formulas of :mod:`exo_bench.api.cost_formulas` time it, and how.
+    cost: str
+    #: Its per-sample seconds against the method's cost formulas (measured).
+    speed: float = 1.0
+    #: Seconds numba takes to compile it on a machine whose cache is empty (None: not compiled).
+    compile_seconds: float | None = None
+    #: Memory of its runtime, once per process (:data:`NUMBA_BYTES` for numba's).
+    runtime_bytes: int = 0
+    #: ``load(model) -> Entries``: the kernel bound to one prepared model (imports its code).
+    load: Callable[[Any], Entries] | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def compiled(self) -> bool:
+        """Compiled (by numba) on first use, then loaded from the on-disk cache."""
+        return self.compile_seconds is not None
+
+
+def kernel_options(kernels: tuple[Kernel, ...]) -> tuple[str, ...]:
+    """The values of the option ``kernel`` of a method with these kernels, the default first."""
+    return tuple(dict.fromkeys(k.option for k in kernels))
+
+
+def select(method: str, kernels: tuple[Kernel, ...], option: object) -> tuple[Kernel, ...]:
+    """The kernels that ``option`` runs; a ValueError naming the method and the values otherwise."""
+    chosen = tuple(k for k in kernels if isinstance(option, str) and k.option == option)
+    if not chosen:
+        values = ", ".join(map(repr, kernel_options(kernels)))
+        raise ValueError(f"{method}: option 'kernel': expected one of {values}, got {option!r}")
+    return chosen
+
+
+def load(model: Any, kernels: tuple[Kernel, ...]) -> Entries:
+    """The entries of ``kernels`` bound to ``model``."""
+    entries = Entries()
+    for k in kernels:
+        if k.load is not None:
+            entries = entries.merged(k.load(model))
+    return entries
+
+
+def entry_point(dispatcher: Any, *example: Any) -> Any:
+    """The compiled entry point of a numba kernel for the types of ``example`` (loaded from numba's
+    on-disk cache, or compiled), or the dispatcher itself where there is none (``NUMBA_DISABLE_JIT``).
+    Calling it skips numba's type dispatch (about 0.3 us a call), and trusts the types: a caller
+    passes arguments of exactly the example's types (the one-sample entries get C-ordered float64 1-D
+    arrays only, checked before)."""
+    compile_for = getattr(dispatcher, "compile", None)
+    if compile_for is None:
+        return dispatcher
+    import numba
+
+    return compile_for(tuple(numba.typeof(a) for a in example))
+
+
+#: Results kept per pool. Two: a loop holds the previous result during the next call.
+KEEP = 2
+#: Smaller results come from ``np.empty``: glibc's heap recycles those itself (its threshold starts at
+#: 128 KiB and rises to the size of any mapped block freed, up to 32 MiB).
+MIN_BYTES = 1 << 22
+
+
+def _refs(pool: list, i: int) -> int:
+    """The reference count of ``pool[i]`` as seen from here (the list's, plus this call's own)."""
+    return sys.getrefcount(pool[i])
+
+
+def _own_refs() -> int:
+    """:func:`_refs` of an array that only its list refers to: measured, not assumed, since the
+    interpreter's own references differ between versions."""
+    return _refs([np.empty(1)], 0)
+
+
+def _own_bound_refs() -> int:
+    """The reference count :meth:`ResultPool.empties` reads of an array that only its list refers to,
+    bound to a loop variable as there (measured, as :func:`_own_refs`)."""
+    for a in [np.empty(1)]:
+        return sys.getrefcount(a)
+    raise AssertionError
+
+
+#: False where reference counts are deferred (free-threaded builds): then nothing is recycled.
+RECYCLES = bool(getattr(sys, "_is_gil_enabled", lambda: True)())
+_OWN = _own_refs()
+_OWN_BOUND = _own_bound_refs()
+
+
+class ResultPool:
+    """Float64 results of one prepared model: :meth:`empty` is ``np.empty`` that reuses a dropped
+    result of the same shape (module docstring)."""
+
+    def __init__(self, keep: int = KEEP, min_bytes: int = MIN_BYTES):
+        self._keep = keep
+        self._min_bytes = min_bytes
+        self._arrays: list[np.ndarray] = []
+        self._lock = threading.Lock()
+
+    def empty(self, shape: tuple[int, ...]) -> np.ndarray:
+        """An uninitialised C-ordered float64 array of ``shape`` that no one else refers to."""
+        size = 8
+        for d in shape:  # not np.prod (3-15 us a call), nor a generator (a frame per step)
+            size *= int(d)
+        if not RECYCLES or size < self._min_bytes:
+            return np.empty(shape)
+        shape = tuple(int(d) for d in shape)
+        with self._lock:
+            arrays = self._arrays
+            for i in range(len(arrays)):
+                if arrays[i].shape == shape and _refs(arrays, i) == _OWN:
+                    return arrays[i]
+            new = np.empty(shape)
+            self._arrays = [new, *arrays][: self._keep]
+            return new
+
+    def empties(self, shape: tuple[int, ...], count: int) -> list[np.ndarray]:
+        """``count`` arrays of :meth:`empty` at once, distinct, in one Python call (no generator: the
+        derivative calls count the Python functions they run)."""
+        out: list[np.ndarray] = []
+        size = 8
+        for d in shape:  # as empty: not np.prod, nor a generator
+            size *= int(d)
+        if not RECYCLES or size < self._min_bytes:
+            for _ in range(count):
+                out.append(np.empty(shape))
+            return out
+        shape = tuple(map(int, shape))
+        with self._lock:
+            for a in self._arrays:  # a result handed out in this call is referred to by out: never again
+                if len(out) < count and a.shape == shape and sys.getrefcount(a) == _OWN_BOUND:
+                    out.append(a)
+            new = []
+            while len(out) < count:
+                new.append(np.empty(shape))
+                out.append(new[-1])
+            self._arrays = [*new, *self._arrays][: self._keep]
+        return out
+
+    def release(self) -> None:
+        """Drop the kept results (their memory is freed once their callers drop them too)."""
+        with self._lock:
+            self._arrays = []
+
+    def __len__(self) -> int:
+        return len(self._arrays)
+
+
+def terms_from_inverse_dynamics(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray):
+    """``M (S, dof, dof)`` and ``h (S, dof)`` from any inverse dynamics ``(q, qd, qdd) -> tau`` on
+    ``(samples, dof)`` arrays, in ONE batched call.
+
+    Inverse dynamics is linear in ``qdd``: ``ID(q, qd, qdd) = M(q) qdd + h(q, qd)``. Per sample the
+    batch holds ``(q, qd, 0)`` (gives ``h``), ``(q, 0, 0)`` (gravity only) and ``(q, 0, e_k)`` for
+    every coordinate ``k``; then ``M e_k = ID(q, 0, e_k) - ID(q, 0, 0)``. The subtraction costs at
+    most ``eps * |gravity forces| / |M e_k|`` relative, which the tests bound against CRBA.
+    """
+    return terms_in_chunks(inverse_dynamics, dof, q, qd, (q.shape[0] + 1) * (dof + 2))
+
+
+def terms_in_chunks(inverse_dynamics, dof: int, q: np.ndarray, qd: np.ndarray, chunk_samples: int):
+    """:func:`terms_from_inverse_dynamics` over the rows of ``q, qd`` in chunks of fewer samples, so that
+    their ``dof + 2`` inverse-dynamics rows per sample keep the working set of ``chunk_samples`` rows
+    (one call where the batch fits)."""
+    size, S, k = max(1, chunk_samples // (dof + 2)), q.shape[0], dof + 2
+    M, h = np.empty((S, dof, dof)), np.empty((S, dof))
+    for s0 in range(0, S, size):  # one batched call per chunk (no helper: one frame, issue 47)
+        c = slice(s0, min(S, s0 + size))
+        qc, n = q[c], min(S, s0 + size) - s0
+        Q = np.repeat(qc, k, axis=0)  # (n*k, d): each sample's q, k times
+        QD = np.zeros_like(Q)
+        QD[::k] = qd[c]  # first row of each block: the real rates
+        QDD = np.zeros_like(Q)
+        rows = np.arange(n)[:, None] * k + 2 + np.arange(dof)[None, :]
+        QDD[rows.ravel(), np.tile(np.arange(dof), n)] = 1.0
+        tau = inverse_dynamics(Q, QD, QDD).reshape(n, k, dof)
+        h[c] = tau[:, 0]
+        M[c] = np.swapaxes(tau[:, 2:] - tau[:, 1:2], 1, 2)  # column k of M is ID(q, 0, e_k) - ID(q, 0, 0)
+    return M, h
+
+
+def cholesky_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``M^-1 b`` for symmetric positive definite batches ``(S, d, d)``, ``(S, d)``: Cholesky of
+    ``M`` equilibrated by ``D = diag(M)`` (units and coordinate scales drop out), then two
+    triangular solves. A matrix that is not positive definite in floating point raises
+    :class:`SingularConfigurationError` with its sample (never NaN)."""
+    dg = np.diagonal(M, axis1=1, axis2=2)
+    bad = ~(dg > 0).all(axis=1)
+    if bad.any():
+        s = int(np.argmax(bad))
+        c = int(np.argmin(dg[s]))
+        raise SingularConfigurationError(
+            [
+                f"sample {s}: M is numerically singular: its diagonal entry {c + 1} is "
+                f"{float(dg[s, c])!r} (a rod within rounding of vertical or of length zero)"
+            ]
+        )
+    r = 1.0 / np.sqrt(dg)
+    try:
+        L = np.linalg.cholesky(M * r[:, :, None] * r[:, None, :])
+    except np.linalg.LinAlgError:
+        raise SingularConfigurationError(
+            [
+                "M is not positive definite in floating point (numerically singular: "
+                "a rod nearly vertical or nearly of length zero)"
+            ]
+        ) from None
+    y = np.linalg.solve(L, (r * b)[..., None])
+    return r * np.linalg.solve(np.swapaxes(L, 1, 2), y)[..., 0]
+
 
 __all__ = ["PreparedModel", "MissingExtra"]
 
@@ -122,7 +434,7 @@ class PreparedModel:
     #: Why its results are known to be wrong (None: they are not), in one line; its MethodSpec lists the
     #: same line (exo_bench.api.methods), and its :attr:`derivatives` are then those of the correct equations.
     known_wrong: ClassVar[str | None] = None
-    #: The entries of the chosen kernels (:class:`~exo_bench.models.runtime.kernels.Entries`, bound by
+    #: The entries of the chosen kernels (:class:`~exo_bench.models.runtime.prepared.Entries`, bound by
     #: :meth:`_use_kernels`; each None where none supplies it): what the calls below run. Set on the
     #: instance only: a class-level default (an instance of a mutable class) kept Python 3.11 from
     #: specialising ``self._entries`` in the calls, about 65 ns of a 0.45 us one-sample call.
@@ -146,7 +458,7 @@ class PreparedModel:
         self._options = dict(options)
         self._dof = mechanism.dof
         self._chunk = default_chunk_samples(mechanism.dof, self.sample_bytes(mechanism.nlinks, mechanism.dim))
-        self._results = ResultPool()  # new batched results, recycled once dropped (models/runtime/result_pool.py)
+        self._results = ResultPool()  # new batched results, recycled once dropped (models/runtime/prepared.py)
         self._entries = Entries()  # no kernel's entries until _use_kernels
 
     # ------------------------------------------------------------------ what it is
@@ -186,7 +498,7 @@ class PreparedModel:
         :mod:`exo_bench.matrix_method.derivatives`), their ``source`` from this class's facts
         (:attr:`derivatives_are_its_own`, :attr:`known_wrong`)."""
         if getattr(self, "_derivatives", None) is None:
-            from exo_bench.models.derivatives.derivatives import Derivatives, source_text
+            from exo_bench.models.derivatives import Derivatives, source_text
 
             cls = type(self)
             source = source_text(self.method, cls.derivatives_are_its_own, cls.known_wrong is not None)
@@ -196,10 +508,10 @@ class PreparedModel:
     # ------------------------------------------------------------------ kernels
     def _use_kernels(self, option: object) -> str:
         """Run the kernels of the option ``kernel`` (``option``; a ValueError naming the values
-        otherwise): their entries (:class:`~exo_bench.models.runtime.kernels.Entries`), bound to this model, are
+        otherwise): their entries (:class:`~exo_bench.models.runtime.prepared.Entries`), bound to this model, are
         what the calls below run. Called by a method with kernels once its arguments are prepared."""
         chosen = select(self.method, self.kernels, option)
-        self._entries = load_kernels(self, chosen)
+        self._entries = load(self, chosen)
         self.kernel = self._options["kernel"] = chosen[0].option
         return self.kernel
 
@@ -278,7 +590,7 @@ class PreparedModel:
         C-ordered float64 ndarray of the result's shape, written and returned (a loop of calls then
         allocates nothing: the compiled kernels write into it directly). Without ``out``, a result of
         4 MiB or more reuses the memory of one this model returned before, once nothing refers to that
-        one any more (:mod:`exo_bench.models.runtime.result_pool`: at most two stay allocated after the caller
+        one any more (:mod:`exo_bench.models.runtime.prepared`: at most two stay allocated after the caller
         dropped them). ``f_ext``: forces at the point masses, ``(samples, links, 3, dim)`` or ``(links, 3,
         dim)`` (:mod:`exo_bench.models.runtime.external_forces`): ``tau = ID - Q(q, f_ext)``."""
         # one sample: the kernel's compiled entry checks the rest (layout, values) and answers 0 when done
@@ -478,9 +790,12 @@ class PreparedModel:
     def _external_forces(self, q: np.ndarray, f: np.ndarray) -> np.ndarray:
         """``Q = sum_k J_k^T f_k``, ``(S, dof)``, of forces ``f`` ``(S, links, 3, dim)`` at the point masses
         (:mod:`exo_bench.models.runtime.external_forces`); an engine overrides it with its own."""
-        from exo_bench.models.runtime.external_forces_compiled import bound  # the parameters, bound once on the model
+        from exo_bench.models.runtime.external_forces import (  # the parameters, bound once on the model
+            bound,
+            generalized_forces_compiled,
+        )
 
-        return external_forces.generalized_forces_compiled(self._mechanism, q, f, bound(self).params)
+        return generalized_forces_compiled(self._mechanism, q, f, bound(self).params)
 
     def _forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         if (chunk := self._entries.forward_chunk) is not None:

@@ -4,8 +4,24 @@
 Validation is one compiled pass (models/states/validation_pass.py). C-ordered float64 ndarrays, the arrays
 a controller or an ODE right-hand side passes, go straight to it: a few attribute tests, one call of
 compiled code, no copy, no name built. Anything else (lists, DataFrames, masked arrays, other dtypes
-or layouts) is converted at the edge first (models/states/state_conversion.py). Only on a problem does
-Python build the message, naming the array, the sample, the coordinate and the link."""
+or layouts) is converted at the edge first (models/states/array_gate.py). Only on a problem does
+Python build the message, naming the array, the sample, the coordinate and the link.
+
+**The form of the equations of motion**, eq. (5) (2D) and eq. (17) (3D), defined once (the block order
+of the states is the order of its blocks).
+
+Row ``i`` of block ``k`` (``k`` in :func:`blocks`) reads::
+
+    sum_j ( A phi''_j + B psi''_j + Lambda l''_j
+          + D phi'_j^2 + E psi'_j^2 + 2 G phi'_j psi'_j + 2 H phi'_j l'_j + 2 K psi'_j l'_j ) + g P_i
+    = M_k,i  (k = phi, psi)   or   F_i  (k = l)
+
+with every matrix of that block (``A`` meaning ``A_k`` and so on). :data:`RATES` says which rates
+each matrix multiplies and with which factor; :data:`ACCELERATION` which matrix multiplies the
+second derivatives of each block (the columns of the mass matrix). Every implementation that
+forms, reads or prints the matrices (numeric, symbolic, Lagrange's extraction, the LaTeX export)
+takes the order and the factors from here.
+"""
 
 from __future__ import annotations
 
@@ -13,19 +29,50 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from exo_bench.models.states.array_gate import converted
+from exo_bench.models.states.validation import MAX_FORCE_SCALE, _where, force_scale_base, force_scale_log10
 
 if TYPE_CHECKING:
     from exo_bench.models.mechanism.mechanism import Mechanism
 
-from exo_bench.models.states import equation_form
-from exo_bench.models.states.state_conversion import converted
-from exo_bench.models.states.validation import MAX_FORCE_SCALE, _where, force_scale_base, force_scale_log10
+
+#: matrix name -> (factor, coordinate blocks whose rates it multiplies). One block: second
+#: derivatives of that block; two blocks: the product of their first derivatives.
+RATES: dict[str, tuple[float, tuple[str, ...]]] = {
+    "A": (1.0, ("phi",)),
+    "B": (1.0, ("psi",)),
+    "Lambda": (1.0, ("l",)),
+    "D": (1.0, ("phi", "phi")),
+    "E": (1.0, ("psi", "psi")),
+    "G": (2.0, ("phi", "psi")),
+    "H": (2.0, ("phi", "l")),
+    "K": (2.0, ("psi", "l")),
+}
+
+#: The matrices of eq. (5) (2D) and eq. (17) (3D), in the paper's order; ``P`` is the gravity vector.
+PLANAR_NAMES = ("A", "Lambda", "D", "H")
+SPATIAL_NAMES = ("A", "B", "Lambda", "D", "E", "G", "H", "K")
+
+#: coordinate block -> the matrix multiplying its second derivatives (a column block of M).
+ACCELERATION = {"phi": "A", "psi": "B", "l": "Lambda"}
+
+
+def blocks(dim: int) -> tuple[str, ...]:
+    """The coordinate blocks in the order of ``q``: ``phi, l`` in 2D, ``phi, psi, l`` in 3D."""
+    if dim not in (2, 3):
+        raise ValueError(f"dim: expected 2 or 3, got {dim!r}")
+    return ("phi", "psi", "l") if dim == 3 else ("phi", "l")
+
+
+def matrix_names(dim: int) -> tuple[str, ...]:
+    """The matrices of one block of eq. (5) (2D) or eq. (17) (3D), ``P`` excluded."""
+    return SPATIAL_NAMES if dim == 3 else PLANAR_NAMES
 
 
 def coordinate_names(mech: Mechanism) -> list[str]:
     """Labels in block order: ``phi1..phin, psi1..psin, l1..ln`` (no psi in 2D)."""
     k = range(1, mech.nlinks + 1)
-    return [f"{b}{i}" for b in equation_form.blocks(mech.dim) for i in k]
+    return [f"{b}{i}" for b in blocks(mech.dim) for i in k]
 
 
 def force_names(mech: Mechanism) -> list[str]:
@@ -44,7 +91,7 @@ def split(mech: Mechanism, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None
 
 
 #: The old check ran this many rows at a time; the compiled pass needs no scratch memory at all. Kept
-#: for the code that imports the name (models/mechanism/mechanism.py re-exports it).
+#: for the code that imports the name.
 CHECK_ROWS = 65536
 
 LABELS = ("q", "qd", "qdd")
@@ -155,7 +202,7 @@ def as_states(mech: Mechanism, q: Any, qd: Any = None, qdd: Any = None, source: 
 
 
 def _at_the_edge(mech: Mechanism, chk: StateCheck, arrays: tuple, source: str) -> tuple:
-    """Convert each array (models/states/state_conversion.py), then check them all with the compiled pass;
+    """Convert each array (models/states/array_gate.py), then check them all with the compiled pass;
     the messages come in the order the arrays are read: an array's non-finite entry is named before
     a later array's wrong form, and both before unequal sample counts and lengths."""
     from exo_bench.models.states.validation_pass import NONFINITE, OK, verdict

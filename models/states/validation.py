@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from exo_bench.models.files.names import check_name
+from exo_bench.models.files import check_name
 
 if TYPE_CHECKING:
     from exo_bench.models.mechanism.mechanism import Mechanism
@@ -98,7 +98,7 @@ def force_scale_log10(mech: Mechanism, length: float = 1.0, rate: float = 1.0, a
 
 def validate(m: Mechanism) -> None:
     """Check every field once; messages name the link, the field, expected and actual. The
-    mechanism's own name first (:func:`exo_bench.models.files.names.check_name`): every message starts
+    mechanism's own name first (:func:`exo_bench.models.files.check_name`): every message starts
     with it."""
     check_name(m.name, "mechanism: field 'name'")
     if m.dim not in (2, 3) or isinstance(m.dim, bool):
@@ -117,7 +117,7 @@ def validate(m: Mechanism) -> None:
             )
     for i in range(n):
         where = f"{m.name}: {_where(i, m.names[i])}"
-        check_name(m.names[i], f"{where}: field 'name'")  # models/files/names.py: what every name may hold
+        check_name(m.names[i], f"{where}: field 'name'")  # models/files.py: what every name may hold
         p = m.parent[i]
         if not isinstance(p, (int, np.integer)) or isinstance(p, bool) or not (-1 <= p < i):
             if i == 0:

@@ -20,7 +20,7 @@ from matplotlib.lines import Line2D
 from exo_bench.bench.output.figures.palette import LINK_COLORS, TEXT_PT, TITLE_PT, link_color, method_color
 from exo_bench.models.engines.joint_coordinates import force_labels, joint_basis, moments_and_forces
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.mechanism.joint_loads import moment_components, net_joint_loads
+from exo_bench.models.mechanism.kinematics import moment_components, net_joint_loads
 
 
 if TYPE_CHECKING:
@@ -366,7 +366,7 @@ def moments_figure(study: Study, ratio: float | None = None) -> Figure:
     labels = joint_labels(study)
     mech = study.mechanism
     notes = [
-        f"per kg of the model's {mech.total_mass:.4g} kg; from the motion's point masses (models/mechanism/joint_loads.py), "
+        f"per kg of the model's {mech.total_mass:.4g} kg; from the motion's point masses (models/mechanism/kinematics.py), "
         "the numbers of the scene report's Plausibility table; the methods' differences: the differences figure"
     ] + (["not run: " + _not_run_line(study)] if _not_run_line(study) else [])
     notes = _wrap_notes(notes + nonfinite_notes(study))

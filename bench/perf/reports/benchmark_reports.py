@@ -29,7 +29,7 @@ from pathlib import Path
 from exo_bench.bench.studies.options import BenchOptions
 
 from exo_bench.bench.output.provenance import REPO
-from exo_bench.models.files.atomic_files import atomic_write
+from exo_bench.models.files import atomic_write
 
 # The reports, one module each.
 from exo_bench.bench.perf.reports.error_vs_runtime import error_vs_runtime

@@ -264,7 +264,7 @@ def _plot(d: pd.DataFrame, png: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     from exo_bench.bench.output.files import quick_name
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
     from exo_bench.bench.perf.reports.loading import load
 
     p = argparse.ArgumentParser(description="write derivatives.md and .png from bench/test_derivatives.py's JSON")

@@ -438,7 +438,7 @@ def main(argv=None) -> int:
     )
     r = measure(a.samples, a.rounds, a.calls, clock=a.clock)
     if a.json:
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(a.json, json.dumps(r, indent=1))
     print("\n".join(goals_lines(r, command)))

@@ -43,7 +43,7 @@ def rewrite_highlights(update: Callable[[str], str]) -> Path | None:
     changed; the page's path if it did, else None. Nothing happens where there is no such page (an
     installed package)."""
     from exo_bench.bench.output.provenance import REPO
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     path = REPO / HIGHLIGHTS
     if not path.exists():

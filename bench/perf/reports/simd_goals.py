@@ -390,13 +390,13 @@ def main(argv=None) -> int:
     command = " ".join(["python -m exo_bench.bench.perf.reports.simd_goals", *(sys.argv[1:] if argv is None else argv)])
     r = measure(a.samples, a.rounds)
     if a.json:
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(a.json, json.dumps(r, indent=1))  # the one writer: never through a link
     print("\n".join(goals_lines(r)))
     if a.markdown:
         from exo_bench.bench.output.provenance import provenance
-        from exo_bench.models.files.atomic_files import atomic_write
+        from exo_bench.models.files import atomic_write
 
         atomic_write(
             a.markdown,

@@ -26,6 +26,7 @@ from exo_bench.bench.studies.stability.cases import (
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.singularity import singular_reasons
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.runtime.prepared import PreparedModel
@@ -175,7 +176,7 @@ def evaluate_case(
         rows[m] = row
     M = models(mech, "pinocchio").mass_matrix(case.q)
     raw, eq = fd.condition_numbers(M)
-    reasons = fd.singular_reasons(mech, case.q)
+    reasons = singular_reasons(mech, case.q)
     flat = [f"sample {s}: {r}" for s, rs in enumerate(reasons) for r in rs]
     return CaseResult(
         case,

@@ -26,6 +26,8 @@ from exo_bench.bench.studies.stability.forward_cases import (
 from exo_bench.bench.studies.study import UnusableMethodWarning
 from exo_bench.bench.studies.study import one_line
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.simulation.forward_dynamics import Simulation, simulate
+from exo_bench.models.mechanism.singularity import SingularConfigurationError
 from exo_bench.models.mechanism.presets import exo5
 from exo_bench.bench.studies.stability.forward_round_trip import RoundTrip, round_trip, round_trip_run, variational
 from exo_bench.models.mechanism.aggregates import coupling
@@ -51,7 +53,7 @@ def energy_gradient(case: SpringCase, y: np.ndarray, h: float = 1e-6) -> np.ndar
     return (E[:, :m] - E[:, m:]) / (2 * steps)
 
 
-def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
+def energy_bound(case: SpringCase, sim: Simulation) -> float:
     """First-order bound on ``|E(t) - E(0)|`` from the tolerance.
 
     It is ``sum_k |dE/dy(y_k)| . sqrt(m) (atol + rtol max(|y_k-1|, |y_k|))``. The exact flow conserves E, so ``E(y_k) - E(y_k-1) = E(y_k)
@@ -67,10 +69,10 @@ def energy_bound(case: SpringCase, sim: fd.Simulation) -> float:
 
 def _simulate_spring(
     case: SpringCase, integrator: str, rtol: float, method: str, models: PreparedSet | None, **budget
-) -> fd.Simulation:  # budget: max_evaluations, max_seconds (and jacobian)
+) -> Simulation:  # budget: max_evaluations, max_seconds (and jacobian)
     """A spring case integrated from its initial state over its horizon with ``method``'s ``M`` and
     ``h`` (atol = ``ATOL_FACTOR`` rtol); ``budget``: ``max_evaluations``, ``max_seconds``."""
-    return fd.simulate(
+    return simulate(
         _models(models)(case.mechanism, method),
         case.q0,
         case.qd0,
@@ -88,7 +90,7 @@ class EnergyRun:
     case: str
     integrator: str
     rtol: float
-    sim: fd.Simulation
+    sim: Simulation
     drift: float = math.nan  # max_k |E(t_k) - E(0)|, J
     scale: float = math.nan  # max kinetic energy reached, J
     bound: float = math.nan
@@ -123,7 +125,7 @@ class StiffRun:
     case: str
     integrator: str
     rtol: float
-    sim: fd.Simulation
+    sim: Simulation
     stiffness: float  # fastest rod rate sqrt(k / mu_ii), 1/s
     cond: float = math.nan  # cond(M) at the initial state
     error: float = math.nan  # |q(H) - q_ref(H)|, against a tight Radau run
@@ -260,7 +262,7 @@ def singular_demos(models: PreparedSet | None = None) -> list[SingularDemo]:
         try:
             fd.accelerations(model, a, b, tau)
             fwd = "accepted (NOT detected)"
-        except fd.SingularConfigurationError as e:
+        except SingularConfigurationError as e:
             fwd = f"refused: {e.reasons[0]}"
         out.append(SingularDemo(label, inv, fwd))
     return out
@@ -281,7 +283,7 @@ class ForwardResults:
     cases: dict[str, str]  # name -> description
     seconds: float = 0.0
     stiff_notes: list[str] = field(default_factory=list)
-    # the implicit integrators with the analytic Jacobian (models.forward_dynamics.make_jacobian): the
+    # the implicit integrators with the analytic Jacobian (models.simulation.simulate.make_jacobian): the
     # work-precision round trip and the stiff work-precision case again (bench/studies/stability/forward_report.py)
     analytic_trips: list[RoundTrip] = field(default_factory=list)
     analytic_stiff: list[StiffRun] = field(default_factory=list)
@@ -415,7 +417,7 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
                         m,
                         "DOP853",
                         profile.method_rtol,
-                        fd.Simulation(
+                        Simulation(
                             "DOP853",
                             profile.method_rtol,
                             0.0,
@@ -437,9 +439,9 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     try:
         g = gait(e3, np.array([0.0]))
         e3_model = models(e3, "pinocchio")
-        fd.simulate(e3_model, g.q, g.qd, (0.0, 0.1), fd.prescribed_controls(e3_model, lambda t: gait(e3, t)))
+        simulate(e3_model, g.q, g.qd, (0.0, 0.1), fd.prescribed_controls(e3_model, lambda t: gait(e3, t)))
         refused.append(("exo5-3d gait of eq. (26)", "accepted (NOT detected)"))
-    except fd.SingularConfigurationError as e:
+    except SingularConfigurationError as e:
         refused.append(("exo5-3d gait of eq. (26)", str(e)))
     log("forward dynamics: conservative case")
     springs = [c for c in conservative_cases() if not profile.energy_cases or c.name in profile.energy_cases]
@@ -456,7 +458,7 @@ def run_forward(profile, methods: list[str], log=print, models: PreparedSet | No
     secs = profile.stiff_seconds
     for c in variants:
         r_ref = profile.stiff_reference_rtol
-        ref = fd.simulate(
+        ref = simulate(
             models(c.mechanism, "pinocchio"),
             c.q0,
             c.qd0,

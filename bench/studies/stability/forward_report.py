@@ -17,7 +17,7 @@ from exo_bench.models.simulation import forward_dynamics as fd
 # differences, the report section.
 
 if TYPE_CHECKING:
-    from exo_bench.models.simulation.simulate import Simulation
+    from exo_bench.models.simulation.forward_dynamics import Simulation
 
 
 @dataclass
@@ -125,11 +125,11 @@ def jacobian_markdown(res: ForwardResults) -> list[str]:
         "",
         "Radau and BDF need df/dy of f = [qd, qdd]. scipy estimates it by finite differences of the vectorised "
         "right-hand side (2 dof columns per Jacobian, counted in RHS evals); the analytic Jacobian "
-        "(`models.forward_dynamics.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
+        "(`models.simulation.simulate.make_jacobian`) is [[0, I], [dqdd/dq + M^-1 dtau/dq, dqdd/dqd + M^-1 dtau/dqd]] "
         "from `model.derivatives` (the analytic derivatives of the Newton-Euler passes with the implicit-function "
-        "theorem, `models/derivatives/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
+        "theorem, `models/derivatives.py`; the equations of motion are unique, so they are the derivatives of "
         "Pinocchio's M and h too) and the controls' own derivatives, and costs no RHS evaluation, so it is "
-        "re-evaluated after every accepted step (`models/simulation/implicit_integrators.py`; scipy's own rule, made for "
+        "re-evaluated after every accepted step (`models/simulation/forward_dynamics.py`; scipy's own rule, made for "
         "finite differences, holds a Jacobian until Newton converges slowly or fails, and an older Jacobian costs "
         "Newton iterations, at tight tolerances more than the finite-difference Jacobians cost). Same case, "
         "integrator, rtol and atol; the error of the round trip is against the prescribed motion, that of the "

@@ -15,6 +15,7 @@ import numpy as np
 from exo_bench.api import PreparedSet
 from exo_bench.bench.studies.stability.forward_cases import ATOL_FACTOR, EPS, RoundTripCase, TIGHTER, _models, _state0
 from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.simulation.forward_dynamics import Simulation, make_rhs, simulate
 from exo_bench.models.mechanism.mechanism import Mechanism
 
 
@@ -60,7 +61,7 @@ def variational(
 
     d = mech.dof
     m = 2 * d
-    rhs, _ = fd.make_rhs(_models(models)(mech, method), controls)
+    rhs, _ = make_rhs(_models(models)(mech, method), controls)
     y0 = np.concatenate([np.asarray(q0, float).ravel(), np.asarray(qd0, float).ravel()])
     Z0 = y0[:, None] + delta * np.hstack([np.zeros((m, 1)), np.eye(m)])
     sol = solve_ivp(
@@ -77,7 +78,7 @@ def variational(
     return Variational(d, delta, sol.sol, horizon)
 
 
-def a_priori_bound(var: Variational, sim: fd.Simulation, checkpoints: int = 12) -> float:
+def a_priori_bound(var: Variational, sim: Simulation, checkpoints: int = 12) -> float:
     """First-order worst case of the global error in q, ``max_j sum_{k<=j} |Phi(t_j) Phi(t_k)^-1|_q
     sqrt(m) (atol + rtol max(|y_k-1|, |y_k|))``: every accepted step's local error passes scipy's RMS
     test, so each component is below ``sqrt(m)`` times its scale, and is propagated by the
@@ -103,7 +104,7 @@ class RoundTrip:
     method: str
     integrator: str
     rtol: float
-    sim: fd.Simulation
+    sim: Simulation
     error: float = math.nan  # max over accepted steps of |q - q*| (rad or m)
     estimate: float = math.nan  # E: max |q_rtol - q_tighter| at the same times
     floor: float = math.nan  # F: round-off floor
@@ -138,7 +139,7 @@ def round_trip_run(
     controls: fd.Controls | None = None,
     models: PreparedSet | None = None,
     jacobian: str = "finite-difference",
-) -> fd.Simulation:
+) -> Simulation:
     """One integration of the round trip (dense output, so that it can serve as the tighter run
     of another): the forward dynamics of ``method`` driven by ``control_method``'s inverse
     dynamics along the case's motion (or by ``controls`` when given), from the motion's initial
@@ -147,7 +148,7 @@ def round_trip_run(
     models = _models(models)
     ctrl = controls or fd.prescribed_controls(models(mech, control_method), case.motion_of_t)
     q0, qd0 = _state0(case.motion_of_t(np.array([0.0])))
-    return fd.simulate(
+    return simulate(
         models(mech, method),
         q0,
         qd0,
@@ -169,8 +170,8 @@ def round_trip(
     method: str = "pinocchio",
     control_method: str = "pinocchio",
     var: Variational | None = None,
-    sim: fd.Simulation | None = None,
-    tighter: fd.Simulation | None = None,
+    sim: Simulation | None = None,
+    tighter: Simulation | None = None,
     estimate: bool = True,
     max_seconds: float | None = None,
     controls: fd.Controls | None = None,

@@ -32,7 +32,7 @@ from exo_bench.bench.studies.stability.evaluation import FamilyResult, MethodRow
 from exo_bench.bench.studies.stability.figures import conditioning_figure, families_figure, forward_figures
 from exo_bench.bench.studies.study import StabilityWarning
 from exo_bench.models.runtime import conditioning as cond
-from exo_bench.models.simulation import forward_dynamics as fd
+from exo_bench.models.mechanism.singularity import COS_VERTICAL
 from exo_bench.models.mechanism.aggregates import coupling
 from exo_bench.models.newton_euler.chart_free import RoundTrip, gait_round_trip
 
@@ -80,8 +80,8 @@ def thresholds_markdown(families: list[FamilyResult] | None = None, tightest_rto
             f"- **Forward dynamics numerically singular**: cond(M) at or above **{COND_SINGULAR:.0e}**: "
             f"cond * eps = {COND_SINGULAR * eps:.1e}, fewer than four correct digits in qdd.",
             "- **Forward dynamics singular**: an exact cause, found without thresholds on a condition number "
-            "(`models.forward_dynamics.singular_reasons`): a rod of length 0, a vertical rod (|cos psi| <= "
-            f"{fd.COS_VERTICAL:.0e}, i.e. within a few ulp of pi/2: the float nearest pi/2 has cos = 6.1e-17), or a "
+            "(`models.mechanism.singularity.singular_reasons`): a rod of length 0, a vertical rod (|cos psi| <= "
+            f"{COS_VERTICAL:.0e}, i.e. within a few ulp of pi/2: the float nearest pi/2 has cos = 6.1e-17), or a "
             "link whose coordinates move no mass. Inverse dynamics is still defined there; forward dynamics is not, "
             "and `models.forward_dynamics.accelerations` raises `SingularConfigurationError` naming the link.",
             "- **Forward dynamics refuses** by one conditioning test shared by every method, not by the SI-unit "
@@ -316,7 +316,7 @@ def run(options: StabilityOptions) -> int:
     from exo_bench.bench.studies.stability.forward_evaluation import run_forward
     from exo_bench.api import method_names
     from exo_bench.bench.output.provenance import save_figure
-    from exo_bench.models.files.atomic_files import atomic_write
+    from exo_bench.models.files import atomic_write
 
     profile = FULL if options.full else QUICK
     out = options.folder

@@ -10,7 +10,7 @@ mechanism it was solved for, with its digest: :func:`load` reuses it only for an
 (:mod:`exo_bench.bench.studies.step.identity`).
 
 :func:`violations` re-evaluates every constraint from the stored arrays with numpy and the project's own
-kinematics (:mod:`exo_bench.models.mechanism.kinematics`) and joint loads (:mod:`exo_bench.models.mechanism.joint_loads`): nothing of the
+kinematics (:mod:`exo_bench.models.mechanism.kinematics`) and joint loads (:mod:`exo_bench.models.mechanism.kinematics`): nothing of the
 optimiser is reused, so a wrong store or a wrong CasADi model shows up there.
 
 :func:`walking_motion` is one or more steps as a motion for a scene: each step after the first is the
@@ -29,11 +29,11 @@ import numpy as np
 
 from exo_bench.bench.studies.step import identity
 from exo_bench.bench.studies.step.problem import DEG, StepSettings, angle_rows, swap_matrix  # noqa: F401
-from exo_bench.models.mechanism.joint_loads import net_joint_loads
+from exo_bench.models.mechanism.kinematics import net_joint_loads
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.motion import Motion
-from exo_bench.models.files.names import check_name, file_stem
+from exo_bench.models.files import check_name, file_stem
 
 DATA = Path(__file__).resolve().parent / "data"
 #: IPOPT's ``tol`` the stored steps are solved with (their ``settings.tol``), and so re-solved with by
@@ -105,8 +105,8 @@ class WalkingMotion(Motion):
 def path_of(name: str, folder: Path | None = None) -> Path:
     """Where the step of the mechanism named ``name`` is stored: ``<folder>/<file_stem(name)>-step.npz``,
     ``folder`` the package's data folder by default. The name is a key, never a path: it goes through
-    :func:`exo_bench.models.files.names.file_stem` (no separator, no ``..``, no leading dot), so the file is
-    always inside ``folder``; a name that is not an acceptable name (:func:`exo_bench.models.files.names.check_name`:
+    :func:`exo_bench.models.files.file_stem` (no separator, no ``..``, no leading dot), so the file is
+    always inside ``folder``; a name that is not an acceptable name (:func:`exo_bench.models.files.check_name`:
     NUL and other control characters, ...) is refused."""
     check_name(name, "step: field 'mechanism.name'")
     folder = DATA if folder is None else Path(folder)

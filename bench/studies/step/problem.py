@@ -5,7 +5,7 @@ is the stance ankle, actuated like every other joint, and every rod is actuated 
 system is therefore fully actuated: every trajectory is dynamically possible, and the loads along it are
 its inverse dynamics. The optimiser chooses the trajectory; the loads are ``tau = ID(q, qd, qdd)`` from the
 equations' CasADi export (:func:`exo_bench.bench.studies.step.transcription.inverse_dynamics_function`) and the net joint loads
-of :mod:`exo_bench.models.mechanism.joint_loads` (:func:`exo_bench.bench.studies.step.transcription.net_loads_function`). Like OpenSim Moco's
+of :mod:`exo_bench.models.mechanism.kinematics` (:func:`exo_bench.bench.studies.step.transcription.net_loads_function`). Like OpenSim Moco's
 example2DWalking, opty's gait2d and Ackermann & van den Bogert (2010), it solves for one step with
 left/right swap periodicity, a prescribed average speed and an effort objective.
 

@@ -16,7 +16,7 @@ import numpy as np
 from exo_bench.bench.studies.plausibility import ROLES, Plausibility, bullets, plausibility, tables
 from exo_bench.bench.studies.step import data
 from exo_bench.bench.studies.study import Study
-from exo_bench.models.mechanism.joint_loads import net_joint_loads, point_mass_accelerations
+from exo_bench.models.mechanism.kinematics import net_joint_loads, point_mass_accelerations
 from exo_bench.models.gait.normative import SHORT_SOURCE, SOURCE, WINTER, G as WINTER_G
 
 #: A peak within this factor of Winter's, either way, is "comparable".
@@ -115,7 +115,7 @@ def _joint_reason(al: _Along, k: int, name: str, ratio: float) -> str:
 
 def _rod_reason(al: _Along, k: int, name: str, ratio: float) -> str:
     s = int(np.argmax(al.Fn[:, k]))
-    from exo_bench.models.mechanism.joint_loads import subtree
+    from exo_bench.models.mechanism.kinematics import subtree
 
     links = list(subtree(al.mech, k))
     acc = float(al.A[s, links].max())
@@ -185,7 +185,7 @@ def _settings_lines(st: data.StoredStep) -> list[str]:
         f"- **objective** (per second, Simpson): {s.w_moment:g} × Σ_joints |net joint moment|² in (N·m/kg)² + "
         f"{s.w_force:g} × Σ_rods (rod force / BW)² + {s.w_accel:g} × Σ qdd² (regulariser); the loads are the "
         "inverse dynamics of the equations' CasADi export (matrix_method/export/casadi_functions.py) and the net joint "
-        "loads of models/mechanism/joint_loads.py in CasADi (bench/studies/step/transcription.py)",
+        "loads of models/mechanism/kinematics.py in CasADi (bench/studies/step/transcription.py)",
     ]
 
 
@@ -221,7 +221,7 @@ def markdown(scene, study: Study) -> str:
         f"largest constraint violation as CasADi evaluates it {sv.get('constraint_violation', float('nan')):.1e}.",
         "",
         "**Every constraint re-evaluated** in numpy from the stored arrays with models/mechanism/kinematics.py and "
-        "models/mechanism/joint_loads.py (largest violation; 0 = met with margin):",
+        "models/mechanism/kinematics.py (largest violation; 0 = met with margin):",
         "",
         "| constraint | largest violation |",
         "|---|---|",
@@ -260,7 +260,7 @@ def markdown(scene, study: Study) -> str:
         "## Plausibility: the loads beside level walking",
         "",
         f"Peak net joint moments (the moment the parent side exerts on everything beyond the joint, about the joint; "
-        f"`models/mechanism/joint_loads.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
+        f"`models/mechanism/kinematics.py`) per kg of the model's {p.body_mass:.4g} kg, and peak rod forces ({p.reference}) "
         f"in body weights (BW = {p.weight:.0f} N), beside the normative peak of the joint each plays in level "
         f"walking ({SHORT_SOURCE}). `comparable?` says yes within a factor of {FACTOR:g} either way, and otherwise "
         "gives the reason computed from the step.",

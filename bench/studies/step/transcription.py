@@ -386,8 +386,8 @@ def _cross(a, b):
 
 def net_loads_function(mech: Mechanism) -> ca.Function:
     """``(M, F) = L(q, qd, qdd)``: the net joint moment and force at the start of every link, exerted by
-    the parent side on the link's subtree (:mod:`exo_bench.models.mechanism.joint_loads`)."""
-    from exo_bench.models.mechanism.joint_loads import subtree
+    the parent side on the link's subtree (:mod:`exo_bench.models.mechanism.kinematics`)."""
+    from exo_bench.models.mechanism.kinematics import subtree
 
     q, qd, qdd = (ca.SX.sym(s, mech.dof) for s in ("q", "qd", "qdd"))
     p, _, a = _kinematics(mech, q, qd, qdd)

@@ -2,7 +2,7 @@
 actuator must deliver over a stride (:func:`sizing`, the report's actuator-sizing table).
 
 The 2D human's angles are absolute (:func:`exo_bench.models.mechanism.presets.human`), so a joint moment ``tau_j``
-between a link and its reference (:func:`exo_bench.models.simulation.posture.joints`: hips against HAT, knees,
+between a link and its reference (:func:`exo_bench.models.simulation.contact.joints`: hips against HAT, knees,
 ankles, arches) enters the generalised forces as ``+tau_j`` on the link's angle and ``-tau_j`` on the
 reference's: ``Q_angles = A tau_joints + r``. Solved from the leaves up (heel, foot, leg, thigh), every
 joint moment is one of the angle rows; what the joints cannot supply is the residual ``r``: HAT's
@@ -25,7 +25,7 @@ import numpy as np
 
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.simulation.posture import joints
+from exo_bench.models.simulation.contact import joints
 
 
 #: The joints the objective prices (the arch is not an actuator: it holds the rigid foot).

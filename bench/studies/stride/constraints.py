@@ -1,7 +1,7 @@
 """The stride's constraints re-evaluated from a stored stride with numpy and the project's own models, and
 the half-stride join: how far each stored stride's loads jump where its halves meet (the report's section).
 
-Nothing of the optimiser is reused: the contact forces are :func:`exo_bench.models.simulation.posture.ground_reaction`'s,
+Nothing of the optimiser is reused: the contact forces are :func:`exo_bench.models.simulation.contact.ground_reaction`'s,
 the dynamics newton-euler's numpy inverse dynamics with ``f_ext`` (:mod:`exo_bench.models.runtime.external_forces`),
 the split :func:`exo_bench.bench.studies.stride.actuators.actuators`. So a wrong store or a wrong CasADi
 model shows up here.
@@ -28,11 +28,11 @@ from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, free_map, mir
 from exo_bench.bench.studies.stride.data import StoredStride, contact_forces, contact_of
 from exo_bench.models.mechanism.kinematics import point_mass_positions, point_mass_velocities
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.simulation.posture import balanced_standing, ground_reaction
+from exo_bench.models.simulation.contact import balanced_standing, ground_reaction
 from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.actuators import powers
-from exo_bench.models.files.encoders import markdown_text as md
+from exo_bench.models.files import markdown_text as md
 
 
 def _excess(x, lo, hi) -> float:

@@ -1,7 +1,7 @@
 """The stored stride: writing and reading it (``.npz`` + JSON metadata, no pickle), and what it holds.
 
 A stored stride is ``bench/studies/stride/data/<file_stem(mechanism)>-<variant>-v<speed in cm/s>.npz``
-(:func:`path_of`; the key is encoded by :func:`exo_bench.models.files.names.file_stem`, never used as a path):
+(:func:`path_of`; the key is encoded by :func:`exo_bench.models.files.file_stem`, never used as a path):
 one **full** stride of the 2D human (:func:`exo_bench.models.mechanism.presets.human`), from a right heel strike
 to the next, sampled at the collocation nodes. The optimiser solves half of it (right heel strike to
 left heel strike) with a left/right symmetry constraint; the second half stored here is the first
@@ -23,7 +23,7 @@ Arrays (``K`` nodes, ``dof = 20``; SI units; forces in world axes ``(x forward, 
   tolerance (nothing but the actuators and the floor moves the body);
 * ``contact (K, points, 2)`` N: the floor's force at each contact point named by
   ``meta["contact_names"]`` (right heel, right toe, left heel, left toe: the end masses of the heel
-  and foot rods), as :func:`exo_bench.models.simulation.posture.ground_reaction` computes it from ``q, qd``;
+  and foot rods), as :func:`exo_bench.models.simulation.contact.ground_reaction` computes it from ``q, qd``;
 * ``grf (K, 2, 2)`` N: the ground reaction per foot (``meta["feet"]``: right, left), heel plus toe.
 
 ``meta`` (JSON): ``variant`` ("human" or "exo"), ``speed`` (m/s), ``period`` (s), ``stride_length``
@@ -50,7 +50,7 @@ from exo_bench.bench.studies.step.data import read_stored
 from exo_bench.bench.studies.stride.passive import check_passive, check_spring
 from exo_bench.models.simulation.contact import DEFAULT_CONTACT, ContactParameters
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import file_stem
 from exo_bench.models.states.validation import _finite, _is_number
 
 DATA = Path(__file__).resolve().parent / "data"
@@ -175,8 +175,8 @@ def check_settings(s: Any, source: str = "stride", prefix: str = "") -> None:
 
 def contact_forces(mech: Mechanism, q: np.ndarray, qd: np.ndarray, params=None) -> np.ndarray:
     """``(K, 4, 2)``: the floor's force at each contact point of :data:`CONTACTS` from ``q, qd``
-    (:func:`exo_bench.models.simulation.posture.ground_reaction`, the default contact parameters unless given)."""
-    from exo_bench.models.simulation.posture import ground_reaction
+    (:func:`exo_bench.models.simulation.contact.ground_reaction`, the default contact parameters unless given)."""
+    from exo_bench.models.simulation.contact import ground_reaction
 
     f = ground_reaction(mech, np.atleast_2d(q), np.atleast_2d(qd), params or DEFAULT_CONTACT)
     return f[:, contact_mask_order(mech), 2, :]

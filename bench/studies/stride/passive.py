@@ -5,7 +5,7 @@ A joint's net moment ``M`` (what the model's inverse dynamics returns and Winter
 passive moment ``M_p(theta, theta_dot)`` plus the active one; the objective prices the active moment's
 work and effort (:mod:`~exo_bench.bench.studies.stride.transcription`). ``theta`` is the joint's angle as
 the moment's power counts it (the distal link's angle minus the proximal's,
-:func:`exo_bench.models.simulation.posture.joints`), so ``M_p theta_dot`` is the passive element's power.
+:func:`exo_bench.models.simulation.contact.joints`), so ``M_p theta_dot`` is the passive element's power.
 
 Two elements (:class:`~exo_bench.bench.studies.stride.problem.StrideSettings`):
 

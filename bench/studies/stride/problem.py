@@ -78,7 +78,7 @@ from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.coordinates import FreeMap, free_map, full_stride
 from exo_bench.models.mechanism.kinematics import point_mass_positions
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import check_name
+from exo_bench.models.files import check_name
 
 
 DEG = math.pi / 180
@@ -166,8 +166,8 @@ class StrideSettings:
 
 def settings_for(mech: Mechanism, variant: str, speed: float, **kw: Any) -> StrideSettings:
     """Settings of ``variant`` ("human" or "exo") at ``speed``: the rest lengths and the standing ankle
-    taken from :func:`exo_bench.models.simulation.posture.balanced_standing`."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    taken from :func:`exo_bench.models.simulation.contact.balanced_standing`."""
+    from exo_bench.models.simulation.contact import balanced_standing
 
     data.check_variant(variant)
     data.speed_key(speed)
@@ -205,7 +205,7 @@ def initial_guess(mech: Mechanism, fm: FreeMap, s: StrideSettings, T: float):
     """A walk on flat feet: the hips at constant speed 3 cm below standing height, the right foot flat
     where its heel touched at t = 0, the left foot flat behind for the first fifth, then swung on a 5 cm
     arch to land a half stride ahead; legs by two-link inverse kinematics, trunk upright. ``(t, z, zd, zdd)``."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     N = s.intervals
     t = np.linspace(0.0, T, N + 1)
@@ -239,7 +239,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
     import casadi as ca
 
     from exo_bench.bench.studies.stride import transcription
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     fm = free_map(mech, balanced_standing(mech))
     nlp, node, rows = transcription.build(mech, fm, s)
@@ -301,7 +301,7 @@ def solve(mech: Mechanism, s: StrideSettings, start=None, verbose: bool = False)
 
 def half_of(stride: data.StoredStride, mech: Mechanism):
     """``(T, z, zd, zdd)`` of the solved half of a stored stride (a start for :func:`solve`)."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     fm = free_map(mech, balanced_standing(mech))
     N = (len(stride.t) - 1) // 2
@@ -338,7 +338,7 @@ def solve_from(
     problem as set. The stored human stride at 1.41 m/s is solved so from the one at 1.0 m/s: from the
     initial guess the stages found an optimum of objective 0.442 (the right foot touching down again in
     late swing, stance 48 %), from the 1.0 m/s stride one of 0.305 (stance 56 %)."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     from exo_bench.bench.studies.stride.coordinates import TELESCOPIC
 
@@ -396,7 +396,7 @@ def assemble(mech, fm, s, node, rows, t, z, zd, zdd, stats: dict) -> data.Stored
 def trial_folder(name: str, root: Path | None = None) -> Path:
     """The folder of trial ``name`` (a checked name, never a path)."""
     check_name(name, "trial")
-    from exo_bench.models.files.names import file_stem
+    from exo_bench.models.files import file_stem
 
     return Path(data.DATA / "trials" if root is None else root) / file_stem(name)
 

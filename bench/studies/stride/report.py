@@ -2,7 +2,7 @@
 actuator-sizing table of every stored stride.
 
 Every name and computed sentence reaching Markdown goes through the Markdown encoder
-(:func:`exo_bench.models.files.encoders.markdown_text`); numbers are formatted here. The verdicts' evidence is
+(:func:`exo_bench.models.files.markdown_text`); numbers are formatted here. The verdicts' evidence is
 the numbers :func:`exo_bench.bench.studies.stride.comparison.verdicts` computed, never a typed-in reason.
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 from exo_bench.bench.studies.stride import comparison as cmp
 from exo_bench.bench.studies.stride import data
 from exo_bench.bench.studies.stride.actuators import Sizing, sizing
-from exo_bench.models.files.encoders import markdown_text as md
+from exo_bench.models.files import markdown_text as md
 from exo_bench.models.mechanism.mechanism import Mechanism
 from exo_bench.models.gait.normative import SOURCE
 

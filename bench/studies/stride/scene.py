@@ -28,7 +28,7 @@ from matplotlib.lines import Line2D
 
 from exo_bench.bench.studies.stride import data
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.files.names import file_stem
+from exo_bench.models.files import file_stem
 from exo_bench.bench.output.figures.palette import TEXT_PT, TITLE_PT, link_color
 from exo_bench.bench.studies.stride.comparison import Comparison
 from exo_bench.bench.studies.stride.cycle import BINS

@@ -6,7 +6,7 @@ at the ``N + 1`` nodes of the half stride, and its duration ``T``; ``h = T / N``
 **At every node** (:func:`node_function`, one SX function of ``(q, qd, qdd)``):
 
 * the floor's forces at the heels and toes from their positions and velocities (the smooth contact of
-  :func:`exo_bench.models.simulation.contact_casadi.contact_force_expr`: no mode schedule; which points carry the
+  :func:`exo_bench.models.simulation.contact.contact_force_expr`: no mode schedule; which points carry the
   body emerges), their generalised forces ``Q = J_c^T f_c`` (``J_c`` by CasADi's AD of the contact
   points' positions), and the actuators' generalised forces ``tau = ID(q, qd, qdd) - Q`` with ``ID``
   the equations' CasADi export (:func:`exo_bench.bench.studies.step.transcription.inverse_dynamics_function`);
@@ -69,9 +69,9 @@ from exo_bench.bench.studies.stride.actuators import PRICED_JOINTS, actuators, j
 from exo_bench.bench.studies.stride.coordinates import TELESCOPIC, FreeMap, mirror_matrix
 from exo_bench.bench.studies.stride.data import contact_mask_order, contact_of
 from exo_bench.bench.studies.stride.passive import passive_moment
-from exo_bench.models.simulation.contact_casadi import contact_force_expr
+from exo_bench.models.simulation.contact import contact_force_expr
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.simulation.posture import joints
+from exo_bench.models.simulation.contact import joints
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def node_function(mech: Mechanism, s: Any) -> tuple[ca.Function, Rows]:
 def _active_moments(mech: Mechanism, s: Any, q: Any, moments: Any, priced: list[int]) -> list:
     """The priced joints' active moments: each net moment less its passive element's
     (:func:`~exo_bench.bench.studies.stride.passive.passive_moment`, about the standing posture)."""
-    from exo_bench.models.simulation.posture import balanced_standing
+    from exo_bench.models.simulation.contact import balanced_standing
 
     q0 = balanced_standing(mech, s.stature)[0]
     js = joints(mech)

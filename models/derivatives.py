@@ -1,4 +1,9 @@
-"""Derivatives of the equations of motion for a prepared model of any method, batch-first, analytic.
+"""The derivatives of every prepared model's equations of motion (``model.derivatives``): the Jacobians of
+inverse and forward dynamics and their directional products, computed for every method by the analytic
+Newton-Euler passes (:mod:`exo_bench.models.newton_euler`), with their checks and memory estimate. Above the
+method it computes with; CasADi's derivatives of the matrix method stay in ``exo_bench.matrix_method``.
+
+Derivatives of the equations of motion for a prepared model of any method, batch-first, analytic.
 
 ``model.derivatives`` (:attr:`exo_bench.models.runtime.prepared.PreparedModel.derivatives`) is a :class:`Derivatives`:
 
@@ -8,14 +13,14 @@
 * :meth:`Derivatives.forward_dynamics` ``(q, qd, tau) -> (qdd, dqdd_dq, dqdd_dqd, Minv)``: the
   implicit-function theorem on ``ID(q, qd, qdd) = tau`` at ``qdd = FD(q, qd, tau)``: ``dqdd/dq = -M^-1
   dID/dq``, ``dqdd/dqd = -M^-1 dID/dqd``, ``dqdd/dtau = M^-1``, with ``M^-1`` as ``dof`` columns of the
-  O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.inverse_mass`, ``M^-1 = J^-1 (mu^-1 (x) I)
+  O(n) forward dynamics (:mod:`exo_bench.models.newton_euler.forward_jacobians`, ``M^-1 = J^-1 (mu^-1 (x) I)
   J^-T``) and ``M^-1 dID`` from it and the per-rod columns
   (:mod:`exo_bench.models.newton_euler.forward_jacobians`): O(n^2) time and memory, the size of the
   output, and no dense LU;
 * the directional derivatives, O(n) per sample, for users who need no full Jacobian
   (:mod:`exo_bench.models.newton_euler.products`, compiled across SIMD lanes in
   :mod:`exo_bench.models.newton_euler.products_simd` and per sample in
-  :mod:`exo_bench.models.newton_euler.products_compiled`; the option ``products`` and
+  :mod:`exo_bench.models.newton_euler.products`; the option ``products`` and
   :attr:`Derivatives.products_kernel` say which runs): :meth:`Derivatives.inverse_dynamics_jvp` ``(q,
   qd, qdd, dq, dqd, dqdd) -> dtau``, :meth:`Derivatives.inverse_dynamics_vjp` ``(q, qd, qdd, w) -> (w^T dtau/dq,
   w^T dtau/dqd, w^T M)``, and the same of forward dynamics (:meth:`Derivatives.forward_dynamics_jvp`,
@@ -61,7 +66,7 @@ from exo_bench.models.runtime.conditioning import (
     coupling_reason,
 )
 from exo_bench.models.mechanism.mechanism import Mechanism
-from exo_bench.models.runtime.result_pool import ResultPool
+from exo_bench.models.runtime.prepared import ResultPool
 from exo_bench.models.mechanism.singularity import SingularConfigurationError, mechanism_reasons, singular_reasons
 from exo_bench.models.states.states import checked_states, coordinate_names
 
@@ -72,7 +77,7 @@ _F8 = np.dtype(np.float64)
 SOURCE = (
     "analytic O(n) derivatives of the Newton-Euler passes (models/newton_euler/derivatives.py); "
     "forward dynamics by the implicit-function theorem, M^-1 applied column by column by the O(n) "
-    "forward dynamics (models/newton_euler/inverse_mass.py), no dense LU"
+    "forward dynamics (models/newton_euler/forward_jacobians.py), no dense LU"
 )
 #: Bytes per sample beyond the Jacobians: the states, ``qdd`` and the per-rod columns (``(n, dim, dim)``
 #: each, four of them, under 8 dof), in float64 entries per coordinate.
@@ -83,7 +88,7 @@ REFERENCE = {"numba": False, "numpy": True}
 #: The option ``products``: the kernel of the directional derivatives (:attr:`Derivatives.products_kernel`),
 #: each the name of the method that runs it (a table: no branch on a kernel's name): ``"simd"``
 #: (:mod:`exo_bench.models.newton_euler.products_simd`, blocks of samples across SIMD lanes), ``"numba"``
-#: (:mod:`exo_bench.models.newton_euler.products_compiled`, per sample), ``"numpy"`` (the reference), or
+#: (:mod:`exo_bench.models.newton_euler.products`, per sample), ``"numpy"`` (the reference), or
 #: ``"auto"`` (:data:`AUTO`).
 PRODUCT_KERNELS = {"auto": "", "simd": "_simd_products", "numba": "_compiled_products", "numpy": "_reference_products"}
 #: ``products="auto"``: mechanisms of at least this many links run the per-sample products kernel. The SIMD
@@ -117,7 +122,7 @@ def derivative_bytes(dof: int, samples: int, jacobians: int = 3, kernel: str = "
     """Estimated peak bytes of one derivative call: ``jacobians`` ``(samples, dof, dof)`` float64 arrays
     (the output), the inverse-dynamics Jacobians a forward call solves in place, O(n) per sample
     (:data:`PER_COORDINATE`), and with the numpy kernel the columns as samples (``(samples, dof, dof)``
-    twice more: :func:`exo_bench.models.newton_euler.inverse_mass.numpy_columns`)."""
+    twice more: :func:`exo_bench.models.newton_euler.forward_jacobians.numpy_columns`)."""
     square = float(samples) * dof * dof * 8.0
     extra = 3 * square if REFERENCE[kernel] and jacobians else 0.0  # the products solve no columns
     return jacobians * square + extra + float(samples) * dof * PER_COORDINATE * 8.0
@@ -200,7 +205,7 @@ class Derivatives:
         #: bytes per sample of a call with and without full Jacobians (:func:`derivative_bytes`): the edge
         #: asks for the memory only above :data:`exo_bench.models.machine.memory.CHUNK_BYTES`
         self._bytes = {j: derivative_bytes(d, 1, j, self.kernel) for j in (0, 3)}
-        #: new batched results, recycled once dropped (models/runtime/result_pool.py): the four of two forward
+        #: new batched results, recycled once dropped (models/runtime/prepared.py): the four of two forward
         #: calls (a loop holds the previous ones during the next call), from the size the inverse
         #: derivatives recycle (:data:`exo_bench.models.newton_euler.derivatives.RECYCLE_MIN_BYTES`)
         self._results = ResultPool(keep=8, min_bytes=RECYCLE_MIN_BYTES)
@@ -257,10 +262,10 @@ class Derivatives:
 
     def _solve(self, q: np.ndarray, B: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """``M(q)^-1 B`` for ``B (S, dof, k)``, into ``out`` (which may be ``B``) or a new array."""
-        from exo_bench.models.newton_euler import inverse_mass
+        from exo_bench.models.newton_euler import forward_jacobians
 
         if self.reference:
-            X = inverse_mass.numpy_columns(self.tree, self.mechanism.dim, q, B)
+            X = forward_jacobians.numpy_columns(self.tree, self.mechanism.dim, q, B)
             if out is None:
                 return X
             out[...] = X
@@ -269,7 +274,7 @@ class Derivatives:
 
         o = np.empty(B.shape) if out is None else out
         args = (self.table, self.mechanism.dim, q, np.ascontiguousarray(B), o)
-        run(inverse_mass.columns, inverse_mass.columns_parallel, args, q.shape[0])
+        run(forward_jacobians.columns, forward_jacobians.columns_parallel, args, q.shape[0])
         return o
 
     def _forward_jacobians(
@@ -350,8 +355,8 @@ class Derivatives:
         return functools.partial(getattr(products_simd, which), self.table, dim, g, scratch=self.products_scratch)
 
     def _compiled_products(self, which: str, reference: bool = False):
-        """Per sample, compiled (:mod:`exo_bench.models.newton_euler.products_compiled`), or its numpy reference."""
-        from exo_bench.models.newton_euler import products_compiled as pc
+        """Per sample, compiled (:mod:`exo_bench.models.newton_euler.products`), or its numpy reference."""
+        from exo_bench.models.newton_euler import products as pc
 
         m = self.mechanism
         return functools.partial(getattr(pc, which), self.tree, self.table, m.dim, float(m.g), reference=reference)
@@ -542,8 +547,8 @@ class Derivatives:
     def _resolve_one(self) -> tuple:
         """The compiled per-sample entry of :meth:`inverse_dynamics`
         (:func:`exo_bench.models.newton_euler.derivatives_simd.checked_one`, its entry point for plain arrays
-        resolved once: :func:`exo_bench.models.runtime.kernels.entry_point`) and its fixed arguments."""
-        from exo_bench.models.runtime.kernels import entry_point
+        resolved once: :func:`exo_bench.models.runtime.prepared.entry_point`) and its fixed arguments."""
+        from exo_bench.models.runtime.prepared import entry_point
         from exo_bench.models.newton_euler import derivatives_simd as ds
 
         ids = self.inverse_derivatives
@@ -603,7 +608,7 @@ class Derivatives:
 
         With ``check`` (the default) the states are validated and they answer or refuse exactly as
         ``forward_dynamics`` does: a singular mass matrix raises
-        :class:`exo_bench.models.simulation.forward_dynamics.SingularConfigurationError` naming the link, one beyond
+        :class:`exo_bench.models.mechanism.singularity.SingularConfigurationError` naming the link, one beyond
         the conditioning bound :class:`exo_bench.models.runtime.conditioning.NumericallySingularError` (the test
         every method shares), and an answer that is not finite is refused, never returned. Without
         ``check`` only the arrays are checked, and the mechanism itself: a link that moves no mass
