@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point, lean_kernel
 
 #: The calls a kernel of inverse dynamics alone serves where mass matrix and bias forces are derived
 #: from it (matrix-factored, :func:`exo_bench.models.runtime.prepared.terms_from_inverse_dynamics`).
@@ -181,16 +181,10 @@ MATRIX_FACTORED_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_simd,
     ),
-    Kernel(
-        "lean",
-        "numba",
-        ("inverse_dynamics",),
-        (ONE_SAMPLE,),
-        "one thread: the calling one",
+    lean_kernel(
         "below MATRIX_FACTORED's call_seconds: one sample's checks and arithmetic in one compiled call (the "
         "per-sample kernel of numba_kernels.factored behind numba_kernels.lean's entry)",
         compile_seconds=4.0,
-        runtime_bytes=NUMBA_BYTES,
         load=_lean,
     ),
     Kernel(

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point
+from exo_bench.models.runtime.prepared import BATCH, NUMBA_BYTES, ONE_SAMPLE, Entries, Kernel, entry_point, lean_kernel
 
 _CALLS = ("inverse_dynamics", "forward_dynamics", "bias_forces", "mass_matrix_and_bias")
 
@@ -175,17 +175,11 @@ NEWTON_EULER_KERNELS = (
         runtime_bytes=NUMBA_BYTES,
         load=_simd,
     ),
-    Kernel(
-        "lean",
-        "numba",
-        ("inverse_dynamics",),
-        (ONE_SAMPLE,),
-        "one thread: the calling one",
+    lean_kernel(
         "below NEWTON_EULER's call_seconds: one sample's checks and passes in one compiled call (the "
         "per-sample inverse pass of compiled.py behind models/newton_euler/compiled.py's entry)",
         speed=0.12,
         compile_seconds=15.0,
-        runtime_bytes=NUMBA_BYTES,
         load=_lean,
     ),
     Kernel(

@@ -189,6 +189,23 @@ class Kernel:
         return self.compile_seconds is not None
 
 
+def lean_kernel(cost: str, compile_seconds: float, load: Callable[[Any], Entries], speed: float = 1.0) -> Kernel:
+    """The kernel object of a one-sample compiled entry: inverse dynamics of one sample in the calling thread,
+    option ``numba``, its entry ``inverse_fast`` bound by ``load``; ``cost`` says against which cost formula."""
+    return Kernel(
+        "lean",
+        "numba",
+        ("inverse_dynamics",),
+        (ONE_SAMPLE,),
+        "one thread: the calling one",
+        cost,
+        speed=speed,
+        compile_seconds=compile_seconds,
+        runtime_bytes=NUMBA_BYTES,
+        load=load,
+    )
+
+
 def kernel_options(kernels: tuple[Kernel, ...]) -> tuple[str, ...]:
     """The values of the option ``kernel`` of a method with these kernels, the default first."""
     return tuple(dict.fromkeys(k.option for k in kernels))
