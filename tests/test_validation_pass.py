@@ -251,7 +251,7 @@ def test_the_numpy_reference_runs_under_numba_disable_jit(tmp_path):
     code = (
         "import numpy as np\n"
         "from exo_bench.models.mechanism.presets import exo5\n"
-        "from exo_bench.models.mechanism.mechanism import as_states\n"
+        "from exo_bench.models.states.states import as_states\n"
         "m = exo5(3); q = np.full((50, m.dof), 0.3); as_states(m, q, q, q)\n"
         "q[7, 13] = -2.0\n"
         "try:\n    as_states(m, q, q, q)\nexcept ValueError as e:\n    print(e)\n"
