@@ -118,10 +118,10 @@ def _lean(model: Any) -> Entries:
     from exo_bench.models.newton_euler import compiled
     from exo_bench.models.states.states import validation_plan
 
-    compiled = compiled.entry(model.table)
-    if compiled is None:  # NUMBA_DISABLE_JIT
+    fast = compiled.entry(model.table)
+    if fast is None:  # NUMBA_DISABLE_JIT
         return Entries()
-    return Entries(inverse_fast=partial(compiled, model.table, float(model._g), validation_plan(model.mechanism)))
+    return Entries(inverse_fast=partial(fast, model.table, float(model._g), validation_plan(model.mechanism)))
 
 
 def _numpy(model: Any) -> Entries:
